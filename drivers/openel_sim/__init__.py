@@ -1,0 +1,1 @@
+"""Simulated OpenEL devices (placeholder until the core lands)."""

@@ -1,0 +1,1 @@
+"""openel-async."""
