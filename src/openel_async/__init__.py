@@ -1,1 +1,98 @@
-"""openel-async."""
+"""openel-async: the OpenEL 3.2 / HAL4RT hardware abstraction on anyio.
+
+Components are async objects: ``await actuator.set_value(...)`` returns once the
+device accepted the target, and reaching it is posted as event 1 (COMPLETED).
+"""
+
+from .actuator import Actuator, CompletionPolicy
+from .clock import Clock, MonotonicClock, VirtualClock, default_clock
+from .completion import Motion, Outcome
+from .component import ComponentState, HALComponent
+from .device import (
+    ActuatorDevice,
+    ActuatorLimits,
+    Device,
+    DeviceContext,
+    DeviceInfo,
+    ErrorId,
+    Reading,
+    SensorDevice,
+)
+from .errors import (
+    BadParameterError,
+    DeviceFaultError,
+    HALError,
+    MotionCancelledError,
+    NotConnectedError,
+    NotImplementedHALError,
+    NullParameterError,
+    OutOfMemoryError,
+    ReturnCode,
+    StateError,
+    SupersededError,
+)
+from .ids import DeviceKind, HALId, Property, component_name
+from .observers import (
+    ErrorNotice,
+    EventNotice,
+    HALObserver,
+    Notice,
+    ObserverQueue,
+    TimerObserver,
+    TimerTick,
+)
+from .registry import DriverInfo
+from .requests import EventId, Request
+from .sensor import Sensor, TimedValue
+from .timer import EventTimer, TimerState, TimerStats
+
+__all__ = [
+    "Actuator",
+    "ActuatorDevice",
+    "ActuatorLimits",
+    "BadParameterError",
+    "Clock",
+    "CompletionPolicy",
+    "ComponentState",
+    "Device",
+    "DeviceContext",
+    "DeviceFaultError",
+    "DeviceInfo",
+    "DeviceKind",
+    "DriverInfo",
+    "ErrorId",
+    "ErrorNotice",
+    "EventId",
+    "EventNotice",
+    "EventTimer",
+    "HALComponent",
+    "HALError",
+    "HALId",
+    "HALObserver",
+    "MonotonicClock",
+    "Motion",
+    "MotionCancelledError",
+    "NotConnectedError",
+    "NotImplementedHALError",
+    "Notice",
+    "NullParameterError",
+    "ObserverQueue",
+    "OutOfMemoryError",
+    "Outcome",
+    "Property",
+    "Reading",
+    "Request",
+    "ReturnCode",
+    "Sensor",
+    "SensorDevice",
+    "StateError",
+    "SupersededError",
+    "TimedValue",
+    "TimerObserver",
+    "TimerState",
+    "TimerStats",
+    "TimerTick",
+    "VirtualClock",
+    "component_name",
+    "default_clock",
+]

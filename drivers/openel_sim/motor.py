@@ -1,0 +1,234 @@
+"""SimMotor: a simulated servo motor with trapezoidal position moves and limits.
+
+Position control follows a time-optimal trapezoid under the velocity and acceleration
+limits; velocity control ramps at the acceleration limit; torque control accelerates
+the rotor inertia until the velocity limit. Position limits are hard stops that post
+event 2 (LIMIT_REACHED). The motor reports COMPLETED itself, at the exact arrival time
+on the component's clock. Faults can be injected: disconnect, an error id, stuck.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+
+import anyio
+import structlog
+
+from openel_async.device import ActuatorDevice, ActuatorLimits, DeviceContext, DeviceInfo, ErrorId
+from openel_async.errors import BadParameterError, NotConnectedError, ReturnCode
+from openel_async.ids import DeviceKind
+from openel_async.requests import EventId, Request
+
+from . import profile as prof
+
+log = structlog.get_logger(__name__)
+
+TORQUE_RISE_NS = 2_000_000
+"""Current-loop response: the commanded torque is reached this long after the command."""
+
+
+class SimMotor(ActuatorDevice):
+    """A simulated one-axis servo; all quantities SI (rad, rad/s, rad/s^2, Nm, kg m^2)."""
+
+    info = DeviceInfo(
+        kind=DeviceKind.MOTOR,
+        vendor_id=0x0E1,
+        product_id=0x100,
+        vendor_name="OpenEL",
+        product_name="SimMotor",
+        functions=("inject_fault", "disconnect", "reconnect", "set_stuck"),
+    )
+    reports_completion = True
+
+    def __init__(
+        self,
+        *,
+        position_limits: tuple[float, float] = (-math.pi, math.pi),
+        max_velocity: float = 2.0,
+        max_acceleration: float = 10.0,
+        max_torque: float = 2.0,
+        inertia: float = 0.01,
+        initial_position: float = 0.0,
+        position_noise: float = 0.0,
+        seed: int = 0,
+    ) -> None:
+        for name, value in (
+            ("max_velocity", max_velocity),
+            ("max_acceleration", max_acceleration),
+            ("max_torque", max_torque),
+            ("inertia", inertia),
+        ):
+            if not (math.isfinite(value) and value > 0):
+                raise BadParameterError(name, value, "a finite value > 0")
+        low, high = position_limits
+        if not low <= initial_position <= high:
+            raise BadParameterError(
+                "initial_position", initial_position, f"a position in [{low}, {high}]"
+            )
+        self.limits = ActuatorLimits(position_limits, max_velocity, max_torque)
+        self.max_acceleration = max_acceleration
+        self.inertia = inertia
+        self.position_noise = position_noise
+        self._rng = random.Random(seed)
+        self._initial_position = initial_position
+        self._segments = prof.hold(0, initial_position)
+        self._request = Request.NO_EXCITE
+        self._torque_cmd = 0.0
+        self._torque_since = 0
+        self._arrival_ns: int | None = None
+        self._limit_ns: int | None = None
+        self._ctx: DeviceContext | None = None
+        self._sleep_scope: anyio.CancelScope | None = None
+        self.connected = True
+        self.stuck = False
+        self.commands = 0
+
+    # -- lifecycle -------------------------------------------------------------------
+    async def open(self, ctx: DeviceContext) -> None:
+        self._ctx = ctx
+        now = ctx.clock.now_ns()
+        self._segments = prof.hold(now, self._initial_position)
+        ctx.start_soon(self._watch)
+
+    async def init(self) -> None:
+        self._check_connected()
+
+    async def reset(self) -> None:
+        self._check_connected()
+        now = self._now()
+        p, _, _ = prof.evaluate(self._segments, now)
+        self._set_profile(prof.hold(now, p), Request.NO_EXCITE, arrival=False)
+
+    async def close(self) -> None:
+        if self._ctx is not None and self.connected:
+            now = self._now()
+            p, _, _ = prof.evaluate(self._segments, now)
+            self._segments = prof.hold(now, p)
+
+    # -- commands and readings -------------------------------------------------------
+    async def command(self, request: Request, value: float) -> None:
+        self._check_connected()
+        self.commands += 1
+        now = self._now()
+        p, v, _ = prof.evaluate(self._segments, now)
+        vmax, amax = self.limits.velocity, self.max_acceleration
+        if self.stuck:
+            segments = prof.hold(now, p)
+        elif request is Request.POSITION:
+            segments = prof.trapezoid(now, p, v, value, vmax, amax)
+        elif request is Request.VELOCITY:
+            segments = prof.ramp(now, p, v, value, amax)
+        elif request is Request.TORQUE:
+            segments = prof.accelerate(now, p, v, value / self.inertia, vmax)
+            self._torque_cmd, self._torque_since = value, now
+        else:  # NO_EXCITE: the rotor coasts to rest under friction
+            segments = prof.ramp(now, p, v, 0.0, amax / 4)
+        self._set_profile(segments, request, arrival=not self.stuck)
+
+    async def read(self, request: Request) -> float:
+        self._check_connected()
+        now = self._now()
+        p, v, _ = prof.evaluate(self._segments, now)
+        if request is Request.POSITION_ACTUAL:
+            return p + (self._rng.gauss(0.0, self.position_noise) if self.position_noise else 0.0)
+        if request is Request.VELOCITY_ACTUAL:
+            return v
+        if request is Request.TORQUE_ACTUAL:
+            return self.torque_at(now)
+        raise BadParameterError(
+            "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
+        )
+
+    def torque_at(self, t_ns: int) -> float:
+        _, _, a = prof.evaluate(self._segments, t_ns)
+        if self._request is Request.TORQUE:
+            rise = min(1.0, (t_ns - self._torque_since) / TORQUE_RISE_NS)
+            return self._torque_cmd * rise if a else 0.0
+        return self.inertia * a
+
+    def state_at(self, t_ns: int) -> tuple[float, float, float]:
+        """(position, velocity, acceleration) at a clock time; for sensors attached to it."""
+        return prof.evaluate(self._segments, t_ns)
+
+    # -- fault injection -------------------------------------------------------------
+    def inject_fault(
+        self, error_id: int = ErrorId.DEVICE_ERROR, reason: str = "injected fault"
+    ) -> None:
+        """The drive trips: it holds position and the component goes to Error."""
+        now = self._now()
+        p, _, _ = prof.evaluate(self._segments, now)
+        self._set_profile(prof.hold(now, p), Request.NO_EXCITE, arrival=False)
+        assert self._ctx is not None
+        self._ctx.fault(error_id, reason)
+
+    def disconnect(self) -> None:
+        """The link drops: every call raises NotConnectedError until reconnect()."""
+        self.connected = False
+        if self._ctx is not None:
+            self._ctx.fault(
+                ErrorId.DISCONNECTED, "device disconnected", ReturnCode.HAL_NO_CONNECTED
+            )
+
+    def reconnect(self) -> None:
+        self.connected = True
+
+    def set_stuck(self, stuck: bool = True) -> None:
+        """A jammed rotor: it stops where it is and never reaches a target."""
+        self.stuck = stuck
+        if stuck:
+            now = self._now()
+            p, _, _ = prof.evaluate(self._segments, now)
+            self._set_profile(prof.hold(now, p), self._request, arrival=False)
+
+    # -- internals -------------------------------------------------------------------
+    def _now(self) -> int:
+        return self._ctx.clock.now_ns() if self._ctx is not None else 0
+
+    def _check_connected(self) -> None:
+        if not self.connected:
+            raise NotConnectedError("simulated motor is disconnected")
+
+    def _set_profile(
+        self, segments: list[prof.Segment], request: Request, *, arrival: bool
+    ) -> None:
+        low, high = self.limits.position
+        segments, limit_ns = prof.clip_to_limits(segments, low, high)
+        self._segments = segments
+        self._request = request
+        self._limit_ns = limit_ns
+        if not arrival:
+            self._arrival_ns = None
+        elif request is Request.TORQUE:
+            self._arrival_ns = self._now() + TORQUE_RISE_NS
+        elif request is Request.NO_EXCITE:
+            self._arrival_ns = None
+        elif limit_ns is not None and request is Request.VELOCITY:
+            self._arrival_ns = None  # stopped by the limit: the velocity is never reached
+        else:
+            self._arrival_ns = prof.end_time(segments)
+        if self._sleep_scope is not None:
+            self._sleep_scope.cancel()
+
+    async def _watch(self) -> None:
+        """Post COMPLETED at the arrival time and LIMIT_REACHED at a limit stop."""
+        assert self._ctx is not None
+        ctx = self._ctx
+        while True:
+            due = [t for t in (self._arrival_ns, self._limit_ns) if t is not None]
+            with anyio.CancelScope() as scope:
+                self._sleep_scope = scope  # a new profile cancels the wait to re-plan
+                if due:
+                    await ctx.clock.sleep_until(min(due))
+                else:
+                    await anyio.sleep_forever()
+            self._sleep_scope = None
+            if scope.cancel_called:
+                continue
+            now = ctx.clock.now_ns()
+            if self._limit_ns is not None and self._limit_ns <= now:
+                self._limit_ns = None
+                ctx.post_event(EventId.LIMIT_REACHED)
+            if self._arrival_ns is not None and self._arrival_ns <= now:
+                self._arrival_ns = None
+                ctx.target_reached()

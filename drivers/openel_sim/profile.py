@@ -1,0 +1,169 @@
+"""Piecewise constant-acceleration motion profiles, evaluated in closed form.
+
+A simulated motor's state is a list of segments; evaluating position, velocity and
+acceleration at any time is O(segments) with no integration error, so simulated
+time can leap (virtual clock) without losing accuracy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+NS = 1e-9
+
+
+@dataclass(frozen=True, slots=True)
+class Segment:
+    start_ns: int
+    p0: float
+    v0: float
+    a: float
+    end_ns: int | None
+    """None: the segment lasts forever."""
+
+    def at(self, t_ns: int) -> tuple[float, float, float]:
+        dt = (t_ns - self.start_ns) * NS
+        return self.p0 + self.v0 * dt + 0.5 * self.a * dt * dt, self.v0 + self.a * dt, self.a
+
+    def end_state(self) -> tuple[float, float]:
+        assert self.end_ns is not None
+        p, v, _ = self.at(self.end_ns)
+        return p, v
+
+
+def hold(start_ns: int, position: float) -> list[Segment]:
+    return [Segment(start_ns, position, 0.0, 0.0, None)]
+
+
+def _chain(start_ns: int, p: float, v: float, phases: list[tuple[float, float]]) -> list[Segment]:
+    """Segments from (p, v) through phases of (acceleration, duration in s); then hold/cruise."""
+    segments: list[Segment] = []
+    t = start_ns
+    for a, duration in phases:
+        if duration <= 0:
+            continue
+        end = t + max(1, round(duration / NS))
+        seg = Segment(t, p, v, a, end)
+        segments.append(seg)
+        p, v = seg.end_state()
+        t = end
+    return segments
+
+
+def trapezoid(
+    start_ns: int, p0: float, v0: float, target: float, vmax: float, amax: float
+) -> list[Segment]:
+    """Time-optimal move to ``target`` at rest under |v| <= vmax, |a| <= amax."""
+    d = target - p0
+    if abs(d) < 1e-12 and abs(v0) < 1e-12:
+        return hold(start_ns, target)
+    # Direction: toward the target from where braking now would stop us.
+    stop = p0 + v0 * abs(v0) / (2 * amax)
+    s = 1.0 if target >= stop else -1.0
+    v0 = max(-vmax, min(vmax, v0))
+    peak_sq = amax * s * d + v0 * v0 / 2
+    peak = s * math.sqrt(max(0.0, peak_sq))
+    cruise = 0.0
+    if abs(peak) > vmax:
+        peak = s * vmax
+        d1 = (peak * peak - v0 * v0) / (2 * s * amax)
+        d3 = s * peak * peak / (2 * amax)
+        cruise = (d - d1 - d3) / peak
+    phases = [
+        (s * amax, (peak - v0) / (s * amax)),
+        (0.0, cruise),
+        (-s * amax, abs(peak) / amax),
+    ]
+    segments = _chain(start_ns, p0, v0, phases)
+    end = segments[-1].end_ns if segments else start_ns
+    assert end is not None
+    # Close the float error of the closed form: the profile ends exactly at the target.
+    return [*segments, Segment(end, target, 0.0, 0.0, None)]
+
+
+def ramp(start_ns: int, p0: float, v0: float, v1: float, amax: float) -> list[Segment]:
+    """Reach velocity ``v1`` at |a| = amax, then cruise."""
+    dv = v1 - v0
+    segments = _chain(start_ns, p0, v0, [(math.copysign(amax, dv), abs(dv) / amax)]) if dv else []
+    if segments:
+        p, _ = segments[-1].end_state()
+        end = segments[-1].end_ns
+        assert end is not None
+        return [*segments, Segment(end, p, v1, 0.0, None)]
+    return [Segment(start_ns, p0, v1, 0.0, None)]
+
+
+def accelerate(start_ns: int, p0: float, v0: float, a: float, vmax: float) -> list[Segment]:
+    """Constant acceleration ``a`` until |v| = vmax, then cruise (a torque-limited drive)."""
+    if a == 0:
+        return [Segment(start_ns, p0, v0, 0.0, None)]
+    v_end = math.copysign(vmax, a)
+    duration = (v_end - v0) / a
+    if duration <= 0:
+        return [Segment(start_ns, p0, v_end, 0.0, None)]
+    return ramp(start_ns, p0, v0, v_end, abs(a))
+
+
+def evaluate(segments: list[Segment], t_ns: int) -> tuple[float, float, float]:
+    """Position, velocity and acceleration at ``t_ns`` (clamped to the first segment)."""
+    for seg in segments:
+        if seg.end_ns is None or t_ns < seg.end_ns:
+            return seg.at(max(t_ns, seg.start_ns))
+    last = segments[-1]
+    return last.at(t_ns)
+
+
+def end_time(segments: list[Segment]) -> int:
+    """When the last finite segment ends (the profile's arrival time)."""
+    finite = [s.end_ns for s in segments if s.end_ns is not None]
+    return max(finite) if finite else segments[0].start_ns
+
+
+def clip_to_limits(
+    segments: list[Segment], low: float, high: float
+) -> tuple[list[Segment], int | None]:
+    """Stop the profile where it first leaves [low, high]; returns the stop time too."""
+    out: list[Segment] = []
+    for seg in segments:
+        hit = _first_crossing(seg, low, high)
+        if hit is None:
+            out.append(seg)
+            continue
+        t_hit, limit = hit
+        if t_hit > seg.start_ns:
+            out.append(Segment(seg.start_ns, seg.p0, seg.v0, seg.a, t_hit))
+        out.append(Segment(t_hit, limit, 0.0, 0.0, None))
+        return out, t_hit
+    return out, None
+
+
+def _first_crossing(seg: Segment, low: float, high: float) -> tuple[int, float] | None:
+    best: tuple[float, float] | None = None
+    span = None if seg.end_ns is None else (seg.end_ns - seg.start_ns) * NS
+    for limit in (low, high):
+        if not math.isfinite(limit):
+            continue
+        # p0 + v0 t + a t^2 / 2 = limit, earliest t in (0, span]
+        a, b, c = 0.5 * seg.a, seg.v0, seg.p0 - limit
+        roots: list[float] = []
+        if abs(a) < 1e-15:
+            if abs(b) > 1e-15:
+                roots = [-c / b]
+        else:
+            disc = b * b - 4 * a * c
+            if disc >= 0:
+                sq = math.sqrt(disc)
+                roots = [(-b - sq) / (2 * a), (-b + sq) / (2 * a)]
+        for t in roots:
+            moving_out = (seg.v0 + seg.a * t) * (1 if limit == high else -1) > 0
+            if (
+                t > 1e-12
+                and (span is None or t <= span)
+                and moving_out
+                and (best is None or t < best[0])
+            ):
+                best = (t, limit)
+    if best is None:
+        return None
+    return seg.start_ns + max(1, round(best[0] / NS)), best[1]

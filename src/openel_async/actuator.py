@@ -1,0 +1,214 @@
+"""Actuator: SetValue/GetValue of a one-degree-of-freedom actuator, with completion.
+
+``set_value`` returns as soon as the device accepted the target and gives back a
+:class:`Motion`. Reaching the target posts event 1 (COMPLETED) to the observers,
+exactly once and only for the final target: a replaced target's Motion raises
+:class:`SupersededError` and posts nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import anyio
+
+from .completion import Motion
+from .component import LINK_FAULTS as _LINK_FAULTS
+from .component import ComponentState, HALComponent
+from .device import ActuatorDevice
+from .errors import (
+    BadParameterError,
+    DeviceFaultError,
+    HALError,
+    NotImplementedHALError,
+)
+from .ids import HALId
+from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, EventId, Request, coerce_request
+
+S = ComponentState
+
+
+@dataclass(frozen=True, slots=True)
+class CompletionPolicy:
+    """How the framework decides a target is reached for devices that cannot tell.
+
+    The actual value must stay within tolerance of the target for ``settle_ns``,
+    sampled every ``poll_ns`` on the component's clock.
+    """
+
+    position_tolerance: float = 1e-3
+    velocity_tolerance: float = 1e-2
+    torque_tolerance: float = 1e-2
+    settle_ns: int = 20_000_000
+    poll_ns: int = 5_000_000
+
+    def __post_init__(self) -> None:
+        for name in ("position_tolerance", "velocity_tolerance", "torque_tolerance"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise BadParameterError(name, value, "a finite value > 0")
+        if self.settle_ns < 0:
+            raise BadParameterError("settle_ns", self.settle_ns, "an int >= 0")
+        if self.poll_ns <= 0:
+            raise BadParameterError("poll_ns", self.poll_ns, "an int > 0")
+
+    def tolerance(self, request: Request) -> float:
+        if request is Request.POSITION:
+            return self.position_tolerance
+        if request is Request.VELOCITY:
+            return self.velocity_tolerance
+        return self.torque_tolerance
+
+
+def _finite(value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise BadParameterError("value", value, "a finite real number")
+    result = float(value)
+    if not math.isfinite(result):
+        raise BadParameterError("value", value, "a finite real number (not NaN or infinity)")
+    return result
+
+
+class Actuator(HALComponent):
+    """An OpenEL Actuator over an :class:`ActuatorDevice` driver."""
+
+    device: ActuatorDevice
+
+    def __init__(
+        self,
+        device: ActuatorDevice,
+        *,
+        hal_id: HALId | None = None,
+        device_name: str | None = None,
+        completion: CompletionPolicy | None = None,
+        **kwargs: object,
+    ) -> None:
+        super().__init__(device, hal_id=hal_id, device_name=device_name, **kwargs)  # type: ignore[arg-type]
+        self.completion = completion or CompletionPolicy()
+        self._sequence = 0
+        self._motion: Motion | None = None
+        self._commanded: dict[Request, float] = {
+            Request.POSITION: 0.0,
+            Request.VELOCITY: 0.0,
+            Request.TORQUE: 0.0,
+        }
+        self._lock = anyio.Lock(fast_acquire=True)
+        self._watch: anyio.Event = anyio.Event()
+        self.completed_count = 0
+
+    @property
+    def motion(self) -> Motion | None:
+        """The latest command's Motion."""
+        return self._motion
+
+    # -- SetValue ------------------------------------------------------------------
+    async def set_value(self, value: float, request: Request | int = Request.POSITION) -> Motion:
+        """SetValue: send a new target and return its Motion without waiting for arrival."""
+        self._require("set_value", S.ACTIVE)
+        req = coerce_request(request, SET_VALUE_REQUESTS)
+        target = _finite(value)
+        device = self.device
+        if req not in device.supported_requests:
+            raise NotImplementedHALError(f"{self.device_name} does not support {req.name} control")
+        device.limits.check(req, target)
+        async with self._lock:
+            self._require("set_value", S.ACTIVE)
+            try:
+                await device.command(req, target)
+            except _LINK_FAULTS as exc:
+                raise self._fault_from(exc) from exc
+            self._sequence += 1
+            motion = Motion(req, target, self._sequence, self.clock.now_ns())
+            previous, self._motion = self._motion, motion
+            if previous is not None:
+                previous._supersede(motion)
+            if req is not Request.NO_EXCITE:
+                self._commanded[req] = target
+            else:
+                self._commanded[Request.VELOCITY] = 0.0
+                self._commanded[Request.TORQUE] = 0.0
+            if req is Request.NO_EXCITE:
+                self._complete(motion)
+            elif not device.reports_completion:
+                self._watch.set()
+        return motion
+
+    # -- GetValue ------------------------------------------------------------------
+    async def get_value(self, request: Request | int = Request.POSITION_ACTUAL) -> float:
+        """GetValue: last commanded value (codes 1-3) or actual value (codes 5-7)."""
+        self._require("get_value", S.ACTIVE)
+        req = coerce_request(request, GET_VALUE_REQUESTS)
+        if req.is_command:
+            return self._commanded[req]
+        try:
+            return await self.device.read(req)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+
+    # -- completion ----------------------------------------------------------------
+    def _complete(self, motion: Motion) -> None:
+        if motion is self._motion and motion._reach(self.clock.now_ns()):
+            self.completed_count += 1
+            self._publish_event(EventId.COMPLETED)
+
+    def _on_target_reached(self) -> None:
+        motion = self._motion
+        if motion is not None and self.state is S.ACTIVE:
+            self._complete(motion)
+
+    async def _on_active(self) -> None:
+        try:
+            position = await self.device.read(Request.POSITION_ACTUAL)
+        except Exception:  # a device without a position reading starts at 0
+            position = 0.0
+        self._commanded = {Request.POSITION: position, Request.VELOCITY: 0.0, Request.TORQUE: 0.0}
+        if not self.device.reports_completion:
+            self._task_group().start_soon(self._detect_completion)
+
+    async def _detect_completion(self) -> None:
+        """Tolerance-and-settle detection for devices that do not report completion."""
+        policy = self.completion
+        clock = self.clock
+        while self.state is S.ACTIVE:
+            motion = self._motion
+            if motion is None or motion.done():
+                self._watch = anyio.Event()
+                await self._watch.wait()
+                continue
+            tolerance = policy.tolerance(motion.request)
+            within_since: int | None = None
+            next_poll = clock.now_ns()
+            while motion is self._motion and not motion.done() and self.state is S.ACTIVE:
+                try:
+                    actual = await self.device.read(motion.request.actual)
+                except _LINK_FAULTS as exc:
+                    self._fault_from(exc)
+                    return
+                except HALError as exc:
+                    self.log.warning("completion_read_failed", error=str(exc))
+                    actual = math.nan
+                now = clock.now_ns()
+                if abs(actual - motion.target) <= tolerance:
+                    within_since = now if within_since is None else within_since
+                    if now - within_since >= policy.settle_ns:
+                        self._complete(motion)
+                        break
+                else:
+                    within_since = None
+                next_poll += policy.poll_ns
+                await clock.sleep_until(max(next_poll, now))
+
+    def _on_fault(self, error: DeviceFaultError) -> None:
+        if self._motion is not None:
+            self._motion._fault(error)
+        self._watch.set()
+
+    def _before_reset(self) -> None:
+        if self._motion is not None:
+            self._motion._cancel("re_init reset the actuator")
+
+    def _before_close(self) -> None:
+        if self._motion is not None:
+            self._motion._cancel("the actuator was finalized")
+        self._watch.set()

@@ -1,0 +1,237 @@
+"""Clocks: every time-based part of the framework reads and waits through one.
+
+``MonotonicClock`` is the real clock (CLOCK_MONOTONIC in integer nanoseconds).
+``VirtualClock`` is deterministic simulated time for tests and lockstep simulation:
+with auto-jump running, time leaps to the next deadline whenever every task is
+waiting, so ten simulated seconds of a 1 kHz timer take a fraction of a wall second.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import heapq
+import itertools
+import time
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from typing import Protocol, runtime_checkable
+
+import anyio
+import anyio.abc
+
+from . import timerfd
+from .errors import BadParameterError
+
+NS_PER_S = 1_000_000_000
+NS_PER_MS = 1_000_000
+
+
+@runtime_checkable
+class Sleeper(Protocol):
+    """A reusable waiter for absolute deadlines (one per periodic loop)."""
+
+    async def sleep_until(self, deadline_ns: int) -> None: ...
+
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class Clock(Protocol):
+    """Time source of components, timers and simulations; integer nanoseconds."""
+
+    def now_ns(self) -> int: ...
+
+    async def sleep_until(self, deadline_ns: int) -> None: ...
+
+    def sleeper(self) -> Sleeper:
+        """A waiter suited to periodic absolute deadlines (a timerfd on Linux)."""
+        ...
+
+
+class _DeadlineSleeper:
+    """Portable fallback: an event-loop sleep for the remaining time."""
+
+    def __init__(self, clock: Clock) -> None:
+        self._clock = clock
+
+    async def sleep_until(self, deadline_ns: int) -> None:
+        await self._clock.sleep_until(deadline_ns)
+
+    def close(self) -> None:
+        pass
+
+
+class _TimerfdSleeper:
+    def __init__(self) -> None:
+        self._fd = timerfd.Timerfd()
+
+    async def sleep_until(self, deadline_ns: int) -> None:
+        if deadline_ns <= time.monotonic_ns():
+            await anyio.lowlevel.checkpoint()
+            return
+        await self._fd.wait_until(deadline_ns)
+
+    def close(self) -> None:
+        self._fd.close()
+
+
+class MonotonicClock:
+    """The real clock: CLOCK_MONOTONIC, with timerfd deadlines where available."""
+
+    def __init__(self, *, use_timerfd: bool = True) -> None:
+        self.use_timerfd = use_timerfd and timerfd.available()
+
+    def now_ns(self) -> int:
+        return time.monotonic_ns()
+
+    async def sleep_until(self, deadline_ns: int) -> None:
+        remaining = deadline_ns - time.monotonic_ns()
+        if remaining <= 0:
+            await anyio.lowlevel.checkpoint()
+        else:
+            await anyio.sleep(remaining / NS_PER_S)
+
+    def sleeper(self) -> Sleeper:
+        if self.use_timerfd:
+            try:
+                return _TimerfdSleeper()
+            except OSError:
+                pass
+        return _DeadlineSleeper(self)
+
+    def __repr__(self) -> str:
+        return f"MonotonicClock(use_timerfd={self.use_timerfd})"
+
+
+_DEFAULT_CLOCK = MonotonicClock()
+
+
+def default_clock() -> MonotonicClock:
+    """The process-wide real clock used where no clock is given."""
+    return _DEFAULT_CLOCK
+
+
+class VirtualClock:
+    """Deterministic simulated time.
+
+    Sleepers are woken strictly in deadline order (ties in arrival order). Time moves
+    only through :meth:`advance`/:meth:`advance_to` or, inside :meth:`autojump`,
+    whenever every other task of the event loop is waiting.
+    """
+
+    def __init__(self, start_ns: int = 0) -> None:
+        if start_ns < 0:
+            raise BadParameterError("start_ns", start_ns, "an int >= 0")
+        self._now = start_ns
+        self._heap: list[tuple[int, int, asyncio.Future[None]]] = []
+        self._seq = itertools.count()
+        self._new_sleeper: asyncio.Future[None] | None = None
+        self.jumps = 0
+
+    def now_ns(self) -> int:
+        return self._now
+
+    def sleeper(self) -> Sleeper:
+        return _DeadlineSleeper(self)
+
+    async def sleep_until(self, deadline_ns: int) -> None:
+        if deadline_ns <= self._now:
+            await anyio.lowlevel.checkpoint()
+            return
+        # Loop futures rather than anyio.Event: this is the clock's innermost hot path,
+        # and the clock is tied to the asyncio backend anyway (see _settle).
+        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        heapq.heappush(self._heap, (deadline_ns, next(self._seq), future))
+        waker = self._new_sleeper
+        if waker is not None and not waker.done():
+            waker.set_result(None)
+        try:
+            await future
+        except asyncio.CancelledError:
+            future.cancel()  # the driver skips cancelled entries
+            raise
+
+    async def sleep(self, seconds: float) -> None:
+        await self.sleep_until(self._now + round(seconds * NS_PER_S))
+
+    def next_deadline(self) -> int | None:
+        self._drop_cancelled()
+        return self._heap[0][0] if self._heap else None
+
+    async def advance(self, delta_ns: int) -> None:
+        """Move time forward by ``delta_ns``, waking every sleeper due on the way in order."""
+        if delta_ns < 0:
+            raise BadParameterError("delta_ns", delta_ns, "an int >= 0")
+        await self.advance_to(self._now + delta_ns)
+
+    async def advance_to(self, target_ns: int) -> None:
+        if target_ns < self._now:
+            raise BadParameterError("target_ns", target_ns, f"an int >= now ({self._now})")
+        await _settle()
+        while True:
+            deadline = self.next_deadline()
+            if deadline is None or deadline > target_ns:
+                break
+            self._wake_next()
+            await _settle()
+        self._now = target_ns
+
+    async def run_autojump(self) -> None:
+        """Drive time forever: whenever the loop is idle, jump to the next deadline."""
+        loop = asyncio.get_running_loop()
+        while True:
+            await _settle()
+            if self.next_deadline() is None:
+                self._new_sleeper = loop.create_future()
+                try:
+                    await self._new_sleeper
+                finally:
+                    self._new_sleeper = None
+                continue
+            self._wake_next()
+
+    @asynccontextmanager
+    async def autojump(self) -> AsyncIterator[VirtualClock]:
+        """Run :meth:`run_autojump` in the background for the duration of the block."""
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(self.run_autojump)
+            try:
+                yield self
+            finally:
+                tg.cancel_scope.cancel()
+
+    def _drop_cancelled(self) -> None:
+        heap = self._heap
+        while heap and heap[0][2].done():
+            heapq.heappop(heap)
+
+    def _wake_next(self) -> None:
+        """Set time to the earliest deadline and wake every sleeper due then."""
+        heap = self._heap
+        deadline = heap[0][0]
+        self._now = deadline
+        self.jumps += 1
+        while heap and heap[0][0] == deadline:
+            future = heapq.heappop(heap)[2]
+            if not future.done():
+                future.set_result(None)
+
+    def __repr__(self) -> str:
+        return f"VirtualClock(now_ns={self._now})"
+
+
+async def _settle() -> None:
+    """Yield until no other task is runnable: every task waits on time or I/O.
+
+    The ready queue of asyncio's loop tells when all woken tasks have run; where a
+    loop does not expose it, a bounded number of yields is the best approximation.
+    """
+    loop = asyncio.get_running_loop()
+    ready = getattr(loop, "_ready", None)
+    if ready is None:
+        for _ in range(64):
+            await asyncio.sleep(0)
+        return
+    await asyncio.sleep(0)
+    while ready:  # noqa: ASYNC110 - polling the ready queue is the point
+        await asyncio.sleep(0)

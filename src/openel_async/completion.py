@@ -1,0 +1,96 @@
+"""Motion: the awaitable outcome of one Actuator.set_value command."""
+
+from __future__ import annotations
+
+from collections.abc import Generator
+from enum import Enum
+from typing import Any
+
+import anyio
+
+from .errors import DeviceFaultError, HALError, MotionCancelledError, SupersededError
+from .requests import Request
+
+
+class Outcome(Enum):
+    PENDING = "pending"
+    REACHED = "reached"
+    SUPERSEDED = "superseded"
+    FAULTED = "faulted"
+    CANCELLED = "cancelled"
+
+
+class Motion:
+    """Handle of one command: completes when its target is reached.
+
+    ``await motion`` returns None once the target is reached and raises
+    :class:`SupersededError` when a later ``set_value`` replaced it,
+    :class:`DeviceFaultError` when the actuator faulted, or
+    :class:`MotionCancelledError` when the actuator was finalized or re-initialized.
+    It can be awaited any number of times, from any task, and cancelled like any wait.
+    """
+
+    __slots__ = (
+        "_done",
+        "_error",
+        "issued_ns",
+        "outcome",
+        "reached_ns",
+        "request",
+        "sequence",
+        "target",
+    )
+
+    def __init__(self, request: Request, target: float, sequence: int, issued_ns: int) -> None:
+        self.request = request
+        self.target = target
+        self.sequence = sequence
+        self.issued_ns = issued_ns
+        self.reached_ns: int | None = None
+        self.outcome = Outcome.PENDING
+        self._error: HALError | None = None
+        self._done = anyio.Event()
+
+    def done(self) -> bool:
+        return self.outcome is not Outcome.PENDING
+
+    async def wait(self) -> None:
+        await self._done.wait()
+        if self._error is not None:
+            raise self._error
+
+    def __await__(self) -> Generator[Any, None, None]:
+        return self.wait().__await__()
+
+    # -- used by the Actuator -------------------------------------------------------
+    def _finish(
+        self, outcome: Outcome, error: HALError | None = None, at_ns: int | None = None
+    ) -> bool:
+        if self.outcome is not Outcome.PENDING:
+            return False
+        self.outcome = outcome
+        self._error = error
+        if outcome is Outcome.REACHED:
+            self.reached_ns = at_ns
+        self._done.set()
+        return True
+
+    def _reach(self, at_ns: int) -> bool:
+        return self._finish(Outcome.REACHED, at_ns=at_ns)
+
+    def _supersede(self, by: Motion) -> bool:
+        return self._finish(
+            Outcome.SUPERSEDED,
+            SupersededError(
+                f"target {self.target} ({self.request.name}) replaced by command #{by.sequence}"
+            ),
+        )
+
+    def _fault(self, error: DeviceFaultError) -> bool:
+        return self._finish(Outcome.FAULTED, error)
+
+    def _cancel(self, reason: str) -> bool:
+        return self._finish(Outcome.CANCELLED, MotionCancelledError(reason))
+
+    def __repr__(self) -> str:
+        return f"Motion(#{self.sequence} {self.request.name}={self.target}, {self.outcome.value})"

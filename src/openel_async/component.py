@@ -1,0 +1,309 @@
+"""HALComponent: identity, observers, time and the state machine of OpenEL 3.2.
+
+States (Figure 7.4): Initializing -> Initialized -> (Init) Active -> (fault) Error
+-> (ReInit) Active; Finalize ends in the terminal Finalized state. Every public call
+checks the state and raises :class:`StateError` naming the state and the allowed ones.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Coroutine
+from contextlib import AsyncExitStack
+from enum import Enum
+from types import TracebackType
+from typing import Any, Self
+
+import anyio
+import anyio.abc
+import structlog
+
+from .clock import Clock, default_clock
+from .device import Device, ErrorId
+from .errors import DeviceFaultError, HALError, NotConnectedError, ReturnCode, StateError
+from .fanout import Fanout
+from .ids import DeviceKind, HALId, Property, component_name
+
+log = structlog.get_logger(__name__)
+
+
+class ComponentState(Enum):
+    INITIALIZING = "Initializing"
+    INITIALIZED = "Initialized"
+    ACTIVE = "Active"
+    ERROR = "Error"
+    FINALIZED = "Finalized"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+S = ComponentState
+
+# Exceptions of a device call that mean the link or the device failed (-> Error state).
+LINK_FAULTS: tuple[type[BaseException], ...] = (
+    NotConnectedError,
+    TimeoutError,
+    OSError,
+    anyio.BrokenResourceError,
+    anyio.ClosedResourceError,
+)
+_instances = itertools.count(1)
+
+
+class _Context:
+    """The DeviceContext a component hands to its device."""
+
+    def __init__(self, component: HALComponent) -> None:
+        self._component = component
+
+    @property
+    def clock(self) -> Clock:
+        return self._component.clock
+
+    @property
+    def name(self) -> str:
+        return self._component.device_name
+
+    def start_soon(self, func: Callable[..., Coroutine[Any, Any, Any]], *args: Any) -> None:
+        self._component._task_group().start_soon(func, *args)
+
+    def target_reached(self) -> None:
+        self._component._on_target_reached()
+
+    def post_event(self, event_id: int) -> None:
+        self._component._publish_event(event_id)
+
+    def post_error(self, error_id: int) -> None:
+        self._component._publish_error(error_id)
+
+    def fault(self, error_id: int, reason: str, code: ReturnCode = ReturnCode.HAL_ERROR) -> None:
+        self._component._fault(error_id, reason, code)
+
+
+class HALComponent:
+    """Common part of every OpenEL component; use it as an async context manager.
+
+    ``async with`` runs the device's Initializing processing, then Init unless
+    ``auto_init=False`` (then call :meth:`init` yourself, as in the spec's Figure 7.6),
+    and finalizes on exit.
+    """
+
+    def __init__(
+        self,
+        device: Device,
+        *,
+        hal_id: HALId | None = None,
+        device_name: str | None = None,
+        function_list: tuple[str, ...] | None = None,
+        clock: Clock | None = None,
+        auto_init: bool = True,
+        open_timeout: float = 10.0,
+    ) -> None:
+        info = device.info
+        if hal_id is None:
+            hal_id = HALId(int(info.kind), info.vendor_id, info.product_id, next(_instances))
+        if device_name is None:
+            kind = hal_id.device_kind
+            profile = kind.name.title().replace("_", "") if kind else f"Kind{hal_id.device_kind_id}"
+            device_name = component_name(profile, info.vendor_name, info.product_name)
+        self.device = device
+        self.hal_id = hal_id
+        self.property = Property(hal_id, device_name, tuple(function_list or info.functions))
+        self.clock: Clock = clock or default_clock()
+        self.auto_init = auto_init
+        self.open_timeout = open_timeout
+        self.state = S.INITIALIZING
+        self.last_fault: DeviceFaultError | None = None
+        self._observers = Fanout(device_name, ("notify_event", "notify_error"))
+        self._stack: AsyncExitStack | None = None
+        self._tg: anyio.abc.TaskGroup | None = None
+        self._ctx = _Context(self)
+        self.log = log.bind(component=device_name)
+        self._entered = False
+
+    @property
+    def device_name(self) -> str:
+        return self.property.device_name
+
+    # -- async context manager -------------------------------------------------------
+    async def __aenter__(self) -> Self:
+        if self._entered:
+            raise StateError("__aenter__", self.state, ["a component not yet entered"])
+        self._entered = True
+        stack = AsyncExitStack()
+        self._tg = await stack.enter_async_context(anyio.create_task_group())
+        self._stack = stack
+        self._observers.bind(self._tg)
+        try:
+            with anyio.fail_after(self.open_timeout):
+                await self.device.open(self._ctx)
+            self._set_state(S.INITIALIZED)
+            if self.auto_init:
+                await self.init()
+        except BaseException:
+            await self._shutdown()
+            await stack.aclose()
+            raise
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        await self._shutdown()
+        assert self._stack is not None
+        await self._stack.aclose()
+
+    async def _shutdown(self) -> None:
+        """Finalize whatever the state; used on context exit."""
+        if self.state is not S.FINALIZED:
+            with anyio.CancelScope(shield=True):
+                await self._close_device()
+            self._set_state(S.FINALIZED)
+        self._observers.close()
+        with anyio.CancelScope(shield=True), anyio.move_on_after(1.0):
+            await self._observers.wait_delivered()
+        if self._tg is not None:
+            self._tg.cancel_scope.cancel()
+
+    def _task_group(self) -> anyio.abc.TaskGroup:
+        if self._tg is None:
+            raise StateError("start_soon", self.state, ["inside 'async with component'"])
+        return self._tg
+
+    # -- state machine ---------------------------------------------------------------
+    def _require(self, operation: str, *allowed: ComponentState) -> None:
+        if self.state not in allowed:
+            raise StateError(operation, self.state, allowed)
+
+    def _set_state(self, state: ComponentState) -> None:
+        if state is not self.state:
+            self.log.info("state_changed", old=str(self.state), new=str(state))
+            self.state = state
+
+    async def init(self) -> None:
+        """Init: Initialized -> Active."""
+        self._require("init", S.INITIALIZED)
+        try:
+            await self.device.init()
+        except HALError:
+            raise
+        except Exception as exc:
+            raise HALError(f"{self.device_name}: init failed: {exc}") from exc
+        self._set_state(S.ACTIVE)
+        await self._on_active()
+
+    async def re_init(self) -> None:
+        """ReInit: reset the error condition and return to Active."""
+        self._require("re_init", S.ERROR)
+        self._before_reset()
+        try:
+            await self.device.reset()
+        except Exception as exc:
+            self.log.warning("re_init_failed", error=str(exc))
+            if isinstance(exc, HALError):
+                raise
+            raise HALError(f"{self.device_name}: re_init failed: {exc}") from exc
+        self.last_fault = None
+        self._set_state(S.ACTIVE)
+        await self._on_active()
+
+    async def finalize(self) -> None:
+        """Finalize: quit the component (Active or Error -> Finalized)."""
+        self._require("finalize", S.ACTIVE, S.ERROR)
+        await self._close_device()
+        self._set_state(S.FINALIZED)
+
+    async def _close_device(self) -> None:
+        self._before_close()
+        try:
+            with anyio.move_on_after(self.open_timeout):
+                await self.device.close()
+        except Exception as exc:
+            self.log.warning("device_close_failed", error=str(exc))
+
+    # Hooks for subclasses.
+    async def _on_active(self) -> None:
+        pass
+
+    def _before_reset(self) -> None:
+        pass
+
+    def _before_close(self) -> None:
+        pass
+
+    def _on_target_reached(self) -> None:
+        pass
+
+    def _on_fault(self, error: DeviceFaultError) -> None:
+        pass
+
+    # -- observers -------------------------------------------------------------------
+    def add_observer(self, observer: object) -> None:
+        """AddObserver: register a HALObserver (plain or async methods) or ObserverQueue."""
+        self._require("add_observer", S.ACTIVE)
+        self._observers.add(observer)
+
+    def remove_observer(self, observer: object) -> None:
+        """RemoveObserver."""
+        self._require("remove_observer", S.ACTIVE)
+        self._observers.remove(observer)
+
+    @property
+    def observers(self) -> tuple[object, ...]:
+        return self._observers.observers
+
+    def _publish_event(self, event_id: int) -> None:
+        self._observers.publish("notify_event", self, event_id)
+
+    def _publish_error(self, error_id: int) -> None:
+        self._observers.publish("notify_error", self, error_id)
+
+    def _fault(
+        self, error_id: int, reason: str, code: ReturnCode = ReturnCode.HAL_ERROR
+    ) -> DeviceFaultError:
+        """Move to Error (from Active) and notify error observers."""
+        error = DeviceFaultError(f"{self.device_name}: {reason}", error_id=error_id, code=code)
+        if self.state is S.ACTIVE:
+            self.last_fault = error
+            self._set_state(S.ERROR)
+            self.log.error("device_fault", error_id=error_id, reason=reason, code=code.name)
+            self._on_fault(error)
+        if self.state in (S.ACTIVE, S.ERROR):
+            self._publish_error(error_id)
+        return error
+
+    def _fault_from(self, exc: BaseException) -> DeviceFaultError:
+        if isinstance(exc, NotConnectedError):
+            return self._fault(ErrorId.DISCONNECTED, str(exc), ReturnCode.HAL_NO_CONNECTED)
+        if isinstance(exc, TimeoutError):
+            return self._fault(ErrorId.TIMEOUT, f"timeout: {exc}")
+        return self._fault(
+            ErrorId.DISCONNECTED, f"link failure: {exc!r}", ReturnCode.HAL_NO_CONNECTED
+        )
+
+    # -- profile and time ------------------------------------------------------------
+    def get_profile(self) -> Property:
+        """GetProfile: the component's Property (id, device name, function list)."""
+        self._require("get_profile", S.ACTIVE)
+        return self.property
+
+    def get_time(self) -> int:
+        """GetTime: the component's clock in integer nanoseconds.
+
+        Raises HALError(HAL_ERROR) for a component without time, as the spec says.
+        """
+        self._require("get_time", S.ACTIVE)
+        if not self.device.has_time:
+            raise HALError(f"{self.device_name} has no time attribute")
+        return self.clock.now_ns()
+
+    @property
+    def kind(self) -> DeviceKind | None:
+        return self.hal_id.device_kind
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.device_name!r}, {self.hal_id}, state={self.state})"

@@ -1,0 +1,162 @@
+"""The device-layer seam: what a driver implements and what the framework gives it.
+
+A driver subclasses :class:`ActuatorDevice` or :class:`SensorDevice`. The framework
+calls the lifecycle hooks in the HALComponent state machine's order
+(``open`` while Initializing, ``init`` on Init, ``reset`` on ReInit, ``close`` on
+Finalize) and reaches the driver through :class:`DeviceContext` callbacks.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Coroutine, Sequence
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Any, Protocol
+
+from .clock import Clock
+from .errors import BadParameterError, ReturnCode
+from .ids import DeviceKind
+from .requests import Request
+
+
+class ErrorId(IntEnum):
+    """Error ids the bundled drivers share (OpenEL: error ids 1+ are device-specific)."""
+
+    DEVICE_ERROR = 1
+    DISCONNECTED = 2
+    TIMEOUT = 3
+    BUS_ERROR = 4
+    LIMIT_VIOLATION = 5
+    PROTOCOL_ERROR = 6
+
+
+@dataclass(frozen=True, slots=True)
+class DeviceInfo:
+    """Identity a driver declares; the default HALId and device name derive from it."""
+
+    kind: DeviceKind | int
+    vendor_id: int = 0
+    product_id: int = 0
+    vendor_name: str = "Generic"
+    product_name: str = "Device"
+    functions: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class ActuatorLimits:
+    """Limits of commanded values in SI units (rad or m, rad/s or m/s, Nm or N)."""
+
+    position: tuple[float, float] = (-math.inf, math.inf)
+    velocity: float = math.inf
+    """Largest allowed |velocity|."""
+    torque: float = math.inf
+    """Largest allowed |torque|."""
+
+    def __post_init__(self) -> None:
+        low, high = self.position
+        if not low < high:
+            raise BadParameterError(
+                "limits.position", self.position, "a (low, high) pair with low < high"
+            )
+        for name in ("velocity", "torque"):
+            if not getattr(self, name) > 0:
+                raise BadParameterError(f"limits.{name}", getattr(self, name), "a value > 0")
+
+    def check(self, request: Request, value: float) -> None:
+        """Raise BAD_PARAMETER for a target outside the limits."""
+        if request is Request.POSITION:
+            low, high = self.position
+            if not low <= value <= high:
+                raise BadParameterError("value", value, f"a position in [{low}, {high}]")
+        elif request is Request.VELOCITY and abs(value) > self.velocity:
+            raise BadParameterError(
+                "value", value, f"a velocity in [-{self.velocity}, {self.velocity}]"
+            )
+        elif request is Request.TORQUE and abs(value) > self.torque:
+            raise BadParameterError("value", value, f"a torque in [-{self.torque}, {self.torque}]")
+
+
+class DeviceContext(Protocol):
+    """What the framework gives a driver in ``open``."""
+
+    @property
+    def clock(self) -> Clock: ...
+
+    @property
+    def name(self) -> str: ...
+
+    def start_soon(self, func: Callable[..., Coroutine[Any, Any, Any]], *args: Any) -> None:
+        """Run a background task owned by the component (cancelled at finalize)."""
+
+    def target_reached(self) -> None:
+        """The device reached the target of the latest command (device-reported completion)."""
+
+    def post_event(self, event_id: int) -> None:
+        """Notify observers of a device-specific event (ids 2 and up)."""
+
+    def post_error(self, error_id: int) -> None:
+        """Notify observers of an error that does not stop the component."""
+
+    def fault(self, error_id: int, reason: str, code: ReturnCode = ReturnCode.HAL_ERROR) -> None:
+        """The device failed: the component goes to Error and observers are notified."""
+
+
+class Device(ABC):  # noqa: B024 - every hook is optional
+    """Lifecycle hooks shared by every device; the defaults do nothing."""
+
+    info: DeviceInfo = DeviceInfo(kind=0)
+    has_time: bool = True
+    """Whether the component offers GetTime (the spec's optional time attribute)."""
+
+    async def open(self, ctx: DeviceContext) -> None:  # noqa: B027 - optional hook
+        """Device-specific processing while the component is Initializing (connect, probe)."""
+
+    async def init(self) -> None:  # noqa: B027 - optional hook
+        """Init: make the device operational (e.g. enable the drive)."""
+
+    async def reset(self) -> None:  # noqa: B027 - optional hook
+        """ReInit: clear the fault and make the device operational again; raise if it cannot."""
+
+    async def close(self) -> None:  # noqa: B027 - optional hook
+        """Finalize: stop and release the device. Must not raise for an already broken device."""
+
+
+class ActuatorDevice(Device):
+    """A one-degree-of-freedom actuator."""
+
+    limits: ActuatorLimits = ActuatorLimits()
+    supported_requests: frozenset[Request] = frozenset(
+        {Request.NO_EXCITE, Request.POSITION, Request.VELOCITY, Request.TORQUE}
+    )
+    reports_completion: bool = False
+    """True when the driver calls ``ctx.target_reached()``; else the framework detects
+    completion by tolerance and settle time."""
+
+    @abstractmethod
+    async def command(self, request: Request, value: float) -> None:
+        """Send a new target; return once the device accepted it (not when reached)."""
+
+    @abstractmethod
+    async def read(self, request: Request) -> float:
+        """Read POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL in SI units."""
+
+
+@dataclass(frozen=True, slots=True)
+class Reading:
+    """One measurement of a sensor device; ``time_ns`` None means 'use the clock'."""
+
+    values: Sequence[float]
+    time_ns: int | None = None
+
+
+class SensorDevice(Device):
+    """A sensor returning a fixed-length list of SI values."""
+
+    units: tuple[str, ...] = ()
+    """SI unit of each value, e.g. ('rad/s', 'rad/s', 'rad/s')."""
+
+    @abstractmethod
+    async def read(self) -> Reading:
+        """Take one measurement."""

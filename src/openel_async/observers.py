@@ -1,0 +1,192 @@
+"""Observer interfaces of OpenEL (HALObserver, TimerObserver) and ObserverQueue.
+
+Observer methods may be plain or ``async`` functions. An :class:`ObserverQueue`
+implements both interfaces with non-blocking methods and hands the notifications to
+a consumer task, newest last; when it is full the oldest entry is dropped and the
+consumer learns how many it missed from the ``missed`` field of the next notice.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Awaitable
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, runtime_checkable
+
+import anyio
+import structlog
+
+from .errors import BadParameterError
+
+if TYPE_CHECKING:
+    from .component import HALComponent
+    from .timer import EventTimer
+
+log = structlog.get_logger(__name__)
+
+
+@runtime_checkable
+class HALObserver(Protocol):
+    """Receives events and errors of HAL components (plain or async methods)."""
+
+    def notify_event(self, source: HALComponent, event_id: int) -> Awaitable[None] | None: ...
+
+    def notify_error(self, source: HALComponent, error_id: int) -> Awaitable[None] | None: ...
+
+
+@runtime_checkable
+class TimerObserver(Protocol):
+    """Receives the ticks of an EventTimer (plain or async method)."""
+
+    def notify_timer(self, timer: EventTimer) -> Awaitable[None] | None: ...
+
+
+@dataclass(frozen=True, slots=True)
+class EventNotice:
+    """notify_event(source, event_id) as a queued value."""
+
+    source: HALComponent
+    event_id: int
+    missed: int = 0
+    """Notifications dropped from the queue just before this one."""
+
+
+@dataclass(frozen=True, slots=True)
+class ErrorNotice:
+    """notify_error(source, error_id) as a queued value."""
+
+    source: HALComponent
+    error_id: int
+    missed: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class TimerTick:
+    """One tick of an EventTimer."""
+
+    timer: EventTimer
+    index: int
+    """Count of periods since start; skips over missed ticks."""
+    deadline_ns: int
+    time_ns: int
+    """Clock time at which the tick was delivered."""
+    missed_ticks: int = 0
+    """Periods skipped (never delivered) just before this tick because it was late."""
+    missed: int = 0
+
+    @property
+    def lateness_ns(self) -> int:
+        return self.time_ns - self.deadline_ns
+
+
+Notice: TypeAlias = EventNotice | ErrorNotice | TimerTick
+
+
+class ObserverQueue:
+    """A bounded, async-iterable queue that is both a HALObserver and a TimerObserver."""
+
+    def __init__(self, maxsize: int = 1024, *, name: str = "queue") -> None:
+        if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
+            raise BadParameterError("maxsize", maxsize, "an int >= 1")
+        self.maxsize = maxsize
+        self.name = name
+        self._items: deque[Notice] = deque()
+        self._wakeup: anyio.Event | None = None
+        self._missed = 0
+        self.missed_total = 0
+        self.delivered = 0
+        self._closed = False
+
+    # -- observer side (never blocks) ---------------------------------------------
+    def notify_event(self, source: HALComponent, event_id: int) -> None:
+        self.put_nowait(EventNotice(source, event_id))
+
+    def notify_error(self, source: HALComponent, error_id: int) -> None:
+        self.put_nowait(ErrorNotice(source, error_id))
+
+    def notify_timer(self, timer: EventTimer) -> None:
+        tick = timer.last_tick
+        if tick is not None:
+            self.put_nowait(tick)
+
+    def put_nowait(self, notice: Notice) -> None:
+        if self._closed:
+            return
+        items = self._items
+        if len(items) >= self.maxsize:
+            items.popleft()
+            if self._missed == 0:
+                log.warning("observer_queue_overflow", queue=self.name, maxsize=self.maxsize)
+            self._missed += 1
+            self.missed_total += 1
+        items.append(notice)
+        wakeup = self._wakeup
+        if wakeup is not None:
+            self._wakeup = None
+            wakeup.set()
+
+    def close(self) -> None:
+        """End iteration once the queued notices are consumed."""
+        self._closed = True
+        if self._wakeup is not None:
+            self._wakeup.set()
+            self._wakeup = None
+
+    # -- consumer side ------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def get_nowait(self) -> Notice:
+        if not self._items:
+            raise anyio.WouldBlock
+        notice = self._items.popleft()
+        self.delivered += 1
+        if self._missed:
+            missed, self._missed = self._missed, 0
+            log.warning("observer_queue_missed", queue=self.name, missed=missed)
+            notice = replace(notice, missed=missed)
+        return notice
+
+    async def get(self) -> Notice:
+        """The oldest notice; waits (cancellably) while the queue is empty."""
+        while not self._items:
+            if self._closed:
+                raise anyio.EndOfStream
+            if self._wakeup is None:
+                self._wakeup = anyio.Event()
+            await self._wakeup.wait()
+        return self.get_nowait()
+
+    def drain(self) -> list[Notice]:
+        """Everything queued now, oldest first."""
+        out: list[Notice] = []
+        while self._items:
+            out.append(self.get_nowait())
+        return out
+
+    def __aiter__(self) -> ObserverQueue:
+        return self
+
+    async def __anext__(self) -> Notice:
+        try:
+            return await self.get()
+        except anyio.EndOfStream:
+            raise StopAsyncIteration from None
+
+    def __repr__(self) -> str:
+        return f"ObserverQueue(name={self.name!r}, pending={len(self._items)}, missed_total={self.missed_total})"
+
+
+def observer_methods(observer: Any, kinds: tuple[str, ...]) -> dict[str, Any]:
+    """The notify_* methods of ``observer`` for ``kinds``; a bare callable serves one kind."""
+    methods = {
+        kind: getattr(observer, kind) for kind in kinds if callable(getattr(observer, kind, None))
+    }
+    if not methods and len(kinds) == 1 and callable(observer):
+        methods = {kinds[0]: observer}
+    if not methods:
+        names = " or ".join(kinds)
+        raise BadParameterError(
+            "observer", observer, f"an object with {names} (plain or async), or a callable"
+        )
+    return methods

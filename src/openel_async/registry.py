@@ -1,0 +1,47 @@
+"""Driver discovery through the ``openel_async.drivers`` entry-point group."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
+
+import structlog
+
+log = structlog.get_logger(__name__)
+
+ENTRY_POINT_GROUP = "openel_async.drivers"
+
+
+@dataclass(frozen=True)
+class DriverInfo:
+    """What a driver package registers: a name, a description and its device classes."""
+
+    name: str
+    description: str
+    devices: Mapping[str, type] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class DriverEntry:
+    name: str
+    value: str
+    info: DriverInfo | None
+    error: str | None = None
+
+
+def discover_drivers() -> list[DriverEntry]:
+    """Load every registered driver; a driver that fails to import is reported, not raised."""
+    found: list[DriverEntry] = []
+    for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+        try:
+            info = ep.load()
+        except Exception as exc:  # a broken optional driver must not hide the others
+            log.warning("driver_load_failed", driver=ep.name, error=repr(exc))
+            found.append(DriverEntry(ep.name, ep.value, None, f"{type(exc).__name__}: {exc}"))
+            continue
+        if not isinstance(info, DriverInfo):
+            found.append(DriverEntry(ep.name, ep.value, None, "entry point is not a DriverInfo"))
+            continue
+        found.append(DriverEntry(ep.name, ep.value, info))
+    return found

@@ -1,0 +1,69 @@
+"""Lateness statistics of periodic loops (timers, execution contexts, benchmarks)."""
+
+from __future__ import annotations
+
+from array import array
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class LatenessSummary:
+    count: int
+    p50_ns: int
+    p99_ns: int
+    max_ns: int
+    mean_ns: float
+
+    def as_us(self) -> dict[str, float]:
+        return {
+            "p50_us": self.p50_ns / 1e3,
+            "p99_us": self.p99_ns / 1e3,
+            "max_us": self.max_ns / 1e3,
+            "mean_us": self.mean_ns / 1e3,
+        }
+
+
+def percentile(sorted_values: list[int], q: float) -> int:
+    """Nearest-rank percentile of an ascending list (0 for an empty one)."""
+    if not sorted_values:
+        return 0
+    rank = max(0, min(len(sorted_values) - 1, round(q / 100 * len(sorted_values)) - 1))
+    return sorted_values[rank]
+
+
+class LatenessRecorder:
+    """Keeps the most recent ``window`` samples in a ring; counts every sample."""
+
+    def __init__(self, window: int = 100_000) -> None:
+        self.window = window
+        self._ring = array("q")
+        self._next = 0
+        self.count = 0
+        self.max_ns = 0
+
+    def record(self, lateness_ns: int) -> None:
+        self.count += 1
+        if lateness_ns > self.max_ns:
+            self.max_ns = lateness_ns
+        if len(self._ring) < self.window:
+            self._ring.append(lateness_ns)
+        else:
+            self._ring[self._next] = lateness_ns
+            self._next = (self._next + 1) % self.window
+
+    def summary(self) -> LatenessSummary:
+        values = sorted(self._ring)
+        mean = sum(values) / len(values) if values else 0.0
+        return LatenessSummary(
+            count=self.count,
+            p50_ns=percentile(values, 50),
+            p99_ns=percentile(values, 99),
+            max_ns=self.max_ns,
+            mean_ns=mean,
+        )
+
+    def reset(self) -> None:
+        self._ring = array("q")
+        self._next = 0
+        self.count = 0
+        self.max_ns = 0

@@ -1,0 +1,253 @@
+"""EventTimer: ticks its TimerObservers every period (milliseconds, as in the spec).
+
+Deadlines are absolute (start + k x period), so lateness never accumulates into
+drift. A tick that wakes a whole period or more late skips the periods it missed
+instead of delivering them in a burst; both are counted in :attr:`EventTimer.stats`.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from enum import Enum
+from types import TracebackType
+from typing import Self
+
+import anyio
+import anyio.abc
+import structlog
+
+from .clock import NS_PER_MS, NS_PER_S, Clock, default_clock
+from .errors import BadParameterError, StateError
+from .fanout import Fanout
+from .observers import ObserverQueue, TimerTick
+from .stats import LatenessRecorder, LatenessSummary
+
+log = structlog.get_logger(__name__)
+
+
+class TimerState(Enum):
+    STOPPED = "Stopped"
+    RUNNING = "Running"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+def period_to_ns(period_ms: object) -> int:
+    """Validate a period in milliseconds (int or float, > 0) and convert it to ns."""
+    if isinstance(period_ms, bool) or not isinstance(period_ms, int | float):
+        raise BadParameterError("period_ms", period_ms, "a number of milliseconds > 0")
+    if not math.isfinite(period_ms) or period_ms <= 0:
+        raise BadParameterError("period_ms", period_ms, "a finite number of milliseconds > 0")
+    period_ns = round(period_ms * NS_PER_MS)
+    if period_ns < 1:
+        raise BadParameterError("period_ms", period_ms, "at least 1 ns (1e-6 ms)")
+    return period_ns
+
+
+@dataclass(frozen=True, slots=True)
+class TimerStats:
+    ticks: int
+    """Ticks delivered."""
+    late_ticks: int
+    """Ticks delivered later than ``late_threshold_ns`` after their deadline."""
+    missed_ticks: int
+    """Periods skipped because a wake-up came a whole period or more late."""
+    lateness: LatenessSummary
+    drift_ns: int
+    """Time of the last tick minus its ideal time (start + index x period)."""
+
+
+class EventTimer:
+    """The OpenEL EventTimer on anyio.
+
+    Use it as an async context manager (it owns the ticking task), then
+    ``start_timer()``; ``async for tick in timer`` iterates ticks.
+    """
+
+    def __init__(
+        self,
+        period_ms: float,
+        *,
+        clock: Clock | None = None,
+        name: str = "timer",
+        late_threshold_ms: float | None = None,
+    ) -> None:
+        self._period_ns = period_to_ns(period_ms)
+        self._period_ms = period_ms
+        self.clock: Clock = clock or default_clock()
+        self.name = name
+        self._late_threshold_ns = (
+            period_to_ns(late_threshold_ms) if late_threshold_ms is not None else None
+        )
+        self._observers = Fanout(name, ("notify_timer",))
+        self._tg: anyio.abc.TaskGroup | None = None
+        self._scope: anyio.CancelScope | None = None
+        self.state = TimerState.STOPPED
+        self.last_tick: TimerTick | None = None
+        self._lateness = LatenessRecorder()
+        self._ticks = 0
+        self._late = 0
+        self._missed = 0
+        self._drift = 0
+        self._log = log.bind(timer=name)
+
+    # -- context -------------------------------------------------------------------
+    async def __aenter__(self) -> Self:
+        if self._tg is not None:
+            raise StateError("__aenter__", "entered", ["a timer not yet entered"])
+        self._tg = await anyio.create_task_group().__aenter__()
+        self._observers.bind(self._tg)
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool | None:
+        assert self._tg is not None
+        if self.state is TimerState.RUNNING:
+            self.stop_timer()
+        self._observers.close()
+        tg, self._tg = self._tg, None
+        self._observers.bind(None)
+        tg.cancel_scope.cancel()
+        return await tg.__aexit__(exc_type, exc, tb)
+
+    # -- spec operations -------------------------------------------------------------
+    @property
+    def period_ms(self) -> float:
+        return self._period_ms
+
+    @property
+    def period_ns(self) -> int:
+        return self._period_ns
+
+    def start_timer(self) -> None:
+        """StartTimer: the first tick comes one period from now."""
+        if self._tg is None:
+            raise StateError("start_timer", "not entered", ["inside 'async with timer'"])
+        if self.state is TimerState.RUNNING:
+            raise StateError("start_timer", self.state, [TimerState.STOPPED])
+        self.state = TimerState.RUNNING
+        self._scope = anyio.CancelScope()
+        self._tg.start_soon(self._run, self._scope)
+        self._log.info("timer_started", period_ms=self._period_ms)
+
+    def stop_timer(self) -> None:
+        """StopTimer: no tick is delivered after this returns."""
+        if self.state is not TimerState.RUNNING:
+            raise StateError("stop_timer", self.state, [TimerState.RUNNING])
+        self.state = TimerState.STOPPED
+        assert self._scope is not None
+        self._scope.cancel()
+        self._scope = None
+        self._log.info("timer_stopped", ticks=self._ticks, missed=self._missed)
+
+    def set_event_period(self, period_ms: float) -> None:
+        """SetEventPeriod: takes effect from the next tick on, even while running."""
+        self._period_ns = period_to_ns(period_ms)
+        self._period_ms = period_ms
+
+    def add_observer(self, observer: object) -> None:
+        """AddObserver: a TimerObserver (plain or async notify_timer), or a callable(timer)."""
+        self._observers.add(observer)
+
+    def remove_observer(self, observer: object) -> None:
+        """RemoveObserver."""
+        self._observers.remove(observer)
+
+    @property
+    def observers(self) -> tuple[object, ...]:
+        return self._observers.observers
+
+    # -- ticking ---------------------------------------------------------------------
+    async def _run(self, scope: anyio.CancelScope) -> None:
+        clock = self.clock
+        sleeper = clock.sleeper()
+        publish = self._observers.publish
+        record = self._lateness.record
+        try:
+            with scope:
+                period = self._period_ns
+                anchor = clock.now_ns()
+                k = 0
+                index = self.last_tick.index if self.last_tick else 0
+                last_warning = -NS_PER_S
+                while True:
+                    k += 1
+                    deadline = anchor + k * period
+                    await sleeper.sleep_until(deadline)
+                    now = clock.now_ns()
+                    lateness = now - deadline
+                    record(lateness)
+                    missed = lateness // period if lateness >= period else 0
+                    if missed:
+                        k += missed
+                        deadline += missed * period
+                        self._missed += missed
+                        if now - last_warning >= NS_PER_S:
+                            last_warning = now
+                            self._log.warning(
+                                "timer_missed_ticks", missed=missed, late_us=lateness // 1000
+                            )
+                    threshold = self._late_threshold_ns or period // 5
+                    if lateness > threshold:
+                        self._late += 1
+                    index += 1 + missed
+                    self._ticks += 1
+                    self._drift = now - deadline
+                    self.last_tick = TimerTick(self, index, deadline, now, missed)
+                    publish("notify_timer", self)
+                    if self._period_ns != period:  # SetEventPeriod: re-anchor at this tick
+                        anchor, k, period = deadline, 0, self._period_ns
+        finally:
+            sleeper.close()
+
+    # -- iteration and statistics ----------------------------------------------------
+    def __aiter__(self) -> AsyncIterator[TimerTick]:
+        return _TickIterator(self)
+
+    @property
+    def stats(self) -> TimerStats:
+        return TimerStats(
+            ticks=self._ticks,
+            late_ticks=self._late,
+            missed_ticks=self._missed,
+            lateness=self._lateness.summary(),
+            drift_ns=self._drift,
+        )
+
+    def reset_stats(self) -> None:
+        self._lateness.reset()
+        self._ticks = self._late = self._missed = 0
+
+    def __repr__(self) -> str:
+        return f"EventTimer({self.name!r}, period_ms={self._period_ms}, {self.state})"
+
+
+class _TickIterator:
+    """``async for tick in timer``: a private queue, unsubscribed when the loop ends."""
+
+    def __init__(self, timer: EventTimer, maxsize: int = 64) -> None:
+        self._queue = ObserverQueue(maxsize, name=f"{timer.name}-iter")
+        timer.add_observer(self._queue)
+        # Breaking out of ``async for`` drops the iterator: unsubscribe then.
+        self._finalizer = weakref.finalize(self, _unsubscribe, timer, self._queue)
+
+    def __aiter__(self) -> _TickIterator:
+        return self
+
+    async def __anext__(self) -> TimerTick:
+        notice = await self._queue.get()
+        assert isinstance(notice, TimerTick)
+        return notice
+
+
+def _unsubscribe(timer: EventTimer, queue: ObserverQueue) -> None:
+    if queue in timer._observers:
+        timer.remove_observer(queue)

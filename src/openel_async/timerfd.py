@@ -1,0 +1,103 @@
+"""A minimal ctypes binding of Linux timerfd (Python 3.11 has no os.timerfd_create).
+
+An absolute CLOCK_MONOTONIC deadline armed on a timerfd wakes the event loop through
+epoll with microsecond precision, where asyncio's own timers round up to whole
+milliseconds (epoll_wait's timeout unit).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+import sys
+
+import anyio
+
+CLOCK_MONOTONIC = 1
+TFD_TIMER_ABSTIME = 1
+TFD_NONBLOCK = os.O_NONBLOCK
+TFD_CLOEXEC = getattr(os, "O_CLOEXEC", 0o2000000)
+
+
+class _Timespec(ctypes.Structure):
+    _fields_ = (("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long))
+
+
+class _Itimerspec(ctypes.Structure):
+    _fields_ = (("it_interval", _Timespec), ("it_value", _Timespec))
+
+
+def _load_libc() -> ctypes.CDLL | None:
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+        libc.timerfd_create.argtypes = (ctypes.c_int, ctypes.c_int)
+        libc.timerfd_create.restype = ctypes.c_int
+        libc.timerfd_settime.argtypes = (
+            ctypes.c_int,
+            ctypes.c_int,
+            ctypes.POINTER(_Itimerspec),
+            ctypes.POINTER(_Itimerspec),
+        )
+        libc.timerfd_settime.restype = ctypes.c_int
+    except (OSError, AttributeError):
+        return None
+    return libc
+
+
+_libc = _load_libc()
+
+
+def available() -> bool:
+    """True where timerfd can be used (Linux with a libc that exports it)."""
+    return _libc is not None
+
+
+class Timerfd:
+    """One timerfd on CLOCK_MONOTONIC, re-armed with an absolute deadline per wait."""
+
+    def __init__(self) -> None:
+        if _libc is None:
+            raise OSError("timerfd is not available on this platform")
+        fd = _libc.timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)
+        if fd < 0:
+            err = ctypes.get_errno()
+            raise OSError(err, os.strerror(err))
+        self._fd: int | None = fd
+        self._spec = _Itimerspec()
+
+    def fileno(self) -> int:
+        if self._fd is None:
+            raise ValueError("timerfd is closed")
+        return self._fd
+
+    def arm_absolute(self, deadline_ns: int) -> None:
+        """Fire once at ``deadline_ns`` of CLOCK_MONOTONIC (time.monotonic_ns)."""
+        assert _libc is not None
+        value = self._spec.it_value
+        value.tv_sec, value.tv_nsec = divmod(max(deadline_ns, 1), 1_000_000_000)
+        if _libc.timerfd_settime(self.fileno(), TFD_TIMER_ABSTIME, ctypes.byref(self._spec), None):
+            err = ctypes.get_errno()
+            raise OSError(err, os.strerror(err))
+
+    async def wait_until(self, deadline_ns: int) -> None:
+        """Sleep until the deadline; cancellable like any anyio wait."""
+        self.arm_absolute(deadline_ns)
+        fd = self.fileno()
+        while True:
+            await anyio.wait_readable(fd)
+            try:
+                os.read(fd, 8)  # the expiration count; reading it re-arms readability
+                return
+            except BlockingIOError:  # spurious wake-up
+                continue
+
+    def close(self) -> None:
+        if self._fd is not None:
+            fd, self._fd = self._fd, None
+            os.close(fd)
+
+    def __del__(self) -> None:
+        self.close()
