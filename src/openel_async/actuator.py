@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import anyio
 
+from .clock import Clock
 from .completion import Motion
 from .component import LINK_FAULTS as _LINK_FAULTS
 from .component import ComponentState, HALComponent
@@ -81,10 +82,21 @@ class Actuator(HALComponent):
         *,
         hal_id: HALId | None = None,
         device_name: str | None = None,
+        function_list: tuple[str, ...] | None = None,
+        clock: Clock | None = None,
+        auto_init: bool = True,
+        open_timeout: float = 10.0,
         completion: CompletionPolicy | None = None,
-        **kwargs: object,
     ) -> None:
-        super().__init__(device, hal_id=hal_id, device_name=device_name, **kwargs)  # type: ignore[arg-type]
+        super().__init__(
+            device,
+            hal_id=hal_id,
+            device_name=device_name,
+            function_list=function_list,
+            clock=clock,
+            auto_init=auto_init,
+            open_timeout=open_timeout,
+        )
         self.completion = completion or CompletionPolicy()
         self._sequence = 0
         self._motion: Motion | None = None

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+from .clock import Clock
 from .component import LINK_FAULTS, ComponentState, HALComponent
 from .device import SensorDevice
 from .errors import HALError
@@ -35,9 +36,20 @@ class Sensor(HALComponent):
         *,
         hal_id: HALId | None = None,
         device_name: str | None = None,
-        **kwargs: object,
+        function_list: tuple[str, ...] | None = None,
+        clock: Clock | None = None,
+        auto_init: bool = True,
+        open_timeout: float = 10.0,
     ) -> None:
-        super().__init__(device, hal_id=hal_id, device_name=device_name, **kwargs)  # type: ignore[arg-type]
+        super().__init__(
+            device,
+            hal_id=hal_id,
+            device_name=device_name,
+            function_list=function_list,
+            clock=clock,
+            auto_init=auto_init,
+            open_timeout=open_timeout,
+        )
 
     @property
     def units(self) -> tuple[str, ...]:

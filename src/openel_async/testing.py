@@ -1,0 +1,197 @@
+"""The openel-async pytest plugin (registered through the ``pytest11`` entry point).
+
+Any project that installs openel-async gets these fixtures:
+
+- ``virtual_clock``: a :class:`VirtualClock` with auto-jump running;
+- ``sim_motor`` / ``sim_actuator``: a SimMotor and an active Actuator over it on the
+  virtual clock, with ``hal_events`` recording its notifications;
+- ``sim_encoder`` and ``sim_imu``: active Sensors attached to that motor;
+- ``hal_components``: enters any component you build, on the virtual clock, and
+  finalizes it at the end of the test;
+- ``hal_events``: an :class:`EventRecorder`.
+
+Async tests run on anyio's pytest plugin pinned to the asyncio backend; coroutine
+tests without an explicit marker are marked ``anyio`` automatically.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import AsyncIterator, Callable
+from contextlib import AsyncExitStack
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+import anyio
+import pytest
+
+from .actuator import Actuator
+from .clock import Clock, VirtualClock
+from .component import HALComponent
+from .sensor import Sensor
+
+C = TypeVar("C", bound=HALComponent)
+
+
+@dataclass(frozen=True, slots=True)
+class Record:
+    """One notification with the clock time it arrived at."""
+
+    kind: str
+    """'event', 'error' or 'timer'."""
+    source: object
+    id: int
+    time_ns: int
+
+
+class EventRecorder:
+    """A HALObserver and TimerObserver that keeps every notification with its time."""
+
+    def __init__(self, clock: Clock) -> None:
+        self.clock = clock
+        self.records: list[Record] = []
+        self._changed = anyio.Event()
+
+    def _add(self, kind: str, source: object, ident: int) -> None:
+        self.records.append(Record(kind, source, ident, self.clock.now_ns()))
+        self._changed.set()
+        self._changed = anyio.Event()
+
+    def notify_event(self, source: object, event_id: int) -> None:
+        self._add("event", source, int(event_id))
+
+    def notify_error(self, source: object, error_id: int) -> None:
+        self._add("error", source, int(error_id))
+
+    def notify_timer(self, timer: Any) -> None:
+        tick = timer.last_tick
+        self._add("timer", timer, tick.index if tick is not None else 0)
+
+    @property
+    def events(self) -> list[Record]:
+        return [r for r in self.records if r.kind == "event"]
+
+    @property
+    def errors(self) -> list[Record]:
+        return [r for r in self.records if r.kind == "error"]
+
+    def count(self, kind: str = "event", ident: int | None = None, source: object = None) -> int:
+        return sum(
+            1
+            for r in self.records
+            if r.kind == kind
+            and (ident is None or r.id == ident)
+            and (source is None or r.source is source)
+        )
+
+    async def wait_for(
+        self,
+        kind: str = "event",
+        ident: int | None = None,
+        *,
+        source: object = None,
+        count: int = 1,
+        timeout: float = 10.0,  # noqa: ASYNC109 - a bound in real seconds for tests
+    ) -> Record:
+        """Wait (bounded by ``timeout`` real seconds) until ``count`` matching records exist."""
+        with anyio.fail_after(timeout):
+            while True:
+                matching = [
+                    r
+                    for r in self.records
+                    if r.kind == kind
+                    and (ident is None or r.id == ident)
+                    and (source is None or r.source is source)
+                ]
+                if len(matching) >= count:
+                    return matching[count - 1]
+                await self._changed.wait()
+
+    def clear(self) -> None:
+        self.records.clear()
+
+
+class ComponentStack:
+    """Enters components for a test and exits them (finalize) in reverse order."""
+
+    def __init__(self, stack: AsyncExitStack, clock: VirtualClock) -> None:
+        self._stack = stack
+        self.clock = clock
+
+    async def enter(self, component: C) -> C:
+        await component.__aenter__()
+        self._stack.push_async_exit(component.__aexit__)
+        return component
+
+    async def actuator(self, device: Any, **kwargs: Any) -> Actuator:
+        kwargs.setdefault("clock", self.clock)
+        return await self.enter(Actuator(device, **kwargs))
+
+    async def sensor(self, device: Any, **kwargs: Any) -> Sensor:
+        kwargs.setdefault("clock", self.clock)
+        return await self.enter(Sensor(device, **kwargs))
+
+
+@pytest.fixture
+def anyio_backend() -> str:
+    """openel-async runs on anyio's asyncio backend."""
+    return "asyncio"
+
+
+@pytest.fixture
+async def virtual_clock() -> AsyncIterator[VirtualClock]:
+    clock = VirtualClock()
+    async with clock.autojump():
+        yield clock
+
+
+@pytest.fixture
+def hal_events(virtual_clock: VirtualClock) -> EventRecorder:
+    return EventRecorder(virtual_clock)
+
+
+@pytest.fixture
+async def hal_components(virtual_clock: VirtualClock) -> AsyncIterator[ComponentStack]:
+    async with AsyncExitStack() as stack:
+        yield ComponentStack(stack, virtual_clock)
+
+
+@pytest.fixture
+def sim_motor() -> Any:
+    from openel_sim import SimMotor
+
+    return SimMotor()
+
+
+@pytest.fixture
+async def sim_actuator(
+    hal_components: ComponentStack, sim_motor: Any, hal_events: EventRecorder
+) -> Actuator:
+    actuator = await hal_components.actuator(sim_motor)
+    actuator.add_observer(hal_events)
+    return actuator
+
+
+@pytest.fixture
+async def sim_encoder(hal_components: ComponentStack, sim_motor: Any) -> Sensor:
+    from openel_sim import SimEncoder
+
+    return await hal_components.sensor(SimEncoder(sim_motor))
+
+
+@pytest.fixture
+async def sim_imu(hal_components: ComponentStack, sim_motor: Any) -> Sensor:
+    from openel_sim import SimIMU
+
+    return await hal_components.sensor(SimIMU(sim_motor, radius=0.1))
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Mark coroutine tests ``anyio`` unless they carry an async marker already."""
+    for item in items:
+        function: Callable[..., Any] | None = getattr(item, "function", None)
+        if function is None or not inspect.iscoroutinefunction(function):
+            continue
+        if any(any(item.iter_markers(name)) for name in ("anyio", "asyncio", "trio")):
+            continue
+        item.add_marker(pytest.mark.anyio)
