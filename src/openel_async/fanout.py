@@ -166,6 +166,15 @@ class Fanout:
                 self.failures += 1
                 log.exception("observer_failed", owner=self.owner, observer=repr(sub.observer))
 
+    def discard_pending(self) -> int:
+        """Drop what async observers have not received yet; returns how many."""
+        dropped = 0
+        for sub in self._subscribers:
+            if sub.mailbox is not None:
+                dropped += len(sub.mailbox.items)
+                sub.mailbox.items.clear()
+        return dropped
+
     async def wait_delivered(self) -> None:
         """Wait until every async observer has processed what was published so far."""
         for sub in self._subscribers:

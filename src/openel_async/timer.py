@@ -139,13 +139,18 @@ class EventTimer:
         self._log.info("timer_started", period_ms=self._period_ms)
 
     def stop_timer(self) -> None:
-        """StopTimer: no tick is delivered after this returns."""
+        """StopTimer: no tick is delivered after this returns.
+
+        Ticks queued for async observers and not yet delivered are discarded; a
+        notify_timer already running finishes (see :meth:`wait_idle`).
+        """
         if self.state is not TimerState.RUNNING:
             raise StateError("stop_timer", self.state, [TimerState.RUNNING])
         self.state = TimerState.STOPPED
         assert self._scope is not None
         self._scope.cancel()
         self._scope = None
+        self._observers.discard_pending()
         self._log.info("timer_stopped", ticks=self._ticks, missed=self._missed)
 
     def set_event_period(self, period_ms: float) -> None:
@@ -164,6 +169,10 @@ class EventTimer:
     @property
     def observers(self) -> tuple[object, ...]:
         return self._observers.observers
+
+    async def wait_idle(self) -> None:
+        """Wait until async observers have finished handling the ticks delivered to them."""
+        await self._observers.wait_delivered()
 
     # -- ticking ---------------------------------------------------------------------
     async def _run(self, scope: anyio.CancelScope) -> None:

@@ -1,0 +1,1 @@
+"""RTC component model."""
