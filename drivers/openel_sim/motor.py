@@ -193,20 +193,18 @@ class SimMotor(ActuatorDevice):
         self, segments: list[prof.Segment], request: Request, *, arrival: bool
     ) -> None:
         low, high = self.limits.position
+        arrival_ns: int | None = None
+        if arrival and request is Request.TORQUE:
+            arrival_ns = self._now() + TORQUE_RISE_NS
+        elif arrival and request in (Request.POSITION, Request.VELOCITY):
+            arrival_ns = prof.end_time(segments)
         segments, limit_ns = prof.clip_to_limits(segments, low, high)
+        if limit_ns is not None and arrival_ns is not None and limit_ns < arrival_ns:
+            arrival_ns = None  # stopped by a limit first: the target is never reached
         self._segments = segments
         self._request = request
         self._limit_ns = limit_ns
-        if not arrival:
-            self._arrival_ns = None
-        elif request is Request.TORQUE:
-            self._arrival_ns = self._now() + TORQUE_RISE_NS
-        elif request is Request.NO_EXCITE:
-            self._arrival_ns = None
-        elif limit_ns is not None and request is Request.VELOCITY:
-            self._arrival_ns = None  # stopped by the limit: the velocity is never reached
-        else:
-            self._arrival_ns = prof.end_time(segments)
+        self._arrival_ns = arrival_ns
         if self._sleep_scope is not None:
             self._sleep_scope.cancel()
 

@@ -16,6 +16,8 @@ from openel_async.ids import DeviceKind
 from .motor import SimMotor
 
 STANDARD_GRAVITY = 9.80665
+THERMAL_STEP_NS = 10_000_000
+MAX_THERMAL_STEPS = 10_000
 
 
 class _SimSensor(SensorDevice):
@@ -141,10 +143,16 @@ class SimTemperature(_SimSensor):
     async def read(self) -> Reading:
         self._check()
         now = self._now()
-        if self._last_ns is not None and now > self._last_ns:
-            torque = self.motor.torque_at(now) if self.motor is not None else 0.0
+        t = self._last_ns if self._last_ns is not None else now
+        # Exact first-order steps over sub-intervals short against the thermal time
+        # constant, each heated by the torque at its start.
+        step = max(THERMAL_STEP_NS, (now - t) // MAX_THERMAL_STEPS)
+        while t < now:
+            dt = min(step, now - t)
+            torque = self.motor.torque_at(t) if self.motor is not None else 0.0
             steady = self.ambient + self.heating * torque * torque
-            decay = math.exp(-(now - self._last_ns) * 1e-9 / self.time_constant)
+            decay = math.exp(-dt * 1e-9 / self.time_constant)
             self._temperature = steady + (self._temperature - steady) * decay
+            t += dt
         self._last_ns = now
         return Reading((self._noisy(self._temperature),), now)

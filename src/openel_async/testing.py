@@ -17,7 +17,7 @@ tests without an explicit marker are marked ``anyio`` automatically.
 from __future__ import annotations
 
 import inspect
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from contextlib import AsyncExitStack
 from dataclasses import dataclass
 from typing import Any, TypeVar
@@ -186,12 +186,21 @@ async def sim_imu(hal_components: ComponentStack, sim_motor: Any) -> Sensor:
     return await hal_components.sensor(SimIMU(sim_motor, radius=0.1))
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Mark coroutine tests ``anyio`` unless they carry an async marker already."""
-    for item in items:
-        function: Callable[..., Any] | None = getattr(item, "function", None)
-        if function is None or not inspect.iscoroutinefunction(function):
-            continue
-        if any(any(item.iter_markers(name)) for name in ("anyio", "asyncio", "trio")):
-            continue
-        item.add_marker(pytest.mark.anyio)
+def pytest_pycollect_makeitem(
+    collector: pytest.Module | pytest.Class, name: str, obj: object
+) -> None:
+    """Mark coroutine tests ``anyio`` (on the pinned asyncio backend) unless marked otherwise.
+
+    Done at collection, before parametrization, as anyio's own plugin expects.
+    """
+    if not collector.istestfunction(obj, name):
+        return
+    inner: Any = getattr(getattr(obj, "hypothesis", None), "inner_test", obj)
+    if not inspect.iscoroutinefunction(inner):
+        return
+    marks = [m.name for m in getattr(obj, "pytestmark", ())]
+    if any(collector.iter_markers("asyncio")) or {"asyncio", "trio"} & set(marks):
+        return
+    if "anyio" not in marks and collector.get_closest_marker("anyio") is None:
+        pytest.mark.anyio(obj)
+    pytest.mark.usefixtures("anyio_backend")(obj)

@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 import anyio
 import anyio.lowlevel
 import structlog
-from openel_sim import SimEncoder, SimMotor, SimTemperature
 
 from openel_async import (
     Actuator,
@@ -30,6 +29,7 @@ from openel_async import (
 )
 from openel_async.clock import NS_PER_S
 from openel_async.ids import DeviceKind
+from openel_sim import SimEncoder, SimMotor, SimTemperature
 
 from .progress import LiveLine
 

@@ -1,0 +1,769 @@
+"""Dynamixel Protocol 2.0 codec (ROBOTIS e-manual), pure and byte-exact.
+
+Packet: ``FF FF FD 00 | id | length (u16 LE) | instruction | params | CRC (u16 LE)``.
+``length`` counts instruction + (stuffed) params + CRC. The CRC-16 (poly 0x8005,
+init 0, no reflection: the ROBOTIS table algorithm) covers every byte from the
+header to the last param, after byte stuffing. Stuffing inserts an extra 0xFD
+after each ``FF FF FD`` inside instruction + params, so a header can never
+appear inside a packet.
+
+:func:`decode` takes one complete packet and raises only
+:class:`~openel_serial.errors.DynamixelDecodeError` (CRC mismatches as its
+subclass :class:`~openel_serial.errors.DynamixelCrcError`). :class:`PacketParser`
+decodes a byte stream and never raises. Encoders raise :class:`ValueError`.
+
+Also: X-series (XM430/XL430) control table items and unit conversions.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Iterable
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Final, TypeAlias
+
+from openel_serial.errors import DynamixelCrcError, DynamixelDecodeError
+
+__all__ = [
+    "ALERT_BIT",
+    "BROADCAST_ID",
+    "CENTER_TICK",
+    "CLEAR_KEY",
+    "CURRENT_UNIT_A",
+    "HEADER",
+    "MAX_ID",
+    "PWM_FULL_SCALE",
+    "TICKS_PER_REV",
+    "VELOCITY_UNIT_RPM",
+    "VOLTAGE_UNIT_V",
+    "Action",
+    "BulkRead",
+    "BulkReadItem",
+    "BulkWrite",
+    "BulkWriteItem",
+    "Clear",
+    "ControlItem",
+    "DynamixelCrcError",
+    "DynamixelDecodeError",
+    "DynamixelMessage",
+    "ErrorNumber",
+    "FactoryReset",
+    "FactoryResetMode",
+    "FastSyncRead",
+    "Instruction",
+    "OperatingMode",
+    "PacketParser",
+    "Ping",
+    "Read",
+    "Reboot",
+    "RegWrite",
+    "Status",
+    "SyncRead",
+    "SyncWrite",
+    "SyncWriteItem",
+    "Write",
+    "XSeries",
+    "amps_to_current",
+    "crc16",
+    "current_to_amps",
+    "decode",
+    "encode",
+    "rad_s_to_velocity",
+    "rad_to_ticks",
+    "stuff",
+    "ticks_to_rad",
+    "unstuff",
+    "velocity_to_rad_s",
+]
+
+HEADER: Final = b"\xff\xff\xfd\x00"
+BROADCAST_ID: Final = 0xFE
+MAX_ID: Final = 0xFC  # 253 (0xFD) and 255 (0xFF) would clash with the header bytes
+_PREFIX_LEN: Final = 7  # header + id + length
+_CRC_LEN: Final = 2
+_STUFF_PATTERN: Final = b"\xff\xff\xfd"
+
+
+class Instruction(IntEnum):
+    PING = 0x01
+    READ = 0x02
+    WRITE = 0x03
+    REG_WRITE = 0x04
+    ACTION = 0x05
+    FACTORY_RESET = 0x06
+    REBOOT = 0x08
+    CLEAR = 0x10
+    STATUS = 0x55
+    SYNC_READ = 0x82
+    SYNC_WRITE = 0x83
+    FAST_SYNC_READ = 0x8A
+    BULK_READ = 0x92
+    BULK_WRITE = 0x93
+
+
+class ErrorNumber(IntEnum):
+    """Status packet error number (bits 0..6 of the error byte)."""
+
+    NONE = 0x00
+    RESULT_FAIL = 0x01
+    INSTRUCTION_ERROR = 0x02
+    CRC_ERROR = 0x03
+    DATA_RANGE_ERROR = 0x04
+    DATA_LENGTH_ERROR = 0x05
+    DATA_LIMIT_ERROR = 0x06
+    ACCESS_ERROR = 0x07
+
+
+#: Bit 7 of the status error byte: check Hardware Error Status (address 70).
+ALERT_BIT: Final = 0x80
+
+
+class FactoryResetMode(IntEnum):
+    ALL = 0xFF
+    EXCEPT_ID = 0x01
+    EXCEPT_ID_AND_BAUDRATE = 0x02
+
+
+# --- CRC and stuffing ----------------------------------------------------------------------
+
+
+def _crc_table() -> tuple[int, ...]:
+    table = []
+    for i in range(256):
+        crc = i << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x8005 if crc & 0x8000 else crc << 1) & 0xFFFF
+        table.append(crc)
+    return tuple(table)
+
+
+_CRC_TABLE: Final = _crc_table()
+
+
+def crc16(data: bytes, crc: int = 0) -> int:
+    """ROBOTIS ``update_crc``: CRC-16 poly 0x8005, MSB first, initial value ``crc``."""
+    for byte in data:
+        crc = ((crc << 8) ^ _CRC_TABLE[((crc >> 8) ^ byte) & 0xFF]) & 0xFFFF
+    return crc
+
+
+def stuff(data: bytes) -> bytes:
+    """Insert 0xFD after every ``FF FF FD`` (patterns cannot overlap since FD != FF)."""
+    return data.replace(_STUFF_PATTERN, _STUFF_PATTERN + b"\xfd")
+
+
+def unstuff(data: bytes) -> bytes:
+    """Inverse of :func:`stuff`; a pattern not followed by 0xFD is a decode error."""
+    out = bytearray()
+    i = 0
+    while True:
+        j = data.find(_STUFF_PATTERN, i)
+        if j < 0:
+            out += data[i:]
+            return bytes(out)
+        end = j + len(_STUFF_PATTERN)
+        if data[end : end + 1] != b"\xfd":
+            raise DynamixelDecodeError(f"unstuffed FF FF FD at offset {j}")
+        out += data[i:end]
+        i = end + 1
+
+
+# --- Messages ------------------------------------------------------------------------------
+
+
+def _check_id(dxl_id: int, *, broadcast: bool = True) -> None:
+    if not (0 <= dxl_id <= MAX_ID or (broadcast and dxl_id == BROADCAST_ID)):
+        raise ValueError(f"Dynamixel id {dxl_id} invalid")
+
+
+def _check_u16(value: int, name: str) -> None:
+    if not 0 <= value <= 0xFFFF:
+        raise ValueError(f"{name} {value} is not a u16")
+
+
+@dataclass(frozen=True)
+class _Addressed:
+    id: int
+
+    def __post_init__(self) -> None:
+        _check_id(self.id)
+
+
+@dataclass(frozen=True)
+class Ping(_Addressed):
+    pass
+
+
+@dataclass(frozen=True)
+class Read(_Addressed):
+    address: int
+    length: int
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_u16(self.address, "address")
+        _check_u16(self.length, "length")
+
+
+@dataclass(frozen=True)
+class Write(_Addressed):
+    address: int
+    data: bytes
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_u16(self.address, "address")
+
+
+@dataclass(frozen=True)
+class RegWrite(Write):
+    """Like :class:`Write` but applied on the next :class:`Action`."""
+
+
+@dataclass(frozen=True)
+class Action(_Addressed):
+    pass
+
+
+@dataclass(frozen=True)
+class FactoryReset(_Addressed):
+    mode: FactoryResetMode = FactoryResetMode.ALL
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "mode", FactoryResetMode(self.mode))
+
+
+@dataclass(frozen=True)
+class Reboot(_Addressed):
+    pass
+
+
+#: Fixed key that must follow the Clear option byte.
+CLEAR_KEY: Final = b"\x44\x58\x4c\x22"  # "DXL\""
+
+
+@dataclass(frozen=True)
+class Clear(_Addressed):
+    """Clear instruction; option 0x01 resets the multi-turn position."""
+
+    option: int = 0x01
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not 0 <= self.option <= 0xFF:
+            raise ValueError(f"clear option {self.option} is not a byte")
+
+
+@dataclass(frozen=True)
+class SyncRead:
+    """Read the same item from several devices (sent to the broadcast id)."""
+
+    address: int
+    length: int
+    ids: tuple[int, ...]
+
+    def __post_init__(self) -> None:
+        _check_u16(self.address, "address")
+        _check_u16(self.length, "length")
+        for dxl_id in self.ids:
+            _check_id(dxl_id, broadcast=False)
+
+
+@dataclass(frozen=True)
+class FastSyncRead(SyncRead):
+    """Same request layout as :class:`SyncRead`; devices answer in one combined packet."""
+
+
+@dataclass(frozen=True)
+class SyncWriteItem:
+    id: int
+    data: bytes
+
+    def __post_init__(self) -> None:
+        _check_id(self.id, broadcast=False)
+
+
+@dataclass(frozen=True)
+class SyncWrite:
+    """Write the same item (``length`` bytes at ``address``) on several devices."""
+
+    address: int
+    length: int
+    items: tuple[SyncWriteItem, ...]
+
+    def __post_init__(self) -> None:
+        _check_u16(self.address, "address")
+        _check_u16(self.length, "length")
+        for item in self.items:
+            if len(item.data) != self.length:
+                raise ValueError(f"id {item.id}: {len(item.data)} bytes, expected {self.length}")
+
+
+@dataclass(frozen=True)
+class BulkReadItem:
+    id: int
+    address: int
+    length: int
+
+    def __post_init__(self) -> None:
+        _check_id(self.id, broadcast=False)
+        _check_u16(self.address, "address")
+        _check_u16(self.length, "length")
+
+
+@dataclass(frozen=True)
+class BulkRead:
+    items: tuple[BulkReadItem, ...]
+
+
+@dataclass(frozen=True)
+class BulkWriteItem:
+    id: int
+    address: int
+    data: bytes
+
+    def __post_init__(self) -> None:
+        _check_id(self.id, broadcast=False)
+        _check_u16(self.address, "address")
+        _check_u16(len(self.data), "data length")
+
+
+@dataclass(frozen=True)
+class BulkWrite:
+    items: tuple[BulkWriteItem, ...]
+
+
+@dataclass(frozen=True)
+class Status(_Addressed):
+    """Status (reply) packet; ``params`` meaning depends on the request."""
+
+    error: int = 0
+    params: bytes = b""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not 0 <= self.error <= 0xFF:
+            raise ValueError(f"status error {self.error} is not a byte")
+
+    @property
+    def alert(self) -> bool:
+        return bool(self.error & ALERT_BIT)
+
+    @property
+    def error_number(self) -> int:
+        """Bits 0..6; compare with :class:`ErrorNumber`."""
+        return self.error & 0x7F
+
+    def ping_info(self) -> tuple[int, int]:
+        """``(model_number, firmware_version)`` of a ping reply."""
+        if len(self.params) != 3:
+            raise DynamixelDecodeError(f"ping reply has 3 params, got {len(self.params)}")
+        model, firmware = struct.unpack("<HB", self.params)
+        return int(model), int(firmware)
+
+
+DynamixelMessage: TypeAlias = (
+    Ping
+    | Read
+    | Write
+    | RegWrite
+    | Action
+    | FactoryReset
+    | Reboot
+    | Clear
+    | SyncRead
+    | FastSyncRead
+    | SyncWrite
+    | BulkRead
+    | BulkWrite
+    | Status
+)
+
+
+# --- Packet framing ------------------------------------------------------------------------
+
+
+def _frame(dxl_id: int, body: bytes) -> bytes:
+    """Frame instruction+params ``body``: stuff, add header/length, append the CRC."""
+    stuffed = stuff(body)
+    length = len(stuffed) + _CRC_LEN
+    if length > 0xFFFF:
+        raise ValueError(f"packet too long ({length} bytes after stuffing)")
+    packet = HEADER + bytes((dxl_id,)) + struct.pack("<H", length) + stuffed
+    return packet + struct.pack("<H", crc16(packet))
+
+
+def _addr_len(address: int, length: int) -> bytes:
+    return struct.pack("<HH", address, length)
+
+
+def _instruction_body(msg: DynamixelMessage) -> tuple[int, bytes]:
+    match msg:
+        case Ping():
+            return msg.id, bytes((Instruction.PING,))
+        case Read():
+            return msg.id, bytes((Instruction.READ,)) + _addr_len(msg.address, msg.length)
+        case RegWrite():  # before Write: RegWrite is a subclass
+            return msg.id, bytes((Instruction.REG_WRITE,)) + struct.pack(
+                "<H", msg.address
+            ) + msg.data
+        case Write():
+            return msg.id, bytes((Instruction.WRITE,)) + struct.pack("<H", msg.address) + msg.data
+        case Action():
+            return msg.id, bytes((Instruction.ACTION,))
+        case FactoryReset():
+            return msg.id, bytes((Instruction.FACTORY_RESET, msg.mode))
+        case Reboot():
+            return msg.id, bytes((Instruction.REBOOT,))
+        case Clear():
+            return msg.id, bytes((Instruction.CLEAR, msg.option)) + CLEAR_KEY
+        case FastSyncRead():  # before SyncRead: subclass
+            ids = bytes(msg.ids)
+            return BROADCAST_ID, bytes((Instruction.FAST_SYNC_READ,)) + _addr_len(
+                msg.address, msg.length
+            ) + ids
+        case SyncRead():
+            ids = bytes(msg.ids)
+            return BROADCAST_ID, bytes((Instruction.SYNC_READ,)) + _addr_len(
+                msg.address, msg.length
+            ) + ids
+        case SyncWrite():
+            data = b"".join(bytes((item.id,)) + item.data for item in msg.items)
+            return BROADCAST_ID, bytes((Instruction.SYNC_WRITE,)) + _addr_len(
+                msg.address, msg.length
+            ) + data
+        case BulkRead():
+            data = b"".join(bytes((i.id,)) + _addr_len(i.address, i.length) for i in msg.items)
+            return BROADCAST_ID, bytes((Instruction.BULK_READ,)) + data
+        case BulkWrite():
+            data = b"".join(
+                bytes((i.id,)) + _addr_len(i.address, len(i.data)) + i.data for i in msg.items
+            )
+            return BROADCAST_ID, bytes((Instruction.BULK_WRITE,)) + data
+        case Status():
+            return msg.id, bytes((Instruction.STATUS, msg.error)) + msg.params
+    raise TypeError(f"not a Dynamixel message: {msg!r}")
+
+
+def encode(msg: DynamixelMessage) -> bytes:
+    """Encode one complete packet (header to CRC)."""
+    dxl_id, body = _instruction_body(msg)
+    return _frame(dxl_id, body)
+
+
+def _split_every(data: bytes, size: int, what: str) -> Iterable[bytes]:
+    if size == 0 or len(data) % size:
+        raise DynamixelDecodeError(f"{what}: {len(data)} bytes is not a multiple of {size}")
+    return (data[i : i + size] for i in range(0, len(data), size))
+
+
+def _parse_bulk_write(params: bytes) -> BulkWrite:
+    items: list[BulkWriteItem] = []
+    i = 0
+    while i < len(params):
+        if len(params) - i < 5:
+            raise DynamixelDecodeError("bulk write: truncated item header")
+        dxl_id = params[i]
+        address, length = struct.unpack_from("<HH", params, i + 1)
+        start = i + 5
+        if start + length > len(params):
+            raise DynamixelDecodeError("bulk write: truncated item data")
+        items.append(BulkWriteItem(dxl_id, address, params[start : start + length]))
+        i = start + length
+    return BulkWrite(tuple(items))
+
+
+def _parse_body(dxl_id: int, instruction: int, params: bytes) -> DynamixelMessage:
+    def need(count: int, exact: bool = True) -> None:
+        if len(params) < count or (exact and len(params) != count):
+            name = Instruction(instruction).name
+            raise DynamixelDecodeError(f"{name}: unexpected param length {len(params)}")
+
+    def broadcast_only() -> None:
+        if dxl_id != BROADCAST_ID:
+            name = Instruction(instruction).name
+            raise DynamixelDecodeError(f"{name} must be sent to the broadcast id")
+
+    match instruction:
+        case Instruction.STATUS:
+            need(1, exact=False)
+            return Status(dxl_id, params[0], params[1:])
+        case Instruction.PING:
+            need(0)
+            return Ping(dxl_id)
+        case Instruction.READ:
+            need(4)
+            return Read(dxl_id, *struct.unpack("<HH", params))
+        case Instruction.WRITE | Instruction.REG_WRITE:
+            need(2, exact=False)
+            cls = Write if instruction == Instruction.WRITE else RegWrite
+            return cls(dxl_id, struct.unpack_from("<H", params)[0], params[2:])
+        case Instruction.ACTION:
+            need(0)
+            return Action(dxl_id)
+        case Instruction.FACTORY_RESET:
+            need(1)
+            return FactoryReset(dxl_id, FactoryResetMode(params[0]))
+        case Instruction.REBOOT:
+            need(0)
+            return Reboot(dxl_id)
+        case Instruction.CLEAR:
+            need(5)
+            if params[1:] != CLEAR_KEY:
+                raise DynamixelDecodeError("clear: wrong key bytes")
+            return Clear(dxl_id, params[0])
+        case Instruction.SYNC_READ | Instruction.FAST_SYNC_READ:
+            broadcast_only()
+            need(4, exact=False)
+            address, length = struct.unpack_from("<HH", params)
+            read_cls = SyncRead if instruction == Instruction.SYNC_READ else FastSyncRead
+            return read_cls(address, length, tuple(params[4:]))
+        case Instruction.SYNC_WRITE:
+            broadcast_only()
+            need(4, exact=False)
+            address, length = struct.unpack_from("<HH", params)
+            items = tuple(
+                SyncWriteItem(chunk[0], chunk[1:])
+                for chunk in _split_every(params[4:], length + 1, "sync write")
+            )
+            return SyncWrite(address, length, items)
+        case Instruction.BULK_READ:
+            broadcast_only()
+            reads = tuple(
+                BulkReadItem(chunk[0], *struct.unpack_from("<HH", chunk, 1))
+                for chunk in _split_every(params, 5, "bulk read")
+            )
+            return BulkRead(reads)
+        case Instruction.BULK_WRITE:
+            broadcast_only()
+            return _parse_bulk_write(params)
+    raise DynamixelDecodeError(f"unknown instruction {instruction:#04x}")
+
+
+def decode(packet: bytes) -> DynamixelMessage:
+    """Decode exactly one complete packet; raises only :class:`DynamixelDecodeError`."""
+    packet = bytes(packet)
+    if len(packet) < _PREFIX_LEN + 1 + _CRC_LEN or not packet.startswith(HEADER):
+        raise DynamixelDecodeError("missing header or packet too short")
+    (length,) = struct.unpack_from("<H", packet, 5)
+    if len(packet) != _PREFIX_LEN + length:
+        raise DynamixelDecodeError(f"length field {length} disagrees with {len(packet)} bytes")
+    (crc,) = struct.unpack_from("<H", packet, len(packet) - _CRC_LEN)
+    if crc != crc16(packet[:-_CRC_LEN]):
+        raise DynamixelCrcError(f"CRC {crc:#06x} != {crc16(packet[:-_CRC_LEN]):#06x}")
+    body = unstuff(packet[_PREFIX_LEN:-_CRC_LEN])
+    dxl_id = packet[4]
+    if not (dxl_id <= MAX_ID or dxl_id == BROADCAST_ID):
+        raise DynamixelDecodeError(f"invalid id {dxl_id:#04x}")
+    try:
+        return _parse_body(dxl_id, body[0], body[1:])
+    except DynamixelDecodeError:
+        raise
+    except ValueError as exc:  # enum or dataclass validation of wire values
+        raise DynamixelDecodeError(str(exc)) from exc
+
+
+# --- Streaming parser ----------------------------------------------------------------------
+
+
+class PacketParser:
+    """Incremental decoder for a byte stream; never raises on garbage.
+
+    Bytes before a header are dropped (``dropped_bytes``). A header with an
+    impossible length (``length_errors``) or a CRC mismatch (``crc_errors``)
+    drops only the header and resynchronises on the next one, so a corrupted
+    length cannot swallow the packets after it. A packet with a valid CRC but
+    invalid contents is skipped whole (``malformed``). The buffer never holds
+    more than one packet of ``max_length``.
+    """
+
+    def __init__(self, *, max_length: int = 1024) -> None:
+        if max_length < 3:
+            raise ValueError("max_length must allow instruction + CRC")
+        self.max_length = max_length
+        self._buf = bytearray()
+        self.packets = 0
+        self.crc_errors = 0
+        self.length_errors = 0
+        self.malformed = 0
+        self.dropped_bytes = 0
+
+    @property
+    def buffered(self) -> int:
+        return len(self._buf)
+
+    def reset(self) -> None:
+        self._buf.clear()
+
+    def _drop(self, count: int) -> None:
+        del self._buf[:count]
+        self.dropped_bytes += count
+
+    def feed(self, data: bytes) -> list[DynamixelMessage]:
+        self._buf += data
+        out: list[DynamixelMessage] = []
+        while True:
+            start = self._buf.find(HEADER)
+            if start < 0:
+                # Keep a tail that may be the start of a header split across reads.
+                keep = next(
+                    (n for n in (3, 2, 1) if self._buf.endswith(HEADER[:n])),
+                    0,
+                )
+                self._drop(len(self._buf) - keep)
+                return out
+            if start:
+                self._drop(start)
+            if len(self._buf) < _PREFIX_LEN:
+                return out
+            (length,) = struct.unpack_from("<H", self._buf, 5)
+            if not 3 <= length <= self.max_length:
+                self.length_errors += 1
+                self._drop(len(HEADER))
+                continue
+            total = _PREFIX_LEN + length
+            if len(self._buf) < total:
+                return out
+            packet = bytes(self._buf[:total])
+            try:
+                msg = decode(packet)
+            except DynamixelCrcError:
+                self.crc_errors += 1
+                self._drop(len(HEADER))
+                continue
+            except DynamixelDecodeError:
+                self.malformed += 1
+                self._drop(total)
+                continue
+            del self._buf[:total]
+            self.packets += 1
+            out.append(msg)
+
+
+# --- X-series control table and units ------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ControlItem:
+    """A control-table item: ``size`` bytes, little-endian, at ``address``."""
+
+    address: int
+    size: int
+    signed: bool = False
+
+    def encode(self, value: int) -> bytes:
+        try:
+            return value.to_bytes(self.size, "little", signed=self.signed)
+        except OverflowError as exc:
+            raise ValueError(f"{value} does not fit {self}") from exc
+
+    def decode(self, data: bytes) -> int:
+        if len(data) != self.size:
+            raise DynamixelDecodeError(f"item at {self.address} is {self.size} bytes")
+        return int.from_bytes(data, "little", signed=self.signed)
+
+    def read(self, dxl_id: int) -> Read:
+        return Read(dxl_id, self.address, self.size)
+
+    def write(self, dxl_id: int, value: int) -> Write:
+        return Write(dxl_id, self.address, self.encode(value))
+
+
+class XSeries:
+    """Protocol 2.0 control table of the X series (XM430 / XL430; XL430 has no current items)."""
+
+    MODEL_NUMBER: Final = ControlItem(0, 2)
+    FIRMWARE_VERSION: Final = ControlItem(6, 1)
+    ID: Final = ControlItem(7, 1)
+    BAUD_RATE: Final = ControlItem(8, 1)
+    RETURN_DELAY_TIME: Final = ControlItem(9, 1)
+    DRIVE_MODE: Final = ControlItem(10, 1)
+    OPERATING_MODE: Final = ControlItem(11, 1)
+    HOMING_OFFSET: Final = ControlItem(20, 4, signed=True)
+    TEMPERATURE_LIMIT: Final = ControlItem(31, 1)
+    PWM_LIMIT: Final = ControlItem(36, 2)
+    CURRENT_LIMIT: Final = ControlItem(38, 2)
+    VELOCITY_LIMIT: Final = ControlItem(44, 4)
+    MAX_POSITION_LIMIT: Final = ControlItem(48, 4)
+    MIN_POSITION_LIMIT: Final = ControlItem(52, 4)
+    SHUTDOWN: Final = ControlItem(63, 1)
+    TORQUE_ENABLE: Final = ControlItem(64, 1)
+    LED: Final = ControlItem(65, 1)
+    STATUS_RETURN_LEVEL: Final = ControlItem(68, 1)
+    REGISTERED_INSTRUCTION: Final = ControlItem(69, 1)
+    HARDWARE_ERROR_STATUS: Final = ControlItem(70, 1)
+    VELOCITY_I_GAIN: Final = ControlItem(76, 2)
+    VELOCITY_P_GAIN: Final = ControlItem(78, 2)
+    POSITION_D_GAIN: Final = ControlItem(80, 2)
+    POSITION_I_GAIN: Final = ControlItem(82, 2)
+    POSITION_P_GAIN: Final = ControlItem(84, 2)
+    FEEDFORWARD_2ND_GAIN: Final = ControlItem(88, 2)
+    FEEDFORWARD_1ST_GAIN: Final = ControlItem(90, 2)
+    BUS_WATCHDOG: Final = ControlItem(98, 1)
+    GOAL_PWM: Final = ControlItem(100, 2, signed=True)
+    GOAL_CURRENT: Final = ControlItem(102, 2, signed=True)
+    GOAL_VELOCITY: Final = ControlItem(104, 4, signed=True)
+    PROFILE_ACCELERATION: Final = ControlItem(108, 4)
+    PROFILE_VELOCITY: Final = ControlItem(112, 4)
+    GOAL_POSITION: Final = ControlItem(116, 4, signed=True)
+    REALTIME_TICK: Final = ControlItem(120, 2)
+    MOVING: Final = ControlItem(122, 1)
+    MOVING_STATUS: Final = ControlItem(123, 1)
+    PRESENT_PWM: Final = ControlItem(124, 2, signed=True)
+    PRESENT_CURRENT: Final = ControlItem(126, 2, signed=True)
+    PRESENT_VELOCITY: Final = ControlItem(128, 4, signed=True)
+    PRESENT_POSITION: Final = ControlItem(132, 4, signed=True)
+    VELOCITY_TRAJECTORY: Final = ControlItem(136, 4, signed=True)
+    POSITION_TRAJECTORY: Final = ControlItem(140, 4, signed=True)
+    PRESENT_INPUT_VOLTAGE: Final = ControlItem(144, 2)
+    PRESENT_TEMPERATURE: Final = ControlItem(146, 1)
+
+
+class OperatingMode(IntEnum):
+    """Values of Operating Mode (address 11)."""
+
+    CURRENT = 0
+    VELOCITY = 1
+    POSITION = 3
+    EXTENDED_POSITION = 4
+    CURRENT_BASED_POSITION = 5
+    PWM = 16
+
+
+TICKS_PER_REV: Final = 4096
+#: Convention: tick 2048 (the middle of the 0..4095 range) is 0 rad.
+CENTER_TICK: Final = 2048
+VELOCITY_UNIT_RPM: Final = 0.229
+CURRENT_UNIT_A: Final = 0.00269  # XM430 series; 2.69 mA per unit
+VOLTAGE_UNIT_V: Final = 0.1
+PWM_FULL_SCALE: Final = 885  # 100 % duty
+_RAD_PER_TICK: Final = 2 * math.pi / TICKS_PER_REV
+_RAD_S_PER_UNIT: Final = VELOCITY_UNIT_RPM * 2 * math.pi / 60
+
+
+def ticks_to_rad(ticks: int) -> float:
+    return (ticks - CENTER_TICK) * _RAD_PER_TICK
+
+
+def rad_to_ticks(rad: float) -> int:
+    """Nearest tick (±half a tick, 0.77 mrad)."""
+    return round(rad / _RAD_PER_TICK) + CENTER_TICK
+
+
+def velocity_to_rad_s(units: int) -> float:
+    return units * _RAD_S_PER_UNIT
+
+
+def rad_s_to_velocity(rad_s: float) -> int:
+    return round(rad_s / _RAD_S_PER_UNIT)
+
+
+def current_to_amps(units: int) -> float:
+    return units * CURRENT_UNIT_A
+
+
+def amps_to_current(amps: float) -> int:
+    return round(amps / CURRENT_UNIT_A)

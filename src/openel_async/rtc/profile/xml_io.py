@@ -1,0 +1,404 @@
+"""The XML form of an RTC Profile (§3.1, §6, sample §9.2).
+
+Parsing goes through defusedxml with DTDs forbidden: a profile never needs one, and
+refusing it stops entity-expansion bombs and external entities before expat sees
+them.  Known attributes are matched in their namespace (``rtc:``, ``rtcDoc:``,
+``rtcExt:``) or unqualified (as in the §8.1 samples); element names accept the
+spellings the spec uses in its schema and its samples (``VersionUpLogs`` and
+``VersionUpLog``, ``propertyIsEqualTo`` and ``PropertyIsEqualTo``).  Writing
+follows the XSD spelling and child order and declares ``xsi:type`` of the richest
+profile an element uses.
+"""
+
+from __future__ import annotations
+
+import re
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
+from datetime import datetime
+
+import defusedxml.ElementTree as DefusedET
+from defusedxml import (
+    DefusedXmlException,
+    DTDForbidden,
+    EntitiesForbidden,
+    ExternalReferenceForbidden,
+)
+
+from ..constraints import (
+    RTC_NS,
+    Constraint,
+    ConstraintError,
+    constraint_from_xml,
+    constraint_to_xml,
+)
+from ._codec import Sink, SinkScalar, Source, read_profile, write_profile
+from .errors import ProfileError
+from .model import Extra, ExtraValue, Position, RtcProfile, validate_profile
+
+__all__ = [
+    "DOC_NS",
+    "EXT_NS",
+    "RTC_NS",
+    "XSI_NS",
+    "dumps_constraint_xml",
+    "dumps_xml",
+    "loads_constraint_xml",
+    "loads_xml",
+]
+
+DOC_NS = "http://www.openrtp.org/namespaces/rtc_doc"
+EXT_NS = "http://www.openrtp.org/namespaces/rtc_ext"
+XSI_NS = "http://www.w3.org/2001/XMLSchema-instance"
+PREFIXES = {RTC_NS: "rtc", DOC_NS: "rtcDoc", EXT_NS: "rtcExt", XSI_NS: "xsi"}
+DOCUMENT = "<document>"
+ROOT = "rtcProfile"
+MAX_DEPTH = 64
+_XSI_TYPE = f"{{{XSI_NS}}}type"
+_KEY_NS = {"rtcExt": EXT_NS, "rtcDoc": DOC_NS}
+
+# YAML key -> (namespace, accepted element names (first is written), children's namespace)
+# for the keys whose XML element is not just the key with a capital first letter.
+_SPECIAL: dict[str, tuple[str, tuple[str, ...], str]] = {
+    "rtcDoc::doc": (DOC_NS, ("Doc",), DOC_NS),
+    "rtcExt::versionUpLogs": (EXT_NS, ("VersionUpLogs", "VersionUpLog"), EXT_NS),
+    "rtcExt::property": (EXT_NS, ("Properties", "Property"), EXT_NS),
+    "rtcExt::targets": (EXT_NS, ("targets",), EXT_NS),
+    "transMethod": (RTC_NS, ("TransMethods", "TransMethod"), RTC_NS),
+    "cpus": (EXT_NS, ("cpus",), EXT_NS),
+    "osVersions": (EXT_NS, ("osVersions",), EXT_NS),
+    "libraries": (EXT_NS, ("libraries",), EXT_NS),
+    "constraint": (RTC_NS, ("Constraint",), RTC_NS),
+}
+
+
+def _split_clark(name: str) -> tuple[str | None, str]:
+    if name.startswith("{"):
+        uri, _, local = name[1:].partition("}")
+        return uri, local
+    return None, name
+
+
+def _split(key: str, default_ns: str) -> tuple[str, str]:
+    """(namespace, local name) of a YAML-style key."""
+    uri, local = _split_clark(key)
+    if uri is not None:
+        return uri, local
+    prefix, sep, rest = key.partition("::")
+    if sep and prefix in _KEY_NS:
+        return _KEY_NS[prefix], rest
+    return default_ns, key
+
+
+def _key(name: str, default_ns: str) -> str:
+    """YAML-style key of an attribute/element name (inverse of ``_split``)."""
+    uri, local = _split_clark(name)
+    if uri is None or uri == default_ns:
+        return local
+    for prefix, ns in _KEY_NS.items():
+        if uri == ns:
+            return f"{prefix}::{local}"
+    return name
+
+
+def _child_spec(key: str, default_ns: str) -> tuple[str, tuple[str, ...], str]:
+    special = _SPECIAL.get(key)
+    if special is not None:
+        return special
+    ns, local = _split(key, default_ns)
+    return ns, (local[:1].upper() + local[1:],), ns
+
+
+def _element_extra(elem: ET.Element, path: str, depth: int) -> dict[str, ExtraValue]:
+    """An unknown element as attributes, ``#text`` and grouped children."""
+    if depth > MAX_DEPTH:
+        raise ProfileError(path, f"nested deeper than {MAX_DEPTH} levels")
+    ns = _split_clark(elem.tag)[0] or RTC_NS
+    out: dict[str, ExtraValue] = {_key(k, ns): v for k, v in elem.attrib.items()}
+    text = elem.text or ""
+    if text.strip():
+        # Text next to child elements is re-indented on writing, so keep it stripped.
+        out["#text"] = text.strip() if len(elem) else text
+    _add_children(out, list(elem), ns, path, depth)
+    return out
+
+
+def _add_children(
+    out: dict[str, ExtraValue], children: list[ET.Element], ns: str, path: str, depth: int
+) -> None:
+    for child in children:
+        key = _key(child.tag, ns)
+        value = _element_extra(child, f"{path}.{key}", depth + 1)
+        existing = out.get(key)
+        if existing is None:
+            out[key] = value
+        elif isinstance(existing, list):
+            existing.append(value)
+        elif isinstance(existing, dict):
+            out[key] = [existing, value]
+        else:
+            raise ProfileError(f"{path}.{key}", "name used by both an attribute and an element")
+
+
+class _XmlSource(Source):
+    def __init__(self, elem: ET.Element, path: str, ns: str) -> None:
+        self._elem = elem
+        self.path = path
+        self._ns = ns
+        self._used_attrs: set[str] = {_XSI_TYPE}
+        self._used_children: set[int] = set()
+
+    def raw(self, key: str) -> object:
+        ns, local = _split(key, self._ns)
+        for name in (f"{{{ns}}}{local}", local):
+            if name in self._elem.attrib:
+                self._used_attrs.add(name)
+                return self._elem.attrib[name]
+        return None
+
+    def _find(self, key: str) -> tuple[list[ET.Element], str]:
+        ns, names, child_ns = _child_spec(key, self._ns)
+        wanted = {f"{{{ns}}}{n}" for n in names} | set(names)
+        found: list[ET.Element] = []
+        for i, child in enumerate(self._elem):
+            if child.tag in wanted:
+                self._used_children.add(i)
+                found.append(child)
+        return found, child_ns
+
+    def child(self, key: str) -> Source | None:
+        found, child_ns = self._find(key)
+        if not found:
+            return None
+        if len(found) > 1:
+            raise ProfileError(f"{self.path}.{key}", f"expected one element, got {len(found)}")
+        return _XmlSource(found[0], f"{self.path}.{key}", child_ns)
+
+    def children(self, key: str) -> list[Source]:
+        found, child_ns = self._find(key)
+        return [_XmlSource(e, f"{self.path}.{key}[{i}]", child_ns) for i, e in enumerate(found)]
+
+    def texts(self, key: str) -> list[object]:
+        found, _ = self._find(key)
+        for i, e in enumerate(found):
+            if len(e):
+                raise ProfileError(f"{self.path}.{key}[{i}]", "must contain only text")
+        return [e.text or "" for e in found]
+
+    def constraint(self, key: str) -> Constraint | None:
+        found, _ = self._find(key)
+        path = f"{self.path}.{key}"
+        if not found:
+            return None
+        if len(found) > 1:
+            raise ProfileError(path, f"expected one element, got {len(found)}")
+        try:
+            return constraint_from_xml(found[0], path)
+        except ConstraintError as e:
+            raise ProfileError(e.path or path, e.message) from None
+
+    def has_ext(self, keys: Sequence[str]) -> bool:
+        if self._elem.get(_XSI_TYPE, "").endswith("_ext"):
+            return True
+        for key in keys:
+            ns, local = _split(key, self._ns)
+            if f"{{{ns}}}{local}" in self._elem.attrib or local in self._elem.attrib:
+                return True
+            cns, names, _ = _child_spec(key, self._ns)
+            tags = {f"{{{cns}}}{n}" for n in names}
+            if any(child.tag in tags for child in self._elem):
+                return True
+        return False
+
+    def extras(self) -> dict[str, ExtraValue]:
+        out: dict[str, ExtraValue] = {
+            _key(k, self._ns): v for k, v in self._elem.attrib.items() if k not in self._used_attrs
+        }
+        text = self._elem.text or ""
+        if text.strip():
+            out["#text"] = text.strip()
+        rest = [c for i, c in enumerate(self._elem) if i not in self._used_children]
+        _add_children(out, rest, self._ns, self.path, 1)
+        return out
+
+
+def _scalar_text(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, datetime):
+        return value.isoformat()
+    return str(value)
+
+
+def _write_extra(elem: ET.Element, extra: Extra, ns: str, path: str) -> None:
+    for key, value in extra.items():
+        if value is None:
+            continue
+        if key == "#text":
+            elem.text = _scalar_text(value)
+            continue
+        uri, local = _split(key, ns)
+        name = f"{{{uri}}}{local}"
+        items: Sequence[ExtraValue]
+        if isinstance(value, Mapping) or (
+            isinstance(value, Sequence) and not isinstance(value, str)
+        ):
+            items = [value] if isinstance(value, Mapping) else value
+            for item in items:
+                child = ET.SubElement(elem, name)
+                if isinstance(item, Mapping):
+                    _write_extra(child, item, uri, f"{path}.{key}")
+                elif item is not None:
+                    child.text = _scalar_text(item)
+        elif name in elem.attrib:
+            raise ProfileError(f"{path}.{key}", "extra key collides with a known field")
+        else:
+            elem.set(name, _scalar_text(value))
+
+
+class _XmlSink(Sink):
+    def __init__(self, elem: ET.Element, path: str, ns: str) -> None:
+        self._elem = elem
+        self._path = path
+        self._ns = ns
+
+    def scalar(self, key: str, value: SinkScalar | None) -> None:
+        if value is not None:
+            ns, local = _split(key, self._ns)
+            self._elem.set(f"{{{ns}}}{local}", _scalar_text(value))
+
+    def position(self, key: str, value: Position) -> None:
+        self.scalar(key, value.value)
+
+    def child(self, key: str) -> Sink:
+        ns, names, child_ns = _child_spec(key, self._ns)
+        elem = ET.SubElement(self._elem, f"{{{ns}}}{names[0]}")
+        return _XmlSink(elem, f"{self._path}.{key}", child_ns)
+
+    def add(self, key: str) -> Sink:
+        return self.child(key)
+
+    def texts(self, key: str, values: Sequence[str]) -> None:
+        ns, names, _ = _child_spec(key, self._ns)
+        for value in values:
+            ET.SubElement(self._elem, f"{{{ns}}}{names[0]}").text = value
+
+    def constraint(self, key: str, value: Constraint | None) -> None:
+        if value is not None:
+            self._elem.append(constraint_to_xml(value, RTC_NS))
+
+    def declare(self, base: str, *, doc: bool, ext: bool) -> None:
+        # The ext types extend the doc types (§6.3), so ext covers both.
+        if ext:
+            self._elem.set(_XSI_TYPE, f"rtcExt:{base}_ext")
+        elif doc:
+            self._elem.set(_XSI_TYPE, f"rtcDoc:{base}_doc")
+
+    def extras(self, extra: Extra) -> None:
+        _write_extra(self._elem, extra, self._ns, self._path)
+
+
+# --- parsing and serializing -------------------------------------------------------
+
+_INVALID_CHAR = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+_TEXT_ESCAPES = {"&": "&amp;", "<": "&lt;", ">": "&gt;", "\r": "&#13;"}
+_ATTR_ESCAPES = {**_TEXT_ESCAPES, '"': "&quot;", "\n": "&#10;", "\t": "&#9;"}
+
+
+def _escape(value: str, table: Mapping[str, str], where: str) -> str:
+    bad = _INVALID_CHAR.search(value)
+    if bad is not None:
+        raise ProfileError(where, f"character {bad.group()!r} cannot be written in XML")
+    return "".join(table.get(ch, ch) for ch in value)
+
+
+def _serialize(root: ET.Element, *, declare_all: bool) -> str:
+    """Indented XML with the spec's prefixes (ElementTree would invent ns0, ns1...)."""
+    prefixes = dict(PREFIXES) if declare_all else {}
+    for elem in root.iter():
+        for name in (elem.tag, *elem.attrib):
+            uri = _split_clark(name)[0]
+            if uri is not None and uri not in prefixes:
+                prefixes[uri] = PREFIXES.get(uri, f"ns{len(prefixes)}")
+
+    def qname(name: str) -> str:
+        uri, local = _split_clark(name)
+        return local if uri is None else f"{prefixes[uri]}:{local}"
+
+    lines = ['<?xml version="1.0" encoding="UTF-8" standalone="yes"?>']
+
+    def emit(elem: ET.Element, level: int) -> None:
+        tag = qname(elem.tag)
+        attrs = [(qname(k), v) for k, v in elem.attrib.items()]
+        if level == 0:
+            attrs = [(f"xmlns:{p}", uri) for uri, p in prefixes.items()] + attrs
+        head = "  " * level + "<" + tag
+        head += "".join(f' {k}="{_escape(v, _ATTR_ESCAPES, tag)}"' for k, v in attrs)
+        text = _escape(elem.text or "", _TEXT_ESCAPES, tag)
+        if len(elem) == 0:
+            lines.append(f"{head}>{text}</{tag}>" if text else f"{head}/>")
+            return
+        lines.append(f"{head}>{text}")
+        for child in elem:
+            emit(child, level + 1)
+        lines.append("  " * level + f"</{tag}>")
+
+    emit(root, 0)
+    return "\n".join(lines) + "\n"
+
+
+def _parse(text: str | bytes) -> ET.Element:
+    refused = "unsafe XML refused: "
+    try:
+        root: ET.Element = DefusedET.fromstring(text, forbid_dtd=True)
+    except DTDForbidden:
+        raise ProfileError(
+            DOCUMENT,
+            refused + "a DTD (<!DOCTYPE ...>) is not allowed: it can declare entities "
+            "(entity expansion, external entities)",
+        ) from None
+    except EntitiesForbidden:
+        raise ProfileError(DOCUMENT, refused + "entity declarations are not allowed") from None
+    except ExternalReferenceForbidden:
+        raise ProfileError(DOCUMENT, refused + "external references are not allowed") from None
+    except DefusedXmlException as e:
+        raise ProfileError(DOCUMENT, refused + str(e)) from None
+    except ET.ParseError as e:
+        raise ProfileError(DOCUMENT, f"invalid XML: {e}") from None
+    except (ValueError, LookupError, RecursionError) as e:
+        raise ProfileError(DOCUMENT, f"invalid XML: {e}") from None
+    return root
+
+
+def loads_xml(text: str | bytes) -> RtcProfile:
+    """Parse and validate an XML RTC Profile; raises ProfileError only."""
+    root = _parse(text)
+    uri, local = _split_clark(root.tag)
+    if local != "RtcProfile" or uri not in (RTC_NS, None):
+        raise ProfileError(DOCUMENT, f"expected an rtc:RtcProfile root element, got {root.tag!r}")
+    profile = read_profile(_XmlSource(root, ROOT, RTC_NS))
+    validate_profile(profile)
+    return profile
+
+
+def dumps_xml(profile: RtcProfile) -> str:
+    """The XML form of a profile (validated first; raises ProfileError)."""
+    validate_profile(profile)
+    root = ET.Element(f"{{{RTC_NS}}}RtcProfile")
+    write_profile(profile, _XmlSink(root, ROOT, RTC_NS))
+    return _serialize(root, declare_all=True)
+
+
+def loads_constraint_xml(text: str | bytes) -> Constraint:
+    """A standalone ``Constraint`` element (namespaced or not, as in §8.1)."""
+    try:
+        return constraint_from_xml(_parse(text))
+    except ConstraintError as e:
+        raise ProfileError(e.path, e.message) from None
+
+
+def dumps_constraint_xml(constraint: Constraint) -> str:
+    """A standalone ``rtc:Constraint`` element."""
+    return _serialize(constraint_to_xml(constraint), declare_all=False)

@@ -1,0 +1,252 @@
+"""The YAML form of an RTC Profile (§3.2, §7, sample §9.3).
+
+Loading uses PyYAML's SafeLoader (no Python object construction: ``!!python/...``
+tags are refused) with one change: plain scalars stay strings and only null is
+resolved implicitly, so ``version: 1.10`` or ``defaultValue: 010`` keep their text
+instead of becoming the numbers 1.1 and 8; typed fields are converted by the schema.
+Aliases are allowed (the spec's sample uses ``&58 LEFT`` / ``*58``) but the document
+is walked with a node budget first, so alias bombs and self-referencing aliases are
+refused instead of expanded.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping, Sequence
+from datetime import datetime
+
+import yaml
+
+from ..constraints import (
+    Constraint,
+    ConstraintError,
+    constraint_from_yaml,
+    constraint_to_yaml,
+)
+from ._codec import Sink, SinkScalar, Source, read_profile, write_profile
+from .errors import ProfileError
+from .model import Extra, ExtraValue, Position, RtcProfile, validate_profile
+
+__all__ = ["dumps_yaml", "loads_yaml"]
+
+DOCUMENT = "<document>"
+ROOT = "rtcProfile"
+MAX_NODES = 100_000
+MAX_DEPTH = 64
+_NULL_TAG = "tag:yaml.org,2002:null"
+
+
+class _ProfileLoader(yaml.SafeLoader):
+    """SafeLoader that resolves nothing but null implicitly (see module docstring)."""
+
+
+_ProfileLoader.yaml_implicit_resolvers = {
+    first: [(tag, regexp) for tag, regexp in resolvers if tag == _NULL_TAG]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+
+
+def _check_budget(data: object) -> None:
+    """Count nodes as if aliases were expanded; refuse bombs and cycles early."""
+    stack: list[tuple[object, int]] = [(data, 0)]
+    seen = 0
+    while stack:
+        node, depth = stack.pop()
+        seen += 1
+        if seen > MAX_NODES:
+            raise ProfileError(DOCUMENT, f"more than {MAX_NODES} nodes (alias expansion?)")
+        if depth > MAX_DEPTH:
+            raise ProfileError(DOCUMENT, f"nested deeper than {MAX_DEPTH} levels")
+        if isinstance(node, Mapping):
+            stack.extend((k, depth + 1) for k in node)
+            stack.extend((v, depth + 1) for v in node.values())
+        elif isinstance(node, list):
+            stack.extend((v, depth + 1) for v in node)
+
+
+def _load(text: str | bytes) -> object:
+    try:
+        data = yaml.load(text, Loader=_ProfileLoader)  # a SafeLoader subclass: safe
+    except yaml.MarkedYAMLError as e:
+        mark = e.problem_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise ProfileError(DOCUMENT, f"invalid YAML{where}: {e.problem or e}") from None
+    except yaml.YAMLError as e:
+        raise ProfileError(DOCUMENT, f"invalid YAML: {e}") from None
+    except RecursionError:
+        raise ProfileError(DOCUMENT, "invalid YAML: nested too deeply") from None
+    except (ValueError, TypeError, OverflowError) as e:
+        # SafeConstructor lets some bad explicit tags through (e.g. "!!int abc").
+        raise ProfileError(DOCUMENT, f"invalid YAML value: {e}") from None
+    _check_budget(data)
+    return data
+
+
+def _mapping(data: object, path: str) -> dict[str, object]:
+    if data is None:
+        return {}
+    if not isinstance(data, Mapping):
+        kind = "a sequence" if isinstance(data, list) else type(data).__name__
+        raise ProfileError(path, f"expected a mapping, got {kind}")
+    for key in data:
+        if not isinstance(key, str):
+            raise ProfileError(path, f"keys must be strings, got {key!r}")
+    return dict(data)
+
+
+def _extra_value(value: object, path: str) -> ExtraValue:
+    if value is None or isinstance(value, str | bool | int | float):
+        return value
+    if isinstance(value, list):
+        return [_extra_value(v, f"{path}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, Mapping):
+        return {k: _extra_value(v, f"{path}.{k}") for k, v in _mapping(value, path).items()}
+    raise ProfileError(path, f"unsupported value of type {type(value).__name__}")
+
+
+class _YamlSource(Source):
+    def __init__(self, data: Mapping[str, object], path: str) -> None:
+        self._data = data
+        self.path = path
+        self._used: set[str] = set()
+
+    def raw(self, key: str) -> object:
+        self._used.add(key)
+        return self._data.get(key)
+
+    def child(self, key: str) -> Source | None:
+        self._used.add(key)
+        if key not in self._data:
+            return None
+        path = f"{self.path}.{key}"
+        return _YamlSource(_mapping(self._data[key], path), path)
+
+    def children(self, key: str) -> list[Source]:
+        self._used.add(key)
+        path = f"{self.path}.{key}"
+        value = self._data.get(key)
+        if value is None:
+            return []
+        if isinstance(value, Mapping):
+            value = [value]  # the spec's sample writes one-entry sequences as the entry
+        if not isinstance(value, list):
+            raise ProfileError(path, f"expected a sequence, got {type(value).__name__}")
+        return [
+            _YamlSource(_mapping(item, f"{path}[{i}]"), f"{path}[{i}]")
+            for i, item in enumerate(value)
+        ]
+
+    def texts(self, key: str) -> list[object]:
+        self._used.add(key)
+        value = self._data.get(key)
+        if value is None:
+            return []
+        return value if isinstance(value, list) else [value]
+
+    def constraint(self, key: str) -> Constraint | None:
+        self._used.add(key)
+        value = self._data.get(key)
+        if value is None:
+            return None
+        try:
+            return constraint_from_yaml(value, f"{self.path}.{key}")
+        except ConstraintError as e:
+            raise ProfileError(e.path or f"{self.path}.{key}", e.message) from None
+
+    def has_ext(self, keys: Sequence[str]) -> bool:
+        return any(k in self._data for k in keys)
+
+    def extras(self) -> dict[str, ExtraValue]:
+        return {
+            k: _extra_value(v, f"{self.path}.{k}")
+            for k, v in self._data.items()
+            if k not in self._used
+        }
+
+
+def _plain(value: ExtraValue) -> object:
+    """Extras as plain dicts/lists (the safe dumper refuses other Mapping types)."""
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, Sequence) and not isinstance(value, str):
+        return [_plain(v) for v in value]
+    return copy.copy(value)
+
+
+class _YamlSink(Sink):
+    def __init__(self, data: dict[str, object], path: str) -> None:
+        self._data = data
+        self._path = path
+
+    def _set(self, key: str, value: object) -> None:
+        self._data[key] = value
+
+    def scalar(self, key: str, value: SinkScalar | None) -> None:
+        if value is None:
+            return
+        if isinstance(value, datetime):
+            if value.tzinfo is not None or value.microsecond:
+                # The spec's year..second mapping would lose these; ISO text keeps them.
+                self._set(key, value.isoformat())
+            else:
+                parts = ("year", "month", "day", "hour", "minute", "second")
+                self._set(key, {p: getattr(value, p) for p in parts})
+        elif isinstance(value, str):
+            self._set(key, str(value))  # plain str: the safe dumper refuses StrEnum
+        else:
+            self._set(key, value)
+
+    def position(self, key: str, value: Position) -> None:
+        self._set(key, value.value.upper())  # the YAML schema's enum is upper case
+
+    def child(self, key: str) -> Sink:
+        data: dict[str, object] = {}
+        self._set(key, data)
+        return _YamlSink(data, f"{self._path}.{key}")
+
+    def add(self, key: str) -> Sink:
+        items = self._data.setdefault(key, [])
+        assert isinstance(items, list)
+        data: dict[str, object] = {}
+        items.append(data)
+        return _YamlSink(data, f"{self._path}.{key}[{len(items) - 1}]")
+
+    def texts(self, key: str, values: Sequence[str]) -> None:
+        if values:
+            self._set(key, list(values))
+
+    def constraint(self, key: str, value: Constraint | None) -> None:
+        if value is not None:
+            self._set(key, constraint_to_yaml(value))
+
+    def declare(self, base: str, *, doc: bool, ext: bool) -> None:
+        """YAML marks the profiles by the key prefixes alone."""
+
+    def extras(self, extra: Extra) -> None:
+        for key, value in extra.items():
+            if key in self._data:
+                raise ProfileError(f"{self._path}.{key}", "extra key collides with a known field")
+            self._data[key] = _plain(value)
+
+
+def loads_yaml(text: str | bytes) -> RtcProfile:
+    """Parse and validate a YAML RTC Profile; raises ProfileError only."""
+    data = _load(text)
+    if not isinstance(data, Mapping) or ROOT not in data:
+        raise ProfileError(DOCUMENT, f"expected a mapping with the key {ROOT!r}")
+    unknown = [k for k in data if k != ROOT]
+    if unknown:
+        raise ProfileError(str(unknown[0]), "unknown top-level key")
+    profile = read_profile(_YamlSource(_mapping(data[ROOT], ROOT), ROOT))
+    validate_profile(profile)
+    return profile
+
+
+def dumps_yaml(profile: RtcProfile) -> str:
+    """The YAML form of a profile (validated first; raises ProfileError)."""
+    validate_profile(profile)
+    body: dict[str, object] = {}
+    write_profile(profile, _YamlSink(body, ROOT))
+    return yaml.safe_dump(
+        {ROOT: body}, sort_keys=False, allow_unicode=True, explicit_start=True, width=100
+    )
