@@ -80,6 +80,7 @@ class SimMotor(ActuatorDevice):
         self._limit_ns: int | None = None
         self._ctx: DeviceContext | None = None
         self._sleep_scope: anyio.CancelScope | None = None
+        self._sleep_until: int | None = None
         self.connected = True
         self.stuck = False
         self.commands = 0
@@ -205,8 +206,16 @@ class SimMotor(ActuatorDevice):
         self._request = request
         self._limit_ns = limit_ns
         self._arrival_ns = arrival_ns
-        if self._sleep_scope is not None:
-            self._sleep_scope.cancel()
+        # Wake the watcher only if it now has something due earlier than its deadline;
+        # a later due time is picked up when it wakes (cancelling costs ~7 us).
+        due = min((t for t in (arrival_ns, limit_ns) if t is not None), default=None)
+        scope = self._sleep_scope
+        if (
+            scope is not None
+            and due is not None
+            and (self._sleep_until is None or due < self._sleep_until)
+        ):
+            scope.cancel()
 
     async def _watch(self) -> None:
         """Post COMPLETED at the arrival time and LIMIT_REACHED at a limit stop."""
@@ -216,11 +225,13 @@ class SimMotor(ActuatorDevice):
             due = [t for t in (self._arrival_ns, self._limit_ns) if t is not None]
             with anyio.CancelScope() as scope:
                 self._sleep_scope = scope  # a new profile cancels the wait to re-plan
+                self._sleep_until = min(due) if due else None
                 if due:
                     await ctx.clock.sleep_until(min(due))
                 else:
                     await anyio.sleep_forever()
             self._sleep_scope = None
+            self._sleep_until = None
             if scope.cancel_called:
                 continue
             now = ctx.clock.now_ns()

@@ -8,13 +8,14 @@ time can leap (virtual clock) without losing accuracy.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 NS = 1e-9
 
 
-@dataclass(frozen=True, slots=True)
-class Segment:
+class Segment(NamedTuple):
+    """Constant acceleration ``a`` from (p0, v0) at ``start_ns`` until ``end_ns``."""
+
     start_ns: int
     p0: float
     v0: float

@@ -63,6 +63,8 @@ class CompletionPolicy:
 
 
 def _finite(value: object) -> float:
+    if type(value) is float and math.isfinite(value):  # the hot path
+        return value
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise BadParameterError("value", value, "a finite real number")
     result = float(value)
@@ -105,7 +107,6 @@ class Actuator(HALComponent):
             Request.VELOCITY: 0.0,
             Request.TORQUE: 0.0,
         }
-        self._lock = anyio.Lock(fast_acquire=True)
         self._watch: anyio.Event = anyio.Event()
         self.completed_count = 0
 
@@ -124,25 +125,35 @@ class Actuator(HALComponent):
         if req not in device.supported_requests:
             raise NotImplementedHALError(f"{self.device_name} does not support {req.name} control")
         device.limits.check(req, target)
-        async with self._lock:
-            self._require("set_value", S.ACTIVE)
-            try:
-                await device.command(req, target)
-            except _LINK_FAULTS as exc:
-                raise self._fault_from(exc) from exc
-            self._sequence += 1
-            motion = Motion(req, target, self._sequence, self.clock.now_ns())
-            previous, self._motion = self._motion, motion
-            if previous is not None:
-                previous._supersede(motion)
-            if req is not Request.NO_EXCITE:
-                self._commanded[req] = target
+        # Commands reach the device in call order; the sequence number taken before the
+        # device call decides which target is final if calls overlap (a bus send).
+        self._sequence += 1
+        sequence = self._sequence
+        try:
+            await device.command(req, target)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+        motion = Motion(req, target, sequence, self.clock.now_ns())
+        if self.state is not S.ACTIVE:  # faulted or finalized while the command was sent
+            if self.last_fault is not None:
+                motion._fault(self.last_fault)
             else:
-                self._commanded[Request.VELOCITY] = 0.0
-                self._commanded[Request.TORQUE] = 0.0
-            if req is Request.NO_EXCITE:
-                self._complete(motion)
-            elif not device.reports_completion:
+                motion._cancel(f"the actuator left Active ({self.state}) during set_value")
+            return motion
+        previous = self._motion
+        if previous is not None and previous.sequence > sequence:
+            motion._supersede(previous)  # a later command overtook this one
+            return motion
+        self._motion = motion
+        if previous is not None:
+            previous._supersede(motion)
+        if req is Request.NO_EXCITE:
+            commanded = self._commanded
+            commanded[Request.VELOCITY] = commanded[Request.TORQUE] = 0.0
+            self._complete(motion)
+        else:
+            self._commanded[req] = target
+            if not device.reports_completion:
                 self._watch.set()
         return motion
 

@@ -7,6 +7,7 @@ from enum import Enum
 from typing import Any
 
 import anyio
+import anyio.lowlevel
 
 from .errors import DeviceFaultError, HALError, MotionCancelledError, SupersededError
 from .requests import Request
@@ -33,6 +34,7 @@ class Motion:
     __slots__ = (
         "_done",
         "_error",
+        "_superseded_by",
         "issued_ns",
         "outcome",
         "reached_ns",
@@ -49,15 +51,32 @@ class Motion:
         self.reached_ns: int | None = None
         self.outcome = Outcome.PENDING
         self._error: HALError | None = None
-        self._done = anyio.Event()
+        self._superseded_by = 0
+        # Created on the first wait: most streamed setpoints are never awaited.
+        self._done: anyio.Event | None = None
 
     def done(self) -> bool:
         return self.outcome is not Outcome.PENDING
 
     async def wait(self) -> None:
-        await self._done.wait()
-        if self._error is not None:
-            raise self._error
+        if self.outcome is Outcome.PENDING:
+            if self._done is None:
+                self._done = anyio.Event()
+            await self._done.wait()
+        else:
+            await anyio.lowlevel.checkpoint()
+        error = self.error()
+        if error is not None:
+            raise error
+
+    def error(self) -> HALError | None:
+        """The exception ``await`` raises, or None while pending or once reached."""
+        if self._error is None and self.outcome is Outcome.SUPERSEDED:
+            self._error = SupersededError(
+                f"target {self.target} ({self.request.name}) replaced by command "
+                f"#{self._superseded_by}"
+            )
+        return self._error
 
     def __await__(self) -> Generator[Any, None, None]:
         return self.wait().__await__()
@@ -72,19 +91,17 @@ class Motion:
         self._error = error
         if outcome is Outcome.REACHED:
             self.reached_ns = at_ns
-        self._done.set()
+        if self._done is not None:
+            self._done.set()
         return True
 
     def _reach(self, at_ns: int) -> bool:
         return self._finish(Outcome.REACHED, at_ns=at_ns)
 
     def _supersede(self, by: Motion) -> bool:
-        return self._finish(
-            Outcome.SUPERSEDED,
-            SupersededError(
-                f"target {self.target} ({self.request.name}) replaced by command #{by.sequence}"
-            ),
-        )
+        # The SupersededError is built only if someone awaits this motion.
+        self._superseded_by = by.sequence
+        return self._finish(Outcome.SUPERSEDED)
 
     def _fault(self, error: DeviceFaultError) -> bool:
         return self._finish(Outcome.FAULTED, error)

@@ -57,16 +57,16 @@ def coerce_request(
     request: object, allowed: tuple[Request, ...], parameter: str = "request"
 ) -> Request:
     """Turn an int or Request into one of ``allowed`` or raise BAD_PARAMETER."""
-    allowed_text = ", ".join(f"{r.name}={r.value}" for r in allowed)
-    if isinstance(request, bool) or not isinstance(request, int):
-        raise BadParameterError(parameter, request, f"one of {allowed_text}")
-    try:
-        code = Request(request)
-    except ValueError:
-        raise BadParameterError(parameter, request, f"one of {allowed_text}") from None
-    if code not in allowed:
+    if type(request) is Request and request in allowed:  # the hot path: no allocation
+        return request
+    code = _BY_VALUE.get(request) if type(request) is int else None
+    if code is None or code not in allowed:
+        allowed_text = ", ".join(f"{r.name}={r.value}" for r in allowed)
         raise BadParameterError(parameter, request, f"one of {allowed_text}")
     return code
+
+
+_BY_VALUE: dict[object, Request] = {int(r): r for r in Request}
 
 
 class EventId(IntEnum):
