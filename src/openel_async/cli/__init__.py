@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import anyio
 
 from .logs import LEVELS, configure_logging
+
+if TYPE_CHECKING:
+    from .demo_sim import RigFactory
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -26,6 +31,12 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--no-live", action="store_true", help="no live progress line")
 
+    demo.add_argument("--bus", choices=("sim", "can"), default="sim", help="device layer to use")
+
+    run = sub.add_parser("run", help="run an app (apps/<name>.py) or an RTC Profile (.yaml/.xml)")
+    run.add_argument("path", help="application file or directory, or RTC Profile")
+    run.add_argument("app_args", nargs=argparse.REMAINDER, help="arguments for the application")
+
     sub.add_parser("devices", help="list the registered drivers and their devices")
     return parser
 
@@ -37,6 +48,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _devices()
     if args.command == "demo":
         return _demo(args)
+    if args.command == "run":
+        from .run_cmd import run
+
+        return run(args.path, list(args.app_args))
     return 2
 
 
@@ -60,6 +75,12 @@ def _demo(args: argparse.Namespace) -> int:
     if args.duration <= 0:
         print("--duration must be > 0", file=sys.stderr)
         return 2
+    rig = _rig(args.bus)
+    if rig is None:
+        return 2
+    if args.virtual and args.bus != "sim":
+        print("--virtual needs --bus sim: a bus runs in real time", file=sys.stderr)
+        return 2
     live = None if args.no_live else LiveLine()
     summary = anyio.run(
         lambda: run_demo(
@@ -68,13 +89,28 @@ def _demo(args: argparse.Namespace) -> int:
             virtual=args.virtual,
             inject_fault=args.inject_fault,
             live=live,
+            rig=rig,
         ),
         backend="asyncio",
     )
-    print("\nsummary (simulated devices, openel_sim)")
+    print(f"\nsummary ({summary.rig})")
     for line in summary.lines():
         print("  " + line)
     return 0
+
+
+def _rig(bus: str) -> RigFactory | None:
+    from .demo_sim import sim_rig
+
+    if bus == "sim":
+        return sim_rig
+    try:
+        module = importlib.import_module("openel_can.demo")
+    except ImportError as exc:
+        print(f"the CAN demo rig is not available: {exc}", file=sys.stderr)
+        return None
+    can_rig: RigFactory = module.can_rig
+    return can_rig
 
 
 if __name__ == "__main__":

@@ -9,6 +9,8 @@ the error observer fires, the application calls re_init and carries on.
 from __future__ import annotations
 
 import math
+from collections.abc import AsyncIterator, Callable
+from contextlib import AbstractAsyncContextManager, AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field
 
 import anyio
@@ -39,6 +41,7 @@ log = structlog.get_logger(__name__)
 @dataclass
 class DemoSummary:
     duration_s: float
+    rig: str = ""
     ticks: int = 0
     missed_ticks: int = 0
     lateness_p50_us: float = 0.0
@@ -115,6 +118,42 @@ class Application:
             self.setpoints += 1
 
 
+@dataclass
+class Rig:
+    """The devices of the demo: two actuators and two sensors, not yet entered."""
+
+    name: str
+    axes: tuple[Actuator, Actuator]
+    sensors: tuple[Sensor, Sensor]
+    trip_axis2: Callable[[], None]
+    """Trip the second axis's drive (fault injection)."""
+
+
+RigFactory = Callable[[Clock], AbstractAsyncContextManager[Rig]]
+
+
+@asynccontextmanager
+async def sim_rig(clock: Clock) -> AsyncIterator[Rig]:
+    """Two SimMotors, an encoder on the first and a thermometer on the second."""
+    motors = (
+        SimMotor(max_velocity=3.0, max_acceleration=40.0),
+        SimMotor(max_velocity=3.0, max_acceleration=40.0),
+    )
+    axes = (
+        Actuator(motors[0], hal_id=HALId(DeviceKind.MOTOR, 0xE1, 0x100, 1), device_name="MOTOR_1", clock=clock, auto_init=False),
+        Actuator(motors[1], hal_id=HALId(DeviceKind.MOTOR, 0xE1, 0x100, 2), device_name="MOTOR_2", clock=clock, auto_init=False),
+    )  # fmt: skip
+    sensors = (
+        Sensor(SimEncoder(motors[0]), hal_id=HALId(DeviceKind.ROTARY_ANGLE, 0xE1, 0x200, 1), device_name="ENCODER_1", clock=clock, auto_init=False),
+        Sensor(SimTemperature(motors[1], noise=0.05, seed=7), hal_id=HALId(DeviceKind.TEMPERATURE, 0xE1, 0x400, 1), device_name="TEMP_2", clock=clock, auto_init=False),
+    )  # fmt: skip
+
+    def trip() -> None:
+        motors[1].inject_fault(error_id=7, reason="demo: over-temperature trip")
+
+    yield Rig("simulated devices, openel_sim", axes, sensors, trip)
+
+
 async def run_demo(
     *,
     duration_s: float = 5.0,
@@ -122,57 +161,29 @@ async def run_demo(
     virtual: bool = False,
     inject_fault: bool = False,
     live: LiveLine | None = None,
+    rig: RigFactory = sim_rig,
 ) -> DemoSummary:
     clock: Clock = VirtualClock() if virtual else MonotonicClock()
     summary = DemoSummary(duration_s=duration_s)
-    if isinstance(clock, VirtualClock):
-        async with clock.autojump():
-            await _scenario(clock, summary, period_ms, inject_fault, live)
-    else:
-        await _scenario(clock, summary, period_ms, inject_fault, live)
+    async with AsyncExitStack() as stack:
+        if isinstance(clock, VirtualClock):
+            await stack.enter_async_context(clock.autojump())
+        parts = await stack.enter_async_context(rig(clock))
+        summary.rig = parts.name
+        await _scenario(clock, parts, summary, period_ms, inject_fault, live)
     return summary
 
 
 async def _scenario(
-    clock: Clock, summary: DemoSummary, period_ms: float, inject_fault: bool, live: LiveLine | None
+    clock: Clock,
+    rig: Rig,
+    summary: DemoSummary,
+    period_ms: float,
+    inject_fault: bool,
+    live: LiveLine | None,
 ) -> None:
-    motors = (
-        SimMotor(max_velocity=3.0, max_acceleration=40.0),
-        SimMotor(max_velocity=3.0, max_acceleration=40.0),
-    )
-    # Fig. 7.6: create the components, register the observer, Init.
-    axes = (
-        Actuator(
-            motors[0],
-            hal_id=HALId(DeviceKind.MOTOR, 0xE1, 0x100, 1),
-            device_name="MOTOR_1",
-            clock=clock,
-            auto_init=False,
-        ),
-        Actuator(
-            motors[1],
-            hal_id=HALId(DeviceKind.MOTOR, 0xE1, 0x100, 2),
-            device_name="MOTOR_2",
-            clock=clock,
-            auto_init=False,
-        ),
-    )
-    sensors = (
-        Sensor(
-            SimEncoder(motors[0]),
-            hal_id=HALId(DeviceKind.ROTARY_ANGLE, 0xE1, 0x200, 1),
-            device_name="ENCODER_1",
-            clock=clock,
-            auto_init=False,
-        ),
-        Sensor(
-            SimTemperature(motors[1], noise=0.05, seed=7),
-            hal_id=HALId(DeviceKind.TEMPERATURE, 0xE1, 0x400, 1),
-            device_name="TEMP_2",
-            clock=clock,
-            auto_init=False,
-        ),
-    )
+    # Fig. 7.6: the components exist; register the observer and Init them below.
+    axes, sensors = rig.axes, rig.sensors
     app = Application(axes, amplitude=0.5, frequency_hz=0.5)
     app.summary = summary
     async with (
@@ -193,7 +204,7 @@ async def _scenario(
         fault_at = app.t0_ns + (end_ns - app.t0_ns) // 2 if inject_fault else None
         async with anyio.create_task_group() as tg:
             if fault_at is not None:
-                tg.start_soon(_fault_and_recover, clock, fault_at, motors[1], axes[1], app, summary)
+                tg.start_soon(_fault_and_recover, clock, fault_at, rig, app, summary)
             # Fig. 7.8: read the sensors with their times, every 100 ms.
             next_read = app.t0_ns
             while clock.now_ns() < end_ns:
@@ -238,16 +249,12 @@ async def _scenario(
 
 
 async def _fault_and_recover(
-    clock: Clock,
-    at_ns: int,
-    motor: SimMotor,
-    axis: Actuator,
-    app: Application,
-    summary: DemoSummary,
+    clock: Clock, at_ns: int, rig: Rig, app: Application, summary: DemoSummary
 ) -> None:
+    axis = rig.axes[1]
     await clock.sleep_until(at_ns)
     log.warning("demo_injecting_fault", device=axis.device_name)
-    motor.inject_fault(error_id=7, reason="demo: over-temperature trip")
+    rig.trip_axis2()
     with anyio.fail_after(5):
         await app.faulted.wait()
     await clock.sleep_until(clock.now_ns() + 200_000_000)
