@@ -106,6 +106,7 @@ class SimMotor(ActuatorDevice):
             now = self._now()
             p, _, _ = prof.evaluate(self._segments, now)
             self._segments = prof.hold(now, p)
+        self._arrival_ns = self._limit_ns = None
 
     # -- commands and readings -------------------------------------------------------
     async def command(self, request: Request, value: float) -> None:

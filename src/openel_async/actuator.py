@@ -17,7 +17,7 @@ from .clock import Clock
 from .completion import Motion
 from .component import LINK_FAULTS as _LINK_FAULTS
 from .component import ComponentState, HALComponent
-from .device import ActuatorDevice
+from .device import ActuatorDevice, ErrorId
 from .errors import (
     BadParameterError,
     DeviceFaultError,
@@ -109,6 +109,7 @@ class Actuator(HALComponent):
         }
         self._watch: anyio.Event = anyio.Event()
         self.completed_count = 0
+        self._detector_started = False
 
     @property
     def motion(self) -> Motion | None:
@@ -186,16 +187,17 @@ class Actuator(HALComponent):
         except Exception:  # a device without a position reading starts at 0
             position = 0.0
         self._commanded = {Request.POSITION: position, Request.VELOCITY: 0.0, Request.TORQUE: 0.0}
-        if not self.device.reports_completion:
+        if not self.device.reports_completion and not self._detector_started:
+            self._detector_started = True  # one detector for the component's lifetime
             self._task_group().start_soon(self._detect_completion)
 
     async def _detect_completion(self) -> None:
         """Tolerance-and-settle detection for devices that do not report completion."""
         policy = self.completion
         clock = self.clock
-        while self.state is S.ACTIVE:
+        while self.state is not S.FINALIZED:
             motion = self._motion
-            if motion is None or motion.done():
+            if motion is None or motion.done() or self.state is not S.ACTIVE:
                 self._watch = anyio.Event()
                 await self._watch.wait()
                 continue
@@ -207,10 +209,13 @@ class Actuator(HALComponent):
                     actual = await self.device.read(motion.request.actual)
                 except _LINK_FAULTS as exc:
                     self._fault_from(exc)
-                    return
+                    break
                 except HALError as exc:
                     self.log.warning("completion_read_failed", error=str(exc))
                     actual = math.nan
+                except Exception as exc:  # a driver bug must not tear the component down
+                    self._fault(ErrorId.DEVICE_ERROR, f"reading the actual value failed: {exc!r}")
+                    break
                 now = clock.now_ns()
                 if abs(actual - motion.target) <= tolerance:
                     within_since = now if within_since is None else within_since

@@ -120,8 +120,7 @@ class VirtualClock:
     """
 
     def __init__(self, start_ns: int = 0) -> None:
-        if start_ns < 0:
-            raise BadParameterError("start_ns", start_ns, "an int >= 0")
+        _check_ns("start_ns", start_ns, 0)
         self._now = start_ns
         self._heap: list[tuple[int, int, asyncio.Future[None]]] = []
         self._seq = itertools.count()
@@ -160,13 +159,11 @@ class VirtualClock:
 
     async def advance(self, delta_ns: int) -> None:
         """Move time forward by ``delta_ns``, waking every sleeper due on the way in order."""
-        if delta_ns < 0:
-            raise BadParameterError("delta_ns", delta_ns, "an int >= 0")
+        _check_ns("delta_ns", delta_ns, 0)
         await self.advance_to(self._now + delta_ns)
 
     async def advance_to(self, target_ns: int) -> None:
-        if target_ns < self._now:
-            raise BadParameterError("target_ns", target_ns, f"an int >= now ({self._now})")
+        _check_ns("target_ns", target_ns, self._now, f"now ({self._now})")
         await _settle()
         while True:
             deadline = self.next_deadline()
@@ -218,6 +215,12 @@ class VirtualClock:
 
     def __repr__(self) -> str:
         return f"VirtualClock(now_ns={self._now})"
+
+
+def _check_ns(name: str, value: object, minimum: int, what: str | None = None) -> None:
+    """Times are integer nanoseconds: reject floats, bools and values below ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise BadParameterError(name, value, f"an int >= {what or minimum}")
 
 
 async def _settle() -> None:

@@ -40,6 +40,9 @@ class ComponentState(Enum):
 
 S = ComponentState
 
+# Observers hear from a component only while it is operating.
+_NOTIFYING = frozenset({ComponentState.ACTIVE, ComponentState.ERROR})
+
 # Exceptions of a device call that mean the link or the device failed (-> Error state).
 LINK_FAULTS: tuple[type[BaseException], ...] = (
     NotConnectedError,
@@ -66,7 +69,7 @@ class _Context:
         return self._component.device_name
 
     def start_soon(self, func: Callable[..., Coroutine[Any, Any, Any]], *args: Any) -> None:
-        self._component._task_group().start_soon(func, *args)
+        self._component._task_group().start_soon(self._component._run_device_task, func, args)
 
     def target_reached(self) -> None:
         self._component._on_target_reached()
@@ -118,6 +121,7 @@ class HALComponent:
         self._observers = Fanout(device_name, ("notify_event", "notify_error"))
         self._stack: AsyncExitStack | None = None
         self._tg: anyio.abc.TaskGroup | None = None
+        self._device_scopes: set[anyio.CancelScope] = set()
         self._ctx = _Context(self)
         self.log = log.bind(component=device_name)
         self._entered = False
@@ -169,6 +173,16 @@ class HALComponent:
         if self._tg is not None:
             self._tg.cancel_scope.cancel()
 
+    async def _run_device_task(
+        self, func: Callable[..., Coroutine[Any, Any, Any]], args: tuple[Any, ...]
+    ) -> None:
+        with anyio.CancelScope() as scope:
+            self._device_scopes.add(scope)
+            try:
+                await func(*args)
+            finally:
+                self._device_scopes.discard(scope)
+
     def _task_group(self) -> anyio.abc.TaskGroup:
         if self._tg is None:
             raise StateError("start_soon", self.state, ["inside 'async with component'"])
@@ -219,6 +233,8 @@ class HALComponent:
 
     async def _close_device(self) -> None:
         self._before_close()
+        for scope in tuple(self._device_scopes):  # driver tasks end with the component
+            scope.cancel()
         try:
             with anyio.move_on_after(self.open_timeout):
                 await self.device.close()
@@ -257,10 +273,16 @@ class HALComponent:
         return self._observers.observers
 
     def _publish_event(self, event_id: int) -> None:
-        self._observers.publish("notify_event", self, event_id)
+        if self.state in _NOTIFYING:
+            self._observers.publish("notify_event", self, event_id)
+        else:
+            self.log.debug("event_dropped", event_id=event_id, state=str(self.state))
 
     def _publish_error(self, error_id: int) -> None:
-        self._observers.publish("notify_error", self, error_id)
+        if self.state in _NOTIFYING:
+            self._observers.publish("notify_error", self, error_id)
+        else:
+            self.log.debug("error_dropped", error_id=error_id, state=str(self.state))
 
     def _fault(
         self, error_id: int, reason: str, code: ReturnCode = ReturnCode.HAL_ERROR
@@ -274,6 +296,10 @@ class HALComponent:
             self._on_fault(error)
         if self.state in (S.ACTIVE, S.ERROR):
             self._publish_error(error_id)
+        else:
+            self.log.warning(
+                "fault_outside_operation", error_id=error_id, reason=reason, state=str(self.state)
+            )
         return error
 
     def _fault_from(self, exc: BaseException) -> DeviceFaultError:

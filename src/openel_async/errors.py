@@ -95,7 +95,8 @@ class SupersededError(HALError):
 
 
 class MotionCancelledError(HALError):
-    """The command ended without reaching its target (finalize, re_init, NO_EXCITE)."""
+    """The command ended without reaching its target: the actuator was finalized, or
+    left Active while the command was being sent."""
 
 
 def check_code(code: ReturnCode | int, message: str = "") -> None:
@@ -104,6 +105,8 @@ def check_code(code: ReturnCode | int, message: str = "") -> None:
     if code is ReturnCode.HAL_OK:
         return
     text = message or code.name
+    if code is ReturnCode.HAL_BAD_PARAMETER:
+        raise BadParameterError("parameter", None, text)
     for cls in (
         NotConnectedError,
         OutOfMemoryError,

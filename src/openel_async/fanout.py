@@ -27,13 +27,15 @@ log = structlog.get_logger(__name__)
 class _Mailbox:
     """The queue and task that deliver to one observer with async methods."""
 
-    def __init__(self, owner: str, observer: object, size: int) -> None:
-        self.owner = owner
+    def __init__(self, fanout: Fanout, observer: object, size: int) -> None:
+        self.fanout = fanout
+        self.owner = fanout.owner
         self.observer = observer
         self.size = size
         self.items: deque[tuple[Callable[..., Any], tuple[Any, ...]]] = deque()
         self.wakeup = anyio.Event()
         self.dropped = 0
+        self.overflowing = False
         self.closed = False
         self.idle = anyio.Event()
         self.idle.set()
@@ -42,12 +44,14 @@ class _Mailbox:
         if len(self.items) >= self.size:
             self.items.popleft()
             self.dropped += 1
-            log.warning(
-                "observer_mailbox_overflow",
-                owner=self.owner,
-                observer=repr(self.observer),
-                dropped_total=self.dropped,
-            )
+            if not self.overflowing:  # once per episode: the publisher is a hot path
+                self.overflowing = True
+                log.warning(
+                    "observer_mailbox_overflow",
+                    owner=self.owner,
+                    observer=repr(self.observer),
+                    dropped_total=self.dropped,
+                )
         self.items.append((method, args))
         if self.idle.is_set():
             self.idle = anyio.Event()
@@ -57,11 +61,13 @@ class _Mailbox:
         while True:
             while self.items:
                 method, args = self.items.popleft()
+                self.overflowing = False
                 try:
                     result = method(*args)
                     if inspect.isawaitable(result):
                         await result
                 except Exception:
+                    self.fanout.failures += 1
                     log.exception("observer_failed", owner=self.owner, observer=repr(self.observer))
             self.idle.set()
             if self.closed:
@@ -103,6 +109,7 @@ class Fanout:
         self._subscribers: tuple[_Subscriber, ...] = ()
         self._task_group: anyio.abc.TaskGroup | None = None
         self.failures = 0
+        """Observer calls that raised, inline or in a mailbox task."""
 
     def __len__(self) -> int:
         return len(self._subscribers)
@@ -120,6 +127,7 @@ class Fanout:
         if task_group is not None:
             for sub in self._subscribers:
                 if sub.mailbox is not None:
+                    sub.mailbox.closed = False  # reopened by a new owner context
                     task_group.start_soon(sub.mailbox.run)
 
     def add(self, observer: object) -> None:
@@ -129,7 +137,7 @@ class Fanout:
             raise BadParameterError("observer", observer, "an observer not yet registered")
         methods = observer_methods(observer, self.kinds)
         is_async = any(_is_async(m) for m in methods.values())
-        mailbox = _Mailbox(self.owner, observer, self.mailbox_size) if is_async else None
+        mailbox = _Mailbox(self, observer, self.mailbox_size) if is_async else None
         self._subscribers = (*self._subscribers, _Subscriber(observer, methods, mailbox))
         if mailbox is not None and self._task_group is not None:
             self._task_group.start_soon(mailbox.run)

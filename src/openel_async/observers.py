@@ -185,8 +185,9 @@ def observer_methods(observer: Any, kinds: tuple[str, ...]) -> dict[str, Any]:
     if not methods and len(kinds) == 1 and callable(observer):
         methods = {kinds[0]: observer}
     if not methods:
-        names = " or ".join(kinds)
+        names = " and ".join(kinds)
+        also = ", or a callable" if len(kinds) == 1 else ""
         raise BadParameterError(
-            "observer", observer, f"an object with {names} (plain or async), or a callable"
+            "observer", observer, f"an object with {names} (plain or async methods){also}"
         )
     return methods

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from array import array
 from dataclasses import dataclass
 
@@ -27,7 +28,9 @@ def percentile(sorted_values: list[int], q: float) -> int:
     """Nearest-rank percentile of an ascending list (0 for an empty one)."""
     if not sorted_values:
         return 0
-    rank = max(0, min(len(sorted_values) - 1, round(q / 100 * len(sorted_values)) - 1))
+    # Nearest rank is ceil(q/100 x n); round() would halve down on ties (banker's
+    # rounding: the median of 5 values would be the 2nd).
+    rank = max(0, min(len(sorted_values) - 1, math.ceil(q * len(sorted_values) / 100) - 1))
     return sorted_values[rank]
 
 

@@ -36,15 +36,15 @@ class TimerState(Enum):
         return self.value
 
 
-def period_to_ns(period_ms: object) -> int:
+def period_to_ns(period_ms: object, parameter: str = "period_ms") -> int:
     """Validate a period in milliseconds (int or float, > 0) and convert it to ns."""
     if isinstance(period_ms, bool) or not isinstance(period_ms, int | float):
-        raise BadParameterError("period_ms", period_ms, "a number of milliseconds > 0")
+        raise BadParameterError(parameter, period_ms, "a number of milliseconds > 0")
     if not math.isfinite(period_ms) or period_ms <= 0:
-        raise BadParameterError("period_ms", period_ms, "a finite number of milliseconds > 0")
+        raise BadParameterError(parameter, period_ms, "a finite number of milliseconds > 0")
     period_ns = round(period_ms * NS_PER_MS)
     if period_ns < 1:
-        raise BadParameterError("period_ms", period_ms, "at least 1 ns (1e-6 ms)")
+        raise BadParameterError(parameter, period_ms, "at least 1 ns (1e-6 ms)")
     return period_ns
 
 
@@ -81,7 +81,9 @@ class EventTimer:
         self.clock: Clock = clock or default_clock()
         self.name = name
         self._late_threshold_ns = (
-            period_to_ns(late_threshold_ms) if late_threshold_ms is not None else None
+            period_to_ns(late_threshold_ms, "late_threshold_ms")
+            if late_threshold_ms is not None
+            else None
         )
         self._observers = Fanout(name, ("notify_timer",))
         self._tg: anyio.abc.TaskGroup | None = None
@@ -191,6 +193,11 @@ class EventTimer:
                     k += 1
                     deadline = anchor + k * period
                     await sleeper.sleep_until(deadline)
+                    if scope.cancel_called:
+                        # StopTimer ran while this wake-up was already due (woken but
+                        # not yet scheduled): anyio does not cancel a task whose wait
+                        # has completed, so honour "no tick after stop_timer" here.
+                        return
                     now = clock.now_ns()
                     lateness = now - deadline
                     record(lateness)

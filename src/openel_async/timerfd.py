@@ -59,13 +59,14 @@ class Timerfd:
     """One timerfd on CLOCK_MONOTONIC, re-armed with an absolute deadline per wait."""
 
     def __init__(self) -> None:
+        self._fd: int | None = None  # set first: __del__ runs even when __init__ raises
         if _libc is None:
             raise OSError("timerfd is not available on this platform")
         fd = _libc.timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)
         if fd < 0:
             err = ctypes.get_errno()
             raise OSError(err, os.strerror(err))
-        self._fd: int | None = fd
+        self._fd = fd
         self._spec = _Itimerspec()
 
     def fileno(self) -> int:

@@ -277,3 +277,75 @@ async def test_tolerance_detection_never_completes_outside_tolerance(
     motion = await motor.set_value(1.0)
     await virtual_clock.sleep(10)
     assert motion.outcome is Outcome.PENDING
+
+
+class CountingLag(LagMotor):
+    def __init__(self) -> None:
+        super().__init__()
+        self.reads = 0
+        self.fail_with: Exception | None = None
+
+    async def read(self, request: Request) -> float:
+        self.reads += 1
+        if self.fail_with is not None:
+            raise self.fail_with
+        return await super().read(request)
+
+
+async def test_one_completion_detector_survives_fault_cycles(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    from openel_async import ErrorId
+
+    device = CountingLag()
+    policy = CompletionPolicy(settle_ns=10**9, poll_ns=1_000_000)
+    motor = await hal_components.actuator(device, completion=policy)
+    for _ in range(3):
+        await motor.set_value(1.0)
+        await virtual_clock.sleep(0.01)
+        motor._fault(ErrorId.DEVICE_ERROR, "test fault")
+        await motor.re_init()
+    await motor.set_value(2.0)
+    await virtual_clock.sleep(0.001)
+    before = device.reads
+    await virtual_clock.sleep(0.1)
+    assert device.reads - before == 100  # one poll per ms: a single detector polls
+
+
+async def test_a_driver_bug_in_the_detector_faults_instead_of_tearing_down(
+    hal_components: ComponentStack, hal_events: EventRecorder, virtual_clock: VirtualClock
+) -> None:
+    from openel_async import ErrorId
+
+    device = CountingLag()
+    motor = await hal_components.actuator(device)
+    motor.add_observer(hal_events)
+    device.fail_with = ValueError("driver bug")
+    motion = await motor.set_value(1.0)
+    with pytest.raises(DeviceFaultError, match="driver bug"):
+        await motion
+    assert motor.state is ComponentState.ERROR
+    assert hal_events.count("error", ErrorId.DEVICE_ERROR) == 1
+    device.fail_with = None
+    await motor.re_init()
+    await (await motor.set_value(0.5))
+
+
+async def test_no_notification_after_finalize(
+    sim_actuator: Actuator, hal_events: EventRecorder, virtual_clock: VirtualClock
+) -> None:
+    await sim_actuator.set_value(2.0, Request.VELOCITY)  # would hit the limit at ~1.67 s
+    await virtual_clock.sleep(0.5)
+    await sim_actuator.finalize()
+    hal_events.clear()
+    await virtual_clock.sleep(5)
+    assert hal_events.records == []
+
+
+def test_check_code_raises_the_matching_exception() -> None:
+    from openel_async.errors import check_code
+
+    with pytest.raises(BadParameterError):
+        check_code(ReturnCode.HAL_BAD_PARAMETER, "bad")
+    with pytest.raises(NotImplementedHALError):
+        check_code(ReturnCode.HAL_NOT_IMPLEMENTED)

@@ -1,0 +1,1 @@
+"""Tests that keep the documentation and its examples true."""
