@@ -38,17 +38,24 @@ def hold(start_ns: int, position: float) -> list[Segment]:
 
 
 def _chain(start_ns: int, p: float, v: float, phases: list[tuple[float, float]]) -> list[Segment]:
-    """Segments from (p, v) through phases of (acceleration, duration in s); then hold/cruise."""
+    """Segments from (p, v) through phases of (velocity at the phase's end, duration in s).
+
+    Durations are whole nanoseconds, rounded up, and each phase's acceleration is derived
+    from its rounded duration, so every phase ends exactly at its velocity and |a| never
+    exceeds the planned acceleration.
+    """
     segments: list[Segment] = []
     t = start_ns
-    for a, duration in phases:
+    for v_end, duration in phases:
         if duration <= 0:
             continue
-        end = t + max(1, round(duration / NS))
-        seg = Segment(t, p, v, a, end)
+        steps = max(1, math.ceil(duration / NS - 1e-6))
+        a = (v_end - v) / (steps * NS)
+        seg = Segment(t, p, v, a, t + steps)
         segments.append(seg)
-        p, v = seg.end_state()
-        t = end
+        p, _ = seg.end_state()
+        v = v_end
+        t += steps
     return segments
 
 
@@ -72,9 +79,9 @@ def trapezoid(
         d3 = s * peak * peak / (2 * amax)
         cruise = (d - d1 - d3) / peak
     phases = [
-        (s * amax, (peak - v0) / (s * amax)),
-        (0.0, cruise),
-        (-s * amax, abs(peak) / amax),
+        (peak, (peak - v0) / (s * amax)),
+        (peak, cruise),
+        (0.0, abs(peak) / amax),
     ]
     segments = _chain(start_ns, p0, v0, phases)
     end = segments[-1].end_ns if segments else start_ns
@@ -86,7 +93,7 @@ def trapezoid(
 def ramp(start_ns: int, p0: float, v0: float, v1: float, amax: float) -> list[Segment]:
     """Reach velocity ``v1`` at |a| = amax, then cruise."""
     dv = v1 - v0
-    segments = _chain(start_ns, p0, v0, [(math.copysign(amax, dv), abs(dv) / amax)]) if dv else []
+    segments = _chain(start_ns, p0, v0, [(v1, abs(dv) / amax)]) if dv else []
     if segments:
         p, _ = segments[-1].end_state()
         end = segments[-1].end_ns
@@ -140,6 +147,12 @@ def clip_to_limits(
 
 
 def _first_crossing(seg: Segment, low: float, high: float) -> tuple[int, float] | None:
+    # Already on (or past) a limit and heading outward: stop right away.
+    heading = seg.v0 if seg.v0 != 0 else seg.a
+    if seg.p0 >= high and heading > 0:
+        return seg.start_ns, high
+    if seg.p0 <= low and heading < 0:
+        return seg.start_ns, low
     best: tuple[float, float] | None = None
     span = None if seg.end_ns is None else (seg.end_ns - seg.start_ns) * NS
     for limit in (low, high):
