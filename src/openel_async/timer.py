@@ -115,6 +115,8 @@ class EventTimer:
         if self.state is TimerState.RUNNING:
             self.stop_timer()
         self._observers.close()
+        with anyio.CancelScope(shield=True), anyio.move_on_after(1.0):
+            await self._observers.wait_delivered()  # let a running notify_timer finish
         tg, self._tg = self._tg, None
         self._observers.bind(None)
         tg.cancel_scope.cancel()
