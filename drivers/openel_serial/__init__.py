@@ -1,1 +1,47 @@
-"""Device layer package."""
+"""openel_serial: serial-port devices on pyserial-asyncio-fast (the ``serial`` driver).
+
+* :class:`DynamixelPort` + :class:`DynamixelServo`: Dynamixel Protocol 2.0 X-series
+  servos sharing one half-duplex port, polled with one SYNC READ per cycle.
+* :class:`NmeaGps`: an NMEA 0183 GPS receiver (GGA, RMC).
+* :mod:`openel_serial.peers`: simulated devices on pseudo-terminals for tests and demos.
+
+Codecs: :mod:`openel_serial.dynamixel`, :mod:`openel_serial.nmea`. See docs/serial.md.
+"""
+
+from openel_async.registry import DriverInfo
+
+from .errors import (
+    DynamixelHardwareAlert,
+    DynamixelStatusError,
+    DynamixelTimeoutError,
+    NoFixError,
+    PortDisconnectedError,
+)
+from .gps import GpsFix, NmeaGps
+from .port import DynamixelPort, PingInfo, PortStats, PresentState
+from .servo import DynamixelServo
+
+DRIVER = DriverInfo(
+    name="serial",
+    description="Serial devices on pyserial-asyncio-fast: Dynamixel 2.0 servos, NMEA GPS",
+    devices={
+        "dynamixel": DynamixelServo,
+        "nmea_gps": NmeaGps,
+    },
+)
+
+__all__ = [
+    "DRIVER",
+    "DynamixelHardwareAlert",
+    "DynamixelPort",
+    "DynamixelServo",
+    "DynamixelStatusError",
+    "DynamixelTimeoutError",
+    "GpsFix",
+    "NmeaGps",
+    "NoFixError",
+    "PingInfo",
+    "PortDisconnectedError",
+    "PortStats",
+    "PresentState",
+]

@@ -21,12 +21,13 @@ import math
 import struct
 from collections.abc import Iterable
 from dataclasses import dataclass
-from enum import IntEnum
+from enum import IntEnum, IntFlag
 from typing import Final, TypeAlias
 
 from openel_serial.errors import DynamixelCrcError, DynamixelDecodeError
 
 __all__ = [
+    "ACCELERATION_UNIT_RPM2",
     "ALERT_BIT",
     "BROADCAST_ID",
     "CENTER_TICK",
@@ -52,7 +53,9 @@ __all__ = [
     "FactoryReset",
     "FactoryResetMode",
     "FastSyncRead",
+    "HardwareError",
     "Instruction",
+    "MovingStatus",
     "OperatingMode",
     "PacketParser",
     "Ping",
@@ -65,11 +68,13 @@ __all__ = [
     "SyncWriteItem",
     "Write",
     "XSeries",
+    "acceleration_to_rad_s2",
     "amps_to_current",
     "crc16",
     "current_to_amps",
     "decode",
     "encode",
+    "rad_s2_to_acceleration",
     "rad_s_to_velocity",
     "rad_to_ticks",
     "stuff",
@@ -683,6 +688,7 @@ class XSeries:
     DRIVE_MODE: Final = ControlItem(10, 1)
     OPERATING_MODE: Final = ControlItem(11, 1)
     HOMING_OFFSET: Final = ControlItem(20, 4, signed=True)
+    MOVING_THRESHOLD: Final = ControlItem(24, 4)
     TEMPERATURE_LIMIT: Final = ControlItem(31, 1)
     PWM_LIMIT: Final = ControlItem(36, 2)
     CURRENT_LIMIT: Final = ControlItem(38, 2)
@@ -722,6 +728,38 @@ class XSeries:
     PRESENT_TEMPERATURE: Final = ControlItem(146, 1)
 
 
+class HardwareError(IntFlag):
+    """Bits of Hardware Error Status (address 70); any of them sets the status alert bit.
+
+    The servo disables its torque (Shutdown, address 63 selects which bits do) and keeps
+    the bits until it is rebooted.
+    """
+
+    INPUT_VOLTAGE = 0x01
+    OVERHEATING = 0x04
+    MOTOR_ENCODER = 0x08
+    ELECTRICAL_SHOCK = 0x10
+    OVERLOAD = 0x20
+
+    def describe(self) -> str:
+        """``"OVERHEATING|OVERLOAD"``, or the hex value for bits without a name."""
+        names = [flag.name for flag in HardwareError if flag in self and flag.name]
+        unknown = int(self) & ~sum(int(flag) for flag in HardwareError)
+        if unknown:
+            names.append(f"{unknown:#04x}")
+        return "|".join(names) or "none"
+
+
+class MovingStatus(IntFlag):
+    """Bits of Moving Status (address 123)."""
+
+    IN_POSITION = 0x01
+    PROFILE_ONGOING = 0x02
+    FOLLOWING_ERROR = 0x08
+    PROFILE_TYPE_MASK = 0x30
+    """Bits 4-5: 3 trapezoidal, 2 triangular, 1 rectangular, 0 step (no profile)."""
+
+
 class OperatingMode(IntEnum):
     """Values of Operating Mode (address 11)."""
 
@@ -737,11 +775,14 @@ TICKS_PER_REV: Final = 4096
 #: Convention: tick 2048 (the middle of the 0..4095 range) is 0 rad.
 CENTER_TICK: Final = 2048
 VELOCITY_UNIT_RPM: Final = 0.229
+#: Profile Acceleration (108) unit, rev/min^2.
+ACCELERATION_UNIT_RPM2: Final = 214.577
 CURRENT_UNIT_A: Final = 0.00269  # XM430 series; 2.69 mA per unit
 VOLTAGE_UNIT_V: Final = 0.1
 PWM_FULL_SCALE: Final = 885  # 100 % duty
 _RAD_PER_TICK: Final = 2 * math.pi / TICKS_PER_REV
 _RAD_S_PER_UNIT: Final = VELOCITY_UNIT_RPM * 2 * math.pi / 60
+_RAD_S2_PER_UNIT: Final = ACCELERATION_UNIT_RPM2 * 2 * math.pi / 3600
 
 
 def ticks_to_rad(ticks: int) -> float:
@@ -759,6 +800,15 @@ def velocity_to_rad_s(units: int) -> float:
 
 def rad_s_to_velocity(rad_s: float) -> int:
     return round(rad_s / _RAD_S_PER_UNIT)
+
+
+def acceleration_to_rad_s2(units: int) -> float:
+    """Profile Acceleration units (214.577 rev/min^2 each) to rad/s^2."""
+    return units * _RAD_S2_PER_UNIT
+
+
+def rad_s2_to_acceleration(rad_s2: float) -> int:
+    return round(rad_s2 / _RAD_S2_PER_UNIT)
 
 
 def current_to_amps(units: int) -> float:

@@ -272,6 +272,19 @@ def test_unit_round_trips(units: int) -> None:
     assert dx.rad_to_ticks(dx.ticks_to_rad(units)) == units
     assert dx.rad_s_to_velocity(dx.velocity_to_rad_s(units)) == units
     assert dx.amps_to_current(dx.current_to_amps(units)) == units
+    assert dx.rad_s2_to_acceleration(dx.acceleration_to_rad_s2(units)) == units
+
+
+def test_acceleration_unit_and_status_flags() -> None:
+    assert dx.acceleration_to_rad_s2(1) == pytest.approx(214.577 * 2 * math.pi / 3600)
+    assert (X.MOVING_THRESHOLD.address, X.MOVING_THRESHOLD.size) == (24, 4)
+    error = dx.HardwareError.OVERHEATING | dx.HardwareError.OVERLOAD
+    assert error.describe() == "OVERHEATING|OVERLOAD"
+    assert dx.HardwareError(0x42).describe() == "0x42"
+    assert dx.HardwareError(0).describe() == "none"
+    status = dx.MovingStatus(0x33)
+    assert dx.MovingStatus.IN_POSITION in status and dx.MovingStatus.PROFILE_ONGOING in status
+    assert status & dx.MovingStatus.PROFILE_TYPE_MASK == 0x30
 
 
 @given(st.floats(-100.0, 100.0))

@@ -1,0 +1,152 @@
+"""One serial port on pyserial-asyncio-fast: open without blocking, bytes to a callback.
+
+:class:`SerialLink` opens the port with ``serial.serial_for_url`` in a worker thread
+(``anyio.to_thread``: the event loop never waits on ``open()``/``tcsetattr``) and hands
+the open ``serial.Serial`` to ``serial_asyncio_fast.connection_for_serial``, whose
+transport reads whenever the fd is readable and passes the bytes to ``on_data`` in the
+event loop's thread, with no task of ours in between. A read error or EOF (an
+unplugged USB adapter, a closed pty master) ends the transport; ``on_lost`` is then
+called once with the reason. Writes are buffered by the transport and never block.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import anyio
+import anyio.to_thread
+import serial
+import serial_asyncio_fast
+import structlog
+
+from openel_serial.errors import PortDisconnectedError
+
+__all__ = ["SerialLink"]
+
+log = structlog.get_logger(__name__)
+
+CLOSE_TIMEOUT_S = 2.0
+"""Bound on waiting for the transport to close the port (a worker thread does it)."""
+
+
+class _Protocol(asyncio.Protocol):
+    def __init__(self, link: SerialLink, generation: int, closed: anyio.Event) -> None:
+        self._link = link
+        self._generation = generation
+        self._closed = closed
+
+    def data_received(self, data: bytes) -> None:
+        self._link._data(self._generation, data)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self._closed.set()  # the transport released the port
+        self._link._lost(self._generation, exc)
+
+
+class SerialLink:
+    """A serial port (a device path or a pyserial URL) with callbacks for data and loss.
+
+    ``on_data(data)`` and ``on_lost(reason)`` run in the event loop's thread and must
+    not raise. ``on_lost`` is called for a failure, not for :meth:`close`.
+    """
+
+    def __init__(
+        self,
+        url: str,
+        *,
+        baudrate: int,
+        on_data: Callable[[bytes], None],
+        on_lost: Callable[[str], None],
+        serial_options: Mapping[str, Any] | None = None,
+    ) -> None:
+        self.url = url
+        self.baudrate = baudrate
+        self.serial_options = dict(serial_options or {})
+        self._on_data = on_data
+        self._on_lost = on_lost
+        self._transport: asyncio.Transport | None = None
+        self._generation = 0
+        self._closed: anyio.Event | None = None
+        self.opens = 0
+        self.bytes_in = 0
+        self.bytes_out = 0
+        self.lost_reason: str | None = None
+        self._log = log.bind(port=url)
+
+    @property
+    def is_open(self) -> bool:
+        transport = self._transport
+        return transport is not None and not transport.is_closing()
+
+    async def open(self) -> None:
+        """Open the port; raise :class:`PortDisconnectedError` when it cannot be opened."""
+        if self._transport is not None:
+            await self.close()
+        options = {"baudrate": self.baudrate, **self.serial_options}
+        try:
+            # Not cancellable: a port opened by the thread after a cancel would leak.
+            port = await anyio.to_thread.run_sync(
+                lambda: serial.serial_for_url(self.url, **options)
+            )
+        except (OSError, ValueError) as exc:  # SerialException is an OSError
+            raise PortDisconnectedError(self.url, f"cannot open: {exc}") from exc
+        self._generation += 1
+        generation = self._generation
+        closed = anyio.Event()
+        loop = asyncio.get_running_loop()
+        transport, _ = await serial_asyncio_fast.connection_for_serial(
+            loop, lambda: _Protocol(self, generation, closed), port
+        )
+        self._transport = transport
+        self._closed = closed
+        self.lost_reason = None
+        self.opens += 1
+        self._log.info("serial_port_opened", baudrate=self.baudrate, generation=generation)
+
+    def write(self, data: bytes) -> None:
+        """Queue ``data`` for sending (never blocks); raise if the port is not open."""
+        transport = self._transport
+        if transport is None or transport.is_closing():
+            raise PortDisconnectedError(self.url, self.lost_reason or "not open")
+        transport.write(data)
+        self.bytes_out += len(data)
+
+    async def close(self) -> None:
+        """Close the port (pending output is dropped) and wait until it is released."""
+        transport, closed = self._transport, self._closed
+        self._transport = None
+        if transport is None:
+            return
+        self._generation += 1  # callbacks of the old transport are ignored from now on
+        if not transport.is_closing():
+            transport.abort()
+        if closed is not None:
+            with anyio.CancelScope(shield=True), anyio.move_on_after(CLOSE_TIMEOUT_S):
+                await closed.wait()
+        self._log.info("serial_port_closed")
+
+    # -- transport callbacks (event loop thread) -----------------------------------
+    def _data(self, generation: int, data: bytes) -> None:
+        if generation != self._generation:
+            return
+        self.bytes_in += len(data)
+        try:
+            self._on_data(data)
+        except Exception:  # a bug in a handler must not stop the transport's reader
+            self._log.exception("serial_data_handler_failed")
+
+    def _lost(self, generation: int, exc: Exception | None) -> None:
+        if generation != self._generation:
+            return  # our own close()
+        # The transport ended by itself: a read/write error or EOF.
+        self._transport = None
+        self._closed = None
+        reason = f"port lost: {exc}" if exc is not None else "port closed by the transport"
+        self.lost_reason = reason
+        self._log.warning("serial_port_lost", reason=reason)
+        try:
+            self._on_lost(reason)
+        except Exception:
+            self._log.exception("serial_lost_handler_failed")

@@ -1,0 +1,808 @@
+"""Simulated serial peers on pseudo-terminals: a Dynamixel bus and an NMEA GPS.
+
+Each peer owns the *master* end of a pty pair and answers like the device would; the
+driver opens the *slave* tty through pyserial-asyncio-fast exactly as it would open
+``/dev/ttyUSB0``, so tests and demos run the real serial stack end to end. The slave
+is reached through a stable symlink (``peer.path``), like a udev
+``/dev/serial/by-id`` link: unplugging closes the master (the driver's reads fail
+with EIO, as for a vanished USB adapter) and plugging in again creates a new pty and
+points the link at it, so the driver reopens the same path.
+
+Peers are anyio tasks that wait on the master fd with ``anyio.wait_readable`` /
+``wait_writable`` and use non-blocking ``os.read``/``os.write``: they never block the
+event loop. A pty has no baud rate: bytes arrive as fast as the two ends run.
+
+* :class:`SimDynamixelBus` with :class:`SimServo` s: control table, trapezoidal
+  profile moves (Profile Velocity/Acceleration), velocity and current modes, Moving /
+  Moving Status, Return Delay Time, read-only and EEPROM access rules, limit errors,
+  REBOOT; injection of status errors, hardware errors (alert bit), unresponsive
+  servos, dropped and corrupted replies, garbage bytes; unplug/plug.
+* :class:`SimGps`: GGA + RMC at ``rate_hz`` along a :class:`GpsPath`; injection of
+  checksum errors, garbage, silence (pause) and unplug/plug.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import math
+import os
+import shutil
+import struct
+import tempfile
+import tty
+from collections.abc import Iterable
+from contextlib import AsyncExitStack
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Final, Self
+
+import anyio
+import anyio.abc
+import structlog
+
+from openel_async.clock import Clock, default_clock
+from openel_serial import dynamixel as dx
+from openel_serial import nmea
+from openel_sim import profile as prof
+
+__all__ = [
+    "GpsPath",
+    "PtyPort",
+    "SimDynamixelBus",
+    "SimGps",
+    "SimServo",
+]
+
+log = structlog.get_logger(__name__)
+
+X = dx.XSeries
+TICKS_PER_S_PER_VELOCITY_UNIT: Final = dx.VELOCITY_UNIT_RPM / 60 * dx.TICKS_PER_REV
+TICKS_PER_S2_PER_ACCELERATION_UNIT: Final = dx.ACCELERATION_UNIT_RPM2 / 3600 * dx.TICKS_PER_REV
+PROFILE_ONGOING: Final = int(dx.MovingStatus.PROFILE_ONGOING)
+IN_POSITION: Final = int(dx.MovingStatus.IN_POSITION)
+UNLIMITED_ACCELERATION: Final = 1e7
+"""Ticks/s^2 standing for Profile Acceleration 0 ("infinite")."""
+COAST_ACCELERATION: Final = 20_000.0
+"""Ticks/s^2 of the free rotor braking by friction once the torque is off."""
+TABLE_SIZE: Final = 147
+WRITE_TIMEOUT_S: Final = 1.0
+NS: Final = 1_000_000_000
+
+
+# -- the pty ------------------------------------------------------------------------------
+
+
+class PtyPort:
+    """The device end of a pty pair, reached by the driver through the symlink ``path``.
+
+    The peer keeps its own slave fd open so the master never sees a hang-up while
+    the driver has the port closed. ``path`` defaults to a link in a new temporary
+    directory, removed by :meth:`remove`.
+    """
+
+    def __init__(self, path: str | Path | None = None) -> None:
+        self._tmpdir: Path | None = None
+        if path is None:
+            self._tmpdir = Path(tempfile.mkdtemp(prefix="openel-pty-"))
+            path = self._tmpdir / "tty"
+        self.path = Path(path)
+        self._master: int | None = None
+        self._slave: int | None = None
+        self.tty_name: str | None = None
+        self.bytes_in = 0
+        self.bytes_out = 0
+        self.dropped_out = 0
+
+    @property
+    def is_open(self) -> bool:
+        return self._master is not None
+
+    def open(self) -> None:
+        """Create a new pty pair (raw mode) and point ``path`` at its slave."""
+        if self._master is not None:
+            raise RuntimeError(f"pty {self.path} is already open")
+        master, slave = os.openpty()
+        tty.setraw(slave)  # no echo, no line discipline: bytes pass unchanged
+        os.set_blocking(master, False)
+        self._master, self._slave = master, slave
+        self.tty_name = os.ttyname(slave)
+        tmp_link = self.path.with_name(self.path.name + ".new")
+        with contextlib.suppress(FileNotFoundError):
+            tmp_link.unlink()
+        tmp_link.symlink_to(self.tty_name)
+        os.replace(tmp_link, self.path)  # atomic: the path always names some pty
+
+    def close(self) -> None:
+        """Close the pty (the driver's end sees EIO: the device is gone)."""
+        master, slave = self._master, self._slave
+        self._master = self._slave = None
+        if master is not None:
+            anyio.notify_closing(master)  # wakes a task waiting on it
+            os.close(master)
+        if slave is not None:
+            os.close(slave)
+
+    def remove(self) -> None:
+        """Close and delete the link (and the temporary directory)."""
+        self.close()
+        with contextlib.suppress(FileNotFoundError):
+            self.path.unlink()
+        if self._tmpdir is not None:
+            shutil.rmtree(self._tmpdir, ignore_errors=True)
+
+    def _fd(self) -> int:
+        if self._master is None:
+            raise anyio.ClosedResourceError(f"pty {self.path} is closed")
+        return self._master
+
+    async def read(self, size: int = 4096) -> bytes:
+        """Wait for bytes from the driver (raises ClosedResourceError once closed)."""
+        while True:
+            fd = self._fd()
+            try:
+                data = os.read(fd, size)
+            except BlockingIOError:
+                await anyio.wait_readable(fd)
+                continue
+            self.bytes_in += len(data)
+            return data
+
+    async def write(self, data: bytes) -> None:
+        """Write every byte, waiting (bounded) while the pty buffer is full."""
+        view = memoryview(data)
+        with anyio.move_on_after(WRITE_TIMEOUT_S):
+            while view:
+                fd = self._fd()
+                try:
+                    written = os.write(fd, view)
+                except BlockingIOError:
+                    await anyio.wait_writable(fd)
+                    continue
+                self.bytes_out += written
+                view = view[written:]
+        self.dropped_out += len(view)
+
+    def write_nowait(self, data: bytes) -> int:
+        """Write what fits now and drop the rest, like a UART nobody reads; returns bytes written."""
+        fd = self._fd()
+        try:
+            written = os.write(fd, data)
+        except BlockingIOError:
+            written = 0
+        self.bytes_out += written
+        self.dropped_out += len(data) - written
+        return written
+
+
+class _PtyPeer:
+    """Lifecycle shared by the peers: a pty, a task group and one serving task."""
+
+    def __init__(self, path: str | Path | None, clock: Clock | None) -> None:
+        self.pty = PtyPort(path)
+        self.clock: Clock = clock or default_clock()
+        self._stack: AsyncExitStack | None = None
+        self._tg: anyio.abc.TaskGroup | None = None
+        self._scope: anyio.CancelScope | None = None
+        self.plugs = 0
+
+    @property
+    def path(self) -> str:
+        """The tty path the driver opens (a symlink that survives unplug/plug)."""
+        return str(self.pty.path)
+
+    @property
+    def plugged(self) -> bool:
+        return self.pty.is_open
+
+    async def __aenter__(self) -> Self:
+        stack = AsyncExitStack()
+        stack.callback(self.pty.remove)
+        self._tg = await stack.enter_async_context(anyio.create_task_group())
+        stack.callback(self._tg.cancel_scope.cancel)
+        self._stack = stack
+        try:
+            self.plug()
+        except BaseException:
+            await stack.aclose()
+            raise
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        stack, self._stack = self._stack, None
+        if self._scope is not None:
+            self._scope.cancel()
+        if stack is not None:
+            await stack.aclose()
+
+    def plug(self) -> None:
+        """Connect the device: a new pty behind ``path``, served by a new task."""
+        if self._tg is None:
+            raise RuntimeError("enter the peer ('async with') first")
+        if self.pty.is_open:
+            return
+        self.pty.open()
+        self.plugs += 1
+        self._scope = anyio.CancelScope()
+        self._tg.start_soon(self._run, self._scope)
+
+    def unplug(self) -> None:
+        """Disconnect the device: close the pty master (the driver gets EIO)."""
+        if self._scope is not None:
+            self._scope.cancel()
+            self._scope = None
+        self.pty.close()
+
+    async def _run(self, scope: anyio.CancelScope) -> None:
+        # ClosedResourceError/OSError: unplugged while waiting on the fd.
+        with scope, contextlib.suppress(anyio.ClosedResourceError, OSError):
+            await self._serve()
+
+    async def _serve(self) -> None:
+        raise NotImplementedError
+
+
+# -- Dynamixel ----------------------------------------------------------------------------
+
+
+def _until(segments: list[prof.Segment], t_ns: int) -> list[prof.Segment]:
+    """The part of a profile before ``t_ns``."""
+    out = []
+    for seg in segments:
+        if seg.start_ns >= t_ns:
+            break
+        end = t_ns if seg.end_ns is None else min(seg.end_ns, t_ns)
+        out.append(seg._replace(end_ns=end))
+    return out
+
+
+class SimServo:
+    """A simulated Dynamixel X-series servo: control table and motion, in ticks.
+
+    Motion is a closed-form profile (piecewise constant acceleration) evaluated at the
+    time of each query: position moves follow the trapezoid of Profile Velocity and
+    Profile Acceleration (0 = the velocity limit and an unbounded acceleration),
+    velocity mode ramps at Profile Acceleration, current mode accelerates toward a
+    speed proportional to Goal Current. Torque off lets the rotor coast to rest.
+    """
+
+    def __init__(
+        self,
+        dxl_id: int,
+        *,
+        model_number: int = 1020,  # XM430-W350
+        firmware_version: int = 48,
+        position: int = dx.CENTER_TICK,
+        return_delay_time: int = 0,
+        velocity_limit: int = 200,
+        profile_velocity: int = 0,
+        profile_acceleration: int = 0,
+        min_position: int = 0,
+        max_position: int = 4095,
+        current_limit: int = 1193,
+        status_return_level: int = 2,
+        boot_time: float = 0.02,
+        clock: Clock | None = None,
+    ) -> None:
+        dx.Ping(dxl_id)  # validates the id
+        self.id = dxl_id
+        self.clock: Clock = clock or default_clock()
+        self.model_number = model_number
+        self.firmware_version = firmware_version
+        self.boot_time = boot_time
+        self.table = bytearray(TABLE_SIZE)
+        self._eeprom = {
+            X.MODEL_NUMBER: model_number,
+            X.FIRMWARE_VERSION: firmware_version,
+            X.ID: dxl_id,
+            X.BAUD_RATE: 3,  # 1 Mbps
+            X.RETURN_DELAY_TIME: return_delay_time,
+            X.OPERATING_MODE: dx.OperatingMode.POSITION,
+            X.TEMPERATURE_LIMIT: 80,
+            X.PWM_LIMIT: dx.PWM_FULL_SCALE,
+            X.CURRENT_LIMIT: current_limit,
+            X.VELOCITY_LIMIT: velocity_limit,
+            X.MAX_POSITION_LIMIT: max_position,
+            X.MIN_POSITION_LIMIT: min_position,
+            X.SHUTDOWN: 0x34,
+        }
+        for item, value in self._eeprom.items():
+            self._set(item, value)
+        self._set(X.MOVING_THRESHOLD, 10)
+        self._reset_ram(status_return_level, profile_velocity, profile_acceleration)
+        now = self.clock.now_ns()
+        self._segments = prof.hold(now, float(position))
+        self._set(X.GOAL_POSITION, position)
+        self._current = 0.0
+        self._booting_until = 0
+        self._plan_start = 0
+        self._old_end = 0
+        self.reaction_delay = 0.0
+        """Seconds between a goal write and the start of the move; until then the servo
+        reports its previous motion (a real servo's control loop lags the write)."""
+        # Fault injection.
+        self.responsive = True
+        """False: the servo answers nothing (a cut cable, a wrong baud rate)."""
+        self.injected_errors: list[int] = []
+        """Error numbers put in the next status packets (the instruction is refused)."""
+        self.instructions = 0
+        self.reboots = 0
+
+    # -- control table ---------------------------------------------------------------
+    def _set(self, item: dx.ControlItem, value: int) -> None:
+        self.table[item.address : item.address + item.size] = item.encode(int(value))
+
+    def get(self, item: dx.ControlItem) -> int:
+        """A control-table item (present values are computed at the current time)."""
+        if item.address >= X.REALTIME_TICK.address:
+            self._refresh(self.clock.now_ns())
+        return item.decode(bytes(self.table[item.address : item.address + item.size]))
+
+    def _reset_ram(self, level: int = 2, profile_velocity: int = 0, profile_acc: int = 0) -> None:
+        self.table[X.TORQUE_ENABLE.address :] = bytes(TABLE_SIZE - X.TORQUE_ENABLE.address)
+        self._set(X.STATUS_RETURN_LEVEL, level)
+        self._set(X.PROFILE_VELOCITY, profile_velocity)
+        self._set(X.PROFILE_ACCELERATION, profile_acc)
+        self._set(X.POSITION_P_GAIN, 800)
+        self._set(X.PRESENT_INPUT_VOLTAGE, 120)
+        self._set(X.PRESENT_TEMPERATURE, 30)
+
+    @property
+    def torque_enabled(self) -> bool:
+        return bool(self.table[X.TORQUE_ENABLE.address])
+
+    @property
+    def mode(self) -> int:
+        return self.table[X.OPERATING_MODE.address]
+
+    @property
+    def hardware_error(self) -> int:
+        return self.table[X.HARDWARE_ERROR_STATUS.address]
+
+    def state(self) -> tuple[float, float]:
+        """(position in ticks, velocity in ticks/s) now."""
+        p, v, _ = prof.evaluate(self._segments, self.clock.now_ns())
+        return p, v
+
+    def arrival_ns(self) -> int:
+        """When the current profile ends."""
+        return prof.end_time(self._segments)
+
+    # -- fault injection -------------------------------------------------------------
+    def inject_status_error(self, error_number: int = dx.ErrorNumber.DATA_RANGE_ERROR) -> None:
+        """The next status carries ``error_number`` and its instruction is refused."""
+        self.injected_errors.append(int(error_number))
+
+    def inject_hardware_error(self, bits: int = dx.HardwareError.OVERLOAD) -> None:
+        """Hardware error: torque shut down, alert bit in every status until REBOOT."""
+        now = self.clock.now_ns()
+        self.table[X.HARDWARE_ERROR_STATUS.address] = int(bits)
+        self._torque_off(now)
+
+    # -- motion ----------------------------------------------------------------------
+    def _amax(self) -> float:
+        units = self.get_raw(X.PROFILE_ACCELERATION)
+        return units * TICKS_PER_S2_PER_ACCELERATION_UNIT if units else UNLIMITED_ACCELERATION
+
+    def _vmax(self) -> float:
+        units = self.get_raw(X.PROFILE_VELOCITY) or self.get_raw(X.VELOCITY_LIMIT)
+        return max(1, units) * TICKS_PER_S_PER_VELOCITY_UNIT
+
+    def get_raw(self, item: dx.ControlItem) -> int:
+        return item.decode(bytes(self.table[item.address : item.address + item.size]))
+
+    def _torque_off(self, now: int) -> None:
+        p, v, _ = prof.evaluate(self._segments, now)
+        self._segments = prof.ramp(now, p, v, 0.0, COAST_ACCELERATION)
+        self._current = 0.0
+        self.table[X.TORQUE_ENABLE.address] = 0
+
+    def _replan(self, now: int) -> None:
+        """Start the move the goal items and the mode ask for (torque on).
+
+        The new profile starts ``reaction_delay`` after ``now``; until then the old one
+        goes on and the present values (Moving included) still describe it.
+        """
+        if not self.torque_enabled or self.hardware_error:
+            return
+        start = now + round(self.reaction_delay * NS)
+        old = self._segments
+        p, v, _ = prof.evaluate(old, start)
+        mode = self.mode
+        if mode in (3, 4, 5):
+            goal = float(self.get_raw(X.GOAL_POSITION))
+            plan = prof.trapezoid(start, p, v, goal, self._vmax(), self._amax())
+            self._current = 0.0
+        elif mode == dx.OperatingMode.VELOCITY:
+            goal_v = self.get_raw(X.GOAL_VELOCITY) * TICKS_PER_S_PER_VELOCITY_UNIT
+            plan = prof.ramp(start, p, v, goal_v, self._amax())
+            self._current = 0.0
+        elif mode == dx.OperatingMode.CURRENT:
+            current = self.get_raw(X.GOAL_CURRENT)
+            limit = max(1, self.get_raw(X.CURRENT_LIMIT))
+            speed = current / limit * self.get_raw(X.VELOCITY_LIMIT) * TICKS_PER_S_PER_VELOCITY_UNIT
+            plan = prof.ramp(start, p, v, speed, self._amax())
+            self._current = float(current)
+        else:
+            return
+        if start > now:
+            self._old_end = prof.end_time(old)
+            plan = [*_until(old, start), *plan]
+        self._plan_start = start
+        self._segments = plan
+
+    def _refresh(self, now: int) -> None:
+        """Write the present values (120..143) for time ``now`` into the table."""
+        p, v, a = prof.evaluate(self._segments, now)
+        if now < self._plan_start:  # the servo has not reacted to the latest goal yet
+            ongoing = now < self._old_end
+        else:
+            ongoing = now < prof.end_time(self._segments)
+        table = self.table
+        velocity = round(v / TICKS_PER_S_PER_VELOCITY_UNIT)
+        (threshold,) = struct.unpack_from("<I", table, X.MOVING_THRESHOLD.address)
+        moving = ongoing or abs(velocity) > threshold
+        mode = table[X.OPERATING_MODE.address]
+        (goal,) = struct.unpack_from("<i", table, X.GOAL_POSITION.address)
+        (profile_acc, profile_vel) = struct.unpack_from(
+            "<II", table, X.PROFILE_ACCELERATION.address
+        )
+        status = PROFILE_ONGOING if ongoing else 0
+        if mode in (3, 4, 5) and abs(goal - p) <= 4 and not ongoing:
+            status |= IN_POSITION
+        if profile_vel and profile_acc:
+            status |= 0x30  # trapezoidal profile
+        current = self._current if mode == 0 else a / TICKS_PER_S2_PER_ACCELERATION_UNIT / 50
+        position = round(p)
+        struct.pack_into(
+            "<HBBhhiiii",
+            table,
+            X.REALTIME_TICK.address,
+            (now // 1_000_000) % 32768,
+            int(moving),
+            status,
+            0,  # Present PWM
+            max(-32768, min(32767, round(current))),
+            velocity,
+            position,
+            velocity,  # Velocity Trajectory
+            position,  # Position Trajectory
+        )
+
+    # -- instructions ----------------------------------------------------------------
+    def _status(self, error: int = 0, params: bytes = b"") -> dx.Status:
+        if self.hardware_error:
+            error |= dx.ALERT_BIT
+        return dx.Status(self.id, error, params)
+
+    def _read(self, address: int, length: int) -> dx.Status:
+        if address + length > TABLE_SIZE or length == 0:
+            return self._status(dx.ErrorNumber.DATA_LENGTH_ERROR)
+        self._refresh(self.clock.now_ns())
+        return self._status(0, bytes(self.table[address : address + length]))
+
+    def _write_error(self, address: int, data: bytes) -> int:
+        end = address + len(data)
+        if end > TABLE_SIZE or not data:
+            return dx.ErrorNumber.DATA_LENGTH_ERROR
+        read_only = (
+            address < X.ID.address  # model number, model information, firmware version
+            or address <= X.REGISTERED_INSTRUCTION.address < end
+            or address <= X.HARDWARE_ERROR_STATUS.address < end
+            or end > X.REALTIME_TICK.address  # present values
+        )
+        if read_only:
+            return dx.ErrorNumber.ACCESS_ERROR
+        if address < X.TORQUE_ENABLE.address and self.torque_enabled:
+            return dx.ErrorNumber.ACCESS_ERROR  # EEPROM is locked while the torque is on
+        goal = X.GOAL_POSITION
+        if address <= goal.address and end >= goal.address + goal.size and self.mode == 3:
+            offset = goal.address - address
+            value = goal.decode(data[offset : offset + goal.size])
+            low, high = self.get_raw(X.MIN_POSITION_LIMIT), self.get_raw(X.MAX_POSITION_LIMIT)
+            if not low <= value <= high:
+                return dx.ErrorNumber.DATA_LIMIT_ERROR
+        velocity = X.GOAL_VELOCITY
+        if address <= velocity.address and end >= velocity.address + velocity.size:
+            offset = velocity.address - address
+            value = velocity.decode(data[offset : offset + velocity.size])
+            if abs(value) > self.get_raw(X.VELOCITY_LIMIT):
+                return dx.ErrorNumber.DATA_LIMIT_ERROR
+        return 0
+
+    def _write(self, address: int, data: bytes) -> int:
+        error = self._write_error(address, data)
+        if error:
+            return error
+        now = self.clock.now_ns()
+        torque_before = self.torque_enabled
+        end = address + len(data)
+        self.table[address:end] = data
+        torque_item = X.TORQUE_ENABLE.address
+        if address <= torque_item < end:
+            if self.hardware_error:
+                self.table[torque_item] = 0  # no torque until rebooted
+            requested = bool(self.table[torque_item])
+            if torque_before and not requested:
+                self._torque_off(now)
+            elif requested and not torque_before:
+                self._replan(now)
+        if end > X.GOAL_PWM.address and address < X.GOAL_POSITION.address + 4:
+            self._replan(now)  # a goal or profile item changed
+        return 0
+
+    def _reboot(self) -> None:
+        now = self.clock.now_ns()
+        p, _, _ = prof.evaluate(self._segments, now)
+        self._segments = prof.ramp(now, p, 0.0, 0.0, COAST_ACCELERATION)
+        self._reset_ram()
+        self._set(X.GOAL_POSITION, round(p))
+        self._current = 0.0
+        self._booting_until = now + round(self.boot_time * NS)
+        self.reboots += 1
+
+    def _answers(self, msg: dx.DynamixelMessage) -> bool:
+        """Whether ``msg`` asks this servo for a status (Status Return Level applied)."""
+        level = self.table[X.STATUS_RETURN_LEVEL.address]
+        if isinstance(msg, dx.Ping):
+            return True
+        if isinstance(msg, dx.SyncRead):
+            return self.id in msg.ids and level >= 1
+        if isinstance(msg, dx.SyncWrite) or getattr(msg, "id", None) == dx.BROADCAST_ID:
+            return False
+        return level >= (1 if isinstance(msg, dx.Read) else 2)
+
+    def handle(self, msg: dx.DynamixelMessage) -> dx.Status | None:
+        """Execute one instruction; the status to send back, if any."""
+        if not self.responsive or self.clock.now_ns() < self._booting_until:
+            return None
+        targeted = isinstance(msg, dx.SyncRead | dx.SyncWrite) or getattr(msg, "id", None) in (
+            self.id,
+            dx.BROADCAST_ID,
+        )
+        if not targeted or isinstance(msg, dx.Status):
+            return None
+        if isinstance(msg, dx.SyncRead) and self.id not in msg.ids:
+            return None
+        self.instructions += 1
+        answers = self._answers(msg)
+        if answers and self.injected_errors:
+            return self._status(self.injected_errors.pop(0))  # refused, not executed
+        status: dx.Status
+        match msg:
+            case dx.Ping():
+                status = self._status(
+                    0, struct.pack("<HB", self.model_number, self.firmware_version)
+                )
+            case dx.Read() | dx.SyncRead():
+                status = self._read(msg.address, msg.length)
+            case dx.RegWrite():
+                status = self._status(dx.ErrorNumber.INSTRUCTION_ERROR)  # not simulated
+            case dx.Write():
+                status = self._status(self._write(msg.address, msg.data))
+            case dx.SyncWrite():
+                for item in msg.items:
+                    if item.id == self.id:
+                        self._write(msg.address, item.data)
+                return None
+            case dx.Reboot():
+                self._reboot()
+                status = self._status()
+            case _:
+                status = self._status(dx.ErrorNumber.INSTRUCTION_ERROR)
+        return status if answers else None
+
+
+class SimDynamixelBus(_PtyPeer):
+    """A Dynamixel bus behind a pty: the servos answer the driver's instruction packets.
+
+    ``servos`` are :class:`SimServo` s or ids (default servos). Replies to one
+    instruction (several for a SYNC READ, in the order of its id list) are sent together
+    after the servos' Return Delay Times. Everything the driver sent is kept in
+    ``received`` (raw bytes) and ``instructions`` (decoded).
+    """
+
+    def __init__(
+        self,
+        servos: Iterable[SimServo | int],
+        *,
+        path: str | Path | None = None,
+        clock: Clock | None = None,
+    ) -> None:
+        super().__init__(path, clock)
+        self.servos: dict[int, SimServo] = {}
+        for servo in servos:
+            if isinstance(servo, int):
+                servo = SimServo(servo, clock=self.clock)
+            if servo.id in self.servos:
+                raise ValueError(f"two simulated servos with id {servo.id}")
+            self.servos[servo.id] = servo
+        self.parser = dx.PacketParser()
+        self.received = bytearray()
+        self.instructions: list[dx.DynamixelMessage] = []
+        self.keep_log = True
+        self.drop_replies = 0
+        """Instructions whose replies are dropped (lost on the wire)."""
+        self.corrupt_replies = 0
+        """Replies sent with a corrupted CRC byte."""
+        self.replies = 0
+
+    def __getitem__(self, dxl_id: int) -> SimServo:
+        return self.servos[dxl_id]
+
+    def inject_garbage(self, data: bytes = b"\x00\x13\xff\xff\xfd\x00\xaa\x55\xff") -> None:
+        """Send noise to the driver now (a glitch on the line)."""
+        self.pty.write_nowait(data)
+
+    async def _serve(self) -> None:
+        parser = dx.PacketParser()
+        self.parser = parser
+        while True:
+            data = await self.pty.read()
+            if self.keep_log:
+                self.received += data
+            for msg in parser.feed(data):
+                if self.keep_log:
+                    self.instructions.append(msg)
+                await self._answer(msg)
+
+    async def _answer(self, msg: dx.DynamixelMessage) -> None:
+        if isinstance(msg, dx.SyncRead):
+            order = [self.servos[i] for i in msg.ids if i in self.servos]
+        elif isinstance(msg, dx.SyncWrite) or getattr(msg, "id", None) == dx.BROADCAST_ID:
+            order = list(self.servos.values())
+        else:
+            servo = self.servos.get(getattr(msg, "id", -1))
+            order = [] if servo is None else [servo]
+        replies: list[bytes] = []
+        delay_units = 0
+        for servo in order:
+            status = servo.handle(msg)
+            if status is not None:
+                replies.append(dx.encode(status))
+                delay_units += servo.table[X.RETURN_DELAY_TIME.address]
+        if not replies:
+            return
+        if self.drop_replies:
+            self.drop_replies -= 1
+            return
+        if self.corrupt_replies:
+            self.corrupt_replies -= 1
+            last = bytearray(replies[-1])
+            last[-1] ^= 0xFF
+            replies[-1] = bytes(last)
+        if delay_units:
+            await anyio.sleep(delay_units * 2e-6)
+        self.replies += len(replies)
+        await self.pty.write(b"".join(replies))
+
+
+# -- NMEA GPS ------------------------------------------------------------------------------
+
+EARTH_RADIUS_M: Final = 6_371_000.0
+
+
+@dataclass(frozen=True, slots=True)
+class GpsPath:
+    """A straight track at constant speed and course from a start point (flat earth)."""
+
+    latitude: float = 35.681236
+    longitude: float = 139.767125
+    altitude: float = 40.0
+    speed: float = 5.0
+    """m/s."""
+    course: float = 45.0
+    """degrees true."""
+
+    def at(self, t_s: float) -> tuple[float, float, float]:
+        """(latitude, longitude, altitude) in degrees and metres after ``t_s`` seconds."""
+        distance = self.speed * t_s
+        north = distance * math.cos(math.radians(self.course))
+        east = distance * math.sin(math.radians(self.course))
+        lat = self.latitude + math.degrees(north / EARTH_RADIUS_M)
+        lon = self.longitude + math.degrees(
+            east / (EARTH_RADIUS_M * math.cos(math.radians(self.latitude)))
+        )
+        return lat, lon, self.altitude
+
+
+class SimGps(_PtyPeer):
+    """A GPS receiver behind a pty: GGA then RMC every ``1 / rate_hz`` seconds.
+
+    Epoch k is sent at start + k / rate_hz (real time of ``clock``) and describes the
+    receiver at ``start_utc + k / rate_hz`` on ``track``. Output nobody reads is
+    dropped, as a UART would.
+    """
+
+    def __init__(
+        self,
+        *,
+        rate_hz: float = 1.0,
+        track: GpsPath | None = None,
+        start_utc: dt.datetime | None = None,
+        talker: str = "GP",
+        fix_quality: int = nmea.FixQuality.GPS,
+        satellites: int = 9,
+        hdop: float = 0.9,
+        path: str | Path | None = None,
+        clock: Clock | None = None,
+    ) -> None:
+        if not (math.isfinite(rate_hz) and rate_hz > 0):
+            raise ValueError(f"rate_hz {rate_hz} must be > 0")
+        super().__init__(path, clock)
+        self.rate_hz = rate_hz
+        self.track = track or GpsPath()
+        self.start_utc = start_utc or dt.datetime(2024, 5, 1, 12, 0, 0, tzinfo=dt.UTC)
+        self.talker = talker
+        self.fix_quality = fix_quality
+        self.satellites = satellites
+        self.hdop = hdop
+        self.corrupt_checksums = 0
+        """Sentences still to be sent with a wrong checksum."""
+        self.paused = False
+        """True: the receiver is silent (epochs are skipped)."""
+        self.epochs = 0
+        self.sentences = 0
+        self.corrupted = 0
+        self._epoch = 0
+
+    def sentences_for(self, epoch: int) -> list[str]:
+        """GGA and RMC of epoch ``epoch`` (checksummed, CRLF-terminated)."""
+        t = epoch / self.rate_hz
+        utc = self.start_utc + dt.timedelta(seconds=t)
+        lat, lon, alt = self.track.at(t)
+        valid = self.fix_quality > 0
+        gga = nmea.GGA(
+            talker=self.talker,
+            time=utc.time().replace(tzinfo=None),
+            latitude=lat if valid else None,
+            longitude=lon if valid else None,
+            fix_quality=self.fix_quality,
+            satellites=self.satellites,
+            hdop=self.hdop,
+            altitude=alt if valid else None,
+            geoid_separation=39.5,
+        )
+        rmc = nmea.RMC(
+            talker=self.talker,
+            time=utc.time().replace(tzinfo=None),
+            valid=valid,
+            latitude=lat if valid else None,
+            longitude=lon if valid else None,
+            speed=self.track.speed if valid else None,
+            course=self.track.course if valid else None,
+            date=utc.date(),
+            mode="A" if valid else "N",
+        )
+        return [nmea.format_gga(gga), nmea.format_rmc(rmc)]
+
+    async def _serve(self) -> None:
+        clock = self.clock
+        period_ns = round(NS / self.rate_hz)
+        next_ns = clock.now_ns()
+        while True:
+            if not self.paused:
+                out = []
+                for sentence in self.sentences_for(self._epoch):
+                    if self.corrupt_checksums:
+                        self.corrupt_checksums -= 1
+                        self.corrupted += 1
+                        body, _, given = sentence.rstrip("\r\n").rpartition("*")
+                        sentence = f"{body}*{int(given, 16) ^ 0x5A:02X}\r\n"
+                    out.append(sentence)
+                self.pty.write_nowait("".join(out).encode("ascii"))
+                self.epochs += 1
+                self.sentences += len(out)
+            self._epoch += 1
+            next_ns += period_ns
+            await clock.sleep_until(next_ns)
+
+    def inject_garbage(self, data: bytes = b"\x00\xff$GPG\x13garbage\r\n") -> None:
+        """Send noise to the driver now."""
+        self.pty.write_nowait(data)

@@ -1,0 +1,496 @@
+"""DynamixelServo: one Dynamixel X-series servo on a :class:`DynamixelPort`, as an actuator.
+
+Control modes (Operating Mode, address 11, written with the torque disabled as the
+servo requires):
+
+* ``POSITION`` -> position mode 3 (or ``position_mode``: extended 4, current-based 5);
+  Goal Position (116) in ticks, 4096 per turn, tick 2048 = 0 rad.
+* ``VELOCITY`` -> velocity mode 1; Goal Velocity (104), 0.229 rpm per unit.
+* ``TORQUE`` -> current mode 0; Goal Current (102) = torque / ``torque_constant``,
+  2.69 mA per unit (XM430). Only with a ``torque_constant`` (Nm/A): otherwise TORQUE is
+  not in ``supported_requests`` and ``set_value`` raises NOT_IMPLEMENTED.
+* ``NO_EXCITE`` -> Torque Enable (64) = 0; the next command enables it again.
+
+Every value crossing the API is SI (rad, rad/s, Nm). Limits come from the control
+table (Min/Max Position Limit, Velocity Limit, Current Limit) unless given.
+
+Completion (``reports_completion = True``): the port's poller hands the servo its
+present values every cycle. A target counts as reached only on a poll sent *after*
+the goal write was acknowledged (its transaction number is larger), so the stale
+"not moving" a servo reports right after a write never completes a new move:
+
+* position: Moving (122) = 0 and |present - goal| <= ``position_tolerance``;
+* velocity: |present velocity - goal| <= ``velocity_tolerance``;
+* torque: |present current - goal| <= ``torque_tolerance``.
+
+A new command drops the pending completion of the previous one before it is sent.
+Actual values (``read``) are served from the latest poll.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Final
+
+import anyio
+import structlog
+
+from openel_async.device import ActuatorDevice, ActuatorLimits, DeviceContext, DeviceInfo, ErrorId
+from openel_async.errors import (
+    BadParameterError,
+    HALError,
+    NotConnectedError,
+    NotImplementedHALError,
+    ReturnCode,
+)
+from openel_async.ids import DeviceKind
+from openel_async.requests import Request
+from openel_serial import dynamixel as dx
+from openel_serial.errors import (
+    DynamixelHardwareAlert,
+    DynamixelStatusError,
+    DynamixelTimeoutError,
+)
+from openel_serial.port import POLL_ADDRESS, POLL_LENGTH, DynamixelPort, PresentState
+
+__all__ = ["DynamixelServo"]
+
+log = structlog.get_logger(__name__)
+
+X = dx.XSeries
+RAD_PER_TICK: Final = 2 * math.pi / dx.TICKS_PER_REV
+TABLE_LENGTH: Final = X.HARDWARE_ERROR_STATUS.address + 1  # addresses 0..70 in one READ
+EXTENDED_RANGE_REV: Final = 256
+_POSITION_MODES: Final = (
+    dx.OperatingMode.POSITION,
+    dx.OperatingMode.EXTENDED_POSITION,
+    dx.OperatingMode.CURRENT_BASED_POSITION,
+)
+_LINK_ERRORS: Final = (TimeoutError, NotConnectedError, OSError, anyio.BrokenResourceError)
+
+
+@dataclass(frozen=True, slots=True)
+class _Pending:
+    """The goal whose arrival the poller watches, in raw units."""
+
+    request: Request
+    goal: int
+    after: int
+    """Transaction number at the goal write's acknowledgement: only later polls count."""
+
+
+def _si(name: str, value: float) -> float:
+    """A finite value > 0 or BadParameterError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise BadParameterError(name, value, "a finite number > 0")
+    if not (math.isfinite(value) and value > 0):
+        raise BadParameterError(name, value, "a finite number > 0")
+    return float(value)
+
+
+def _si_or_none(name: str, value: float | None) -> float | None:
+    return None if value is None else _si(name, value)
+
+
+class DynamixelServo(ActuatorDevice):
+    """A Dynamixel Protocol 2.0 X-series servo (XM430, XL430, ...) on a shared port.
+
+    ``port`` must be entered (``async with port``) before the component is. Options
+    are SI: ``position_limits`` (rad), ``velocity_limit`` (rad/s), ``torque_constant``
+    (Nm/A), ``profile_velocity`` (rad/s) and ``profile_acceleration`` (rad/s^2) written
+    to the RAM profile items at init (None keeps the servo's values), tolerances for
+    completion. ``reboot_on_alert``: init/re_init reboot a servo reporting a hardware
+    error (the only way to clear it) instead of failing.
+    """
+
+    info = DeviceInfo(
+        kind=DeviceKind.MOTOR,
+        vendor_name="Robotis",
+        product_name="Dynamixel",
+        functions=("reboot",),
+    )
+    reports_completion = True
+
+    def __init__(
+        self,
+        port: DynamixelPort,
+        dxl_id: int,
+        *,
+        position_limits: tuple[float, float] | None = None,
+        velocity_limit: float | None = None,
+        torque_constant: float | None = None,
+        current_unit: float = dx.CURRENT_UNIT_A,
+        profile_velocity: float | None = None,
+        profile_acceleration: float | None = None,
+        position_tolerance: float = 4 * RAD_PER_TICK,
+        velocity_tolerance: float = 0.05,
+        torque_tolerance: float = 0.05,
+        position_mode: dx.OperatingMode = dx.OperatingMode.POSITION,
+        reboot_on_alert: bool = True,
+        reboot_timeout: float = 2.0,
+        torque_off_on_close: bool = False,
+    ) -> None:
+        if not isinstance(port, DynamixelPort):
+            raise BadParameterError("port", port, "a DynamixelPort")
+        if isinstance(dxl_id, bool) or not isinstance(dxl_id, int) or not 0 <= dxl_id <= dx.MAX_ID:
+            raise BadParameterError("dxl_id", dxl_id, f"a servo id in 0..{dx.MAX_ID}")
+        if position_mode not in _POSITION_MODES:
+            raise BadParameterError(
+                "position_mode",
+                position_mode,
+                "POSITION, EXTENDED_POSITION or CURRENT_BASED_POSITION",
+            )
+        if position_limits is not None:
+            try:
+                low, high = (float(v) for v in position_limits)
+                ok = math.isfinite(low) and math.isfinite(high) and low < high
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise BadParameterError(
+                    "position_limits", position_limits, "a finite (low, high) pair, low < high"
+                )
+        self.port = port
+        self._dxl_id = dxl_id
+        self.position_limits = position_limits
+        self.velocity_limit = _si_or_none("velocity_limit", velocity_limit)
+        self.torque_constant = _si_or_none("torque_constant", torque_constant)
+        self.current_unit = _si("current_unit", current_unit)
+        self.profile_velocity = _si_or_none("profile_velocity", profile_velocity)
+        self.profile_acceleration = _si_or_none("profile_acceleration", profile_acceleration)
+        self.position_tolerance = _si("position_tolerance", position_tolerance)
+        self.velocity_tolerance = _si("velocity_tolerance", velocity_tolerance)
+        self.torque_tolerance = _si("torque_tolerance", torque_tolerance)
+        self.position_mode = dx.OperatingMode(position_mode)
+        self.reboot_on_alert = reboot_on_alert
+        self.reboot_timeout = _si("reboot_timeout", reboot_timeout)
+        self.torque_off_on_close = torque_off_on_close
+        requests = {Request.NO_EXCITE, Request.POSITION, Request.VELOCITY}
+        if self.torque_constant is not None:
+            requests.add(Request.TORQUE)
+        self.supported_requests = frozenset(requests)
+        # Raw tolerances (control-table units).
+        self._tol_ticks = self.position_tolerance / RAD_PER_TICK
+        self._tol_velocity = self.velocity_tolerance / dx.velocity_to_rad_s(1)
+        kt = self.torque_constant
+        self._tol_current = self.torque_tolerance / (kt * self.current_unit) if kt else math.inf
+        # Device state.
+        self._ctx: DeviceContext | None = None
+        self._polled = False
+        self._pending: _Pending | None = None
+        self._state: PresentState | None = None
+        self._mode: int = -1
+        self._torque = False
+        self._ack_writes = True
+        self._alert = False
+        self._status_error_reported = False
+        self.model_number: int | None = None
+        self.firmware_version: int | None = None
+        self.return_delay: float | None = None
+        """The servo's Return Delay Time in seconds, read at open."""
+        self.completions = 0
+        self._log = log.bind(port=port.url, dxl_id=dxl_id)
+
+    # -- identity --------------------------------------------------------------------
+    @property
+    def dxl_id(self) -> int:
+        return self._dxl_id
+
+    @property
+    def polled(self) -> bool:
+        """Whether the port's poller reads this servo (False while faulted or closed)."""
+        return self._polled
+
+    @property
+    def state(self) -> PresentState | None:
+        """The latest present values (raw units), from the poller."""
+        return self._state
+
+    @property
+    def operating_mode(self) -> int:
+        return self._mode
+
+    @property
+    def torque_enabled(self) -> bool:
+        return self._torque
+
+    def __repr__(self) -> str:
+        return f"DynamixelServo(id={self._dxl_id}, port={self.port.url!r})"
+
+    # -- lifecycle -------------------------------------------------------------------
+    async def open(self, ctx: DeviceContext) -> None:
+        self._ctx = ctx
+        self._log = self._log.bind(component=ctx.name)
+        self.port.check_connected()
+        self.port.attach(self)
+        try:
+            info = await self.port.ping(self._dxl_id)
+            self.model_number, self.firmware_version = info.model_number, info.firmware_version
+            await self._load_table()
+            await self._refresh_state()
+        except BaseException:
+            self.port.detach(self)
+            raise
+        self._log.info(
+            "dynamixel_opened",
+            model=self.model_number,
+            firmware=self.firmware_version,
+            mode=self._mode,
+            torque=self._torque,
+            alert=self._alert,
+        )
+
+    async def init(self) -> None:
+        await self._make_operational()
+
+    async def reset(self) -> None:
+        self._polled = False
+        self._pending = None
+        await self.port.reconnect()
+        await self.port.ping(self._dxl_id)
+        await self._load_table()
+        await self._make_operational()
+
+    async def close(self) -> None:
+        self._polled = False
+        self._pending = None
+        self.port.detach(self)
+        if self.torque_off_on_close and self.port.connected:
+            await self._write(X.TORQUE_ENABLE, 0)
+            self._torque = False
+
+    async def reboot(self) -> None:
+        """REBOOT the servo (clears a hardware error) and wait until it answers PING.
+
+        The servo restarts with its RAM at the defaults: torque off, profile and goals
+        reset. Polling resumes if it was on; ``re_init`` (or init) enables the torque
+        again. Raises ``TimeoutError`` if the servo is not back within ``reboot_timeout``.
+        """
+        polled, self._polled = self._polled, False
+        self._pending = None
+        await self.port.reboot(self._dxl_id)
+        with anyio.fail_after(self.reboot_timeout):
+            while True:
+                try:
+                    await self.port.ping(self._dxl_id)
+                    break
+                except DynamixelTimeoutError:
+                    continue  # still booting (each PING waited its timeout)
+        await self._load_table()
+        await self._refresh_state()
+        if polled and not self._alert:
+            self._polled = True
+            self.port.wake_poller()
+
+    # -- commands --------------------------------------------------------------------
+    async def command(self, request: Request, value: float) -> None:
+        previous, self._pending = self._pending, None  # the old target's arrival no longer counts
+        mode_before, torque_before = self._mode, self._torque
+        try:
+            if request is Request.NO_EXCITE:
+                await self._write(X.TORQUE_ENABLE, 0)
+                self._torque = False
+                return
+            item, raw, mode = self._goal(request, value)
+            await self._apply(mode, item, raw)
+        except DynamixelHardwareAlert as exc:
+            self._fault_alert(exc)
+            raise
+        except DynamixelStatusError as exc:
+            if (self._mode, self._torque) == (mode_before, torque_before):
+                self._pending = previous  # nothing changed on the servo
+            self._log.warning("dynamixel_command_refused", error=str(exc))
+            self._context().post_error(ErrorId.PROTOCOL_ERROR)
+            raise
+        except _LINK_ERRORS:
+            self._polled = False  # the component faults; stop polling until reset
+            raise
+        self._pending = _Pending(request, raw, self.port.transactions)
+
+    async def read(self, request: Request) -> float:
+        self.port.check_connected()
+        if request is Request.TORQUE_ACTUAL and self.torque_constant is None:
+            raise NotImplementedHALError(
+                f"servo {self._dxl_id}: TORQUE_ACTUAL needs a torque_constant (Nm/A)"
+            )
+        state = self._state
+        if state is None:
+            state = await self._refresh_state()
+        if request is Request.POSITION_ACTUAL:
+            return dx.ticks_to_rad(state.position)
+        if request is Request.VELOCITY_ACTUAL:
+            return dx.velocity_to_rad_s(state.velocity)
+        if request is Request.TORQUE_ACTUAL:
+            assert self.torque_constant is not None
+            return state.current * self.current_unit * self.torque_constant
+        raise BadParameterError(
+            "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
+        )
+
+    # -- poller callbacks (called by the port) ------------------------------------------
+    def _poll_update(self, state: PresentState) -> None:
+        self._state = state
+        self._status_error_reported = False
+        pending = self._pending
+        if pending is None or state.transaction <= pending.after:
+            return
+        if pending.request is Request.POSITION:
+            reached = not state.moving and abs(state.position - pending.goal) <= self._tol_ticks
+        elif pending.request is Request.VELOCITY:
+            reached = abs(state.velocity - pending.goal) <= self._tol_velocity
+        else:
+            reached = abs(state.current - pending.goal) <= self._tol_current
+        if reached:
+            self._pending = None
+            self.completions += 1
+            self._log.debug("dynamixel_target_reached", request=pending.request.name)
+            self._context().target_reached()
+
+    def _poll_missed(self, error: DynamixelTimeoutError) -> None:
+        if self._polled:
+            self._polled = False
+            self._pending = None
+            self._context().fault(ErrorId.TIMEOUT, str(error))
+
+    def _poll_status_error(self, error: DynamixelStatusError) -> None:
+        if not self._status_error_reported:  # once per run of refused polls
+            self._status_error_reported = True
+            self._log.warning("dynamixel_poll_refused", error=str(error))
+            self._context().post_error(ErrorId.PROTOCOL_ERROR)
+
+    def _hardware_alert(self, error: DynamixelHardwareAlert) -> None:
+        if self._polled:
+            self._fault_alert(error)
+
+    def _port_lost(self, reason: str) -> None:
+        if self._polled:
+            self._polled = False
+            self._pending = None
+            self._context().fault(ErrorId.DISCONNECTED, reason, ReturnCode.HAL_NO_CONNECTED)
+
+    # -- internals -------------------------------------------------------------------
+    def _context(self) -> DeviceContext:
+        if self._ctx is None:
+            raise HALError(f"servo {self._dxl_id} used before open()")
+        return self._ctx
+
+    def _fault_alert(self, error: DynamixelHardwareAlert) -> None:
+        self._alert = True
+        self._polled = False
+        self._pending = None
+        self._torque = False  # the servo shut its torque down
+        self._context().fault(ErrorId.DEVICE_ERROR, str(error))
+
+    async def _write(self, item: dx.ControlItem, value: int) -> None:
+        await self.port.write_item(self._dxl_id, item, value, ack=self._ack_writes)
+
+    async def _load_table(self) -> None:
+        """Read addresses 0..70 (EEPROM, torque, status return level, hardware error)."""
+        try:
+            table = await self.port.read(self._dxl_id, 0, TABLE_LENGTH, check_alert=False)
+        except DynamixelTimeoutError as exc:
+            raise DynamixelTimeoutError(
+                exc.port,
+                exc.ids,
+                exc.request + " (Status Return Level 0?)",
+                exc.timeout,
+                exc.attempts,
+            ) from exc
+
+        def item(it: dx.ControlItem) -> int:
+            return it.decode(table[it.address : it.address + it.size])
+
+        self._mode = item(X.OPERATING_MODE)
+        self._torque = bool(item(X.TORQUE_ENABLE))
+        self._ack_writes = item(X.STATUS_RETURN_LEVEL) >= 2
+        self._alert = item(X.HARDWARE_ERROR_STATUS) != 0
+        self.return_delay = item(X.RETURN_DELAY_TIME) * 2e-6
+        if self.return_delay > self.port.return_delay:
+            self._log.warning(
+                "dynamixel_return_delay_exceeds_port",
+                servo_s=self.return_delay,
+                port_s=self.port.return_delay,
+            )
+        if self.position_limits is not None:
+            position = self.position_limits
+        elif self.position_mode is dx.OperatingMode.EXTENDED_POSITION:
+            span = EXTENDED_RANGE_REV * 2 * math.pi
+            position = (-span, span)
+        else:
+            position = (
+                dx.ticks_to_rad(item(X.MIN_POSITION_LIMIT)),
+                dx.ticks_to_rad(item(X.MAX_POSITION_LIMIT)),
+            )
+        velocity_units = item(X.VELOCITY_LIMIT)
+        velocity = self.velocity_limit or (
+            dx.velocity_to_rad_s(velocity_units) if velocity_units else math.inf
+        )
+        torque = math.inf
+        if self.torque_constant is not None:
+            torque = item(X.CURRENT_LIMIT) * self.current_unit * self.torque_constant or math.inf
+        self.limits = ActuatorLimits(position, velocity, torque)
+
+    async def _refresh_state(self) -> PresentState:
+        data = await self.port.read(self._dxl_id, POLL_ADDRESS, POLL_LENGTH, check_alert=False)
+        state = PresentState.decode(data, self.port.transactions, self.port.clock.now_ns())
+        self._state = state
+        return state
+
+    async def _make_operational(self) -> None:
+        """Clear a hardware error, write the profile, hold the present position, torque on."""
+        await self.port.reconnect()
+        if self._alert:
+            if not self.reboot_on_alert:
+                hardware = await self.port.read_item(
+                    self._dxl_id, X.HARDWARE_ERROR_STATUS, check_alert=False
+                )
+                raise DynamixelHardwareAlert(self._dxl_id, dx.ALERT_BIT, "init", hardware)
+            self._log.warning("dynamixel_rebooting_after_alert")
+            await self.reboot()
+            if self._alert:
+                raise DynamixelHardwareAlert(self._dxl_id, dx.ALERT_BIT, "reboot", None)
+        if self.profile_velocity is not None:
+            await self._write(X.PROFILE_VELOCITY, dx.rad_s_to_velocity(self.profile_velocity))
+        if self.profile_acceleration is not None:
+            await self._write(
+                X.PROFILE_ACCELERATION, dx.rad_s2_to_acceleration(self.profile_acceleration)
+            )
+        state = await self._refresh_state()
+        self._pending = None
+        await self._apply(self.position_mode, X.GOAL_POSITION, state.position)
+        self._polled = True
+        self.port.wake_poller()
+
+    def _goal(self, request: Request, value: float) -> tuple[dx.ControlItem, int, int]:
+        if request is Request.POSITION:
+            item, raw, mode = X.GOAL_POSITION, dx.rad_to_ticks(value), int(self.position_mode)
+        elif request is Request.VELOCITY:
+            item, raw, mode = (
+                X.GOAL_VELOCITY,
+                dx.rad_s_to_velocity(value),
+                int(dx.OperatingMode.VELOCITY),
+            )
+        elif request is Request.TORQUE and self.torque_constant is not None:
+            raw = round(value / self.torque_constant / self.current_unit)
+            item, mode = X.GOAL_CURRENT, int(dx.OperatingMode.CURRENT)
+        else:
+            raise NotImplementedHALError(f"servo {self._dxl_id} does not support {request.name}")
+        try:
+            item.encode(raw)
+        except ValueError:
+            raise BadParameterError("value", value, f"a target within the {item} range") from None
+        return item, raw, mode
+
+    async def _apply(self, mode: int, item: dx.ControlItem, raw: int) -> None:
+        """Switch the operating mode if needed (torque off first), write the goal, torque on."""
+        if self._mode != mode:
+            if self._torque:
+                await self._write(X.TORQUE_ENABLE, 0)
+                self._torque = False
+            await self._write(X.OPERATING_MODE, mode)
+            self._mode = mode
+        await self._write(item, raw)
+        if not self._torque:
+            await self._write(X.TORQUE_ENABLE, 1)
+            self._torque = True
