@@ -1,0 +1,717 @@
+"""AxisGroup: time-synchronized, jerk-limited motion of N actuators on an EventTimer.
+
+The group plans each motion with ruckig when it is requested and streams POSITION
+setpoints to every axis at every tick of its timer, through the public Actuator API
+only (``set_value``/``get_value``), so it drives any actuator: simulated, MuJoCo, CAN or
+serial. See docs/motion.md.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import time
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Self
+
+import anyio
+import anyio.abc
+import anyio.lowlevel
+import structlog
+
+from ..actuator import Actuator
+from ..clock import NS_PER_S
+from ..component import ComponentState
+from ..errors import BadParameterError, HALError, StateError
+from ..observers import TimerTick
+from ..requests import Request
+from ..stats import LatenessRecorder, LatenessSummary
+from ..timer import EventTimer, TimerState
+from .errors import (
+    AxisFaultError,
+    AxisStateError,
+    GoalTimeoutError,
+    MotionStoppedError,
+    PathToleranceError,
+    PreemptedError,
+)
+from .handle import GroupMotion, GroupOutcome
+from .log import TrajectoryLog
+from .params import (
+    AxisLimits,
+    Tolerances,
+    Waypoint,
+    finite,
+    finite_non_negative,
+    finite_positive,
+    per_axis,
+)
+from .planner import KinematicState, Plan, Planner
+
+log = structlog.get_logger(__name__)
+
+S = ComponentState
+POSITION = Request.POSITION
+POSITION_ACTUAL = Request.POSITION_ACTUAL
+COST_WINDOW = 100_000
+
+
+@dataclass(frozen=True, slots=True)
+class GroupStats:
+    ticks: int
+    """Ticks processed while a motion ran."""
+    skipped_ticks: int
+    """Ticks dropped because the group was still busy with an earlier one."""
+    tick_cost: LatenessSummary
+    """Wall time of the group's work per processed tick in ns (sampling the trajectory,
+    reading actual positions if needed, sending every setpoint, logging)."""
+
+
+class AxisGroup:
+    """N actuators moving together under one EventTimer.
+
+    Use it as an async context manager (it owns its streaming task). On entry it
+    subscribes to ``timer`` as a TimerObserver and starts the timer if it is stopped
+    (and then stops it again on exit); leaving the context holds any running motion.
+
+    ``limits``: one :class:`AxisLimits` for every axis or one per axis.
+    ``tolerances``: likewise (default: goal 1e-3, no path check).
+    ``goal_time``: seconds allowed, after the last setpoint of a motion was sent, for
+    every axis to come within its goal tolerance.
+    ``synchronization``: ``"phase"`` (straight lines in joint space when ruckig can)
+    or ``"time"``. ``log_capacity`` ticks are kept in :attr:`log` (0: no log);
+    ``log_actual`` also reads and logs every axis' POSITION_ACTUAL at every tick.
+    """
+
+    def __init__(
+        self,
+        actuators: Sequence[Actuator],
+        *,
+        timer: EventTimer,
+        limits: AxisLimits | Sequence[AxisLimits],
+        tolerances: Tolerances | Sequence[Tolerances] | None = None,
+        goal_time: float = 1.0,
+        synchronization: str = "phase",
+        name: str = "axis-group",
+        log_capacity: int = 10_000,
+        log_actual: bool = False,
+    ) -> None:
+        axes = _check_actuators(actuators)
+        if not isinstance(timer, EventTimer):
+            raise BadParameterError("timer", timer, "an EventTimer")
+        n = len(axes)
+        self.name = name
+        self.axes: tuple[Actuator, ...] = axes
+        self.timer = timer
+        self._limits: tuple[AxisLimits, ...] = per_axis(limits, n, "limits", AxisLimits)
+        self._tolerances: tuple[Tolerances, ...] = per_axis(
+            Tolerances() if tolerances is None else tolerances, n, "tolerances", Tolerances
+        )
+        self.goal_time = finite_non_negative("goal_time", goal_time)
+        self._planner = Planner(n, [(-1.0, 1.0)] * n, [1.0] * n, synchronization)
+        self.log = TrajectoryLog(n, log_capacity, actual=log_actual)
+        self._log_actual = bool(log_actual)
+        self._active: GroupMotion | None = None
+        zeros = [0.0] * n
+        self._last_t = 0
+        self._last_state = KinematicState(list(zeros), list(zeros), list(zeros))
+        self._commanded: list[float] = list(zeros)
+        self._pending: TimerTick | None = None
+        self._wakeup: anyio.Event | None = None  # created on entry, in the event loop
+        self._ids = itertools.count(1)
+        self._tg: anyio.abc.TaskGroup | None = None
+        self._closed = False
+        self._started_timer = False
+        self._ticks = 0
+        self._skipped = 0
+        self._cost = LatenessRecorder()
+        self._costs: deque[int] = deque(maxlen=COST_WINDOW)
+        self._log = log.bind(group=name)
+
+    # -- context -------------------------------------------------------------------------
+    async def __aenter__(self) -> Self:
+        if self._tg is not None or self._closed:
+            raise StateError("__aenter__", "entered", ["an axis group not yet entered"])
+        self._wakeup = anyio.Event()
+        tg = anyio.create_task_group()
+        await tg.__aenter__()
+        try:
+            tg.start_soon(self._stream)
+            self.timer.add_observer(self)
+            if self.timer.state is TimerState.STOPPED:
+                self.timer.start_timer()
+                self._started_timer = True
+        except BaseException as exc:
+            if self in self.timer.observers:
+                self.timer.remove_observer(self)
+            tg.cancel_scope.cancel()
+            await tg.__aexit__(type(exc), exc, exc.__traceback__)
+            raise
+        self._tg = tg
+        self._log.info("axis_group_entered", axes=len(self.axes), timer=self.timer.name)
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool | None:
+        assert self._tg is not None
+        self._hold("the axis group was closed")
+        if self in self.timer.observers:
+            self.timer.remove_observer(self)
+        if self._started_timer and self.timer.state is TimerState.RUNNING:
+            self.timer.stop_timer()
+        tg, self._tg = self._tg, None
+        self._closed = True
+        tg.cancel_scope.cancel()
+        self._log.info("axis_group_closed", ticks=self._ticks, skipped=self._skipped)
+        # The streaming task only ever ends by this cancellation: an exception of the
+        # body is left to propagate as it is instead of wrapped in an ExceptionGroup.
+        await tg.__aexit__(None, None, None)
+        return None
+
+    # -- properties ------------------------------------------------------------------------
+    @property
+    def limits(self) -> tuple[AxisLimits, ...]:
+        """Default limits of each axis for the next motions (assign one or one per axis)."""
+        return self._limits
+
+    @limits.setter
+    def limits(self, value: AxisLimits | Sequence[AxisLimits]) -> None:
+        self._limits = per_axis(value, len(self.axes), "limits", AxisLimits)
+
+    @property
+    def tolerances(self) -> tuple[Tolerances, ...]:
+        """Default tolerances of each axis for the next motions (one or one per axis)."""
+        return self._tolerances
+
+    @tolerances.setter
+    def tolerances(self, value: Tolerances | Sequence[Tolerances]) -> None:
+        self._tolerances = per_axis(value, len(self.axes), "tolerances", Tolerances)
+
+    @property
+    def axis_names(self) -> tuple[str, ...]:
+        return tuple(a.device_name for a in self.axes)
+
+    @property
+    def current(self) -> GroupMotion | None:
+        """The running motion, if any."""
+        return self._active
+
+    @property
+    def moving(self) -> bool:
+        return self._active is not None
+
+    @property
+    def commanded(self) -> tuple[float, ...]:
+        """The setpoints the group sent last (its start positions before the first tick)."""
+        return tuple(self._commanded)
+
+    @property
+    def stats(self) -> GroupStats:
+        return GroupStats(self._ticks, self._skipped, self._cost.summary())
+
+    def reset_stats(self) -> None:
+        self._ticks = self._skipped = 0
+        self._cost.reset()
+        self._costs.clear()
+
+    def tick_costs_ns(self) -> list[int]:
+        """Wall time of each of the last processed ticks (up to 100,000), oldest first."""
+        return list(self._costs)
+
+    # -- motions -----------------------------------------------------------------------------
+    async def move_to(
+        self,
+        targets: Sequence[float],
+        limits: AxisLimits | Sequence[AxisLimits] | None = None,
+        *,
+        duration: float | None = None,
+        tolerances: Tolerances | Sequence[Tolerances] | None = None,
+        goal_time: float | None = None,
+    ) -> GroupMotion:
+        """Move every axis to its target, all starting and arriving together.
+
+        Returns the motion's handle at once (await it for the outcome). A running
+        motion is preempted from its current commanded state (position, velocity,
+        acceleration): no jump. ``duration`` (s): take exactly this long instead of as
+        fast as the limits allow. Invalid input raises before anything changes.
+        """
+        self._require_open("move_to")
+        self._refresh_device_limits()
+        goal = self._positions(targets, "targets")
+        axis_limits = self._limits_arg(limits)
+        tol = self._tolerances_arg(tolerances)
+        goal_time_ns = self._goal_time_arg(goal_time)
+        dur = None if duration is None else finite_positive("duration", duration)
+        idle_positions = await self._prepare("move_to")
+        root_ns, state = self._root(idle_positions)
+        plan = self._planner.move(root_ns, state, goal, axis_limits, dur)
+        return self._install("move", plan, state, tol, goal_time_ns)
+
+    async def follow(
+        self,
+        waypoints: Sequence[Waypoint],
+        limits: AxisLimits | Sequence[AxisLimits] | None = None,
+        *,
+        tolerances: Tolerances | Sequence[Tolerances] | None = None,
+        goal_time: float | None = None,
+    ) -> GroupMotion:
+        """Pass through the waypoints in order and stop on the last one.
+
+        A waypoint's ``time`` is seconds from the start of this motion; untimed ones
+        are reached as early as the limits allow. Velocity is continuous through
+        intermediate waypoints (see :meth:`Planner.waypoints`); goal tolerances apply
+        to the last waypoint, path tolerances all along.
+        """
+        self._require_open("follow")
+        self._refresh_device_limits()
+        points = self._waypoints_arg(waypoints)
+        axis_limits = self._limits_arg(limits)
+        tol = self._tolerances_arg(tolerances)
+        goal_time_ns = self._goal_time_arg(goal_time)
+        idle_positions = await self._prepare("follow")
+        root_ns, state = self._root(idle_positions)
+        plan = self._planner.waypoints(root_ns, state, points, axis_limits)
+        return self._install("waypoints", plan, state, tol, goal_time_ns)
+
+    async def stop(self) -> None:
+        """Brake the running motion to rest, jerk-limited, and return once stopped.
+
+        The running motion ends with :class:`MotionStoppedError`. The braking is a
+        motion of its own (kind ``"stop"``, :attr:`current` meanwhile); a new motion
+        may preempt it, which ends ``stop()`` early. Raises what aborted the braking
+        (an axis fault). Nothing to do when idle.
+        """
+        self._require_open("stop")
+        motion = self._active
+        if motion is None:
+            await anyio.lowlevel.checkpoint()
+            return
+        if motion.settling:  # the final setpoints were sent: already braking
+            self._hold("stop() during the goal check")
+            await anyio.lowlevel.checkpoint()
+            return
+        if motion.kind == "stop":  # already stopping: wait for that stop
+            brake = motion
+        else:
+            self._refresh_device_limits()
+            state = self._last_state
+            plan = self._planner.brake(self._last_t, state, self._limits)
+            brake = self._install(
+                "stop", plan, state, tuple(Tolerances() for _ in self.axes), 0, stopping=True
+            )
+        # Replaced by a new motion, or held: the stop is over; a fault is raised.
+        with contextlib.suppress(PreemptedError, MotionStoppedError):
+            await brake
+
+    def hold(self) -> None:
+        """Stop streaming now: every axis keeps its last setpoint.
+
+        The running motion ends with :class:`MotionStoppedError`. For a smooth stop
+        at speed use :meth:`stop`; ``hold`` leaves the deceleration to each device.
+        """
+        self._hold("hold() was called")
+
+    # -- the timer's side ----------------------------------------------------------------------
+    def notify_timer(self, timer: EventTimer) -> None:
+        """TimerObserver: hand the tick to the streaming task (never blocks)."""
+        if self._active is None:
+            return
+        tick = timer.last_tick
+        if tick is None:
+            return
+        if self._pending is not None:
+            self._skipped += 1
+        self._pending = tick
+        if self._wakeup is not None:
+            self._wakeup.set()
+
+    async def _stream(self) -> None:
+        perf = time.perf_counter_ns
+        record = self._cost.record
+        keep = self._costs.append
+        while True:
+            tick = self._pending
+            if tick is None:
+                assert self._wakeup is not None
+                await self._wakeup.wait()
+                self._wakeup = anyio.Event()
+                continue
+            self._pending = None
+            started = perf()
+            await self._step(tick)
+            cost = perf() - started
+            record(cost)
+            keep(cost)
+            self._ticks += 1
+
+    async def _step(self, tick: TimerTick) -> None:
+        """One tick of the running motion."""
+        motion = self._active
+        if motion is None:
+            return
+        t = tick.deadline_ns
+        axes = self.axes
+        active = S.ACTIVE
+        for axis in axes:
+            if axis.state is not active:
+                i = axes.index(axis)
+                cause = axis.last_fault
+                self._abort(
+                    motion,
+                    AxisFaultError(
+                        f"{self.name}: axis {i} ({axis.device_name}) left Active "
+                        f"({axis.state})" + (f": {cause}" if cause is not None else ""),
+                        axis=i,
+                        axis_name=axis.device_name,
+                        cause=cause,
+                        time_ns=t,
+                    ),
+                    t,
+                )
+                return
+        settling = motion._settling
+        actual: list[float] | None = None
+        if settling or motion._checks_path or self._log_actual:
+            actual = []
+            append = actual.append
+            try:
+                for axis in axes:
+                    append(await axis.get_value(POSITION_ACTUAL))
+            except Exception as exc:
+                self._axis_failed(len(actual), exc, t)
+                return
+            if self._active is not motion:  # preempted or held during the reads
+                return
+            if not settling and motion._checks_path and self._path_violated(motion, actual, t):
+                return
+        if settling:
+            assert actual is not None
+            self._settle(motion, actual, t)
+            return
+        state = motion._plan.sample(t)
+        position = state.position
+        self._last_t = t
+        self._last_state = state
+        self.log.append(t, motion.id, position, state.velocity, state.acceleration, actual)
+        sent = 0
+        try:
+            for axis, value in zip(axes, position, strict=True):
+                await axis.set_value(value, POSITION)
+                sent += 1
+        except Exception as exc:
+            self._axis_failed(sent, exc, t)
+            return
+        self._commanded = position
+        if t >= motion._plan.end_ns and self._active is motion:
+            if motion.kind == "stop":
+                self._succeed(motion, t)
+            else:
+                motion._settling = True
+                motion._goal_deadline_ns = motion._plan.end_ns + motion._goal_time_ns
+
+    # -- tolerances and outcomes --------------------------------------------------------------
+    def _path_violated(self, motion: GroupMotion, actual: list[float], t: int) -> bool:
+        worst: tuple[float, int, float, float] | None = None
+        commanded = self._commanded
+        for i, tol in enumerate(motion._path_tolerance):
+            if tol is None:
+                continue
+            deviation = actual[i] - commanded[i]
+            if abs(deviation) > tol:
+                ratio = abs(deviation) / tol
+                if worst is None or ratio > worst[0]:
+                    worst = (ratio, i, deviation, tol)
+        if worst is None:
+            return False
+        _, i, deviation, tol = worst
+        name = self.axes[i].device_name
+        self._abort(
+            motion,
+            PathToleranceError(
+                f"{self.name}: axis {i} ({name}) is {deviation:+.6g} from its setpoint, "
+                f"beyond the path tolerance {tol:g}",
+                axis=i,
+                axis_name=name,
+                deviation=deviation,
+                tolerance=tol,
+                time_ns=t,
+            ),
+            t,
+        )
+        return True
+
+    def _settle(self, motion: GroupMotion, actual: list[float], t: int) -> None:
+        targets = motion.targets
+        self._last_t = t
+        final = motion._plan.sample(t)
+        self.log.append(t, motion.id, final.position, final.velocity, final.acceleration, actual)
+        worst: tuple[float, int, float, float] | None = None
+        for i, tol in enumerate(motion._goal_tolerance):
+            deviation = actual[i] - targets[i]
+            if abs(deviation) > tol:
+                ratio = abs(deviation) / tol
+                if worst is None or ratio > worst[0]:
+                    worst = (ratio, i, deviation, tol)
+        if worst is None:
+            self._succeed(motion, t)
+        elif t > motion._goal_deadline_ns:
+            _, i, deviation, tol = worst
+            name = self.axes[i].device_name
+            self._abort(
+                motion,
+                GoalTimeoutError(
+                    f"{self.name}: axis {i} ({name}) is still {deviation:+.6g} from its "
+                    f"target {targets[i]:g} (goal tolerance {tol:g}) "
+                    f"{motion._goal_time_ns / NS_PER_S:g} s after the trajectory ended",
+                    axis=i,
+                    axis_name=name,
+                    deviation=deviation,
+                    tolerance=tol,
+                    time_ns=t,
+                ),
+                t,
+            )
+
+    def _axis_failed(self, axis_index: int, exc: Exception, t: int) -> None:
+        motion = self._active
+        if motion is None:
+            return
+        axis = self.axes[axis_index]
+        if not isinstance(exc, HALError):
+            self._log.exception("axis_call_failed", axis=axis_index, actuator=axis.device_name)
+        self._abort(
+            motion,
+            AxisFaultError(
+                f"{self.name}: axis {axis_index} ({axis.device_name}) failed: "
+                f"{type(exc).__name__}: {exc}",
+                axis=axis_index,
+                axis_name=axis.device_name,
+                cause=exc,
+                time_ns=t,
+            ),
+            t,
+        )
+
+    def _succeed(self, motion: GroupMotion, t: int) -> None:
+        if self._active is motion:
+            self._active = None
+        if motion._finish(GroupOutcome.SUCCEEDED, t):
+            self._log.info("motion_succeeded", motion=motion.id, kind=motion.kind)
+
+    def _abort(self, motion: GroupMotion, error: HALError, t: int) -> None:
+        """End the motion and stop streaming: the other axes hold their last setpoint."""
+        if self._active is motion:
+            self._active = None
+        if motion._finish(GroupOutcome.ABORTED, t, error):
+            self._log.warning(
+                "motion_aborted", motion=motion.id, error=str(error), kind=type(error).__name__
+            )
+
+    def _hold(self, reason: str) -> None:
+        motion = self._active
+        if motion is None:
+            return
+        self._active = None
+        now = self.timer.clock.now_ns()
+        if motion._finish(GroupOutcome.STOPPED, now, MotionStoppedError(f"{self.name}: {reason}")):
+            self._log.info("motion_stopped", motion=motion.id, reason=reason)
+
+    # -- installing a motion ---------------------------------------------------------------------
+    async def _prepare(self, operation: str) -> list[float] | None:
+        """Check the axes and, when idle, read where each one is commanded to be."""
+        self._check_axes_active()
+        if self.timer.state is not TimerState.RUNNING:
+            raise StateError(operation, f"timer {self.timer.state}", ["timer Running"])
+        if self._active is not None:
+            return None
+        positions: list[float] = []
+        for axis in self.axes:
+            positions.append(await axis.get_value(POSITION))
+        self._check_axes_active()  # an axis may have faulted meanwhile
+        return positions
+
+    def _root(self, idle_positions: list[float] | None) -> tuple[int, KinematicState]:
+        """Where and when the next trajectory starts. No await from here to _install."""
+        motion = self._active
+        if motion is not None and not motion._settling:
+            return self._last_t, self._last_state
+        tick = self.timer.last_tick
+        root = tick.deadline_ns if tick is not None else self.timer.clock.now_ns()
+        zeros = [0.0] * len(self.axes)
+        if motion is not None:  # at rest on its final setpoints, waiting for the goal
+            return max(root, self._last_t), KinematicState(list(motion.targets), zeros, list(zeros))
+        assert idle_positions is not None
+        return root, KinematicState(list(idle_positions), zeros, list(zeros))
+
+    def _install(
+        self,
+        kind: str,
+        plan: Plan,
+        state: KinematicState,
+        tolerances: tuple[Tolerances, ...],
+        goal_time_ns: int,
+        *,
+        stopping: bool = False,
+    ) -> GroupMotion:
+        motion = GroupMotion(
+            next(self._ids),
+            kind,
+            plan,
+            tuple(t.goal for t in tolerances),
+            tuple(t.path for t in tolerances),
+            goal_time_ns,
+        )
+        previous = self._active
+        self._active = motion
+        self._last_t = plan.start_ns
+        self._last_state = state
+        if previous is None:
+            self._commanded = list(state.position)
+        else:
+            now = self.timer.clock.now_ns()
+            if stopping:
+                error: HALError = MotionStoppedError(f"{self.name}: stop() was called")
+                outcome = GroupOutcome.STOPPED
+            else:
+                error = PreemptedError(
+                    f"{self.name}: motion #{previous.id} was preempted by motion #{motion.id}",
+                    by=motion.id,
+                )
+                outcome = GroupOutcome.PREEMPTED
+            if previous._finish(outcome, now, error):
+                self._log.info("motion_replaced", motion=previous.id, by=motion.id)
+        self._log.info(
+            "motion_started",
+            motion=motion.id,
+            kind=kind,
+            duration_s=round(plan.duration, 6),
+            start_ns=plan.start_ns,
+        )
+        return motion
+
+    # -- validation --------------------------------------------------------------------------------
+    def _require_open(self, operation: str) -> None:
+        if self._tg is None:
+            state = "closed" if self._closed else "not entered"
+            raise StateError(operation, state, ["inside 'async with group'"])
+
+    def _check_axes_active(self) -> None:
+        for i, axis in enumerate(self.axes):
+            if axis.state is not S.ACTIVE:
+                raise AxisStateError(
+                    f"{self.name}: axis {i} ({axis.device_name}) is {axis.state}, not Active",
+                    axis=i,
+                    axis_name=axis.device_name,
+                    state=axis.state,
+                )
+
+    def _refresh_device_limits(self) -> None:
+        """Device limits may be set when a device opens: read them for every motion."""
+        planner = self._planner
+        planner.bounds = tuple(a.device.limits.position for a in self.axes)
+        planner.velocity_caps = tuple(a.device.limits.velocity for a in self.axes)
+
+    def _positions(self, value: object, name: str) -> list[float]:
+        n = len(self.axes)
+        if isinstance(value, str | bytes) or not isinstance(value, Iterable):
+            raise BadParameterError(name, value, f"a sequence of {n} positions (one per axis)")
+        items = list(value)
+        if len(items) != n:
+            raise BadParameterError(name, value, f"{n} positions (one per axis), not {len(items)}")
+        out: list[float] = []
+        for i, (item, (low, high)) in enumerate(zip(items, self._planner.bounds, strict=True)):
+            position = finite(f"{name}[{i}]", item)
+            if not low <= position <= high:
+                raise BadParameterError(
+                    f"{name}[{i}]",
+                    item,
+                    f"a position in [{low}, {high}] (the limits of axis {i}, "
+                    f"{self.axes[i].device_name})",
+                )
+            out.append(position)
+        return out
+
+    def _limits_arg(
+        self, limits: AxisLimits | Sequence[AxisLimits] | None
+    ) -> tuple[AxisLimits, ...]:
+        if limits is None:
+            return self._limits
+        return per_axis(limits, len(self.axes), "limits", AxisLimits)
+
+    def _tolerances_arg(
+        self, tolerances: Tolerances | Sequence[Tolerances] | None
+    ) -> tuple[Tolerances, ...]:
+        if tolerances is None:
+            return self._tolerances
+        return per_axis(tolerances, len(self.axes), "tolerances", Tolerances)
+
+    def _goal_time_arg(self, goal_time: float | None) -> int:
+        seconds = (
+            self.goal_time if goal_time is None else finite_non_negative("goal_time", goal_time)
+        )
+        return round(seconds * NS_PER_S)
+
+    def _waypoints_arg(self, waypoints: object) -> list[tuple[list[float], float | None]]:
+        if isinstance(waypoints, str | bytes) or not isinstance(waypoints, Sequence):
+            raise BadParameterError("waypoints", waypoints, "a sequence of Waypoint")
+        if not waypoints:
+            raise BadParameterError("waypoints", waypoints, "at least one Waypoint")
+        points: list[tuple[list[float], float | None]] = []
+        last_time = 0.0
+        for i, point in enumerate(waypoints):
+            if not isinstance(point, Waypoint):
+                raise BadParameterError(f"waypoints[{i}]", point, "a Waypoint")
+            positions = self._positions(point.positions, f"waypoints[{i}].positions")
+            at: float | None = None
+            if point.time is not None:
+                at = finite_positive(f"waypoints[{i}].time", point.time)
+                if at <= last_time:
+                    raise BadParameterError(
+                        f"waypoints[{i}].time",
+                        point.time,
+                        f"a time after the previous timed waypoint ({last_time:g} s)",
+                    )
+                last_time = at
+            points.append((positions, at))
+        return points
+
+    def __repr__(self) -> str:
+        state = "closed" if self._closed else ("open" if self._tg is not None else "new")
+        return f"AxisGroup({self.name!r}, axes={len(self.axes)}, {state}, current={self._active})"
+
+
+def _check_actuators(actuators: object) -> tuple[Actuator, ...]:
+    if isinstance(actuators, str | bytes) or not isinstance(actuators, Sequence):
+        raise BadParameterError("actuators", actuators, "a sequence of Actuators")
+    axes = tuple(actuators)
+    if not axes:
+        raise BadParameterError("actuators", actuators, "at least one Actuator")
+    seen: dict[int, int] = {}
+    for i, axis in enumerate(axes):
+        if not isinstance(axis, Actuator):
+            raise BadParameterError(f"actuators[{i}]", axis, "an Actuator")
+        first = seen.setdefault(id(axis), i)
+        if first != i:
+            raise BadParameterError(
+                f"actuators[{i}]",
+                axis.device_name,
+                f"an actuator not already in the group (it is actuators[{first}])",
+            )
+        if axis.state is S.FINALIZED:
+            raise BadParameterError(
+                f"actuators[{i}]", axis.device_name, "an Actuator that is not Finalized"
+            )
+        if POSITION not in axis.device.supported_requests:
+            raise BadParameterError(
+                f"actuators[{i}]",
+                axis.device_name,
+                "an Actuator whose device supports POSITION control",
+            )
+    return axes

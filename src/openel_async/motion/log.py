@@ -1,0 +1,126 @@
+"""TrajectoryLog: what an axis group commanded (and, if asked, measured) at each tick.
+
+A fixed-size ring of numpy rows, written once per tick while a motion runs; a
+:meth:`TrajectoryLog.snapshot` copies it out oldest first, e.g. to plot commanded
+against actual positions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ..clock import NS_PER_S
+from ..errors import BadParameterError
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+
+@dataclass(frozen=True, slots=True)
+class TrajectorySamples:
+    """Copied rows of a :class:`TrajectoryLog`, oldest first; row i is one tick."""
+
+    time_ns: IntArray
+    """Tick deadline (the time the setpoints were computed for), shape (n,)."""
+    motion_id: IntArray
+    """Id of the GroupMotion each row belongs to, shape (n,)."""
+    commanded: FloatArray
+    """Commanded position of every axis, shape (n, axes)."""
+    velocity: FloatArray
+    """Commanded velocity (from the trajectory, not differentiated), shape (n, axes)."""
+    acceleration: FloatArray
+    """Commanded acceleration, shape (n, axes)."""
+    actual: FloatArray | None
+    """POSITION_ACTUAL read at the tick, before the setpoints were sent; None unless
+    the group logs actual positions."""
+
+    def __len__(self) -> int:
+        return int(self.time_ns.shape[0])
+
+    @property
+    def time_s(self) -> FloatArray:
+        """Seconds since the first row."""
+        if len(self) == 0:
+            return np.zeros(0)
+        return np.asarray((self.time_ns - self.time_ns[0]) / NS_PER_S, dtype=np.float64)
+
+    def of_motion(self, motion_id: int) -> TrajectorySamples:
+        """Only the rows of one motion."""
+        keep = self.motion_id == motion_id
+        return TrajectorySamples(
+            self.time_ns[keep],
+            self.motion_id[keep],
+            self.commanded[keep],
+            self.velocity[keep],
+            self.acceleration[keep],
+            None if self.actual is None else self.actual[keep],
+        )
+
+
+class TrajectoryLog:
+    """Ring buffer of the last ``capacity`` ticks of an axis group (0: disabled)."""
+
+    def __init__(self, axes: int, capacity: int = 10_000, *, actual: bool = False) -> None:
+        if isinstance(capacity, bool) or not isinstance(capacity, int) or capacity < 0:
+            raise BadParameterError("log_capacity", capacity, "an int >= 0 (0: no log)")
+        self.axes = axes
+        self.capacity = capacity
+        self.records_actual = actual
+        self._time = np.zeros(capacity, dtype=np.int64)
+        self._motion = np.zeros(capacity, dtype=np.int64)
+        self._p = np.zeros((capacity, axes))
+        self._v = np.zeros((capacity, axes))
+        self._a = np.zeros((capacity, axes))
+        self._actual = np.full((capacity, axes), np.nan) if actual else None
+        self._count = 0
+        """Rows ever written (the next row is ``_count % capacity``)."""
+
+    def __len__(self) -> int:
+        return min(self._count, self.capacity)
+
+    @property
+    def total(self) -> int:
+        """Rows written since the last clear, including those overwritten."""
+        return self._count
+
+    def append(
+        self,
+        time_ns: int,
+        motion_id: int,
+        position: Sequence[float],
+        velocity: Sequence[float],
+        acceleration: Sequence[float],
+        actual: Sequence[float] | None = None,
+    ) -> None:
+        capacity = self.capacity
+        if capacity == 0:
+            return
+        row = self._count % capacity
+        self._count += 1
+        self._time[row] = time_ns
+        self._motion[row] = motion_id
+        self._p[row] = position
+        self._v[row] = velocity
+        self._a[row] = acceleration
+        if self._actual is not None:
+            self._actual[row] = np.nan if actual is None else actual
+
+    def snapshot(self) -> TrajectorySamples:
+        n = len(self)
+        start = self._count % self.capacity if self._count > self.capacity else 0
+        order = (np.arange(n) + start) % self.capacity if n else np.zeros(0, dtype=np.int64)
+        return TrajectorySamples(
+            self._time[order].copy(),
+            self._motion[order].copy(),
+            self._p[order].copy(),
+            self._v[order].copy(),
+            self._a[order].copy(),
+            None if self._actual is None else self._actual[order].copy(),
+        )
+
+    def clear(self) -> None:
+        self._count = 0
