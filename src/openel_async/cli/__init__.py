@@ -38,6 +38,9 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("app_args", nargs=argparse.REMAINDER, help="arguments for the application")
 
     sub.add_parser("devices", help="list the registered drivers and their devices")
+    from .profile_cmd import add_parser as add_profile_parser
+
+    add_profile_parser(sub)
     return parser
 
 
@@ -52,6 +55,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         from .run_cmd import run
 
         return run(args.path, list(args.app_args))
+    if args.command == "profile":
+        from .profile_cmd import run as run_profile_cmd
+
+        return run_profile_cmd(args)
     return 2
 
 

@@ -1,1 +1,56 @@
-"""RTC component model."""
+"""RTC component model: RTObject lifecycle, execution contexts, modes, profile apps.
+
+- :mod:`.rtobject`: :class:`RTObject` (LightweightRTObject + ComponentAction +
+  DataFlowComponentAction), :class:`MultiModeObject` in :mod:`.modes`;
+- :mod:`.context`: :class:`PeriodicExecutionContext`, :class:`EventDrivenExecutionContext`;
+- :mod:`.errors`: ``ReturnCode_t`` and the exceptions carrying it;
+- :mod:`.profile`, :mod:`.constraints`, :mod:`.configuration`: RTC Profiles and
+  configuration sets; :mod:`.runner`: running a component described by a profile.
+
+docs/rtc.md maps the RTC PIM to this API.
+"""
+
+from .context import (
+    EventDrivenExecutionContext,
+    ExecutionContext,
+    ExecutionContextStats,
+    ExecutionKind,
+    LifeCycleState,
+    PeriodicExecutionContext,
+)
+from .errors import (
+    CallbackFailedError,
+    OutOfResourcesError,
+    PreconditionNotMetError,
+    ReturnCode_t,
+    RTCBadParameterError,
+    RTCError,
+    RTCTimeoutError,
+    UnsupportedError,
+    check_return_code,
+)
+from .modes import MultiModeObject
+from .rtobject import ECOTHER_OFFSET, CallbackResult, ObjectState, RTObject
+
+__all__ = [
+    "ECOTHER_OFFSET",
+    "CallbackFailedError",
+    "CallbackResult",
+    "EventDrivenExecutionContext",
+    "ExecutionContext",
+    "ExecutionContextStats",
+    "ExecutionKind",
+    "LifeCycleState",
+    "MultiModeObject",
+    "ObjectState",
+    "OutOfResourcesError",
+    "PeriodicExecutionContext",
+    "PreconditionNotMetError",
+    "RTCBadParameterError",
+    "RTCError",
+    "RTCTimeoutError",
+    "RTObject",
+    "ReturnCode_t",
+    "UnsupportedError",
+    "check_return_code",
+]

@@ -1,0 +1,145 @@
+"""``openel-async profile validate|show|convert FILE [OUT]``: work with RTC Profiles.
+
+- ``validate FILE [--implementation]``: load and validate the profile, check every
+  configuration default against its constraint and the execution type and rate; with
+  ``--implementation`` also import the component class the profile names.
+- ``show FILE``: a readable summary (identity, execution, actions, configuration,
+  ports, implementation).
+- ``convert FILE [OUT] [--to yaml|xml]``: rewrite the profile in the form OUT's suffix
+  names, or print it (in the other form unless ``--to`` says) when OUT is omitted.
+
+Exit status: 0 on success, 1 when the profile is invalid or cannot be written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import sys
+from pathlib import Path
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add the ``profile`` command to the CLI's subparsers."""
+    profile = subparsers.add_parser(
+        "profile", help="validate, show or convert an RTC Profile (.yaml/.yml/.xml)"
+    )
+    actions = profile.add_subparsers(dest="profile_action", required=True)
+    validate = actions.add_parser("validate", help="check a profile (exit status 1 if invalid)")
+    validate.add_argument("file", help="RTC Profile (.yaml, .yml or .xml)")
+    validate.add_argument(
+        "--implementation",
+        action="store_true",
+        help="also import the component class the profile names",
+    )
+    show = actions.add_parser("show", help="print a summary of a profile")
+    show.add_argument("file", help="RTC Profile (.yaml, .yml or .xml)")
+    convert = actions.add_parser("convert", help="rewrite a profile as YAML or XML")
+    convert.add_argument("file", help="RTC Profile (.yaml, .yml or .xml)")
+    convert.add_argument("out", nargs="?", help="output file; its suffix selects the form")
+    convert.add_argument(
+        "--to", choices=("yaml", "xml"), help="form printed when OUT is omitted (default: other)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the ``profile`` command parsed by :func:`add_parser`."""
+    from ..rtc.configuration import ConfigurationError
+    from ..rtc.profile import ProfileError
+
+    action: str = args.profile_action
+    path = Path(args.file)
+    try:
+        if action == "validate":
+            return _validate(path, bool(args.implementation))
+        if action == "show":
+            return _show(path)
+        if action == "convert":
+            return _convert(path, args.out, args.to)
+    except FileNotFoundError as exc:
+        print(f"{path}: no such file ({exc.strerror})", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"{path}: {exc}", file=sys.stderr)
+        return 1
+    except ProfileError as exc:
+        print(f"{path}: invalid: {exc}", file=sys.stderr)
+        return 1
+    except ConfigurationError as exc:
+        print(f"{path}: invalid configuration: {exc}", file=sys.stderr)
+        return 1
+    print(f"unknown profile action {action!r}", file=sys.stderr)
+    return 2
+
+
+def _validate(path: Path, implementation: bool) -> int:
+    from ..rtc.profile import load_profile
+    from ..rtc.runner import build_configuration, execution_spec, load_implementation
+
+    profile = load_profile(path)
+    spec = execution_spec(profile)
+    config = build_configuration(profile)
+    detail = f"{spec.kind}" + (f" at {spec.rate_hz:g} Hz" if spec.rate_hz is not None else "")
+    line = (
+        f"OK: {path}: {profile.id} ({profile.basic_info.component_kind}), {detail}, "
+        f"{len(config.parameters)} configuration parameter(s)"
+    )
+    if implementation:
+        cls = load_implementation(profile, path)
+        line += f", implementation {cls.__qualname__} from {inspect.getsourcefile(cls)}"
+    print(line)
+    return 0
+
+
+def _show(path: Path) -> int:
+    from ..rtc.constraints import describe
+    from ..rtc.profile import load_profile
+    from ..rtc.runner import IMPLEMENTATION_PARAMETER, execution_spec
+
+    profile = load_profile(path)
+    b = profile.basic_info
+    spec = execution_spec(profile)
+    out = [
+        f"id              {profile.id}",
+        f"name            {b.name} ({b.category}, vendor {b.vendor}, version {b.version})",
+        f"kind            {b.component_kind}, {b.component_type}, activity {b.activity_type}",
+        f"execution       {b.execution_type}"
+        + (f" at {spec.rate_hz:g} Hz" if spec.rate_hz is not None else ""),
+    ]
+    if b.description:
+        out.append(f"description     {b.description}")
+    implemented = [name for name, status in profile.actions.items() if status.implemented]
+    out.append(f"actions         {', '.join(implemented) or '(none implemented)'}")
+    impl = next((p for p in profile.parameters if p.name == IMPLEMENTATION_PARAMETER), None)
+    named = (impl.default_value or "") if impl is not None else f"(by name: {b.name})"
+    out.append(f"implementation  {named}")
+    if profile.configurations:
+        out.append("configuration")
+        for c in profile.configurations:
+            constraint = f"  [{describe(c.constraint)}]" if c.constraint is not None else ""
+            unit = f" {c.unit}" if c.unit else ""
+            out.append(f"  {c.name:<14} {c.type:<10} = {c.default_value!r}{unit}{constraint}")
+    for port in profile.data_ports:
+        out.append(f"port            {port.name} ({port.port_type}, {port.type})")
+    for sport in profile.service_ports:
+        out.append(f"service port    {sport.name} ({len(sport.interfaces)} interface(s))")
+    others = [p for p in profile.parameters if p.name != IMPLEMENTATION_PARAMETER]
+    for param in others:
+        out.append(f"parameter       {param.name} = {param.default_value!r}")
+    print("\n".join(out))
+    return 0
+
+
+def _convert(path: Path, out: str | None, to: str | None) -> int:
+    from ..rtc.profile import dumps_xml, dumps_yaml, load_profile, save_profile
+
+    profile = load_profile(path)
+    if out is not None:
+        save_profile(profile, out)
+        print(f"wrote {out}", file=sys.stderr)
+        return 0
+    form = to or ("yaml" if path.suffix.lower() == ".xml" else "xml")
+    sys.stdout.write(dumps_xml(profile) if form == "xml" else dumps_yaml(profile))
+    return 0

@@ -1,0 +1,537 @@
+"""Running the component an RTC Profile describes (``openel-async run RTC.yaml``).
+
+The profile names its Python implementation with a ``parameters`` entry::
+
+    parameters:
+      - name: implementation
+        defaultValue: "pan_tilt:PanTilt"     # module:Class
+
+The module is looked up next to the profile file first (``pan_tilt.py`` or a package
+``pan_tilt/``), then on ``sys.path`` (a dotted name). Without the entry the module is
+the snake_case form of ``basicInfo.name`` next to the profile (``PanTilt`` ->
+``pan_tilt.py``) and the class is ``basicInfo.name``. The class must derive from
+:class:`~openel_async.rtc.RTObject` (from :class:`~openel_async.rtc.MultiModeObject`
+when ``componentKind`` names a multi-mode component) and accept
+``cls(instance_name, configuration=..., clock=...)``.
+
+The execution context comes from ``basicInfo.executionType`` (``PeriodicExecutionContext``
+or ``PERIODIC``; ``EventDrivenExecutionContext`` or ``EVENTDRIVEN``) and the rate from
+``basicInfo.executionRate``, else the ``exec_ctxt.periodic.rate`` parameter, else
+1000 Hz (the spec's default). docs/rtc.md describes the whole sequence.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import math
+import re
+import signal
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from pathlib import Path
+from types import ModuleType
+
+import anyio
+import structlog
+
+from ..clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
+from .configuration import Configuration, ConfigurationError
+from .context import (
+    EventDrivenExecutionContext,
+    ExecutionContext,
+    ExecutionKind,
+    LifeCycleState,
+    PeriodicExecutionContext,
+)
+from .errors import RTCError
+from .modes import MultiModeObject
+from .profile import ProfileError, RtcProfile, load_profile
+from .rtobject import RTObject
+
+__all__ = [
+    "DEFAULT_RATE_HZ",
+    "IMPLEMENTATION_PARAMETER",
+    "RATE_PARAMETER",
+    "ExecutionSpec",
+    "PreparedRun",
+    "RunSummary",
+    "build_configuration",
+    "execution_spec",
+    "load_implementation",
+    "make_context",
+    "prepare_profile",
+    "run_prepared",
+    "run_profile",
+    "run_profile_cli",
+]
+
+log = structlog.get_logger(__name__)
+
+IMPLEMENTATION_PARAMETER = "implementation"
+RATE_PARAMETER = "exec_ctxt.periodic.rate"
+DEFAULT_RATE_HZ = 1000.0
+CLI_SET = "cli"
+"""Name of the configuration set made of ``--set`` values."""
+
+_PERIODIC_TYPES = frozenset({"periodicexecutioncontext", "periodic"})
+_EVENT_TYPES = frozenset({"eventdrivenexecutioncontext", "eventdriven", "event_driven"})
+_BASIC = "rtcProfile.basicInfo"
+_loaded: dict[Path, ModuleType] = {}
+"""Implementation modules imported from files, by path (imported once per process)."""
+
+
+@dataclass(frozen=True, slots=True)
+class ExecutionSpec:
+    """The execution context a profile asks for."""
+
+    kind: ExecutionKind
+    rate_hz: float | None
+    """Rate of a periodic context; None for an event-driven one."""
+
+
+@dataclass(slots=True)
+class RunSummary:
+    """What a profile run did."""
+
+    component: str
+    profile_id: str
+    kind: ExecutionKind
+    rate_hz: float | None
+    duration_s: float
+    cycles: int = 0
+    overruns: int = 0
+    skipped: int = 0
+    lateness_p50_us: float = 0.0
+    lateness_p99_us: float = 0.0
+    lateness_max_us: float = 0.0
+    final_state: LifeCycleState | None = None
+    """State in the context just before deactivation."""
+    mode: str | None = None
+    report: dict[str, object] = field(default_factory=dict)
+
+    def lines(self) -> list[str]:
+        rate = f" at {self.rate_hz:g} Hz" if self.rate_hz is not None else ""
+        out = [
+            f"component          {self.component} ({self.profile_id})",
+            f"context            {self.kind}{rate}",
+            f"duration           {self.duration_s:.3f} s",
+            f"cycles             {self.cycles} (overruns {self.overruns}, skipped {self.skipped})",
+            f"cycle lateness     p50 {self.lateness_p50_us:.0f} us, p99 "
+            f"{self.lateness_p99_us:.0f} us, max {self.lateness_max_us:.0f} us",
+            f"state at the end   {self.final_state}",
+        ]
+        if self.mode is not None:
+            out.append(f"mode at the end    {self.mode}")
+        out += [f"{key:<18} {value}" for key, value in self.report.items()]
+        return out
+
+
+# -- what the profile asks for ----------------------------------------------------------
+
+
+def _parameter(profile: RtcProfile, name: str) -> tuple[str, str | None] | None:
+    for i, param in enumerate(profile.parameters):
+        if param.name == name:
+            return f"rtcProfile.parameters[{i}].defaultValue", param.default_value
+    return None
+
+
+def execution_spec(profile: RtcProfile, rate_hz: float | None = None) -> ExecutionSpec:
+    """The context kind and rate of a profile (``rate_hz`` overrides the profile's).
+
+    Raises ProfileError naming ``executionType``, ``executionRate`` or the rate
+    parameter when they cannot be used.
+    """
+    basic = profile.basic_info
+    kind_text = basic.execution_type.strip().lower()
+    if kind_text in _EVENT_TYPES:
+        return ExecutionSpec(ExecutionKind.EVENT_DRIVEN, None)
+    if kind_text not in _PERIODIC_TYPES:
+        raise ProfileError(
+            f"{_BASIC}.executionType",
+            f"unsupported execution type {basic.execution_type!r}; expected "
+            "PeriodicExecutionContext (PERIODIC) or EventDrivenExecutionContext (EVENTDRIVEN)",
+        )
+    if rate_hz is not None:
+        path, rate = "--rate", rate_hz
+    elif basic.execution_rate is not None:
+        path, rate = f"{_BASIC}.executionRate", basic.execution_rate
+    elif (entry := _parameter(profile, RATE_PARAMETER)) is not None:
+        path, text = entry
+        try:
+            rate = float(text or "")
+        except ValueError:
+            raise ProfileError(path, f"{RATE_PARAMETER} must be a number, got {text!r}") from None
+    else:
+        path, rate = "", DEFAULT_RATE_HZ
+    if not (math.isfinite(rate) and 0 < rate <= 1e9):
+        raise ProfileError(path, f"the rate must be a finite number of Hz > 0, got {rate!r}")
+    return ExecutionSpec(ExecutionKind.PERIODIC, float(rate))
+
+
+def build_configuration(
+    profile: RtcProfile, settings: Mapping[str, str] | None = None
+) -> Configuration:
+    """The profile's configuration, every default checked against its constraint, with
+    ``settings`` (name -> text) in a set ``cli`` made active when given.
+
+    Raises ConfigurationError naming the parameter.
+    """
+    config = Configuration.from_profile(profile)
+    if settings:
+        config.add_set(CLI_SET, dict(settings))
+        config.activate_set(CLI_SET)
+    return config
+
+
+def _snake(name: str) -> str:
+    return re.sub(r"(?<=[a-z0-9])(?=[A-Z])", "_", name).lower()
+
+
+def _import_next_to(directory: Path, module: str, path: str) -> ModuleType | None:
+    if "." in module:
+        return None
+    candidates = (directory / f"{module}.py", directory / module / "__init__.py")
+    file = next((c for c in candidates if c.is_file()), None)
+    if file is None:
+        return None
+    resolved = file.resolve()
+    cached = _loaded.get(resolved)
+    if cached is not None:
+        return cached
+    unique = f"openel_rtc_app{len(_loaded) + 1}_{module}"
+    spec = importlib.util.spec_from_file_location(
+        unique,
+        file,
+        submodule_search_locations=[str(file.parent)] if file.stem == "__init__" else None,
+    )
+    if spec is None or spec.loader is None:
+        raise ProfileError(path, f"{file} cannot be imported as a Python module")
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[unique] = mod
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as exc:
+        del sys.modules[unique]
+        raise ProfileError(path, f"importing {file} failed: {exc!r}") from exc
+    _loaded[resolved] = mod
+    return mod
+
+
+def load_implementation(profile: RtcProfile, profile_path: Path) -> type[RTObject]:
+    """The component class a profile names (see the module docstring).
+
+    Raises ProfileError naming the ``implementation`` parameter (or ``basicInfo.name``
+    when it is absent) when the module or class cannot be found or is not a component.
+    """
+    basic = profile.basic_info
+    entry = _parameter(profile, IMPLEMENTATION_PARAMETER)
+    if entry is not None:
+        path, text = entry
+        module_name, _, class_name = (text or "").strip().partition(":")
+        module_name, class_name = module_name.strip(), class_name.strip() or basic.name
+        if not module_name:
+            raise ProfileError(path, f"expected 'module:Class', got {text!r}")
+    else:
+        path, module_name, class_name = f"{_BASIC}.name", _snake(basic.name), basic.name
+    directory = profile_path.resolve().parent
+    module = _import_next_to(directory, module_name, path)
+    if module is None:
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name is not None and not module_name.startswith(exc.name):
+                raise ProfileError(path, f"importing {module_name!r} failed: {exc}") from exc
+            raise ProfileError(
+                path,
+                f"no module {module_name!r}: neither {directory / (module_name + '.py')} "
+                "nor an importable module of that name",
+            ) from None
+        except Exception as exc:
+            raise ProfileError(path, f"importing {module_name!r} failed: {exc!r}") from exc
+    cls = getattr(module, class_name, None)
+    if cls is None:
+        raise ProfileError(path, f"module {module_name!r} has no class {class_name!r}")
+    if not (isinstance(cls, type) and issubclass(cls, RTObject)):
+        raise ProfileError(path, f"{module_name}:{class_name} is not an RTObject subclass")
+    if "multimode" in basic.component_kind.lower() and not issubclass(cls, MultiModeObject):
+        raise ProfileError(
+            f"{_BASIC}.componentKind",
+            f"{basic.component_kind} needs a MultiModeObject; "
+            f"{module_name}:{class_name} has no modes",
+        )
+    _check_actions(profile, cls)
+    return cls
+
+
+def _check_actions(profile: RtcProfile, cls: type[RTObject]) -> None:
+    """Warn when the profile says a callback is implemented and the class does not
+    override it (or the reverse): the profile and the code disagree."""
+    for name, status in profile.actions.items():
+        if not hasattr(RTObject, name) and not hasattr(MultiModeObject, name):
+            continue  # on_action: finite state machines are not supported
+        base = MultiModeObject if name == "on_mode_changed" else RTObject
+        overridden = getattr(cls, name, None) is not getattr(base, name, None)
+        if status.implemented != overridden:
+            log.warning(
+                "profile_action_mismatch",
+                action=name,
+                profile_says=status.implemented,
+                class_overrides=overridden,
+            )
+
+
+def make_context(
+    spec: ExecutionSpec, *, owner: RTObject, clock: Clock, name: str = ""
+) -> ExecutionContext:
+    """The context of an ExecutionSpec."""
+    if spec.kind is ExecutionKind.EVENT_DRIVEN:
+        return EventDrivenExecutionContext(name=name, owner=owner, clock=clock)
+    assert spec.rate_hz is not None
+    return PeriodicExecutionContext(spec.rate_hz, name=name, owner=owner, clock=clock)
+
+
+# -- running ---------------------------------------------------------------------------
+
+
+async def _until_signal(scope: anyio.CancelScope) -> None:
+    with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
+        async for signum in signals:
+            log.info("signal_received", signal=signal.Signals(signum).name)
+            scope.cancel()
+            return
+
+
+async def _until_duration(clock: Clock, end_ns: int, scope: anyio.CancelScope) -> None:
+    await clock.sleep_until(end_ns)
+    scope.cancel()
+
+
+@dataclass(frozen=True, slots=True)
+class PreparedRun:
+    """A loaded and checked profile, ready to run."""
+
+    path: Path
+    profile: RtcProfile
+    spec: ExecutionSpec
+    configuration: Configuration
+    implementation: type[RTObject]
+
+
+def prepare_profile(
+    path: Path, *, rate_hz: float | None = None, settings: Mapping[str, str] | None = None
+) -> PreparedRun:
+    """Load and validate the profile, check the execution type and rate, build the
+    configuration (every value checked against its constraint) and import the
+    implementation. Raises ProfileError or ConfigurationError naming the field, and
+    OSError when the file cannot be read."""
+    profile = load_profile(path)
+    spec = execution_spec(profile, rate_hz)
+    config = build_configuration(profile, settings)
+    cls = load_implementation(profile, path)
+    return PreparedRun(path, profile, spec, config, cls)
+
+
+async def run_profile(
+    path: Path,
+    *,
+    duration_s: float | None = None,
+    clock: Clock | None = None,
+    rate_hz: float | None = None,
+    settings: Mapping[str, str] | None = None,
+    instance_name: str | None = None,
+    handle_signals: bool = True,
+) -> RunSummary:
+    """Load, validate and run the component of a profile until ``duration_s`` seconds
+    on ``clock`` have passed or SIGINT/SIGTERM arrives (with ``handle_signals``).
+
+    Sequence: :func:`prepare_profile`, create the component and its context (owned by
+    it), initialize, add, start, activate, run, then ``exit()`` (stop, deactivate,
+    remove, finalize), also when activation fails or the run is cancelled. Raises
+    ProfileError / ConfigurationError for bad input and RTCError when a lifecycle step
+    fails.
+    """
+    _check_run(duration_s, handle_signals)
+    prepared = prepare_profile(path, rate_hz=rate_hz, settings=settings)
+    return await run_prepared(
+        prepared,
+        duration_s=duration_s,
+        clock=clock,
+        instance_name=instance_name,
+        handle_signals=handle_signals,
+    )
+
+
+def _check_run(duration_s: float | None, handle_signals: bool) -> None:
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+        raise ValueError(f"duration_s={duration_s!r}: expected a finite number of seconds > 0")
+    if duration_s is None and not handle_signals:
+        raise ValueError("a run without duration_s needs handle_signals to end")
+
+
+async def run_prepared(
+    prepared: PreparedRun,
+    *,
+    duration_s: float | None = None,
+    clock: Clock | None = None,
+    instance_name: str | None = None,
+    handle_signals: bool = True,
+) -> RunSummary:
+    """Run a :class:`PreparedRun` (see :func:`run_profile`)."""
+    _check_run(duration_s, handle_signals)
+    profile, spec, config = prepared.profile, prepared.spec, prepared.configuration
+    clock = clock or MonotonicClock()
+    comp = prepared.implementation(
+        instance_name or profile.basic_info.name, configuration=config, clock=clock
+    )
+    ec = make_context(spec, owner=comp, clock=clock, name=f"{comp.instance_name}.ec0")
+    run_log = log.bind(rtc=comp.instance_name, profile=str(prepared.path))
+    run_log.info(
+        "profile_loaded",
+        id=profile.id,
+        kind=str(spec.kind),
+        rate_hz=spec.rate_hz,
+        config_set=config.active_set,
+    )
+    summary = RunSummary(comp.instance_name, profile.id, spec.kind, spec.rate_hz, 0.0)
+    async with ec:
+        await comp.initialize()
+        start_ns = clock.now_ns()
+        try:
+            await ec.add_component(comp)
+            await ec.start()
+            await ec.activate_component(comp)
+            run_log.info("profile_running", duration_s=duration_s)
+            with anyio.CancelScope() as waiting:
+                async with anyio.create_task_group() as tg:
+                    if handle_signals:
+                        tg.start_soon(_until_signal, waiting)
+                    if duration_s is not None:
+                        end = start_ns + round(duration_s * NS_PER_S)
+                        tg.start_soon(_until_duration, clock, end, waiting)
+        finally:
+            # Not shielded: on_finalize leaves what on_initialize entered (task groups
+            # of HAL components), which must happen in this task's own scope.
+            if comp in ec.participants:
+                summary.final_state = ec.get_component_state(comp)
+            summary.duration_s = (clock.now_ns() - start_ns) / NS_PER_S
+            await comp.exit()
+    stats = ec.stats
+    summary.cycles, summary.overruns, summary.skipped = stats.cycles, stats.overruns, stats.skipped
+    summary.lateness_p50_us = stats.lateness.p50_ns / 1e3
+    summary.lateness_p99_us = stats.lateness.p99_ns / 1e3
+    summary.lateness_max_us = stats.lateness.max_ns / 1e3
+    if isinstance(comp, MultiModeObject):
+        summary.mode = comp.get_current_mode()
+    summary.report = comp.report()
+    run_log.info("profile_finished", cycles=stats.cycles, overruns=stats.overruns)
+    return summary
+
+
+def _parse_args(argv: Sequence[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="openel-async run PROFILE",
+        description="Run the RT component an RTC Profile (.yaml/.yml/.xml) describes.",
+    )
+    parser.add_argument("--duration", type=float, help="seconds to run (default: until Ctrl-C)")
+    parser.add_argument(
+        "--virtual",
+        action="store_true",
+        help="run on the virtual clock (simulated time, as fast as possible; needs --duration)",
+    )
+    parser.add_argument("--rate", type=float, help="rate in Hz of a periodic context")
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="configuration value (repeatable); checked against the parameter's constraint",
+    )
+    parser.add_argument("--name", help="instance name (default: basicInfo.name)")
+    return parser.parse_args(list(argv))
+
+
+def _settings(pairs: Sequence[str]) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for pair in pairs:
+        name, sep, value = pair.partition("=")
+        if not sep or not name.strip():
+            raise ConfigurationError(f"--set {pair!r}: expected NAME=VALUE")
+        out[name.strip()] = value
+    return out
+
+
+def _single(exc: BaseException) -> BaseException:
+    """The one exception inside (nested) single-exception groups of task groups."""
+    while isinstance(exc, BaseExceptionGroup) and len(exc.exceptions) == 1:
+        exc = exc.exceptions[0]
+    return exc
+
+
+def run_profile_cli(path: Path, argv: list[str]) -> int:
+    """``openel-async run PROFILE [--duration S] [--virtual] [--rate HZ] [--set N=V]...``.
+
+    Exit status: 0 after a clean run, 1 when a lifecycle step failed, 2 for a bad
+    profile, configuration or command line.
+    """
+    try:
+        args = _parse_args(argv)
+    except SystemExit as exc:  # argparse printed the problem
+        return int(exc.code or 0) if exc.code in (0, None) else 2
+    prog = "openel-async run"
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        print(f"{prog}: --duration must be a number of seconds > 0", file=sys.stderr)
+        return 2
+    if args.virtual and args.duration is None:
+        print(f"{prog}: --virtual needs --duration (simulated time never ends)", file=sys.stderr)
+        return 2
+    try:
+        settings = _settings(args.set)
+    except ConfigurationError as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+
+    try:
+        prepared = prepare_profile(path, rate_hz=args.rate, settings=settings)
+    except FileNotFoundError as exc:
+        print(f"{prog}: {path}: no such file ({exc.strerror})", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"{prog}: {path}: cannot read: {exc}", file=sys.stderr)
+        return 2
+    except ProfileError as exc:
+        print(f"{prog}: {path}: {exc}", file=sys.stderr)
+        return 2
+    except ConfigurationError as exc:
+        print(f"{prog}: {path}: configuration: {exc}", file=sys.stderr)
+        return 2
+
+    async def main() -> RunSummary:
+        run = partial(run_prepared, prepared, duration_s=args.duration, instance_name=args.name)
+        if not args.virtual:
+            return await run()
+        clock = VirtualClock()
+        async with clock.autojump():
+            return await run(clock=clock)
+
+    try:
+        summary = anyio.run(main, backend="asyncio")
+    except KeyboardInterrupt:
+        return 130
+    except BaseException as exc:
+        error = _single(exc)
+        if not isinstance(error, RTCError):
+            raise
+        print(
+            f"{prog}: {path}: {type(error).__name__} ({error.code.name}): {error}",
+            file=sys.stderr,
+        )
+        return 1
+    print("summary")
+    for line in summary.lines():
+        print("  " + line)
+    return 0
