@@ -1,1 +1,63 @@
-"""Device layer package."""
+"""openel_mujoco: MuJoCo physics as an OpenEL device layer (the ``mujoco`` driver).
+
+Build a simulation, take its joints and sensors as devices, wrap them in components on the
+simulation's clock, and run the simulation while the application runs::
+
+    sim = MujocoSim("arm2")                               # lockstep pacing by default
+    async with sim, Actuator(sim.actuator("shoulder"), clock=sim.clock) as shoulder, \\
+            Sensor(sim.sensor("imu_gyro"), clock=sim.clock) as gyro:
+        await (await shoulder.set_value(1.0))             # COMPLETED from the physics
+        print(await gyro.get_timed_value())
+
+See ``docs/mujoco.md`` for the mapping description, pacing modes, events and instability.
+"""
+
+from openel_async.registry import DriverInfo
+
+from .clock import LockstepClock
+from .description import JointSpec, Pacing, SensorSpec, SimDescription
+from .devices import MujocoEventId, MujocoJoint, MujocoSensor, sensor_kind, sensor_units
+from .models import (
+    SHIPPED_MODELS,
+    ControlMode,
+    ModelLoadError,
+    control_mode,
+    find_id,
+    load_model,
+    set_control_mode,
+)
+from .recorder import TrajectoryRecorder
+from .render import render_snapshot
+from .sim import MujocoSim, PacingStats
+
+DRIVER = DriverInfo(
+    name="mujoco",
+    description="MuJoCo physics: model joints as actuators, MuJoCo sensors as sensors "
+    "(lockstep or real-time pacing)",
+    devices={"joint": MujocoJoint, "sensor": MujocoSensor},
+)
+
+__all__ = [
+    "DRIVER",
+    "SHIPPED_MODELS",
+    "ControlMode",
+    "JointSpec",
+    "LockstepClock",
+    "ModelLoadError",
+    "MujocoEventId",
+    "MujocoJoint",
+    "MujocoSensor",
+    "MujocoSim",
+    "Pacing",
+    "PacingStats",
+    "SensorSpec",
+    "SimDescription",
+    "TrajectoryRecorder",
+    "control_mode",
+    "find_id",
+    "load_model",
+    "render_snapshot",
+    "sensor_kind",
+    "sensor_units",
+    "set_control_mode",
+]

@@ -1,0 +1,160 @@
+"""LockstepClock: the framework clock of a lockstep simulation; its time IS the simulation time.
+
+The clock itself never moves: :class:`openel_mujoco.MujocoSim` advances it by one physics time
+step after each ``mj_step`` and wakes the sleepers whose deadline has come, in deadline order
+(ties in arrival order).  The simulation steps only when no task of the event loop is runnable,
+so every task sees the physics advance exactly between its waits and a run gives the same
+result every time, as fast as the CPU allows.
+
+A deadline between two physics steps is served at the first step at or after it: with a 1 ms
+time step a 1.5 ms deadline wakes at 2 ms (lateness reported by an EventTimer: 0.5 ms).  Choose
+timer periods that are multiples of the time step.
+
+While the simulation is faulted (unstable physics) the clock behaves like
+``VirtualClock.autojump``: time jumps to the next deadline whenever the loop is idle, so timers
+and timeouts on the clock keep working without physics.
+
+Like :class:`openel_async.VirtualClock`, this clock relies on asyncio (anyio's asyncio backend):
+its sleepers are loop futures.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import heapq
+import itertools
+import math
+
+import anyio.lowlevel
+
+from openel_async.clock import NS_PER_S, Sleeper
+from openel_async.errors import BadParameterError
+
+__all__ = ["LockstepClock"]
+
+
+class _Sleeper:
+    __slots__ = ("_clock",)
+
+    def __init__(self, clock: LockstepClock) -> None:
+        self._clock = clock
+
+    async def sleep_until(self, deadline_ns: int) -> None:
+        await self._clock.sleep_until(deadline_ns)
+
+    def close(self) -> None:
+        pass
+
+
+class LockstepClock:
+    """Simulation time in integer nanoseconds, advanced by the simulation (never by itself)."""
+
+    def __init__(self, start_ns: int = 0) -> None:
+        if isinstance(start_ns, bool) or not isinstance(start_ns, int) or start_ns < 0:
+            raise BadParameterError("start_ns", start_ns, "an int >= 0")
+        self._now = start_ns
+        self._heap: list[tuple[int, int, asyncio.Future[None]]] = []
+        self._seq = itertools.count()
+        self._kick: asyncio.Future[None] | None = None
+        self.wakeups = 0
+        """Sleepers woken so far (a sleeper cancelled before its deadline is not counted)."""
+
+    # -- Clock protocol ----------------------------------------------------------------
+    def now_ns(self) -> int:
+        return self._now
+
+    async def sleep_until(self, deadline_ns: int) -> None:
+        if deadline_ns <= self._now:
+            await anyio.lowlevel.checkpoint()
+            return
+        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        heapq.heappush(self._heap, (deadline_ns, next(self._seq), future))
+        self.kick()
+        try:
+            await future
+        except asyncio.CancelledError:
+            future.cancel()  # dropped when it reaches the top of the heap
+            raise
+
+    def sleeper(self) -> Sleeper:
+        return _Sleeper(self)
+
+    # -- conveniences ------------------------------------------------------------------
+    async def sleep(self, seconds: float) -> None:
+        """Sleep ``seconds`` of simulated time."""
+        if (
+            isinstance(seconds, bool)
+            or not isinstance(seconds, int | float)
+            or not math.isfinite(seconds)
+            or seconds < 0
+        ):
+            raise BadParameterError("seconds", seconds, "a finite number of seconds >= 0")
+        await self.sleep_until(self._now + round(seconds * NS_PER_S))
+
+    def next_deadline(self) -> int | None:
+        heap = self._heap
+        while heap and heap[0][2].done():
+            heapq.heappop(heap)
+        return heap[0][0] if heap else None
+
+    # -- driven by the simulation ------------------------------------------------------
+    def _advance(self, delta_ns: int) -> bool:
+        """Move time forward by ``delta_ns`` and wake the sleepers now due; True if any woke."""
+        now = self._now + delta_ns
+        self._now = now
+        heap = self._heap
+        if not heap or heap[0][0] > now:
+            return False
+        return self._wake_due(now)
+
+    def _jump_to_next(self) -> bool:
+        """Without physics: set time to the next deadline and wake its sleepers."""
+        deadline = self.next_deadline()
+        if deadline is None:
+            return False
+        self._now = max(self._now, deadline)
+        return self._wake_due(self._now)
+
+    def _wake_due(self, now: int) -> bool:
+        heap = self._heap
+        woke = False
+        while heap and heap[0][0] <= now:
+            future = heapq.heappop(heap)[2]
+            if not future.done():
+                future.set_result(None)
+                self.wakeups += 1
+                woke = True
+        return woke
+
+    async def _wait_kick(self) -> None:
+        """Wait until a sleeper is added or :meth:`kick` is called (used while idle)."""
+        self._kick = asyncio.get_running_loop().create_future()
+        try:
+            await self._kick
+        finally:
+            self._kick = None
+
+    def kick(self) -> None:
+        kick = self._kick
+        if kick is not None and not kick.done():
+            kick.set_result(None)
+
+    def __repr__(self) -> str:
+        return f"LockstepClock(now_ns={self._now})"
+
+
+async def settle() -> None:
+    """Yield until no other task is runnable (every task waits on time, I/O or an event).
+
+    Uses the ready queue of asyncio's loop, as ``openel_async.clock`` does for VirtualClock; a
+    loop that does not expose it gets a bounded number of yields.
+    """
+    loop = asyncio.get_running_loop()
+    ready = getattr(loop, "_ready", None)
+    if ready is None:
+        for _ in range(64):
+            await asyncio.sleep(0)
+        return
+    await asyncio.sleep(0)
+    while ready:  # noqa: ASYNC110 - polling the ready queue is the point
+        await asyncio.sleep(0)

@@ -1,0 +1,350 @@
+"""Declarative description of a MuJoCo simulation: which joints and sensors become OpenEL devices.
+
+A :class:`SimDescription` is a plain, frozen dataclass that round-trips through a dict (and so
+through YAML or JSON)::
+
+    model: arm6            # shipped model name or MJCF/MJB path
+    pacing: lockstep       # or realtime
+    keyframe: home         # optional initial state
+    joints:
+      - base_yaw                                   # a name alone: every default
+      - {joint: shoulder_pitch, max_velocity: 2.0}
+      - {joint: elbow_pitch, mode: velocity, position_tolerance: 0.005}
+    sensors:
+      - imu_acc
+      - {sensor: wrist_force, name: ft}
+
+Joint and sensor names are those of the model; unknown names raise
+:class:`~openel_mujoco.models.ModelLoadError` when the simulation is built.  Every field of
+:class:`JointSpec` and :class:`SensorSpec` can also be given in code, e.g.
+``sim.actuator("shoulder", max_velocity=2.0)``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pathlib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from typing import Any, Literal, get_args
+
+from openel_async.errors import BadParameterError
+
+from .models import ControlMode
+
+__all__ = [
+    "DEFAULT_LIMIT_MARGIN",
+    "DEFAULT_POSITION_TOLERANCE",
+    "DEFAULT_SETTLE_S",
+    "DEFAULT_SETTLE_VELOCITY",
+    "DEFAULT_TORQUE_TOLERANCE",
+    "DEFAULT_VELOCITY_TOLERANCE",
+    "JointSpec",
+    "Pacing",
+    "SensorSpec",
+    "SimDescription",
+]
+
+Pacing = Literal["lockstep", "realtime"]
+"""``lockstep``: the simulation clock is the framework clock; ``realtime``: stepped against the
+real clock at real-time factor 1.0 (see :class:`openel_mujoco.MujocoSim`)."""
+
+_PACINGS: tuple[str, ...] = get_args(Pacing)
+_MODES: tuple[str, ...] = get_args(ControlMode)
+
+DEFAULT_POSITION_TOLERANCE = 0.01
+"""rad (hinge) or m (slide): a position target is reached within this distance ..."""
+DEFAULT_SETTLE_VELOCITY = 0.02
+"""... while the joint moves slower than this (rad/s or m/s) ..."""
+DEFAULT_SETTLE_S = 0.02
+"""... continuously for this long (simulated seconds)."""
+DEFAULT_VELOCITY_TOLERANCE = 0.02
+"""rad/s or m/s: a velocity target is reached within this."""
+DEFAULT_TORQUE_TOLERANCE = 0.05
+"""N m or N: a torque target is reached when the actuator torque on the joint is within this."""
+DEFAULT_LIMIT_MARGIN = 0.002
+"""rad or m: LIMIT_REACHED is posted when the joint comes this close to a range limit."""
+
+
+def _positive(owner: str, name: str, value: object, *, allow_none: bool = True) -> None:
+    if value is None and allow_none:
+        return
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not math.isfinite(value)
+        or value <= 0
+    ):
+        raise BadParameterError(f"{owner}.{name}", value, "a finite number > 0")
+
+
+@dataclass(frozen=True, slots=True)
+class JointSpec:
+    """One model joint (hinge or slide) mapped to an OpenEL Actuator (a :class:`MujocoJoint`).
+
+    Actuators: ``actuators`` maps control modes to actuator names; by default the
+    ``<joint>_pos`` / ``<joint>_vel`` / ``<joint>_torque`` convention of the shipped models is
+    used, and failing that the actuators that drive the joint are classified by their gain and
+    bias (position servo, velocity servo, motor).  A mode without its own actuator runs on a
+    built-in PD controller over the joint's motor, with gains ``kp``/``kd`` (position) and
+    ``kv`` (velocity); unset gains derive from the joint's inertia (5 Hz position, 10 Hz velocity
+    bandwidth, critically damped).
+    """
+
+    joint: str
+    """Joint name in the model."""
+    name: str | None = None
+    """Key in ``sim.joints`` and base of the component's product name (default: ``joint``)."""
+    mode: ControlMode | None = None
+    """Control mode selected when the device is created (default: the model's active actuator)."""
+    actuators: Mapping[ControlMode, str] | None = None
+    """Explicit actuator name per mode, e.g. ``{"position": "j1_servo"}``."""
+    position_limits: tuple[float, float] | None = None
+    """Allowed position targets (default: the joint range, else unbounded)."""
+    max_velocity: float | None = None
+    """Largest |velocity| target (default: the velocity actuator's ctrlrange, else unbounded)."""
+    max_torque: float | None = None
+    """Largest |torque| target (default: the motor's ctrl/force range, else unbounded)."""
+    kp: float | None = None
+    kd: float | None = None
+    kv: float | None = None
+    position_tolerance: float = DEFAULT_POSITION_TOLERANCE
+    settle_velocity: float = DEFAULT_SETTLE_VELOCITY
+    velocity_tolerance: float = DEFAULT_VELOCITY_TOLERANCE
+    torque_tolerance: float = DEFAULT_TORQUE_TOLERANCE
+    settle_s: float = DEFAULT_SETTLE_S
+    limit_margin: float = DEFAULT_LIMIT_MARGIN
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.joint, str) or not self.joint:
+            raise BadParameterError("joint", self.joint, "a non-empty joint name")
+        if self.name is not None and (not isinstance(self.name, str) or not self.name):
+            raise BadParameterError("name", self.name, "a non-empty string or None")
+        if self.mode is not None and self.mode not in _MODES:
+            raise BadParameterError("mode", self.mode, f"one of {', '.join(_MODES)} or None")
+        if self.actuators is not None:
+            if not isinstance(self.actuators, Mapping):
+                raise BadParameterError("actuators", self.actuators, "a mapping mode -> name")
+            for mode, act in self.actuators.items():
+                if mode not in _MODES:
+                    raise BadParameterError("actuators", mode, f"modes among {', '.join(_MODES)}")
+                if not isinstance(act, str) or not act:
+                    raise BadParameterError(f"actuators[{mode!r}]", act, "an actuator name")
+            object.__setattr__(self, "actuators", dict(self.actuators))
+        if self.position_limits is not None:
+            limits = tuple(self.position_limits)
+            if (
+                len(limits) != 2
+                or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in limits)
+                or not limits[0] < limits[1]
+            ):
+                raise BadParameterError(
+                    "position_limits", self.position_limits, "a (low, high) pair with low < high"
+                )
+            object.__setattr__(self, "position_limits", (float(limits[0]), float(limits[1])))
+        for name in ("max_velocity", "max_torque", "kp", "kd", "kv"):
+            _positive("JointSpec", name, getattr(self, name))
+        for name in (
+            "position_tolerance",
+            "settle_velocity",
+            "velocity_tolerance",
+            "torque_tolerance",
+            "limit_margin",
+        ):
+            _positive("JointSpec", name, getattr(self, name), allow_none=False)
+        settle = self.settle_s
+        if (
+            isinstance(settle, bool)
+            or not isinstance(settle, int | float)
+            or not math.isfinite(settle)
+            or settle < 0
+        ):
+            raise BadParameterError("JointSpec.settle_s", settle, "a finite number >= 0")
+
+    @property
+    def key(self) -> str:
+        return self.name or self.joint
+
+    @classmethod
+    def from_value(cls, value: str | Mapping[str, Any] | JointSpec) -> JointSpec:
+        """A spec from a joint name, a dict of fields (``joint`` required) or a spec."""
+        if isinstance(value, JointSpec):
+            return value
+        if isinstance(value, str):
+            return cls(joint=value)
+        return cls(**_fields_of(cls, value, "joints[]", required="joint"))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Only the fields that differ from their defaults (``joint`` always)."""
+        return _non_default(self, "joint")
+
+
+@dataclass(frozen=True, slots=True)
+class SensorSpec:
+    """One MuJoCo sensor mapped to an OpenEL Sensor (a :class:`MujocoSensor`)."""
+
+    sensor: str
+    """Sensor name in the model."""
+    name: str | None = None
+    """Key in ``sim.sensors`` and base of the component's product name (default: ``sensor``)."""
+    kind: int | None = None
+    """HALId device kind (default: from the sensor type, e.g. accelerometer -> ACCEL)."""
+    units: tuple[str, ...] | None = None
+    """SI unit of each value (default: from the sensor type, e.g. ('m/s^2',) * 3)."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.sensor, str) or not self.sensor:
+            raise BadParameterError("sensor", self.sensor, "a non-empty sensor name")
+        if self.name is not None and (not isinstance(self.name, str) or not self.name):
+            raise BadParameterError("name", self.name, "a non-empty string or None")
+        if self.kind is not None and (
+            isinstance(self.kind, bool) or not isinstance(self.kind, int) or self.kind < 0
+        ):
+            raise BadParameterError("kind", self.kind, "a device kind id (int >= 0) or None")
+        if self.units is not None:
+            if isinstance(self.units, str) or not all(isinstance(u, str) for u in self.units):
+                raise BadParameterError("units", self.units, "a sequence of unit strings")
+            object.__setattr__(self, "units", tuple(self.units))
+
+    @property
+    def key(self) -> str:
+        return self.name or self.sensor
+
+    @classmethod
+    def from_value(cls, value: str | Mapping[str, Any] | SensorSpec) -> SensorSpec:
+        """A spec from a sensor name, a dict of fields (``sensor`` required) or a spec."""
+        if isinstance(value, SensorSpec):
+            return value
+        if isinstance(value, str):
+            return cls(sensor=value)
+        return cls(**_fields_of(cls, value, "sensors[]", required="sensor"))
+
+    def to_dict(self) -> dict[str, Any]:
+        return _non_default(self, "sensor")
+
+
+@dataclass(frozen=True, slots=True)
+class SimDescription:
+    """A model, its pacing and the joints and sensors to map; see the module docstring."""
+
+    model: str
+    """Shipped model name (``arm2``, ``arm6``) or a path to an MJCF/MJB file."""
+    joints: tuple[JointSpec, ...] = ()
+    sensors: tuple[SensorSpec, ...] = ()
+    pacing: Pacing = "lockstep"
+    keyframe: str | None = None
+    """Name of the keyframe giving the initial (and reset) state (default: the model's qpos0)."""
+    timestep: float | None = None
+    """Override of the model's ``opt.timestep`` in seconds."""
+    name: str | None = None
+    """Name of the simulation in logs (default: the model name)."""
+    extra: Mapping[str, Any] = field(default_factory=dict)
+    """Free-form application data (ignored by the driver, kept by to_dict)."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.model, str) or not self.model:
+            raise BadParameterError("model", self.model, "a shipped model name or a file path")
+        if self.pacing not in _PACINGS:
+            raise BadParameterError("pacing", self.pacing, f"one of {', '.join(_PACINGS)}")
+        if self.keyframe is not None and (not isinstance(self.keyframe, str) or not self.keyframe):
+            raise BadParameterError("keyframe", self.keyframe, "a keyframe name or None")
+        _positive("SimDescription", "timestep", self.timestep)
+        joints = tuple(JointSpec.from_value(j) for j in _sequence("joints", self.joints))
+        sensors = tuple(SensorSpec.from_value(s) for s in _sequence("sensors", self.sensors))
+        for label, specs in (("joints", joints), ("sensors", sensors)):
+            keys = [s.key for s in specs]
+            duplicates = sorted({k for k in keys if keys.count(k) > 1})
+            if duplicates:
+                raise BadParameterError(label, duplicates, "unique names")
+        object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "sensors", sensors)
+        object.__setattr__(self, "extra", dict(self.extra))
+
+    @classmethod
+    def from_dict(
+        cls, data: Mapping[str, Any], *, base_dir: str | os.PathLike[str] | None = None
+    ) -> SimDescription:
+        """Build from a dict (e.g. parsed YAML); unknown keys raise BadParameterError.
+
+        ``base_dir`` resolves a relative model path (not a shipped name) against a directory.
+        """
+        values = _fields_of(cls, data, "description", required="model")
+        model = values["model"]
+        if base_dir is not None and isinstance(model, str):
+            from .models import SHIPPED_MODELS
+
+            path = pathlib.Path(model).expanduser()
+            if model not in SHIPPED_MODELS and not path.is_absolute():
+                values["model"] = str(pathlib.Path(base_dir) / path)
+        return cls(**values)
+
+    @classmethod
+    def from_yaml(cls, path: str | os.PathLike[str]) -> SimDescription:
+        """Read a YAML file; a relative model path is taken relative to that file."""
+        import yaml
+
+        file = pathlib.Path(path)
+        try:
+            data = yaml.safe_load(file.read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise BadParameterError("path", str(path), f"a readable YAML file ({exc})") from exc
+        if not isinstance(data, Mapping):
+            raise BadParameterError("path", str(path), "a YAML file holding a mapping")
+        return cls.from_dict(data, base_dir=file.parent)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A plain dict (YAML/JSON-able) that :meth:`from_dict` turns back into this."""
+        out: dict[str, Any] = {"model": self.model, "pacing": self.pacing}
+        if self.keyframe is not None:
+            out["keyframe"] = self.keyframe
+        if self.timestep is not None:
+            out["timestep"] = self.timestep
+        if self.name is not None:
+            out["name"] = self.name
+        out["joints"] = [_compact(j.to_dict(), "joint") for j in self.joints]
+        out["sensors"] = [_compact(s.to_dict(), "sensor") for s in self.sensors]
+        if self.extra:
+            out["extra"] = dict(self.extra)
+        return out
+
+
+def _sequence(name: str, value: object) -> Sequence[Any]:
+    if isinstance(value, str | bytes) or not isinstance(value, Sequence):
+        raise BadParameterError(name, value, "a list of names or mappings")
+    return value
+
+
+def _fields_of(cls: type, data: object, where: str, *, required: str) -> dict[str, Any]:
+    if not isinstance(data, Mapping):
+        raise BadParameterError(where, data, "a name or a mapping of fields")
+    known = {f.name for f in fields(cls)}
+    unknown = sorted(str(k) for k in data if k not in known)
+    if unknown:
+        raise BadParameterError(
+            f"{where}.{unknown[0]}", data[unknown[0]], f"a known field ({', '.join(sorted(known))})"
+        )
+    if required not in data:
+        raise BadParameterError(f"{where}.{required}", None, f"a {required} name (required)")
+    values = dict(data)
+    for key in ("position_limits", "units"):
+        if isinstance(values.get(key), list):
+            values[key] = tuple(values[key])
+    return values
+
+
+def _non_default(spec: Any, always: str) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for f in fields(spec):
+        value = getattr(spec, f.name)
+        if f.name == always or value != f.default:
+            if isinstance(value, tuple):
+                value = list(value)
+            elif isinstance(value, Mapping):
+                value = dict(value)
+            out[f.name] = value
+    return out
+
+
+def _compact(values: dict[str, Any], key: str) -> str | dict[str, Any]:
+    return values[key] if len(values) == 1 else values

@@ -1,0 +1,807 @@
+"""OpenEL device-layer classes over a :class:`~openel_mujoco.sim.MujocoSim`.
+
+:class:`MujocoJoint` maps one hinge or slide joint to an ``ActuatorDevice`` (POSITION,
+VELOCITY, TORQUE and NO_EXCITE through the joint's MuJoCo actuators, or a built-in PD
+controller over its motor), :class:`MujocoSensor` maps one MuJoCo sensor to a ``SensorDevice``.
+Both are created by the simulation (``sim.actuator(name)``, ``sim.sensor(name)``) and read and
+write its ``MjData`` directly; the simulation loop evaluates completion, limits and saturation
+after every physics step and calls back into the joints.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from enum import IntEnum
+from typing import TYPE_CHECKING, Any, Final
+
+import mujoco
+import numpy as np
+import structlog
+
+from openel_async.device import (
+    ActuatorDevice,
+    ActuatorLimits,
+    DeviceContext,
+    DeviceInfo,
+    ErrorId,
+    Reading,
+    SensorDevice,
+)
+from openel_async.errors import BadParameterError, HALError
+from openel_async.ids import DeviceKind
+from openel_async.requests import EventId, Request
+
+from .description import JointSpec, SensorSpec
+from .models import ControlMode, ModelLoadError, find_id, names
+
+if TYPE_CHECKING:
+    from .sim import MujocoSim
+
+__all__ = [
+    "OTHER_KIND",
+    "MujocoEventId",
+    "MujocoJoint",
+    "MujocoSensor",
+    "sensor_kind",
+    "sensor_units",
+]
+
+log = structlog.get_logger(__name__)
+
+VENDOR_ID: Final = 0x4D4A  # "MJ"
+VENDOR_NAME: Final = "MuJoCo"
+OTHER_KIND: Final = 0x80
+"""HALId device kind of sensors outside the OpenEL kind registry (contact, user, ...)."""
+
+
+class MujocoEventId(IntEnum):
+    """Device-specific event ids (HALObserver.notify_event) of the MuJoCo joints."""
+
+    LIMIT_REACHED = EventId.LIMIT_REACHED
+    """2: the joint came within ``limit_margin`` of a limit of its range (once per approach)."""
+    SATURATED = 3
+    """3: the joint's actuator reached its force limit (or the built-in PD its torque limit)."""
+
+
+_MODE_REQUEST: Final[Mapping[ControlMode, Request]] = {
+    "position": Request.POSITION,
+    "velocity": Request.VELOCITY,
+    "torque": Request.TORQUE,
+}
+_SUFFIX: Final[Mapping[ControlMode, str]] = {
+    "position": "_pos",
+    "velocity": "_vel",
+    "torque": "_torque",
+}
+_PD_POSITION_HZ: Final = 5.0
+_PD_VELOCITY_HZ: Final = 10.0
+_SATURATION_RELEASE: Final = 0.98
+_LIMIT_RELEASE: Final = 3.0
+
+
+def _camel(name: str, fallback: str) -> str:
+    """``imu_acc`` -> ``ImuAcc``: a product name for HAL4RT's component name rule."""
+    parts = [p for p in re.split(r"[^A-Za-z0-9]+", name) if p]
+    text = "".join(p[:1].upper() + p[1:] for p in parts)
+    if not text or not text[0].isalpha():
+        text = fallback + text
+    return text
+
+
+# -- actuators of a joint -----------------------------------------------------------------
+
+
+def _drives(model: mujoco.MjModel, act: int, joint_id: int) -> bool:
+    return (
+        int(model.actuator_trntype[act]) == mujoco.mjtTrn.mjTRN_JOINT
+        and int(model.actuator_trnid[act, 0]) == joint_id
+    )
+
+
+def _classify(model: mujoco.MjModel, act: int) -> ControlMode | None:
+    """Position servo, velocity servo or motor, from the actuator's gain and bias."""
+    if int(model.actuator_dyntype[act]) != mujoco.mjtDyn.mjDYN_NONE:
+        return None
+    if int(model.actuator_gaintype[act]) != mujoco.mjtGain.mjGAIN_FIXED:
+        return None
+    bias = int(model.actuator_biastype[act])
+    b0, b1, b2 = (float(v) for v in model.actuator_biasprm[act, :3])
+    if bias == mujoco.mjtBias.mjBIAS_NONE or (b0 == b1 == b2 == 0.0):
+        return "torque"
+    if bias == mujoco.mjtBias.mjBIAS_AFFINE and b0 == 0.0:
+        if b1 != 0.0:
+            return "position"
+        if b2 != 0.0:
+            return "velocity"
+    return None
+
+
+def resolve_actuators(
+    model: mujoco.MjModel, joint_id: int, spec: JointSpec
+) -> dict[ControlMode, int]:
+    """Actuator id per control mode for the joint: explicit names, naming convention, or types."""
+    joint = spec.joint
+    found: dict[ControlMode, int] = {}
+    if spec.actuators:
+        for mode, act_name in spec.actuators.items():
+            act = find_id(model, "actuator", act_name)
+            if not _drives(model, act, joint_id):
+                raise ModelLoadError(
+                    f"actuator {act_name!r} (mode {mode}) does not drive joint {joint!r}"
+                )
+            found[mode] = act
+        return found
+    for mode, suffix in _SUFFIX.items():
+        act = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, joint + suffix))
+        if act >= 0:
+            if not _drives(model, act, joint_id):
+                raise ModelLoadError(f"actuator {joint + suffix!r} does not drive joint {joint!r}")
+            found[mode] = act
+    if found:
+        return found
+    act_names = names(model, "actuator")
+    for act in range(int(model.nu)):
+        if not _drives(model, act, joint_id):
+            continue
+        kind = _classify(model, act)
+        if kind is None:
+            continue
+        mode = kind
+        if mode in found:
+            raise ModelLoadError(
+                f"joint {joint!r} has several {mode} actuators "
+                f"({act_names[found[mode]]!r}, {act_names[act]!r}); "
+                "name the ones to use with JointSpec.actuators"
+            )
+        found[mode] = act
+    if not found:
+        raise ModelLoadError(
+            f"joint {joint!r} has no position, velocity or motor actuator "
+            "(an OpenEL actuator needs at least one)"
+        )
+    return found
+
+
+def _own_group(model: mujoco.MjModel, act: int) -> bool:
+    group = int(model.actuator_group[act])
+    return 0 <= group <= 30 and int(np.count_nonzero(model.actuator_group == group)) == 1
+
+
+def _max_abs(low: float, high: float) -> float:
+    return max(abs(low), abs(high))
+
+
+class MujocoJoint(ActuatorDevice):
+    """A hinge or slide joint of a :class:`MujocoSim` as an OpenEL actuator.
+
+    Values are SI: rad, rad/s, N m for hinges; m, m/s, N for slides.  POSITION_ACTUAL and
+    VELOCITY_ACTUAL read ``qpos``/``qvel`` of the current state, TORQUE_ACTUAL the total
+    actuator force on the joint (``qfrc_actuator``, what a ``jointactuatorfrc`` sensor reads).
+
+    Completion is reported by the device from the physics (``reports_completion``): after every
+    physics step the simulation checks the latest target against the simulated state (position
+    within ``position_tolerance`` while slower than ``settle_velocity``; velocity within
+    ``velocity_tolerance``; actuator torque within ``torque_tolerance``), continuously for
+    ``settle_s`` of simulated time.  A target the physics cannot reach never completes.
+    """
+
+    reports_completion = True
+
+    def __init__(self, sim: MujocoSim, spec: JointSpec) -> None:
+        model = sim.model
+        self.sim = sim
+        self.spec = spec
+        self.name = spec.key
+        self.joint = spec.joint
+        self.joint_id = jid = find_id(model, "joint", spec.joint)
+        jtype = int(model.jnt_type[jid])
+        if jtype not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            kind = mujoco.mjtJoint(jtype).name.removeprefix("mjJNT_").lower()
+            raise ModelLoadError(
+                f"joint {spec.joint!r} is a {kind} joint; only hinge and slide joints "
+                "map to one-degree-of-freedom actuators"
+            )
+        self.rotational = jtype == mujoco.mjtJoint.mjJNT_HINGE
+        self.qadr = int(model.jnt_qposadr[jid])
+        self.dof = int(model.jnt_dofadr[jid])
+        acts = resolve_actuators(model, jid, spec)
+        self.actuators: Mapping[ControlMode, int] = acts
+        self._switchable = all(_own_group(model, a) for a in acts.values())
+        if len(acts) > 1 and not self._switchable:
+            act_names = names(model, "actuator")
+            listed = ", ".join(
+                f"{act_names[a]!r} (group {int(model.actuator_group[a])})" for a in acts.values()
+            )
+            raise ModelLoadError(
+                f"joint {spec.joint!r} has several actuators ({listed}) but they cannot be "
+                "switched: each needs an actuator group in 0..30 of its own (see "
+                "openel_mujoco.models); or map only one with JointSpec.actuators"
+            )
+        self._bits = {mode: 1 << int(model.actuator_group[a]) for mode, a in acts.items()}
+        self._scale: dict[Request, float] = {}
+        for mode, act in acts.items():
+            gear = float(model.actuator_gear[act, 0]) or 1.0
+            self._scale[_MODE_REQUEST[mode]] = 1.0 / gear if mode == "torque" else gear
+        self._motor = acts.get("torque")
+
+        supported = {_MODE_REQUEST[m] for m in acts}
+        if self._motor is not None:
+            supported |= {Request.POSITION, Request.VELOCITY}
+        motor_only = set(acts) == {"torque"}
+        if self._switchable or motor_only:
+            supported.add(Request.NO_EXCITE)
+        self.supported_requests = frozenset(supported)
+        self.limits = self._limits(model, spec)
+        self._torque_range = self._motor_torque_range(model)
+        self._kp, self._kd, self._kv = self._pd_gains(sim, spec)
+        self.info = DeviceInfo(
+            kind=DeviceKind.MOTOR,
+            vendor_id=VENDOR_ID,
+            product_id=jid,
+            vendor_name=VENDOR_NAME,
+            product_name=_camel(self.name, "Joint"),
+            functions=("control_mode",),
+        )
+
+        # completion
+        dt = float(model.opt.timestep)
+        self._settle_steps = max(0, math.ceil(spec.settle_s / dt - 1e-9))
+        self._pos_tol = spec.position_tolerance
+        self._settle_vel = spec.settle_velocity
+        self._vel_tol = spec.velocity_tolerance
+        self._torque_tol = spec.torque_tolerance
+        # limits: on within margin of the range, released at 3 x margin
+        self._limited = bool(model.jnt_limited[jid])
+        low, high = (float(v) for v in model.jnt_range[jid])
+        margin = spec.limit_margin
+        self._lim_lo_on, self._lim_hi_on = low + margin, high - margin
+        self._lim_lo_off = low + _LIMIT_RELEASE * margin
+        self._lim_hi_off = high - _LIMIT_RELEASE * margin
+
+        # run-time state
+        self._ctx: DeviceContext | None = None
+        self._rejected = 0
+        self._log = log.bind(sim=sim.name, joint=self.name)
+        self._mode = Request.NO_EXCITE
+        self._drive_act: int | None = None
+        self._pd = False
+        self._pd_target = 0.0
+        self._pd_saturated = False
+        self._target = 0.0
+        self._request = Request.NO_EXCITE
+        self._pending = False
+        self._within_since = -1
+        self._at_limit = False
+        self._saturated = False
+        self._sat_lo = -math.inf
+        self._sat_hi = math.inf
+        self._sat_lo_off = -math.inf
+        self._sat_hi_off = math.inf
+        self.commands = 0
+        self._init_mode(spec.mode)
+
+    # -- construction helpers ----------------------------------------------------------
+    def _limits(self, model: mujoco.MjModel, spec: JointSpec) -> ActuatorLimits:
+        acts = self.actuators
+        if spec.position_limits is not None:
+            position = spec.position_limits
+        elif model.jnt_limited[self.joint_id]:
+            low, high = (float(v) for v in model.jnt_range[self.joint_id])
+            position = (low, high)
+        elif "position" in acts and model.actuator_ctrllimited[acts["position"]]:
+            scale = self._scale[Request.POSITION]
+            a, b = (float(v) / scale for v in model.actuator_ctrlrange[acts["position"]])
+            position = (min(a, b), max(a, b))
+        else:
+            position = (-math.inf, math.inf)
+        velocity = spec.max_velocity
+        if velocity is None:
+            velocity = math.inf
+            if "velocity" in acts and model.actuator_ctrllimited[acts["velocity"]]:
+                low, high = (float(v) for v in model.actuator_ctrlrange[acts["velocity"]])
+                velocity = _max_abs(low, high) / abs(self._scale[Request.VELOCITY])
+        torque = spec.max_torque
+        if torque is None:
+            low, high = self._motor_torque_range(model)
+            torque = _max_abs(low, high)
+        try:
+            return ActuatorLimits(position, velocity, torque)
+        except BadParameterError as exc:
+            raise ModelLoadError(f"joint {spec.joint!r}: invalid limits: {exc}") from exc
+
+    def _motor_torque_range(self, model: mujoco.MjModel) -> tuple[float, float]:
+        """Joint torque the motor can apply (ctrl and force ranges times gear, actfrcrange)."""
+        low, high = -math.inf, math.inf
+        motor = self._motor
+        if motor is not None:
+            gear = float(model.actuator_gear[motor, 0]) or 1.0
+            for limited, rng in (
+                (model.actuator_ctrllimited[motor], model.actuator_ctrlrange[motor]),
+                (model.actuator_forcelimited[motor], model.actuator_forcerange[motor]),
+            ):
+                if limited:
+                    a, b = float(rng[0]) * gear, float(rng[1]) * gear
+                    low, high = max(low, min(a, b)), min(high, max(a, b))
+        if model.jnt_actfrclimited[self.joint_id]:
+            a, b = (float(v) for v in model.jnt_actfrcrange[self.joint_id])
+            low, high = max(low, a), min(high, b)
+        return low, high
+
+    def _pd_gains(self, sim: MujocoSim, spec: JointSpec) -> tuple[float, float, float]:
+        if self._motor is None or ("position" in self.actuators and "velocity" in self.actuators):
+            return 0.0, 0.0, 0.0  # no PD needed (or possible)
+        inertia = sim._joint_inertia(self.dof)
+        wp = 2 * math.pi * _PD_POSITION_HZ
+        wv = 2 * math.pi * _PD_VELOCITY_HZ
+        kp = spec.kp if spec.kp is not None else inertia * wp * wp
+        kd = spec.kd if spec.kd is not None else 2.0 * inertia * wp
+        kv = spec.kv if spec.kv is not None else inertia * wv
+        return float(kp), float(kd), float(kv)
+
+    def _init_mode(self, mode: ControlMode | None) -> None:
+        """Adopt the model's active actuator (or ``mode``) as the current control mode."""
+        if mode is not None:
+            request = _MODE_REQUEST[mode]
+            if request not in self.supported_requests:
+                raise BadParameterError(
+                    "mode", mode, f"a mode joint {self.joint!r} supports ({self._supported_text()})"
+                )
+            self._switch(request, force=True)
+            return
+        disabled = int(self.sim.model.opt.disableactuator)
+        enabled = [m for m, bit in self._bits.items() if not disabled & bit]
+        if not self._switchable:
+            enabled = list(self.actuators)
+        if len(enabled) == 1:
+            request = _MODE_REQUEST[enabled[0]]
+            self._mode = request
+            act = self._drive_act = self.actuators[enabled[0]]
+            self._refresh_saturation()
+            ctrl = self.sim._ctrl
+            if request is Request.POSITION and self.sim._physics_steps == 0 and ctrl[act] == 0.0:
+                # initial state (keyframe without ctrl): hold where the joint is, no jump
+                ctrl[act] = self.position * self._scale[Request.POSITION]
+        elif not enabled and Request.NO_EXCITE in self.supported_requests:
+            self._mode = Request.NO_EXCITE
+            self._drive_act = None
+        else:
+            for request in (Request.POSITION, Request.VELOCITY, Request.TORQUE):
+                if request in self.supported_requests:
+                    self._switch(request, force=True)
+                    break
+
+    def _supported_text(self) -> str:
+        return ", ".join(r.name for r in sorted(self.supported_requests))
+
+    # -- mode switching ----------------------------------------------------------------
+    @property
+    def control_mode(self) -> Request:
+        """The active control mode (POSITION, VELOCITY, TORQUE or NO_EXCITE)."""
+        return self._mode
+
+    @property
+    def uses_pd(self) -> bool:
+        """True while the mode runs on the built-in PD controller over the joint's motor."""
+        return self._pd
+
+    def _switch(self, request: Request, *, force: bool = False) -> None:
+        if request is self._mode and not force:
+            return
+        sim = self.sim
+        model, ctrl = sim.model, sim._ctrl
+        mode = _REQUEST_MODE.get(request)
+        native = self.actuators.get(mode) if mode is not None else None
+        drive = native if native is not None else (self._motor if mode is not None else None)
+        if self._switchable:
+            mask = int(model.opt.disableactuator)
+            for m, act in self.actuators.items():
+                mask |= self._bits[m]
+                ctrl[act] = 0.0
+            if drive is not None:
+                mask &= ~(1 << int(model.actuator_group[drive]))
+            model.opt.disableactuator = mask
+        else:
+            for act in self.actuators.values():
+                ctrl[act] = 0.0
+        pd = drive is not None and native is None
+        position = self.position
+        if pd:
+            self._pd_target = position if request is Request.POSITION else 0.0
+            self._pd_saturated = False
+        elif request is Request.POSITION and drive is not None:
+            ctrl[drive] = position * self._scale[Request.POSITION]  # bumpless: hold here
+        if pd != self._pd:
+            self._pd = pd
+            sim._set_pd(self, pd)
+        self._mode = request
+        self._drive_act = drive
+        self._refresh_saturation()
+        self._log.debug("control_mode", mode=request.name, pd=pd)
+
+    def _refresh_saturation(self) -> None:
+        model = self.sim.model
+        act = self._drive_act
+        self._saturated = False
+        self._sat_lo = self._sat_lo_off = -math.inf
+        self._sat_hi = self._sat_hi_off = math.inf
+        if act is None or self._pd or not model.actuator_forcelimited[act]:
+            return
+        low, high = (float(v) for v in model.actuator_forcerange[act])
+        if low < 0:
+            self._sat_lo, self._sat_lo_off = low * (1 - 1e-9), low * _SATURATION_RELEASE
+        if high > 0:
+            self._sat_hi, self._sat_hi_off = high * (1 - 1e-9), high * _SATURATION_RELEASE
+
+    def _hold(self) -> None:
+        """Stop safely: hold the current position, else de-energize, else zero torque."""
+        self._pending = False
+        if Request.POSITION in self.supported_requests:
+            self._switch(Request.POSITION, force=True)
+        elif Request.NO_EXCITE in self.supported_requests:
+            self._switch(Request.NO_EXCITE, force=True)
+        elif self._motor is not None:
+            self._switch(Request.TORQUE, force=True)
+
+    # -- lifecycle ---------------------------------------------------------------------
+    async def open(self, ctx: DeviceContext) -> None:
+        if not self.sim._attach(self, ctx):
+            self._rejected += 1  # the failed component's close() must not detach the owner
+            raise HALError(f"{self.name}: device already belongs to a component")
+        self._ctx = ctx
+
+    async def init(self) -> None:
+        self.sim._check_running_state()
+
+    async def reset(self) -> None:
+        faulted = self.sim.fault is not None
+        self.sim._recover()
+        if not faulted:
+            self._hold()
+        self._pending = False
+
+    async def close(self) -> None:
+        if self._rejected:
+            self._rejected -= 1
+            return
+        self.sim._detach(self)
+        self._ctx = None
+        if self.sim.fault is None:
+            self._hold()
+        self._pending = False
+
+    # -- commands and readings ---------------------------------------------------------
+    async def command(self, request: Request, value: float) -> None:
+        sim = self.sim
+        if sim._fault is not None:
+            raise HALError(f"{self.name}: the simulation is faulted: {sim._fault}")
+        self.commands += 1
+        if request is not self._mode:
+            self._switch(request)
+        if request is Request.NO_EXCITE:
+            self._pending = False
+            return
+        if self._pd:
+            self._pd_target = value
+        else:
+            act = self._drive_act
+            assert act is not None
+            sim._ctrl[act] = value * self._scale[request]
+        self._target = value
+        self._request = request
+        self._within_since = -1
+        self._pending = True
+
+    async def read(self, request: Request) -> float:
+        sim = self.sim
+        if request is Request.POSITION_ACTUAL:
+            return float(sim._qpos.item(self.qadr))
+        if request is Request.VELOCITY_ACTUAL:
+            return float(sim._qvel.item(self.dof))
+        if request is Request.TORQUE_ACTUAL:
+            return float(sim._qfrc_actuator.item(self.dof))
+        raise BadParameterError(
+            "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
+        )
+
+    # -- state for recorders and apps ----------------------------------------------------
+    @property
+    def position(self) -> float:
+        return float(self.sim._qpos.item(self.qadr))
+
+    @property
+    def velocity(self) -> float:
+        return float(self.sim._qvel.item(self.dof))
+
+    @property
+    def commanded_position(self) -> float:
+        """The position the joint is driven to (NaN outside POSITION mode)."""
+        if self._mode is not Request.POSITION:
+            return math.nan
+        if self._pd:
+            return self._pd_target
+        act = self._drive_act
+        assert act is not None
+        return float(self.sim._ctrl.item(act)) / self._scale[Request.POSITION]
+
+    @property
+    def pending(self) -> bool:
+        """True while the latest target is not reached yet (as judged by the physics)."""
+        return self._pending
+
+    # -- called by the simulation loop ---------------------------------------------------
+    def _pd_update(self, qpos: Any, qvel: Any, ctrl: Any) -> None:
+        q = qpos.item(self.qadr)
+        v = qvel.item(self.dof)
+        if self._mode is Request.POSITION:
+            tau = self._kp * (self._pd_target - q) - self._kd * v
+        else:
+            tau = self._kv * (self._pd_target - v)
+        low, high = self._torque_range
+        if tau > high:
+            tau, sat = high, True
+        elif tau < low:
+            tau, sat = low, True
+        else:
+            sat = False
+        self._pd_saturated = sat
+        act = self._drive_act
+        assert act is not None
+        ctrl[act] = tau * self._scale[Request.TORQUE]
+
+    def _monitor(self, qpos: list[float], qvel: list[float], force: list[float], step: int) -> None:
+        ctx = self._ctx
+        if ctx is None:
+            return
+        q = qpos[self.qadr]
+        if self._limited:
+            if self._at_limit:
+                if self._lim_lo_off < q < self._lim_hi_off:
+                    self._at_limit = False
+            elif q <= self._lim_lo_on or q >= self._lim_hi_on:
+                self._at_limit = True
+                ctx.post_event(MujocoEventId.LIMIT_REACHED)
+        if self._pd:
+            saturated = self._pd_saturated
+            if saturated is not self._saturated:
+                self._saturated = saturated
+                if saturated:
+                    ctx.post_event(MujocoEventId.SATURATED)
+        elif self._drive_act is not None:
+            f = force[self._drive_act]
+            if self._saturated:
+                if self._sat_lo_off < f < self._sat_hi_off:
+                    self._saturated = False
+            elif f <= self._sat_lo or f >= self._sat_hi:
+                self._saturated = True
+                ctx.post_event(MujocoEventId.SATURATED)
+        if not self._pending:
+            return
+        request = self._request
+        if request is Request.POSITION:
+            ok = abs(q - self._target) <= self._pos_tol and abs(qvel[self.dof]) <= self._settle_vel
+        elif request is Request.VELOCITY:
+            ok = abs(qvel[self.dof] - self._target) <= self._vel_tol
+        else:
+            actual = self.sim._qfrc_actuator.item(self.dof)
+            ok = abs(actual - self._target) <= self._torque_tol
+        if not ok:
+            self._within_since = -1
+            return
+        if self._within_since < 0:
+            self._within_since = step
+        if step - self._within_since >= self._settle_steps:
+            self._pending = False
+            ctx.target_reached()
+
+    def _fault(self, reason: str) -> None:
+        self._pending = False
+        ctx = self._ctx
+        if ctx is not None:
+            ctx.fault(ErrorId.DEVICE_ERROR, reason)
+
+    def _on_sim_reset(self) -> None:
+        """The simulation was reset: adopt the model's restored control modes."""
+        self._pending = False
+        self._at_limit = False
+        if self._pd:
+            self._pd = False
+            self.sim._set_pd(self, False)
+        self._init_mode(self.spec.mode)
+
+    def __repr__(self) -> str:
+        return f"MujocoJoint({self.name!r}, mode={self._mode.name}, sim={self.sim.name!r})"
+
+
+_REQUEST_MODE: Final[Mapping[Request, ControlMode]] = {v: k for k, v in _MODE_REQUEST.items()}
+
+
+# -- sensors ------------------------------------------------------------------------------
+
+_S = mujoco.mjtSensor
+_FIXED_UNITS: Final[Mapping[int, str]] = {
+    _S.mjSENS_TOUCH: "N",
+    _S.mjSENS_ACCELEROMETER: "m/s^2",
+    _S.mjSENS_VELOCIMETER: "m/s",
+    _S.mjSENS_GYRO: "rad/s",
+    _S.mjSENS_FORCE: "N",
+    _S.mjSENS_TORQUE: "N m",
+    _S.mjSENS_MAGNETOMETER: "T",
+    _S.mjSENS_RANGEFINDER: "m",
+    _S.mjSENS_CAMPROJECTION: "px",
+    _S.mjSENS_BALLQUAT: "1",
+    _S.mjSENS_BALLANGVEL: "rad/s",
+    _S.mjSENS_TENDONPOS: "m",
+    _S.mjSENS_TENDONVEL: "m/s",
+    _S.mjSENS_TENDONACTFRC: "N",
+    _S.mjSENS_TENDONLIMITPOS: "m",
+    _S.mjSENS_TENDONLIMITVEL: "m/s",
+    _S.mjSENS_TENDONLIMITFRC: "N",
+    _S.mjSENS_FRAMEPOS: "m",
+    _S.mjSENS_FRAMEQUAT: "1",
+    _S.mjSENS_FRAMEXAXIS: "1",
+    _S.mjSENS_FRAMEYAXIS: "1",
+    _S.mjSENS_FRAMEZAXIS: "1",
+    _S.mjSENS_FRAMELINVEL: "m/s",
+    _S.mjSENS_FRAMEANGVEL: "rad/s",
+    _S.mjSENS_FRAMELINACC: "m/s^2",
+    _S.mjSENS_FRAMEANGACC: "rad/s^2",
+    _S.mjSENS_SUBTREECOM: "m",
+    _S.mjSENS_SUBTREELINVEL: "m/s",
+    _S.mjSENS_SUBTREEANGMOM: "kg m^2/s",
+    _S.mjSENS_INSIDESITE: "1",
+    _S.mjSENS_GEOMDIST: "m",
+    _S.mjSENS_GEOMNORMAL: "1",
+    _S.mjSENS_GEOMFROMTO: "m",
+    _S.mjSENS_E_POTENTIAL: "J",
+    _S.mjSENS_E_KINETIC: "J",
+    _S.mjSENS_CLOCK: "s",
+}
+# joint-space sensors: (unit for hinge, unit for slide)
+_JOINT_UNITS: Final[Mapping[int, tuple[str, str]]] = {
+    _S.mjSENS_JOINTPOS: ("rad", "m"),
+    _S.mjSENS_JOINTVEL: ("rad/s", "m/s"),
+    _S.mjSENS_JOINTACTFRC: ("N m", "N"),
+    _S.mjSENS_JOINTLIMITPOS: ("rad", "m"),
+    _S.mjSENS_JOINTLIMITVEL: ("rad/s", "m/s"),
+    _S.mjSENS_JOINTLIMITFRC: ("N m", "N"),
+    _S.mjSENS_ACTUATORPOS: ("rad", "m"),
+    _S.mjSENS_ACTUATORVEL: ("rad/s", "m/s"),
+    _S.mjSENS_ACTUATORFRC: ("N m", "N"),
+}
+_KINDS: Final[Mapping[int, int]] = {
+    _S.mjSENS_ACCELEROMETER: DeviceKind.ACCEL,
+    _S.mjSENS_FRAMELINACC: DeviceKind.ACCEL,
+    _S.mjSENS_GYRO: DeviceKind.GYRO,
+    _S.mjSENS_FRAMEANGVEL: DeviceKind.GYRO,
+    _S.mjSENS_FORCE: DeviceKind.FORCE,
+    _S.mjSENS_TENDONACTFRC: DeviceKind.FORCE,
+    _S.mjSENS_TORQUE: DeviceKind.TORQUE,
+    _S.mjSENS_TOUCH: DeviceKind.TOUCH,
+    _S.mjSENS_MAGNETOMETER: DeviceKind.COMPASS,
+    _S.mjSENS_RANGEFINDER: DeviceKind.DISTANCE,
+    _S.mjSENS_FRAMEPOS: DeviceKind.DISTANCE,
+    _S.mjSENS_GEOMDIST: DeviceKind.DISTANCE,
+    _S.mjSENS_TENDONPOS: DeviceKind.DISTANCE,
+    _S.mjSENS_SUBTREECOM: DeviceKind.DISTANCE,
+    _S.mjSENS_BALLQUAT: DeviceKind.ROTARY_ANGLE,
+}
+
+
+def _sensor_joint_type(model: mujoco.MjModel, sid: int) -> int | None:
+    """Joint type behind a joint or actuator sensor (None if not joint-based)."""
+    objtype = int(model.sensor_objtype[sid])
+    objid = int(model.sensor_objid[sid])
+    if objtype == mujoco.mjtObj.mjOBJ_JOINT:
+        return int(model.jnt_type[objid])
+    if objtype == mujoco.mjtObj.mjOBJ_ACTUATOR and (
+        int(model.actuator_trntype[objid]) == mujoco.mjtTrn.mjTRN_JOINT
+    ):
+        return int(model.jnt_type[int(model.actuator_trnid[objid, 0])])
+    return None
+
+
+def sensor_units(model: mujoco.MjModel, sid: int) -> tuple[str, ...]:
+    """SI unit of each value of sensor ``sid`` ('' where MuJoCo does not define one)."""
+    stype = int(model.sensor_type[sid])
+    dim = int(model.sensor_dim[sid])
+    unit = _FIXED_UNITS.get(stype)
+    if unit is None and stype in _JOINT_UNITS:
+        jtype = _sensor_joint_type(model, sid)
+        hinge, slide = _JOINT_UNITS[stype]
+        if jtype == mujoco.mjtJoint.mjJNT_SLIDE:
+            unit = slide
+        elif jtype in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_BALL):
+            unit = hinge
+    return (unit or "",) * dim
+
+
+def sensor_kind(model: mujoco.MjModel, sid: int) -> int:
+    """HALId device kind for sensor ``sid`` (OTHER_KIND outside the OpenEL registry)."""
+    stype = int(model.sensor_type[sid])
+    kind = _KINDS.get(stype)
+    if kind is not None:
+        return kind
+    if stype in _JOINT_UNITS:
+        slide = _sensor_joint_type(model, sid) == mujoco.mjtJoint.mjJNT_SLIDE
+        if stype in (_S.mjSENS_JOINTACTFRC, _S.mjSENS_ACTUATORFRC, _S.mjSENS_JOINTLIMITFRC):
+            return DeviceKind.FORCE if slide else DeviceKind.TORQUE
+        return DeviceKind.DISTANCE if slide else DeviceKind.ROTARY_ANGLE
+    return OTHER_KIND
+
+
+class MujocoSensor(SensorDevice):
+    """A MuJoCo sensor of a :class:`MujocoSim` as an OpenEL sensor.
+
+    ``read()`` returns the sensor's ``sensordata`` values (SI; MuJoCo applies the sensor's
+    ``cutoff``, not its ``noise``).  ``mj_step`` computes sensors in its forward pass, *before*
+    integrating, so the values describe the state at the start of the latest physics step:
+    the reading's ``time_ns`` is that state's time on the simulation's clock (one time step
+    before ``now_ns()`` in lockstep), monotonic from reading to reading.
+    """
+
+    def __init__(self, sim: MujocoSim, spec: SensorSpec) -> None:
+        model = sim.model
+        self.sim = sim
+        self.spec = spec
+        self.name = spec.key
+        self.sensor_id = sid = find_id(model, "sensor", spec.sensor)
+        self.sensor_type = mujoco.mjtSensor(int(model.sensor_type[sid]))
+        self.dim = int(model.sensor_dim[sid])
+        self._start = int(model.sensor_adr[sid])
+        self._end = self._start + self.dim
+        self.units = spec.units if spec.units is not None else sensor_units(model, sid)
+        if len(self.units) != self.dim:
+            raise BadParameterError(
+                "units", self.units, f"{self.dim} unit(s) for sensor {spec.sensor!r}"
+            )
+        kind = spec.kind if spec.kind is not None else sensor_kind(model, sid)
+        self.info = DeviceInfo(
+            kind=kind,
+            vendor_id=VENDOR_ID,
+            product_id=0x1000 + sid,
+            vendor_name=VENDOR_NAME,
+            product_name=_camel(self.name, "Sensor"),
+        )
+        self._ctx: DeviceContext | None = None
+        self._rejected = 0
+
+    async def open(self, ctx: DeviceContext) -> None:
+        if not self.sim._attach(self, ctx):
+            self._rejected += 1  # the failed component's close() must not detach the owner
+            raise HALError(f"{self.name}: device already belongs to a component")
+        self._ctx = ctx
+
+    async def init(self) -> None:
+        self.sim._check_running_state()
+
+    async def reset(self) -> None:
+        self.sim._recover()
+
+    async def close(self) -> None:
+        if self._rejected:
+            self._rejected -= 1
+            return
+        self.sim._detach(self)
+        self._ctx = None
+
+    async def read(self) -> Reading:
+        sim = self.sim
+        if sim._fault is not None:
+            raise HALError(f"{self.name}: the simulation is faulted: {sim._fault}")
+        return Reading(sim._sensordata[self._start : self._end].tolist(), sim._sensor_clock_ns)
+
+    @property
+    def values(self) -> tuple[float, ...]:
+        """The current values, without the component (for recorders and tests)."""
+        return tuple(self.sim._sensordata[self._start : self._end].tolist())
+
+    def _fault(self, reason: str) -> None:
+        ctx = self._ctx
+        if ctx is not None:
+            ctx.fault(ErrorId.DEVICE_ERROR, reason)
+
+    def __repr__(self) -> str:
+        kind = self.sensor_type.name.removeprefix("mjSENS_").lower()
+        return f"MujocoSensor({self.name!r}, {kind}, dim={self.dim}, sim={self.sim.name!r})"
