@@ -71,8 +71,10 @@ class Sensor(HALComponent):
             reading = await self.device.read()
         except LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
-        values = tuple(float(v) for v in reading.values)
-        if not all(math.isfinite(v) for v in values):
+        raw = reading.values
+        values = raw if type(raw) is tuple else tuple(raw)
+        # One sum answers "all finite?" for the common case; look closer only if not.
+        if not math.isfinite(math.fsum(values)) and not all(math.isfinite(v) for v in values):
             raise HALError(f"{self.device_name}: device returned a non-finite value {values}")
         time_ns = reading.time_ns if reading.time_ns is not None else self.clock.now_ns()
         return TimedValue(values, time_ns)
