@@ -1,1 +1,48 @@
-"""Device layer package."""
+"""openel_can: OpenEL devices on CAN buses through python-can (the ``can`` driver).
+
+- :class:`CanBus`: one python-can bus (socketcan, pcan, kvaser, virtual ...) with one
+  reader, one sender and bus-failure recovery, shared by every node on it;
+- ODrive axes over CANSimple: :class:`ODriveAxis`, :class:`ODriveEncoder`,
+  :class:`ODriveTemperature`, :class:`ODriveBusMonitor`;
+- CiA 402 drives over CANopen: :class:`Cia402Drive`, :class:`Cia402Temperature`;
+- the pure codecs :mod:`openel_can.cansimple`, :mod:`openel_can.canopen`,
+  :mod:`openel_can.cia402`, and simulated peers in :mod:`openel_can.sim`.
+"""
+
+from openel_async.registry import DriverInfo
+
+from .bus import BusState, BusStats, CanBus, NodePort
+from .drive402 import Cia402Drive, Cia402Temperature
+from .odrive import ODriveAxis, ODriveBusMonitor, ODriveEncoder, ODriveError, ODriveTemperature
+from .sdo import SdoAbortError, SdoClient, SdoTimeoutError
+
+DRIVER = DriverInfo(
+    name="can",
+    description="CAN buses via python-can: ODrive (CANSimple) and CiA 402 (CANopen) drives",
+    devices={
+        "odrive_axis": ODriveAxis,
+        "odrive_encoder": ODriveEncoder,
+        "odrive_temperature": ODriveTemperature,
+        "odrive_bus_monitor": ODriveBusMonitor,
+        "cia402_drive": Cia402Drive,
+        "cia402_temperature": Cia402Temperature,
+    },
+)
+
+__all__ = [
+    "DRIVER",
+    "BusState",
+    "BusStats",
+    "CanBus",
+    "Cia402Drive",
+    "Cia402Temperature",
+    "NodePort",
+    "ODriveAxis",
+    "ODriveBusMonitor",
+    "ODriveEncoder",
+    "ODriveError",
+    "ODriveTemperature",
+    "SdoAbortError",
+    "SdoClient",
+    "SdoTimeoutError",
+]

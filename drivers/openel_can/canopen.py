@@ -409,7 +409,7 @@ def pack_pdo(mapping: Sequence[PdoMapEntry], values: Sequence[int]) -> bytes:
     return acc.to_bytes((total + 7) // 8, "little")
 
 
-def unpack_pdo(mapping: Sequence[PdoMapEntry], data: bytes) -> list[int]:
+def unpack_pdo(mapping: Sequence[PdoMapEntry], data: bytes | bytearray) -> list[int]:
     """Inverse of :func:`pack_pdo`; extra trailing bytes are ignored, missing ones are an error.
 
     Raises :class:`ValueError` for an impossible mapping and
@@ -583,7 +583,7 @@ def _decode_sdo(node_id: int, data: bytes, *, from_client: bool) -> CanOpenMessa
     raise CanOpenDecodeError(f"unsupported SDO {side} command specifier {specifier}")
 
 
-def decode(cob_id: int, data: bytes) -> CanOpenMessage:
+def decode(cob_id: int, data: bytes | bytearray) -> CanOpenMessage:
     """Decode one frame; raises only :class:`CanOpenDecodeError`."""
     data = bytes(data)
     if len(data) > 8:

@@ -664,7 +664,9 @@ def encode(msg: CanSimpleMessage) -> tuple[int, bytes]:
     return arbitration_id(msg.node_id, msg.cmd), msg.payload()
 
 
-def decode(arb_id: int, data: bytes, *, from_host: bool, remote: bool = False) -> CanSimpleMessage:
+def decode(
+    arb_id: int, data: bytes | bytearray, *, from_host: bool, remote: bool = False
+) -> CanSimpleMessage:
     """Decode one frame.
 
     ``from_host`` selects the payload direction (True: host -> ODrive).

@@ -1,0 +1,698 @@
+"""CanBus: one python-can bus shared by every node driver on it.
+
+A :class:`CanBus` owns one ``can.BusABC`` (any python-can interface: socketcan, pcan,
+kvaser, virtual ...) and runs, in its own task group:
+
+* **one reader** per bus. python-can's ``recv`` blocks, so it runs in a worker thread
+  (``anyio.to_thread.run_sync``), one *batch* per thread hop: a blocking ``recv`` of at
+  most ``poll_interval`` seconds for the first frame, then non-blocking ``recv(0)`` for
+  whatever else is queued (up to ``max_batch``). The batch is dispatched in the event
+  loop by arbitration id to every :class:`NodePort` registered for that id, one bounded
+  memory object stream per port (a full port drops the batch and counts it; the reader
+  never waits for a slow node). python-can's ``Notifier`` is not used: its thread dies
+  silently when ``recv`` raises, whereas here a failing ``recv`` is caught, reported
+  to every port (``on_bus_error``: the drivers fault their components with
+  ``ErrorId.BUS_ERROR``) and recovered from with exponential backoff: the bus is
+  reopened when the ``CanBus`` knows how to open it (interface kwargs or a
+  ``bus_factory``), else ``recv`` is retried on the same object; the first ``recv``
+  that does not raise brings the bus back up and ``re_init`` of the components succeeds.
+* **sends that never block the event loop**. On interfaces whose ``send(msg,
+  timeout=0)`` cannot block (``virtual``; ``socketcan``, which polls the socket and
+  raises "Transmit buffer full" otherwise) ``NodePort.send`` sends inline when nothing
+  is queued, saving a task hop. Otherwise, and when the interface does not take the
+  frame at once, the frame goes to a bounded queue (``NodePort.send`` waits at most
+  ``send_timeout`` for room, then raises ``TimeoutError``) drained in batches by **one
+  sender** task: inline with ``timeout=0`` and a backoff retry of a full transmit
+  buffer, or, on every other interface (whose ``send`` may block), in a worker thread
+  with ``send(msg, timeout=send_timeout)``. Frames leave in call order. A send that
+  keeps failing for ``send_timeout`` takes the bus down like a failed ``recv`` (frames
+  queued meanwhile are dropped and counted: a CAN command is worthless late).
+* optionally a SYNC producer (CANopen, COB-ID 0x080) every ``sync_period`` seconds.
+
+Use it as an async context manager and create the node drivers with it::
+
+    async with CanBus(interface="socketcan", channel="can0") as bus:
+        async with Actuator(ODriveAxis(bus, node_id=3)) as axis:
+            ...
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterable
+from contextlib import AsyncExitStack
+from dataclasses import dataclass
+from enum import Enum
+from types import TracebackType
+from typing import Any, Final, Literal, Self, TypeVar
+
+import anyio
+import anyio.abc
+import can
+import structlog
+from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
+
+from openel_async.errors import BadParameterError, NotConnectedError
+
+__all__ = ["BusState", "BusStats", "CanBus", "NodePort", "SendMode"]
+
+log = structlog.get_logger(__name__)
+
+_T = TypeVar("_T")
+SendMode = Literal["auto", "inline", "thread"]
+#: Interfaces whose ``send(msg, timeout=0)`` returns at once (see the module docstring).
+NONBLOCKING_SEND_BUSES: Final = frozenset({"VirtualBus", "SocketcanBus"})
+EXTENDED_FLAG: Final = 1 << 31
+"""Routing key flag of a 29-bit identifier (11-bit ids route by their plain value)."""
+_INLINE_RETRY_S: Final = 0.0005
+_INLINE_RETRY_MAX_S: Final = 0.01
+_DROP_LOG_EVERY: Final = 1000
+
+
+class BusState(Enum):
+    CLOSED = "closed"
+    UP = "up"
+    DOWN = "down"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+@dataclass
+class BusStats:
+    """Counters of one CanBus (monotonic; read them any time)."""
+
+    rx_frames: int = 0
+    """Frames received (including unrouted and error frames)."""
+    rx_batches: int = 0
+    tx_frames: int = 0
+    tx_dropped: int = 0
+    """Frames dropped because the bus was down or the send kept failing."""
+    tx_retries: int = 0
+    unrouted: int = 0
+    """Frames no port registered for."""
+    error_frames: int = 0
+    overflow_frames: int = 0
+    """Frames dropped because a port's queue was full (summed over ports)."""
+    bus_errors: int = 0
+    """Transitions to DOWN."""
+    recoveries: int = 0
+    """Transitions back to UP."""
+
+
+class NodePort:
+    """A node's attachment to a :class:`CanBus`: its received frames and its send path.
+
+    Iterate it (``async for batch in port``) to receive batches of ``can.Message`` for
+    the arbitration ids it registered; the iteration ends when the port is detached or
+    the bus closes. Counters: ``received`` and ``dropped`` (queue overflow) are kept by
+    the bus, ``malformed`` by the driver (frames it could not decode and dropped).
+    """
+
+    def __init__(
+        self,
+        bus: CanBus,
+        ids: frozenset[int],
+        name: str,
+        queue_size: int,
+        on_bus_error: Callable[[str], None] | None,
+    ) -> None:
+        self.bus = bus
+        self.ids = ids
+        self.name = name
+        self.on_bus_error = on_bus_error
+        self.received = 0
+        self.dropped = 0
+        self.malformed = 0
+        send, receive = anyio.create_memory_object_stream[list[can.Message]](queue_size)
+        self._send: MemoryObjectSendStream[list[can.Message]] = send
+        self._receive: MemoryObjectReceiveStream[list[can.Message]] = receive
+        self.attached = True
+
+    # -- receive ------------------------------------------------------------------------
+    def __aiter__(self) -> NodePort:
+        return self
+
+    async def __anext__(self) -> list[can.Message]:
+        try:
+            return await self._receive.receive()
+        except (anyio.EndOfStream, anyio.ClosedResourceError):
+            self._receive.close()
+            raise StopAsyncIteration from None
+
+    async def receive(self) -> list[can.Message]:
+        """The next batch; raises ``anyio.EndOfStream`` once detached."""
+        try:
+            return await self._receive.receive()
+        except anyio.ClosedResourceError:
+            raise anyio.EndOfStream from None
+
+    def receive_nowait(self) -> list[can.Message]:
+        """The next batch if one is queued; raises ``anyio.WouldBlock`` otherwise."""
+        try:
+            return self._receive.receive_nowait()
+        except anyio.ClosedResourceError:
+            raise anyio.EndOfStream from None
+
+    def _deliver(self, frames: list[can.Message]) -> None:
+        self.received += len(frames)
+        try:
+            self._send.send_nowait(frames)
+        except anyio.WouldBlock:
+            self.dropped += len(frames)
+            self.bus.stats.overflow_frames += len(frames)
+            if self.dropped // _DROP_LOG_EVERY != (self.dropped - len(frames)) // _DROP_LOG_EVERY:
+                self.bus.log.warning("port_overflow", port=self.name, dropped=self.dropped)
+        except (anyio.BrokenResourceError, anyio.ClosedResourceError):
+            pass  # detached meanwhile
+
+    # -- send ---------------------------------------------------------------------------
+    async def send(
+        self,
+        arbitration_id: int,
+        data: bytes = b"",
+        *,
+        remote: bool = False,
+        extended: bool = False,
+    ) -> None:
+        """Send one frame (inline when possible, else through the send queue).
+
+        Returns once the frame is sent or queued (CAN has no delivery acknowledgement);
+        waits at most ``send_timeout`` for room in the queue. Raises
+        :class:`NotConnectedError` while the bus is down and :class:`TimeoutError` when
+        the queue stays full.
+        """
+        msg = can.Message(
+            arbitration_id=arbitration_id,
+            data=data,
+            is_extended_id=extended,
+            is_remote_frame=remote,
+            check=False,
+        )
+        await self.bus.send_message(msg)
+
+    def close(self) -> None:
+        """Detach from the bus (same as ``bus.detach(port)``)."""
+        self.bus.detach(self)
+
+    def __repr__(self) -> str:
+        return f"NodePort({self.name!r}, ids={len(self.ids)}, attached={self.attached})"
+
+
+class CanBus:
+    """One python-can bus, its reader, its sender and its recovery (module docstring).
+
+    Give exactly one of: ``bus`` (an open ``can.BusABC``; it is not shut down at exit and
+    cannot be reopened, so recovery retries ``recv`` on it), ``bus_factory`` (a callable
+    opening a new bus, used at entry and for every reopen), or python-can keyword
+    arguments (``interface="socketcan", channel="can0", bitrate=...``).
+    """
+
+    def __init__(
+        self,
+        bus: can.BusABC | None = None,
+        *,
+        bus_factory: Callable[[], can.BusABC] | None = None,
+        name: str | None = None,
+        port_queue_size: int = 64,
+        tx_queue_size: int = 256,
+        send_mode: SendMode = "auto",
+        send_timeout: float = 0.2,
+        poll_interval: float = 0.05,
+        max_batch: int = 512,
+        reconnect_backoff: tuple[float, float] = (0.02, 1.0),
+        sync_period: float | None = None,
+        **bus_kwargs: Any,
+    ) -> None:
+        given = sum(x is not None for x in (bus, bus_factory)) + bool(bus_kwargs)
+        if given != 1:
+            raise BadParameterError(
+                "bus", bus, "exactly one of bus=, bus_factory= or python-can keyword arguments"
+            )
+        if bus is not None and not isinstance(bus, can.BusABC):
+            raise BadParameterError("bus", bus, "a can.BusABC")
+        for pname, value in (("port_queue_size", port_queue_size), ("tx_queue_size", tx_queue_size), ("max_batch", max_batch)):  # fmt: skip
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise BadParameterError(pname, value, "an int >= 1")
+        for pname, fvalue in (("send_timeout", send_timeout), ("poll_interval", poll_interval)):
+            if not (math.isfinite(fvalue) and fvalue > 0):
+                raise BadParameterError(pname, fvalue, "a finite number of seconds > 0")
+        low, high = reconnect_backoff
+        if not (math.isfinite(low) and math.isfinite(high) and 0 < low <= high):
+            raise BadParameterError(
+                "reconnect_backoff", reconnect_backoff, "(min, max) seconds with 0 < min <= max"
+            )
+        if sync_period is not None and not (math.isfinite(sync_period) and sync_period > 0):
+            raise BadParameterError("sync_period", sync_period, "None or seconds > 0")
+        if send_mode not in ("auto", "inline", "thread"):
+            raise BadParameterError("send_mode", send_mode, "'auto', 'inline' or 'thread'")
+        if bus_kwargs:
+            kwargs = dict(bus_kwargs)
+
+            def open_from_kwargs() -> can.BusABC:
+                return can.Bus(**kwargs)
+
+            bus_factory = open_from_kwargs
+        self._given_bus = bus
+        self._factory = bus_factory
+        self.name = name or str(
+            bus_kwargs.get("channel", "") or (bus.channel_info if bus else "can")
+        )
+        self.port_queue_size = port_queue_size
+        self.tx_queue_size = tx_queue_size
+        self.send_mode: SendMode = send_mode
+        self.send_timeout = send_timeout
+        self.poll_interval = poll_interval
+        self.max_batch = max_batch
+        self.reconnect_backoff = (low, high)
+        self.sync_period = sync_period
+        self.stats = BusStats()
+        self.log = log.bind(bus=self.name)
+        self.state = BusState.CLOSED
+        self.last_error: str | None = None
+        """Why the bus last went down."""
+        self.last_retry_error: str | None = None
+        self._bus: can.BusABC | None = None
+        self._inline = False
+        self._routes: dict[int, tuple[NodePort, ...]] = {}
+        self._ports: list[NodePort] = []
+        self._stack: AsyncExitStack | None = None
+        self._tx_send: MemoryObjectSendStream[can.Message] | None = None
+        self._tx_receive: MemoryObjectReceiveStream[can.Message] | None = None
+        self._up = anyio.Event()
+        self._down = anyio.Event()
+        self._io_lock = anyio.Lock()
+        self._tx_pending = 0
+        """Frames queued for the sender task or being sent by it."""
+        self._shared: dict[object, Any] = {}
+        self._entered = False
+
+    # -- lifecycle ------------------------------------------------------------------------
+    async def __aenter__(self) -> Self:
+        if self._entered:
+            raise RuntimeError("a CanBus can be entered only once")
+        self._entered = True
+        self._bus = await self._open()
+        self._inline = self._choose_inline(self._bus)
+        stack = AsyncExitStack()
+        try:
+            send, receive = anyio.create_memory_object_stream[can.Message](self.tx_queue_size)
+            self._tx_send, self._tx_receive = send, receive
+            stack.push_async_callback(self._shutdown_bus)
+            tg = await stack.enter_async_context(anyio.create_task_group())
+            stack.callback(tg.cancel_scope.cancel)
+            self._set_up()
+            tg.start_soon(self._reader)
+            tg.start_soon(self._sender)
+            if self.sync_period is not None:
+                tg.start_soon(self._sync_producer, self.sync_period)
+        except BaseException:
+            await stack.aclose()
+            raise
+        self._stack = stack
+        self.log.info(
+            "bus_open",
+            interface=type(self._bus).__name__,
+            send="inline" if self._inline else "thread",
+        )
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.state = BusState.CLOSED
+        for port in list(self._ports):
+            self.detach(port)
+        if self._tx_send is not None:
+            self._tx_send.close()
+        assert self._stack is not None
+        await self._stack.aclose()
+        if self._tx_receive is not None:
+            self._tx_receive.close()
+        self._up.set()  # release waiters: they see CLOSED
+        self._down.set()
+        self.log.info("bus_closed", **self._stats_dict())
+
+    def _stats_dict(self) -> dict[str, int]:
+        s = self.stats
+        return {
+            "rx": s.rx_frames,
+            "tx": s.tx_frames,
+            "tx_dropped": s.tx_dropped,
+            "bus_errors": s.bus_errors,
+        }
+
+    async def _open(self) -> can.BusABC:
+        if self._given_bus is not None:
+            return self._given_bus
+        assert self._factory is not None
+        return await anyio.to_thread.run_sync(self._factory)
+
+    async def _shutdown_bus(self) -> None:
+        bus, self._bus = self._bus, None
+        if bus is None or bus is self._given_bus:
+            return
+        with anyio.CancelScope(shield=True):
+            try:
+                await anyio.to_thread.run_sync(bus.shutdown)
+            except Exception as exc:
+                self.log.warning("bus_shutdown_failed", error=repr(exc))
+
+    def _choose_inline(self, bus: can.BusABC) -> bool:
+        if self.send_mode == "auto":
+            return type(bus).__name__ in NONBLOCKING_SEND_BUSES
+        return self.send_mode == "inline"
+
+    @property
+    def bus(self) -> can.BusABC | None:
+        """The python-can bus in use (None while closed or being reopened)."""
+        return self._bus
+
+    @property
+    def is_up(self) -> bool:
+        return self.state is BusState.UP
+
+    @property
+    def reopenable(self) -> bool:
+        return self._factory is not None
+
+    async def wait_up(self, timeout: float) -> None:  # noqa: ASYNC109 - a bound, by contract
+        """Wait until the bus is up; NotConnectedError after ``timeout`` seconds or if closed."""
+        with anyio.move_on_after(timeout):
+            while self.state is BusState.DOWN:
+                await self._up.wait()
+        if self.state is not BusState.UP:
+            raise NotConnectedError(
+                f"CAN bus {self.name} is {self.state}"
+                + (f": {self.last_error}" if self.last_error else "")
+            )
+
+    # -- ports ----------------------------------------------------------------------------
+    def shared(self, key: object, factory: Callable[[], _T]) -> _T:
+        """A per-bus singleton (e.g. the SDO client of a node, shared by its devices)."""
+        try:
+            value: _T = self._shared[key]
+        except KeyError:
+            value = self._shared[key] = factory()
+        return value
+
+    def attach(
+        self,
+        ids: Iterable[int],
+        *,
+        name: str = "node",
+        queue_size: int | None = None,
+        on_bus_error: Callable[[str], None] | None = None,
+        extended: bool = False,
+    ) -> NodePort:
+        """Register a port receiving the frames of ``ids`` (11-bit unless ``extended``).
+
+        Several ports may register the same id; each gets every such frame.
+        ``on_bus_error(reason)`` is called (in the event loop) whenever the bus goes down.
+        """
+        if self.state is BusState.CLOSED:
+            raise NotConnectedError(f"CAN bus {self.name} is not open (use 'async with')")
+        limit = 0x1FFF_FFFF if extended else 0x7FF
+        keys: set[int] = set()
+        for arb_id in ids:
+            if isinstance(arb_id, bool) or not isinstance(arb_id, int) or not 0 <= arb_id <= limit:
+                raise BadParameterError("ids", arb_id, f"arbitration ids in 0..{limit:#x}")
+            keys.add(arb_id | EXTENDED_FLAG if extended else arb_id)
+        port = NodePort(
+            self, frozenset(keys), name, queue_size or self.port_queue_size, on_bus_error
+        )
+        self._ports.append(port)
+        routes = dict(self._routes)
+        for key in keys:
+            routes[key] = (*routes.get(key, ()), port)
+        self._routes = routes  # swapped whole: the dispatcher never sees a half-built map
+        return port
+
+    def detach(self, port: NodePort) -> None:
+        if not port.attached:
+            return
+        port.attached = False
+        if port in self._ports:
+            self._ports.remove(port)
+        routes = dict(self._routes)
+        for key in port.ids:
+            remaining = tuple(p for p in routes.get(key, ()) if p is not port)
+            if remaining:
+                routes[key] = remaining
+            else:
+                routes.pop(key, None)
+        self._routes = routes
+        port._send.close()  # a receiver waiting now ends its iteration
+        port._receive.close()
+
+    # -- send -----------------------------------------------------------------------------
+    async def send_message(self, msg: can.Message) -> None:
+        """Send or queue a frame (see :meth:`NodePort.send`).
+
+        Inline-send interfaces with nothing queued send at once (``timeout=0``), saving
+        the hop to the sender task; anything else, and a frame the interface does not
+        take at once, goes through the queue, so frames always leave in call order.
+        """
+        tx = self._tx_send
+        if self.state is not BusState.UP or tx is None:
+            raise NotConnectedError(
+                f"CAN bus {self.name} is {self.state}"
+                + (f": {self.last_error}" if self.last_error else "")
+            )
+        if self._inline and not self._tx_pending:
+            bus = self._bus
+            assert bus is not None
+            try:
+                bus.send(msg, 0.0)
+            except Exception:  # buffer full or failing: the sender retries with backoff
+                pass
+            else:
+                self.stats.tx_frames += 1
+                return
+        self._tx_pending += 1
+        try:
+            tx.send_nowait(msg)
+        except anyio.WouldBlock:
+            try:
+                with anyio.fail_after(self.send_timeout):
+                    await tx.send(msg)
+            except BaseException:
+                self._tx_pending -= 1
+                raise
+
+    async def _sender(self) -> None:
+        assert self._tx_receive is not None
+        receive = self._tx_receive
+        max_batch = self.max_batch
+        async with receive:
+            async for first in receive:
+                batch = [first]
+                while len(batch) < max_batch:
+                    try:
+                        batch.append(receive.receive_nowait())
+                    except (anyio.WouldBlock, anyio.EndOfStream):
+                        break
+                try:
+                    if self.state is not BusState.UP:
+                        self.stats.tx_dropped += len(batch)
+                    elif self._inline:
+                        await self._send_inline(batch)
+                    else:
+                        await self._send_threaded(batch)
+                finally:
+                    self._tx_pending -= len(batch)
+
+    async def _send_inline(self, batch: list[can.Message]) -> None:
+        bus = self._bus
+        assert bus is not None
+        send = bus.send
+        stats = self.stats
+        for i, msg in enumerate(batch):
+            try:
+                send(msg, 0.0)
+                stats.tx_frames += 1
+                continue
+            except Exception as exc:  # buffer full or a failing bus: retry with backoff
+                failure: Exception = exc
+            deadline = time.monotonic() + self.send_timeout
+            delay = _INLINE_RETRY_S
+            while True:
+                stats.tx_retries += 1
+                await anyio.sleep(delay)
+                if self.state is not BusState.UP or self._bus is not bus:
+                    stats.tx_dropped += len(batch) - i
+                    return
+                try:
+                    send(msg, 0.0)
+                    stats.tx_frames += 1
+                    break
+                except Exception as exc:
+                    failure = exc
+                if time.monotonic() >= deadline:
+                    stats.tx_dropped += len(batch) - i
+                    self._set_down(f"send failed for {self.send_timeout} s: {failure!r}")
+                    return
+                delay = min(delay * 2, _INLINE_RETRY_MAX_S)
+
+    async def _send_threaded(self, batch: list[can.Message]) -> None:
+        bus = self._bus
+        assert bus is not None
+        timeout = self.send_timeout
+
+        def send_all() -> int:
+            sent = 0
+            for msg in batch:
+                bus.send(msg, timeout)
+                sent += 1
+            return sent
+
+        async with self._io_lock:
+            try:
+                self.stats.tx_frames += await anyio.to_thread.run_sync(send_all)
+            except Exception as exc:
+                self.stats.tx_dropped += len(batch)
+                self._set_down(f"send failed: {exc!r}")
+
+    async def _sync_producer(self, period: float) -> None:
+        """CANopen SYNC (COB-ID 0x080, no data) every ``period`` seconds, on absolute deadlines."""
+        next_at = time.monotonic()
+        sync = can.Message(arbitration_id=0x080, data=b"", is_extended_id=False, check=False)
+        while True:
+            next_at += period
+            await anyio.sleep(max(0.0, next_at - time.monotonic()))
+            if self.state is BusState.UP and self._tx_send is not None:
+                try:
+                    self._tx_send.send_nowait(sync)
+                except anyio.WouldBlock:
+                    self.stats.tx_dropped += 1
+
+    # -- receive --------------------------------------------------------------------------
+    def _recv_batch(self, bus: can.BusABC) -> list[can.Message]:
+        """Worker thread: one blocking recv (bounded), then drain what is queued."""
+        first = bus.recv(self.poll_interval)
+        if first is None:
+            return []
+        batch = [first]
+        recv = bus.recv
+        limit = self.max_batch
+        while len(batch) < limit:
+            try:
+                msg = recv(0.0)
+            except Exception:
+                break  # the next call reports it
+            if msg is None:
+                break
+            batch.append(msg)
+        return batch
+
+    async def _reader(self) -> None:
+        while True:
+            if self.state is BusState.DOWN:
+                await self._recover()
+            bus = self._bus
+            assert bus is not None
+            try:
+                batch = await anyio.to_thread.run_sync(self._recv_batch, bus)
+            except Exception as exc:
+                self._set_down(f"receive failed: {exc!r}")
+                continue
+            if batch:
+                self._dispatch(batch)
+
+    def _dispatch(self, batch: list[can.Message]) -> None:
+        stats = self.stats
+        stats.rx_frames += len(batch)
+        stats.rx_batches += 1
+        routes = self._routes
+        per_port: dict[NodePort, list[can.Message]] = {}
+        for msg in batch:
+            if msg.is_error_frame:
+                stats.error_frames += 1
+                continue
+            key = msg.arbitration_id | EXTENDED_FLAG if msg.is_extended_id else msg.arbitration_id
+            ports = routes.get(key)
+            if ports is None:
+                stats.unrouted += 1
+                continue
+            for port in ports:
+                frames = per_port.get(port)
+                if frames is None:
+                    per_port[port] = [msg]
+                else:
+                    frames.append(msg)
+        for port, frames in per_port.items():
+            port._deliver(frames)
+
+    # -- faults and recovery --------------------------------------------------------------
+    def _set_down(self, reason: str) -> None:
+        if self.state is not BusState.UP:
+            return
+        self.state = BusState.DOWN
+        self.last_error = reason
+        self.stats.bus_errors += 1
+        self._up = anyio.Event()
+        self._down.set()
+        self.log.warning("bus_down", reason=reason)
+        for port in list(self._ports):
+            callback = port.on_bus_error
+            if callback is None:
+                continue
+            try:
+                callback(reason)
+            except Exception as exc:  # a driver's bug must not kill the reader
+                self.log.exception("bus_error_callback_failed", port=port.name, error=repr(exc))
+
+    def _set_up(self) -> None:
+        recovered = self.state is BusState.DOWN
+        self.state = BusState.UP
+        self._down = anyio.Event()
+        self._up.set()
+        if recovered:
+            self.stats.recoveries += 1
+            self.log.info("bus_recovered", after=self.last_error)
+
+    async def _recover(self) -> None:
+        """Reopen (when possible) or re-probe the bus with exponential backoff until it works."""
+        delay, longest = self.reconnect_backoff
+        attempt = 0
+        while True:
+            await anyio.sleep(delay)
+            delay = min(delay * 2, longest)
+            attempt += 1
+            try:
+                async with self._io_lock:
+                    if self._factory is not None:
+                        await self._reopen()
+                    bus = self._bus
+                    assert bus is not None
+                    first = await anyio.to_thread.run_sync(bus.recv, 0.0)
+            except Exception as exc:
+                self.last_retry_error = f"attempt {attempt}: {exc!r}"
+                self.log.debug("bus_recover_failed", attempt=attempt, error=repr(exc))
+                continue
+            self._set_up()
+            if first is not None:
+                self._dispatch([first])
+            return
+
+    async def _reopen(self) -> None:
+        assert self._factory is not None
+        old, self._bus = self._bus, None
+        if old is not None:
+            try:
+                await anyio.to_thread.run_sync(old.shutdown)
+            except Exception as exc:
+                self.log.debug("bus_shutdown_failed", error=repr(exc))
+        try:
+            self._bus = await anyio.to_thread.run_sync(self._factory)
+        except BaseException:
+            self._bus = old  # keep an object to shut down at exit (already shut: harmless)
+            raise
+        self._inline = self._choose_inline(self._bus)
+
+    def __repr__(self) -> str:
+        return f"CanBus({self.name!r}, state={self.state}, ports={len(self._ports)})"

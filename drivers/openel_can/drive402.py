@@ -1,0 +1,797 @@
+"""A CiA 402 drive over CANopen: :class:`Cia402Drive` (actuator), :class:`Cia402Temperature`.
+
+Opening the drive (``open``): NMT Enter pre-operational, then by expedited SDO the
+heartbeat producer time (0x1017), the encoder resolution (0x608F, unless given) and the
+rated torque (0x6076, unless given), the PDO mapping (disable, clear, map, count,
+enable, as CiA 301 prescribes) and the profile parameters, then NMT Start and the first
+TPDO. The mapping:
+
+=========  ===============================================  ==========================
+PDO        objects                                          use
+=========  ===============================================  ==========================
+RPDO1      controlword 0x6040, target position 0x607A       profile position (pp)
+RPDO2      controlword 0x6040, target velocity 0x60FF       profile velocity (pv)
+RPDO3      controlword 0x6040, target torque 0x6071         profile torque (tq)
+TPDO1      statusword 0x6041, position 0x6064, torque 0x6077
+TPDO2      velocity 0x606C, mode display 0x6061
+=========  ===============================================  ==========================
+
+TPDOs are event-driven (type 0xFF) with an event timer of ``tpdo_event_ms``, or sent on
+every SYNC (type 1) with ``sync=True`` (give the bus a SYNC producer:
+``CanBus(..., sync_period=...)``).
+
+The power state machine runs on the controlword: ``init`` goes shutdown -> switch on ->
+enable operation (:func:`openel_can.cia402.next_controlword`, each step confirmed by the
+statusword); ``reset`` (``re_init``) reconfigures the node if it rebooted, sends the
+fault reset edge (bit 7) and enables again; NO_EXCITE disables operation (Switched on);
+:meth:`Cia402Drive.quick_stop` sends quick stop.
+
+Set-points: POSITION selects profile position (0x6060 = 1, by SDO when the mode
+changes) and runs the new set-point handshake: target with bit 4 (new set-point) and
+bit 5 (change set immediately), wait for statusword bit 12 (set-point acknowledge), then
+bit 4 low. VELOCITY / TORQUE select profile velocity / torque; the drive acknowledges
+nothing there, so the driver reads the statusword by SDO after the RPDO (the drive
+processes both in order). Completion (``reports_completion``): statusword bit 10
+(target reached) seen after that acknowledgement.
+
+Faults: EMCY -> ``post_error(DEVICE_ERROR)`` (code 0x0000, "error reset", is only
+logged); a statusword in Fault or Fault reaction active, a heartbeat in another NMT state
+than Operational, a boot-up message -> ``fault(DEVICE_ERROR)``; no heartbeat for
+``heartbeat_timeout`` -> ``fault(DISCONNECTED)``; SDO timeout -> ``TimeoutError`` (a link
+fault: Error, ``ErrorId.TIMEOUT``); SDO abort -> :class:`~openel_can.sdo.SdoAbortError`
+(the state does not change); bus failure -> ``fault(BUS_ERROR)``.
+
+Units: positions ``rad = counts * 2π / counts_per_rev``, velocities in counts/s the same
+way, torques in per mille of the rated torque (Nm at the API).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Final
+
+import anyio
+import can
+import structlog
+
+from openel_async.device import (
+    ActuatorDevice,
+    ActuatorLimits,
+    DeviceContext,
+    DeviceInfo,
+    ErrorId,
+    Reading,
+    SensorDevice,
+)
+from openel_async.errors import BadParameterError, HALError, ReturnCode
+from openel_async.ids import DeviceKind
+from openel_async.requests import Request
+
+from . import canopen as co
+from . import cia402 as ds
+from .bus import CanBus, NodePort
+from .errors import DecodeError
+from .sdo import SdoClient
+
+__all__ = ["RPDO_MAPS", "TPDO_MAPS", "Cia402Drive", "Cia402Temperature"]
+
+log = structlog.get_logger(__name__)
+
+PS = ds.PowerState
+Mode = ds.ModeOfOperation
+SB = ds.StatusBit
+CB = ds.ControlBit
+CIA402_VENDOR_ID: Final = 0x0402
+
+RPDO_MAPS: Final = (
+    (ds.CONTROLWORD, ds.TARGET_POSITION),
+    (ds.CONTROLWORD, ds.TARGET_VELOCITY),
+    (ds.CONTROLWORD, ds.TARGET_TORQUE),
+)
+TPDO_MAPS: Final = (
+    (ds.STATUSWORD, ds.POSITION_ACTUAL_VALUE, ds.TORQUE_ACTUAL_VALUE),
+    (ds.VELOCITY_ACTUAL_VALUE, ds.MODES_OF_OPERATION_DISPLAY),
+)
+_RPDO_OF_MODE: Final = {Mode.PROFILE_POSITION: 0, Mode.PROFILE_VELOCITY: 1, Mode.PROFILE_TORQUE: 2}
+_MODE_OF_REQUEST: Final = {
+    Request.POSITION: Mode.PROFILE_POSITION,
+    Request.VELOCITY: Mode.PROFILE_VELOCITY,
+    Request.TORQUE: Mode.PROFILE_TORQUE,
+}
+_TPDO1_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[0])
+_TPDO2_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[1])
+_RPDO_MAP_ENTRIES: Final = tuple(tuple(e.map_entry() for e in mapping) for mapping in RPDO_MAPS)
+_ENABLE: Final = int(ds.Command.ENABLE_OPERATION)
+
+
+def _emcy_name(code: int) -> str:
+    try:
+        return co.EmcyCode(code).name
+    except ValueError:
+        return f"{code:#06x}"
+
+
+def _check_node(node_id: int) -> None:
+    if (
+        isinstance(node_id, bool)
+        or not isinstance(node_id, int)
+        or not 1 <= node_id <= co.MAX_NODE_ID
+    ):
+        raise BadParameterError("node_id", node_id, f"a CANopen node id in 1..{co.MAX_NODE_ID}")
+
+
+def _positive(name: str, value: float | None, *, optional: bool = True) -> None:
+    if value is None and optional:
+        return
+    if value is None or not (math.isfinite(value) and value > 0):
+        raise BadParameterError(name, value, "a finite value > 0")
+
+
+class _FaultedError(Exception):
+    """The component faulted while a command waited for the drive (internal)."""
+
+
+@dataclass
+class _Setpoint:
+    request: Request
+    reported: bool = False
+
+
+class Cia402Drive(ActuatorDevice):
+    """A CiA 402 servo drive on a CAN bus (CANopen); see the module docstring."""
+
+    info = DeviceInfo(
+        kind=DeviceKind.MOTOR,
+        vendor_id=CIA402_VENDOR_ID,
+        product_id=0x0192,
+        vendor_name="CiA402",
+        product_name="CanDrive",
+        functions=("quick_stop",),
+    )
+    reports_completion = True
+
+    def __init__(
+        self,
+        bus: CanBus,
+        node_id: int,
+        *,
+        counts_per_rev: int | None = None,
+        rated_torque: float | None = None,
+        limits: ActuatorLimits | None = None,
+        profile_velocity: float | None = None,
+        profile_acceleration: float | None = None,
+        heartbeat_ms: int = 1000,
+        heartbeat_timeout: float | None = None,
+        tpdo_event_ms: int = 10,
+        sync: bool = False,
+        sdo_timeout: float = 0.1,
+        state_timeout: float = 0.5,
+        feedback_max_age: float | None = None,
+    ) -> None:
+        if not isinstance(bus, CanBus):
+            raise BadParameterError("bus", bus, "an openel_can.CanBus")
+        _check_node(node_id)
+        if counts_per_rev is not None and (
+            isinstance(counts_per_rev, bool)
+            or not isinstance(counts_per_rev, int)
+            or counts_per_rev < 1
+        ):
+            raise BadParameterError("counts_per_rev", counts_per_rev, "None or an int >= 1")
+        for name, value in (
+            ("rated_torque", rated_torque),
+            ("profile_velocity", profile_velocity),
+            ("profile_acceleration", profile_acceleration),
+            ("heartbeat_timeout", heartbeat_timeout),
+            ("feedback_max_age", feedback_max_age),
+        ):
+            _positive(name, value)
+        for name, value in (("sdo_timeout", sdo_timeout), ("state_timeout", state_timeout)):
+            _positive(name, value, optional=False)
+        for name, ms in (("heartbeat_ms", heartbeat_ms), ("tpdo_event_ms", tpdo_event_ms)):
+            if isinstance(ms, bool) or not isinstance(ms, int) or not 1 <= ms <= 0xFFFF:
+                raise BadParameterError(name, ms, "milliseconds in 1..65535")
+        self.bus = bus
+        self.node_id = node_id
+        self.counts_per_rev = counts_per_rev
+        self.rated_torque = rated_torque
+        if limits is not None:
+            self.limits = limits
+        self.profile_velocity = profile_velocity
+        self.profile_acceleration = profile_acceleration
+        self.heartbeat_ms = heartbeat_ms
+        self.heartbeat_timeout = heartbeat_timeout or 3 * heartbeat_ms / 1000
+        self.tpdo_event_ms = tpdo_event_ms
+        self.sync = sync
+        self.sdo_timeout = sdo_timeout
+        self.state_timeout = state_timeout
+        self.feedback_max_age = feedback_max_age or max(0.05, 3 * tpdo_event_ms / 1000)
+        self.sdo = SdoClient.for_node(bus, node_id, timeout=sdo_timeout)
+        self._ctx: DeviceContext | None = None
+        self._port: NodePort | None = None
+        self._lock = anyio.Lock()
+        self._changed = anyio.Event()
+        self._statusword: int | None = None
+        self._position = 0
+        self._torque = 0
+        self._velocity = 0
+        self._mode_display: int | None = None
+        self._tpdo1_ns: int | None = None
+        self._tpdo2_ns: int | None = None
+        self._heartbeat_ns: int | None = None
+        self.nmt_state: co.NmtState | None = None
+        self._mode: Mode | None = None
+        self._controlword = 0
+        self._targets = {Mode.PROFILE_POSITION: 0, Mode.PROFILE_VELOCITY: 0, Mode.PROFILE_TORQUE: 0}
+        self._pending: _Setpoint | None = None
+        self._enabled_wanted = False
+        self._engaged = False
+        self._latched = False
+        self._needs_config = True
+        self.last_emcy: co.Emergency | None = None
+        self.emcy_count = 0
+        self.log = log.bind(node=node_id)
+
+    # -- units ----------------------------------------------------------------------------
+    def _cpr(self) -> float:
+        assert self.counts_per_rev is not None, "encoder resolution not known before open()"
+        return float(self.counts_per_rev)
+
+    def counts_to_rad(self, counts: float) -> float:
+        return counts * math.tau / self._cpr()
+
+    def rad_to_counts(self, rad: float) -> int:
+        return round(rad * self._cpr() / math.tau)
+
+    def _torque_nm(self, permille: float) -> float:
+        assert self.rated_torque is not None
+        return permille / 1000 * self.rated_torque
+
+    def _torque_permille(self, nm: float) -> int:
+        assert self.rated_torque is not None
+        return round(nm / self.rated_torque * 1000)
+
+    @property
+    def statusword(self) -> int | None:
+        """The latest statusword received (TPDO1 or SDO)."""
+        return self._statusword
+
+    @property
+    def power_state(self) -> ds.PowerState | None:
+        return ds.state_from_statusword(self._statusword) if self._statusword is not None else None
+
+    @property
+    def malformed_frames(self) -> int:
+        return (self._port.malformed if self._port is not None else 0) + self.sdo.malformed
+
+    # -- lifecycle ------------------------------------------------------------------------
+    async def open(self, ctx: DeviceContext) -> None:
+        self._ctx = ctx
+        self.log = self.log.bind(component=ctx.name)
+        n = self.node_id
+        ids = (co.EMCY_BASE + n, co.TPDO_BASES[0] + n, co.TPDO_BASES[1] + n, co.HEARTBEAT_BASE + n)
+        self._port = self.bus.attach(ids, name=ctx.name, on_bus_error=self._on_bus_error)
+        ctx.start_soon(self._receive, self._port)
+        ctx.start_soon(self._watchdog)
+        await self._configure()
+
+    async def init(self) -> None:
+        self._latched = False
+        await self._enable()
+        self._heartbeat_ns = self._now()
+        self._engaged = True
+
+    async def reset(self) -> None:
+        # Not engaged while resetting: nothing the drive says now is a new fault.
+        self._engaged = False
+        self._latched = False
+        self._pending = None
+        await self.bus.wait_up(self.state_timeout)
+        # The node answers (an SDO timeout here means it is still gone).
+        self._set_statusword(
+            await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout), self._now()
+        )
+        if self._needs_config or self.nmt_state is not co.NmtState.OPERATIONAL:
+            await self._configure()
+        await self._enable()
+        # The node just answered: the heartbeat consumer counts from now.
+        self._heartbeat_ns = self._now()
+        self._engaged = True
+
+    async def close(self) -> None:
+        self._engaged = False
+        self._pending = None
+        try:
+            if self.bus.is_up and self._port is not None and self._statusword is not None:
+                with anyio.move_on_after(self.state_timeout):
+                    state = self.power_state
+                    if state in (PS.OPERATION_ENABLED, PS.SWITCHED_ON):
+                        await self._send_control(int(ds.Command.SHUTDOWN))
+        except Exception as exc:  # closing a broken link must not raise
+            self.log.debug("cia402_shutdown_not_sent", error=repr(exc))
+        finally:
+            if self._port is not None:
+                self._port.close()
+
+    async def _configure(self) -> None:
+        """NMT pre-operational, SDO configuration, PDO mapping, NMT start, first TPDO."""
+        n = self.node_id
+        sdo = self.sdo
+        timeout = self.sdo_timeout
+        await self._nmt(co.NmtCommand.ENTER_PRE_OPERATIONAL)
+        await sdo.write(
+            co.ObjectEntry(co.PRODUCER_HEARTBEAT_TIME, 0, co.DataType.UNSIGNED16),
+            self.heartbeat_ms,
+            timeout=timeout,
+        )
+        if self.counts_per_rev is None:
+            increments = await sdo.read(ds.POSITION_ENCODER_INCREMENTS, timeout=timeout)
+            revolutions = await sdo.read(ds.POSITION_ENCODER_MOTOR_REVOLUTIONS, timeout=timeout)
+            if increments < 1 or revolutions < 1:
+                raise HALError(
+                    f"CiA 402 node {n}: bad encoder resolution {increments}/{revolutions}"
+                )
+            self.counts_per_rev = round(increments / revolutions)
+        if self.rated_torque is None:
+            rated_mnm = await sdo.read(ds.MOTOR_RATED_TORQUE, timeout=timeout)
+            if rated_mnm < 1:
+                raise HALError(f"CiA 402 node {n}: rated torque 0x6076 is {rated_mnm} mNm")
+            self.rated_torque = rated_mnm / 1000
+        for number, entries in enumerate(_RPDO_MAP_ENTRIES, start=1):
+            await self._map_pdo(
+                co.RPDO_COMM_BASE + number - 1,
+                co.RPDO_MAPPING_BASE + number - 1,
+                co.rpdo_cob_id(number, n),
+                entries,
+                transmission=0xFF,
+            )
+        for number, tentries in enumerate((_TPDO1_MAP, _TPDO2_MAP), start=1):
+            comm = co.TPDO_COMM_BASE + number - 1
+            await self._map_pdo(
+                comm,
+                co.TPDO_MAPPING_BASE + number - 1,
+                co.tpdo_cob_id(number, n),
+                tentries,
+                transmission=1 if self.sync else 0xFF,
+                event_ms=0 if self.sync else self.tpdo_event_ms,
+            )
+        cpr = self._cpr()
+        if self.profile_velocity is not None:
+            await sdo.write(
+                ds.PROFILE_VELOCITY, round(self.profile_velocity * cpr / math.tau), timeout=timeout
+            )
+        if self.profile_acceleration is not None:
+            accel = round(self.profile_acceleration * cpr / math.tau)
+            await sdo.write(ds.PROFILE_ACCELERATION, accel, timeout=timeout)
+            await sdo.write(ds.PROFILE_DECELERATION, accel, timeout=timeout)
+        await sdo.write(ds.MODES_OF_OPERATION, int(Mode.PROFILE_POSITION), timeout=timeout)
+        self._mode = Mode.PROFILE_POSITION
+        started = self._now()
+        await self._nmt(co.NmtCommand.START)
+        self.nmt_state = co.NmtState.OPERATIONAL
+        # First feedback: TPDO1 (event-driven: sent at once) or, on SYNC, the next SYNC.
+        await self._wait_tpdo(
+            started, timeout=max(self.state_timeout, 3 * self.tpdo_event_ms / 1000)
+        )
+        self._needs_config = False
+
+    async def _map_pdo(
+        self,
+        comm: int,
+        mapping: int,
+        cob_id: int,
+        entries: tuple[co.PdoMapEntry, ...],
+        *,
+        transmission: int,
+        event_ms: int | None = None,
+    ) -> None:
+        sdo = self.sdo
+        timeout = self.sdo_timeout
+        u8, u16, u32 = co.DataType.UNSIGNED8, co.DataType.UNSIGNED16, co.DataType.UNSIGNED32
+        await sdo.write(
+            co.ObjectEntry(comm, 1, u32), cob_id | co.PDO_COB_ID_INVALID, timeout=timeout
+        )
+        await sdo.write(co.ObjectEntry(mapping, 0, u8), 0, timeout=timeout)
+        for sub, entry in enumerate(entries, start=1):
+            await sdo.write(co.ObjectEntry(mapping, sub, u32), entry.to_u32(), timeout=timeout)
+        await sdo.write(co.ObjectEntry(mapping, 0, u8), len(entries), timeout=timeout)
+        await sdo.write(co.ObjectEntry(comm, 2, u8), transmission, timeout=timeout)
+        if event_ms is not None:
+            await sdo.write(co.ObjectEntry(comm, 5, u16), event_ms, timeout=timeout)
+        await sdo.write(co.ObjectEntry(comm, 1, u32), cob_id, timeout=timeout)
+
+    async def _nmt(self, command: co.NmtCommand) -> None:
+        assert self._port is not None
+        cob_id, data = co.encode(co.NmtControl(command, self.node_id))
+        await self._port.send(cob_id, data)
+
+    async def _wait_tpdo(self, after_ns: int, timeout: float) -> None:  # noqa: ASYNC109
+        with anyio.move_on_after(timeout):
+            while self._tpdo1_ns is None or self._tpdo1_ns < after_ns:
+                await self._changed.wait()
+            return
+        raise TimeoutError(f"CiA 402 node {self.node_id}: no TPDO1 within {timeout * 1000:.0f} ms")
+
+    # -- power state machine ---------------------------------------------------------------
+    async def _current_state(self) -> ds.PowerState:
+        if self._statusword is None:
+            self._set_statusword(
+                await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout), self._now()
+            )
+        state = self.power_state
+        assert state is not None
+        return state
+
+    async def _drive_to(self, target: ds.PowerState) -> None:
+        """Walk the power state machine to ``target``, one confirmed transition at a time."""
+        for _ in range(12):
+            state = await self._current_state()
+            if state is target:
+                return
+            if state is PS.FAULT:
+                self.log.warning(
+                    "cia402_fault_reset",
+                    emcy=_emcy_name(self.last_emcy.error_code) if self.last_emcy else None,
+                )
+            word = ds.next_controlword(state, target, previous_controlword=self._controlword)
+
+            def left(sw: int, state: ds.PowerState = state) -> bool:
+                return ds.state_from_statusword(sw) is not state
+
+            if word is None:  # the drive is changing state by itself
+                await self._wait_status(left, "leave " + state.name)
+                continue
+            expected = ds.apply_controlword(state, word, previous_controlword=self._controlword)
+            await self._send_control(word)
+            if expected is not state:
+                await self._wait_status(left, f"{state.name} -> {expected.name}")
+        raise HALError(
+            f"CiA 402 node {self.node_id}: could not reach {target.name} (in {self.power_state})"
+        )
+
+    async def _enable(self) -> None:
+        self._enabled_wanted = False
+        self._targets[Mode.PROFILE_POSITION] = self._position
+        self._targets[Mode.PROFILE_VELOCITY] = 0
+        self._targets[Mode.PROFILE_TORQUE] = 0
+        await self._drive_to(PS.OPERATION_ENABLED)
+        self._enabled_wanted = True
+
+    async def _send_control(self, controlword: int) -> None:
+        """The controlword in the RPDO of the current mode, with that mode's target."""
+        mode = self._mode or Mode.PROFILE_POSITION
+        await self._send_rpdo(mode, controlword, self._targets[mode])
+
+    async def _send_rpdo(self, mode: Mode, controlword: int, target: int) -> None:
+        assert self._port is not None
+        number = _RPDO_OF_MODE[mode]
+        try:
+            data = co.pack_pdo(_RPDO_MAP_ENTRIES[number], (controlword, target))
+        except ValueError as exc:
+            raise BadParameterError(
+                "value", target, f"a target that fits {RPDO_MAPS[number][1].data_type.name}"
+            ) from exc
+        self._controlword = controlword
+        await self._port.send(co.RPDO_BASES[number] + self.node_id, data)
+
+    async def _wait_status(self, predicate: Callable[[int], bool], what: str) -> int:
+        with anyio.move_on_after(self.state_timeout):
+            while True:
+                if self._latched:
+                    raise _FaultedError(what)
+                sw = self._statusword
+                if sw is not None and predicate(sw):
+                    return sw
+                await self._changed.wait()
+        raise TimeoutError(
+            f"CiA 402 node {self.node_id}: no statusword for {what} within {self.state_timeout * 1000:.0f} ms"
+            + (f" (statusword {self._statusword:#06x})" if self._statusword is not None else "")
+        )
+
+    async def _set_mode(self, mode: Mode) -> None:
+        if mode is self._mode:
+            return
+        self._mode = None
+        await self.sdo.write(ds.MODES_OF_OPERATION, int(mode), timeout=self.sdo_timeout)
+        display = await self.sdo.read(ds.MODES_OF_OPERATION_DISPLAY, timeout=self.sdo_timeout)
+        if display != mode:
+            raise HALError(
+                f"CiA 402 node {self.node_id}: mode display {display} after selecting {mode.name}"
+            )
+        self._mode = mode
+        self._mode_display = display
+
+    # -- commands -------------------------------------------------------------------------
+    async def command(self, request: Request, value: float) -> None:
+        try:
+            await self._command(request, value)
+        except _FaultedError:
+            # The drive faulted meanwhile: the component is in Error already and the
+            # Actuator fails the new Motion with that fault.
+            self.log.debug("cia402_command_interrupted_by_fault")
+
+    async def _command(self, request: Request, value: float) -> None:
+        async with self._lock:
+            self._pending = None  # reports of the previous set-point stop here
+            if request is Request.NO_EXCITE:
+                self._enabled_wanted = False
+                if self.power_state is PS.OPERATION_ENABLED:
+                    await self._drive_to(PS.SWITCHED_ON)
+                return
+            if not self._enabled_wanted or self.power_state is not PS.OPERATION_ENABLED:
+                await self._enable()
+            mode = _MODE_OF_REQUEST[request]
+            if mode is not self._mode:
+                await self._set_mode(mode)
+                self._targets[Mode.PROFILE_VELOCITY] = self._targets[Mode.PROFILE_TORQUE] = 0
+                self._targets[Mode.PROFILE_POSITION] = self._position
+            if request is Request.POSITION:
+                await self._position_setpoint(self.rad_to_counts(value))
+            else:
+                raw = (
+                    self.rad_to_counts(value)
+                    if request is Request.VELOCITY
+                    else self._torque_permille(value)
+                )
+                self._targets[mode] = raw
+                await self._send_rpdo(mode, _ENABLE, raw)
+                # No handshake in pv/tq: the SDO answer comes after the RPDO was processed.
+                self._set_statusword(
+                    await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout), self._now()
+                )
+            setpoint = _Setpoint(request)
+            self._pending = setpoint  # armed right before returning (see ODriveAxis.command)
+            sw = self._statusword
+            if sw is not None and sw & SB.TARGET_REACHED and self._ctx is not None:
+                # Already there: report once the Actuator has installed the new Motion.
+                self._ctx.start_soon(self._report_later, setpoint)
+
+    async def _position_setpoint(self, counts: int) -> None:
+        mode = Mode.PROFILE_POSITION
+        base = _ENABLE | CB.CHANGE_SET_IMMEDIATELY
+        if self._controlword & CB.NEW_SETPOINT or (self._statusword or 0) & SB.SETPOINT_ACKNOWLEDGE:
+            await self._send_rpdo(mode, base, self._targets[mode])
+            await self._wait_status(
+                lambda sw: not sw & SB.SETPOINT_ACKNOWLEDGE, "set-point acknowledge low"
+            )
+        self._targets[mode] = counts
+        await self._send_rpdo(mode, base | CB.NEW_SETPOINT, counts)
+        await self._wait_status(
+            lambda sw: bool(sw & SB.SETPOINT_ACKNOWLEDGE), "set-point acknowledge"
+        )
+        await self._send_rpdo(mode, base, counts)
+
+    async def _report_later(self, setpoint: _Setpoint) -> None:
+        """Report a target already reached at command time, once the Motion exists."""
+        self._report(setpoint)
+
+    def _report(self, setpoint: _Setpoint) -> None:
+        if (
+            setpoint is self._pending
+            and not setpoint.reported
+            and self._engaged
+            and self._ctx is not None
+        ):
+            setpoint.reported = True
+            self._ctx.target_reached()
+
+    async def quick_stop(self) -> None:
+        """Controlword quick stop: the drive ramps down (next command re-enables it)."""
+        async with self._lock:
+            self._enabled_wanted = False
+            self._pending = None
+            await self._send_control(int(ds.Command.QUICK_STOP))
+
+    async def read(self, request: Request) -> float:
+        now = self._now()
+        max_age = round(self.feedback_max_age * 1e9)
+        fresh1 = self._tpdo1_ns is not None and now - self._tpdo1_ns <= max_age
+        if request is Request.POSITION_ACTUAL:
+            counts = (
+                self._position
+                if fresh1
+                else await self.sdo.read(ds.POSITION_ACTUAL_VALUE, timeout=self.sdo_timeout)
+            )
+            return self.counts_to_rad(counts)
+        if request is Request.VELOCITY_ACTUAL:
+            fresh2 = self._tpdo2_ns is not None and now - self._tpdo2_ns <= max_age
+            counts = (
+                self._velocity
+                if fresh2
+                else await self.sdo.read(ds.VELOCITY_ACTUAL_VALUE, timeout=self.sdo_timeout)
+            )
+            return self.counts_to_rad(counts)
+        if request is Request.TORQUE_ACTUAL:
+            permille = (
+                self._torque
+                if fresh1
+                else await self.sdo.read(ds.TORQUE_ACTUAL_VALUE, timeout=self.sdo_timeout)
+            )
+            return self._torque_nm(permille)
+        raise BadParameterError(
+            "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
+        )
+
+    # -- receive side -----------------------------------------------------------------------
+    def _now(self) -> int:
+        assert self._ctx is not None, "used before open()"
+        return self._ctx.clock.now_ns()
+
+    async def _receive(self, port: NodePort) -> None:
+        n = self.node_id
+        tpdo1, tpdo2 = co.TPDO_BASES[0] + n, co.TPDO_BASES[1] + n
+        emcy, heartbeat = co.EMCY_BASE + n, co.HEARTBEAT_BASE + n
+        async for batch in port:
+            now = self._now()
+            for frame in batch:
+                if frame.is_remote_frame:
+                    continue
+                try:
+                    arb = frame.arbitration_id
+                    if arb == tpdo1:
+                        self._on_tpdo1(frame, now)
+                    elif arb == tpdo2:
+                        values = co.unpack_pdo(_TPDO2_MAP, frame.data)
+                        self._velocity, self._mode_display = values
+                        self._tpdo2_ns = now
+                    elif arb == emcy:
+                        self._on_emcy(frame)
+                    elif arb == heartbeat:
+                        self._on_heartbeat(frame, now)
+                except DecodeError:
+                    port.malformed += 1
+            changed, self._changed = self._changed, anyio.Event()
+            changed.set()
+
+    def _on_tpdo1(self, frame: can.Message, now: int) -> None:
+        statusword, position, torque = co.unpack_pdo(_TPDO1_MAP, frame.data)
+        ds.state_from_statusword(statusword)  # a statusword matching no state is malformed
+        self._position, self._torque = position, torque
+        self._tpdo1_ns = now
+        self._set_statusword(statusword, now)
+
+    def _set_statusword(self, statusword: int, now: int) -> None:
+        state = ds.state_from_statusword(statusword)
+        self._statusword = statusword
+        if not self._engaged or self._latched:
+            return
+        if state in (PS.FAULT, PS.FAULT_REACTION_ACTIVE):
+            emcy = self.last_emcy
+            detail = f", EMCY {_emcy_name(emcy.error_code)}" if emcy and emcy.error_code else ""
+            self._fault(
+                ErrorId.DEVICE_ERROR, f"CiA 402 node {self.node_id} in {state.name}{detail}"
+            )
+            return
+        if self._enabled_wanted and state is not PS.OPERATION_ENABLED:
+            self._fault(
+                ErrorId.DEVICE_ERROR,
+                f"CiA 402 node {self.node_id} left Operation enabled ({state.name})",
+            )
+            return
+        setpoint = self._pending
+        if setpoint is not None and statusword & SB.TARGET_REACHED:
+            self._report(setpoint)
+
+    def _on_emcy(self, frame: can.Message) -> None:
+        msg = co.decode(frame.arbitration_id, frame.data)
+        assert isinstance(msg, co.Emergency)
+        self.last_emcy = msg
+        if msg.error_code == co.EmcyCode.NO_ERROR:
+            self.log.info("cia402_emcy_reset")
+            return
+        self.emcy_count += 1
+        self.log.warning(
+            "cia402_emcy", code=_emcy_name(msg.error_code), register=f"{msg.error_register:#04x}"
+        )
+        if self._ctx is not None:
+            self._ctx.post_error(ErrorId.DEVICE_ERROR)
+
+    def _on_heartbeat(self, frame: can.Message, now: int) -> None:
+        msg = co.decode(frame.arbitration_id, frame.data)
+        assert isinstance(msg, co.Heartbeat)
+        self._heartbeat_ns = now
+        previous, self.nmt_state = self.nmt_state, msg.state
+        if msg.state is co.NmtState.BOOT_UP:
+            self._needs_config = True
+            self._fault(
+                ErrorId.DEVICE_ERROR, f"CiA 402 node {self.node_id} rebooted (boot-up message)"
+            )
+        elif msg.state is not co.NmtState.OPERATIONAL and previous is co.NmtState.OPERATIONAL:
+            self._fault(
+                ErrorId.DEVICE_ERROR,
+                f"CiA 402 node {self.node_id} left NMT Operational ({msg.state.name})",
+            )
+
+    # -- faults ---------------------------------------------------------------------------
+    def _fault(
+        self, error_id: ErrorId, reason: str, code: ReturnCode = ReturnCode.HAL_ERROR
+    ) -> None:
+        if self._latched or not self._engaged or self._ctx is None:
+            return
+        self._latched = True
+        self._pending = None
+        self._enabled_wanted = False
+        self._ctx.fault(error_id, reason, code)
+
+    def _on_bus_error(self, reason: str) -> None:
+        self._fault(ErrorId.BUS_ERROR, f"CAN bus error: {reason}", ReturnCode.HAL_NO_CONNECTED)
+
+    async def _watchdog(self) -> None:
+        """Heartbeat consumer: no heartbeat for ``heartbeat_timeout`` while engaged."""
+        assert self._ctx is not None
+        clock = self._ctx.clock
+        timeout_ns = round(self.heartbeat_timeout * 1e9)
+        while True:
+            last = self._heartbeat_ns
+            now = clock.now_ns()
+            if self._engaged and last is not None and now - last >= timeout_ns:
+                self._fault(
+                    ErrorId.DISCONNECTED,
+                    f"CiA 402 node {self.node_id}: no heartbeat for {(now - last) / 1e6:.0f} ms",
+                    ReturnCode.HAL_NO_CONNECTED,
+                )
+                last = now
+            deadline = (last if last is not None else now) + timeout_ns
+            await clock.sleep_until(max(deadline, now + timeout_ns // 4))
+
+
+class Cia402Temperature(SensorDevice):
+    """A drive temperature read by SDO (default: manufacturer object 0x2022, 0.1 °C), in K."""
+
+    info = DeviceInfo(DeviceKind.TEMPERATURE, CIA402_VENDOR_ID, 0x0408, "CiA402", "CanTemperature")
+    units = ("K",)
+
+    def __init__(
+        self,
+        bus: CanBus,
+        node_id: int,
+        *,
+        entry: co.ObjectEntry = co.ObjectEntry(0x2022, 0, co.DataType.INTEGER16),  # noqa: B008
+        celsius_per_unit: float = 0.1,
+        sdo_timeout: float = 0.1,
+    ) -> None:
+        if not isinstance(bus, CanBus):
+            raise BadParameterError("bus", bus, "an openel_can.CanBus")
+        _check_node(node_id)
+        _positive("celsius_per_unit", celsius_per_unit, optional=False)
+        _positive("sdo_timeout", sdo_timeout, optional=False)
+        self.bus = bus
+        self.node_id = node_id
+        self.entry = entry
+        self.celsius_per_unit = celsius_per_unit
+        self.sdo_timeout = sdo_timeout
+        self.sdo = SdoClient.for_node(bus, node_id, timeout=sdo_timeout)
+        self._ctx: DeviceContext | None = None
+        self._port: NodePort | None = None
+        self._latched = False
+
+    async def open(self, ctx: DeviceContext) -> None:
+        self._ctx = ctx
+        # A port without ids: only to hear about bus failures.
+        self._port = self.bus.attach((), name=ctx.name, on_bus_error=self._on_bus_error)
+        await self.read()
+
+    async def init(self) -> None:
+        self._latched = False
+
+    async def reset(self) -> None:
+        await self.bus.wait_up(1.0)
+        await self.read()
+        self._latched = False
+
+    async def close(self) -> None:
+        if self._port is not None:
+            self._port.close()
+
+    def _on_bus_error(self, reason: str) -> None:
+        if not self._latched and self._ctx is not None:
+            self._latched = True
+            self._ctx.fault(
+                ErrorId.BUS_ERROR, f"CAN bus error: {reason}", ReturnCode.HAL_NO_CONNECTED
+            )
+
+    async def read(self) -> Reading:
+        raw = await self.sdo.read(self.entry, timeout=self.sdo_timeout)
+        assert self._ctx is not None
+        return Reading((raw * self.celsius_per_unit + 273.15,), self._ctx.clock.now_ns())

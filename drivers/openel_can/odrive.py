@@ -1,0 +1,857 @@
+"""ODrive axes over CANSimple (firmware 0.6.x): an actuator and three sensors.
+
+Units: ODrive speaks turns, turns/s and Nm; the API speaks SI. Positions and
+velocities are converted with exactly ``rad = turns * 2π`` (``math.tau``) both ways;
+torques are Nm on both sides; temperatures are converted from °C to K.
+
+:class:`ODriveAxis` (an :class:`~openel_async.device.ActuatorDevice`):
+
+* ``init``: waits for a heartbeat without axis error, requests CLOSED_LOOP_CONTROL
+  (Set_Axis_State) and waits until the heartbeat shows it, then selects POSITION
+  control. ``close``: IDLE. ``reset`` (``re_init``): Clear_Errors, then as ``init``.
+* ``command``: Set_Controller_Mode when the control or input mode changes, then
+  Set_Input_Pos / Set_Input_Vel / Set_Input_Torque; NO_EXCITE requests IDLE (the next
+  motion command re-engages closed loop first).
+* completion (``reports_completion``): POSITION in TRAP_TRAJ mode completes on the
+  heartbeat's trajectory-done flag, but a done flag is ignored until the ODrive has
+  acknowledged the new setpoint: the flag went false since the command, or this is
+  the second heartbeat after it (the first may have left the ODrive before it read the
+  command). Other modes complete when the feedback (encoder estimates, torque
+  estimate) stays within tolerance for ``settle_samples`` consecutive samples.
+* feedback: the cyclic Get_Encoder_Estimates (default every 10 ms) is cached with its
+  receive time; a value older than 3 periods is polled with a remote frame instead.
+  Torque: Get_Torques, or Get_Iq × ``torque_constant`` when one is given.
+* faults: a heartbeat with an axis error that disarmed the axis (or Get_Error with a
+  disarm reason) faults the component (``ErrorId.DEVICE_ERROR``); an error that leaves
+  the axis in closed loop is posted with ``post_error``. No heartbeat for
+  ``heartbeat_timeout`` (default 3 × 100 ms) faults ``ErrorId.DISCONNECTED``; a bus
+  failure faults ``ErrorId.BUS_ERROR``. One fault is reported per episode (latched
+  until ``reset``). :meth:`ODriveAxis.estop` sends Estop.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from enum import IntFlag
+from typing import Final, TypeVar
+
+import anyio
+import structlog
+
+from openel_async.device import (
+    ActuatorDevice,
+    ActuatorLimits,
+    DeviceContext,
+    DeviceInfo,
+    ErrorId,
+    Reading,
+    SensorDevice,
+)
+from openel_async.errors import BadParameterError, HALError, NotConnectedError, ReturnCode
+from openel_async.ids import DeviceKind
+from openel_async.requests import Request
+
+from . import cansimple as cs
+from .bus import CanBus, NodePort
+from .errors import DecodeError
+
+__all__ = [
+    "ODriveAxis",
+    "ODriveBusMonitor",
+    "ODriveEncoder",
+    "ODriveError",
+    "ODriveTemperature",
+    "rad_to_turns",
+    "turns_to_rad",
+]
+
+log = structlog.get_logger(__name__)
+
+TAU: Final = math.tau
+KELVIN_OFFSET: Final = 273.15
+ODRIVE_VENDOR_ID: Final = 0x0D21
+_M = TypeVar("_M", bound=cs.CanSimpleMessage)
+
+
+def turns_to_rad(turns: float) -> float:
+    return turns * TAU
+
+
+def rad_to_turns(rad: float) -> float:
+    return rad / TAU
+
+
+class ODriveError(IntFlag):
+    """ODrive 0.6 ``ODriveError`` bits (heartbeat Axis_Error, Get_Error fields)."""
+
+    INITIALIZING = 0x1
+    SYSTEM_LEVEL = 0x2
+    TIMING_ERROR = 0x4
+    MISSING_ESTIMATE = 0x8
+    BAD_CONFIG = 0x10
+    DRV_FAULT = 0x20
+    MISSING_INPUT = 0x40
+    DC_BUS_OVER_VOLTAGE = 0x100
+    DC_BUS_UNDER_VOLTAGE = 0x200
+    DC_BUS_OVER_CURRENT = 0x400
+    DC_BUS_OVER_REGEN_CURRENT = 0x800
+    CURRENT_LIMIT_VIOLATION = 0x1000
+    MOTOR_OVER_TEMP = 0x2000
+    INVERTER_OVER_TEMP = 0x4000
+    VELOCITY_LIMIT_VIOLATION = 0x8000
+    POSITION_LIMIT_VIOLATION = 0x10000
+    WATCHDOG_TIMER_EXPIRED = 0x1000000
+    ESTOP_REQUESTED = 0x2000000
+    SPINOUT_DETECTED = 0x4000000
+    BRAKE_RESISTOR_DISARMED = 0x8000000
+    THERMISTOR_DISCONNECTED = 0x10000000
+    CALIBRATION_ERROR = 0x40000000
+
+
+def error_names(bits: int) -> str:
+    """``'ESTOP_REQUESTED|...'`` for known bits, hex for the rest."""
+    names = [flag.name for flag in ODriveError if bits & flag and flag.name]
+    unknown = bits & ~sum(ODriveError)
+    if unknown:
+        names.append(f"{unknown:#x}")
+    return "|".join(names) or "none"
+
+
+def _check_node(node_id: int) -> None:
+    if (
+        isinstance(node_id, bool)
+        or not isinstance(node_id, int)
+        or not 0 <= node_id < cs.MAX_NODE_ID
+    ):
+        raise BadParameterError("node_id", node_id, f"an ODrive node id in 0..{cs.MAX_NODE_ID - 1}")
+
+
+def _check_seconds(name: str, value: float) -> None:
+    if not (math.isfinite(value) and value > 0):
+        raise BadParameterError(name, value, "a finite number of seconds > 0")
+
+
+class _Link:
+    """The frames of one ODrive node: latest message per command, with RTR polling."""
+
+    def __init__(
+        self,
+        bus: CanBus,
+        node_id: int,
+        cmds: Iterable[cs.CmdId],
+        *,
+        request_timeout: float,
+    ) -> None:
+        self.bus = bus
+        self.node_id = node_id
+        self.cmds = frozenset(cmds)
+        self.request_timeout = request_timeout
+        self.latest: dict[cs.CmdId, tuple[int, cs.CanSimpleMessage]] = {}
+        self.port: NodePort | None = None
+        self.ctx: DeviceContext | None = None
+        self.on_message: Callable[[cs.CanSimpleMessage, int], None] | None = None
+        self._changed = anyio.Event()
+
+    def open(self, ctx: DeviceContext, on_bus_error: Callable[[str], None]) -> None:
+        self.ctx = ctx
+        ids = [cs.arbitration_id(self.node_id, cmd) for cmd in self.cmds]
+        self.port = self.bus.attach(ids, name=ctx.name, on_bus_error=on_bus_error)
+        ctx.start_soon(self._run, self.port)
+
+    def close(self) -> None:
+        if self.port is not None:
+            self.port.close()
+
+    @property
+    def malformed(self) -> int:
+        return self.port.malformed if self.port is not None else 0
+
+    def now(self) -> int:
+        assert self.ctx is not None, "used before open()"
+        return self.ctx.clock.now_ns()
+
+    async def _run(self, port: NodePort) -> None:
+        decode = cs.decode
+        latest = self.latest
+        async for batch in port:
+            now = self.now()
+            for frame in batch:
+                if frame.is_remote_frame:
+                    continue  # another host polling this node
+                try:
+                    msg = decode(frame.arbitration_id, frame.data, from_host=False)
+                except DecodeError:
+                    port.malformed += 1
+                    continue
+                latest[msg.cmd] = (now, msg)
+                if self.on_message is not None:
+                    self.on_message(msg, now)
+            changed, self._changed = self._changed, anyio.Event()
+            changed.set()
+
+    async def send(self, msg: cs.CanSimpleMessage) -> None:
+        assert self.port is not None, "used before open()"
+        arb_id, data = cs.encode(msg)
+        await self.port.send(arb_id, data, remote=isinstance(msg, cs.Request))
+
+    async def request(self, cmd: cs.CmdId, kind: type[_M]) -> tuple[int, _M]:
+        """Poll ``cmd`` with a remote frame; the first reply received after the request."""
+        asked = self.now()
+        await self.send(cs.Request(self.node_id, cmd))
+        return await self.wait_for(cmd, kind, after_ns=asked, timeout=self.request_timeout)
+
+    async def fresh(self, cmd: cs.CmdId, kind: type[_M], max_age_ns: int) -> tuple[int, _M]:
+        """The cached message when younger than ``max_age_ns``, else a polled one."""
+        cached = self.latest.get(cmd)
+        if cached is not None and self.now() - cached[0] <= max_age_ns:
+            stamp, msg = cached
+            assert isinstance(msg, kind)
+            return stamp, msg
+        return await self.request(cmd, kind)
+
+    async def wait_for(
+        self,
+        cmd: cs.CmdId,
+        kind: type[_M],
+        *,
+        after_ns: int,
+        timeout: float,  # noqa: ASYNC109 - a bound, by contract
+        predicate: Callable[[_M], bool] | None = None,
+    ) -> tuple[int, _M]:
+        """Wait (bounded) for a ``cmd`` message received after ``after_ns`` matching ``predicate``."""
+        with anyio.move_on_after(timeout):
+            while True:
+                cached = self.latest.get(cmd)
+                if cached is not None and cached[0] >= after_ns:
+                    stamp, msg = cached
+                    assert isinstance(msg, kind)
+                    if predicate is None or predicate(msg):
+                        return stamp, msg
+                await self._changed.wait()
+        raise TimeoutError(
+            f"ODrive node {self.node_id}: no {cmd.name} reply within {timeout * 1000:.0f} ms"
+        )
+
+
+@dataclass
+class _Setpoint:
+    request: Request
+    target: float
+    heartbeat_mark: int
+    trap: bool
+    acked: bool = False
+    within: int = 0
+    reported: bool = False
+
+
+_TO_HOST: Final = (
+    cs.CmdId.HEARTBEAT,
+    cs.CmdId.GET_ERROR,
+    cs.CmdId.GET_ENCODER_ESTIMATES,
+    cs.CmdId.GET_IQ,
+    cs.CmdId.GET_TEMPERATURE,
+    cs.CmdId.GET_BUS_VOLTAGE_CURRENT,
+    cs.CmdId.GET_TORQUES,
+)
+
+
+class ODriveAxis(ActuatorDevice):
+    """One ODrive axis on a CAN bus (CANSimple); see the module docstring."""
+
+    info = DeviceInfo(
+        kind=DeviceKind.MOTOR,
+        vendor_id=ODRIVE_VENDOR_ID,
+        product_id=0x0006,
+        vendor_name="ODrive",
+        product_name="CanAxis",
+        functions=("estop", "clear_errors"),
+    )
+    reports_completion = True
+
+    def __init__(
+        self,
+        bus: CanBus,
+        node_id: int,
+        *,
+        limits: ActuatorLimits | None = None,
+        position_input_mode: cs.InputMode = cs.InputMode.TRAP_TRAJ,
+        velocity_input_mode: cs.InputMode = cs.InputMode.VEL_RAMP,
+        torque_input_mode: cs.InputMode = cs.InputMode.PASSTHROUGH,
+        heartbeat_period: float = 0.1,
+        heartbeat_timeout: float | None = None,
+        encoder_period: float = 0.01,
+        torque_constant: float | None = None,
+        request_timeout: float = 0.05,
+        engage_timeout: float = 1.0,
+        velocity_limit: float | None = None,
+        current_limit: float | None = None,
+        traj_velocity: float | None = None,
+        traj_acceleration: float | None = None,
+        position_tolerance: float = 2e-3,
+        velocity_tolerance: float = 0.05,
+        torque_tolerance: float = 0.01,
+        settle_samples: int = 2,
+    ) -> None:
+        if not isinstance(bus, CanBus):
+            raise BadParameterError("bus", bus, "an openel_can.CanBus")
+        _check_node(node_id)
+        for name, seconds in (
+            ("heartbeat_period", heartbeat_period),
+            ("encoder_period", encoder_period),
+            ("request_timeout", request_timeout),
+            ("engage_timeout", engage_timeout),
+        ):
+            _check_seconds(name, seconds)
+        if heartbeat_timeout is not None:
+            _check_seconds("heartbeat_timeout", heartbeat_timeout)
+        for name, optional in (
+            ("torque_constant", torque_constant),
+            ("velocity_limit", velocity_limit),
+            ("current_limit", current_limit),
+            ("traj_velocity", traj_velocity),
+            ("traj_acceleration", traj_acceleration),
+        ):
+            if optional is not None and not (math.isfinite(optional) and optional > 0):
+                raise BadParameterError(name, optional, "None or a finite value > 0")
+        for name, tol in (
+            ("position_tolerance", position_tolerance),
+            ("velocity_tolerance", velocity_tolerance),
+            ("torque_tolerance", torque_tolerance),
+        ):
+            if not (math.isfinite(tol) and tol > 0):
+                raise BadParameterError(name, tol, "a finite value > 0")
+        if (
+            isinstance(settle_samples, bool)
+            or not isinstance(settle_samples, int)
+            or settle_samples < 1
+        ):
+            raise BadParameterError("settle_samples", settle_samples, "an int >= 1")
+        self.bus = bus
+        self.node_id = node_id
+        if limits is not None:
+            self.limits = limits
+        self.input_modes = {
+            Request.POSITION: cs.InputMode(position_input_mode),
+            Request.VELOCITY: cs.InputMode(velocity_input_mode),
+            Request.TORQUE: cs.InputMode(torque_input_mode),
+        }
+        self.heartbeat_period = heartbeat_period
+        self.heartbeat_timeout = heartbeat_timeout or 3 * heartbeat_period
+        self.encoder_period = encoder_period
+        self.torque_constant = torque_constant
+        self.engage_timeout = engage_timeout
+        self.velocity_limit = velocity_limit
+        self.current_limit = current_limit
+        self.traj_velocity = traj_velocity
+        self.traj_acceleration = traj_acceleration
+        self.tolerance = {
+            Request.POSITION: position_tolerance,
+            Request.VELOCITY: velocity_tolerance,
+            Request.TORQUE: torque_tolerance,
+        }
+        self.settle_samples = settle_samples
+        self._link = _Link(bus, node_id, _TO_HOST, request_timeout=request_timeout)
+        self._link.on_message = self._on_message
+        self._ctx: DeviceContext | None = None
+        self._lock = anyio.Lock()
+        self._heartbeats = 0
+        self._heartbeat_ns: int | None = None
+        self._controller_mode: tuple[cs.ControlMode, cs.InputMode] | None = None
+        self._closed_loop_wanted = False
+        self._engaged = False
+        self._latched = False
+        self._pending: _Setpoint | None = None
+        self._posted_error = 0
+        self._querying_error = False
+        self.velocity_feedforward = 0.0
+        """rad/s sent with every Set_Input_Pos (see :meth:`set_feedforward`)."""
+        self.torque_feedforward = 0.0
+        """Nm sent with every Set_Input_Pos and Set_Input_Vel."""
+        self.last_heartbeat: cs.Heartbeat | None = None
+        self.last_error_status: cs.ErrorStatus | None = None
+        self.log = log.bind(node=node_id)
+
+    @property
+    def malformed_frames(self) -> int:
+        """Frames of this node that could not be decoded (counted and dropped)."""
+        return self._link.malformed
+
+    # -- lifecycle ------------------------------------------------------------------------
+    async def open(self, ctx: DeviceContext) -> None:
+        self._ctx = ctx
+        self.log = self.log.bind(component=ctx.name)
+        self._link.open(ctx, self._on_bus_error)
+        ctx.start_soon(self._watchdog)
+        # A node is there when it sends heartbeats (poll one in case its rate is slow).
+        await self._fresh_heartbeat(timeout=max(self.engage_timeout, self.heartbeat_timeout))
+
+    async def init(self) -> None:
+        heartbeat = await self._fresh_heartbeat(timeout=self.heartbeat_timeout)
+        if heartbeat.axis_error:
+            raise HALError(
+                f"ODrive node {self.node_id} reports axis error {heartbeat.axis_error:#x} "
+                f"({error_names(heartbeat.axis_error)}); clear it before init"
+            )
+        await self._configure()
+        await self._engage()
+        self._latched = False
+        self._engaged = True
+
+    async def reset(self) -> None:
+        # Not engaged while resetting: nothing the ODrive says now is a new fault.
+        self._engaged = False
+        self._latched = False
+        self._pending = None
+        await self.bus.wait_up(self.engage_timeout)
+        asked = self._link.now()
+        await self._link.send(cs.ClearErrors(self.node_id))
+        await self._link.send(cs.Request(self.node_id, cs.CmdId.HEARTBEAT))
+        try:
+            await self._link.wait_for(
+                cs.CmdId.HEARTBEAT,
+                cs.Heartbeat,
+                after_ns=asked,
+                timeout=self.engage_timeout,
+                predicate=lambda hb: hb.axis_error == 0,
+            )
+        except TimeoutError:
+            latest = self._link.latest.get(cs.CmdId.HEARTBEAT)
+            if latest is None or latest[0] < asked:
+                raise NotConnectedError(
+                    f"ODrive node {self.node_id}: no heartbeat within {self.engage_timeout} s"
+                ) from None
+            hb = latest[1]
+            assert isinstance(hb, cs.Heartbeat)
+            raise HALError(
+                f"ODrive node {self.node_id}: Clear_Errors did not clear axis error "
+                f"{hb.axis_error:#x} ({error_names(hb.axis_error)})"
+            ) from None
+        self._closed_loop_wanted = False
+        self._posted_error = 0
+        self._controller_mode = None
+        await self._configure()
+        await self._engage()
+        self._latched = False
+        self._engaged = True
+
+    async def close(self) -> None:
+        self._engaged = False
+        self._pending = None
+        try:
+            if self.bus.is_up and self._link.port is not None:
+                with anyio.move_on_after(self.engage_timeout):
+                    await self._link.send(cs.SetAxisState(self.node_id, cs.AxisState.IDLE))
+        except Exception as exc:  # closing a broken link must not raise
+            self.log.debug("odrive_idle_not_sent", error=repr(exc))
+        finally:
+            self._link.close()
+
+    async def _configure(self) -> None:
+        node = self.node_id
+        if self.velocity_limit is not None or self.current_limit is not None:
+            vel = rad_to_turns(self.velocity_limit) if self.velocity_limit is not None else math.inf
+            await self._link.send(cs.SetLimits(node, vel, self.current_limit or math.inf))
+        if self.traj_velocity is not None:
+            await self._link.send(cs.SetTrajVelLimit(node, rad_to_turns(self.traj_velocity)))
+        if self.traj_acceleration is not None:
+            accel = rad_to_turns(self.traj_acceleration)
+            await self._link.send(cs.SetTrajAccelLimits(node, accel, accel))
+
+    async def _engage(self) -> None:
+        """Closed loop, confirmed by a heartbeat (polled every 20 ms), then POSITION mode.
+
+        ``_closed_loop_wanted`` is set only once confirmed: heartbeats still showing IDLE
+        while the ODrive switches must not look like a drop out of closed loop.
+        """
+        link = self._link
+        await link.send(cs.SetAxisState(self.node_id, cs.AxisState.CLOSED_LOOP_CONTROL))
+
+        def settled(hb: cs.Heartbeat) -> bool:
+            return hb.axis_state is cs.AxisState.CLOSED_LOOP_CONTROL or hb.axis_error != 0
+
+        hb: cs.Heartbeat | None = None
+        with anyio.move_on_after(self.engage_timeout):
+            while hb is None:
+                polled = link.now()
+                await link.send(cs.Request(self.node_id, cs.CmdId.HEARTBEAT))
+                try:
+                    _, hb = await link.wait_for(
+                        cs.CmdId.HEARTBEAT,
+                        cs.Heartbeat,
+                        after_ns=polled,
+                        timeout=0.02,
+                        predicate=settled,
+                    )
+                except TimeoutError:
+                    continue
+        if hb is None:
+            last = self.last_heartbeat
+            state = last.axis_state.name if last else "no heartbeat"
+            raise TimeoutError(
+                f"ODrive node {self.node_id} not in CLOSED_LOOP_CONTROL after "
+                f"{self.engage_timeout} s ({state})"
+            )
+        if hb.axis_state is not cs.AxisState.CLOSED_LOOP_CONTROL:
+            raise HALError(
+                f"ODrive node {self.node_id} refused closed loop: axis error "
+                f"{hb.axis_error:#x} ({error_names(hb.axis_error)})"
+            )
+        self._closed_loop_wanted = True
+        if self._controller_mode is None:
+            await self._set_mode(Request.POSITION)
+
+    async def _set_mode(self, request: Request) -> None:
+        control = {
+            Request.POSITION: cs.ControlMode.POSITION,
+            Request.VELOCITY: cs.ControlMode.VELOCITY,
+            Request.TORQUE: cs.ControlMode.TORQUE,
+        }[request]
+        wanted = (control, self.input_modes[request])
+        if wanted != self._controller_mode:
+            self._controller_mode = None
+            await self._link.send(cs.SetControllerMode(self.node_id, *wanted))
+            self._controller_mode = wanted
+
+    async def _fresh_heartbeat(self, timeout: float) -> cs.Heartbeat:  # noqa: ASYNC109
+        asked = self._link.now()
+        await self._link.send(cs.Request(self.node_id, cs.CmdId.HEARTBEAT))
+        try:
+            _, hb = await self._link.wait_for(
+                cs.CmdId.HEARTBEAT, cs.Heartbeat, after_ns=asked, timeout=timeout
+            )
+        except TimeoutError:
+            raise NotConnectedError(
+                f"ODrive node {self.node_id}: no heartbeat within {timeout * 1000:.0f} ms"
+            ) from None
+        return hb
+
+    # -- commands -------------------------------------------------------------------------
+    async def command(self, request: Request, value: float) -> None:
+        async with self._lock:
+            node = self.node_id
+            if request is Request.NO_EXCITE:
+                self._pending = None
+                self._closed_loop_wanted = False
+                await self._link.send(cs.SetAxisState(node, cs.AxisState.IDLE))
+                return
+            if not self._closed_loop_wanted:
+                await self._engage()
+            await self._set_mode(request)
+            if request is Request.POSITION:
+                await self._link.send(
+                    cs.SetInputPos(
+                        node,
+                        rad_to_turns(value),
+                        rad_to_turns(self.velocity_feedforward),
+                        self.torque_feedforward,
+                    )
+                )
+            elif request is Request.VELOCITY:
+                await self._link.send(
+                    cs.SetInputVel(node, rad_to_turns(value), self.torque_feedforward)
+                )
+            else:
+                await self._link.send(cs.SetInputTorque(node, value))
+            trap = (
+                request is Request.POSITION and self.input_modes[request] is cs.InputMode.TRAP_TRAJ
+            )
+            # Armed synchronously right before returning: the Actuator installs the new
+            # Motion before the receive task can run, so a report is never misattributed.
+            setpoint = _Setpoint(request, value, self._heartbeats, trap)
+            self._pending = setpoint
+        if request is Request.TORQUE and self._ctx is not None:
+            self._ctx.start_soon(self._poll_torque, setpoint)
+
+    async def read(self, request: Request) -> float:
+        link = self._link
+        if request in (Request.POSITION_ACTUAL, Request.VELOCITY_ACTUAL):
+            max_age = round(3 * self.encoder_period * 1e9)
+            _, est = await link.fresh(cs.CmdId.GET_ENCODER_ESTIMATES, cs.EncoderEstimates, max_age)
+            return turns_to_rad(est.pos if request is Request.POSITION_ACTUAL else est.vel)
+        if request is Request.TORQUE_ACTUAL:
+            return await self._torque(round(self.encoder_period * 1e9))
+        raise BadParameterError(
+            "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
+        )
+
+    async def _torque(self, max_age_ns: int) -> float:
+        if self.torque_constant is not None:
+            _, iq = await self._link.fresh(cs.CmdId.GET_IQ, cs.Iq, max_age_ns)
+            return iq.measured * self.torque_constant
+        _, torques = await self._link.fresh(cs.CmdId.GET_TORQUES, cs.Torques, max_age_ns)
+        return torques.estimate
+
+    def set_feedforward(self, velocity: float = 0.0, torque: float = 0.0) -> None:
+        """Feed-forward terms of the following setpoints (rad/s, Nm).
+
+        Set_Input_Pos carries them quantised to 0.001 turn/s and 0.001 Nm in int16
+        (|velocity| < 32.767 turn/s, |torque| < 32.767 Nm); Set_Input_Vel carries the
+        torque as f32. Streaming a trajectory, pass its velocity here before each position.
+        """
+        for name, value, bound in (
+            ("velocity", velocity, TAU * 32.767),
+            ("torque", torque, 32.767),
+        ):
+            if not (math.isfinite(value) and abs(value) <= bound):
+                raise BadParameterError(
+                    name, value, f"a feed-forward in [-{bound:.3f}, {bound:.3f}]"
+                )
+        self.velocity_feedforward = float(velocity)
+        self.torque_feedforward = float(torque)
+
+    async def estop(self) -> None:
+        """Send Estop: the ODrive disarms with ESTOP_REQUESTED and the component faults."""
+        await self._link.send(cs.Estop(self.node_id))
+
+    async def clear_errors(self) -> None:
+        """Send Clear_Errors (``re_init`` does this and re-engages closed loop)."""
+        await self._link.send(cs.ClearErrors(self.node_id))
+
+    # -- receive side -----------------------------------------------------------------------
+    def _on_message(self, msg: cs.CanSimpleMessage, now: int) -> None:
+        if isinstance(msg, cs.Heartbeat):
+            self._on_heartbeat(msg, now)
+        elif isinstance(msg, cs.EncoderEstimates):
+            setpoint = self._pending
+            if setpoint is not None and not setpoint.reported and not setpoint.trap:
+                if setpoint.request is Request.POSITION:
+                    self._settle(setpoint, turns_to_rad(msg.pos))
+                elif setpoint.request is Request.VELOCITY:
+                    self._settle(setpoint, turns_to_rad(msg.vel))
+        elif isinstance(msg, cs.ErrorStatus):
+            self._on_error_status(msg)
+        elif isinstance(msg, cs.Torques | cs.Iq):
+            setpoint = self._pending
+            if (
+                setpoint is not None
+                and setpoint.request is Request.TORQUE
+                and not setpoint.reported
+            ):
+                if isinstance(msg, cs.Torques) and self.torque_constant is None:
+                    self._settle(setpoint, msg.estimate)
+                elif isinstance(msg, cs.Iq) and self.torque_constant is not None:
+                    self._settle(setpoint, msg.measured * self.torque_constant)
+
+    def _on_heartbeat(self, hb: cs.Heartbeat, now: int) -> None:
+        self._heartbeats += 1
+        self._heartbeat_ns = now
+        self.last_heartbeat = hb
+        if not self._engaged or self._latched:
+            return
+        if hb.axis_error:
+            self._query_error()
+            if self._closed_loop_wanted and hb.axis_state is not cs.AxisState.CLOSED_LOOP_CONTROL:
+                self._fault(
+                    ErrorId.DEVICE_ERROR,
+                    f"ODrive node {self.node_id} disarmed: axis error {hb.axis_error:#x} "
+                    f"({error_names(hb.axis_error)}), state {hb.axis_state.name}",
+                )
+                return
+            if hb.axis_error != self._posted_error:
+                self._posted_error = hb.axis_error
+                self.log.warning("odrive_axis_error", error=error_names(hb.axis_error))
+                assert self._ctx is not None
+                self._ctx.post_error(ErrorId.DEVICE_ERROR)
+        elif self._closed_loop_wanted and hb.axis_state is cs.AxisState.IDLE:
+            self._fault(ErrorId.DEVICE_ERROR, f"ODrive node {self.node_id} left closed loop")
+            return
+        setpoint = self._pending
+        if setpoint is not None and setpoint.trap and not setpoint.reported:
+            if not hb.trajectory_done:
+                setpoint.acked = True
+            elif setpoint.acked or self._heartbeats - setpoint.heartbeat_mark >= 2:
+                self._report(setpoint)
+
+    def _on_error_status(self, status: cs.ErrorStatus) -> None:
+        self.last_error_status = status
+        if not self._engaged or self._latched:
+            return
+        if status.disarm_reason:
+            self._fault(
+                ErrorId.DEVICE_ERROR,
+                f"ODrive node {self.node_id} disarmed: {error_names(status.disarm_reason)} "
+                f"(active {error_names(status.active_errors)})",
+            )
+        elif status.active_errors and status.active_errors != self._posted_error:
+            self._posted_error = status.active_errors
+            assert self._ctx is not None
+            self._ctx.post_error(ErrorId.DEVICE_ERROR)
+
+    def _query_error(self) -> None:
+        if not self._querying_error and self._ctx is not None:
+            self._querying_error = True
+            self._ctx.start_soon(self._request_error_status)
+
+    async def _request_error_status(self) -> None:
+        try:
+            await self._link.request(cs.CmdId.GET_ERROR, cs.ErrorStatus)
+        except (TimeoutError, NotConnectedError) as exc:
+            self.log.debug("odrive_get_error_failed", error=repr(exc))
+        finally:
+            self._querying_error = False
+
+    def _settle(self, setpoint: _Setpoint, actual: float) -> None:
+        if abs(actual - setpoint.target) <= self.tolerance[setpoint.request]:
+            setpoint.within += 1
+            if setpoint.within >= self.settle_samples:
+                self._report(setpoint)
+        else:
+            setpoint.within = 0
+
+    def _report(self, setpoint: _Setpoint) -> None:
+        if setpoint is self._pending and not setpoint.reported and self._ctx is not None:
+            setpoint.reported = True
+            self._ctx.target_reached()
+
+    async def _poll_torque(self, setpoint: _Setpoint) -> None:
+        """Torque has no cyclic feedback: poll it until the setpoint completes or is replaced."""
+        assert self._ctx is not None
+        clock = self._ctx.clock
+        period_ns = round(self.encoder_period * 1e9)
+        cmd = cs.CmdId.GET_IQ if self.torque_constant is not None else cs.CmdId.GET_TORQUES
+        next_poll = clock.now_ns()
+        while setpoint is self._pending and not setpoint.reported and self._engaged:
+            try:
+                await self._link.send(cs.Request(self.node_id, cmd))
+            except (TimeoutError, NotConnectedError):
+                return
+            next_poll += period_ns
+            await clock.sleep_until(next_poll)
+
+    # -- faults ---------------------------------------------------------------------------
+    def _fault(
+        self, error_id: ErrorId, reason: str, code: ReturnCode = ReturnCode.HAL_ERROR
+    ) -> None:
+        if self._latched or not self._engaged or self._ctx is None:
+            return
+        self._latched = True
+        self._pending = None
+        self._ctx.fault(error_id, reason, code)
+
+    def _on_bus_error(self, reason: str) -> None:
+        self._fault(ErrorId.BUS_ERROR, f"CAN bus error: {reason}", ReturnCode.HAL_NO_CONNECTED)
+
+    async def _watchdog(self) -> None:
+        """Heartbeat loss: no heartbeat for ``heartbeat_timeout`` while engaged -> DISCONNECTED."""
+        assert self._ctx is not None
+        clock = self._ctx.clock
+        timeout_ns = round(self.heartbeat_timeout * 1e9)
+        while True:
+            last = self._heartbeat_ns
+            now = clock.now_ns()
+            if self._engaged and last is not None and now - last >= timeout_ns:
+                self._fault(
+                    ErrorId.DISCONNECTED,
+                    f"ODrive node {self.node_id}: no heartbeat for {(now - last) / 1e6:.0f} ms",
+                    ReturnCode.HAL_NO_CONNECTED,
+                )
+                last = now
+            deadline = (last if last is not None else now) + timeout_ns
+            await clock.sleep_until(max(deadline, now + timeout_ns // 4))
+
+
+# -- sensors ------------------------------------------------------------------------------
+
+
+class _ODriveSensor(SensorDevice):
+    _CMD: cs.CmdId
+
+    def __init__(
+        self,
+        bus: CanBus,
+        node_id: int,
+        *,
+        max_age: float = 0.05,
+        request_timeout: float = 0.05,
+    ) -> None:
+        if not isinstance(bus, CanBus):
+            raise BadParameterError("bus", bus, "an openel_can.CanBus")
+        _check_node(node_id)
+        _check_seconds("max_age", max_age)
+        _check_seconds("request_timeout", request_timeout)
+        self.bus = bus
+        self.node_id = node_id
+        self.max_age = max_age
+        self._link = _Link(bus, node_id, (self._CMD,), request_timeout=request_timeout)
+        self._ctx: DeviceContext | None = None
+        self._latched = False
+
+    @property
+    def malformed_frames(self) -> int:
+        return self._link.malformed
+
+    async def open(self, ctx: DeviceContext) -> None:
+        self._ctx = ctx
+        self._link.open(ctx, self._on_bus_error)
+        await self._link.request(self._CMD, cs.CanSimpleMessage)  # the node answers
+
+    async def init(self) -> None:
+        self._latched = False
+
+    async def reset(self) -> None:
+        await self.bus.wait_up(1.0)
+        await self._link.request(self._CMD, cs.CanSimpleMessage)
+        self._latched = False
+
+    async def close(self) -> None:
+        self._link.close()
+
+    def _on_bus_error(self, reason: str) -> None:
+        if not self._latched and self._ctx is not None:
+            self._latched = True
+            self._ctx.fault(
+                ErrorId.BUS_ERROR, f"CAN bus error: {reason}", ReturnCode.HAL_NO_CONNECTED
+            )
+
+    async def _latest(self) -> tuple[int, cs.CanSimpleMessage]:
+        return await self._link.fresh(self._CMD, cs.CanSimpleMessage, round(self.max_age * 1e9))
+
+
+class ODriveEncoder(_ODriveSensor):
+    """Encoder estimates of an ODrive axis: (position rad, velocity rad/s).
+
+    Uses the cyclic Get_Encoder_Estimates (polled when older than ``max_age``); the
+    reading's time is when the frame was received.
+    """
+
+    info = DeviceInfo(DeviceKind.ROTARY_ANGLE, ODRIVE_VENDOR_ID, 0x0106, "ODrive", "CanEncoder")
+    units = ("rad", "rad/s")
+    _CMD = cs.CmdId.GET_ENCODER_ESTIMATES
+
+    def __init__(
+        self, bus: CanBus, node_id: int, *, max_age: float = 0.03, request_timeout: float = 0.05
+    ) -> None:
+        super().__init__(bus, node_id, max_age=max_age, request_timeout=request_timeout)
+
+    async def read(self) -> Reading:
+        stamp, msg = await self._latest()
+        assert isinstance(msg, cs.EncoderEstimates)
+        return Reading((turns_to_rad(msg.pos), turns_to_rad(msg.vel)), stamp)
+
+
+class ODriveTemperature(_ODriveSensor):
+    """FET and motor temperatures of an ODrive axis (K), polled with Get_Temperature."""
+
+    info = DeviceInfo(DeviceKind.TEMPERATURE, ODRIVE_VENDOR_ID, 0x0406, "ODrive", "CanTemperature")
+    units = ("K", "K")
+    _CMD = cs.CmdId.GET_TEMPERATURE
+
+    async def read(self) -> Reading:
+        stamp, msg = await self._latest()
+        assert isinstance(msg, cs.Temperature)
+        return Reading((msg.fet + KELVIN_OFFSET, msg.motor + KELVIN_OFFSET), stamp)
+
+
+class ODriveBusMonitor(_ODriveSensor):
+    """DC bus voltage (V) and current (A) of an ODrive, polled with Get_Bus_Voltage_Current."""
+
+    info = DeviceInfo(DeviceKind.CURRENT, ODRIVE_VENDOR_ID, 0x0D06, "ODrive", "CanBusMonitor")
+    units = ("V", "A")
+    _CMD = cs.CmdId.GET_BUS_VOLTAGE_CURRENT
+
+    async def read(self) -> Reading:
+        stamp, msg = await self._latest()
+        assert isinstance(msg, cs.BusVoltageCurrent)
+        return Reading((msg.voltage, msg.current), stamp)

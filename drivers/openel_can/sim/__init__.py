@@ -1,0 +1,1 @@
+"""Simulated CAN peers (ODrive, CiA 402 drive) and bus fault injection."""

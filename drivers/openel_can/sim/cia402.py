@@ -1,0 +1,830 @@
+"""A simulated CiA 402 servo drive on CANopen (CiA 301), on a python-can bus.
+
+The peer (:meth:`SimCia402Drive.serve` on its own python-can bus, or :meth:`run` on a
+given :class:`~openel_can.bus.CanBus`) implements:
+
+* **NMT**: boot-up message, then Pre-operational; start/stop/pre-operational, reset
+  node (every object back to its default) and reset communication (0x1000-0x1FFF).
+  Heartbeat producer every 0x1017 ms (default 1000 ms; 0 disables it).
+* **Expedited SDO server** over the object dictionary below, with CiA 301 abort codes:
+  object/sub-index does not exist, read-only, write-only, length mismatch, value
+  range, PDO mapping rules (mapping and COB-ID may change only while the PDO is
+  invalid, bit 31; only mappable objects; at most 64 bits).
+* **PDOs**: RPDO1-3 and TPDO1-4 with configurable COB-ID, mapping and transmission
+  type. RPDOs act on reception (a too-short RPDO raises EMCY 0x8210). TPDO types
+  0xFE/0xFF are event-driven: sent when a discrete mapped object changes (statusword,
+  mode display, error code) and every event timer (0x18xx:5) period, never closer than
+  the inhibit time (0x18xx:3, 100 µs units); types 1..240 are sent on every n-th SYNC,
+  type 0 on SYNC after a change.
+* **CiA 402**: the power state machine (:func:`openel_can.cia402.apply_controlword`
+  plus the automatic transitions: Not ready -> Switch on disabled at boot, quick stop
+  and fault reaction ramps), modes 0x6060 profile position (new set-point bit 4 /
+  set-point acknowledge bit 12, change set immediately bit 5 or a one-slot buffer,
+  halt bit 8), profile velocity and profile torque (torque slope 0x6087), and
+  statusword bit 10 (target reached).
+* **EMCY** on faults (error code 0x603F, error register 0x1001) and 0x0000 on fault
+  reset; :meth:`warn` sends an EMCY without faulting.
+
+Units: positions in increments (0x608F: ``counts_per_rev`` increments per motor
+revolution), velocities in increments/s, accelerations in increments/s², torques in
+per mille of the rated torque 0x6076 (mNm); the drive temperature is the
+manufacturer-specific object 0x2022 in 0.1 °C.
+
+Fault injection: :meth:`trip` (fault with an EMCY code), :meth:`warn`,
+:meth:`set_silent` (no transmit/receive: heartbeat loss), ``sdo_silent`` (SDO
+requests unanswered: SDO timeouts), :meth:`reboot` (reset node), and
+``setpoint_ack_delay`` (set-points latched and acknowledged that much later, like a
+drive with a slow cycle).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Final
+
+import anyio
+import anyio.abc
+import can
+import structlog
+
+from openel_async.clock import Clock, default_clock
+from openel_sim import profile as prof
+
+from .. import canopen as co
+from .. import cia402 as ds
+from ..bus import CanBus, NodePort
+from ..errors import DecodeError
+
+__all__ = ["DRIVE_TEMPERATURE", "SimCia402Drive"]
+
+log = structlog.get_logger(__name__)
+
+NS: Final = 1e-9
+DT = co.DataType
+PS = ds.PowerState
+Mode = ds.ModeOfOperation
+DRIVE_TEMPERATURE: Final = co.ObjectEntry(0x2022, 0, DT.INTEGER16)
+"""Manufacturer-specific: drive (power stage) temperature in 0.1 °C."""
+TORQUE_SLOPE: Final = co.ObjectEntry(0x6087, 0, DT.UNSIGNED32)
+_DISCRETE: Final = frozenset({0x6041, 0x6061, 0x603F, 0x1001})
+_SUPPORTED_MODES: Final = {Mode.PROFILE_POSITION, Mode.PROFILE_VELOCITY, Mode.PROFILE_TORQUE}
+_AMBIENT_C: Final = 25.0
+
+
+@dataclass
+class _Obj:
+    data_type: co.DataType
+    default: int
+    access: str = "rw"  # "ro", "rw", "wo", "const"
+    mappable: bool = False
+    value: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.value = self.default
+
+
+def _dictionary(
+    node_id: int, counts_per_rev: int, rated_torque_mnm: int
+) -> dict[tuple[int, int], _Obj]:
+    od: dict[tuple[int, int], _Obj] = {
+        (0x1000, 0): _Obj(DT.UNSIGNED32, 0x0002_0192, "ro"),  # CiA 402 servo drive
+        (0x1001, 0): _Obj(DT.UNSIGNED8, 0, "ro", True),
+        (0x1017, 0): _Obj(DT.UNSIGNED16, 1000),
+        (0x1018, 0): _Obj(DT.UNSIGNED8, 4, "const"),
+        (0x1018, 1): _Obj(DT.UNSIGNED32, 0x0000_0E1A, "ro"),
+        (0x1018, 2): _Obj(DT.UNSIGNED32, 0x0000_0402, "ro"),
+        (0x1018, 3): _Obj(DT.UNSIGNED32, 0x0001_0000, "ro"),
+        (0x1018, 4): _Obj(DT.UNSIGNED32, 0x1234_0000 + node_id, "ro"),
+        (0x603F, 0): _Obj(DT.UNSIGNED16, 0, "ro", True),
+        (0x6040, 0): _Obj(DT.UNSIGNED16, 0, "rw", True),
+        (0x6041, 0): _Obj(DT.UNSIGNED16, 0, "ro", True),
+        (0x605A, 0): _Obj(DT.INTEGER16, 2),
+        (0x6060, 0): _Obj(DT.INTEGER8, int(Mode.PROFILE_POSITION), "rw", True),
+        (0x6061, 0): _Obj(DT.INTEGER8, int(Mode.PROFILE_POSITION), "ro", True),
+        (0x6064, 0): _Obj(DT.INTEGER32, 0, "ro", True),
+        (0x606C, 0): _Obj(DT.INTEGER32, 0, "ro", True),
+        (0x6071, 0): _Obj(DT.INTEGER16, 0, "rw", True),
+        (0x6072, 0): _Obj(DT.UNSIGNED16, 3000),
+        (0x6076, 0): _Obj(DT.UNSIGNED32, rated_torque_mnm, "ro"),
+        (0x6077, 0): _Obj(DT.INTEGER16, 0, "ro", True),
+        (0x607A, 0): _Obj(DT.INTEGER32, 0, "rw", True),
+        (0x607D, 0): _Obj(DT.UNSIGNED8, 2, "const"),
+        (0x607D, 1): _Obj(DT.INTEGER32, -(2**31)),
+        (0x607D, 2): _Obj(DT.INTEGER32, 2**31 - 1),
+        (0x6080, 0): _Obj(DT.UNSIGNED32, 3 * counts_per_rev),
+        (0x6081, 0): _Obj(DT.UNSIGNED32, counts_per_rev, "rw", True),
+        (0x6083, 0): _Obj(DT.UNSIGNED32, 10 * counts_per_rev),
+        (0x6084, 0): _Obj(DT.UNSIGNED32, 10 * counts_per_rev),
+        (0x6085, 0): _Obj(DT.UNSIGNED32, 40 * counts_per_rev),
+        (0x6087, 0): _Obj(DT.UNSIGNED32, 100_000),
+        (0x608F, 0): _Obj(DT.UNSIGNED8, 2, "const"),
+        (0x608F, 1): _Obj(DT.UNSIGNED32, counts_per_rev, "ro"),
+        (0x608F, 2): _Obj(DT.UNSIGNED32, 1, "ro"),
+        (0x60FF, 0): _Obj(DT.INTEGER32, 0, "rw", True),
+        (0x6502, 0): _Obj(DT.UNSIGNED32, 0b1101, "ro"),  # pp, pv, tq
+        (0x2022, 0): _Obj(DT.INTEGER16, round(_AMBIENT_C * 10), "ro", True),
+    }
+    for n in range(3):  # RPDO1..3
+        valid = n == 0
+        od[(0x1400 + n, 0)] = _Obj(DT.UNSIGNED8, 2, "const")
+        od[(0x1400 + n, 1)] = _Obj(
+            DT.UNSIGNED32, co.RPDO_BASES[n] + node_id + (0 if valid else co.PDO_COB_ID_INVALID)
+        )
+        od[(0x1400 + n, 2)] = _Obj(DT.UNSIGNED8, 0xFF)
+        od[(0x1600 + n, 0)] = _Obj(DT.UNSIGNED8, 1 if valid else 0)
+        for sub in range(1, 9):
+            od[(0x1600 + n, sub)] = _Obj(DT.UNSIGNED32, 0x6040_0010 if valid and sub == 1 else 0)
+    for n in range(4):  # TPDO1..4
+        valid = n == 0
+        od[(0x1800 + n, 0)] = _Obj(DT.UNSIGNED8, 5, "const")
+        od[(0x1800 + n, 1)] = _Obj(
+            DT.UNSIGNED32, co.TPDO_BASES[n] + node_id + (0 if valid else co.PDO_COB_ID_INVALID)
+        )
+        od[(0x1800 + n, 2)] = _Obj(DT.UNSIGNED8, 0xFF)
+        od[(0x1800 + n, 3)] = _Obj(DT.UNSIGNED16, 0)
+        od[(0x1800 + n, 5)] = _Obj(DT.UNSIGNED16, 0)
+        od[(0x1A00 + n, 0)] = _Obj(DT.UNSIGNED8, 1 if valid else 0)
+        for sub in range(1, 9):
+            od[(0x1A00 + n, sub)] = _Obj(DT.UNSIGNED32, 0x6041_0010 if valid and sub == 1 else 0)
+    return od
+
+
+class _SdoAbort(Exception):
+    def __init__(self, code: co.SdoAbortCode) -> None:
+        super().__init__(code.name)
+        self.code = code
+
+
+@dataclass
+class _TpdoState:
+    last_sent_ns: int | None = None
+    last_key: tuple[int, ...] | None = None
+    sync_count: int = 0
+    sync_due: bool = False
+
+
+class SimCia402Drive:
+    """One simulated CiA 402 drive; see the module docstring."""
+
+    def __init__(
+        self,
+        node_id: int = 1,
+        *,
+        counts_per_rev: int = 10_000,
+        rated_torque: float = 1.0,
+        inertia: float = 0.0005,
+        heartbeat_ms: int = 1000,
+        fault_reaction_s: float = 0.005,
+        setpoint_ack_delay: float = 0.0,
+        clock: Clock | None = None,
+    ) -> None:
+        if not 1 <= node_id <= co.MAX_NODE_ID:
+            raise ValueError(f"node_id {node_id} outside 1..{co.MAX_NODE_ID}")
+        self.node_id = node_id
+        self.counts_per_rev = counts_per_rev
+        self.rated_torque = rated_torque  # Nm
+        self.inertia = inertia  # kg m^2
+        self.default_heartbeat_ms = heartbeat_ms
+        self.fault_reaction_s = fault_reaction_s
+        self.setpoint_ack_delay = setpoint_ack_delay
+        """Seconds from a new set-point edge to its acknowledge (a drive's cycle time)."""
+        self.setpoint_due_ns: int | None = None
+        self.setpoint_immediate = False
+        self.clock: Clock = clock or default_clock()
+        self.silent = False
+        self.sdo_silent = False
+        self.malformed = 0
+        self.received_controlwords: list[int] = []
+        """Every controlword written, in order (for tests)."""
+        self.emcy_sent: list[co.Emergency] = []
+        self._port: NodePort | None = None
+        self._scope: anyio.CancelScope | None = None
+        self._kicked = False
+        self.od: dict[tuple[int, int], _Obj] = {}
+        self._mappings: dict[int, tuple[co.PdoMapEntry, ...]] = {}
+        self.segments = prof.hold(self.clock.now_ns(), 0.0)
+        self._boot()
+        self.log = log.bind(sim_cia402=node_id)
+
+    # -- boot and state ---------------------------------------------------------------------
+    def _boot(self, *, communication_only: bool = False) -> None:
+        self._mappings.clear()
+        fresh = _dictionary(self.node_id, self.counts_per_rev, round(self.rated_torque * 1000))
+        fresh[(0x1017, 0)].value = fresh[(0x1017, 0)].default = self.default_heartbeat_ms
+        if communication_only:
+            for key, obj in fresh.items():
+                if 0x1000 <= key[0] <= 0x1FFF and key[0] not in (0x1001,):
+                    self.od[key] = obj
+        else:
+            self.od = fresh
+            now = self.clock.now_ns()
+            self.power_state = PS.NOT_READY_TO_SWITCH_ON
+            self.segments = prof.hold(now, self._p(now))  # the shaft stays where it is
+            self.pp_target = 0
+            self.pp_buffered: int | None = None
+            self.setpoint_ack = False
+            self.setpoint_due_ns = None
+            self.halted = False
+            self.arrival_ns: int | None = None
+            self.stop_until_ns: int | None = None
+            self.target_reached = True
+            self.torque_target = 0.0  # per mille
+            self.torque_from = 0.0
+            self.torque_since_ns = now
+            self.fault_reaction_end_ns: int | None = None
+            self.temperature = _AMBIENT_C
+            self._thermal_ns = now
+        self.nmt_state = co.NmtState.BOOT_UP
+        self.prev_controlword = 0
+        self.tpdo_state = [_TpdoState() for _ in range(4)]
+        self.next_heartbeat_ns = self.clock.now_ns()
+        self.pending: list[co.CanOpenMessage] = [co.Heartbeat(self.node_id, co.NmtState.BOOT_UP)]
+
+    def _get(self, index: int, sub: int = 0) -> int:
+        return self.od[(index, sub)].value
+
+    def _set(self, index: int, sub: int, value: int) -> None:
+        self.od[(index, sub)].value = value
+
+    @property
+    def mode(self) -> int:
+        return self._get(0x6061)
+
+    def _p(self, now: int) -> float:
+        return prof.evaluate(self.segments, now)[0]
+
+    def state_at(self, now: int) -> tuple[float, float, float]:
+        """(position increments, velocity increments/s, acceleration increments/s²)."""
+        return prof.evaluate(self.segments, now)
+
+    @property
+    def position(self) -> float:
+        """Actual position in increments."""
+        return self._p(self.clock.now_ns())
+
+    def statusword(self) -> int:
+        state = self.power_state
+        enabled = state in (
+            PS.READY_TO_SWITCH_ON,
+            PS.SWITCHED_ON,
+            PS.OPERATION_ENABLED,
+            PS.QUICK_STOP_ACTIVE,
+        )
+        word = ds.Statusword.build(
+            state,
+            voltage_enabled=enabled or state is PS.FAULT_REACTION_ACTIVE,
+            target_reached=self.target_reached,
+            setpoint_acknowledge=self.setpoint_ack and self.mode == Mode.PROFILE_POSITION,
+        ).raw
+        if state is PS.QUICK_STOP_ACTIVE:
+            return word  # bit 5 (quick stop) low
+        if state in (PS.READY_TO_SWITCH_ON, PS.SWITCHED_ON, PS.OPERATION_ENABLED):
+            word |= ds.StatusBit.QUICK_STOP
+        return word
+
+    def _counts_per_rad(self) -> float:
+        return self.counts_per_rev / math.tau
+
+    def torque_permille(self, now: int) -> float:
+        if self.power_state is not PS.OPERATION_ENABLED and self.power_state not in (
+            PS.QUICK_STOP_ACTIVE,
+            PS.FAULT_REACTION_ACTIVE,
+        ):
+            return 0.0
+        _, v, a = self.state_at(now)
+        if self.mode == Mode.PROFILE_TORQUE and self.power_state is PS.OPERATION_ENABLED:
+            if abs(v) >= self._get(0x6080) - 1e-6 and a == 0:
+                return 0.0
+            return self._torque_ramp(now)
+        torque_nm = self.inertia * a / self._counts_per_rad()
+        return torque_nm / self.rated_torque * 1000
+
+    def _torque_ramp(self, now: int) -> float:
+        slope = max(1, self._get(0x6087))  # per mille per second
+        elapsed = (now - self.torque_since_ns) * NS
+        span = self.torque_target - self.torque_from
+        if abs(span) <= slope * elapsed:
+            return self.torque_target
+        return self.torque_from + math.copysign(slope * elapsed, span)
+
+    def _refresh_actuals(self, now: int) -> None:
+        p, v, _ = self.state_at(now)
+        self._set(0x6064, 0, max(-(2**31), min(2**31 - 1, round(p))))
+        self._set(0x606C, 0, max(-(2**31), min(2**31 - 1, round(v))))
+        self._set(0x6077, 0, max(-32768, min(32767, round(self.torque_permille(now)))))
+        self._update_thermal(now)
+        self._set(0x6041, 0, self.statusword())
+
+    def _update_thermal(self, now: int) -> None:
+        dt = (now - self._thermal_ns) * NS
+        if dt <= 0:
+            return
+        self._thermal_ns = now
+        load = self.torque_permille(now) / 1000
+        steady = _AMBIENT_C + 30.0 * load * load
+        self.temperature = steady + (self.temperature - steady) * math.exp(-dt / 20.0)
+        self._set(0x2022, 0, round(self.temperature * 10))
+
+    # -- fault injection --------------------------------------------------------------------
+    def trip(
+        self,
+        code: int = co.EmcyCode.CONTINUOUS_OVER_CURRENT,
+        register: int = co.ErrorRegister.GENERIC | co.ErrorRegister.CURRENT,
+    ) -> None:
+        """The drive faults: Fault reaction active (quick-stop ramp), EMCY, then Fault."""
+        now = self.clock.now_ns()
+        if self.power_state in (PS.FAULT, PS.FAULT_REACTION_ACTIVE):
+            return
+        self.power_state = PS.FAULT_REACTION_ACTIVE
+        self._set(0x603F, 0, code)
+        self._set(0x1001, 0, self._get(0x1001) | register | co.ErrorRegister.GENERIC)
+        self._stop(now, self._get(0x6085))
+        self.fault_reaction_end_ns = now + round(self.fault_reaction_s * 1e9)
+        self._emcy(code)
+        self._kick()
+
+    def warn(
+        self,
+        code: int = co.EmcyCode.DEVICE_OVER_TEMPERATURE,
+        register: int = co.ErrorRegister.TEMPERATURE,
+    ) -> None:
+        """An EMCY without a fault (e.g. a temperature warning)."""
+        self._emcy(code, register)
+        self._kick()
+
+    def set_silent(self, silent: bool = True) -> None:
+        """Stop (or resume) transmitting and receiving: a node cut off the bus."""
+        self.silent = silent
+        self._kick()
+
+    def reboot(self) -> None:
+        """Reset node: every object back to its default, boot-up, Pre-operational."""
+        self._boot()
+        self._kick()
+
+    def _emcy(self, code: int, register: int | None = None) -> None:
+        reg = self._get(0x1001) if register is None else register
+        self.pending.append(co.Emergency(self.node_id, code, reg))
+
+    # -- running ----------------------------------------------------------------------------
+    async def serve(
+        self,
+        channel: str,
+        *,
+        interface: str = "virtual",
+        task_status: anyio.abc.TaskStatus[None] = anyio.TASK_STATUS_IGNORED,
+    ) -> None:
+        """Open an own python-can bus on ``channel`` and run until cancelled."""
+        async with CanBus(
+            interface=interface,
+            channel=channel,
+            name=f"sim-cia402-{self.node_id}",
+            poll_interval=0.02,
+        ) as bus:
+            await self.run(bus, task_status=task_status)
+
+    async def run(
+        self, bus: CanBus, *, task_status: anyio.abc.TaskStatus[None] = anyio.TASK_STATUS_IGNORED
+    ) -> None:
+        n = self.node_id
+        ids = [
+            co.NMT_COB_ID,
+            co.SYNC_COB_ID,
+            co.SDO_RX_BASE + n,
+            *(base + n for base in co.RPDO_BASES),
+        ]
+        port = self._port = bus.attach(ids, name=f"sim-cia402-{n}", queue_size=256)
+        try:
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(self._receive, port)
+                tg.start_soon(self._loop)
+                task_status.started()
+        finally:
+            port.close()
+
+    def _kick(self) -> None:
+        self._kicked = True
+        if self._scope is not None:
+            self._scope.cancel()
+
+    async def _send(self, msg: co.CanOpenMessage) -> None:
+        if self.silent or self._port is None:
+            return
+        cob_id, data = co.encode(msg)
+        try:
+            await self._port.send(cob_id, data)
+        except Exception as exc:
+            self.log.debug("sim_send_failed", error=repr(exc))
+
+    async def _loop(self) -> None:
+        clock = self.clock
+        while True:
+            now = clock.now_ns()
+            self._kicked = False
+            self._advance(now)
+            pending, self.pending = self.pending, []
+            for msg in pending:
+                if isinstance(msg, co.Emergency):
+                    self.emcy_sent.append(msg)
+                await self._send(msg)
+            if self.nmt_state is co.NmtState.BOOT_UP:
+                self.nmt_state = co.NmtState.PRE_OPERATIONAL
+                self.next_heartbeat_ns = now
+                if self.power_state is PS.NOT_READY_TO_SWITCH_ON:
+                    self.power_state = PS.SWITCH_ON_DISABLED
+                continue
+            due = await self._transmit(now)
+            if self._kicked:
+                continue
+            with anyio.CancelScope() as scope:
+                self._scope = scope
+                await clock.sleep_until(due)
+            self._scope = None
+
+    def _advance(self, now: int) -> None:
+        """Automatic transitions and events that are due."""
+        if self.setpoint_due_ns is not None and now >= self.setpoint_due_ns:
+            self._accept_setpoint(now)
+        if self.fault_reaction_end_ns is not None and now >= self.fault_reaction_end_ns:
+            self.fault_reaction_end_ns = None
+            self.power_state = PS.FAULT
+            self.setpoint_ack = False
+        if self.stop_until_ns is not None and now >= self.stop_until_ns:
+            self.stop_until_ns = None
+            if self.power_state is PS.QUICK_STOP_ACTIVE and self._get(0x605A) in (1, 2, 3, 4):
+                self.power_state = PS.SWITCH_ON_DISABLED
+            self.target_reached = True
+        if self.arrival_ns is not None and now >= self.arrival_ns:
+            self.arrival_ns = None
+            if self.pp_buffered is not None and self.mode == Mode.PROFILE_POSITION:
+                target, self.pp_buffered = self.pp_buffered, None
+                self._plan_position(now, target)
+            else:
+                self.target_reached = True
+        self._refresh_actuals(now)
+
+    async def _transmit(self, now: int) -> int:
+        """Send what is due (heartbeat, TPDOs); return the next due time."""
+        due = now + 1_000_000_000
+        heartbeat_ms = self._get(0x1017)
+        if heartbeat_ms:
+            if now >= self.next_heartbeat_ns:
+                self.next_heartbeat_ns = max(self.next_heartbeat_ns + heartbeat_ms * 1_000_000, now)
+                await self._send(co.Heartbeat(self.node_id, self.nmt_state))
+            due = min(due, self.next_heartbeat_ns)
+        for event in (
+            self.arrival_ns,
+            self.stop_until_ns,
+            self.fault_reaction_end_ns,
+            self.setpoint_due_ns,
+        ):
+            if event is not None:
+                due = min(due, event)
+        if self.power_state is PS.OPERATION_ENABLED and self.mode == Mode.PROFILE_TORQUE:
+            if self._torque_ramp(now) != self.torque_target:
+                due = min(due, now + 1_000_000)  # torque slope in progress: 1 ms steps
+            elif not self.target_reached:
+                self.target_reached = True
+                self._set(0x6041, 0, self.statusword())
+        if self.nmt_state is not co.NmtState.OPERATIONAL:
+            return due
+        for n in range(4):
+            cob = self._get(0x1800 + n, 1)
+            if cob & co.PDO_COB_ID_INVALID:
+                continue
+            state = self.tpdo_state[n]
+            ttype = self._get(0x1800 + n, 2)
+            inhibit_ns = self._get(0x1800 + n, 3) * 100_000
+            timer_ns = self._get(0x1800 + n, 5) * 1_000_000
+            mapping = self._mapping(0x1A00 + n)
+            key = tuple(self._get(e.index, e.subindex) for e in mapping if e.index in _DISCRETE)
+            send = False
+            if ttype in (0xFE, 0xFF):
+                send = (
+                    key != state.last_key
+                    or state.last_sent_ns is None
+                    or bool(timer_ns and now - state.last_sent_ns >= timer_ns)
+                )
+            elif state.sync_due:
+                send = ttype != 0 or key != state.last_key
+                state.sync_due = False
+            if send and inhibit_ns and state.last_sent_ns is not None:
+                allowed = state.last_sent_ns + inhibit_ns
+                if now < allowed:
+                    due = min(due, allowed)
+                    send = False
+            if send:
+                state.last_sent_ns = now
+                state.last_key = key
+                values = [self._get(e.index, e.subindex) for e in mapping]
+                await self._send(co.Pdo(self.node_id, n + 1, True, co.pack_pdo(mapping, values)))
+            if ttype in (0xFE, 0xFF) and timer_ns and state.last_sent_ns is not None:
+                due = min(due, state.last_sent_ns + timer_ns)
+        return due
+
+    def _mapping(self, index: int) -> tuple[co.PdoMapEntry, ...]:
+        """The parsed mapping of a PDO (cached; writes to 0x1600-0x1BFF clear the cache)."""
+        cached = self._mappings.get(index)
+        if cached is None:
+            entries = []
+            for sub in range(1, self._get(index, 0) + 1):
+                raw = self._get(index, sub)
+                target = self.od[(raw >> 16, (raw >> 8) & 0xFF)]
+                entries.append(co.PdoMapEntry.from_u32(raw, signed=target.data_type.signed))
+            cached = self._mappings[index] = tuple(entries)
+        return cached
+
+    # -- receive ----------------------------------------------------------------------------
+    async def _receive(self, port: NodePort) -> None:
+        async for batch in port:
+            if self.silent:
+                continue
+            for frame in batch:
+                try:
+                    msg = co.decode(frame.arbitration_id, frame.data)
+                except DecodeError:
+                    self.malformed += 1
+                    continue
+                if frame.is_remote_frame:
+                    continue
+                await self._handle(msg)
+            self._kick()
+
+    async def _handle(self, msg: co.CanOpenMessage) -> None:
+        now = self.clock.now_ns()
+        if isinstance(msg, co.NmtControl):
+            if msg.node_id in (0, self.node_id):
+                self._nmt(msg.command)
+        elif isinstance(msg, co.Sync):
+            if self.nmt_state is co.NmtState.OPERATIONAL:
+                for n, state in enumerate(self.tpdo_state):
+                    ttype = self._get(0x1800 + n, 2)
+                    if ttype <= 240:
+                        state.sync_count += 1
+                        if ttype == 0 or state.sync_count % ttype == 0:
+                            state.sync_due = True
+        elif isinstance(msg, co.SdoUploadRequest | co.SdoDownloadRequest):
+            if self.sdo_silent or self.nmt_state is co.NmtState.STOPPED:
+                return
+            await self._send(self._sdo(msg, now))
+        elif (
+            isinstance(msg, co.Pdo)
+            and not msg.transmit
+            and self.nmt_state is co.NmtState.OPERATIONAL
+        ):
+            self._rpdo(msg, now)
+
+    def _nmt(self, command: co.NmtCommand) -> None:
+        if command is co.NmtCommand.START:
+            self.nmt_state = co.NmtState.OPERATIONAL
+            self.tpdo_state = [_TpdoState() for _ in range(4)]
+        elif command is co.NmtCommand.STOP:
+            self.nmt_state = co.NmtState.STOPPED
+        elif command is co.NmtCommand.ENTER_PRE_OPERATIONAL:
+            self.nmt_state = co.NmtState.PRE_OPERATIONAL
+        elif command is co.NmtCommand.RESET_NODE:
+            self._boot()
+        elif command is co.NmtCommand.RESET_COMMUNICATION:
+            self._boot(communication_only=True)
+
+    def _rpdo(self, msg: co.Pdo, now: int) -> None:
+        n = msg.number - 1
+        if n >= 3 or self._get(0x1400 + n, 1) & co.PDO_COB_ID_INVALID:
+            return
+        mapping = self._mapping(0x1600 + n)
+        try:
+            values = co.unpack_pdo(mapping, msg.data)
+        except DecodeError:
+            self._emcy(
+                co.EmcyCode.PDO_LENGTH_ERROR, self._get(0x1001) | co.ErrorRegister.COMMUNICATION
+            )
+            return
+        written = set()
+        for entry, value in zip(mapping, values, strict=True):
+            self._set(entry.index, entry.subindex, value)
+            written.add(entry.index)
+        self._after_write(written, now)
+
+    def _sdo(self, msg: co.SdoUploadRequest | co.SdoDownloadRequest, now: int) -> co.CanOpenMessage:
+        key = (msg.index, msg.subindex)
+        try:
+            obj = self.od.get(key)
+            if obj is None:
+                exists = any(index == msg.index for index, _ in self.od)
+                raise _SdoAbort(
+                    co.SdoAbortCode.SUBINDEX_DOES_NOT_EXIST
+                    if exists
+                    else co.SdoAbortCode.OBJECT_DOES_NOT_EXIST
+                )
+            if isinstance(msg, co.SdoUploadRequest):
+                if obj.access == "wo":
+                    raise _SdoAbort(co.SdoAbortCode.WRITE_ONLY)
+                self._refresh_actuals(now)
+                entry = co.ObjectEntry(msg.index, msg.subindex, obj.data_type)
+                return co.SdoUploadResponse(
+                    self.node_id, msg.index, msg.subindex, entry.encode(obj.value)
+                )
+            if obj.access in ("ro", "const"):
+                raise _SdoAbort(co.SdoAbortCode.READ_ONLY)
+            size = obj.data_type.size
+            if len(msg.data) != size:
+                raise _SdoAbort(
+                    co.SdoAbortCode.LENGTH_TOO_HIGH
+                    if len(msg.data) > size
+                    else co.SdoAbortCode.LENGTH_TOO_LOW
+                )
+            value = co.ObjectEntry(msg.index, msg.subindex, obj.data_type).decode(msg.data)
+            self._check_write(msg.index, msg.subindex, value)
+            obj.value = value
+            if 0x1600 <= msg.index <= 0x1BFF:
+                self._mappings.clear()
+            self._after_write({msg.index}, now)
+            return co.SdoDownloadResponse(self.node_id, msg.index, msg.subindex)
+        except _SdoAbort as abort:
+            return co.SdoAbort(self.node_id, msg.index, msg.subindex, abort.code)
+
+    def _check_write(self, index: int, sub: int, value: int) -> None:
+        if index == 0x6060 and value not in {int(m) for m in _SUPPORTED_MODES}:
+            raise _SdoAbort(co.SdoAbortCode.INVALID_VALUE)
+        comm = index & 0xFF00
+        if comm in (0x1400, 0x1800) and sub == 1:
+            current = self._get(index, 1)
+            if not (current & co.PDO_COB_ID_INVALID or value & co.PDO_COB_ID_INVALID) and (
+                value & 0x7FF != current & 0x7FF
+            ):
+                raise _SdoAbort(co.SdoAbortCode.INVALID_VALUE)  # COB-ID change while valid
+        if comm in (0x1400, 0x1800) and sub == 2 and not (value <= 240 or value >= 0xFE):
+            raise _SdoAbort(co.SdoAbortCode.INVALID_VALUE)
+        if comm in (0x1600, 0x1A00):
+            pdo_comm = (0x1400 if comm == 0x1600 else 0x1800) + (index & 0xFF)
+            if not self._get(pdo_comm, 1) & co.PDO_COB_ID_INVALID:
+                raise _SdoAbort(co.SdoAbortCode.CANNOT_TRANSFER_DEVICE_STATE)
+            if sub == 0:
+                if value > 8:
+                    raise _SdoAbort(co.SdoAbortCode.VALUE_TOO_HIGH)
+                bits = 0
+                for s in range(1, value + 1):
+                    raw = self._get(index, s)
+                    target = self.od.get((raw >> 16, (raw >> 8) & 0xFF))
+                    if target is None or not target.mappable:
+                        raise _SdoAbort(co.SdoAbortCode.CANNOT_BE_MAPPED)
+                    if raw & 0xFF != target.data_type.size * 8:
+                        raise _SdoAbort(co.SdoAbortCode.GENERAL_PARAMETER_INCOMPATIBILITY)
+                    bits += raw & 0xFF
+                if bits > 64:
+                    raise _SdoAbort(co.SdoAbortCode.PDO_LENGTH_EXCEEDED)
+            elif self._get(index, 0) != 0:
+                raise _SdoAbort(co.SdoAbortCode.UNSUPPORTED_ACCESS)
+
+    # -- CiA 402 behaviour ------------------------------------------------------------------
+    def _after_write(self, written: set[int], now: int) -> None:
+        if 0x6060 in written:
+            self._change_mode(now, self._get(0x6060))
+        if 0x6040 in written:
+            self._controlword(now, self._get(0x6040))
+        elif self.power_state is PS.OPERATION_ENABLED:
+            if 0x60FF in written and self.mode == Mode.PROFILE_VELOCITY:
+                self._plan_velocity(now)
+            if 0x6071 in written and self.mode == Mode.PROFILE_TORQUE:
+                self._plan_torque(now)
+        if 0x1017 in written:
+            self.next_heartbeat_ns = now
+        self._refresh_actuals(now)
+
+    def _change_mode(self, now: int, mode: int) -> None:
+        self._set(0x6061, 0, mode)
+        self.setpoint_ack = False
+        self.pp_buffered = None
+        self.arrival_ns = None
+        if self.power_state is PS.OPERATION_ENABLED:
+            self._stop(now, self._get(0x6084))
+        p, _, _ = self.state_at(now)
+        self.pp_target = round(p)
+
+    def _controlword(self, now: int, cw: int) -> None:
+        self.received_controlwords.append(cw)
+        prev = self.prev_controlword
+        self.prev_controlword = cw
+        before = self.power_state
+        after = ds.apply_controlword(before, cw, previous_controlword=prev)
+        if after is not before:
+            self.power_state = after
+            if after is PS.OPERATION_ENABLED:
+                self._hold(now)
+            elif after is PS.QUICK_STOP_ACTIVE:
+                self._stop(now, self._get(0x6085))
+            elif before is PS.OPERATION_ENABLED:
+                self._stop(now, self._get(0x6084))
+            elif before is PS.FAULT:
+                self._set(0x603F, 0, 0)
+                self._set(0x1001, 0, 0)
+                self._emcy(co.EmcyCode.NO_ERROR, 0)
+        if self.power_state is not PS.OPERATION_ENABLED:
+            self.setpoint_ack = False
+            return
+        mode = self.mode
+        halt = bool(cw & ds.ControlBit.HALT)
+        if halt and not self.halted:
+            self.halted = True
+            self._stop(now, self._get(0x6084))
+            return
+        self.halted = halt
+        if mode == Mode.PROFILE_POSITION:
+            rising = cw & ds.ControlBit.NEW_SETPOINT and not prev & ds.ControlBit.NEW_SETPOINT
+            if rising and not self.setpoint_ack and self.setpoint_due_ns is None:
+                immediate = bool(cw & ds.ControlBit.CHANGE_SET_IMMEDIATELY)
+                self.setpoint_due_ns = now + round(self.setpoint_ack_delay * 1e9)
+                self.setpoint_immediate = immediate
+                if self.setpoint_due_ns <= now:
+                    self._accept_setpoint(now)
+            elif not cw & ds.ControlBit.NEW_SETPOINT:
+                self.setpoint_ack = False
+        elif mode == Mode.PROFILE_VELOCITY:
+            self._plan_velocity(now)
+        elif mode == Mode.PROFILE_TORQUE:
+            self._plan_torque(now)
+
+    def _accept_setpoint(self, now: int) -> None:
+        """Latch 0x607A (the drive's next cycle after the new set-point edge)."""
+        self.setpoint_due_ns = None
+        if self.power_state is not PS.OPERATION_ENABLED or self.mode != Mode.PROFILE_POSITION:
+            return
+        target = self._get(0x607A)
+        self.setpoint_ack = True
+        moving = self.arrival_ns is not None
+        if self.setpoint_immediate or not moving:
+            self.pp_buffered = None
+            self._plan_position(now, target)
+        else:
+            self.pp_buffered = target
+
+    def _hold(self, now: int) -> None:
+        p, _, _ = self.state_at(now)
+        self.segments = prof.hold(now, p)
+        self.pp_target = round(p)
+        self.pp_buffered = None
+        self.arrival_ns = None
+        self.target_reached = True
+        self.setpoint_ack = False
+        self.torque_target = self.torque_from = 0.0
+        if self.mode == Mode.PROFILE_VELOCITY:
+            self._set(0x60FF, 0, 0)
+        if self.mode == Mode.PROFILE_TORQUE:
+            self._set(0x6071, 0, 0)
+
+    def _stop(self, now: int, decel: int) -> None:
+        p, v, _ = self.state_at(now)
+        self.segments = prof.ramp(now, p, v, 0.0, max(1, decel))
+        self.stop_until_ns = prof.end_time(self.segments)
+        self.arrival_ns = None
+        self.pp_buffered = None
+        self.target_reached = self.stop_until_ns <= now
+        self.torque_target = self.torque_from = 0.0
+
+    def _limits(self) -> tuple[float, float]:
+        return float(self._get(0x607D, 1)), float(self._get(0x607D, 2))
+
+    def _plan_position(self, now: int, target: int) -> None:
+        low, high = self._limits()
+        target = round(max(low, min(high, target)))
+        p, v, _ = self.state_at(now)
+        vmax = max(1, min(self._get(0x6081), self._get(0x6080)))
+        amax = max(1, self._get(0x6083))
+        self.pp_target = target
+        self.segments = prof.trapezoid(now, p, v, float(target), vmax, amax)
+        end = prof.end_time(self.segments)
+        self.arrival_ns = end if end > now else None
+        self.target_reached = self.arrival_ns is None
+
+    def _plan_velocity(self, now: int) -> None:
+        if self.halted:
+            return
+        vmax = self._get(0x6080)
+        target = max(-vmax, min(vmax, self._get(0x60FF)))
+        p, v, _ = self.state_at(now)
+        accel = self._get(0x6083) if abs(target) >= abs(v) else self._get(0x6084)
+        self.segments = prof.ramp(now, p, v, float(target), max(1, accel))
+        end = prof.end_time(self.segments)
+        self.arrival_ns = end if end > now else None
+        self.target_reached = self.arrival_ns is None
+
+    def _plan_torque(self, now: int) -> None:
+        if self.halted:
+            return
+        self.torque_from = self._torque_ramp(now) if self.mode == Mode.PROFILE_TORQUE else 0.0
+        self.torque_since_ns = now
+        max_torque = self._get(0x6072)
+        self.torque_target = float(max(-max_torque, min(max_torque, self._get(0x6071))))
+        self.target_reached = self.torque_from == self.torque_target
+        p, v, _ = self.state_at(now)
+        torque_nm = self.torque_target / 1000 * self.rated_torque
+        accel = torque_nm / self.inertia * self._counts_per_rad()
+        self.segments = prof.accelerate(now, p, v, accel, float(self._get(0x6080)))
+        self.arrival_ns = None
+
+
+def frame_of(msg: co.CanOpenMessage) -> can.Message:
+    """A python-can frame carrying ``msg``."""
+    cob_id, data = co.encode(msg)
+    return can.Message(arbitration_id=cob_id, data=data, is_extended_id=False)

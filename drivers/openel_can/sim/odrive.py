@@ -1,0 +1,383 @@
+"""A simulated ODrive axis speaking CANSimple (firmware 0.6.x) on a python-can bus.
+
+The peer is an anyio task (:meth:`SimODrive.serve` on its own python-can bus, or
+:meth:`SimODrive.run` on a given :class:`~openel_can.bus.CanBus`). It answers remote
+frames (Get_* and Heartbeat polls), executes host commands in the order received, and
+transmits its cyclic messages at the ODrive defaults: Heartbeat every 100 ms and
+Get_Encoder_Estimates every 10 ms (both configurable).
+
+Dynamics in turns (closed form, :mod:`openel_sim.profile`): TRAP_TRAJ position moves
+are trapezoids under the trajectory velocity/acceleration limits with the
+trajectory-done flag cleared while moving; VEL_RAMP ramps at ``vel_ramp_rate``;
+TORQUE accelerates the rotor inertia up to the velocity limit; IDLE coasts to rest.
+Entering closed loop holds the current position (as ``input_pos = pos_estimate``).
+Temperatures follow a first-order thermal model of the I²R losses.
+
+Fault injection: :meth:`inject_error` (an axis error that disarms, or not),
+:meth:`set_silent` (the node stops transmitting and listening: heartbeat loss), and
+Estop from the host (ESTOP_REQUESTED).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import anyio
+import anyio.abc
+import can
+import structlog
+
+from openel_async.clock import Clock, default_clock
+from openel_sim import profile as prof
+
+from .. import cansimple as cs
+from ..bus import CanBus, NodePort
+from ..errors import DecodeError
+from ..odrive import ODriveError
+
+__all__ = ["SimODrive"]
+
+log = structlog.get_logger(__name__)
+
+NS: Final = 1e-9
+_HOST_CMDS: Final = (
+    cs.CmdId.ESTOP,
+    cs.CmdId.SET_AXIS_STATE,
+    cs.CmdId.SET_CONTROLLER_MODE,
+    cs.CmdId.SET_INPUT_POS,
+    cs.CmdId.SET_INPUT_VEL,
+    cs.CmdId.SET_INPUT_TORQUE,
+    cs.CmdId.SET_LIMITS,
+    cs.CmdId.SET_TRAJ_VEL_LIMIT,
+    cs.CmdId.SET_TRAJ_ACCEL_LIMITS,
+    cs.CmdId.SET_TRAJ_INERTIA,
+    cs.CmdId.REBOOT,
+    cs.CmdId.CLEAR_ERRORS,
+    cs.CmdId.SET_ABSOLUTE_POSITION,
+    cs.CmdId.SET_POS_GAIN,
+    cs.CmdId.SET_VEL_GAINS,
+)
+_POLLED: Final = (
+    cs.CmdId.GET_VERSION,
+    cs.CmdId.HEARTBEAT,
+    cs.CmdId.GET_ERROR,
+    cs.CmdId.GET_ENCODER_ESTIMATES,
+    cs.CmdId.GET_IQ,
+    cs.CmdId.GET_TEMPERATURE,
+    cs.CmdId.GET_BUS_VOLTAGE_CURRENT,
+    cs.CmdId.GET_TORQUES,
+    cs.CmdId.GET_POWERS,
+)
+TORQUE_RISE_S: Final = 0.002
+AMBIENT_C: Final = 25.0
+
+
+class SimODrive:
+    """One simulated ODrive axis; all internal quantities in turns, turns/s, Nm, A, °C."""
+
+    def __init__(
+        self,
+        node_id: int = 0,
+        *,
+        heartbeat_period: float = 0.1,
+        encoder_period: float = 0.01,
+        vel_limit: float = 2.0,
+        traj_vel_limit: float = 1.0,
+        traj_accel_limit: float = 8.0,
+        vel_ramp_rate: float = 8.0,
+        inertia: float = 0.001,
+        torque_constant: float = 0.0827,
+        phase_resistance: float = 0.05,
+        thermal_time_constant: float = 30.0,
+        thermal_resistance: float = 4.0,
+        bus_voltage: float = 24.0,
+        initial_position: float = 0.0,
+        clock: Clock | None = None,
+    ) -> None:
+        if not 0 <= node_id < cs.MAX_NODE_ID:
+            raise ValueError(f"node_id {node_id} outside 0..{cs.MAX_NODE_ID - 1}")
+        self.node_id = node_id
+        self.heartbeat_period = heartbeat_period
+        self.encoder_period = encoder_period
+        self.vel_limit = vel_limit
+        self.traj_vel_limit = traj_vel_limit
+        self.traj_accel_limit = traj_accel_limit
+        self.vel_ramp_rate = vel_ramp_rate
+        self.inertia = inertia  # kg m^2
+        self.torque_constant = torque_constant  # Nm/A
+        self.phase_resistance = phase_resistance
+        self.thermal_time_constant = thermal_time_constant
+        self.thermal_resistance = thermal_resistance  # K/W
+        self.nominal_bus_voltage = bus_voltage
+        self.clock: Clock = clock or default_clock()
+        now = self.clock.now_ns()
+        self.axis_state = cs.AxisState.IDLE
+        self.control_mode = cs.ControlMode.POSITION
+        self.input_mode = cs.InputMode.PASSTHROUGH
+        self.active_errors = 0
+        self.disarm_reason = 0
+        self.procedure_result = cs.ProcedureResult.SUCCESS
+        self.silent = False
+        self.segments = prof.hold(now, initial_position)
+        self.traj_end_ns: int | None = None
+        self.torque_setpoint = 0.0
+        self.torque_since_ns = now
+        self.motor_temp = AMBIENT_C
+        self.fet_temp = AMBIENT_C
+        self._thermal_ns = now
+        self.commands: list[cs.CanSimpleMessage] = []
+        """Every host command received, in order (for tests)."""
+        self.malformed = 0
+        self._port: NodePort | None = None
+        self.log = log.bind(sim_odrive=node_id)
+
+    # -- running ----------------------------------------------------------------------------
+    async def serve(
+        self,
+        channel: str,
+        *,
+        interface: str = "virtual",
+        task_status: anyio.abc.TaskStatus[None] = anyio.TASK_STATUS_IGNORED,
+    ) -> None:
+        """Open an own python-can bus on ``channel`` and run until cancelled."""
+        async with CanBus(
+            interface=interface,
+            channel=channel,
+            name=f"sim-odrive-{self.node_id}",
+            poll_interval=0.02,
+        ) as bus:
+            await self.run(bus, task_status=task_status)
+
+    async def run(
+        self, bus: CanBus, *, task_status: anyio.abc.TaskStatus[None] = anyio.TASK_STATUS_IGNORED
+    ) -> None:
+        ids = [cs.arbitration_id(self.node_id, cmd) for cmd in (*_HOST_CMDS, *_POLLED)]
+        port = self._port = bus.attach(ids, name=f"sim-odrive-{self.node_id}")
+        try:
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(self._receive, port)
+                tg.start_soon(self._cyclic)
+                task_status.started()
+        finally:
+            port.close()
+
+    # -- fault injection ------------------------------------------------------------------
+    def inject_error(self, error: int = ODriveError.DRV_FAULT, *, disarm: bool = True) -> None:
+        """Raise an axis error; a disarming one drops the axis to IDLE (it coasts)."""
+        self.active_errors |= int(error)
+        if disarm:
+            self.disarm_reason |= int(error)
+            self._set_state(cs.AxisState.IDLE)
+
+    def set_silent(self, silent: bool = True) -> None:
+        """Stop (or resume) transmitting and listening: a node cut off the bus."""
+        self.silent = silent
+
+    # -- state ------------------------------------------------------------------------------
+    def now(self) -> int:
+        return self.clock.now_ns()
+
+    def state_at(self, t_ns: int) -> tuple[float, float, float]:
+        """(position turns, velocity turns/s, acceleration turns/s^2)."""
+        return prof.evaluate(self.segments, t_ns)
+
+    @property
+    def position(self) -> float:
+        return self.state_at(self.now())[0]
+
+    def torque_at(self, t_ns: int) -> float:
+        _, v, a = self.state_at(t_ns)
+        if self.axis_state is not cs.AxisState.CLOSED_LOOP_CONTROL:
+            return 0.0
+        if self.control_mode is cs.ControlMode.TORQUE:
+            if abs(v) >= self.vel_limit - 1e-9 and a == 0:
+                return 0.0  # held at the velocity limit
+            rise = min(1.0, (t_ns - self.torque_since_ns) * NS / TORQUE_RISE_S)
+            return self.torque_setpoint * rise
+        return self.inertia * a * math.tau
+
+    def trajectory_done(self, t_ns: int) -> bool:
+        return self.traj_end_ns is None or t_ns >= self.traj_end_ns
+
+    def _set_state(self, state: cs.AxisState) -> None:
+        now = self.now()
+        p, v, _ = self.state_at(now)
+        self.axis_state = state
+        self.traj_end_ns = None
+        self.torque_setpoint = 0.0
+        if state is cs.AxisState.CLOSED_LOOP_CONTROL:
+            # input_pos = pos_estimate: stop where we are.
+            self.segments = prof.ramp(now, p, v, 0.0, self.traj_accel_limit * 4)
+        else:
+            self.segments = prof.ramp(now, p, v, 0.0, 2.0)  # coast down under friction
+
+    def _plan(self, msg: cs.CanSimpleMessage) -> None:
+        now = self.now()
+        p, v, _ = self.state_at(now)
+        if self.axis_state is not cs.AxisState.CLOSED_LOOP_CONTROL:
+            return  # inputs are latched by a real ODrive but do nothing while IDLE
+        mode = self.control_mode
+        if isinstance(msg, cs.SetInputPos) and mode is cs.ControlMode.POSITION:
+            if self.input_mode is cs.InputMode.TRAP_TRAJ:
+                self.segments = prof.trapezoid(
+                    now, p, v, msg.pos, self.traj_vel_limit, self.traj_accel_limit
+                )
+                end = prof.end_time(self.segments)
+                self.traj_end_ns = end if end > now else None
+            else:  # the position loop tracks a step: a stiff trapezoid
+                self.segments = prof.trapezoid(now, p, v, msg.pos, self.vel_limit, 50.0)
+        elif isinstance(msg, cs.SetInputVel) and mode is cs.ControlMode.VELOCITY:
+            target = max(-self.vel_limit, min(self.vel_limit, msg.vel))
+            rate = self.vel_ramp_rate if self.input_mode is cs.InputMode.VEL_RAMP else 50.0
+            self.segments = prof.ramp(now, p, v, target, rate)
+        elif isinstance(msg, cs.SetInputTorque) and mode is cs.ControlMode.TORQUE:
+            self.torque_setpoint = msg.torque
+            self.torque_since_ns = now
+            accel = msg.torque / (self.inertia * math.tau)
+            self.segments = prof.accelerate(now, p, v, accel, self.vel_limit)
+
+    def _update_thermal(self, now: int) -> None:
+        dt = (now - self._thermal_ns) * NS
+        if dt <= 0:
+            return
+        self._thermal_ns = now
+        current = self.torque_at(now) / self.torque_constant
+        power = 1.5 * current * current * self.phase_resistance
+        decay = math.exp(-dt / self.thermal_time_constant)
+        for name, gain in (("motor_temp", 1.0), ("fet_temp", 0.5)):
+            steady = AMBIENT_C + gain * power * self.thermal_resistance
+            value = getattr(self, name)
+            setattr(self, name, steady + (value - steady) * decay)
+
+    # -- messages ---------------------------------------------------------------------------
+    def reply(self, cmd: cs.CmdId) -> cs.CanSimpleMessage | None:
+        """The message this node sends for ``cmd`` now."""
+        now = self.now()
+        node = self.node_id
+        p, v, _ = self.state_at(now)
+        if cmd is cs.CmdId.HEARTBEAT:
+            return cs.Heartbeat(
+                node,
+                self.active_errors | self.disarm_reason,
+                self.axis_state,
+                int(self.procedure_result),
+                self.trajectory_done(now),
+            )
+        if cmd is cs.CmdId.GET_ENCODER_ESTIMATES:
+            return cs.EncoderEstimates(node, p, v)
+        if cmd is cs.CmdId.GET_ERROR:
+            return cs.ErrorStatus(node, self.active_errors, self.disarm_reason)
+        torque = self.torque_at(now)
+        current = torque / self.torque_constant
+        if cmd is cs.CmdId.GET_TORQUES:
+            target = self.torque_setpoint if self.control_mode is cs.ControlMode.TORQUE else torque
+            return cs.Torques(node, target, torque)
+        if cmd is cs.CmdId.GET_IQ:
+            return cs.Iq(node, current, current)
+        if cmd is cs.CmdId.GET_TEMPERATURE:
+            self._update_thermal(now)
+            return cs.Temperature(node, self.fet_temp, self.motor_temp)
+        mechanical = torque * v * math.tau
+        electrical = mechanical + 1.5 * current * current * self.phase_resistance + 0.5
+        bus_current = electrical / self.nominal_bus_voltage
+        if cmd is cs.CmdId.GET_BUS_VOLTAGE_CURRENT:
+            return cs.BusVoltageCurrent(
+                node, self.nominal_bus_voltage - 0.05 * bus_current, bus_current
+            )
+        if cmd is cs.CmdId.GET_POWERS:
+            return cs.Powers(node, electrical, mechanical)
+        if cmd is cs.CmdId.GET_VERSION:
+            return cs.Version(node, 2, 4, 4, 58, 0, 6, 10, 0)
+        return None
+
+    async def _send(self, msg: cs.CanSimpleMessage | None) -> None:
+        if msg is None or self.silent or self._port is None:
+            return
+        arb_id, data = cs.encode(msg)
+        try:
+            await self._port.send(arb_id, data)
+        except Exception as exc:  # the peer's own bus failing is not the host's problem
+            self.log.debug("sim_send_failed", error=repr(exc))
+
+    def _apply(self, msg: cs.CanSimpleMessage) -> None:
+        self.commands.append(msg)
+        if isinstance(msg, cs.SetAxisState):
+            if msg.state is cs.AxisState.CLOSED_LOOP_CONTROL and self.disarm_reason:
+                self.procedure_result = cs.ProcedureResult.DISARMED
+                return  # refused: errors must be cleared first
+            if msg.state in (cs.AxisState.CLOSED_LOOP_CONTROL, cs.AxisState.IDLE):
+                self.procedure_result = cs.ProcedureResult.SUCCESS
+                self._set_state(msg.state)
+        elif isinstance(msg, cs.SetControllerMode):
+            self.control_mode, self.input_mode = msg.control_mode, msg.input_mode
+            if self.axis_state is cs.AxisState.CLOSED_LOOP_CONTROL:
+                self._set_state(cs.AxisState.CLOSED_LOOP_CONTROL)  # new mode: hold here
+        elif isinstance(msg, cs.SetInputPos | cs.SetInputVel | cs.SetInputTorque):
+            self._plan(msg)
+        elif isinstance(msg, cs.Estop):
+            self.inject_error(ODriveError.ESTOP_REQUESTED)
+        elif isinstance(msg, cs.ClearErrors):
+            self.active_errors = self.disarm_reason = 0
+            self.procedure_result = cs.ProcedureResult.SUCCESS
+        elif isinstance(msg, cs.SetLimits):
+            self.vel_limit = (
+                msg.velocity_limit if math.isfinite(msg.velocity_limit) else self.vel_limit
+            )
+        elif isinstance(msg, cs.SetTrajVelLimit):
+            self.traj_vel_limit = msg.vel_limit
+        elif isinstance(msg, cs.SetTrajAccelLimits):
+            self.traj_accel_limit = msg.accel_limit
+        elif isinstance(msg, cs.SetAbsolutePosition):
+            now = self.now()
+            self.segments = prof.hold(now, msg.position)
+        elif isinstance(msg, cs.Reboot):
+            self.active_errors = self.disarm_reason = 0
+            self._set_state(cs.AxisState.IDLE)
+
+    async def _receive(self, port: NodePort) -> None:
+        async for batch in port:
+            if self.silent:
+                continue
+            for frame in batch:
+                try:
+                    msg = cs.decode(
+                        frame.arbitration_id,
+                        frame.data,
+                        from_host=True,
+                        remote=frame.is_remote_frame,
+                    )
+                except DecodeError:
+                    self.malformed += 1
+                    continue
+                if isinstance(msg, cs.Request):
+                    await self._send(self.reply(msg.cmd_id))
+                else:
+                    self._apply(msg)
+
+    async def _cyclic(self) -> None:
+        clock = self.clock
+        next_hb = next_enc = clock.now_ns()
+        hb_ns = round(self.heartbeat_period * 1e9)
+        enc_ns = round(self.encoder_period * 1e9)
+        while True:
+            now = clock.now_ns()
+            if now >= next_hb:
+                next_hb = max(next_hb + hb_ns, now)
+                await self._send(self.reply(cs.CmdId.HEARTBEAT))
+            if now >= next_enc:
+                next_enc = max(next_enc + enc_ns, now)
+                await self._send(self.reply(cs.CmdId.GET_ENCODER_ESTIMATES))
+                self._update_thermal(now)
+            await clock.sleep_until(min(next_hb, next_enc))
+
+
+def frame_of(msg: cs.CanSimpleMessage) -> can.Message:
+    """A python-can frame carrying ``msg`` (remote for a Request)."""
+    arb_id, data = cs.encode(msg)
+    return can.Message(
+        arbitration_id=arb_id,
+        data=data,
+        is_extended_id=False,
+        is_remote_frame=isinstance(msg, cs.Request),
+    )
