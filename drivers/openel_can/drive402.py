@@ -73,6 +73,7 @@ from . import canopen as co
 from . import cia402 as ds
 from .bus import CanBus, NodePort
 from .errors import DecodeError
+from .node_faults import NodeFaults
 from .sdo import SdoClient
 
 __all__ = ["RPDO_MAPS", "TPDO_MAPS", "Cia402Drive", "Cia402Temperature"]
@@ -139,8 +140,10 @@ class _Setpoint:
     reported: bool = False
 
 
-class Cia402Drive(ActuatorDevice):
+class Cia402Drive(NodeFaults, ActuatorDevice):
     """A CiA 402 servo drive on a CAN bus (CANopen); see the module docstring."""
+
+    node_label = "CiA 402"
 
     info = DeviceInfo(
         kind=DeviceKind.MOTOR,
@@ -704,36 +707,9 @@ class Cia402Drive(ActuatorDevice):
             )
 
     # -- faults ---------------------------------------------------------------------------
-    def _fault(
-        self, error_id: ErrorId, reason: str, code: ReturnCode = ReturnCode.HAL_ERROR
-    ) -> None:
-        if self._latched or not self._engaged or self._ctx is None:
-            return
-        self._latched = True
+    def _on_latch(self) -> None:
         self._pending = None
         self._enabled_wanted = False
-        self._ctx.fault(error_id, reason, code)
-
-    def _on_bus_error(self, reason: str) -> None:
-        self._fault(ErrorId.BUS_ERROR, f"CAN bus error: {reason}", ReturnCode.HAL_NO_CONNECTED)
-
-    async def _watchdog(self) -> None:
-        """Heartbeat consumer: no heartbeat for ``heartbeat_timeout`` while engaged."""
-        assert self._ctx is not None
-        clock = self._ctx.clock
-        timeout_ns = round(self.heartbeat_timeout * 1e9)
-        while True:
-            last = self._heartbeat_ns
-            now = clock.now_ns()
-            if self._engaged and last is not None and now - last >= timeout_ns:
-                self._fault(
-                    ErrorId.DISCONNECTED,
-                    f"CiA 402 node {self.node_id}: no heartbeat for {(now - last) / 1e6:.0f} ms",
-                    ReturnCode.HAL_NO_CONNECTED,
-                )
-                last = now
-            deadline = (last if last is not None else now) + timeout_ns
-            await clock.sleep_until(max(deadline, now + timeout_ns // 4))
 
 
 class Cia402Temperature(SensorDevice):

@@ -56,6 +56,7 @@ from openel_async.requests import Request
 from . import cansimple as cs
 from .bus import CanBus, NodePort
 from .errors import DecodeError
+from .node_faults import NodeFaults
 
 __all__ = [
     "ODriveAxis",
@@ -257,8 +258,10 @@ _TO_HOST: Final = (
 )
 
 
-class ODriveAxis(ActuatorDevice):
+class ODriveAxis(NodeFaults, ActuatorDevice):
     """One ODrive axis on a CAN bus (CANSimple); see the module docstring."""
+
+    node_label = "ODrive"
 
     info = DeviceInfo(
         kind=DeviceKind.MOTOR,
@@ -721,35 +724,8 @@ class ODriveAxis(ActuatorDevice):
             await clock.sleep_until(next_poll)
 
     # -- faults ---------------------------------------------------------------------------
-    def _fault(
-        self, error_id: ErrorId, reason: str, code: ReturnCode = ReturnCode.HAL_ERROR
-    ) -> None:
-        if self._latched or not self._engaged or self._ctx is None:
-            return
-        self._latched = True
+    def _on_latch(self) -> None:
         self._pending = None
-        self._ctx.fault(error_id, reason, code)
-
-    def _on_bus_error(self, reason: str) -> None:
-        self._fault(ErrorId.BUS_ERROR, f"CAN bus error: {reason}", ReturnCode.HAL_NO_CONNECTED)
-
-    async def _watchdog(self) -> None:
-        """Heartbeat loss: no heartbeat for ``heartbeat_timeout`` while engaged -> DISCONNECTED."""
-        assert self._ctx is not None
-        clock = self._ctx.clock
-        timeout_ns = round(self.heartbeat_timeout * 1e9)
-        while True:
-            last = self._heartbeat_ns
-            now = clock.now_ns()
-            if self._engaged and last is not None and now - last >= timeout_ns:
-                self._fault(
-                    ErrorId.DISCONNECTED,
-                    f"ODrive node {self.node_id}: no heartbeat for {(now - last) / 1e6:.0f} ms",
-                    ReturnCode.HAL_NO_CONNECTED,
-                )
-                last = now
-            deadline = (last if last is not None else now) + timeout_ns
-            await clock.sleep_until(max(deadline, now + timeout_ns // 4))
 
 
 # -- sensors ------------------------------------------------------------------------------

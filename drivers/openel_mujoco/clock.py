@@ -27,23 +27,10 @@ import math
 
 import anyio.lowlevel
 
-from openel_async.clock import NS_PER_S, Sleeper
+from openel_async.clock import NS_PER_S, DeadlineSleeper, Sleeper
 from openel_async.errors import BadParameterError
 
 __all__ = ["LockstepClock"]
-
-
-class _Sleeper:
-    __slots__ = ("_clock",)
-
-    def __init__(self, clock: LockstepClock) -> None:
-        self._clock = clock
-
-    async def sleep_until(self, deadline_ns: int) -> None:
-        await self._clock.sleep_until(deadline_ns)
-
-    def close(self) -> None:
-        pass
 
 
 class LockstepClock:
@@ -77,7 +64,7 @@ class LockstepClock:
             raise
 
     def sleeper(self) -> Sleeper:
-        return _Sleeper(self)
+        return DeadlineSleeper(self)
 
     # -- conveniences ------------------------------------------------------------------
     async def sleep(self, seconds: float) -> None:

@@ -48,8 +48,8 @@ class Clock(Protocol):
         ...
 
 
-class _DeadlineSleeper:
-    """Portable fallback: an event-loop sleep for the remaining time."""
+class DeadlineSleeper:
+    """A Sleeper over any clock's ``sleep_until`` (the portable fallback on real time)."""
 
     def __init__(self, clock: Clock) -> None:
         self._clock = clock
@@ -97,7 +97,7 @@ class MonotonicClock:
                 return _TimerfdSleeper()
             except OSError:
                 pass
-        return _DeadlineSleeper(self)
+        return DeadlineSleeper(self)
 
     def __repr__(self) -> str:
         return f"MonotonicClock(use_timerfd={self.use_timerfd})"
@@ -131,7 +131,7 @@ class VirtualClock:
         return self._now
 
     def sleeper(self) -> Sleeper:
-        return _DeadlineSleeper(self)
+        return DeadlineSleeper(self)
 
     async def sleep_until(self, deadline_ns: int) -> None:
         if deadline_ns <= self._now:

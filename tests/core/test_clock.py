@@ -417,7 +417,7 @@ async def test_fallback_sleeper_never_wakes_before_its_deadline() -> None:
     clock = MonotonicClock(use_timerfd=False)
     assert clock.use_timerfd is False
     sleeper = clock.sleeper()
-    assert type(sleeper).__name__ == "_DeadlineSleeper"
+    assert type(sleeper).__name__ == "DeadlineSleeper"
     try:
         for step_us in (1, 100, 700, 1500, 3):
             deadline = clock.now_ns() + step_us * 1_000
@@ -443,7 +443,7 @@ def test_sleeper_falls_back_when_timerfd_is_unavailable(monkeypatch: pytest.Monk
         timerfd.Timerfd()
     clock = MonotonicClock()
     assert clock.use_timerfd is False
-    assert type(clock.sleeper()).__name__ == "_DeadlineSleeper"
+    assert type(clock.sleeper()).__name__ == "DeadlineSleeper"
     assert "use_timerfd=False" in repr(clock)
 
 
@@ -458,7 +458,7 @@ def test_sleeper_falls_back_when_timerfd_cannot_be_created(
         raise OSError(24, "Too many open files")
 
     monkeypatch.setattr(timerfd, "Timerfd", refuse)
-    assert type(clock.sleeper()).__name__ == "_DeadlineSleeper"
+    assert type(clock.sleeper()).__name__ == "DeadlineSleeper"
 
 
 # -- the timerfd binding ----------------------------------------------------------------------
