@@ -432,21 +432,7 @@ class ExecutionContext:
         is Inactive. When on_activated fails the component enters Error (on_aborting
         runs) and CallbackFailedError is raised.
         """
-        p = self._participant(comp)
-        self._require(p, "activate_component", S.INACTIVE)
-
-        async def body() -> None:
-            self._require(p, "activate_component", S.INACTIVE)
-            outcome = await self._call(p, "on_activated")
-            if outcome.ok:
-                self._set_state(p, S.ACTIVE)
-                return
-            await self._fail(p, "on_activated", outcome)
-            raise CallbackFailedError(
-                comp.instance_name, "on_activated", outcome.code
-            ) from outcome.error
-
-        await self._locked(p, "activate_component", body)
+        await self._transition(comp, "activate_component", S.INACTIVE, "on_activated", S.ACTIVE)
 
     async def deactivate_component(self, comp: RTObject) -> None:
         """Active -> Inactive after the component's running callback returned, running
@@ -456,21 +442,30 @@ class ExecutionContext:
         is Active. When on_deactivated fails the component enters Error and
         CallbackFailedError is raised.
         """
+        await self._transition(comp, "deactivate_component", S.ACTIVE, "on_deactivated", S.INACTIVE)
+
+    async def _transition(
+        self,
+        comp: RTObject,
+        operation: str,
+        source: LifeCycleState,
+        callback: str,
+        target: LifeCycleState,
+    ) -> None:
+        """``source`` -> ``target`` when ``callback`` succeeds, else Error and raise."""
         p = self._participant(comp)
-        self._require(p, "deactivate_component", S.ACTIVE)
+        self._require(p, operation, source)
 
         async def body() -> None:
-            self._require(p, "deactivate_component", S.ACTIVE)
-            outcome = await self._call(p, "on_deactivated")
+            self._require(p, operation, source)  # the state may have moved while queued
+            outcome = await self._call(p, callback)
             if outcome.ok:
-                self._set_state(p, S.INACTIVE)
+                self._set_state(p, target)
                 return
-            await self._fail(p, "on_deactivated", outcome)
-            raise CallbackFailedError(
-                comp.instance_name, "on_deactivated", outcome.code
-            ) from outcome.error
+            await self._fail(p, callback, outcome)
+            raise CallbackFailedError(comp.instance_name, callback, outcome.code) from outcome.error
 
-        await self._locked(p, "deactivate_component", body)
+        await self._locked(p, operation, body)
 
     async def reset_component(self, comp: RTObject) -> None:
         """Error -> Inactive when on_reset returns RTC_OK.
