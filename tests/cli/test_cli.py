@@ -37,7 +37,9 @@ def test_registry_finds_every_driver_package() -> None:
 
 
 def test_virtual_demo_prints_a_summary(capsys: pytest.CaptureFixture[str]) -> None:
-    code = main(["demo", "--virtual", "--duration", "2", "--no-live", "--inject-fault"])
+    code = main(
+        ["demo", "--bus", "sim", "--virtual", "--duration", "2", "--no-live", "--inject-fault"]
+    )
     assert code == 0
     out = capsys.readouterr().out
     assert "timer ticks        200 (missed 0)" in out
@@ -62,8 +64,49 @@ async def test_demo_scenario_drives_both_axes_in_step() -> None:
 def test_bad_arguments_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--duration", "0"]) == 2
     assert main(["demo", "--virtual", "--bus", "can"]) in (2,)
+    assert main(["demo", "--inject-fault"]) == 2  # the MuJoCo arm has no fault to inject
+    assert "--inject-fault needs --bus sim or --bus can" in capsys.readouterr().err
+    assert main(["demo", "--virtual", "--duration", "1"]) == 2  # a 1 s lap of the square
+    assert "too fast for the joints' limits" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["demo", "--bus", "carrier-pigeon"])
+
+
+def test_the_default_demo_is_the_mujoco_arm(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["demo", "--virtual", "--no-live", "--out", str(tmp_path)])  # lockstep
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "summary (MuJoCo arm2 square, lockstep)" in out
+    assert "corners reached    4/4" in out
+    assert "square             1 lap(s) of 15 cm in 5 s each" in out  # --duration: 5 s lap
+    assert f"files in {tmp_path.resolve()}/" in out
+    assert (tmp_path / "arm2_square_joints.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize("failure", ["import", "model"])
+def test_the_demo_falls_back_to_the_sim_demo_without_mujoco(
+    failure: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from openel_async.cli import arm2_square
+    from openel_mujoco import ModelLoadError, MujocoSim
+
+    if failure == "import":
+        monkeypatch.setitem(sys.modules, "openel_mujoco", None)  # import raises ImportError
+    else:
+
+        def broken(*, realtime: bool) -> MujocoSim:
+            raise ModelLoadError("model file not found: arm2.xml")
+
+        monkeypatch.setattr(arm2_square, "open_sim", broken)
+    code = main(["demo", "--virtual", "--duration", "1", "--no-live"])
+    captured = capsys.readouterr()
+    assert code == 0
+    assert "summary (simulated devices, openel_sim)" in captured.out
+    assert "mujoco_unavailable" in captured.err
+    expected = "ModuleNotFoundError" if failure == "import" else "ModelLoadError: model file not"
+    assert expected in captured.err
 
 
 def test_run_rejects_a_file_without_main(
@@ -89,7 +132,7 @@ def test_run_passes_arguments_to_an_app(tmp_path: Path) -> None:
 def test_json_logs_go_to_stderr_as_json_lines() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "openel_async.cli", "--log-format", "json", "demo",
-         "--virtual", "--duration", "0.2", "--no-live"],
+         "--bus", "sim", "--virtual", "--duration", "0.2", "--no-live"],
         capture_output=True, text=True, timeout=60, check=True,
     )  # fmt: skip
     lines = [line for line in result.stderr.splitlines() if line.strip()]

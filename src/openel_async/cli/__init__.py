@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import anyio
+import structlog
 
 from .logs import LEVELS, configure_logging
 
@@ -22,16 +23,44 @@ def _build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--log-level", choices=LEVELS, default="info")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    demo = sub.add_parser("demo", help="run the two-axis synchronized demo (spec Figs. 7.5-7.8)")
-    demo.add_argument("--duration", type=float, default=5.0, help="seconds of synchronized motion")
-    demo.add_argument("--period-ms", type=float, default=10.0, help="EventTimer period (ms)")
-    demo.add_argument("--virtual", action="store_true", help="run on the virtual clock (instant)")
+    demo = sub.add_parser(
+        "demo",
+        help="run the demo: the MuJoCo arm traces a square (default), or the two-axis "
+        "synchronized demo of spec Figs. 7.5-7.8 (--bus sim or can)",
+    )
     demo.add_argument(
-        "--inject-fault", action="store_true", help="trip a drive halfway and recover"
+        "--duration",
+        type=float,
+        default=5.0,
+        help="seconds of synchronized motion (mujoco: seconds per lap of the square)",
+    )
+    demo.add_argument(
+        "--period-ms",
+        type=float,
+        default=None,
+        help="EventTimer period, ms (default: 10; mujoco: 2)",
+    )
+    demo.add_argument(
+        "--virtual",
+        action="store_true",
+        help="run on the virtual clock (instant); mujoco: lockstep pacing",
+    )
+    demo.add_argument(
+        "--inject-fault", action="store_true", help="trip a drive halfway and recover (sim, can)"
     )
     demo.add_argument("--no-live", action="store_true", help="no live progress line")
+    demo.add_argument(
+        "--out", metavar="DIR", default=None, help="mujoco: directory for the PNG files "
+        "(default: out/arm2_square/ under the current directory)",
+    )  # fmt: skip
 
-    demo.add_argument("--bus", choices=("sim", "can"), default="sim", help="device layer to use")
+    demo.add_argument(
+        "--bus",
+        choices=("mujoco", "sim", "can"),
+        default="mujoco",
+        help="device layer: mujoco (the MuJoCo arm; falls back to sim when MuJoCo cannot "
+        "load), sim (openel_sim motors) or can (simulated CAN drives)",
+    )
 
     run = sub.add_parser("run", help="run an app (apps/<name>.py) or an RTC Profile (.yaml/.xml)")
     run.add_argument("path", help="application file or directory, or RTC Profile")
@@ -82,17 +111,28 @@ def _demo(args: argparse.Namespace) -> int:
     if args.duration <= 0:
         print("--duration must be > 0", file=sys.stderr)
         return 2
+    if args.period_ms is not None and args.period_ms <= 0:
+        print("--period-ms must be > 0", file=sys.stderr)
+        return 2
+    if args.bus == "mujoco":
+        if args.inject_fault:
+            print("--inject-fault needs --bus sim or --bus can", file=sys.stderr)
+            return 2
+        code = anyio.run(_demo_mujoco, args, backend="asyncio")
+        if code is not None:
+            return code
+        args.bus = "sim"  # MuJoCo could not load: the two-axis demo on simulated motors
     rig = _rig(args.bus)
     if rig is None:
         return 2
     if args.virtual and args.bus != "sim":
-        print("--virtual needs --bus sim: a bus runs in real time", file=sys.stderr)
+        print("--virtual needs --bus sim or mujoco: a bus runs in real time", file=sys.stderr)
         return 2
     live = None if args.no_live else LiveLine()
     summary = anyio.run(
         lambda: run_demo(
             duration_s=args.duration,
-            period_ms=args.period_ms,
+            period_ms=10.0 if args.period_ms is None else args.period_ms,
             virtual=args.virtual,
             inject_fault=args.inject_fault,
             live=live,
@@ -104,6 +144,46 @@ def _demo(args: argparse.Namespace) -> int:
     for line in summary.lines():
         print("  " + line)
     return 0
+
+
+async def _demo_mujoco(args: argparse.Namespace) -> int | None:
+    """The MuJoCo arm2 square; None when MuJoCo or the model cannot load (logged)."""
+    from ..errors import HALError
+    from .arm_demo import ArmOptions, output_dir
+    from .progress import LiveLine
+
+    try:
+        from . import arm2_square
+
+        sim = arm2_square.open_sim(realtime=not args.virtual)
+    except Exception as exc:  # ImportError, ModelLoadError, MuJoCo's own load errors
+        structlog.get_logger(__name__).warning(
+            "mujoco_unavailable",
+            reason=f"{type(exc).__name__}: {exc}",
+            fallback="the two-axis demo on openel_sim motors (--bus sim)",
+        )
+        return None
+    options = ArmOptions(
+        duration=args.duration,
+        realtime=not args.virtual,
+        out_dir=output_dir(arm2_square.APP, args.out),
+        live=not args.no_live,
+        period_ms=arm2_square.DEFAULT_PERIOD_MS if args.period_ms is None else args.period_ms,
+    )
+    square = arm2_square.SquareOptions(lap_s=args.duration)
+    try:
+        arm2_square.plan_square(arm2_square.PlanarArm.from_model(sim.model), square)
+    except ValueError as exc:
+        print(f"openel-async demo: {exc}", file=sys.stderr)
+        return 2
+    live = LiveLine() if options.live else None
+    try:
+        result = await arm2_square.run_square(sim, options=options, square=square, live=live)
+    except HALError as exc:
+        print(f"openel-async demo: the arm stopped: {exc}", file=sys.stderr)
+        return 1
+    arm2_square.report(result)
+    return 0 if all(a.outcome == "succeeded" for a in result.arrivals) else 1
 
 
 def _rig(bus: str) -> RigFactory | None:

@@ -1,0 +1,688 @@
+"""The 2-DoF MuJoCo arm (``arm2``) traces a square with its tip: ``apps/arm2_square.py`` and the
+default ``openel-async demo``.
+
+- **Kinematics**: :class:`PlanarArm` is the analytic forward and inverse kinematics of the
+  arm's two hinges (both about z, so the tip moves in the horizontal plane of the shoulder).
+  The link lengths, shoulder position and joint ranges are read from the model.  ``inverse``
+  returns the elbow-``"up"`` or ``"down"`` solution and raises :class:`UnreachableError` for a
+  point out of reach or one that needs a joint beyond its range.
+- **Path**: each edge of the square is one :meth:`AxisGroup.follow` of ``points`` timed
+  waypoints, the inverse kinematics of points along the straight edge.  The points are spaced by
+  a minimum-jerk profile in time (the tip starts and stops each edge smoothly and rests at each
+  corner), and are dense enough (16 per 0.15 m edge by default, <= 1 cm apart) that what the
+  group plans between two of them, nearly a straight line in joint space, stays well under a
+  millimetre from the edge: the tip's deviation comes from the servos' lag, not from the path.
+  A single ``move_to`` per corner would be a straight line in joint space, and the tip would
+  bow up to centimetres away from the edge.
+- **Synchronization**: the two joints are axes of one :class:`~openel_async.motion.AxisGroup`
+  streaming POSITION setpoints on an :class:`~openel_async.EventTimer` of the simulation clock;
+  at each corner both setpoints arrive on the same tick (checked from ``group.log``).
+- **Measurement**: the ``tip_pos`` framepos sensor, read through an OpenEL ``Sensor`` at every
+  timer tick, gives the tip's deviation from the ideal square edges.
+
+Pacing is lockstep by default (deterministic, as fast as the CPU allows), real time with
+``--realtime``.  At the end the run writes a plot of commanded vs actual joint positions, a plot
+of the tip path against the square, and a snapshot of the scene (when OpenGL is available).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from contextlib import AsyncExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal
+
+import anyio
+import anyio.to_thread
+import structlog
+
+from .. import Actuator, EventTimer, HALError, Sensor
+from ..motion import (
+    AxisGroup,
+    AxisLimits,
+    GroupMotion,
+    KinematicState,
+    Planner,
+    Tolerances,
+    Waypoint,
+)
+from .arm_demo import (
+    ArmOptions,
+    Artifacts,
+    UnreachableError,
+    add_common_arguments,
+    arrival_spread,
+    display_path,
+    finish,
+    fmt_mm,
+    line_waypoints,
+    options_from,
+    preload_plotting,
+    print_summary,
+    save_plot,
+    save_snapshot,
+)
+from .progress import LiveLine
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from openel_mujoco import MujocoSim
+
+__all__ = [
+    "APP",
+    "CornerArrival",
+    "PlanarArm",
+    "SquareOptions",
+    "SquareResult",
+    "UnreachableError",
+    "build_parser",
+    "distance_to_polygon",
+    "edge_waypoints",
+    "main",
+    "open_sim",
+    "plan_square",
+    "report",
+    "run_square",
+    "square_corners",
+]
+
+log = structlog.get_logger(__name__)
+
+APP = "arm2_square"
+JOINTS = ("shoulder", "elbow")
+Elbow = Literal["up", "down"]
+
+DEFAULT_LAP_S = 6.0
+DEFAULT_PERIOD_MS = 2.0
+DEFAULT_SIDE_M = 0.15
+DEFAULT_CENTER_M = (0.35, 0.0)
+DEFAULT_POINTS = 16
+LIMITS = AxisLimits(max_velocity=2.5, max_acceleration=15.0, max_jerk=200.0)
+"""Group limits (rad, s) of the approach move."""
+EDGE_LIMITS = AxisLimits(max_velocity=3.0, max_acceleration=60.0, max_jerk=3000.0)
+"""Limits of the edges.  The timing comes from the waypoints' times; the group chains one
+ruckig segment per waypoint with a through velocity that is only an estimate, so short
+segments need brief acceleration peaks well above the smooth profile's (~3 rad/s^2)."""
+GOAL_TOLERANCE_RAD = 2e-3
+PATH_TOLERANCE_RAD = 0.15
+"""Following error that aborts a motion: far above the servos' lag (~0.05 rad at full speed),
+so only a stuck or colliding joint trips it."""
+
+
+@dataclass(frozen=True, slots=True)
+class PlanarArm:
+    """Forward and inverse kinematics of a planar two-link arm (angles in rad, lengths in m).
+
+    ``shoulder`` turns link 1 (length ``link1``) about the base at ``base``; ``elbow`` turns
+    link 2 (``link2``) relative to link 1; at zero both links point along +x.
+    """
+
+    link1: float
+    link2: float
+    base: tuple[float, float] = (0.0, 0.0)
+    shoulder_range: tuple[float, float] = (-math.pi, math.pi)
+    elbow_range: tuple[float, float] = (-math.pi, math.pi)
+
+    @classmethod
+    def from_model(cls, model: mujoco.MjModel) -> PlanarArm:
+        """The geometry of the shipped ``arm2`` model (bodies ``link1``/``link2``, site ``tip``,
+        joints ``shoulder``/``elbow``)."""
+        base = model.body("link1").pos
+        return cls(
+            link1=float(model.body("link2").pos[0]),
+            link2=float(model.site("tip").pos[0]),
+            base=(float(base[0]), float(base[1])),
+            shoulder_range=_range(model, "shoulder"),
+            elbow_range=_range(model, "elbow"),
+        )
+
+    @property
+    def reach(self) -> tuple[float, float]:
+        """Smallest and largest distance of the tip from the shoulder."""
+        return abs(self.link1 - self.link2), self.link1 + self.link2
+
+    def forward(self, shoulder: float, elbow: float) -> tuple[float, float]:
+        """Tip position for the joint angles."""
+        x0, y0 = self.base
+        a = shoulder + elbow
+        return (
+            x0 + self.link1 * math.cos(shoulder) + self.link2 * math.cos(a),
+            y0 + self.link1 * math.sin(shoulder) + self.link2 * math.sin(a),
+        )
+
+    def inverse(self, x: float, y: float, elbow: Elbow = "up") -> tuple[float, float]:
+        """Joint angles ``(shoulder, elbow)`` that put the tip on ``(x, y)``.
+
+        ``elbow="up"``: the elbow lies to the left of the line from the shoulder to the tip,
+        seen from above (counter-clockwise side; elbow angle <= 0); ``"down"``: to the right
+        (elbow angle >= 0).  Raises :class:`UnreachableError` when the point is out of reach or
+        needs a joint outside its range.
+        """
+        if elbow not in ("up", "down"):
+            raise ValueError(f"elbow must be 'up' or 'down', not {elbow!r}")
+        dx, dy = x - self.base[0], y - self.base[1]
+        r2 = dx * dx + dy * dy
+        l1, l2 = self.link1, self.link2
+        low, high = self.reach
+        r = math.sqrt(r2)
+        tol = 1e-12
+        if r > high + tol or r < low - tol:
+            raise UnreachableError(
+                f"point ({x:.4f}, {y:.4f}) m is out of reach: {r:.4f} m from the shoulder, "
+                f"the tip reaches {low:.4f} to {high:.4f} m"
+            )
+        c2 = min(1.0, max(-1.0, (r2 - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)))
+        q2 = math.acos(c2)
+        if elbow == "up":
+            q2 = -q2
+        q1 = math.atan2(dy, dx) - math.atan2(l2 * math.sin(q2), l1 + l2 * math.cos(q2))
+        q1 = math.atan2(math.sin(q1), math.cos(q1))  # (-pi, pi]
+        for name, value, (lo, hi) in (
+            ("shoulder", q1, self.shoulder_range),
+            ("elbow", q2, self.elbow_range),
+        ):
+            if not lo <= value <= hi:
+                raise UnreachableError(
+                    f"point ({x:.4f}, {y:.4f}) m needs {name} = {value:+.4f} rad, outside its "
+                    f"range [{lo:+.4f}, {hi:+.4f}] (elbow {elbow}); try the other elbow"
+                )
+        return q1, q2
+
+
+def _range(model: mujoco.MjModel, joint: str) -> tuple[float, float]:
+    j = model.joint(joint)
+    if not bool(j.limited[0]):
+        return (-math.pi, math.pi)
+    return float(j.range[0]), float(j.range[1])
+
+
+# -- the square ---------------------------------------------------------------------------------
+
+
+def square_corners(
+    center: tuple[float, float] = DEFAULT_CENTER_M, side: float = DEFAULT_SIDE_M
+) -> list[tuple[float, float]]:
+    """The four corners, counter-clockwise seen from above, from the (-x, -y) one."""
+    cx, cy = center
+    h = side / 2.0
+    return [(cx - h, cy - h), (cx + h, cy - h), (cx + h, cy + h), (cx - h, cy + h)]
+
+
+def edge_waypoints(
+    arm: PlanarArm,
+    start: tuple[float, float],
+    end: tuple[float, float],
+    *,
+    duration: float,
+    points: int = DEFAULT_POINTS,
+    elbow: Elbow = "up",
+) -> list[Waypoint]:
+    """``points`` timed waypoints along the straight edge ``start`` -> ``end`` (the last one is
+    ``end`` at ``duration``), as joint angles; minimum-jerk spacing in time."""
+    return line_waypoints(
+        lambda p: arm.inverse(p[0], p[1], elbow), start, end, duration=duration, points=points
+    )
+
+
+def distance_to_segment(
+    p: tuple[float, float], a: tuple[float, float], b: tuple[float, float]
+) -> float:
+    ax, ay = a
+    vx, vy = b[0] - ax, b[1] - ay
+    wx, wy = p[0] - ax, p[1] - ay
+    length2 = vx * vx + vy * vy
+    t = 0.0 if length2 == 0 else max(0.0, min(1.0, (wx * vx + wy * vy) / length2))
+    return math.hypot(wx - t * vx, wy - t * vy)
+
+
+def distance_to_polygon(p: tuple[float, float], corners: Sequence[tuple[float, float]]) -> float:
+    """Distance from ``p`` to the closed polygon's edges (its outline, not its area)."""
+    n = len(corners)
+    return min(distance_to_segment(p, corners[i], corners[(i + 1) % n]) for i in range(n))
+
+
+# -- the run ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class SquareOptions:
+    """What to trace: see :func:`build_parser`."""
+
+    lap_s: float = DEFAULT_LAP_S
+    laps: int = 1
+    side: float = DEFAULT_SIDE_M
+    center: tuple[float, float] = DEFAULT_CENTER_M
+    elbow: Elbow = "up"
+    points: int = DEFAULT_POINTS
+
+
+@dataclass(frozen=True, slots=True)
+class CornerArrival:
+    """One edge's motion, ending at a corner."""
+
+    corner: int
+    """The corner reached, 1..4; corner 1 is where the square starts (and ends)."""
+    motion_id: int
+    outcome: str
+    setpoint_spread_ticks: int
+    """Ticks between the joints' last setpoints (0: the same tick)."""
+    settled_after_s: float
+    """Seconds from the last setpoint until every joint was within the goal tolerance (the
+    group's goal check: the motion's success)."""
+    tip_error_m: float
+    """Distance of the tip from the corner when the motion succeeded."""
+
+
+@dataclass
+class SquareResult:
+    """What a run measured (the summary's source; the tests assert on it)."""
+
+    pacing: str
+    period_ms: float
+    lap_s: float
+    laps: int
+    side_m: float
+    elbow: str
+    corners: list[tuple[float, float]]
+    arrivals: list[CornerArrival] = field(default_factory=list)
+    approach_spread_ticks: int = 0
+    max_deviation_m: float = 0.0
+    rms_deviation_m: float = 0.0
+    max_lag_m: float = 0.0
+    deviation_samples: int = 0
+    tip_path: list[tuple[float, float]] = field(default_factory=list)
+    square_sim_s: float = 0.0
+    sim_time_s: float = 0.0
+    wall_time_s: float = 0.0
+    timer_ticks: int = 0
+    timer_missed: int = 0
+    artifacts: Artifacts = field(default_factory=Artifacts)
+
+    @property
+    def max_setpoint_spread_ticks(self) -> int:
+        spreads = [a.setpoint_spread_ticks for a in self.arrivals]
+        return max([self.approach_spread_ticks, *spreads])
+
+    def lines(self) -> list[str]:
+        settle = max((a.settled_after_s for a in self.arrivals), default=0.0)
+        speed = self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else 0.0
+        lines = [
+            f"square             {self.laps} lap(s) of {self.side_m * 100:.0f} cm in "
+            f"{self.lap_s:g} s each, elbow {self.elbow}, AxisGroup at {self.period_ms:g} ms",
+            f"corners reached    {sum(a.outcome == 'succeeded' for a in self.arrivals)}"
+            f"/{len(self.arrivals)}, tip within "
+            f"{fmt_mm(max((a.tip_error_m for a in self.arrivals), default=0.0))} of the corner",
+            f"synchronization    joint setpoints arrive within "
+            f"{self.max_setpoint_spread_ticks} tick(s) of each other at every corner",
+            f"actual arrival     every joint within {GOAL_TOLERANCE_RAD * 1e3:g} mrad of the "
+            f"corner at most {settle * 1e3:.0f} ms after the last setpoint",
+            f"tip deviation      max {fmt_mm(self.max_deviation_m)}, "
+            f"rms {fmt_mm(self.rms_deviation_m)} from the ideal edges "
+            f"({self.deviation_samples} tip_pos readings)",
+            f"tip lag            max {fmt_mm(self.max_lag_m)} behind the commanded point",
+            f"time               square traced in {self.square_sim_s:.2f} s, "
+            f"{self.sim_time_s:.2f} s simulated ({self.pacing}) in "
+            f"{self.wall_time_s:.2f} s of real time ({speed:.1f}x real time), timer ticks "
+            f"{self.timer_ticks} (missed {self.timer_missed})",
+        ]
+        return lines + self.artifacts.lines()
+
+
+class _TipMonitor:
+    """TimerObserver: reads the tip sensor at every tick, measures, and shows progress."""
+
+    def __init__(
+        self,
+        tip: Sensor,
+        arm: PlanarArm,
+        group: AxisGroup,
+        result: SquareResult,
+        live: LiveLine | None,
+        sim: MujocoSim,
+    ) -> None:
+        self.tip = tip
+        self.arm = arm
+        self.group = group
+        self.result = result
+        self.live = live
+        self.sim = sim
+        self.phase = "approach corner 1"
+        self.tracing = False
+        self._sum_sq = 0.0
+        self._last_dev = 0.0
+
+    async def notify_timer(self, timer: EventTimer) -> None:
+        x, y, _z = await self.tip.get_value()
+        result = self.result
+        if self.tracing:
+            dev = distance_to_polygon((x, y), result.corners)
+            self._last_dev = dev
+            result.deviation_samples += 1
+            self._sum_sq += dev * dev
+            result.rms_deviation_m = math.sqrt(self._sum_sq / result.deviation_samples)
+            result.max_deviation_m = max(result.max_deviation_m, dev)
+            result.tip_path.append((x, y))
+            cx, cy = self.arm.forward(*self.group.commanded)
+            result.max_lag_m = max(result.max_lag_m, math.hypot(x - cx, y - cy))
+        if self.live is not None:
+            off = (
+                f"off-edge {self._last_dev * 1e3:5.2f} mm (max {result.max_deviation_m * 1e3:5.2f})"
+                if self.tracing
+                else "off-edge    -"
+            )
+            self.live.update(
+                f"{self.phase:<26} tip ({x:+.3f}, {y:+.3f}) m  {off}  "
+                f"t={self.sim.time_ns / 1e9:6.3f} s sim"
+            )
+
+
+def open_sim(*, realtime: bool) -> MujocoSim:
+    """The ``arm2`` simulation; raises ImportError (no MuJoCo) or the model's load error."""
+    from openel_mujoco import MujocoSim
+
+    return MujocoSim("arm2", pacing="realtime" if realtime else "lockstep")
+
+
+async def run_square(
+    sim: MujocoSim,
+    *,
+    options: ArmOptions,
+    square: SquareOptions = SquareOptions(),
+    live: LiveLine | None = None,
+) -> SquareResult:
+    """Trace the square on ``sim`` (not running yet: this enters it) and write the files.
+
+    Raises :class:`UnreachableError` or ``ValueError`` (see :func:`plan_square`) before
+    anything moves.
+    """
+    from openel_mujoco import TrajectoryRecorder
+
+    arm = PlanarArm.from_model(sim.model)
+    corners = square_corners(square.center, square.side)
+    edges = plan_square(arm, square)
+    start = arm.inverse(*corners[0], square.elbow)
+    result = SquareResult(
+        pacing=sim.pacing,
+        period_ms=options.period_ms,
+        lap_s=square.lap_s,
+        laps=square.laps,
+        side_m=square.side,
+        elbow=square.elbow,
+        corners=corners,
+    )
+    planned_s = 3.0 + square.laps * square.lap_s
+    capacity = int((planned_s + 30.0) * 1000.0 / options.period_ms)
+    clock = sim.clock
+    recorder = TrajectoryRecorder(sim, list(JOINTS), every=max(1, round(options.period_ms)))
+    out_dir = options.out_dir
+    await preload_plotting()
+    async with sim:  # outermost: the physics runs while the rest does
+        async with AsyncExitStack() as stack:
+            axes = [
+                await stack.enter_async_context(Actuator(sim.actuator(name), clock=clock))
+                for name in JOINTS
+            ]
+            tip = await stack.enter_async_context(Sensor(sim.sensor("tip_pos"), clock=clock))
+            timer = await stack.enter_async_context(
+                EventTimer(options.period_ms, clock=clock, name="arm2-sync")
+            )
+            group = await stack.enter_async_context(
+                AxisGroup(
+                    axes,
+                    timer=timer,
+                    limits=LIMITS,
+                    tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
+                    goal_time=1.0,
+                    name="arm2",
+                    log_capacity=capacity,
+                    log_actual=True,
+                )
+            )
+            monitor = _TipMonitor(tip, arm, group, result, live, sim)
+            timer.add_observer(monitor)
+            recorder.attach()
+            try:
+                await _trace(sim, group, tip, monitor, square, corners, edges, start, result)
+            finally:
+                recorder.detach()
+                timer.remove_observer(monitor)
+                if live is not None:
+                    live.finish()
+            stats = timer.stats
+            result.timer_ticks, result.timer_missed = stats.ticks, stats.missed_ticks
+            result.sim_time_s = sim.time_ns / 1e9
+            result.wall_time_s = sim.stats.wall_time_s
+        log.info(
+            "square_traced",
+            laps=square.laps,
+            max_deviation_mm=round(result.max_deviation_m * 1e3, 3),
+            corners=len(result.arrivals),
+        )
+        # The components are closed (the joints hold their last position): the snapshot shows
+        # the arm on the first corner, where the square ends.
+        out_dir.mkdir(parents=True, exist_ok=True)
+        snapshot, skipped = await save_snapshot(sim, out_dir / f"{APP}_scene.png")
+    result.artifacts = Artifacts(snapshot=snapshot, snapshot_skipped=skipped)
+    result.artifacts.plot = await save_plot(
+        recorder,
+        out_dir / f"{APP}_joints.png",
+        title=f"arm2 square: commanded vs actual joint positions ({sim.pacing})",
+    )
+    tip_plot = out_dir / f"{APP}_tip.png"
+    with anyio.fail_after(60):
+        await anyio.to_thread.run_sync(lambda: plot_tip_path(tip_plot, result))
+    result.artifacts.extra.append(("tip path plot", tip_plot))
+    return result
+
+
+async def _trace(
+    sim: MujocoSim,
+    group: AxisGroup,
+    tip: Sensor,
+    monitor: _TipMonitor,
+    square: SquareOptions,
+    corners: list[tuple[float, float]],
+    edges: list[list[Waypoint]],
+    start: tuple[float, float],
+    result: SquareResult,
+) -> None:
+    """Approach the first corner, then one ``follow()`` per edge and lap."""
+    approach = await group.move_to(list(start))
+    await finish(approach)
+    result.approach_spread_ticks = arrival_spread(group.log.snapshot(), approach.id)
+    traced_from = sim.time_ns
+    monitor.tracing = True
+    for lap in range(square.laps):
+        for i, edge in enumerate(edges):
+            corner = (i + 1) % 4
+            monitor.phase = f"lap {lap + 1} edge {i + 1}/4 -> corner {corner + 1}"
+            motion = await group.follow(edge, EDGE_LIMITS)
+            await finish(motion)
+            result.arrivals.append(await _arrival(corner + 1, motion, group, tip, corners[corner]))
+    monitor.tracing = False
+    result.square_sim_s = (sim.time_ns - traced_from) / 1e9
+
+
+async def _arrival(
+    corner: int,
+    motion: GroupMotion,
+    group: AxisGroup,
+    tip: Sensor,
+    target: tuple[float, float],
+) -> CornerArrival:
+    samples = group.log.snapshot()
+    x, y, _ = await tip.get_value()
+    return CornerArrival(
+        corner=corner,
+        motion_id=motion.id,
+        outcome=motion.outcome.name.lower(),
+        setpoint_spread_ticks=arrival_spread(samples, motion.id),
+        settled_after_s=max(0.0, (motion.finished_ns or 0) - motion.planned_end_ns) / 1e9,
+        tip_error_m=math.hypot(x - target[0], y - target[1]),
+    )
+
+
+def plot_tip_path(path: Path, result: SquareResult) -> Path:
+    """The ideal square and the measured tip path, seen from above (Agg canvas, no pyplot)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.4, 6.0))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    xs = [c[0] for c in [*result.corners, result.corners[0]]]
+    ys = [c[1] for c in [*result.corners, result.corners[0]]]
+    ax.plot(xs, ys, "--", color="0.4", linewidth=1.2, label="ideal square")
+    if result.tip_path:
+        ax.plot(
+            [p[0] for p in result.tip_path],
+            [p[1] for p in result.tip_path],
+            "-",
+            color="tab:red",
+            linewidth=1.0,
+            label=f"tip (tip_pos sensor), max deviation {result.max_deviation_m * 1e3:.2f} mm",
+        )
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", fontsize="small")
+    ax.set_title(f"arm2 tip path, seen from above ({result.pacing})")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    return path
+
+
+# -- command line -------------------------------------------------------------------------------
+
+
+def build_parser(prog: str = "arm2_square") -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description="The 2-DoF MuJoCo arm traces a square with its tip (inverse kinematics, "
+        "joints synchronized by an AxisGroup).",
+    )
+    add_common_arguments(
+        parser,
+        APP,
+        duration_help=f"seconds per lap of the square (default {DEFAULT_LAP_S:g})",
+        default_duration=DEFAULT_LAP_S,
+        default_period_ms=DEFAULT_PERIOD_MS,
+    )
+    parser.add_argument("--laps", type=int, default=1, help="laps of the square (default 1)")
+    parser.add_argument(
+        "--side",
+        type=float,
+        default=DEFAULT_SIDE_M,
+        metavar="M",
+        help=f"side length, m (default {DEFAULT_SIDE_M:g})",
+    )
+    parser.add_argument(
+        "--center",
+        type=float,
+        nargs=2,
+        default=list(DEFAULT_CENTER_M),
+        metavar=("X", "Y"),
+        help="centre of the square in the arm's plane, m (default 0.35 0)",
+    )
+    parser.add_argument(
+        "--elbow", choices=("up", "down"), default="up", help="IK solution (default up)"
+    )
+    parser.add_argument(
+        "--points",
+        type=int,
+        default=DEFAULT_POINTS,
+        help=f"IK waypoints per edge (default {DEFAULT_POINTS})",
+    )
+    return parser
+
+
+def square_from(args: argparse.Namespace, lap_s: float) -> SquareOptions:
+    if args.laps < 1:
+        raise ValueError(f"--laps must be >= 1, not {args.laps}")
+    if args.points < 1:
+        raise ValueError(f"--points must be >= 1, not {args.points}")
+    if not (math.isfinite(args.side) and args.side > 0):
+        raise ValueError(f"--side must be > 0 m, not {args.side}")
+    return SquareOptions(
+        lap_s=lap_s,
+        laps=args.laps,
+        side=float(args.side),
+        center=(float(args.center[0]), float(args.center[1])),
+        elbow=args.elbow,
+        points=args.points,
+    )
+
+
+def plan_square(arm: PlanarArm, square: SquareOptions) -> list[list[Waypoint]]:
+    """The four edges' waypoints, checked before anything moves.
+
+    Raises :class:`UnreachableError` for a point out of reach, and ``ValueError`` when the lap
+    is too fast for the group's edge limits (each edge is planned offline, as the group will).
+    """
+    corners = square_corners(square.center, square.side)
+    edges = [
+        edge_waypoints(
+            arm,
+            corners[i],
+            corners[(i + 1) % 4],
+            duration=square.lap_s / 4.0,
+            points=square.points,
+            elbow=square.elbow,
+        )
+        for i in range(4)
+    ]
+    planner = Planner(
+        len(JOINTS),
+        [arm.shoulder_range, arm.elbow_range],
+        [math.inf] * len(JOINTS),
+    )
+    for i, edge in enumerate(edges):
+        start = arm.inverse(*corners[i], square.elbow)
+        try:
+            planner.waypoints(
+                0,
+                KinematicState(list(start), [0.0, 0.0], [0.0, 0.0]),
+                [(list(w.positions), w.time) for w in edge],
+                [EDGE_LIMITS] * len(JOINTS),
+            )
+        except HALError as exc:
+            raise ValueError(
+                f"a lap of {square.lap_s:g} s is too fast for the joints' limits (edge {i + 1}: "
+                f"{exc}); give a longer --duration"
+            ) from exc
+    return edges
+
+
+async def main(argv: list[str]) -> int:
+    """``openel-async run apps/arm2_square.py [options]``."""
+    args = build_parser().parse_args(argv)
+    try:
+        options = options_from(args, APP)
+        square = square_from(args, options.duration)
+        sim = open_sim(realtime=options.realtime)
+        plan_square(PlanarArm.from_model(sim.model), square)
+    except (ValueError, UnreachableError) as exc:
+        print(f"{APP}: {exc}", file=sys.stderr)
+        return 2
+    live = LiveLine() if options.live else None
+    try:
+        result = await run_square(sim, options=options, square=square, live=live)
+    except HALError as exc:  # a motion aborted (following error, fault, goal timeout)
+        print(f"{APP}: the arm stopped: {exc}", file=sys.stderr)
+        return 1
+    report(result)
+    return 0 if all(a.outcome == "succeeded" for a in result.arrivals) else 1
+
+
+def report(result: SquareResult) -> None:
+    print_summary(f"MuJoCo arm2 square, {result.pacing}", result.lines())
+    out = result.artifacts.plot.parent if result.artifacts.plot is not None else None
+    if out is not None:
+        print(f"\nfiles in {display_path(out)}/")

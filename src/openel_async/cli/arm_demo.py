@@ -1,0 +1,319 @@
+"""Shared parts of the MuJoCo arm apps and of ``openel-async demo`` (bus ``mujoco``).
+
+The apps (``apps/arm2_square.py``, ``apps/arm6_pick_place.py``) and the demo share:
+
+- the common command-line options (``--duration``, ``--realtime``, ``--out``, ``--no-live``,
+  ``--period-ms``) and the output directory (``out/<app>/`` under the current directory);
+- the end-of-run files: a PNG plot of commanded vs actual joint positions and a PNG snapshot of
+  the scene, rendered in a worker thread and skipped with a reason when OpenGL is unavailable;
+- timed straight-line paths in task space (:func:`line_waypoints`, minimum-jerk timing) for
+  :meth:`AxisGroup.follow`, and :class:`UnreachableError` for the inverse kinematics;
+- the synchronization analysis of an :class:`~openel_async.motion.AxisGroup` motion (on which
+  tick each axis' setpoints arrive at their target);
+- the summary printer and bounded waits on group motions.
+
+This module imports neither MuJoCo nor matplotlib: the simulation objects are passed in, so the
+CLI can import it without paying for (or failing on) MuJoCo.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal, TextIO
+
+import anyio
+import anyio.to_thread
+import numpy as np
+import structlog
+
+from ..motion import GroupMotion, TrajectorySamples, Waypoint
+
+if TYPE_CHECKING:
+    from openel_mujoco import MujocoSim, TrajectoryRecorder
+
+log = structlog.get_logger(__name__)
+
+OUT_ROOT = "out"
+"""Default output root, relative to the current directory: files go to ``out/<app>/``."""
+RENDER_TIMEOUT_S = 60.0
+"""Real-time bound on one snapshot (the first one initializes OpenGL: ~0.3-3 s)."""
+PLOT_TIMEOUT_S = 60.0
+
+
+class UnreachableError(ValueError):
+    """The arm cannot put its tool on the requested point (out of reach or beyond a joint's
+    range); the message says which and by how much."""
+
+
+@dataclass(frozen=True, slots=True)
+class ArmOptions:
+    """The options every arm app takes (see :func:`add_common_arguments`)."""
+
+    duration: float
+    realtime: bool
+    out_dir: Path
+    live: bool
+    period_ms: float
+
+    @property
+    def pacing(self) -> Literal["lockstep", "realtime"]:
+        """The ``MujocoSim`` pacing the options ask for."""
+        return "realtime" if self.realtime else "lockstep"
+
+
+def add_common_arguments(
+    parser: argparse.ArgumentParser,
+    app: str,
+    *,
+    duration_help: str,
+    default_duration: float,
+    default_period_ms: float,
+) -> None:
+    parser.add_argument(
+        "--duration", type=float, default=default_duration, metavar="S", help=duration_help
+    )
+    parser.add_argument(
+        "--realtime",
+        action="store_true",
+        help="pace the simulation against the real clock (default: lockstep, as fast as the CPU "
+        "allows, deterministic)",
+    )
+    parser.add_argument(
+        "--out",
+        metavar="DIR",
+        default=None,
+        help=f"directory for the PNG files (default: {OUT_ROOT}/{app}/ under the current "
+        "directory)",
+    )
+    parser.add_argument("--no-live", action="store_true", help="no live progress line")
+    parser.add_argument(
+        "--period-ms",
+        type=float,
+        default=default_period_ms,
+        metavar="MS",
+        help=f"EventTimer period of the axis group, ms (default {default_period_ms:g})",
+    )
+
+
+def options_from(args: argparse.Namespace, app: str) -> ArmOptions:
+    """Validated :class:`ArmOptions`; raises ``ValueError`` with a message for the user."""
+    duration = float(args.duration)
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"--duration must be a number of seconds > 0, not {args.duration}")
+    period = float(args.period_ms)
+    if not (math.isfinite(period) and period > 0):
+        raise ValueError(f"--period-ms must be > 0, not {args.period_ms}")
+    return ArmOptions(
+        duration=duration,
+        realtime=bool(args.realtime),
+        out_dir=output_dir(app, args.out),
+        live=not args.no_live,
+        period_ms=period,
+    )
+
+
+def output_dir(app: str, out: str | os.PathLike[str] | None = None) -> Path:
+    """``out`` if given, else ``out/<app>`` under the current directory (not created here)."""
+    return Path(out) if out is not None else Path.cwd() / OUT_ROOT / app
+
+
+def display_path(path: Path) -> str:
+    """``path`` relative to the current directory when it is below it, else absolute."""
+    absolute = path.resolve()
+    try:
+        return str(absolute.relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(absolute)
+
+
+# -- paths ------------------------------------------------------------------------------------
+
+
+def min_jerk(tau: float) -> float:
+    """Minimum-jerk progress 0 -> 1 over ``tau`` in [0, 1] (zero velocity and acceleration at
+    both ends)."""
+    return tau * tau * tau * (10.0 + tau * (-15.0 + 6.0 * tau))
+
+
+def line_waypoints(
+    inverse: Callable[[tuple[float, ...]], Sequence[float]],
+    start: Sequence[float],
+    end: Sequence[float],
+    *,
+    duration: float,
+    points: int,
+) -> list[Waypoint]:
+    """``points`` timed waypoints along the straight line ``start`` -> ``end`` in task space,
+    converted to joint angles by ``inverse``; the i-th is passed at ``i / points * duration``
+    and lies at the minimum-jerk progress of that time, so the tool starts and stops smoothly
+    (the last waypoint is ``end``, at ``duration``).  Raises what ``inverse`` raises
+    (:class:`UnreachableError`) for a point it cannot reach."""
+    if points < 1:
+        raise ValueError(f"points must be >= 1, not {points}")
+    if not (math.isfinite(duration) and duration > 0):
+        raise ValueError(f"duration must be > 0 s, not {duration}")
+    waypoints = []
+    for i in range(1, points + 1):
+        tau = i / points
+        s = min_jerk(tau)
+        point = tuple(a + s * (b - a) for a, b in zip(start, end, strict=True))
+        waypoints.append(Waypoint(list(inverse(point)), time=tau * duration))
+    return waypoints
+
+
+# -- end-of-run files -------------------------------------------------------------------------
+
+
+@dataclass
+class Artifacts:
+    """The files a run wrote, and why the snapshot is missing if it is."""
+
+    plot: Path | None = None
+    snapshot: Path | None = None
+    snapshot_skipped: str | None = None
+    extra: list[tuple[str, Path]] = field(default_factory=list)
+    """Further files, with a label."""
+
+    def lines(self) -> list[str]:
+        rows = []
+        if self.plot is not None:
+            rows.append(f"plot               {display_path(self.plot)}")
+        if self.snapshot is not None:
+            rows.append(f"snapshot           {display_path(self.snapshot)}")
+        else:
+            rows.append(f"snapshot           skipped: {self.snapshot_skipped or 'not taken'}")
+        for label, path in self.extra:
+            rows.append(f"{label:<18} {display_path(path)}")
+        return rows
+
+
+def _rendering_disabled() -> bool:
+    return os.environ.get("MUJOCO_GL", "").strip().lower() in {
+        "disable",
+        "disabled",
+        "off",
+        "false",
+        "0",
+    }
+
+
+async def save_snapshot(
+    sim: MujocoSim,
+    path: Path,
+    *,
+    camera: str | None = "overview",
+    width: int = 800,
+    height: int = 600,
+) -> tuple[Path | None, str | None]:
+    """Render the scene to ``path`` (worker thread, bounded); ``(None, reason)`` when it cannot.
+
+    The physics is paused meanwhile, in both pacings: a lockstep run stays deterministic, and a
+    real-time run does not drop steps while the renderer competes for the CPU (simulated time
+    then resumes where it stopped, behind the clock by the rendering time).  Never raises for a
+    rendering problem: a missing OpenGL context, a disabled renderer or a renderer error only
+    skip the snapshot, with the reason returned (and logged).
+    """
+    if _rendering_disabled():
+        return None, "rendering disabled (MUJOCO_GL=" + os.environ.get("MUJOCO_GL", "") + ")"
+    try:
+        with anyio.fail_after(RENDER_TIMEOUT_S):
+            async with sim.paused():
+                written = await sim.render_snapshot(path, width=width, height=height, camera=camera)
+    except TimeoutError:
+        reason = f"rendering took longer than {RENDER_TIMEOUT_S:g} s"
+    except Exception as exc:  # a renderer error must not lose the run's other results
+        reason = f"rendering failed: {type(exc).__name__}: {exc}"
+    else:
+        if written is not None:
+            return written, None
+        reason = "no OpenGL context (headless without EGL/OSMesa? set MUJOCO_GL=egl or osmesa)"
+    log.warning("snapshot_skipped", reason=reason)
+    return None, reason
+
+
+def _preload() -> None:
+    # matplotlib's first import takes ~0.3-1 s, mostly holding the GIL: done in a worker thread
+    # before the run, it cannot stall a real-time loop later (the snapshot's PNG encoder and the
+    # plots use it).
+    import matplotlib.backends.backend_agg
+    import matplotlib.figure
+    import matplotlib.image  # noqa: F401
+
+
+async def preload_plotting() -> None:
+    """Import matplotlib in a worker thread before a run (see :func:`save_snapshot`)."""
+    with anyio.fail_after(PLOT_TIMEOUT_S):
+        await anyio.to_thread.run_sync(_preload)
+
+
+async def save_plot(recorder: TrajectoryRecorder, path: Path, *, title: str) -> Path:
+    """``recorder.plot`` in a worker thread (matplotlib takes ~0.2-1 s); the recorder must be
+    detached from the simulation (nothing appends to it meanwhile)."""
+    with anyio.fail_after(PLOT_TIMEOUT_S):
+        return await anyio.to_thread.run_sync(lambda: recorder.plot(path, title=title))
+
+
+# -- synchronization --------------------------------------------------------------------------
+
+
+def arrival_ticks(
+    samples: TrajectorySamples, motion_id: int, *, eps: float = 1e-7
+) -> list[int | None]:
+    """Per axis, the index (in the motion's rows) of the tick from which its setpoint stays at
+    the motion's final setpoint; None for an axis that did not move in the motion.
+
+    The rows are the group log's rows of that motion (one per tick, the settling ticks
+    included, which repeat the final setpoints).
+    """
+    rows = samples.of_motion(motion_id)
+    commanded = rows.commanded
+    if len(rows) == 0:
+        return []
+    final = commanded[-1]
+    result: list[int | None] = []
+    for axis in range(commanded.shape[1]):
+        column = commanded[:, axis]
+        if float(np.max(column) - np.min(column)) <= eps:
+            result.append(None)
+            continue
+        away = np.nonzero(np.abs(column - final[axis]) > eps)[0]
+        result.append(int(away[-1]) + 1 if away.size else 0)
+    return result
+
+
+def arrival_spread(samples: TrajectorySamples, motion_id: int) -> int:
+    """Ticks between the first and the last axis whose setpoints arrive (0: the same tick)."""
+    ticks = [t for t in arrival_ticks(samples, motion_id) if t is not None]
+    return max(ticks) - min(ticks) if ticks else 0
+
+
+async def finish(motion: GroupMotion, *, margin_s: float = 10.0) -> None:
+    """Await a group motion, bounded in real time by twice its planned time plus a margin
+    (lockstep runs faster than real time; real-time pacing needs the planned time)."""
+    with anyio.fail_after(2.0 * motion.duration + margin_s):
+        await motion
+
+
+# -- output -----------------------------------------------------------------------------------
+
+
+def print_summary(title: str, lines: Sequence[str], stream: TextIO | None = None) -> None:
+    out = stream or sys.stdout
+    out.write(f"\nsummary ({title})\n")
+    for line in lines:
+        out.write("  " + line + "\n")
+    out.flush()
+
+
+def fmt_mm(meters: float) -> str:
+    return f"{meters * 1e3:.2f} mm"
+
+
+def fmt_point(point: Sequence[float]) -> str:
+    return "(" + ", ".join(f"{v:+.3f}" for v in point) + ") m"

@@ -1,0 +1,143 @@
+"""apps/arm2_square.py end to end, in lockstep: one square, synchronized corners, files."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import anyio
+import numpy as np
+import pytest
+import structlog
+
+from openel_async.cli import main as cli_main
+from openel_async.cli.arm2_square import SquareOptions, open_sim, run_square
+from openel_async.cli.arm_demo import ArmOptions, arrival_spread, arrival_ticks, save_snapshot
+from openel_async.cli.progress import LiveLine
+from openel_async.motion import TrajectorySamples
+
+from .conftest import assert_snapshot_written_or_explained, is_png, load
+
+
+@pytest.fixture(autouse=True)
+def _reset_logging() -> object:
+    yield
+    structlog.reset_defaults()  # the CLI's main() configures structlog for the process
+
+
+async def test_one_square_in_lockstep(tmp_path: Path) -> None:
+    options = ArmOptions(duration=6.0, realtime=False, out_dir=tmp_path, live=False, period_ms=2.0)
+    sim = open_sim(realtime=False)
+    stream = io.StringIO()
+    with anyio.fail_after(40):
+        result = await run_square(
+            sim, options=options, square=SquareOptions(lap_s=6.0), live=LiveLine(stream)
+        )
+    assert "off-edge" in stream.getvalue()  # the live progress line
+
+    # Every edge ended at its corner, all joints' setpoints arriving on the same tick (or the
+    # next: a setpoint a few 1e-8 rad from the target counts as not arrived yet).
+    assert [a.corner for a in result.arrivals] == [2, 3, 4, 1]
+    assert all(a.outcome == "succeeded" for a in result.arrivals)
+    assert all(a.setpoint_spread_ticks <= 1 for a in result.arrivals)
+    assert result.approach_spread_ticks <= 1
+    # ... and the physics followed: at each corner every joint was within its goal tolerance
+    # by 50 ms after the last setpoint, the tip within 1 mm of the corner.
+    assert max(a.settled_after_s for a in result.arrivals) <= 0.05
+    assert max(a.tip_error_m for a in result.arrivals) < 1e-3
+
+    # The tip (tip_pos sensor, read at every 2 ms tick) stayed close to the square's edges.
+    assert result.deviation_samples >= 0.9 * 6.0 / 0.002
+    assert 0.0 < result.max_deviation_m < 3e-3
+    assert result.rms_deviation_m < 1e-3
+    assert result.square_sim_s == pytest.approx(6.0, abs=0.1)
+    assert result.timer_missed == 0
+
+    # Files: the joint plot and the tip-path plot are PNGs; the snapshot is one or was skipped
+    # with the reason in the summary.
+    assert is_png(result.artifacts.plot)
+    assert result.artifacts.plot == tmp_path / "arm2_square_joints.png"
+    assert all(is_png(path) for _, path in result.artifacts.extra)
+    assert_snapshot_written_or_explained(result.artifacts)
+    text = "\n".join(result.lines())
+    assert "corners reached    4/4" in text
+    assert "tip deviation      max" in text
+
+
+def test_the_app_runs_from_the_command_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    app = load("arm2_square")
+    assert callable(app.main)
+    code = cli_main(
+        ["--log-level", "warning", "run", "apps/arm2_square.py", "--no-live", "--out",
+         str(tmp_path), "--duration", "4"]
+    )  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "summary (MuJoCo arm2 square, lockstep)" in out
+    assert f"plot               {(tmp_path / 'arm2_square_joints.png').resolve()}" in out
+    assert "files in" in out
+    assert is_png(tmp_path / "arm2_square_joints.png")
+
+
+def test_bad_options_are_refused_with_a_message(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert cli_main(["run", "apps/arm2_square.py", "--side", "0.5", "--out", str(tmp_path)]) == 2
+    assert "out of reach" in capsys.readouterr().err
+    assert cli_main(["run", "apps/arm2_square.py", "--duration", "1"]) == 2
+    assert "too fast" in capsys.readouterr().err
+    assert cli_main(["run", "apps/arm2_square.py", "--duration", "0"]) == 2
+    assert not list(tmp_path.iterdir())  # nothing ran, nothing written
+
+
+async def test_a_snapshot_without_rendering_is_skipped_with_the_reason(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("MUJOCO_GL", "disable")
+    path, reason = await save_snapshot(open_sim(realtime=False), tmp_path / "scene.png")
+    assert path is None
+    assert reason == "rendering disabled (MUJOCO_GL=disable)"
+    assert not (tmp_path / "scene.png").exists()
+
+
+def test_arrival_ticks_find_the_tick_each_axis_reaches_its_target() -> None:
+    commanded = np.array(
+        [[0.0, 0.0, 5.0], [0.5, 0.2, 5.0], [0.9, 0.6, 5.0], [1.0, 0.9, 5.0], [1.0, 1.0, 5.0]]
+    )
+    n = len(commanded)
+    samples = TrajectorySamples(
+        time_ns=np.arange(n, dtype=np.int64) * 1_000_000,
+        motion_id=np.full(n, 3, dtype=np.int64),
+        commanded=commanded,
+        velocity=np.zeros_like(commanded),
+        acceleration=np.zeros_like(commanded),
+        actual=None,
+    )
+    assert arrival_ticks(samples, 3) == [3, 4, None]  # the third axis did not move
+    assert arrival_spread(samples, 3) == 1
+    assert arrival_ticks(samples, 4) == []
+
+
+async def test_lockstep_runs_are_deterministic(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("MUJOCO_GL", "disable")  # no snapshots: faster, and not under test here
+    results = []
+    for run in range(2):
+        options = ArmOptions(
+            4.0, realtime=False, out_dir=tmp_path / str(run), live=False, period_ms=2.0
+        )
+        with anyio.fail_after(30):
+            results.append(
+                await run_square(
+                    open_sim(realtime=False), options=options, square=SquareOptions(lap_s=4.0)
+                )
+            )
+    first, second = results
+    assert first.tip_path == second.tip_path  # bit for bit
+    assert first.max_deviation_m == second.max_deviation_m
+    assert first.sim_time_s == second.sim_time_s
+    assert first.artifacts.snapshot is None
+    assert first.artifacts.snapshot_skipped == "rendering disabled (MUJOCO_GL=disable)"

@@ -1,0 +1,92 @@
+"""apps/arm6_pick_place.py end to end, in lockstep: the whole sequence moves the box."""
+
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import anyio
+import pytest
+
+from openel_async import Actuator, BadParameterError, NotImplementedHALError, Request
+from openel_async.cli.arm_demo import ArmOptions
+from openel_async.cli.progress import LiveLine
+from openel_mujoco import MujocoSim
+
+from .conftest import assert_snapshot_written_or_explained, is_png, load
+
+APP = load("arm6_pick_place")
+
+
+async def test_pick_and_place_moves_the_box(tmp_path: Path) -> None:
+    options = ArmOptions(duration=8.0, realtime=False, out_dir=tmp_path, live=False, period_ms=2.0)
+    sim = MujocoSim("arm6", keyframe="home")
+    stream = io.StringIO()
+    with anyio.fail_after(40):
+        result = await APP.run_pick_place(
+            sim, options=options, place=(0.20, 0.40), live=LiveLine(stream)
+        )
+    assert "suction" in stream.getvalue() and "tool (" in stream.getvalue()  # live progress
+
+    names = [step.name for step in result.steps]
+    assert names == [
+        "home", "above box", "down", "suction on", "lift", "move", "down", "suction off", "up",
+        "home",
+    ]  # fmt: skip
+    motions = [step for step in result.steps if step.motion_id is not None]
+    assert len(motions) == 7
+    assert all(step.outcome == "succeeded" for step in motions)
+    assert all(step.setpoint_spread_ticks <= 1 for step in motions)  # joints arrive together
+
+    # The pad touched the box when the suction came on, and the box came up with the tool.
+    assert result.gripped and result.grip_force_n > 1.0
+    assert result.carried
+    # It ended on the floor at the place location, 47 cm from where it was.
+    assert result.box_start_m == pytest.approx((0.45, 0.0, 0.02), abs=1e-6)
+    assert result.box_end_m[2] == pytest.approx(0.02, abs=2e-3)
+    assert result.place_error_m < 0.01
+    assert result.box_moved_m > 0.4
+    # The tool is back home (pointing along +x at (0.43, 0, 0.5)).
+    assert result.steps[-1].tool_m == pytest.approx((0.43, 0.0, 0.5), abs=5e-3)
+
+    assert is_png(result.artifacts.plot)
+    assert_snapshot_written_or_explained(result.artifacts)
+    assert all(is_png(path) for _, path in result.artifacts.extra)  # start and lift snapshots
+    text = "\n".join(result.lines())
+    assert "box                picked and carried" in text
+    assert "box moved          from (+0.450, +0.000, +0.020) m to" in text
+
+
+def test_the_app_refuses_an_unreachable_place(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from openel_async.cli import main as cli_main
+
+    code = cli_main(
+        ["run", "apps/arm6_pick_place.py", "--place", "0.9", "0", "--out", str(tmp_path)]
+    )
+    assert code == 2
+    assert "out of reach" in capsys.readouterr().err
+
+
+async def test_the_suction_cup_is_an_openel_actuator() -> None:
+    sim = MujocoSim("arm6", keyframe="home")
+    cup = APP.SuctionCup(sim)
+    assert cup.limits.torque == pytest.approx(20.0)  # gain 20 N x ctrl 1
+    async with sim, Actuator(cup, clock=sim.clock) as suction:
+        assert suction.device_name == "HalKind128MuJoCoSuction"  # kind 0x80: not in the registry
+        with anyio.fail_after(10):
+            await (await suction.set_value(12.0, Request.TORQUE))
+        assert cup.on
+        assert await suction.get_value(Request.TORQUE_ACTUAL) == pytest.approx(12.0)
+        with pytest.raises(BadParameterError):
+            await suction.set_value(25.0, Request.TORQUE)  # beyond the actuator's force
+        with pytest.raises(BadParameterError):
+            await suction.set_value(-1.0, Request.TORQUE)
+        with pytest.raises(NotImplementedHALError):
+            await suction.set_value(1.0, Request.POSITION)
+        await suction.set_value(0.0, Request.NO_EXCITE)
+        assert not cup.on
+        await sim.sleep(0.01)
+        assert math.isclose(await suction.get_value(Request.TORQUE_ACTUAL), 0.0)
