@@ -99,8 +99,9 @@ def _devices() -> int:
             print(f"{entry.name:10} ({entry.value})  unavailable: {entry.error}")
             continue
         print(f"{entry.name:10} {entry.info.description}")
+        width = max((len(name) for name in entry.info.devices), default=0) + 2
         for device_name, cls in entry.info.devices.items():
-            print(f"  {device_name:14} {cls.__module__}.{cls.__qualname__}")
+            print(f"  {device_name:{width}}{cls.__module__}.{cls.__qualname__}")
     return 0
 
 
