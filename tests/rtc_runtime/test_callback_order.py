@@ -116,7 +116,8 @@ async def test_failing_on_execute(
     await until(virtual_clock, 45)  # cycles at 20 (fails), 30, 40
     assert journal.names(since=mark) == [
         "A.on_execute",
-        "A.on_aborting",  # once, at once; no on_deactivated, no on_state_update
+        "A.on_deactivated",  # leaving Active, at once
+        "A.on_aborting",  # once; no on_state_update in the failing cycle
         "B.on_execute",
         "B.on_state_update",
         "A.on_error",  # instead of on_execute and on_state_update
@@ -154,10 +155,11 @@ async def test_failing_on_state_update(
     await ec.activate_component(a)
     a.fail["on_state_update"] = failure
     await until(virtual_clock, 25)
-    assert journal.names("A")[-5:] == [
+    assert journal.names("A")[-6:] == [
         "on_activated",
         "on_execute",
         "on_state_update",
+        "on_deactivated",
         "on_aborting",
         "on_error",
     ]
@@ -240,7 +242,7 @@ async def test_failing_context_wide_callbacks_move_only_that_component_to_error(
     await ec.set_rate(50)
     assert ec.get_rate() == 50.0
     assert ec.get_component_state(b) is S.ERROR
-    assert journal.names("B")[-2:] == ["on_rate_changed", "on_aborting"]
+    assert journal.names("B")[-3:] == ["on_rate_changed", "on_deactivated", "on_aborting"]
     b.fail["on_shutdown"] = RC.RTC_ERROR
     await ec.stop()
     assert not ec.is_running()

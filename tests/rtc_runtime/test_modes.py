@@ -165,7 +165,12 @@ async def test_failing_on_mode_changed_moves_an_active_component_to_error(
     await b.set_mode("safe")
     await until(virtual_clock, 15)
     # Error entered at the start of the cycle: on_error runs in that same cycle.
-    assert journal.names("B")[-3:] == ["on_mode_changed", "on_aborting", "on_error"]
+    assert journal.names("B")[-4:] == [
+        "on_mode_changed",
+        "on_deactivated",
+        "on_aborting",
+        "on_error",
+    ]
     assert ec.get_component_state(b) is LifeCycleState.ERROR
     assert b.get_current_mode() == "safe"  # the mode was taken all the same
 

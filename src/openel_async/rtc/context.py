@@ -574,11 +574,20 @@ class ExecutionContext:
         return outcome
 
     async def _fail(self, p: _Participant, callback: str, outcome: Outcome) -> None:
-        """A callback failed: the participant enters Error (on_aborting once)."""
+        """A callback failed: the participant enters Error (on_aborting once).
+
+        Leaving Active also deactivates it in this context first (on_deactivated), so a
+        failing on_execute gives on_deactivated, on_aborting, then on_error each cycle.
+        """
         p.rtc._failed(callback, outcome)
         if p.state is S.ERROR:
             return
+        was_active = p.state is S.ACTIVE
         self._set_state(p, S.ERROR)
+        if was_active and callback != "on_deactivated":
+            deactivated = await self._call(p, "on_deactivated")
+            if not deactivated.ok:
+                p.rtc._failed("on_deactivated", deactivated)
         aborting = await self._call(p, "on_aborting")
         if not aborting.ok:
             p.rtc._failed("on_aborting", aborting)
