@@ -78,7 +78,7 @@ OVERHEAD_TARGET = 2.0
 RTF_TOLERANCE = 0.01
 LATENESS_TARGET_US = 1000.0
 
-VARIANTS = ("mj_step only", "raw", "sim loop", "+ timer", "+ device calls", "full")
+VARIANTS = ("mj_step only", "raw", "sim loop", "+ timer", "+ device calls", "full", "full, async")
 
 # Lockstep runs are CPU-bound in the main thread: their cost is measured in the thread's CPU
 # time, which a busy shared machine does not inflate the way it inflates wall time.
@@ -168,8 +168,11 @@ async def lockstep_loop(
 
         timer = await stack.enter_async_context(EventTimer(PERIOD_MS, clock=sim.clock))
         done = anyio.Event()
-        work = _control_work(variant, actuators, sensors, table)
-        observer = _Observer(work, steps, done)
+        observer: _Observer | _AsyncObserver
+        if variant == "full, async":
+            observer = _AsyncObserver(_async_work(actuators, sensors, table), steps, done)
+        else:
+            observer = _Observer(_control_work(variant, actuators, sensors, table), steps, done)
         timer.add_observer(observer)
         t0 = _cpu_ns()
         timer.start_timer()
@@ -184,16 +187,18 @@ async def lockstep_loop(
         return elapsed / steps, qpos
 
 
-Work = Callable[[int], Coroutine[Any, Any, None]]
+Work = Callable[[int], None]
+AsyncWork = Callable[[int], Coroutine[Any, Any, None]]
 
 
 def _control_work(
     variant: str, actuators: list[Actuator], sensors: list[Sensor], table: list[list[float]]
 ) -> Work:
+    """The control step of a plain (synchronous) TimerObserver: the non-suspending calls."""
     position = Request.POSITION
     if variant == "+ timer":
 
-        async def nothing(k: int) -> None:
+        def nothing(k: int) -> None:
             pass
 
         return nothing
@@ -201,14 +206,30 @@ def _control_work(
         joints = [a.device for a in actuators]
         devices = [s.device for s in sensors]
 
-        async def direct(k: int) -> None:
+        def direct(k: int) -> None:
             target = table[k]
             for i, joint in enumerate(joints):
-                await joint.command(position, target[i])
+                joint.command_nowait(position, target[i])
             for device in devices:
-                await device.read()
+                device.read_nowait()
 
         return direct
+
+    def full(k: int) -> None:
+        target = table[k]
+        for i, actuator in enumerate(actuators):
+            actuator.set_value_nowait(target[i], position)
+        for sensor in sensors:
+            sensor.get_value_nowait()
+
+    return full
+
+
+def _async_work(
+    actuators: list[Actuator], sensors: list[Sensor], table: list[list[float]]
+) -> AsyncWork:
+    """The same control step in an async TimerObserver: ``await`` set_value/get_value."""
+    position = Request.POSITION
 
     async def full(k: int) -> None:
         target = table[k]
@@ -221,9 +242,28 @@ def _control_work(
 
 
 class _Observer:
-    """Async TimerObserver: one control step per tick, stops the timer after ``steps``."""
+    """Plain TimerObserver: one control step per tick, stops the timer after ``steps``."""
 
     def __init__(self, work: Work, steps: int, done: anyio.Event) -> None:
+        self.work = work
+        self.steps = steps
+        self.done = done
+        self.count = 0
+
+    def notify_timer(self, timer: EventTimer) -> None:
+        if self.count >= self.steps:
+            return
+        self.work(self.count)
+        self.count += 1
+        if self.count == self.steps:
+            timer.stop_timer()
+            self.done.set()
+
+
+class _AsyncObserver:
+    """Async TimerObserver (a mailbox and a task of its own) doing the same."""
+
+    def __init__(self, work: AsyncWork, steps: int, done: anyio.Event) -> None:
         self.work = work
         self.steps = steps
         self.done = done
@@ -362,7 +402,7 @@ def _measure_lockstep(steps: int, rounds: int) -> tuple[dict[str, list[float]], 
                 ns, qpos = anyio.run(lockstep_loop, variant, steps, table, backend="asyncio")
             per_step[variant].append(ns)
             states[variant] = qpos
-        for variant in ("+ device calls", "full"):
+        for variant in ("+ device calls", "full", "full, async"):
             if states[variant].tobytes() != states["raw"].tobytes():
                 raise AssertionError(f"{variant}: final state differs from raw MuJoCo's")
     notes.append(

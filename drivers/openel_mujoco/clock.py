@@ -10,6 +10,11 @@ A deadline between two physics steps is served at the first step at or after it:
 time step a 1.5 ms deadline wakes at 2 ms (lateness reported by an EventTimer: 0.5 ms).  Choose
 timer periods that are multiples of the time step.
 
+``call_at`` (the ``InlineScheduler`` capability of ``openel_async.clock``) runs a callback
+synchronously inside the simulation loop when time reaches its deadline, before the tasks woken
+then: an ``EventTimer`` on this clock ticks its observers that way, with no task switch, so a
+control step of plain TimerObservers costs function calls only.
+
 While the simulation is faulted (unstable physics) the clock behaves like
 ``VirtualClock.autojump``: time jumps to the next deadline whenever the loop is idle, so timers
 and timeouts on the clock keep working without physics.
@@ -24,13 +29,17 @@ import asyncio
 import heapq
 import itertools
 import math
+from collections.abc import Callable
 
 import anyio.lowlevel
+import structlog
 
 from openel_async.clock import NS_PER_S, DeadlineSleeper, Sleeper
 from openel_async.errors import BadParameterError
 
 __all__ = ["LockstepClock"]
+
+log = structlog.get_logger(__name__)
 
 
 class LockstepClock:
@@ -40,7 +49,7 @@ class LockstepClock:
         if isinstance(start_ns, bool) or not isinstance(start_ns, int) or start_ns < 0:
             raise BadParameterError("start_ns", start_ns, "an int >= 0")
         self._now = start_ns
-        self._heap: list[tuple[int, int, asyncio.Future[None]]] = []
+        self._heap: list[tuple[int, int, asyncio.Future[None] | _InlineCall]] = []
         self._seq = itertools.count()
         self._kick: asyncio.Future[None] | None = None
         self.wakeups = 0
@@ -65,6 +74,18 @@ class LockstepClock:
 
     def sleeper(self) -> Sleeper:
         return DeadlineSleeper(self)
+
+    def call_at(self, deadline_ns: int, callback: Callable[[], object]) -> _InlineCall:
+        """Call ``callback()`` inside the simulation loop when time reaches ``deadline_ns``
+        (:class:`~openel_async.clock.InlineScheduler`), before the tasks woken then run.
+
+        A deadline already reached is served at the next physics step.  An exception of the
+        callback is logged and does not stop the simulation.
+        """
+        call = _InlineCall(callback)
+        heapq.heappush(self._heap, (max(deadline_ns, self._now + 1), next(self._seq), call))
+        self.kick()
+        return call
 
     # -- conveniences ------------------------------------------------------------------
     async def sleep(self, seconds: float) -> None:
@@ -106,9 +127,13 @@ class LockstepClock:
         heap = self._heap
         woke = False
         while heap and heap[0][0] <= now:
-            future = heapq.heappop(heap)[2]
-            if not future.done():
-                future.set_result(None)
+            entry = heapq.heappop(heap)[2]
+            if entry.done():
+                continue
+            if isinstance(entry, _InlineCall):
+                entry.run()
+            else:
+                entry.set_result(None)
                 self.wakeups += 1
                 woke = True
         return woke
@@ -128,6 +153,29 @@ class LockstepClock:
 
     def __repr__(self) -> str:
         return f"LockstepClock(now_ns={self._now})"
+
+
+class _InlineCall:
+    """A pending :meth:`LockstepClock.call_at` callback (the ScheduledCall handle)."""
+
+    __slots__ = ("_callback", "_done")
+
+    def __init__(self, callback: Callable[[], object]) -> None:
+        self._callback = callback
+        self._done = False
+
+    def done(self) -> bool:
+        return self._done
+
+    def cancel(self) -> None:
+        self._done = True
+
+    def run(self) -> None:
+        self._done = True
+        try:
+            self._callback()
+        except Exception:  # a broken callback must not stop the physics
+            log.exception("clock_callback_failed", callback=repr(self._callback))
 
 
 async def settle() -> None:

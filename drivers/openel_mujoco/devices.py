@@ -57,12 +57,16 @@ OTHER_KIND: Final = 0x80
 
 
 class MujocoEventId(IntEnum):
-    """Device-specific event ids (HALObserver.notify_event) of the MuJoCo joints."""
+    """Device-specific event ids (HALObserver.notify_event) of the MuJoCo joints and effectors."""
 
     LIMIT_REACHED = EventId.LIMIT_REACHED
     """2: the joint came within ``limit_margin`` of a limit of its range (once per approach)."""
     SATURATED = 3
     """3: the joint's actuator reached its force limit (or the built-in PD its torque limit)."""
+    HOLDING = 4
+    """4: an adhesion effector is switched on and in contact: it holds something."""
+    RELEASED = 5
+    """5: an adhesion effector that held something no longer does (switched off, or lost it)."""
 
 
 _MODE_REQUEST: Final[Mapping[ControlMode, Request]] = {
@@ -473,6 +477,9 @@ class MujocoJoint(ActuatorDevice):
 
     # -- commands and readings ---------------------------------------------------------
     async def command(self, request: Request, value: float) -> None:
+        self.command_nowait(request, value)
+
+    def command_nowait(self, request: Request, value: float) -> None:
         sim = self.sim
         if sim._fault is not None:
             raise HALError(f"{self.name}: the simulation is faulted: {sim._fault}")
@@ -486,7 +493,8 @@ class MujocoJoint(ActuatorDevice):
             self._pd_target = value
         else:
             act = self._drive_act
-            assert act is not None
+            if act is None:  # never for a supported request; ctrl[None] would set every ctrl
+                raise HALError(f"{self.name}: no actuator drives {request.name}")
             sim._ctrl[act] = value * self._scale[request]
         self._target = value
         self._request = request
@@ -494,13 +502,16 @@ class MujocoJoint(ActuatorDevice):
         self._pending = True
 
     async def read(self, request: Request) -> float:
+        return self.read_nowait(request)
+
+    def read_nowait(self, request: Request) -> float:
         sim = self.sim
         if request is Request.POSITION_ACTUAL:
-            return float(sim._qpos.item(self.qadr))
+            return sim._qpos.item(self.qadr)  # type: ignore[no-any-return]
         if request is Request.VELOCITY_ACTUAL:
-            return float(sim._qvel.item(self.dof))
+            return sim._qvel.item(self.dof)  # type: ignore[no-any-return]
         if request is Request.TORQUE_ACTUAL:
-            return float(sim._qfrc_actuator.item(self.dof))
+            return sim._qfrc_actuator.item(self.dof)  # type: ignore[no-any-return]
         raise BadParameterError(
             "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
         )
@@ -787,10 +798,15 @@ class MujocoSensor(SensorDevice):
         self._ctx = None
 
     async def read(self) -> Reading:
+        return self.read_nowait()
+
+    def read_nowait(self) -> Reading:
         sim = self.sim
         if sim._fault is not None:
             raise HALError(f"{self.name}: the simulation is faulted: {sim._fault}")
-        return Reading(sim._sensordata[self._start : self._end].tolist(), sim._sensor_clock_ns)
+        return Reading(
+            tuple(sim._sensordata[self._start : self._end].tolist()), sim._sensor_clock_ns
+        )
 
     @property
     def values(self) -> tuple[float, ...]:

@@ -110,6 +110,9 @@ class SimMotor(ActuatorDevice):
 
     # -- commands and readings -------------------------------------------------------
     async def command(self, request: Request, value: float) -> None:
+        self.command_nowait(request, value)
+
+    def command_nowait(self, request: Request, value: float) -> None:
         self._check_connected()
         self.commands += 1
         now = self._now()
@@ -129,6 +132,9 @@ class SimMotor(ActuatorDevice):
         self._set_profile(segments, request, arrival=not self.stuck)
 
     async def read(self, request: Request) -> float:
+        return self.read_nowait(request)
+
+    def read_nowait(self, request: Request) -> float:
         self._check_connected()
         now = self._now()
         p, v, _ = prof.evaluate(self._segments, now)

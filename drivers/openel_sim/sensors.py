@@ -42,6 +42,9 @@ class _SimSensor(SensorDevice):
     def _noisy(self, value: float) -> float:
         return value + self._rng.gauss(0.0, self.noise) if self.noise else value
 
+    async def read(self) -> Reading:
+        return self.read_nowait()
+
     def _check(self) -> None:
         if not self.connected:
             raise NotConnectedError("simulated sensor is disconnected")
@@ -68,7 +71,7 @@ class SimEncoder(_SimSensor):
         self.motor = motor
         self.counts_per_rev = counts_per_rev
 
-    async def read(self) -> Reading:
+    def read_nowait(self) -> Reading:
         self._check()
         now = self._now()
         position, _, _ = self.motor.state_at(now)
@@ -100,7 +103,7 @@ class SimIMU(_SimSensor):
         self.radius = radius
         self.gyro_bias = gyro_bias
 
-    async def read(self) -> Reading:
+    def read_nowait(self) -> Reading:
         self._check()
         now = self._now()
         omega = alpha = 0.0
@@ -140,7 +143,7 @@ class SimTemperature(_SimSensor):
         self._temperature = ambient
         self._last_ns: int | None = None
 
-    async def read(self) -> Reading:
+    def read_nowait(self) -> Reading:
         self._check()
         now = self._now()
         t = self._last_ns if self._last_ns is not None else now

@@ -30,6 +30,7 @@ from .errors import (
     ReturnCode,
     StateError,
     SupersededError,
+    WouldBlockError,
 )
 from .ids import DeviceKind, HALId, Property, component_name
 from .observers import (
@@ -93,6 +94,7 @@ __all__ = [
     "TimerStats",
     "TimerTick",
     "VirtualClock",
+    "WouldBlockError",
     "component_name",
     "default_clock",
 ]

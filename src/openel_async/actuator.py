@@ -14,20 +14,26 @@ from dataclasses import dataclass
 import anyio
 
 from .clock import Clock
-from .completion import Motion
+from .completion import Motion, Outcome
 from .component import LINK_FAULTS as _LINK_FAULTS
 from .component import ComponentState, HALComponent
-from .device import ActuatorDevice, ErrorId
+from .device import ActuatorDevice, ErrorId, has_nowait
 from .errors import (
     BadParameterError,
     DeviceFaultError,
     HALError,
     NotImplementedHALError,
+    StateError,
+    WouldBlockError,
 )
 from .ids import HALId
 from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, EventId, Request, coerce_request
 
 S = ComponentState
+# Enum members read as module constants on the per-command paths (~80 ns saved each).
+_ACTIVE = S.ACTIVE
+_PENDING = Outcome.PENDING
+_NO_EXCITE = Request.NO_EXCITE
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,6 +116,9 @@ class Actuator(HALComponent):
         self._watch: anyio.Event = anyio.Event()
         self.completed_count = 0
         self._detector_started = False
+        self._reports_completion = device.reports_completion
+        self._command_nowait = has_nowait(device, "command_nowait", "command")
+        self._read_nowait = has_nowait(device, "read_nowait", "read")
 
     @property
     def motion(self) -> Motion | None:
@@ -119,9 +128,45 @@ class Actuator(HALComponent):
     # -- SetValue ------------------------------------------------------------------
     async def set_value(self, value: float, request: Request | int = Request.POSITION) -> Motion:
         """SetValue: send a new target and return its Motion without waiting for arrival."""
-        self._require("set_value", S.ACTIVE)
+        if self._command_nowait:  # a device that needs no I/O: the same, without suspending
+            return self._set_now("set_value", value, request)
+        req, target, sequence = self._begin_command("set_value", value, request)
+        try:
+            await self.device.command(req, target)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+        return self._accept(req, target, sequence)
+
+    def set_value_nowait(self, value: float, request: Request | int = Request.POSITION) -> Motion:
+        """SetValue without suspending, for synchronous code (a plain TimerObserver).
+
+        Same semantics as :meth:`set_value`; only for devices that need no I/O to accept a
+        command (simulations); others raise :class:`WouldBlockError`.
+        """
+        if not self._command_nowait:
+            raise WouldBlockError(
+                f"{self.device_name}: the device has no synchronous command path; "
+                "use 'await set_value(...)'"
+            )
+        return self._set_now("set_value_nowait", value, request)
+
+    def _set_now(self, operation: str, value: float, request: Request | int) -> Motion:
+        req, target, sequence = self._begin_command(operation, value, request)
+        try:
+            self.device.command_nowait(req, target)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+        return self._accept(req, target, sequence)
+
+    def _begin_command(
+        self, operation: str, value: object, request: Request | int
+    ) -> tuple[Request, float, int]:
+        """Check state and arguments; returns (request, target, sequence number)."""
+        if self.state is not _ACTIVE:
+            raise StateError(operation, self.state, (_ACTIVE,))
         req = coerce_request(request, SET_VALUE_REQUESTS)
-        target = _finite(value)
+        # x - x is 0.0 exactly for finite floats (NaN for NaN and infinities)
+        target = value if type(value) is float and value - value == 0.0 else _finite(value)
         device = self.device
         if req not in device.supported_requests:
             raise NotImplementedHALError(f"{self.device_name} does not support {req.name} control")
@@ -129,13 +174,12 @@ class Actuator(HALComponent):
         # Commands reach the device in call order; the sequence number taken before the
         # device call decides which target is final if calls overlap (a bus send).
         self._sequence += 1
-        sequence = self._sequence
-        try:
-            await device.command(req, target)
-        except _LINK_FAULTS as exc:
-            raise self._fault_from(exc) from exc
+        return req, target, self._sequence
+
+    def _accept(self, req: Request, target: float, sequence: int) -> Motion:
+        """The device accepted the command: make its Motion the current one."""
         motion = Motion(req, target, sequence, self.clock.now_ns())
-        if self.state is not S.ACTIVE:  # faulted or finalized while the command was sent
+        if self.state is not _ACTIVE:  # faulted or finalized while the command was sent
             if self.last_fault is not None:
                 motion._fault(self.last_fault)
             else:
@@ -146,27 +190,47 @@ class Actuator(HALComponent):
             motion._supersede(previous)  # a later command overtook this one
             return motion
         self._motion = motion
-        if previous is not None:
+        if previous is not None and previous.outcome is _PENDING:
             previous._supersede(motion)
-        if req is Request.NO_EXCITE:
+        if req is _NO_EXCITE:
             commanded = self._commanded
             commanded[Request.VELOCITY] = commanded[Request.TORQUE] = 0.0
             self._complete(motion)
         else:
             self._commanded[req] = target
-            if not device.reports_completion:
+            if not self._reports_completion:
                 self._watch.set()
         return motion
 
     # -- GetValue ------------------------------------------------------------------
     async def get_value(self, request: Request | int = Request.POSITION_ACTUAL) -> float:
         """GetValue: last commanded value (codes 1-3) or actual value (codes 5-7)."""
-        self._require("get_value", S.ACTIVE)
+        if self.state is not _ACTIVE:
+            raise StateError("get_value", self.state, (_ACTIVE,))
         req = coerce_request(request, GET_VALUE_REQUESTS)
         if req.is_command:
             return self._commanded[req]
         try:
+            if self._read_nowait:  # a device that needs no I/O: the same, without suspending
+                return self.device.read_nowait(req)
             return await self.device.read(req)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+
+    def get_value_nowait(self, request: Request | int = Request.POSITION_ACTUAL) -> float:
+        """GetValue without suspending (see :meth:`set_value_nowait`)."""
+        if self.state is not _ACTIVE:
+            raise StateError("get_value_nowait", self.state, (_ACTIVE,))
+        req = coerce_request(request, GET_VALUE_REQUESTS)
+        if req.is_command:
+            return self._commanded[req]
+        if not self._read_nowait:
+            raise WouldBlockError(
+                f"{self.device_name}: the device has no synchronous read path; "
+                "use 'await get_value(...)'"
+            )
+        try:
+            return self.device.read_nowait(req)
         except _LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
 

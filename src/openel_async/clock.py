@@ -12,7 +12,7 @@ import asyncio
 import heapq
 import itertools
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from typing import Protocol, runtime_checkable
 
@@ -46,6 +46,26 @@ class Clock(Protocol):
     def sleeper(self) -> Sleeper:
         """A waiter suited to periodic absolute deadlines (a timerfd on Linux)."""
         ...
+
+
+@runtime_checkable
+class ScheduledCall(Protocol):
+    """Handle of a :meth:`InlineScheduler.call_at` callback."""
+
+    def cancel(self) -> None: ...
+
+
+@runtime_checkable
+class InlineScheduler(Clock, Protocol):
+    """A clock that calls a function synchronously as its time passes a deadline.
+
+    Simulation clocks that advance time themselves between physics steps offer it
+    (``openel_mujoco.LockstepClock``): the callback runs inside the simulation loop, before
+    any task woken at the same time, so an :class:`~openel_async.EventTimer` on such a
+    clock ticks its observers without a task switch.
+    """
+
+    def call_at(self, deadline_ns: int, callback: Callable[[], object]) -> ScheduledCall: ...
 
 
 class DeadlineSleeper:

@@ -21,6 +21,13 @@ class Outcome(Enum):
     CANCELLED = "cancelled"
 
 
+# Enum members are class attributes, and reading one costs ~80 ns on CPython 3.11; the
+# per-command paths (a setpoint per axis per tick) use module constants instead.
+_PENDING = Outcome.PENDING
+_REACHED = Outcome.REACHED
+_SUPERSEDED = Outcome.SUPERSEDED
+
+
 class Motion:
     """Handle of one command: completes when its target is reached.
 
@@ -49,17 +56,17 @@ class Motion:
         self.sequence = sequence
         self.issued_ns = issued_ns
         self.reached_ns: int | None = None
-        self.outcome = Outcome.PENDING
+        self.outcome = _PENDING
         self._error: HALError | None = None
         self._superseded_by = 0
         # Created on the first wait: most streamed setpoints are never awaited.
         self._done: anyio.Event | None = None
 
     def done(self) -> bool:
-        return self.outcome is not Outcome.PENDING
+        return self.outcome is not _PENDING
 
     async def wait(self) -> None:
-        if self.outcome is Outcome.PENDING:
+        if self.outcome is _PENDING:
             if self._done is None:
                 self._done = anyio.Event()
             await self._done.wait()
@@ -85,23 +92,23 @@ class Motion:
     def _finish(
         self, outcome: Outcome, error: HALError | None = None, at_ns: int | None = None
     ) -> bool:
-        if self.outcome is not Outcome.PENDING:
+        if self.outcome is not _PENDING:
             return False
         self.outcome = outcome
         self._error = error
-        if outcome is Outcome.REACHED:
+        if outcome is _REACHED:
             self.reached_ns = at_ns
         if self._done is not None:
             self._done.set()
         return True
 
     def _reach(self, at_ns: int) -> bool:
-        return self._finish(Outcome.REACHED, at_ns=at_ns)
+        return self._finish(_REACHED, None, at_ns)
 
     def _supersede(self, by: Motion) -> bool:
         # The SupersededError is built only if someone awaits this motion.
         self._superseded_by = by.sequence
-        return self._finish(Outcome.SUPERSEDED)
+        return self._finish(_SUPERSEDED)
 
     def _fault(self, error: DeviceFaultError) -> bool:
         return self._finish(Outcome.FAULTED, error)

@@ -57,6 +57,11 @@ class NotImplementedHALError(HALError):
     code = ReturnCode.HAL_NOT_IMPLEMENTED
 
 
+class WouldBlockError(NotImplementedHALError):
+    """HAL_NOT_IMPLEMENTED: a ``*_nowait`` call on a device that needs to wait (bus I/O);
+    use the async operation instead."""
+
+
 class BadParameterError(HALError, ValueError):
     """HAL_BAD_PARAMETER: an illegal argument; the message names the parameter."""
 

@@ -7,11 +7,12 @@ from typing import NamedTuple
 
 from .clock import Clock
 from .component import LINK_FAULTS, ComponentState, HALComponent
-from .device import SensorDevice
-from .errors import HALError
+from .device import Reading, SensorDevice, has_nowait
+from .errors import HALError, StateError, WouldBlockError
 from .ids import HALId
 
 S = ComponentState
+_ACTIVE = S.ACTIVE  # enum member as a module constant on the per-read path (~80 ns saved)
 
 
 class TimedValue(NamedTuple):
@@ -50,6 +51,7 @@ class Sensor(HALComponent):
             auto_init=auto_init,
             open_timeout=open_timeout,
         )
+        self._nowait = has_nowait(device, "read_nowait", "read")
 
     @property
     def units(self) -> tuple[str, ...]:
@@ -57,24 +59,60 @@ class Sensor(HALComponent):
 
     async def get_value(self) -> tuple[float, ...]:
         """GetValue: the measurement values in SI units (``len`` is the spec's ``num``)."""
-        return (await self._read("get_value")).values
+        if self.state is not _ACTIVE:
+            raise StateError("get_value", self.state, (_ACTIVE,))
+        return self._checked(await self._read()).values
 
     async def get_timed_value(self) -> TimedValue:
         """GetTimedValue: values and their measurement time on the component's clock (ns)."""
-        if not self.device.has_time and self.state is S.ACTIVE:
-            raise HALError(f"{self.device_name} has no time attribute")
-        return await self._read("get_timed_value")
+        self._require_time("get_timed_value")
+        return self._checked(await self._read())
 
-    async def _read(self, operation: str) -> TimedValue:
-        self._require(operation, S.ACTIVE)
+    def get_value_nowait(self) -> tuple[float, ...]:
+        """GetValue without suspending, for synchronous code (a plain TimerObserver).
+
+        Only for devices that need no I/O to measure (simulations); others raise
+        :class:`WouldBlockError`.
+        """
+        if self.state is not _ACTIVE:
+            raise StateError("get_value_nowait", self.state, (_ACTIVE,))
+        return self._checked(self._read_now()).values
+
+    def get_timed_value_nowait(self) -> TimedValue:
+        """GetTimedValue without suspending (see :meth:`get_value_nowait`)."""
+        self._require_time("get_timed_value_nowait")
+        return self._checked(self._read_now())
+
+    def _require_time(self, operation: str) -> None:
+        if self.state is not _ACTIVE:
+            raise StateError(operation, self.state, (_ACTIVE,))
+        if not self.device.has_time:
+            raise HALError(f"{self.device_name} has no time attribute")
+
+    async def _read(self) -> Reading:
         try:
-            reading = await self.device.read()
+            if self._nowait:  # a device that needs no I/O: the same, without suspending
+                return self.device.read_nowait()
+            return await self.device.read()
         except LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
+
+    def _read_now(self) -> Reading:
+        if not self._nowait:
+            raise WouldBlockError(
+                f"{self.device_name}: the device has no synchronous read path; "
+                "use 'await get_value()'"
+            )
+        try:
+            return self.device.read_nowait()
+        except LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+
+    def _checked(self, reading: Reading) -> TimedValue:
         raw = reading.values
         values = raw if type(raw) is tuple else tuple(raw)
         # One sum answers "all finite?" for the common case; look closer only if not.
         if not math.isfinite(math.fsum(values)) and not all(math.isfinite(v) for v in values):
             raise HALError(f"{self.device_name}: device returned a non-finite value {values}")
-        time_ns = reading.time_ns if reading.time_ns is not None else self.clock.now_ns()
-        return TimedValue(values, time_ns)
+        time_ns = reading.time_ns
+        return TimedValue(values, self.clock.now_ns() if time_ns is None else time_ns)

@@ -19,7 +19,7 @@ import anyio
 import anyio.abc
 import structlog
 
-from .clock import NS_PER_MS, NS_PER_S, Clock, default_clock
+from .clock import NS_PER_MS, NS_PER_S, Clock, InlineScheduler, ScheduledCall, default_clock
 from .errors import BadParameterError, StateError
 from .fanout import Fanout
 from .observers import ObserverQueue, TimerTick
@@ -95,6 +95,9 @@ class EventTimer:
         self._late = 0
         self._missed = 0
         self._drift = 0
+        self._index = 0
+        self._last_warning = -NS_PER_S
+        self._inline: _InlineTicks | None = None
         self._log = log.bind(timer=name)
 
     # -- context -------------------------------------------------------------------
@@ -138,8 +141,13 @@ class EventTimer:
         if self.state is TimerState.RUNNING:
             raise StateError("start_timer", self.state, [TimerState.STOPPED])
         self.state = TimerState.RUNNING
-        self._scope = anyio.CancelScope()
-        self._tg.start_soon(self._run, self._scope)
+        self._index = self.last_tick.index if self.last_tick else 0
+        clock = self.clock
+        if isinstance(clock, InlineScheduler):
+            self._inline = _InlineTicks(self, clock)
+        else:
+            self._scope = anyio.CancelScope()
+            self._tg.start_soon(self._run, self._scope)
         self._log.info("timer_started", period_ms=self._period_ms)
 
     def stop_timer(self) -> None:
@@ -151,9 +159,12 @@ class EventTimer:
         if self.state is not TimerState.RUNNING:
             raise StateError("stop_timer", self.state, [TimerState.RUNNING])
         self.state = TimerState.STOPPED
-        assert self._scope is not None
-        self._scope.cancel()
-        self._scope = None
+        if self._inline is not None:
+            self._inline.cancel()
+            self._inline = None
+        if self._scope is not None:
+            self._scope.cancel()
+            self._scope = None
         self._observers.discard_pending()
         self._log.info("timer_stopped", ticks=self._ticks, missed=self._missed)
 
@@ -180,51 +191,47 @@ class EventTimer:
 
     # -- ticking ---------------------------------------------------------------------
     async def _run(self, scope: anyio.CancelScope) -> None:
-        clock = self.clock
-        sleeper = clock.sleeper()
-        publish = self._observers.publish
-        record = self._lateness.record
+        sleeper = self.clock.sleeper()
+        tick = self._tick
         try:
             with scope:
-                period = self._period_ns
-                anchor = clock.now_ns()
-                k = 0
-                index = self.last_tick.index if self.last_tick else 0
-                last_warning = -NS_PER_S
+                deadline = self.clock.now_ns() + self._period_ns
                 while True:
-                    k += 1
-                    deadline = anchor + k * period
                     await sleeper.sleep_until(deadline)
                     if scope.cancel_called:
                         # StopTimer ran while this wake-up was already due (woken but
                         # not yet scheduled): anyio does not cancel a task whose wait
                         # has completed, so honour "no tick after stop_timer" here.
                         return
-                    now = clock.now_ns()
-                    lateness = now - deadline
-                    record(lateness)
-                    missed = lateness // period if lateness >= period else 0
-                    if missed:
-                        k += missed
-                        deadline += missed * period
-                        self._missed += missed
-                        if now - last_warning >= NS_PER_S:
-                            last_warning = now
-                            self._log.warning(
-                                "timer_missed_ticks", missed=missed, late_us=lateness // 1000
-                            )
-                    threshold = self._late_threshold_ns or period // 5
-                    if lateness > threshold:
-                        self._late += 1
-                    index += 1 + missed
-                    self._ticks += 1
-                    self._drift = now - deadline
-                    self.last_tick = TimerTick(self, index, deadline, now, missed)
-                    publish("notify_timer", self)
-                    if self._period_ns != period:  # SetEventPeriod: re-anchor at this tick
-                        anchor, k, period = deadline, 0, self._period_ns
+                    deadline = tick(deadline)
         finally:
             sleeper.close()
+
+    def _tick(self, deadline: int) -> int:
+        """Deliver the tick due at ``deadline``; returns the next deadline.
+
+        Deadlines are integers advanced by whole periods from the start, so they never
+        drift; SetEventPeriod re-anchors at the tick after it was called.
+        """
+        period = self._period_ns
+        now = self.clock.now_ns()
+        lateness = now - deadline
+        self._lateness.record(lateness)
+        missed = lateness // period if lateness >= period else 0
+        if missed:
+            deadline += missed * period
+            self._missed += missed
+            if now - self._last_warning >= NS_PER_S:
+                self._last_warning = now
+                self._log.warning("timer_missed_ticks", missed=missed, late_us=lateness // 1000)
+        if lateness > (self._late_threshold_ns or period // 5):
+            self._late += 1
+        self._index += 1 + missed
+        self._ticks += 1
+        self._drift = now - deadline
+        self.last_tick = TimerTick(self, self._index, deadline, now, missed)
+        self._observers.publish("notify_timer", self)
+        return deadline + self._period_ns
 
     # -- iteration and statistics ----------------------------------------------------
     def __aiter__(self) -> AsyncIterator[TimerTick]:
@@ -246,6 +253,31 @@ class EventTimer:
 
     def __repr__(self) -> str:
         return f"EventTimer({self.name!r}, period_ms={self._period_ms}, {self.state})"
+
+
+class _InlineTicks:
+    """Ticks driven by an :class:`InlineScheduler` clock: each deadline's callback delivers
+    the tick and schedules the next one, with no task of its own."""
+
+    __slots__ = ("_call", "_clock", "_deadline", "_timer")
+
+    def __init__(self, timer: EventTimer, clock: InlineScheduler) -> None:
+        self._timer = timer
+        self._clock = clock
+        self._deadline = clock.now_ns() + timer._period_ns
+        self._call: ScheduledCall | None = clock.call_at(self._deadline, self._fire)
+
+    def _fire(self) -> None:
+        timer = self._timer
+        self._deadline = timer._tick(self._deadline)
+        # An observer may have stopped (and restarted) the timer during the tick.
+        if timer._inline is self and self._call is not None:
+            self._call = self._clock.call_at(self._deadline, self._fire)
+
+    def cancel(self) -> None:
+        if self._call is not None:
+            self._call.cancel()
+            self._call = None
 
 
 class _TickIterator:
