@@ -47,7 +47,15 @@ import anyio
 import mujoco
 import numpy as np
 
-from openel_async import Actuator, EventTimer, MonotonicClock, Request, Sensor
+from openel_async import (
+    Actuator,
+    ActuatorBank,
+    EventTimer,
+    MonotonicClock,
+    Request,
+    Sensor,
+    SensorBank,
+)
 from openel_async.stats import LatenessRecorder, LatenessSummary
 from openel_mujoco import MujocoSim
 
@@ -78,7 +86,16 @@ OVERHEAD_TARGET = 2.0
 RTF_TOLERANCE = 0.01
 LATENESS_TARGET_US = 1000.0
 
-VARIANTS = ("mj_step only", "raw", "sim loop", "+ timer", "+ device calls", "full", "full, async")
+VARIANTS = (
+    "mj_step only",
+    "raw",
+    "sim loop",
+    "+ timer",
+    "+ device calls",
+    "full",
+    "full, per call",
+    "full, async",
+)
 
 # Lockstep runs are CPU-bound in the main thread: their cost is measured in the thread's CPU
 # time, which a busy shared machine does not inflate the way it inflates wall time.
@@ -215,12 +232,23 @@ def _control_work(
 
         return direct
 
+    if variant == "full, per call":
+
+        def per_call(k: int) -> None:
+            target = table[k]
+            for i, actuator in enumerate(actuators):
+                actuator.set_value_nowait(target[i], position)
+            for sensor in sensors:
+                sensor.get_value_nowait()
+
+        return per_call
+
+    joint_bank = ActuatorBank(actuators)
+    sensor_bank = SensorBank(sensors)
+
     def full(k: int) -> None:
-        target = table[k]
-        for i, actuator in enumerate(actuators):
-            actuator.set_value_nowait(target[i], position)
-        for sensor in sensors:
-            sensor.get_value_nowait()
+        joint_bank.set_values_nowait(table[k], position)
+        sensor_bank.get_values_nowait()
 
     return full
 
@@ -402,7 +430,7 @@ def _measure_lockstep(steps: int, rounds: int) -> tuple[dict[str, list[float]], 
                 ns, qpos = anyio.run(lockstep_loop, variant, steps, table, backend="asyncio")
             per_step[variant].append(ns)
             states[variant] = qpos
-        for variant in ("+ device calls", "full", "full, async"):
+        for variant in ("+ device calls", "full", "full, per call", "full, async"):
             if states[variant].tobytes() != states["raw"].tobytes():
                 raise AssertionError(f"{variant}: final state differs from raw MuJoCo's")
     notes.append(

@@ -83,8 +83,11 @@ class LockstepClock:
         callback is logged and does not stop the simulation.
         """
         call = _InlineCall(callback)
-        heapq.heappush(self._heap, (max(deadline_ns, self._now + 1), next(self._seq), call))
-        self.kick()
+        if deadline_ns <= self._now:
+            deadline_ns = self._now + 1
+        heapq.heappush(self._heap, (deadline_ns, next(self._seq), call))
+        if self._kick is not None:
+            self.kick()
         return call
 
     # -- conveniences ------------------------------------------------------------------

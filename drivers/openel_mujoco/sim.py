@@ -184,6 +184,7 @@ class MujocoSim:
         self.keyframe = keyframe
         self._key_id = find_id(m, "key", keyframe) if keyframe is not None else None
         self.data = mujoco.MjData(m)
+        self._sensor_values: list[float] | None = None
         self._initial_disableactuator = int(m.opt.disableactuator)
         self._reset_data()
         self.log = log.bind(sim=self.name)
@@ -488,6 +489,7 @@ class MujocoSim:
         self.steps += 1
         self._physics_steps += 1
         self._sensor_clock_ns = state_clock_ns
+        self._sensor_values = None
         w = self._warnings
         if w[0].number or w[1].number or w[2].number:
             self._on_unstable(self._instability_reason())
@@ -615,6 +617,7 @@ class MujocoSim:
         else:
             mujoco.mj_resetData(m, d)
         mujoco.mj_forward(m, d)
+        self._sensor_values = None
 
     def _recover(self) -> None:
         """Device reset (re_init): reset the simulation if it is faulted."""
@@ -630,6 +633,13 @@ class MujocoSim:
         self._changed = anyio.Event()
         if self._lockstep is not None:
             self._lockstep.kick()
+
+    def _sensordata_list(self) -> list[float]:
+        """``sensordata`` as a list, converted once per physics step for all sensor reads."""
+        values = self._sensor_values
+        if values is None:
+            values = self._sensor_values = self._sensordata.tolist()
+        return values
 
     # -- bookkeeping used by the devices -----------------------------------------------------
     def _attach(self, device: _Device, ctx: DeviceContext) -> bool:

@@ -5,6 +5,7 @@ device accepted the target, and reaching it is posted as event 1 (COMPLETED).
 """
 
 from .actuator import Actuator, CompletionPolicy
+from .banks import ActuatorBank, SensorBank
 from .clock import Clock, MonotonicClock, VirtualClock, default_clock
 from .completion import Motion, Outcome
 from .component import ComponentState, HALComponent
@@ -49,6 +50,7 @@ from .timer import EventTimer, TimerState, TimerStats
 
 __all__ = [
     "Actuator",
+    "ActuatorBank",
     "ActuatorDevice",
     "ActuatorLimits",
     "BadParameterError",
@@ -85,6 +87,7 @@ __all__ = [
     "Request",
     "ReturnCode",
     "Sensor",
+    "SensorBank",
     "SensorDevice",
     "StateError",
     "SupersededError",

@@ -34,6 +34,7 @@ S = ComponentState
 _ACTIVE = S.ACTIVE
 _PENDING = Outcome.PENDING
 _NO_EXCITE = Request.NO_EXCITE
+_SETTABLE = frozenset(SET_VALUE_REQUESTS)
 
 
 @dataclass(frozen=True, slots=True)
@@ -108,6 +109,8 @@ class Actuator(HALComponent):
         self.completion = completion or CompletionPolicy()
         self._sequence = 0
         self._motion: Motion | None = None
+        self._latest: tuple[Request, float, int, int] | None = None
+        """The latest command when no Motion was built for it yet (see ``_stream_now``)."""
         self._commanded: dict[Request, float] = {
             Request.POSITION: 0.0,
             Request.VELOCITY: 0.0,
@@ -117,25 +120,26 @@ class Actuator(HALComponent):
         self.completed_count = 0
         self._detector_started = False
         self._reports_completion = device.reports_completion
+        self._now_ns = self.clock.now_ns
         self._command_nowait = has_nowait(device, "command_nowait", "command")
         self._read_nowait = has_nowait(device, "read_nowait", "read")
 
     @property
     def motion(self) -> Motion | None:
         """The latest command's Motion."""
+        latest = self._latest
+        if latest is not None:  # streamed by an ActuatorBank: built when asked for
+            self._latest = None
+            self._motion = Motion(*latest)
         return self._motion
 
     # -- SetValue ------------------------------------------------------------------
     async def set_value(self, value: float, request: Request | int = Request.POSITION) -> Motion:
         """SetValue: send a new target and return its Motion without waiting for arrival."""
+        req, target = self._validate("set_value", value, request)
         if self._command_nowait:  # a device that needs no I/O: the same, without suspending
-            return self._set_now("set_value", value, request)
-        req, target, sequence = self._begin_command("set_value", value, request)
-        try:
-            await self.device.command(req, target)
-        except _LINK_FAULTS as exc:
-            raise self._fault_from(exc) from exc
-        return self._accept(req, target, sequence)
+            return self._send_now(req, target)
+        return await self._send(req, target)
 
     def set_value_nowait(self, value: float, request: Request | int = Request.POSITION) -> Motion:
         """SetValue without suspending, for synchronous code (a plain TimerObserver).
@@ -148,50 +152,89 @@ class Actuator(HALComponent):
                 f"{self.device_name}: the device has no synchronous command path; "
                 "use 'await set_value(...)'"
             )
-        return self._set_now("set_value_nowait", value, request)
+        req, target = self._validate("set_value_nowait", value, request)
+        return self._send_now(req, target)
 
-    def _set_now(self, operation: str, value: float, request: Request | int) -> Motion:
-        req, target, sequence = self._begin_command(operation, value, request)
+    def _validate(
+        self, operation: str, value: object, request: Request | int
+    ) -> tuple[Request, float]:
+        """Check state and arguments; returns (request, target)."""
+        if self.state is not _ACTIVE:
+            raise StateError(operation, self.state, (_ACTIVE,))
+        # Inline fast path of coerce_request.
+        if type(request) is Request and request in _SETTABLE:
+            req = request
+        else:
+            req = coerce_request(request, SET_VALUE_REQUESTS)
+        return req, self._check_target(req, value)
+
+    def _check_target(self, req: Request, value: object) -> float:
+        """The target as a float, or BAD_PARAMETER/NOT_IMPLEMENTED (request, finiteness, limits)."""
+        # Inline fast path of _finite: x - x is 0.0 exactly for finite floats.
+        target = value if type(value) is float and value - value == 0.0 else _finite(value)
+        device = self.device
+        if req not in device.supported_requests:
+            raise NotImplementedHALError(f"{self.device_name} does not support {req.name} control")
+        device.limits.check(req, target)
+        return target
+
+    async def _send(self, req: Request, target: float) -> Motion:
+        """Send a validated command and make its Motion the current one."""
+        # Commands reach the device in call order; the sequence number taken before the
+        # device call decides which target is final if calls overlap (a bus send).
+        self._sequence += 1
+        sequence = self._sequence
+        try:
+            await self.device.command(req, target)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+        return self._accept(req, target, sequence)
+
+    def _send_now(self, req: Request, target: float) -> Motion:
+        """:meth:`_send` through the device's synchronous path."""
+        self._sequence += 1
+        sequence = self._sequence
         try:
             self.device.command_nowait(req, target)
         except _LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
         return self._accept(req, target, sequence)
 
-    def _begin_command(
-        self, operation: str, value: object, request: Request | int
-    ) -> tuple[Request, float, int]:
-        """Check state and arguments; returns (request, target, sequence number)."""
-        if self.state is not _ACTIVE:
-            raise StateError(operation, self.state, (_ACTIVE,))
-        req = coerce_request(request, SET_VALUE_REQUESTS)
-        # x - x is 0.0 exactly for finite floats (NaN for NaN and infinities)
-        target = value if type(value) is float and value - value == 0.0 else _finite(value)
-        device = self.device
-        if req not in device.supported_requests:
-            raise NotImplementedHALError(f"{self.device_name} does not support {req.name} control")
-        device.limits.check(req, target)
-        # Commands reach the device in call order; the sequence number taken before the
-        # device call decides which target is final if calls overlap (a bus send).
+    def _stream_now(self, req: Request, target: float) -> None:
+        """:meth:`_send_now` for setpoint streaming (:class:`ActuatorBank`): the same
+        semantics, but the Motion is only built if someone asks for it (``motion``)."""
         self._sequence += 1
-        return req, target, self._sequence
+        sequence = self._sequence
+        try:
+            self.device.command_nowait(req, target)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+        if self.state is not _ACTIVE or req is _NO_EXCITE or not self._reports_completion:
+            self._accept(req, target, sequence)  # the cases that need the Motion at once
+            return
+        previous = self._motion
+        if previous is not None and previous.outcome is _PENDING:
+            previous._supersede(sequence)
+        self._motion = None
+        self._latest = (req, target, sequence, self._now_ns())
+        self._commanded[req] = target
 
     def _accept(self, req: Request, target: float, sequence: int) -> Motion:
         """The device accepted the command: make its Motion the current one."""
-        motion = Motion(req, target, sequence, self.clock.now_ns())
+        motion = Motion(req, target, sequence, self._now_ns())
         if self.state is not _ACTIVE:  # faulted or finalized while the command was sent
             if self.last_fault is not None:
                 motion._fault(self.last_fault)
             else:
                 motion._cancel(f"the actuator left Active ({self.state}) during set_value")
             return motion
-        previous = self._motion
+        previous = self.motion
         if previous is not None and previous.sequence > sequence:
-            motion._supersede(previous)  # a later command overtook this one
+            motion._supersede(previous.sequence)  # a later command overtook this one
             return motion
         self._motion = motion
         if previous is not None and previous.outcome is _PENDING:
-            previous._supersede(motion)
+            previous._supersede(sequence)
         if req is _NO_EXCITE:
             commanded = self._commanded
             commanded[Request.VELOCITY] = commanded[Request.TORQUE] = 0.0
@@ -236,12 +279,12 @@ class Actuator(HALComponent):
 
     # -- completion ----------------------------------------------------------------
     def _complete(self, motion: Motion) -> None:
-        if motion is self._motion and motion._reach(self.clock.now_ns()):
+        if motion is self.motion and motion._reach(self.clock.now_ns()):
             self.completed_count += 1
             self._publish_event(EventId.COMPLETED)
 
     def _on_target_reached(self) -> None:
-        motion = self._motion
+        motion = self.motion
         if motion is not None and self.state is S.ACTIVE:
             self._complete(motion)
 
@@ -260,7 +303,7 @@ class Actuator(HALComponent):
         policy = self.completion
         clock = self.clock
         while self.state is not S.FINALIZED:
-            motion = self._motion
+            motion = self.motion
             if motion is None or motion.done() or self.state is not S.ACTIVE:
                 self._watch = anyio.Event()
                 await self._watch.wait()
@@ -268,7 +311,7 @@ class Actuator(HALComponent):
             tolerance = policy.tolerance(motion.request)
             within_since: int | None = None
             next_poll = clock.now_ns()
-            while motion is self._motion and not motion.done() and self.state is S.ACTIVE:
+            while motion is self.motion and not motion.done() and self.state is S.ACTIVE:
                 try:
                     actual = await self.device.read(motion.request.actual)
                 except _LINK_FAULTS as exc:
@@ -292,15 +335,18 @@ class Actuator(HALComponent):
                 await clock.sleep_until(max(next_poll, now))
 
     def _on_fault(self, error: DeviceFaultError) -> None:
-        if self._motion is not None:
-            self._motion._fault(error)
+        motion = self.motion
+        if motion is not None:
+            motion._fault(error)
         self._watch.set()
 
     def _before_reset(self) -> None:
-        if self._motion is not None:
-            self._motion._cancel("re_init reset the actuator")
+        motion = self.motion
+        if motion is not None:
+            motion._cancel("re_init reset the actuator")
 
     def _before_close(self) -> None:
-        if self._motion is not None:
-            self._motion._cancel("the actuator was finalized")
+        motion = self.motion
+        if motion is not None:
+            motion._cancel("the actuator was finalized")
         self._watch.set()

@@ -105,9 +105,9 @@ class Motion:
     def _reach(self, at_ns: int) -> bool:
         return self._finish(_REACHED, None, at_ns)
 
-    def _supersede(self, by: Motion) -> bool:
+    def _supersede(self, by_sequence: int) -> bool:
         # The SupersededError is built only if someone awaits this motion.
-        self._superseded_by = by.sequence
+        self._superseded_by = by_sequence
         return self._finish(_SUPERSEDED)
 
     def _fault(self, error: DeviceFaultError) -> bool:

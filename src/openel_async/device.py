@@ -185,6 +185,15 @@ class SensorDevice(Device):
         """``read`` without suspending; only for devices that need no I/O (simulations)."""
         raise WouldBlockError(f"{type(self).__name__} has no synchronous read path")
 
+    @classmethod
+    def read_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Reading]:
+        """``read_nowait`` of several devices of this class at once (a SensorBank's read).
+
+        Override it where one read serves many devices (a simulation converting its sensor
+        array once); the default reads them one by one.
+        """
+        return [device.read_nowait() for device in devices]
+
 
 def has_nowait(device: Device, nowait: str, blocking: str) -> bool:
     """Whether ``device`` offers a usable synchronous ``nowait`` twin of ``blocking``.

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import NamedTuple
 
 from .clock import Clock
@@ -61,7 +62,7 @@ class Sensor(HALComponent):
         """GetValue: the measurement values in SI units (``len`` is the spec's ``num``)."""
         if self.state is not _ACTIVE:
             raise StateError("get_value", self.state, (_ACTIVE,))
-        return self._checked(await self._read()).values
+        return self._checked_values((await self._read()).values)
 
     async def get_timed_value(self) -> TimedValue:
         """GetTimedValue: values and their measurement time on the component's clock (ns)."""
@@ -76,7 +77,7 @@ class Sensor(HALComponent):
         """
         if self.state is not _ACTIVE:
             raise StateError("get_value_nowait", self.state, (_ACTIVE,))
-        return self._checked(self._read_now()).values
+        return self._checked_values(self._read_now().values)
 
     def get_timed_value_nowait(self) -> TimedValue:
         """GetTimedValue without suspending (see :meth:`get_value_nowait`)."""
@@ -109,10 +110,15 @@ class Sensor(HALComponent):
             raise self._fault_from(exc) from exc
 
     def _checked(self, reading: Reading) -> TimedValue:
-        raw = reading.values
-        values = raw if type(raw) is tuple else tuple(raw)
-        # One sum answers "all finite?" for the common case; look closer only if not.
-        if not math.isfinite(math.fsum(values)) and not all(math.isfinite(v) for v in values):
-            raise HALError(f"{self.device_name}: device returned a non-finite value {values}")
+        values = self._checked_values(reading.values)
         time_ns = reading.time_ns
         return TimedValue(values, self.clock.now_ns() if time_ns is None else time_ns)
+
+    def _checked_values(self, raw: Sequence[float]) -> tuple[float, ...]:
+        values = raw if type(raw) is tuple else tuple(raw)
+        # One sum answers "all finite?" for the common case (x - x is 0.0 for finite x);
+        # look closer only if not.
+        total = sum(values)
+        if total - total != 0.0 and not all(math.isfinite(v) for v in values):
+            raise HALError(f"{self.device_name}: device returned a non-finite value {values}")
+        return values

@@ -89,7 +89,8 @@ class EventTimer:
         self._tg: anyio.abc.TaskGroup | None = None
         self._scope: anyio.CancelScope | None = None
         self.state = TimerState.STOPPED
-        self.last_tick: TimerTick | None = None
+        self._last_tick: TimerTick | None = None
+        self._tick_fields: tuple[int, int, int, int] | None = None
         self._lateness = LatenessRecorder()
         self._ticks = 0
         self._late = 0
@@ -124,6 +125,20 @@ class EventTimer:
         self._observers.bind(None)
         tg.cancel_scope.cancel()
         return await tg.__aexit__(exc_type, exc, tb)
+
+    @property
+    def last_tick(self) -> TimerTick | None:
+        """The latest tick delivered (None before the first one)."""
+        fields = self._tick_fields
+        if fields is not None:
+            self._last_tick = TimerTick(self, *fields)
+            self._tick_fields = None
+        return self._last_tick
+
+    @last_tick.setter
+    def last_tick(self, tick: TimerTick | None) -> None:
+        self._last_tick = tick
+        self._tick_fields = None
 
     # -- spec operations -------------------------------------------------------------
     @property
@@ -229,7 +244,9 @@ class EventTimer:
         self._index += 1 + missed
         self._ticks += 1
         self._drift = now - deadline
-        self.last_tick = TimerTick(self, self._index, deadline, now, missed)
+        # TimerTick is built when someone reads last_tick: plain observers that do not
+        # look at it save its construction on every tick.
+        self._tick_fields = (self._index, deadline, now, missed)
         self._observers.publish("notify_timer", self)
         return deadline + self._period_ns
 

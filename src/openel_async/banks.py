@@ -1,0 +1,240 @@
+"""ActuatorBank and SensorBank: several components written or read in one call per step.
+
+A control step at 1 kHz over N axes pays Python's per-call cost N times per tick.  A bank
+checks its components' state once per call, validates every value before it commands any
+(bad input leaves every axis as it was), and dispatches to the devices in one loop: the
+``write()``/``read()`` of ros2_control's hardware interfaces, over OpenEL components.
+
+Each component keeps its own semantics: ``ActuatorBank.set_values`` is ``set_value`` on
+every actuator in order (one Motion each, COMPLETED per actuator, only for its final
+target), ``SensorBank.get_values`` is ``get_value`` on every sensor.  The ``*_nowait`` calls
+are for synchronous code (a plain TimerObserver) over devices that need no I/O.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Sequence
+from typing import TypeVar
+
+from .actuator import Actuator
+from .completion import Motion
+from .component import LINK_FAULTS, ComponentState, HALComponent
+from .errors import BadParameterError, StateError, WouldBlockError
+from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, Request, coerce_request
+from .sensor import Sensor
+
+__all__ = ["ActuatorBank", "SensorBank"]
+
+# Enum members as module constants: read on every call (~80 ns each as class attributes).
+_ACTIVE = ComponentState.ACTIVE
+_POSITION = Request.POSITION
+_SETTABLE = frozenset(SET_VALUE_REQUESTS)
+
+
+_C = TypeVar("_C", bound=HALComponent)
+
+
+def _members(components: Iterable[_C], kind: type[_C], what: str) -> tuple[_C, ...]:
+    members = tuple(components)
+    if not members:
+        raise BadParameterError(what, members, f"at least one {kind.__name__}")
+    for member in members:
+        if not isinstance(member, kind):
+            raise BadParameterError(what, member, f"{kind.__name__} components only")
+    if len({id(m) for m in members}) != len(members):
+        raise BadParameterError(what, members, f"distinct {kind.__name__} components")
+    return members
+
+
+def _require_active(members: Sequence[HALComponent], operation: str) -> None:
+    for member in members:
+        if member.state is not _ACTIVE:
+            raise StateError(f"{operation} ({member.device_name})", member.state, (_ACTIVE,))
+
+
+def _require_nowait(members: Sequence[HALComponent], flag: str, operation: str) -> None:
+    for member in members:
+        if not getattr(member, flag):
+            raise WouldBlockError(
+                f"{member.device_name}: the device has no synchronous path; use 'await "
+                f"{operation}(...)'"
+            )
+
+
+class ActuatorBank:
+    """Actuators commanded together; see the module docstring."""
+
+    def __init__(self, actuators: Iterable[Actuator]) -> None:
+        self.actuators = _members(actuators, Actuator, "actuators")
+        self._nowait = all(a._command_nowait for a in self.actuators)
+        self._read_nowait = all(a._read_nowait for a in self.actuators)
+
+    def __len__(self) -> int:
+        return len(self.actuators)
+
+    def __iter__(self) -> Iterator[Actuator]:
+        return iter(self.actuators)
+
+    # -- SetValue on every actuator ---------------------------------------------------
+    async def set_values(
+        self, values: Sequence[float], request: Request | int = Request.POSITION
+    ) -> None:
+        """``set_value(values[i], request)`` on actuator i, all validated before any is sent.
+
+        Each command's Motion is ``actuator.motion`` (see :attr:`motions`); it is built only
+        when asked for, so streaming setpoints costs no Motion per axis and tick.
+        """
+        req, targets = self._check("set_values", values, request)
+        if self._nowait:
+            for actuator, target in zip(self.actuators, targets, strict=True):
+                actuator._stream_now(req, target)
+        else:
+            for actuator, target in zip(self.actuators, targets, strict=True):
+                await actuator._send(req, target)
+
+    def set_values_nowait(
+        self, values: Sequence[float], request: Request | int = Request.POSITION
+    ) -> None:
+        """:meth:`set_values` without suspending (devices that need no I/O)."""
+        if not self._nowait:
+            _require_nowait(self.actuators, "_command_nowait", "set_values")
+        req, targets = self._check("set_values_nowait", values, request)
+        for actuator, target in zip(self.actuators, targets, strict=True):
+            actuator._stream_now(req, target)
+
+    @property
+    def motions(self) -> tuple[Motion | None, ...]:
+        """The Motion of every actuator's latest command (None before its first)."""
+        return tuple([a.motion for a in self.actuators])
+
+    def _check(
+        self, operation: str, values: Sequence[float], request: Request | int
+    ) -> tuple[Request, Sequence[float]]:
+        """State, request, count, finiteness, support and limits of every value, in one pass.
+
+        The common case (Active actuators, float values inside the limits) is checked inline
+        here; anything else goes through each actuator's own checks for the exact error.
+        """
+        actuators = self.actuators
+        if type(request) is Request and request in _SETTABLE:
+            req = request
+        else:
+            req = coerce_request(request, SET_VALUE_REQUESTS)
+        if len(values) != len(actuators):
+            raise BadParameterError(
+                "values", values, f"{len(actuators)} values, one per actuator of the bank"
+            )
+        if req is _POSITION:
+            for actuator, value in zip(actuators, values, strict=True):
+                device = actuator.device
+                low, high = device.limits.position
+                if not (
+                    actuator.state is _ACTIVE
+                    and type(value) is float
+                    and low <= value <= high
+                    and value - value == 0.0  # finite (the limits may be infinite)
+                    and req in device.supported_requests
+                ):
+                    return req, self._check_each(operation, values, req)
+            return req, values
+        return req, self._check_each(operation, values, req)
+
+    def _check_each(self, operation: str, values: Sequence[float], req: Request) -> list[float]:
+        _require_active(self.actuators, operation)
+        targets = []
+        for i, (actuator, value) in enumerate(zip(self.actuators, values, strict=True)):
+            try:
+                targets.append(actuator._check_target(req, value))
+            except BadParameterError as exc:
+                raise BadParameterError(
+                    f"values[{i}]", value, f"{exc.allowed} for {actuator.device_name}"
+                ) from None
+        return targets
+
+    # -- GetValue on every actuator ---------------------------------------------------
+    async def get_values(
+        self, request: Request | int = Request.POSITION_ACTUAL
+    ) -> tuple[float, ...]:
+        """``get_value(request)`` of every actuator."""
+        if self._read_nowait:
+            return self.get_values_nowait(request)
+        return tuple([await a.get_value(request) for a in self.actuators])
+
+    def get_values_nowait(
+        self, request: Request | int = Request.POSITION_ACTUAL
+    ) -> tuple[float, ...]:
+        """:meth:`get_values` without suspending (devices that need no I/O)."""
+        actuators = self.actuators
+        _require_active(actuators, "get_values_nowait")
+        req = coerce_request(request, GET_VALUE_REQUESTS)
+        if req.is_command:
+            return tuple([a._commanded[req] for a in actuators])
+        if not self._read_nowait:
+            _require_nowait(actuators, "_read_nowait", "get_values")
+        out = []
+        for actuator in actuators:
+            try:
+                out.append(actuator.device.read_nowait(req))
+            except LINK_FAULTS as exc:
+                raise actuator._fault_from(exc) from exc
+        return tuple(out)
+
+    def __repr__(self) -> str:
+        return f"ActuatorBank({[a.device_name for a in self.actuators]})"
+
+
+class SensorBank:
+    """Sensors read together; see the module docstring."""
+
+    def __init__(self, sensors: Iterable[Sensor]) -> None:
+        self.sensors = _members(sensors, Sensor, "sensors")
+        self._nowait = all(s._nowait for s in self.sensors)
+        devices = [s.device for s in self.sensors]
+        classes = {type(d) for d in devices}
+        # One device call for the whole bank when every device is of one class.
+        self._devices = devices
+        self._read_many = classes.pop().read_many_nowait if len(classes) == 1 else None
+
+    def __len__(self) -> int:
+        return len(self.sensors)
+
+    def __iter__(self) -> Iterator[Sensor]:
+        return iter(self.sensors)
+
+    async def get_values(self) -> tuple[tuple[float, ...], ...]:
+        """``get_value()`` of every sensor."""
+        if self._nowait:
+            return self.get_values_nowait()
+        return tuple([await s.get_value() for s in self.sensors])
+
+    def get_values_nowait(self) -> tuple[tuple[float, ...], ...]:
+        """:meth:`get_values` without suspending (devices that need no I/O)."""
+        sensors = self.sensors
+        for sensor in sensors:
+            if sensor.state is not _ACTIVE:
+                _require_active(sensors, "get_values_nowait")
+        if not self._nowait:
+            _require_nowait(sensors, "_nowait", "get_values")
+        readings = None
+        if self._read_many is not None:
+            try:
+                readings = self._read_many(self._devices)
+            except LINK_FAULTS:
+                readings = None  # read them one by one: the fault lands on its own sensor
+        out = []
+        for i, sensor in enumerate(sensors):
+            if readings is None:
+                try:
+                    values = sensor.device.read_nowait().values
+                except LINK_FAULTS as exc:
+                    raise sensor._fault_from(exc) from exc
+            else:
+                values = readings[i].values
+            total = sum(values)
+            if type(values) is not tuple or total - total != 0.0:  # not the common case
+                values = sensor._checked_values(values)
+            out.append(values)
+        return tuple(out)
+
+    def __repr__(self) -> str:
+        return f"SensorBank({[s.device_name for s in self.sensors]})"
