@@ -20,3 +20,11 @@ def test_quick_start_example_runs(
     exec(blocks[0], {"__name__": "docs_mujoco_quick_start"})
     assert (tmp_path / "arm2.png").read_bytes()[:4] == b"\x89PNG"
     assert "TimedValue(values=" in capsys.readouterr().out
+
+
+def test_performance_example_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    """The banks-and-plain-observer control loop of the Performance section."""
+    blocks = re.findall(r"^```python\n(.*?)^```$", DOC.read_text(), flags=re.M | re.S)
+    (block,) = [b for b in blocks if "ActuatorBank" in b]
+    exec(block, {"__name__": "docs_mujoco_performance"})
+    assert "500 control steps in 0.500 s of simulated time" in capsys.readouterr().out
