@@ -119,12 +119,14 @@ class LockstepClock:
         return self._wake_due(now)
 
     def _jump_to_next(self) -> bool:
-        """Without physics: set time to the next deadline and wake its sleepers."""
+        """Without physics: set time to the next deadline and serve what is due then (sleepers
+        and callbacks); False if nothing waits on the clock."""
         deadline = self.next_deadline()
         if deadline is None:
             return False
         self._now = max(self._now, deadline)
-        return self._wake_due(self._now)
+        self._wake_due(self._now)
+        return True
 
     def _wake_due(self, now: int) -> bool:
         heap = self._heap

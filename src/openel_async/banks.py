@@ -157,15 +157,18 @@ class ActuatorBank:
     ) -> tuple[float, ...]:
         """``get_value(request)`` of every actuator."""
         if self._read_nowait:
-            return self.get_values_nowait(request)
+            return self._get_now("get_values", request)
         return tuple([await a.get_value(request) for a in self.actuators])
 
     def get_values_nowait(
         self, request: Request | int = Request.POSITION_ACTUAL
     ) -> tuple[float, ...]:
         """:meth:`get_values` without suspending (devices that need no I/O)."""
+        return self._get_now("get_values_nowait", request)
+
+    def _get_now(self, operation: str, request: Request | int) -> tuple[float, ...]:
         actuators = self.actuators
-        _require_active(actuators, "get_values_nowait")
+        _require_active(actuators, operation)
         req = coerce_request(request, GET_VALUE_REQUESTS)
         if req.is_command:
             return tuple([a._commanded[req] for a in actuators])
@@ -204,15 +207,18 @@ class SensorBank:
     async def get_values(self) -> tuple[tuple[float, ...], ...]:
         """``get_value()`` of every sensor."""
         if self._nowait:
-            return self.get_values_nowait()
+            return self._get_now("get_values")
         return tuple([await s.get_value() for s in self.sensors])
 
     def get_values_nowait(self) -> tuple[tuple[float, ...], ...]:
         """:meth:`get_values` without suspending (devices that need no I/O)."""
+        return self._get_now("get_values_nowait")
+
+    def _get_now(self, operation: str) -> tuple[tuple[float, ...], ...]:
         sensors = self.sensors
         for sensor in sensors:
             if sensor.state is not _ACTIVE:
-                _require_active(sensors, "get_values_nowait")
+                _require_active(sensors, operation)
         if not self._nowait:
             _require_nowait(sensors, "_nowait", "get_values")
         readings = None
