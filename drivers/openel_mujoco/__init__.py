@@ -1,7 +1,8 @@
 """openel_mujoco: MuJoCo physics as an OpenEL device layer (the ``mujoco`` driver).
 
 Build a simulation, take its joints and sensors as devices, wrap them in components on the
-simulation's clock, and run the simulation while the application runs::
+simulation's clock, and run the simulation while the application runs (actuators that do not
+drive one joint, such as a suction cup or a tendon gripper, are ``sim.effector(name)``)::
 
     sim = MujocoSim("arm2")                               # lockstep pacing by default
     async with sim, Actuator(sim.actuator("shoulder"), clock=sim.clock) as shoulder, \\
@@ -15,8 +16,9 @@ See ``docs/mujoco.md`` for the mapping description, pacing modes, events and ins
 from openel_async.registry import DriverInfo
 
 from .clock import LockstepClock
-from .description import JointSpec, Pacing, SensorSpec, SimDescription
+from .description import EffectorSpec, JointSpec, Pacing, SensorSpec, SimDescription
 from .devices import MujocoEventId, MujocoJoint, MujocoSensor, sensor_kind, sensor_units
+from .effectors import EffectorKind, MujocoEffector, effector_kind
 from .models import (
     SHIPPED_MODELS,
     ControlMode,
@@ -32,18 +34,21 @@ from .sim import MujocoSim, PacingStats
 
 DRIVER = DriverInfo(
     name="mujoco",
-    description="MuJoCo physics: model joints as actuators, MuJoCo sensors as sensors "
-    "(lockstep or real-time pacing)",
-    devices={"joint": MujocoJoint, "sensor": MujocoSensor},
+    description="MuJoCo physics: model joints and other actuators (adhesion, tendon, site) as "
+    "actuators, MuJoCo sensors as sensors (lockstep or real-time pacing)",
+    devices={"joint": MujocoJoint, "effector": MujocoEffector, "sensor": MujocoSensor},
 )
 
 __all__ = [
     "DRIVER",
     "SHIPPED_MODELS",
     "ControlMode",
+    "EffectorKind",
+    "EffectorSpec",
     "JointSpec",
     "LockstepClock",
     "ModelLoadError",
+    "MujocoEffector",
     "MujocoEventId",
     "MujocoJoint",
     "MujocoSensor",
@@ -54,6 +59,7 @@ __all__ = [
     "SimDescription",
     "TrajectoryRecorder",
     "control_mode",
+    "effector_kind",
     "find_id",
     "load_model",
     "render_snapshot",

@@ -13,11 +13,13 @@ through YAML or JSON)::
     sensors:
       - imu_acc
       - {sensor: wrist_force, name: ft}
+    effectors:             # MuJoCo actuators that do not drive one joint
+      - suction                                    # the adhesion actuator of arm6
 
-Joint and sensor names are those of the model; unknown names raise
+Joint, sensor and actuator names are those of the model; unknown names raise
 :class:`~openel_mujoco.models.ModelLoadError` when the simulation is built.  Every field of
-:class:`JointSpec` and :class:`SensorSpec` can also be given in code, e.g.
-``sim.actuator("shoulder", max_velocity=2.0)``.
+:class:`JointSpec`, :class:`SensorSpec` and :class:`EffectorSpec` can also be given in code,
+e.g. ``sim.actuator("shoulder", max_velocity=2.0)`` or ``sim.effector("suction")``.
 """
 
 from __future__ import annotations
@@ -34,12 +36,14 @@ from openel_async.errors import BadParameterError
 from .models import ControlMode
 
 __all__ = [
+    "DEFAULT_HOLD_FORCE",
     "DEFAULT_LIMIT_MARGIN",
     "DEFAULT_POSITION_TOLERANCE",
     "DEFAULT_SETTLE_S",
     "DEFAULT_SETTLE_VELOCITY",
     "DEFAULT_TORQUE_TOLERANCE",
     "DEFAULT_VELOCITY_TOLERANCE",
+    "EffectorSpec",
     "JointSpec",
     "Pacing",
     "SensorSpec",
@@ -65,6 +69,8 @@ DEFAULT_TORQUE_TOLERANCE = 0.05
 """N m or N: a torque target is reached when the actuator torque on the joint is within this."""
 DEFAULT_LIMIT_MARGIN = 0.002
 """rad or m: LIMIT_REACHED is posted when the joint comes this close to a range limit."""
+DEFAULT_HOLD_FORCE = 0.1
+"""N: an adhesion effector holds something while its touch sensor reads at least this."""
 
 
 def _positive(owner: str, name: str, value: object, *, allow_none: bool = True) -> None:
@@ -77,6 +83,16 @@ def _positive(owner: str, name: str, value: object, *, allow_none: bool = True) 
         or value <= 0
     ):
         raise BadParameterError(f"{owner}.{name}", value, "a finite number > 0")
+
+
+def _settle(owner: str, value: object) -> None:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not math.isfinite(value)
+        or value < 0
+    ):
+        raise BadParameterError(f"{owner}.settle_s", value, "a finite number >= 0")
 
 
 @dataclass(frozen=True, slots=True)
@@ -153,14 +169,7 @@ class JointSpec:
             "limit_margin",
         ):
             _positive("JointSpec", name, getattr(self, name), allow_none=False)
-        settle = self.settle_s
-        if (
-            isinstance(settle, bool)
-            or not isinstance(settle, int | float)
-            or not math.isfinite(settle)
-            or settle < 0
-        ):
-            raise BadParameterError("JointSpec.settle_s", settle, "a finite number >= 0")
+        _settle("JointSpec", self.settle_s)
 
     @property
     def key(self) -> str:
@@ -225,8 +234,76 @@ class SensorSpec:
 
 
 @dataclass(frozen=True, slots=True)
+class EffectorSpec:
+    """One MuJoCo actuator that does not drive a single hinge/slide joint (adhesion, tendon,
+    site, body or other transmissions) mapped to an OpenEL Actuator (a
+    :class:`~openel_mujoco.effectors.MujocoEffector`).
+
+    The request mapping follows from the actuator (see the effectors module): adhesion ->
+    TORQUE (adhesion force, N); a motor-like actuator -> TORQUE (actuator force); a position
+    or velocity servo -> POSITION or VELOCITY of the actuator's length.  Tolerances are in the
+    units of the commanded quantity.
+    """
+
+    actuator: str
+    """Actuator name in the model."""
+    name: str | None = None
+    """Key in ``sim.effectors`` and base of the component's product name (default: actuator)."""
+    position_tolerance: float = DEFAULT_POSITION_TOLERANCE
+    """Position servos: a length target is reached within this (m for a tendon) ..."""
+    settle_velocity: float = DEFAULT_SETTLE_VELOCITY
+    """... while the length changes slower than this."""
+    velocity_tolerance: float = DEFAULT_VELOCITY_TOLERANCE
+    torque_tolerance: float = DEFAULT_TORQUE_TOLERANCE
+    """Force targets (TORQUE): reached when the actuator force is within this (N or N m)."""
+    settle_s: float = DEFAULT_SETTLE_S
+    """Simulated seconds in tolerance before COMPLETED."""
+    touch_sensor: str | None = None
+    """Adhesion: touch sensor that tells when the adhesion holds something (default: the first
+    touch sensor on a site of the adhesion body; none: the contact list of the body)."""
+    hold_force: float = DEFAULT_HOLD_FORCE
+    """Adhesion with a touch sensor: reading (N) from which the effector holds something."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.actuator, str) or not self.actuator:
+            raise BadParameterError("actuator", self.actuator, "a non-empty actuator name")
+        if self.name is not None and (not isinstance(self.name, str) or not self.name):
+            raise BadParameterError("name", self.name, "a non-empty string or None")
+        if self.touch_sensor is not None and (
+            not isinstance(self.touch_sensor, str) or not self.touch_sensor
+        ):
+            raise BadParameterError("touch_sensor", self.touch_sensor, "a sensor name or None")
+        for name in (
+            "position_tolerance",
+            "settle_velocity",
+            "velocity_tolerance",
+            "torque_tolerance",
+            "hold_force",
+        ):
+            _positive("EffectorSpec", name, getattr(self, name), allow_none=False)
+        _settle("EffectorSpec", self.settle_s)
+
+    @property
+    def key(self) -> str:
+        return self.name or self.actuator
+
+    @classmethod
+    def from_value(cls, value: str | Mapping[str, Any] | EffectorSpec) -> EffectorSpec:
+        """A spec from an actuator name, a dict of fields (``actuator`` required) or a spec."""
+        if isinstance(value, EffectorSpec):
+            return value
+        if isinstance(value, str):
+            return cls(actuator=value)
+        return cls(**_fields_of(cls, value, "effectors[]", required="actuator"))
+
+    def to_dict(self) -> dict[str, Any]:
+        return _non_default(self, "actuator")
+
+
+@dataclass(frozen=True, slots=True)
 class SimDescription:
-    """A model, its pacing and the joints and sensors to map; see the module docstring."""
+    """A model, its pacing and the joints, sensors and effectors to map; see the module
+    docstring."""
 
     model: str
     """Shipped model name (``arm2``, ``arm6``) or a path to an MJCF/MJB file."""
@@ -241,6 +318,8 @@ class SimDescription:
     """Name of the simulation in logs (default: the model name)."""
     extra: Mapping[str, Any] = field(default_factory=dict)
     """Free-form application data (ignored by the driver, kept by to_dict)."""
+    effectors: tuple[EffectorSpec, ...] = ()
+    """Actuators that do not drive one joint (adhesion, tendon, site ...), see EffectorSpec."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.model, str) or not self.model:
@@ -252,13 +331,18 @@ class SimDescription:
         _positive("SimDescription", "timestep", self.timestep)
         joints = tuple(JointSpec.from_value(j) for j in _sequence("joints", self.joints))
         sensors = tuple(SensorSpec.from_value(s) for s in _sequence("sensors", self.sensors))
-        for label, specs in (("joints", joints), ("sensors", sensors)):
+        effectors = tuple(
+            EffectorSpec.from_value(e) for e in _sequence("effectors", self.effectors)
+        )
+        specs: tuple[JointSpec | SensorSpec | EffectorSpec, ...]
+        for label, specs in (("joints", joints), ("sensors", sensors), ("effectors", effectors)):
             keys = [s.key for s in specs]
             duplicates = sorted({k for k in keys if keys.count(k) > 1})
             if duplicates:
                 raise BadParameterError(label, duplicates, "unique names")
         object.__setattr__(self, "joints", joints)
         object.__setattr__(self, "sensors", sensors)
+        object.__setattr__(self, "effectors", effectors)
         object.__setattr__(self, "extra", dict(self.extra))
 
     @classmethod
@@ -304,6 +388,8 @@ class SimDescription:
             out["name"] = self.name
         out["joints"] = [_compact(j.to_dict(), "joint") for j in self.joints]
         out["sensors"] = [_compact(s.to_dict(), "sensor") for s in self.sensors]
+        if self.effectors:
+            out["effectors"] = [_compact(e.to_dict(), "actuator") for e in self.effectors]
         if self.extra:
             out["extra"] = dict(self.extra)
         return out

@@ -4,7 +4,9 @@ One simulation owns one ``MjModel`` and its ``MjData`` (the control-mode switch 
 lives in the model, so a model is never shared) and steps the physics in a task of its own
 while ``async with sim:`` runs.  Joints become :class:`~openel_mujoco.devices.MujocoJoint`
 actuator devices and MuJoCo sensors :class:`~openel_mujoco.devices.MujocoSensor` sensor
-devices; wrap them in ``Actuator``/``Sensor`` components on ``clock=sim.clock``.
+devices; actuators that do not drive one joint (adhesion, tendon, site ...) become
+:class:`~openel_mujoco.effectors.MujocoEffector` actuator devices (``sim.effector(name)``).
+Wrap them in ``Actuator``/``Sensor`` components on ``clock=sim.clock``.
 
 Pacing
 ------
@@ -40,7 +42,6 @@ stepping resumes; each other component stays in Error until its own ``re_init``.
 from __future__ import annotations
 
 import asyncio
-import copy
 import dataclasses
 import math
 import os
@@ -54,7 +55,6 @@ from typing import Any, Final, Self, TypeVar
 
 import anyio
 import anyio.abc
-import anyio.to_thread
 import mujoco
 import numpy as np
 import structlog
@@ -66,8 +66,9 @@ from openel_async.stats import LatenessRecorder, LatenessSummary
 
 from . import render
 from .clock import LockstepClock, settle
-from .description import JointSpec, Pacing, SensorSpec, SimDescription
+from .description import EffectorSpec, JointSpec, Pacing, SensorSpec, SimDescription
 from .devices import MujocoJoint, MujocoSensor
+from .effectors import MujocoEffector
 from .models import find_id, load_model
 
 __all__ = ["MujocoSim", "PacingStats"]
@@ -84,8 +85,8 @@ LOCKSTEP_BATCH: Final = 256
 """Physics steps the lockstep loop runs back to back before yielding to the event loop."""
 _BEHIND_LOG_INTERVAL_NS: Final = 1_000_000_000
 
-_Device = MujocoJoint | MujocoSensor
-_SpecT = TypeVar("_SpecT", JointSpec, SensorSpec)
+_Device = MujocoJoint | MujocoSensor | MujocoEffector
+_SpecT = TypeVar("_SpecT", JointSpec, SensorSpec, EffectorSpec)
 
 
 @dataclass(frozen=True, slots=True)
@@ -145,6 +146,7 @@ class MujocoSim:
         name: str | None = None,
         joints: Iterable[str | JointSpec | Mapping[str, Any]] = (),
         sensors: Iterable[str | SensorSpec | Mapping[str, Any]] = (),
+        effectors: Iterable[str | EffectorSpec | Mapping[str, Any]] = (),
     ) -> None:
         if pacing not in ("lockstep", "realtime"):
             raise BadParameterError("pacing", pacing, "'lockstep' or 'realtime'")
@@ -211,6 +213,8 @@ class MujocoSim:
         self._sensors: dict[str, MujocoSensor] = {}
         self._attached: dict[int, tuple[_Device, DeviceContext]] = {}
         self._monitored: list[MujocoJoint] = []
+        self._effectors: dict[str, MujocoEffector] = {}
+        self._monitored_effectors: list[MujocoEffector] = []
         self._pd_joints: list[MujocoJoint] = []
         self._hooks: list[Callable[[], None]] = []
         self._fault: str | None = None
@@ -234,6 +238,8 @@ class MujocoSim:
             self._add_joint(spec)
         for sensor in sensors:
             self._add_sensor(SensorSpec.from_value(sensor))
+        for effector in effectors:
+            self._add_effector(EffectorSpec.from_value(effector))
 
     @classmethod
     def from_description(
@@ -258,6 +264,7 @@ class MujocoSim:
             name=desc.name,
             joints=desc.joints,
             sensors=desc.sensors,
+            effectors=desc.effectors,
             **options,
         )
 
@@ -302,6 +309,41 @@ class MujocoSim:
         device = MujocoJoint(self, spec)
         self._joints[spec.key] = device
         return device
+
+    def effector(self, actuator: str, **options: Any) -> MujocoEffector:
+        """The actuator device of the MuJoCo actuator ``actuator`` when it does not drive one
+        hinge/slide joint: adhesion, tendon, site ... (created on first use; ``options`` are
+        EffectorSpec fields and only allowed the first time, or when they match)."""
+        spec = _spec(EffectorSpec, actuator=actuator, **options)
+        existing = self._effectors.get(spec.key) or next(
+            (e for e in self._effectors.values() if e.actuator == actuator and not options), None
+        )
+        if existing is not None:
+            if options and existing.spec != spec:
+                raise BadParameterError(
+                    "options", options, f"none, or the ones {spec.key!r} was created with"
+                )
+            return existing
+        return self._add_effector(spec)
+
+    def _add_effector(self, spec: EffectorSpec) -> MujocoEffector:
+        if spec.key in self._effectors:
+            raise BadParameterError("name", spec.key, "an effector name not mapped yet")
+        for other in self._effectors.values():
+            if other.actuator == spec.actuator:
+                raise BadParameterError(
+                    "actuator",
+                    spec.actuator,
+                    f"an actuator not mapped yet (mapped as {other.name!r})",
+                )
+        device = MujocoEffector(self, spec)
+        self._effectors[spec.key] = device
+        return device
+
+    @property
+    def effectors(self) -> Mapping[str, MujocoEffector]:
+        """The effector devices created so far, by name."""
+        return MappingProxyType(self._effectors)
 
     def _add_sensor(self, spec: SensorSpec) -> MujocoSensor:
         if spec.key in self._sensors:
@@ -364,6 +406,7 @@ class MujocoSim:
             timestep_ms=self.timestep_ns / 1e6,
             joints=list(self._joints),
             sensors=list(self._sensors),
+            effectors=list(self._effectors),
         )
         return self
 
@@ -501,6 +544,10 @@ class MujocoSim:
             n = self.steps
             for joint in self._monitored:
                 joint._monitor(qpos_l, qvel_l, force_l, n)
+        if self._monitored_effectors:
+            n = self.steps
+            for effector in self._monitored_effectors:
+                effector._monitor(n)
         if self._hooks:
             for hook in self._hooks:
                 try:
@@ -551,20 +598,24 @@ class MujocoSim:
         height: int = 480,
         camera: str | int | None = None,
     ) -> pathlib.Path | None:
-        """Render the current state to a PNG in a worker thread (see ``render.render_snapshot``).
+        """Render the current state to a PNG in a renderer process (``render.SnapshotRenderer``).
 
-        A copy of the state is rendered.  Lockstep: the simulation is paused meanwhile, so the
-        run stays deterministic; realtime: the physics goes on.  Returns None without GL.
+        The state is captured at the call (``ValueError`` for a bad camera or size, at once);
+        the event loop keeps running while the worker renders.  Lockstep: the simulation is
+        paused meanwhile, so the run stays deterministic; realtime: the physics goes on.  While
+        the simulation runs, one renderer process serves its snapshots (started by the first
+        one, killed when ``async with sim`` ends); outside it, each call starts its own.
+        Returns None without GL.  Bounded (``TimeoutError`` after
+        ``render.DEFAULT_TIMEOUT_S``, the worker is then killed, as on cancellation);
+        ``render.RenderWorkerError`` if the worker fails.
         """
-        snapshot = copy.copy(self.data)  # the worker thread never sees the live data
-        if self._lockstep is not None:
-            async with self.paused():
-                return await anyio.to_thread.run_sync(
-                    _render, self.model, snapshot, path, width, height, camera
-                )
-        return await anyio.to_thread.run_sync(
-            _render, self.model, snapshot, path, width, height, camera
+        request = render.SnapshotRequest.capture(
+            self.model, self.data, path, width=width, height=height, camera=camera
         )
+        if self._lockstep is None:
+            return await render.render_in_worker(request, task_group=self._tg)
+        async with self.paused():
+            return await render.render_in_worker(request, task_group=self._tg)
 
     # -- faults and reset ------------------------------------------------------------------
     def _instability_reason(self) -> str:
@@ -604,6 +655,8 @@ class MujocoSim:
         self._sensor_clock_ns = self.clock.now_ns()
         for joint in self._joints.values():
             joint._on_sim_reset()
+        for effector in self._effectors.values():
+            effector._on_sim_reset()
         self._fault = None
         self.resets += 1
         self.log.info("simulation_reset", after_fault=was is not None)
@@ -649,12 +702,16 @@ class MujocoSim:
         self._attached[id(device)] = (device, ctx)
         if isinstance(device, MujocoJoint) and device not in self._monitored:
             self._monitored.append(device)
+        if isinstance(device, MujocoEffector) and device not in self._monitored_effectors:
+            self._monitored_effectors.append(device)
         return True
 
     def _detach(self, device: _Device) -> None:
         self._attached.pop(id(device), None)
         if isinstance(device, MujocoJoint) and device in self._monitored:
             self._monitored.remove(device)
+        if isinstance(device, MujocoEffector) and device in self._monitored_effectors:
+            self._monitored_effectors.remove(device)
 
     def _set_pd(self, joint: MujocoJoint, active: bool) -> None:
         if active and joint not in self._pd_joints:
@@ -714,17 +771,6 @@ class MujocoSim:
         return (
             f"MujocoSim({self.name!r}, pacing={self.pacing}, t={self.time_ns / 1e9:.3f} s, {state})"
         )
-
-
-def _render(
-    model: mujoco.MjModel,
-    data: mujoco.MjData,
-    path: str | os.PathLike[str],
-    width: int,
-    height: int,
-    camera: str | int | None,
-) -> pathlib.Path | None:
-    return render.render_snapshot(model, data, path, width=width, height=height, camera=camera)
 
 
 def _spec(cls: type[_SpecT], **values: Any) -> _SpecT:

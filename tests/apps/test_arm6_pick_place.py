@@ -1,4 +1,5 @@
-"""apps/arm6_pick_place.py end to end, in lockstep: the whole sequence moves the box."""
+"""The arm6 pick and place (openel_async.cli.arm6_pick_place, apps/arm6_pick_place.py) end to
+end, in lockstep: the whole sequence moves the box."""
 
 from __future__ import annotations
 
@@ -10,13 +11,13 @@ import anyio
 import pytest
 
 from openel_async import Actuator, BadParameterError, NotImplementedHALError, Request
+from openel_async.cli import arm6_pick_place as app
 from openel_async.cli.arm_demo import ArmOptions
 from openel_async.cli.progress import LiveLine
-from openel_mujoco import MujocoSim
+from openel_async.testing import EventRecorder
+from openel_mujoco import MujocoEffector, MujocoEventId, MujocoSim
 
 from .conftest import assert_snapshot_written_or_explained, is_png, load
-
-APP = load("arm6_pick_place")
 
 
 async def test_pick_and_place_moves_the_box(tmp_path: Path) -> None:
@@ -24,7 +25,7 @@ async def test_pick_and_place_moves_the_box(tmp_path: Path) -> None:
     sim = MujocoSim("arm6", keyframe="home")
     stream = io.StringIO()
     with anyio.fail_after(40):
-        result = await APP.run_pick_place(
+        result = await app.run_pick_place(
             sim, options=options, place=(0.20, 0.40), live=LiveLine(stream)
         )
     assert "suction" in stream.getvalue() and "tool (" in stream.getvalue()  # live progress
@@ -70,15 +71,25 @@ def test_the_app_refuses_an_unreachable_place(
     assert "out of reach" in capsys.readouterr().err
 
 
-async def test_the_suction_cup_is_an_openel_actuator() -> None:
-    sim = MujocoSim("arm6", keyframe="home")
-    cup = APP.SuctionCup(sim)
+def test_the_apps_file_is_a_thin_wrapper_of_the_package() -> None:
+    wrapper = load("arm6_pick_place")
+    assert wrapper.main is app.main and wrapper.run_pick_place is app.run_pick_place
+    assert wrapper.Arm6Kinematics is app.Arm6Kinematics
+
+
+async def test_the_suction_cup_is_the_drivers_effector() -> None:
+    sim = app.open_sim(realtime=False)  # from the app's description
+    assert list(sim.joints) == list(app.JOINTS) and list(sim.sensors) == ["tool_pos", "pad_touch"]
+    cup = sim.effectors["suction"]
+    assert isinstance(cup, MujocoEffector) and cup.kind == "adhesion"
     assert cup.limits.torque == pytest.approx(20.0)  # gain 20 N x ctrl 1
+    events = EventRecorder(sim.clock)
     async with sim, Actuator(cup, clock=sim.clock) as suction:
+        suction.add_observer(events)
         assert suction.device_name == "HalKind128MuJoCoSuction"  # kind 0x80: not in the registry
         with anyio.fail_after(10):
             await (await suction.set_value(12.0, Request.TORQUE))
-        assert cup.on
+        assert cup.on and not cup.holding  # on, but the pad touches nothing at home
         assert await suction.get_value(Request.TORQUE_ACTUAL) == pytest.approx(12.0)
         with pytest.raises(BadParameterError):
             await suction.set_value(25.0, Request.TORQUE)  # beyond the actuator's force
@@ -90,3 +101,4 @@ async def test_the_suction_cup_is_an_openel_actuator() -> None:
         assert not cup.on
         await sim.sleep(0.01)
         assert math.isclose(await suction.get_value(Request.TORQUE_ACTUAL), 0.0)
+    assert events.count("event", MujocoEventId.HOLDING) == 0

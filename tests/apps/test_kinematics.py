@@ -18,9 +18,8 @@ from openel_async.cli.arm2_square import (
     plan_square,
     square_corners,
 )
+from openel_async.cli.arm6_pick_place import Arm6Kinematics
 from openel_mujoco import load_model
-
-from .conftest import load
 
 ARM2 = PlanarArm.from_model(load_model("arm2"))
 
@@ -106,9 +105,8 @@ def test_distance_to_the_square_outline() -> None:
 
 
 def test_arm6_tool_down_puts_the_pad_on_the_point_pointing_down() -> None:
-    app = load("arm6_pick_place")
     model = load_model("arm6")
-    kin = app.Arm6Kinematics.from_model(model)
+    kin = Arm6Kinematics.from_model(model)
     data = mujoco.MjData(model)
     for target in [(0.45, 0.0, 0.037), (0.20, 0.40, 0.037), (0.3, -0.3, 0.2), (0.0, 0.5, 0.1)]:
         q = kin.tool_down(*target)
@@ -118,7 +116,7 @@ def test_arm6_tool_down_puts_the_pad_on_the_point_pointing_down() -> None:
         axes = data.site("tool").xmat.reshape(3, 3)
         assert axes[:, 0] == pytest.approx((0.0, 0.0, -1.0), abs=1e-9)  # tool axis down
         assert axes[:, 1] == pytest.approx((0.0, 1.0, 0.0), abs=1e-9)  # pad square to y
-    with pytest.raises(app.UnreachableError, match="out of reach"):
+    with pytest.raises(UnreachableError, match="out of reach"):
         kin.tool_down(0.9, 0.0, 0.05)
-    with pytest.raises(app.UnreachableError, match=r"base_yaw = \+3\.142 rad, outside its range"):
+    with pytest.raises(UnreachableError, match=r"base_yaw = \+3\.142 rad, outside its range"):
         kin.tool_down(-0.3, 0.0, 0.05)  # behind the base: beyond the base's +-2.9 rad

@@ -85,6 +85,36 @@ def test_the_default_demo_is_the_mujoco_arm(
     assert (tmp_path / "arm2_square_joints.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_the_demo_runs_the_arm6_pick_and_place(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["demo", "--app", "arm6", "--virtual", "--no-live", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "summary (MuJoCo arm6 pick and place, lockstep)" in out
+    assert "box                picked and carried" in out
+    assert "motions            7/7 succeeded" in out
+    assert f"files in {tmp_path.resolve()}/" in out
+    assert (tmp_path / "arm6_pick_place_joints.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_demo_app_options_are_checked(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["demo", "--app", "arm6", "--bus", "sim", "--virtual"]) == 2
+    assert "--app needs --bus mujoco" in capsys.readouterr().err
+    assert main(["demo", "--app", "arm6", "--virtual", "--duration", "1", "--no-live"]) == 2
+    assert "openel-async demo: --duration 1 s is too short" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["demo", "--app", "arm7"])
+    # asked for by name, the app does not fall back to the sim demo when MuJoCo cannot load
+    monkeypatch.setitem(sys.modules, "openel_mujoco", None)
+    assert main(["demo", "--app", "arm6", "--virtual", "--no-live"]) == 1
+    captured = capsys.readouterr()
+    assert "MuJoCo cannot run --app arm6: ModuleNotFoundError" in captured.err
+    assert "summary" not in captured.out
+
+
 @pytest.mark.parametrize("failure", ["import", "model"])
 def test_the_demo_falls_back_to_the_sim_demo_without_mujoco(
     failure: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]

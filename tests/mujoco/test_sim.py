@@ -26,6 +26,7 @@ from openel_async.registry import discover_drivers
 from openel_mujoco import (
     DRIVER,
     LockstepClock,
+    MujocoEffector,
     MujocoEventId,
     MujocoJoint,
     MujocoSensor,
@@ -441,7 +442,11 @@ def test_offline_stepping_and_lockstep_clock() -> None:
 
 def test_driver_entry_point() -> None:
     assert DRIVER.name == "mujoco"
-    assert DRIVER.devices == {"joint": MujocoJoint, "sensor": MujocoSensor}
+    assert DRIVER.devices == {
+        "joint": MujocoJoint,
+        "effector": MujocoEffector,
+        "sensor": MujocoSensor,
+    }
     entries = {e.name: e for e in discover_drivers()}
     assert entries["mujoco"].info is DRIVER, entries["mujoco"].error
 

@@ -16,6 +16,11 @@ from .logs import LEVELS, configure_logging
 if TYPE_CHECKING:
     from .demo_sim import RigFactory
 
+MUJOCO_APPS = {"arm2": "arm2_square", "arm6": "arm6_pick_place"}
+"""``demo --app``: the arm apps of ``--bus mujoco`` (modules of this package)."""
+DEMO_DURATION_S = 5.0
+"""Default ``demo --duration``: of the two-axis demo, and of a lap of the square."""
+
 
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="openel-async", description=__doc__)
@@ -25,14 +30,23 @@ def _build_parser() -> argparse.ArgumentParser:
 
     demo = sub.add_parser(
         "demo",
-        help="run the demo: the MuJoCo arm traces a square (default), or the two-axis "
-        "synchronized demo of spec Figs. 7.5-7.8 (--bus sim or can)",
+        help="run the demo: the MuJoCo arm traces a square (default), the 6-DoF arm picks and "
+        "places a box (--app arm6), or the two-axis synchronized demo of spec Figs. 7.5-7.8 "
+        "(--bus sim or can)",
+    )
+    demo.add_argument(
+        "--app",
+        choices=tuple(MUJOCO_APPS),
+        default=None,
+        help="mujoco: the arm app, arm2 (the 2-DoF arm traces a square; default) or arm6 (the "
+        "6-DoF arm picks and places a box with its suction cup)",
     )
     demo.add_argument(
         "--duration",
         type=float,
-        default=5.0,
-        help="seconds of synchronized motion (mujoco: seconds per lap of the square)",
+        default=None,
+        help="seconds of synchronized motion (default 5; mujoco: seconds per lap of the square, "
+        "default 5; arm6: seconds of arm motion, default 8)",
     )
     demo.add_argument(
         "--period-ms",
@@ -51,7 +65,7 @@ def _build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--no-live", action="store_true", help="no live progress line")
     demo.add_argument(
         "--out", metavar="DIR", default=None, help="mujoco: directory for the PNG files "
-        "(default: out/arm2_square/ under the current directory)",
+        "(default: out/<app>/ under the current directory, e.g. out/arm2_square/)",
     )  # fmt: skip
 
     demo.add_argument(
@@ -109,8 +123,11 @@ def _demo(args: argparse.Namespace) -> int:
     from .demo_sim import run_demo
     from .progress import LiveLine
 
-    if args.duration <= 0:
+    if args.duration is not None and not args.duration > 0:
         print("--duration must be > 0", file=sys.stderr)
+        return 2
+    if args.app is not None and args.bus != "mujoco":
+        print("--app needs --bus mujoco (the arm apps run on MuJoCo)", file=sys.stderr)
         return 2
     if args.period_ms is not None and args.period_ms <= 0:
         print("--period-ms must be > 0", file=sys.stderr)
@@ -132,7 +149,7 @@ def _demo(args: argparse.Namespace) -> int:
     live = None if args.no_live else LiveLine()
     summary = anyio.run(
         lambda: run_demo(
-            duration_s=args.duration,
+            duration_s=DEMO_DURATION_S if args.duration is None else args.duration,
             period_ms=10.0 if args.period_ms is None else args.period_ms,
             virtual=args.virtual,
             inject_fault=args.inject_fault,
@@ -148,43 +165,38 @@ def _demo(args: argparse.Namespace) -> int:
 
 
 async def _demo_mujoco(args: argparse.Namespace) -> int | None:
-    """The MuJoCo arm2 square; None when MuJoCo or the model cannot load (logged)."""
-    from ..errors import HALError
+    """A MuJoCo arm app (``--app``, default the arm2 square); None when MuJoCo or the model
+    cannot load for the default app (logged: the caller falls back to the sim demo)."""
     from .arm_demo import ArmOptions, output_dir
-    from .progress import LiveLine
 
+    app = args.app or "arm2"
+    module = importlib.import_module(f"{__name__}.{MUJOCO_APPS[app]}")
     try:
-        from . import arm2_square
-
-        sim = arm2_square.open_sim(realtime=not args.virtual)
+        sim = module.open_sim(realtime=not args.virtual)
     except Exception as exc:  # ImportError, ModelLoadError, MuJoCo's own load errors
+        reason = f"{type(exc).__name__}: {exc}"
+        if args.app is not None:  # asked for by name: no fallback
+            print(f"openel-async demo: MuJoCo cannot run --app {app}: {reason}", file=sys.stderr)
+            return 1
         structlog.get_logger(__name__).warning(
             "mujoco_unavailable",
-            reason=f"{type(exc).__name__}: {exc}",
+            reason=reason,
             fallback="the two-axis demo on openel_sim motors (--bus sim)",
         )
         return None
     options = ArmOptions(
-        duration=args.duration,
+        duration=(
+            (DEMO_DURATION_S if app == "arm2" else module.DEFAULT_DURATION_S)
+            if args.duration is None
+            else args.duration
+        ),
         realtime=not args.virtual,
-        out_dir=output_dir(arm2_square.APP, args.out),
+        out_dir=output_dir(module.APP, args.out),
         live=not args.no_live,
-        period_ms=arm2_square.DEFAULT_PERIOD_MS if args.period_ms is None else args.period_ms,
+        period_ms=module.DEFAULT_PERIOD_MS if args.period_ms is None else args.period_ms,
     )
-    square = arm2_square.SquareOptions(lap_s=args.duration)
-    try:
-        arm2_square.plan_square(arm2_square.PlanarArm.from_model(sim.model), square)
-    except ValueError as exc:
-        print(f"openel-async demo: {exc}", file=sys.stderr)
-        return 2
-    live = LiveLine() if options.live else None
-    try:
-        result = await arm2_square.run_square(sim, options=options, square=square, live=live)
-    except HALError as exc:
-        print(f"openel-async demo: the arm stopped: {exc}", file=sys.stderr)
-        return 1
-    arm2_square.report(result)
-    return 0 if all(a.outcome == "succeeded" for a in result.arrivals) else 1
+    code: int = await module.run_app(sim, options, prog="openel-async demo")
+    return code
 
 
 def _rig(bus: str) -> RigFactory | None:

@@ -40,7 +40,7 @@ import anyio
 import anyio.to_thread
 import structlog
 
-from .. import Actuator, EventTimer, HALError, Sensor
+from .. import EventTimer, HALError, Sensor
 from ..motion import (
     AxisGroup,
     AxisLimits,
@@ -56,15 +56,18 @@ from .arm_demo import (
     UnreachableError,
     add_common_arguments,
     arrival_spread,
-    display_path,
+    enter_arm,
     finish,
     fmt_mm,
     line_waypoints,
     options_from,
     preload_plotting,
-    print_summary,
+    print_report,
+    record_times,
+    run_reported,
     save_plot,
     save_snapshot,
+    times_text,
 )
 from .progress import LiveLine
 
@@ -87,6 +90,7 @@ __all__ = [
     "open_sim",
     "plan_square",
     "report",
+    "run_app",
     "run_square",
     "square_corners",
 ]
@@ -310,7 +314,6 @@ class SquareResult:
 
     def lines(self) -> list[str]:
         settle = max((a.settled_after_s for a in self.arrivals), default=0.0)
-        speed = self.sim_time_s / self.wall_time_s if self.wall_time_s > 0 else 0.0
         lines = [
             f"square             {self.laps} lap(s) of {self.side_m * 100:.0f} cm in "
             f"{self.lap_s:g} s each, elbow {self.elbow}, AxisGroup at {self.period_ms:g} ms",
@@ -325,10 +328,7 @@ class SquareResult:
             f"rms {fmt_mm(self.rms_deviation_m)} from the ideal edges "
             f"({self.deviation_samples} tip_pos readings)",
             f"tip lag            max {fmt_mm(self.max_lag_m)} behind the commanded point",
-            f"time               square traced in {self.square_sim_s:.2f} s, "
-            f"{self.sim_time_s:.2f} s simulated ({self.pacing}) in "
-            f"{self.wall_time_s:.2f} s of real time ({speed:.1f}x real time), timer ticks "
-            f"{self.timer_ticks} (missed {self.timer_missed})",
+            f"time               square traced in {self.square_sim_s:.2f} s, " + times_text(self),
         ]
         return lines + self.artifacts.lines()
 
@@ -415,34 +415,24 @@ async def run_square(
         elbow=square.elbow,
         corners=corners,
     )
-    planned_s = 3.0 + square.laps * square.lap_s
-    capacity = int((planned_s + 30.0) * 1000.0 / options.period_ms)
-    clock = sim.clock
     recorder = TrajectoryRecorder(sim, list(JOINTS), every=max(1, round(options.period_ms)))
     out_dir = options.out_dir
     await preload_plotting()
     async with sim:  # outermost: the physics runs while the rest does
         async with AsyncExitStack() as stack:
-            axes = [
-                await stack.enter_async_context(Actuator(sim.actuator(name), clock=clock))
-                for name in JOINTS
-            ]
-            tip = await stack.enter_async_context(Sensor(sim.sensor("tip_pos"), clock=clock))
-            timer = await stack.enter_async_context(
-                EventTimer(options.period_ms, clock=clock, name="arm2-sync")
+            rig = await enter_arm(
+                stack,
+                sim,
+                JOINTS,
+                options=options,
+                name="arm2",
+                limits=LIMITS,
+                tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
+                planned_s=3.0 + square.laps * square.lap_s,
+                log_actual=True,
             )
-            group = await stack.enter_async_context(
-                AxisGroup(
-                    axes,
-                    timer=timer,
-                    limits=LIMITS,
-                    tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
-                    goal_time=1.0,
-                    name="arm2",
-                    log_capacity=capacity,
-                    log_actual=True,
-                )
-            )
+            timer, group = rig.timer, rig.group
+            tip = await stack.enter_async_context(Sensor(sim.sensor("tip_pos"), clock=sim.clock))
             monitor = _TipMonitor(tip, arm, group, result, live, sim)
             timer.add_observer(monitor)
             recorder.attach()
@@ -453,10 +443,7 @@ async def run_square(
                 timer.remove_observer(monitor)
                 if live is not None:
                     live.finish()
-            stats = timer.stats
-            result.timer_ticks, result.timer_missed = stats.ticks, stats.missed_ticks
-            result.sim_time_s = sim.time_ns / 1e9
-            result.wall_time_s = sim.stats.wall_time_s
+            record_times(result, timer, sim)
         log.info(
             "square_traced",
             laps=square.laps,
@@ -667,22 +654,38 @@ async def main(argv: list[str]) -> int:
         options = options_from(args, APP)
         square = square_from(args, options.duration)
         sim = open_sim(realtime=options.realtime)
-        plan_square(PlanarArm.from_model(sim.model), square)
-    except (ValueError, UnreachableError) as exc:
+    except ValueError as exc:  # a bad option, or the model failed to load
         print(f"{APP}: {exc}", file=sys.stderr)
         return 2
-    live = LiveLine() if options.live else None
-    try:
-        result = await run_square(sim, options=options, square=square, live=live)
-    except HALError as exc:  # a motion aborted (following error, fault, goal timeout)
-        print(f"{APP}: the arm stopped: {exc}", file=sys.stderr)
-        return 1
-    report(result)
-    return 0 if all(a.outcome == "succeeded" for a in result.arrivals) else 1
+    return await run_app(sim, options, square=square)
+
+
+async def run_app(
+    sim: MujocoSim,
+    options: ArmOptions,
+    *,
+    square: SquareOptions | None = None,
+    prog: str = APP,
+) -> int:
+    """Plan, run and report the square on ``sim`` (default: one lap of ``options.duration``);
+    returns the exit status (0: every corner reached; see :func:`~.arm_demo.run_reported`)."""
+    square = square or SquareOptions(lap_s=options.duration)
+
+    async def run(live: LiveLine | None) -> SquareResult:
+        return await run_square(sim, options=options, square=square, live=live)
+
+    def reported(result: SquareResult) -> bool:
+        report(result)
+        return all(a.outcome == "succeeded" for a in result.arrivals)
+
+    return await run_reported(
+        prog,
+        plan=lambda: plan_square(PlanarArm.from_model(sim.model), square),
+        run=run,
+        report=reported,
+        live=options.live,
+    )
 
 
 def report(result: SquareResult) -> None:
-    print_summary(f"MuJoCo arm2 square, {result.pacing}", result.lines())
-    out = result.artifacts.plot.parent if result.artifacts.plot is not None else None
-    if out is not None:
-        print(f"\nfiles in {display_path(out)}/")
+    print_report(f"MuJoCo arm2 square, {result.pacing}", result.lines(), result.artifacts)

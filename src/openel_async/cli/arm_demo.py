@@ -1,6 +1,7 @@
 """Shared parts of the MuJoCo arm apps and of ``openel-async demo`` (bus ``mujoco``).
 
-The apps (``apps/arm2_square.py``, ``apps/arm6_pick_place.py``) and the demo share:
+The arm apps (:mod:`.arm2_square` and :mod:`.arm6_pick_place`, run as ``apps/<app>.py`` or by
+``openel-async demo [--app arm6]``) share:
 
 - the common command-line options (``--duration``, ``--realtime``, ``--out``, ``--no-live``,
   ``--period-ms``) and the output directory (``out/<app>/`` under the current directory);
@@ -10,7 +11,10 @@ The apps (``apps/arm2_square.py``, ``apps/arm6_pick_place.py``) and the demo sha
   :meth:`AxisGroup.follow`, and :class:`UnreachableError` for the inverse kinematics;
 - the synchronization analysis of an :class:`~openel_async.motion.AxisGroup` motion (on which
   tick each axis' setpoints arrive at their target);
-- the summary printer and bounded waits on group motions.
+- entering the joints' Actuators, the EventTimer and the AxisGroup of a run (:func:`enter_arm`),
+  its timing (:func:`record_times`, :func:`times_text`);
+- the flow of a run (:func:`run_reported`: plan, run, report, exit status), the summary printer
+  and bounded waits on group motions.
 
 This module imports neither MuJoCo nor matplotlib: the simulation objects are passed in, so the
 CLI can import it without paying for (or failing on) MuJoCo.
@@ -22,17 +26,22 @@ import argparse
 import math
 import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Awaitable, Callable, Sequence
+from contextlib import AsyncExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal, TextIO
+from typing import TYPE_CHECKING, Literal, Protocol, TextIO, TypeVar
 
 import anyio
 import anyio.to_thread
 import numpy as np
 import structlog
 
-from ..motion import GroupMotion, TrajectorySamples, Waypoint
+from ..actuator import Actuator
+from ..errors import HALError
+from ..motion import AxisGroup, AxisLimits, GroupMotion, Tolerances, TrajectorySamples, Waypoint
+from ..timer import EventTimer
+from .progress import LiveLine
 
 if TYPE_CHECKING:
     from openel_mujoco import MujocoSim, TrajectoryRecorder
@@ -41,6 +50,8 @@ log = structlog.get_logger(__name__)
 
 OUT_ROOT = "out"
 """Default output root, relative to the current directory: files go to ``out/<app>/``."""
+LOG_MARGIN_S = 30.0
+"""Seconds of group log beyond a run's planned motion (goal settling, dwells, slow ticks)."""
 RENDER_TIMEOUT_S = 60.0
 """Real-time bound on one snapshot (the first one initializes OpenGL: ~0.3-3 s)."""
 PLOT_TIMEOUT_S = 60.0
@@ -211,11 +222,11 @@ async def save_snapshot(
     width: int = 800,
     height: int = 600,
 ) -> tuple[Path | None, str | None]:
-    """Render the scene to ``path`` (worker thread, bounded); ``(None, reason)`` when it cannot.
+    """Render the scene to ``path`` (renderer process, bounded); ``(None, reason)`` when it cannot.
 
-    The physics is paused meanwhile, in both pacings: a lockstep run stays deterministic, and a
-    real-time run does not drop steps while the renderer competes for the CPU (simulated time
-    then resumes where it stopped, behind the clock by the rendering time).  Never raises for a
+    The physics is paused meanwhile, in both pacings: a lockstep run stays deterministic, and on
+    a 2-core machine a real-time run does not drop steps while the renderer process competes
+    for the CPU (simulated time then resumes where it stopped).  Never raises for a
     rendering problem: a missing OpenGL context, a disabled renderer or a renderer error only
     skip the snapshot, with the reason returned (and logged).
     """
@@ -300,6 +311,117 @@ async def finish(motion: GroupMotion, *, margin_s: float = 10.0) -> None:
         await motion
 
 
+# -- the run ----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class ArmRig:
+    """The joints of an arm as Actuators, moved together by an AxisGroup on an EventTimer."""
+
+    axes: list[Actuator]
+    timer: EventTimer
+    group: AxisGroup
+
+
+async def enter_arm(
+    stack: AsyncExitStack,
+    sim: MujocoSim,
+    joints: Sequence[str],
+    *,
+    options: ArmOptions,
+    name: str,
+    limits: AxisLimits,
+    tolerances: Tolerances,
+    planned_s: float,
+    log_actual: bool = False,
+) -> ArmRig:
+    """Enter on ``stack`` one Actuator per joint of ``sim``, an EventTimer of
+    ``options.period_ms`` on the simulation clock (``<name>-sync``) and the AxisGroup ``name``
+    over them (goal time 1 s); its log holds ``planned_s`` seconds of motion plus
+    :data:`LOG_MARGIN_S`."""
+    clock = sim.clock
+    axes = [
+        await stack.enter_async_context(Actuator(sim.actuator(joint), clock=clock))
+        for joint in joints
+    ]
+    timer = await stack.enter_async_context(
+        EventTimer(options.period_ms, clock=clock, name=f"{name}-sync")
+    )
+    group = await stack.enter_async_context(
+        AxisGroup(
+            axes,
+            timer=timer,
+            limits=limits,
+            tolerances=tolerances,
+            goal_time=1.0,
+            name=name,
+            log_capacity=int((planned_s + LOG_MARGIN_S) * 1000.0 / options.period_ms),
+            log_actual=log_actual,
+        )
+    )
+    return ArmRig(axes, timer, group)
+
+
+class RunTimes(Protocol):
+    """The timing fields of an app's result (see :func:`record_times`)."""
+
+    pacing: str
+    sim_time_s: float
+    wall_time_s: float
+    timer_ticks: int
+    timer_missed: int
+
+
+def record_times(result: RunTimes, timer: EventTimer, sim: MujocoSim) -> None:
+    """Simulated and real time of the run, and the timer's ticks, into ``result``."""
+    stats = timer.stats
+    result.timer_ticks, result.timer_missed = stats.ticks, stats.missed_ticks
+    result.sim_time_s = sim.time_ns / 1e9
+    result.wall_time_s = sim.stats.wall_time_s  # lockstep: the snapshots' pauses excluded
+
+
+def times_text(result: RunTimes) -> str:
+    """``7.12 s simulated (lockstep) in 0.52 s of real time (13.6x real time), timer ticks ...``"""
+    speed = result.sim_time_s / result.wall_time_s if result.wall_time_s > 0 else 0.0
+    return (
+        f"{result.sim_time_s:.2f} s simulated ({result.pacing}) in "
+        f"{result.wall_time_s:.2f} s of real time ({speed:.1f}x real time), timer ticks "
+        f"{result.timer_ticks} (missed {result.timer_missed})"
+    )
+
+
+R = TypeVar("R")
+
+
+async def run_reported(
+    prog: str,
+    *,
+    plan: Callable[[], object],
+    run: Callable[[LiveLine | None], Awaitable[R]],
+    report: Callable[[R], bool],
+    live: bool,
+) -> int:
+    """The flow of an arm app; returns its exit status.
+
+    ``plan()`` solves and checks every target before anything moves: a ``ValueError`` (bad
+    option, :class:`UnreachableError`) is printed as ``<prog>: <reason>`` and gives 2.
+    ``run(live_line)`` runs it: a ``HALError`` (a motion aborted: following error, fault, goal
+    timeout) gives 1.  ``report(result)`` prints the summary and tells whether the run did
+    what it should (0) or not (1).
+    """
+    try:
+        plan()
+    except ValueError as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+    try:
+        result = await run(LiveLine() if live else None)
+    except HALError as exc:
+        print(f"{prog}: the arm stopped: {exc}", file=sys.stderr)
+        return 1
+    return 0 if report(result) else 1
+
+
 # -- output -----------------------------------------------------------------------------------
 
 
@@ -309,6 +431,13 @@ def print_summary(title: str, lines: Sequence[str], stream: TextIO | None = None
     for line in lines:
         out.write("  " + line + "\n")
     out.flush()
+
+
+def print_report(title: str, lines: Sequence[str], artifacts: Artifacts) -> None:
+    """The summary, then where the files went."""
+    print_summary(title, lines)
+    if artifacts.plot is not None:
+        print(f"\nfiles in {display_path(artifacts.plot.parent)}/")
 
 
 def fmt_mm(meters: float) -> str:

@@ -1,0 +1,644 @@
+"""The 6-DoF MuJoCo arm (``arm6``) picks the box up with its suction cup and places it:
+``apps/arm6_pick_place.py`` and ``openel-async demo --app arm6``.
+
+The sequence: home -> above the box -> down onto it -> suction on -> lift -> move over the
+place location -> down -> suction off -> up -> home.
+
+- **Devices**: the simulation is built from a declarative description (:data:`DESCRIPTION`):
+  the six joints of ``arm6`` are Actuators of a ``MujocoSim``, and so is the model's ``suction``
+  adhesion actuator, a :class:`~openel_mujoco.effectors.MujocoEffector` (TORQUE = adhesion force
+  in N, NO_EXCITE = off; it posts ``HOLDING`` when the pad holds something).  The ``tool_pos``
+  and ``pad_touch`` sensors are Sensors.
+- **Joints**: one :class:`~openel_async.motion.AxisGroup` moves the six joints together
+  (setpoints streamed on an EventTimer of the simulation clock; every motion
+  time-synchronized: all joints leave and arrive on the same tick).
+- **Targets**: :class:`Arm6Kinematics` is a closed-form inverse kinematics for the arm with the
+  tool pointing straight down (the only orientation a top-down pick needs): base yaw towards
+  the point, a two-link solution for shoulder and elbow in the vertical plane, the wrist pitch
+  that makes the tool vertical, and the flange roll that keeps the pad square to the world axes
+  (so the box keeps its orientation).  Vertical approaches and lifts are ``follow()`` of timed
+  IK waypoints on the vertical line, the transfers are ``move_to`` (joint space, at a safe
+  height).
+- **Suction**: switched on once the pad presses on the box (COMPLETED when the physics applies
+  the force); the grip is confirmed by the effector holding the box (the ``pad_touch`` sensor
+  in contact with the suction on), the carry by the box's height after the lift.
+- **Output**: live progress, then a plot of commanded vs actual joint positions, snapshots of
+  the scene, and a summary with the box's displacement (``out/arm6_pick_place/``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Mapping, Sequence
+from contextlib import AsyncExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+import anyio
+import structlog
+
+from .. import Actuator, EventTimer, HALError, Request, Sensor
+from ..motion import (
+    AxisGroup,
+    AxisLimits,
+    GroupMotion,
+    KinematicState,
+    Planner,
+    Tolerances,
+    Waypoint,
+)
+from .arm_demo import (
+    ArmOptions,
+    Artifacts,
+    UnreachableError,
+    add_common_arguments,
+    arrival_spread,
+    enter_arm,
+    finish,
+    fmt_mm,
+    fmt_point,
+    line_waypoints,
+    options_from,
+    preload_plotting,
+    print_report,
+    record_times,
+    run_reported,
+    save_plot,
+    save_snapshot,
+    times_text,
+)
+from .progress import LiveLine
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from openel_mujoco import MujocoEffector, MujocoSim
+
+__all__ = [
+    "APP",
+    "DESCRIPTION",
+    "Arm6Kinematics",
+    "PickPlacePlan",
+    "PickPlaceResult",
+    "StepRecord",
+    "UnreachableError",
+    "build_parser",
+    "main",
+    "open_sim",
+    "plan_pick_place",
+    "report",
+    "run_app",
+    "run_pick_place",
+]
+
+log = structlog.get_logger(__name__)
+
+APP: Final = "arm6_pick_place"
+JOINTS: Final = (
+    "base_yaw",
+    "shoulder_pitch",
+    "elbow_pitch",
+    "wrist_roll",
+    "wrist_pitch",
+    "flange_roll",
+)
+DEFAULT_DURATION_S: Final = 8.0
+DEFAULT_PERIOD_MS: Final = 2.0
+DEFAULT_PLACE_M: Final = (0.20, 0.40)
+APPROACH_HEIGHT_M: Final = 0.08
+"""Height of the tool above the box's top face before descending and after lifting."""
+PRESS_M: Final = 0.003
+"""How far below the box's top face the pad is commanded, so that it presses on the box
+despite the arm's gravity sag (the position servos leave the tool ~2 mm low with the arm
+reaching out; the contact stops it on the box)."""
+SUCTION_FORCE_N: Final = 20.0
+"""Adhesion force of the suction cup when on (the ``suction`` actuator's largest)."""
+DWELL_S: Final = 0.25
+"""Simulated seconds the arm waits after switching the suction on or off."""
+MOVE_LIMITS: Final = AxisLimits(max_velocity=2.0, max_acceleration=8.0, max_jerk=80.0)
+LINE_LIMITS: Final = AxisLimits(max_velocity=2.0, max_acceleration=60.0, max_jerk=3000.0)
+"""Limits of the vertical lines (timed waypoints: the timing comes from the waypoints; short
+segments need brief acceleration peaks, see apps/arm2_square.py)."""
+GOAL_TOLERANCE_RAD: Final = 0.01
+"""Above the shoulder's gravity sag (<= 0.0053 rad with the arm stretched)."""
+PATH_TOLERANCE_RAD: Final = 0.2
+LINE_POINTS: Final = 8
+
+# Share of --duration taken by each motion (the suction dwells come on top).
+_SHARES: Final = {
+    "above box": 0.18,
+    "down": 0.09,
+    "lift": 0.09,
+    "move": 0.20,
+    "place down": 0.09,
+    "up": 0.09,
+    "home": 0.26,
+}
+
+
+# -- kinematics ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Arm6Kinematics:
+    """Closed-form inverse kinematics of ``arm6`` with the tool pointing straight down.
+
+    Geometry (m): the shoulder axis is ``shoulder_height`` above the floor on the base axis;
+    ``upper_arm`` from the shoulder to the elbow, ``forearm`` from the elbow to the wrist-pitch
+    axis, ``tool`` from the wrist-pitch axis to the pad face (site ``tool``).  Joint ranges
+    come from the model.
+    """
+
+    shoulder_height: float
+    upper_arm: float
+    forearm: float
+    tool: float
+    ranges: tuple[tuple[float, float], ...]
+
+    @classmethod
+    def from_model(cls, model: mujoco.MjModel) -> Arm6Kinematics:
+        def pos(body: str) -> Sequence[float]:
+            return [float(v) for v in model.body(body).pos]
+
+        return cls(
+            shoulder_height=pos("turret")[2] + pos("upper_arm")[2],
+            upper_arm=pos("forearm")[2],
+            forearm=pos("wrist1")[0] + pos("wrist2")[0],
+            tool=pos("wrist3")[0] + pos("tool")[0] + float(model.site("tool").pos[0]),
+            ranges=tuple(
+                (float(model.joint(j).range[0]), float(model.joint(j).range[1])) for j in JOINTS
+            ),
+        )
+
+    def tool_down(self, x: float, y: float, z: float) -> list[float]:
+        """Joint angles that put the pad face centre on ``(x, y, z)`` with the tool pointing
+        down and the pad square to the world axes (elbow up).  Raises
+        :class:`UnreachableError`."""
+        yaw = math.atan2(y, x)
+        r = math.hypot(x, y)
+        # wrist-pitch axis: straight above the target by the tool length
+        wr, wz = r, z + self.tool - self.shoulder_height
+        d = math.hypot(wr, wz)
+        l1, l2 = self.upper_arm, self.forearm
+        if not abs(l1 - l2) <= d <= l1 + l2:
+            raise UnreachableError(
+                f"tool point ({x:.3f}, {y:.3f}, {z:.3f}) m is out of reach pointing down: the "
+                f"wrist would be {d:.3f} m from the shoulder, reach {abs(l1 - l2):.3f} to "
+                f"{l1 + l2:.3f} m"
+            )
+        c = max(-1.0, min(1.0, (d * d - l1 * l1 - l2 * l2) / (2.0 * l1 * l2)))
+        beta = -math.acos(c)  # forearm relative to the upper arm: elbow up
+        a1 = math.atan2(wz, wr) - math.atan2(l2 * math.sin(beta), l1 + l2 * math.cos(beta))
+        shoulder = math.pi / 2 - a1  # the upper arm is vertical at zero, pitch tilts forward
+        elbow = -beta - math.pi / 2  # the forearm is horizontal at zero
+        wrist = math.pi / 2 - shoulder - elbow  # total pitch pi/2: the tool points down
+        q = [yaw, shoulder, elbow, 0.0, wrist, yaw]
+        for name, value, (lo, hi) in zip(JOINTS, q, self.ranges, strict=True):
+            if not lo <= value <= hi:
+                raise UnreachableError(
+                    f"tool point ({x:.3f}, {y:.3f}, {z:.3f}) m needs {name} = {value:+.3f} rad, "
+                    f"outside its range [{lo:+.3f}, {hi:+.3f}]"
+                )
+        return q
+
+
+# -- the simulation ------------------------------------------------------------------------------
+
+DESCRIPTION: Final[Mapping[str, Any]] = {
+    "model": "arm6",
+    "keyframe": "home",
+    "joints": list(JOINTS),
+    "sensors": ["tool_pos", "pad_touch"],
+    "effectors": ["suction"],
+}
+"""The devices of the app as a ``SimDescription`` (the pacing is added by :func:`open_sim`)."""
+
+
+def open_sim(*, realtime: bool) -> MujocoSim:
+    """The ``arm6`` simulation from :data:`DESCRIPTION`; raises ImportError (no MuJoCo) or the
+    model's load error."""
+    from openel_mujoco import MujocoSim
+
+    pacing = "realtime" if realtime else "lockstep"
+    return MujocoSim.from_description({**DESCRIPTION, "pacing": pacing})
+
+
+# -- the run --------------------------------------------------------------------------------------
+
+
+@dataclass
+class StepRecord:
+    name: str
+    motion_id: int | None
+    outcome: str
+    setpoint_spread_ticks: int = 0
+    tool_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sim_s: float = 0.0
+
+
+@dataclass
+class PickPlaceResult:
+    pacing: str
+    period_ms: float
+    duration_s: float
+    pick_m: tuple[float, float, float]
+    place_m: tuple[float, float, float]
+    box_start_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    box_end_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gripped: bool = False
+    """The suction held the box once on (the effector's HOLDING: the pad touches it)."""
+    carried: bool = False
+    """The box was lifted with the tool (at least 3 cm off the floor after the lift)."""
+    grip_force_n: float = 0.0
+    steps: list[StepRecord] = field(default_factory=list)
+    sim_time_s: float = 0.0
+    wall_time_s: float = 0.0
+    timer_ticks: int = 0
+    timer_missed: int = 0
+    artifacts: Artifacts = field(default_factory=Artifacts)
+
+    @property
+    def box_moved_m(self) -> float:
+        return math.dist(self.box_start_m[:2], self.box_end_m[:2])
+
+    @property
+    def place_error_m(self) -> float:
+        """Horizontal distance of the box's final position from the place location."""
+        return math.dist(self.box_end_m[:2], self.place_m[:2])
+
+    @property
+    def max_setpoint_spread_ticks(self) -> int:
+        return max((s.setpoint_spread_ticks for s in self.steps), default=0)
+
+    def lines(self) -> list[str]:
+        motions = [s for s in self.steps if s.motion_id is not None]
+        ok = sum(s.outcome == "succeeded" for s in motions)
+        picked = (
+            "picked and carried"
+            if self.carried
+            else ("gripped but not carried" if self.gripped else "NOT picked (no contact)")
+        )
+        lines = [
+            f"sequence           {' -> '.join(s.name for s in self.steps)}",
+            f"motions            {ok}/{len(motions)} succeeded (AxisGroup of 6 joints at "
+            f"{self.period_ms:g} ms), joint setpoints arrive within "
+            f"{self.max_setpoint_spread_ticks} tick(s) of each other",
+            f"box                {picked}; contact force {self.grip_force_n:.1f} N with the "
+            f"suction on",
+            f"box moved          from {fmt_point(self.box_start_m)} to "
+            f"{fmt_point(self.box_end_m)} ({self.box_moved_m * 100:.1f} cm)",
+            f"place location     {fmt_point(self.place_m)}: the box is "
+            f"{fmt_mm(self.place_error_m)} from it",
+            f"time               {times_text(self)}",
+        ]
+        return lines + self.artifacts.lines()
+
+
+def _box_position(sim: MujocoSim) -> tuple[float, float, float]:
+    """The box's centre from the simulation state (ground truth for the summary: the box is
+    not a device)."""
+    x, y, z = (float(v) for v in sim.data.body("box").xpos)
+    return x, y, z
+
+
+class _Progress:
+    """TimerObserver: the live line, from the tool_pos sensor every ``every`` ticks."""
+
+    def __init__(
+        self, sim: MujocoSim, tool: Sensor, suction: MujocoEffector, live: LiveLine, every: int
+    ) -> None:
+        self.sim = sim
+        self.tool = tool
+        self.suction = suction
+        self.live = live
+        self.every = every
+        self.step = "start"
+        self._count = 0
+
+    async def notify_timer(self, timer: EventTimer) -> None:
+        self._count += 1
+        if self._count % self.every:
+            return
+        x, y, z = await self.tool.get_value()
+        bx, by, bz = _box_position(self.sim)
+        self.live.update(
+            f"{self.step:<12} tool ({x:+.3f}, {y:+.3f}, {z:+.3f}) m  "
+            f"box ({bx:+.3f}, {by:+.3f}, {bz:+.3f}) m  "
+            f"suction {_suction_state(self.suction)}  "
+            f"t={self.sim.time_ns / 1e9:6.3f} s sim"
+        )
+
+
+def _suction_state(suction: MujocoEffector) -> str:
+    if suction.holding:
+        return "holds"
+    return "on   " if suction.on else "off  "
+
+
+@dataclass(frozen=True, slots=True)
+class PickPlacePlan:
+    """Joint targets and paths of the sequence, solved and timed before anything moves."""
+
+    box: tuple[float, float, float]
+    pick: tuple[float, float, float]
+    """Where the pad face goes down to: the box's top face, pressed by ``PRESS_M``."""
+    above_pick: list[float]
+    above_place: list[float]
+    home: list[float]
+    down: list[Waypoint]
+    lift: list[Waypoint]
+    place_down: list[Waypoint]
+    up: list[Waypoint]
+    durations: dict[str, float]
+
+
+def plan_pick_place(sim: MujocoSim, place: tuple[float, float], duration: float) -> PickPlacePlan:
+    """Solve every target (the box's position comes from the simulation's initial state) and
+    plan every motion offline as the group will, from rest to rest.
+
+    Raises :class:`UnreachableError` for a point out of reach and ``ValueError`` when
+    ``duration`` is too short for the group's limits.
+    """
+    kin = Arm6Kinematics.from_model(sim.model)
+    box = _box_position(sim)
+    half = float(sim.model.geom("box").size[2])
+    top = box[2] + half
+    pick = (box[0], box[1], top - PRESS_M)
+    above_pick = (box[0], box[1], top + APPROACH_HEIGHT_M)
+    place_z = 2 * half - PRESS_M  # the carried box's bottom face on the floor
+    place_at = (place[0], place[1], place_z)
+    above_place = (place[0], place[1], place_z + APPROACH_HEIGHT_M)
+    d = {name: share * duration for name, share in _SHARES.items()}
+
+    def line(
+        start: tuple[float, float, float], end: tuple[float, float, float], seconds: float
+    ) -> list[Waypoint]:
+        return line_waypoints(
+            lambda p: kin.tool_down(*p), start, end, duration=seconds, points=LINE_POINTS
+        )
+
+    plan = PickPlacePlan(
+        box=box,
+        pick=pick,
+        above_pick=kin.tool_down(*above_pick),
+        above_place=kin.tool_down(*above_place),
+        home=[0.0] * len(JOINTS),
+        down=line(above_pick, pick, d["down"]),
+        lift=line(pick, above_pick, d["lift"]),
+        place_down=line(above_place, place_at, d["place down"]),
+        up=line(place_at, above_place, d["up"]),
+        durations=d,
+    )
+    planner = Planner(len(JOINTS), kin.ranges, [math.inf] * len(JOINTS))
+    n = len(JOINTS)
+    rest = [0.0] * n
+    position = [float(v) for v in sim.data.qpos[:n]]
+    moves = {"above box": plan.above_pick, "move": plan.above_place, "home": plan.home}
+    paths = {"down": plan.down, "lift": plan.lift, "place down": plan.place_down, "up": plan.up}
+    for name in ("above box", "down", "lift", "move", "place down", "up", "home"):
+        start = KinematicState(position, rest, rest)
+        try:
+            if name in moves:
+                position = moves[name]
+                planner.move(0, start, position, [MOVE_LIMITS] * n, duration=d[name])
+            else:
+                points = [(list(w.positions), w.time) for w in paths[name]]
+                planner.waypoints(0, start, points, [LINE_LIMITS] * n)
+                position = points[-1][0]
+        except HALError as exc:
+            raise ValueError(
+                f"--duration {duration:g} s is too short for the arm's limits (step {name!r}: "
+                f"{exc}); give a longer one"
+            ) from exc
+    return plan
+
+
+class _Sequence:
+    """The steps of the run: await a group motion and record it, switch the suction."""
+
+    def __init__(
+        self,
+        sim: MujocoSim,
+        group: AxisGroup,
+        suction: Actuator,
+        tool: Sensor,
+        touch: Sensor,
+        progress: _Progress | None,
+        result: PickPlaceResult,
+    ) -> None:
+        self.sim = sim
+        self.group = group
+        self.suction_cup = suction
+        self.tool = tool
+        self.touch = touch
+        self.progress = progress
+        self.result = result
+
+    async def step(self, name: str, motion: GroupMotion | None = None) -> StepRecord:
+        """Record step ``name``, after waiting for ``motion`` (bounded) if there is one."""
+        if self.progress is not None:
+            self.progress.step = name
+        record = StepRecord(name, None, "done")
+        if motion is not None:
+            await finish(motion)
+            record.motion_id = motion.id
+            record.outcome = motion.outcome.name.lower()
+            record.setpoint_spread_ticks = arrival_spread(self.group.log.snapshot(), motion.id)
+        x, y, z = await self.tool.get_value()
+        record.tool_m = (x, y, z)
+        record.sim_s = self.sim.time_ns / 1e9
+        self.result.steps.append(record)
+        return record
+
+    async def suction(self, force_n: float | None) -> None:
+        """Suction on with ``force_n`` (waits for the force: COMPLETED), or off (None); then
+        dwell for the contact to settle."""
+        with anyio.fail_after(5):
+            if force_n is None:
+                await self.suction_cup.set_value(0.0, Request.NO_EXCITE)
+            else:
+                await (await self.suction_cup.set_value(force_n, Request.TORQUE))
+        await self.sim.sleep(DWELL_S)
+
+
+async def run_pick_place(
+    sim: MujocoSim,
+    *,
+    options: ArmOptions,
+    place: tuple[float, float] = DEFAULT_PLACE_M,
+    live: LiveLine | None = None,
+) -> PickPlaceResult:
+    """Run the sequence on ``sim`` (an ``arm6`` simulation, not running yet) and write the files.
+
+    Raises :class:`UnreachableError` or ``ValueError`` (see :func:`plan_pick_place`) before
+    anything moves.
+    """
+    from openel_mujoco import TrajectoryRecorder
+
+    plan = plan_pick_place(sim, place, options.duration)
+    box = plan.box
+    q_above_pick, q_above_place, home = plan.above_pick, plan.above_place, plan.home
+    down, lift_path, place_down, up = plan.down, plan.lift, plan.place_down, plan.up
+    d = plan.durations
+
+    result = PickPlaceResult(
+        pacing=sim.pacing,
+        period_ms=options.period_ms,
+        duration_s=options.duration,
+        pick_m=plan.pick,
+        place_m=(place[0], place[1], box[2]),
+        box_start_m=box,
+    )
+    clock = sim.clock
+    recorder = TrajectoryRecorder(sim, list(JOINTS), every=max(1, round(options.period_ms)))
+    out_dir = options.out_dir
+    out_dir.mkdir(parents=True, exist_ok=True)
+    await preload_plotting()
+    # The scene before the run (also warms the renderer up before anything runs in real time).
+    first, _ = await save_snapshot(sim, out_dir / f"{APP}_start.png")
+    lift: Path | None = None
+    async with sim:  # outermost: the physics runs while the rest does
+        async with AsyncExitStack() as stack:
+            rig = await enter_arm(
+                stack,
+                sim,
+                JOINTS,
+                options=options,
+                name="arm6",
+                limits=MOVE_LIMITS,
+                tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
+                planned_s=options.duration + 10.0,  # the dwells and the final rest on top
+            )
+            timer, group = rig.timer, rig.group
+            cup = sim.effector("suction")  # the adhesion actuator: a MujocoEffector
+            suction = await stack.enter_async_context(Actuator(cup, clock=clock))
+            tool = await stack.enter_async_context(Sensor(sim.sensor("tool_pos"), clock=clock))
+            touch = await stack.enter_async_context(Sensor(sim.sensor("pad_touch"), clock=clock))
+            progress = None
+            if live is not None:
+                every = max(1, round(50.0 / options.period_ms))  # every 50 ms of simulated time
+                progress = _Progress(sim, tool, cup, live, every)
+                timer.add_observer(progress)
+            app = _Sequence(sim, group, suction, tool, touch, progress, result)
+            recorder.attach()
+            try:
+                await app.step("home")
+                await app.step(
+                    "above box", await group.move_to(q_above_pick, duration=d["above box"])
+                )
+                await app.step("down", await group.follow(down, LINE_LIMITS))
+                await app.suction(SUCTION_FORCE_N)
+                (result.grip_force_n,) = await touch.get_value()
+                result.gripped = cup.holding
+                await app.step("suction on")
+                await app.step("lift", await group.follow(lift_path, LINE_LIMITS))
+                result.carried = _box_position(sim)[2] - box[2] > 0.03
+                if not options.realtime:
+                    # Rendering holds the GIL for ~0.2-0.3 s (MuJoCo's GL context and render
+                    # calls), which would stall a real-time control loop holding the box.
+                    lift, _ = await save_snapshot(sim, out_dir / f"{APP}_lift.png")
+                await app.step("move", await group.move_to(q_above_place, duration=d["move"]))
+                await app.step("down", await group.follow(place_down, LINE_LIMITS))
+                await app.suction(None)
+                await app.step("suction off")
+                await app.step("up", await group.follow(up, LINE_LIMITS))
+                await app.step("home", await group.move_to(home, duration=d["home"]))
+                await sim.sleep(0.5)  # let the box come to rest
+            finally:
+                recorder.detach()
+                if progress is not None:
+                    timer.remove_observer(progress)
+                if live is not None:
+                    live.finish()
+            record_times(result, timer, sim)
+        result.box_end_m = _box_position(sim)
+        log.info(
+            "pick_place_done",
+            carried=result.carried,
+            box_from=[round(v, 4) for v in result.box_start_m],
+            box_to=[round(v, 4) for v in result.box_end_m],
+        )
+        snapshot, skipped = await save_snapshot(sim, out_dir / f"{APP}_scene.png")
+    result.artifacts = Artifacts(snapshot=snapshot, snapshot_skipped=skipped)
+    for label, path in (("snapshot (start)", first), ("snapshot (lift)", lift)):
+        if path is not None:
+            result.artifacts.extra.append((label, path))
+    result.artifacts.plot = await save_plot(
+        recorder,
+        out_dir / f"{APP}_joints.png",
+        title=f"arm6 pick and place: commanded vs actual joint positions ({sim.pacing})",
+    )
+    return result
+
+
+# -- command line ---------------------------------------------------------------------------------
+
+
+def build_parser(prog: str = APP) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description="The 6-DoF MuJoCo arm picks the box with its suction cup and places it "
+        "(joints synchronized by an AxisGroup).",
+    )
+    add_common_arguments(
+        parser,
+        APP,
+        duration_help=f"seconds of arm motion for the whole sequence (default "
+        f"{DEFAULT_DURATION_S:g}; the suction dwells come on top)",
+        default_duration=DEFAULT_DURATION_S,
+        default_period_ms=DEFAULT_PERIOD_MS,
+    )
+    parser.add_argument(
+        "--place",
+        type=float,
+        nargs=2,
+        default=list(DEFAULT_PLACE_M),
+        metavar=("X", "Y"),
+        help="where to put the box down, m (default 0.20 0.40)",
+    )
+    return parser
+
+
+async def main(argv: list[str]) -> int:
+    """``openel-async run apps/arm6_pick_place.py [options]``."""
+    args = build_parser().parse_args(argv)
+    try:
+        options = options_from(args, APP)
+        sim = open_sim(realtime=options.realtime)
+    except ValueError as exc:  # a bad option, or the model failed to load
+        print(f"{APP}: {exc}", file=sys.stderr)
+        return 2
+    return await run_app(sim, options, place=(float(args.place[0]), float(args.place[1])))
+
+
+async def run_app(
+    sim: MujocoSim,
+    options: ArmOptions,
+    *,
+    place: tuple[float, float] = DEFAULT_PLACE_M,
+    prog: str = APP,
+) -> int:
+    """Plan, run and report the pick and place on ``sim``; returns the exit status (0: the box
+    was carried; see :func:`~.arm_demo.run_reported`)."""
+
+    async def run(live: LiveLine | None) -> PickPlaceResult:
+        return await run_pick_place(sim, options=options, place=place, live=live)
+
+    def reported(result: PickPlaceResult) -> bool:
+        report(result)
+        return result.carried
+
+    return await run_reported(
+        prog,
+        plan=lambda: plan_pick_place(sim, place, options.duration),
+        run=run,
+        report=reported,
+        live=options.live,
+    )
+
+
+def report(result: PickPlaceResult) -> None:
+    print_report(f"MuJoCo arm6 pick and place, {result.pacing}", result.lines(), result.artifacts)
