@@ -200,7 +200,7 @@ class Actuator(HALComponent):
             raise self._fault_from(exc) from exc
         return self._accept(req, target, sequence)
 
-    def _stream_now(self, req: Request, target: float) -> None:
+    def _stream_now(self, req: Request, target: float, now_ns: int) -> None:
         """:meth:`_send_now` for setpoint streaming (:class:`ActuatorBank`): the same
         semantics, but the Motion is only built if someone asks for it (``motion``)."""
         self._sequence += 1
@@ -216,7 +216,7 @@ class Actuator(HALComponent):
         if previous is not None and previous.outcome is _PENDING:
             previous._supersede(sequence)
         self._motion = None
-        self._latest = (req, target, sequence, self._now_ns())
+        self._latest = (req, target, sequence, now_ns)
         self._commanded[req] = target
 
     def _accept(self, req: Request, target: float, sequence: int) -> Motion:

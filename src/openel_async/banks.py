@@ -68,6 +68,9 @@ class ActuatorBank:
         self.actuators = _members(actuators, Actuator, "actuators")
         self._nowait = all(a._command_nowait for a in self.actuators)
         self._read_nowait = all(a._read_nowait for a in self.actuators)
+        clocks = {id(a.clock) for a in self.actuators}
+        # Streamed commands are stamped with one clock reading when the actuators share it.
+        self._now_ns = self.actuators[0].clock.now_ns if len(clocks) == 1 else None
 
     def __len__(self) -> int:
         return len(self.actuators)
@@ -86,8 +89,7 @@ class ActuatorBank:
         """
         req, targets = self._check("set_values", values, request)
         if self._nowait:
-            for actuator, target in zip(self.actuators, targets, strict=True):
-                actuator._stream_now(req, target)
+            self._stream(req, targets)
         else:
             for actuator, target in zip(self.actuators, targets, strict=True):
                 await actuator._send(req, target)
@@ -99,8 +101,17 @@ class ActuatorBank:
         if not self._nowait:
             _require_nowait(self.actuators, "_command_nowait", "set_values")
         req, targets = self._check("set_values_nowait", values, request)
-        for actuator, target in zip(self.actuators, targets, strict=True):
-            actuator._stream_now(req, target)
+        self._stream(req, targets)
+
+    def _stream(self, req: Request, targets: Sequence[float]) -> None:
+        now_ns = self._now_ns
+        if now_ns is not None:
+            now = now_ns()
+            for actuator, target in zip(self.actuators, targets, strict=True):
+                actuator._stream_now(req, target, now)
+        else:
+            for actuator, target in zip(self.actuators, targets, strict=True):
+                actuator._stream_now(req, target, actuator.clock.now_ns())
 
     @property
     def motions(self) -> tuple[Motion | None, ...]:
