@@ -177,7 +177,41 @@ def _max_abs(low: float, high: float) -> float:
     return max(abs(low), abs(high))
 
 
-class MujocoJoint(ActuatorDevice):
+class SimActuatorLifecycle:
+    """ReInit and Finalize of an actuator device of a simulation (joints and effectors):
+    re_init resets a faulted simulation, else stops the device safely; close detaches it and
+    stops it safely unless the simulation is faulted."""
+
+    sim: MujocoSim
+    _rejected: int
+    _ctx: DeviceContext | None
+    _pending: bool
+
+    def _safe_stop(self) -> None:
+        raise NotImplementedError
+
+    async def init(self) -> None:
+        self.sim._check_running_state()
+
+    async def reset(self) -> None:
+        faulted = self.sim.fault is not None
+        self.sim._recover()
+        if not faulted:
+            self._safe_stop()
+        self._pending = False
+
+    async def close(self) -> None:
+        if self._rejected:
+            self._rejected -= 1
+            return
+        self.sim._detach(self)  # type: ignore[arg-type]
+        self._ctx = None
+        if self.sim.fault is None:
+            self._safe_stop()
+        self._pending = False
+
+
+class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
     """A hinge or slide joint of a :class:`MujocoSim` as an OpenEL actuator.
 
     Values are SI: rad, rad/s, N m for hinges; m, m/s, N for slides.  POSITION_ACTUAL and
@@ -455,25 +489,8 @@ class MujocoJoint(ActuatorDevice):
             raise HALError(f"{self.name}: device already belongs to a component")
         self._ctx = ctx
 
-    async def init(self) -> None:
-        self.sim._check_running_state()
-
-    async def reset(self) -> None:
-        faulted = self.sim.fault is not None
-        self.sim._recover()
-        if not faulted:
-            self._hold()
-        self._pending = False
-
-    async def close(self) -> None:
-        if self._rejected:
-            self._rejected -= 1
-            return
-        self.sim._detach(self)
-        self._ctx = None
-        if self.sim.fault is None:
-            self._hold()
-        self._pending = False
+    def _safe_stop(self) -> None:
+        self._hold()
 
     # -- commands and readings ---------------------------------------------------------
     async def command(self, request: Request, value: float) -> None:

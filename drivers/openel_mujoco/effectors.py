@@ -78,7 +78,15 @@ from openel_async.ids import DeviceKind
 from openel_async.requests import Request
 
 from .description import EffectorSpec
-from .devices import OTHER_KIND, VENDOR_ID, VENDOR_NAME, MujocoEventId, _camel, _own_group
+from .devices import (
+    OTHER_KIND,
+    VENDOR_ID,
+    VENDOR_NAME,
+    MujocoEventId,
+    SimActuatorLifecycle,
+    _camel,
+    _own_group,
+)
 from .models import ModelLoadError, find_id, names
 
 if TYPE_CHECKING:
@@ -149,7 +157,7 @@ def _ordered(a: float, b: float) -> tuple[float, float]:
     return (a, b) if a <= b else (b, a)
 
 
-class MujocoEffector(ActuatorDevice):
+class MujocoEffector(SimActuatorLifecycle, ActuatorDevice):
     """A MuJoCo actuator that does not drive one hinge/slide joint, as an OpenEL actuator.
 
     See the module docstring for the request mapping, limits, completion and the adhesion
@@ -364,25 +372,8 @@ class MujocoEffector(ActuatorDevice):
         self._holding = False
         self._saturated = False
 
-    async def init(self) -> None:
-        self.sim._check_running_state()
-
-    async def reset(self) -> None:
-        faulted = self.sim.fault is not None
-        self.sim._recover()
-        if not faulted:
-            self._stop()
-        self._pending = False
-
-    async def close(self) -> None:
-        if self._rejected:
-            self._rejected -= 1
-            return
-        self.sim._detach(self)
-        self._ctx = None
-        if self.sim.fault is None:
-            self._stop()
-        self._pending = False
+    def _safe_stop(self) -> None:
+        self._stop()
 
     # -- commands and readings ---------------------------------------------------------
     async def command(self, request: Request, value: float) -> None:
