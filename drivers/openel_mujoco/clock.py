@@ -75,12 +75,14 @@ class LockstepClock:
     def sleeper(self) -> Sleeper:
         return DeadlineSleeper(self)
 
-    def call_at(self, deadline_ns: int, callback: Callable[[], object]) -> _InlineCall:
+    def call_at(self, deadline_ns: int, callback: Callable[[], int | None]) -> _InlineCall:
         """Call ``callback()`` inside the simulation loop when time reaches ``deadline_ns``
         (:class:`~openel_async.clock.InlineScheduler`), before the tasks woken then run.
 
-        A deadline already reached is served at the next physics step.  An exception of the
-        callback is logged and does not stop the simulation.
+        A deadline already reached is served at the next physics step.  A callback that
+        returns an int is called again at that deadline, under the same handle (a periodic
+        callback re-arms without a new handle per period).  An exception of the callback is
+        logged, ends its re-arming and does not stop the simulation.
         """
         call = _InlineCall(callback)
         if deadline_ns <= self._now:
@@ -133,12 +135,16 @@ class LockstepClock:
         woke = False
         while heap and heap[0][0] <= now:
             entry = heapq.heappop(heap)[2]
-            if entry.done():
-                continue
-            if isinstance(entry, _InlineCall):
-                entry.run()
-            else:
-                entry.set_result(None)
+            if type(entry) is _InlineCall:
+                if entry._done:
+                    continue
+                again = entry.run()
+                if again is not None:  # periodic: re-armed under the same handle
+                    if again <= now:
+                        again = now + 1
+                    heapq.heappush(heap, (again, next(self._seq), entry))
+            elif not entry.done():
+                entry.set_result(None)  # type: ignore[union-attr]  # a sleeper's future
                 self.wakeups += 1
                 woke = True
         return woke
@@ -165,7 +171,7 @@ class _InlineCall:
 
     __slots__ = ("_callback", "_done")
 
-    def __init__(self, callback: Callable[[], object]) -> None:
+    def __init__(self, callback: Callable[[], int | None]) -> None:
         self._callback = callback
         self._done = False
 
@@ -175,12 +181,17 @@ class _InlineCall:
     def cancel(self) -> None:
         self._done = True
 
-    def run(self) -> None:
-        self._done = True
+    def run(self) -> int | None:
+        """Call the callback; returns the deadline to call it again at, or None (done)."""
         try:
-            self._callback()
+            again = self._callback()
         except Exception:  # a broken callback must not stop the physics
             log.exception("clock_callback_failed", callback=repr(self._callback))
+            again = None
+        if self._done or type(again) is not int:  # cancelled meanwhile, or not re-armed
+            self._done = True
+            return None
+        return again
 
 
 async def settle() -> None:

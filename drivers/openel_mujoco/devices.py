@@ -291,8 +291,10 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         self._vel_tol = spec.velocity_tolerance
         self._torque_tol = spec.torque_tolerance
         # limits: on within margin of the range, released at 3 x margin
-        self._limited = bool(model.jnt_limited[jid])
+        # (an unlimited joint gets an infinite band: the monitor then needs no extra test)
         low, high = (float(v) for v in model.jnt_range[jid])
+        if not model.jnt_limited[jid]:
+            low, high = -math.inf, math.inf
         margin = spec.limit_margin
         self._lim_lo_on, self._lim_hi_on = low + margin, high - margin
         self._lim_lo_off = low + _LIMIT_RELEASE * margin
@@ -304,6 +306,8 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         self._log = log.bind(sim=sim.name, joint=self.name)
         self._mode = Request.NO_EXCITE
         self._drive_act: int | None = None
+        self._direct: Request | None = None  # the mode commanded by a plain ctrl write
+        self._drive_scale = 1.0  # ctrl per SI unit of the direct mode
         self._pd = False
         self._pd_target = 0.0
         self._pd_saturated = False
@@ -396,7 +400,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
             request = _MODE_REQUEST[enabled[0]]
             self._mode = request
             act = self._drive_act = self.actuators[enabled[0]]
-            self._refresh_saturation()
+            self._refresh_drive()
             ctrl = self.sim._ctrl
             if request is Request.POSITION and self.sim._physics_steps == 0 and ctrl[act] == 0.0:
                 # initial state (keyframe without ctrl): hold where the joint is, no jump
@@ -404,6 +408,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         elif not enabled and Request.NO_EXCITE in self.supported_requests:
             self._mode = Request.NO_EXCITE
             self._drive_act = None
+            self._refresh_drive()
         else:
             for request in (Request.POSITION, Request.VELOCITY, Request.TORQUE):
                 if request in self.supported_requests:
@@ -455,12 +460,16 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
             sim._set_pd(self, pd)
         self._mode = request
         self._drive_act = drive
-        self._refresh_saturation()
+        self._refresh_drive()
         self._log.debug("control_mode", mode=request.name, pd=pd)
 
-    def _refresh_saturation(self) -> None:
+    def _refresh_drive(self) -> None:
+        """Derive the command fast path and the saturation bands from the current mode."""
         model = self.sim.model
         act = self._drive_act
+        direct = act is not None and not self._pd and self._mode is not _NO_EXCITE
+        self._direct = self._mode if direct else None
+        self._drive_scale = self._scale[self._mode] if direct else 1.0
         self._saturated = False
         self._sat_lo = self._sat_lo_off = -math.inf
         self._sat_hi = self._sat_hi_off = math.inf
@@ -501,18 +510,21 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         if sim._fault is not None:
             raise HALError(f"{self.name}: the simulation is faulted: {sim._fault}")
         self.commands += 1
-        if request is not self._mode:
-            self._switch(request)
-        if request is _NO_EXCITE:
-            self._pending = False
-            return
-        if self._pd:
-            self._pd_target = value
+        if request is self._direct:  # streaming setpoints in the current mode: one ctrl write
+            sim._ctrl[self._drive_act] = value * self._drive_scale
         else:
-            act = self._drive_act
-            if act is None:  # never for a supported request; ctrl[None] would set every ctrl
-                raise HALError(f"{self.name}: no actuator drives {request.name}")
-            sim._ctrl[act] = value * self._scale[request]
+            if request is not self._mode:
+                self._switch(request)
+            if request is _NO_EXCITE:
+                self._pending = False
+                return
+            if self._pd:
+                self._pd_target = value
+            else:
+                act = self._drive_act
+                if act is None:  # never for a supported request; ctrl[None] would set every ctrl
+                    raise HALError(f"{self.name}: no actuator drives {request.name}")
+                sim._ctrl[act] = value * self._scale[request]
         self._target = value
         self._request = request
         self._within_since = -1
@@ -578,50 +590,28 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         assert act is not None
         ctrl[act] = tau * self._scale[Request.TORQUE]
 
-    def _monitor(self, qpos: list[float], qvel: list[float], force: list[float], step: int) -> None:
-        ctx = self._ctx
-        if ctx is None:
-            return
-        q = qpos[self.qadr]
-        if self._limited:
-            if self._at_limit:
-                if self._lim_lo_off < q < self._lim_hi_off:
-                    self._at_limit = False
-            elif q <= self._lim_lo_on or q >= self._lim_hi_on:
-                self._at_limit = True
-                ctx.post_event(_LIMIT_REACHED)
-        if self._pd:
-            saturated = self._pd_saturated
-            if saturated is not self._saturated:
-                self._saturated = saturated
-                if saturated:
-                    ctx.post_event(_SATURATED)
-        elif self._drive_act is not None:
-            f = force[self._drive_act]
-            if self._saturated:
-                if self._sat_lo_off < f < self._sat_hi_off:
-                    self._saturated = False
-            elif f <= self._sat_lo or f >= self._sat_hi:
-                self._saturated = True
-                ctx.post_event(_SATURATED)
-        if not self._pending:
-            return
-        request = self._request
-        if request is _POSITION:
-            ok = abs(q - self._target) <= self._pos_tol and abs(qvel[self.dof]) <= self._settle_vel
-        elif request is _VELOCITY:
-            ok = abs(qvel[self.dof] - self._target) <= self._vel_tol
+    def _limit_edge(self, q: float, ctx: DeviceContext) -> None:
+        """The position left the band where the limit state cannot change (hysteresis)."""
+        if self._at_limit:
+            if self._lim_lo_off < q < self._lim_hi_off:
+                self._at_limit = False
         else:
-            actual = self.sim._qfrc_actuator.item(self.dof)
-            ok = abs(actual - self._target) <= self._torque_tol
-        if not ok:
-            self._within_since = -1
-            return
-        if self._within_since < 0:
-            self._within_since = step
-        if step - self._within_since >= self._settle_steps:
-            self._pending = False
-            ctx.target_reached()
+            self._at_limit = True
+            ctx.post_event(_LIMIT_REACHED)
+
+    def _force_edge(self, force: float, ctx: DeviceContext) -> None:
+        """The actuator force left the band where the saturation state cannot change."""
+        if self._saturated:
+            if self._sat_lo_off < force < self._sat_hi_off:
+                self._saturated = False
+        else:
+            self._saturated = True
+            ctx.post_event(_SATURATED)
+
+    def _pd_saturation_edge(self, ctx: DeviceContext) -> None:
+        saturated = self._saturated = self._pd_saturated
+        if saturated:
+            ctx.post_event(_SATURATED)
 
     def _fault(self, reason: str) -> None:
         self._pending = False
@@ -651,6 +641,59 @@ _LIMIT_REACHED: Final = MujocoEventId.LIMIT_REACHED
 _SATURATED: Final = MujocoEventId.SATURATED
 
 _REQUEST_MODE: Final[Mapping[Request, ControlMode]] = {v: k for k, v in _MODE_REQUEST.items()}
+
+
+def monitor_joints(
+    joints: Sequence[MujocoJoint],
+    qpos: list[float],
+    qvel: list[float],
+    force: list[float],
+    step: int,
+) -> None:
+    """After physics step ``step``: limit and saturation events and completion of the joints.
+
+    One loop for all joints rather than a method call each: it runs after every physics step,
+    and a joint whose state cannot change costs a few comparisons (unlimited joints and
+    unlimited forces have infinite bands).
+    """
+    for joint in joints:
+        ctx = joint._ctx
+        if ctx is None:
+            continue
+        q = qpos[joint.qadr]
+        if joint._at_limit or not joint._lim_lo_on < q < joint._lim_hi_on:
+            joint._limit_edge(q, ctx)
+        if joint._pd:
+            if joint._pd_saturated is not joint._saturated:
+                joint._pd_saturation_edge(ctx)
+        else:
+            act = joint._drive_act
+            if act is not None:
+                f = force[act]
+                if joint._saturated or not joint._sat_lo < f < joint._sat_hi:
+                    joint._force_edge(f, ctx)
+        if not joint._pending:
+            continue
+        # chained comparisons rather than abs(): no builtin call per joint and step
+        request = joint._request
+        if request is _POSITION:
+            tol = joint._pos_tol
+            vel = joint._settle_vel
+            ok = -tol <= q - joint._target <= tol and -vel <= qvel[joint.dof] <= vel
+        elif request is _VELOCITY:
+            tol = joint._vel_tol
+            ok = -tol <= qvel[joint.dof] - joint._target <= tol
+        else:
+            tol = joint._torque_tol
+            ok = -tol <= joint.sim._qfrc_actuator.item(joint.dof) - joint._target <= tol
+        if not ok:
+            joint._within_since = -1
+            continue
+        if joint._within_since < 0:
+            joint._within_since = step
+        if step - joint._within_since >= joint._settle_steps:
+            joint._pending = False
+            ctx.target_reached()
 
 
 # -- sensors ------------------------------------------------------------------------------
@@ -792,6 +835,7 @@ class MujocoSensor(SensorDevice):
         self.dim = int(model.sensor_dim[sid])
         self._start = int(model.sensor_adr[sid])
         self._end = self._start + self.dim
+        self._slice = slice(self._start, self._end)
         self.units = spec.units if spec.units is not None else sensor_units(model, sid)
         if len(self.units) != self.dim:
             raise BadParameterError(
@@ -834,29 +878,26 @@ class MujocoSensor(SensorDevice):
         sim = self.sim
         if sim._fault is not None:
             raise HALError(f"{self.name}: the simulation is faulted: {sim._fault}")
-        values = tuple(sim._sensordata_list()[self._start : self._end])
+        values = sim._sensordata_tuple()[self._slice]
         return _new_reading(Reading, (values, sim._sensor_clock_ns))
 
     @classmethod
-    def read_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Reading]:
-        """Sensors of one simulation read from one conversion of ``sensordata``."""
+    def read_values_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Sequence[float]]:
+        """Sensors of one simulation: slices of one conversion of ``sensordata``."""
         first = devices[0] if devices else None
         if type(first) is not cls or not isinstance(first, MujocoSensor):
-            return super().read_many_nowait(devices)
+            return super().read_values_many_nowait(devices)
         sim = first.sim
         if sim._fault is not None:
             raise HALError(f"{sim.name}: the simulation is faulted: {sim._fault}")
-        values = sim._sensordata_list()
-        time_ns = sim._sensor_clock_ns
-        readings = []
+        values = sim._sensordata_tuple()
+        out: list[Sequence[float]] = []
         for device in devices:
             # type() rather than isinstance(): ABC instance checks cost ~150 ns
             if type(device) is not cls or device.sim is not sim:
-                return super().read_many_nowait(devices)  # mixed devices or simulations
-            readings.append(
-                _new_reading(Reading, (tuple(values[device._start : device._end]), time_ns))
-            )
-        return readings
+                return super().read_values_many_nowait(devices)  # mixed devices or simulations
+            out.append(values[device._slice])
+        return out
 
     @property
     def values(self) -> tuple[float, ...]:

@@ -67,7 +67,7 @@ from openel_async.stats import LatenessRecorder, LatenessSummary
 from . import render
 from .clock import LockstepClock, settle
 from .description import EffectorSpec, JointSpec, Pacing, SensorSpec, SimDescription
-from .devices import MujocoJoint, MujocoSensor
+from .devices import MujocoJoint, MujocoSensor, monitor_joints
 from .effectors import MujocoEffector
 from .models import find_id, load_model
 
@@ -186,7 +186,7 @@ class MujocoSim:
         self.keyframe = keyframe
         self._key_id = find_id(m, "key", keyframe) if keyframe is not None else None
         self.data = mujoco.MjData(m)
-        self._sensor_values: list[float] | None = None
+        self._sensor_values: tuple[float, ...] | None = None
         self._initial_disableactuator = int(m.opt.disableactuator)
         self._reset_data()
         self.log = log.bind(sim=self.name)
@@ -541,9 +541,7 @@ class MujocoSim:
             qpos_l = self._qpos.tolist()
             qvel_l = self._qvel.tolist()
             force_l = self._actuator_force.tolist()
-            n = self.steps
-            for joint in self._monitored:
-                joint._monitor(qpos_l, qvel_l, force_l, n)
+            monitor_joints(self._monitored, qpos_l, qvel_l, force_l, self.steps)
         if self._monitored_effectors:
             n = self.steps
             for effector in self._monitored_effectors:
@@ -687,11 +685,12 @@ class MujocoSim:
         if self._lockstep is not None:
             self._lockstep.kick()
 
-    def _sensordata_list(self) -> list[float]:
-        """``sensordata`` as a list, converted once per physics step for all sensor reads."""
+    def _sensordata_tuple(self) -> tuple[float, ...]:
+        """``sensordata`` as a tuple, converted once per physics step for all sensor reads
+        (slices of a tuple are the readings' value tuples, with no further copy)."""
         values = self._sensor_values
         if values is None:
-            values = self._sensor_values = self._sensordata.tolist()
+            values = self._sensor_values = tuple(self._sensordata.tolist())
         return values
 
     # -- bookkeeping used by the devices -----------------------------------------------------

@@ -9,6 +9,7 @@ exactly once and only for the final target: a replaced target's Motion raises
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import anyio
@@ -110,7 +111,7 @@ class Actuator(HALComponent):
         self._sequence = 0
         self._motion: Motion | None = None
         self._latest: tuple[Request, float, int, int] | None = None
-        """The latest command when no Motion was built for it yet (see ``_stream_now``)."""
+        """The latest command when no Motion was built for it yet (see ``stream_targets``)."""
         self._commanded: dict[Request, float] = {
             Request.POSITION: 0.0,
             Request.VELOCITY: 0.0,
@@ -199,25 +200,6 @@ class Actuator(HALComponent):
         except _LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
         return self._accept(req, target, sequence)
-
-    def _stream_now(self, req: Request, target: float, now_ns: int) -> None:
-        """:meth:`_send_now` for setpoint streaming (:class:`ActuatorBank`): the same
-        semantics, but the Motion is only built if someone asks for it (``motion``)."""
-        self._sequence += 1
-        sequence = self._sequence
-        try:
-            self.device.command_nowait(req, target)
-        except _LINK_FAULTS as exc:
-            raise self._fault_from(exc) from exc
-        if self.state is not _ACTIVE or req is _NO_EXCITE or not self._reports_completion:
-            self._accept(req, target, sequence)  # the cases that need the Motion at once
-            return
-        previous = self._motion
-        if previous is not None and previous.outcome is _PENDING:
-            previous._supersede(sequence)
-        self._motion = None
-        self._latest = (req, target, sequence, now_ns)
-        self._commanded[req] = target
 
     def _accept(self, req: Request, target: float, sequence: int) -> Motion:
         """The device accepted the command: make its Motion the current one."""
@@ -350,3 +332,34 @@ class Actuator(HALComponent):
         if motion is not None:
             motion._cancel("the actuator was finalized")
         self._watch.set()
+
+
+def stream_targets(
+    actuators: Sequence[Actuator],
+    req: Request,
+    targets: Sequence[float],
+    now_ns: int | None,
+) -> None:
+    """Setpoint streaming (:class:`~openel_async.ActuatorBank`): ``_send_now`` on every
+    actuator in order, with the same semantics, but each Motion is only built if someone asks
+    for it (``Actuator.motion``).  ``now_ns`` stamps every command (None: each actuator's clock).
+
+    One loop rather than a method call per axis: a bank runs it on every control tick.
+    """
+    lazy = req is not _NO_EXCITE  # NO_EXCITE completes at once: its Motion is needed now
+    for actuator, target in zip(actuators, targets, strict=True):
+        sequence = actuator._sequence = actuator._sequence + 1
+        try:
+            actuator.device.command_nowait(req, target)
+        except _LINK_FAULTS as exc:
+            raise actuator._fault_from(exc) from exc
+        if not (lazy and actuator._reports_completion and actuator.state is _ACTIVE):
+            actuator._accept(req, target, sequence)
+            continue
+        previous = actuator._motion
+        if previous is not None and previous.outcome is _PENDING:
+            previous._supersede(sequence)
+        actuator._motion = None
+        stamp = actuator._now_ns() if now_ns is None else now_ns
+        actuator._latest = (req, target, sequence, stamp)
+        actuator._commanded[req] = target

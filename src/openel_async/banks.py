@@ -13,13 +13,14 @@ are for synchronous code (a plain TimerObserver) over devices that need no I/O.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Iterator, Sequence
-from typing import TypeVar
+from typing import TypeVar, cast
 
-from .actuator import Actuator
+from .actuator import Actuator, stream_targets
 from .completion import Motion
 from .component import LINK_FAULTS, ComponentState, HALComponent
-from .errors import BadParameterError, StateError, WouldBlockError
+from .errors import BadParameterError, HALError, StateError, WouldBlockError
 from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, Request, coerce_request
 from .sensor import Sensor
 
@@ -66,6 +67,7 @@ class ActuatorBank:
 
     def __init__(self, actuators: Iterable[Actuator]) -> None:
         self.actuators = _members(actuators, Actuator, "actuators")
+        self._devices = tuple(a.device for a in self.actuators)
         self._nowait = all(a._command_nowait for a in self.actuators)
         self._read_nowait = all(a._read_nowait for a in self.actuators)
         clocks = {id(a.clock) for a in self.actuators}
@@ -89,7 +91,8 @@ class ActuatorBank:
         """
         req, targets = self._check("set_values", values, request)
         if self._nowait:
-            self._stream(req, targets)
+            now_ns = self._now_ns
+            stream_targets(self.actuators, req, targets, None if now_ns is None else now_ns())
         else:
             for actuator, target in zip(self.actuators, targets, strict=True):
                 await actuator._send(req, target)
@@ -101,17 +104,8 @@ class ActuatorBank:
         if not self._nowait:
             _require_nowait(self.actuators, "_command_nowait", "set_values")
         req, targets = self._check("set_values_nowait", values, request)
-        self._stream(req, targets)
-
-    def _stream(self, req: Request, targets: Sequence[float]) -> None:
         now_ns = self._now_ns
-        if now_ns is not None:
-            now = now_ns()
-            for actuator, target in zip(self.actuators, targets, strict=True):
-                actuator._stream_now(req, target, now)
-        else:
-            for actuator, target in zip(self.actuators, targets, strict=True):
-                actuator._stream_now(req, target, actuator.clock.now_ns())
+        stream_targets(self.actuators, req, targets, None if now_ns is None else now_ns())
 
     @property
     def motions(self) -> tuple[Motion | None, ...]:
@@ -136,8 +130,7 @@ class ActuatorBank:
                 "values", values, f"{len(actuators)} values, one per actuator of the bank"
             )
         if req is _POSITION:
-            for actuator, value in zip(actuators, values, strict=True):
-                device = actuator.device
+            for actuator, device, value in zip(actuators, self._devices, values, strict=True):
                 low, high = device.limits.position
                 if not (
                     actuator.state is _ACTIVE
@@ -207,7 +200,7 @@ class SensorBank:
         classes = {type(d) for d in devices}
         # One device call for the whole bank when every device is of one class.
         self._devices = devices
-        self._read_many = classes.pop().read_many_nowait if len(classes) == 1 else None
+        self._read_many = classes.pop().read_values_many_nowait if len(classes) == 1 else None
 
     def __len__(self) -> int:
         return len(self.sensors)
@@ -232,26 +225,37 @@ class SensorBank:
                 _require_active(sensors, operation)
         if not self._nowait:
             _require_nowait(sensors, "_nowait", "get_values")
-        readings = None
         if self._read_many is not None:
             try:
-                readings = self._read_many(self._devices)
+                batch = self._read_many(self._devices)
             except LINK_FAULTS:
-                readings = None  # read them one by one: the fault lands on its own sensor
-        out = []
-        for i, sensor in enumerate(sensors):
-            if readings is None:
-                try:
-                    values = sensor.device.read_nowait().values
-                except LINK_FAULTS as exc:
-                    raise sensor._fault_from(exc) from exc
+                pass  # read them one by one below: the fault lands on its own sensor
             else:
-                values = readings[i].values
-            total = sum(values)
-            if type(values) is not tuple or total - total != 0.0:  # not the common case
-                values = sensor._checked_values(values)
-            out.append(values)
-        return tuple(out)
+                out = tuple(batch)
+                if len(out) != len(sensors):
+                    raise HALError(
+                        f"{type(self._devices[0]).__name__}.read_values_many_nowait returned "
+                        f"{len(out)} values for {len(sensors)} devices"
+                    )
+                # The common case in two C calls: concatenation succeeds only for tuples, and
+                # one sum is finite only if every value is (x - x is 0.0 for finite x).  The
+                # per-sensor checks find what is wrong otherwise.
+                try:
+                    flat: object = sum(out, ())  # type: ignore[type-var]
+                    total = sum(flat) if type(flat) is tuple else math.nan
+                except Exception:  # a driver returned something else than tuples of floats
+                    total = math.nan
+                if total - total == 0.0:
+                    return cast(tuple[tuple[float, ...], ...], out)
+                return tuple([s._checked_values(v) for s, v in zip(sensors, out, strict=True)])
+        values_out = []
+        for sensor in sensors:
+            try:
+                values = sensor.device.read_nowait().values
+            except LINK_FAULTS as exc:
+                raise sensor._fault_from(exc) from exc
+            values_out.append(sensor._checked_values(values))
+        return tuple(values_out)
 
     def __repr__(self) -> str:
         return f"SensorBank({[s.device_name for s in self.sensors]})"

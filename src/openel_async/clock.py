@@ -65,7 +65,10 @@ class InlineScheduler(Clock, Protocol):
     clock ticks its observers without a task switch.
     """
 
-    def call_at(self, deadline_ns: int, callback: Callable[[], object]) -> ScheduledCall: ...
+    def call_at(self, deadline_ns: int, callback: Callable[[], int | None]) -> ScheduledCall:
+        """Call ``callback()`` when time reaches ``deadline_ns``; if it returns an int, call
+        it again at that deadline under the same handle (periodic callbacks), else once."""
+        ...
 
 
 class DeadlineSleeper:

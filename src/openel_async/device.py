@@ -186,13 +186,14 @@ class SensorDevice(Device):
         raise WouldBlockError(f"{type(self).__name__} has no synchronous read path")
 
     @classmethod
-    def read_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Reading]:
-        """``read_nowait`` of several devices of this class at once (a SensorBank's read).
+    def read_values_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Sequence[float]]:
+        """The values of ``read_nowait()`` of several devices of this class at once (a
+        SensorBank's read, which returns values only: no Reading is built per device).
 
         Override it where one read serves many devices (a simulation converting its sensor
         array once); the default reads them one by one.
         """
-        return [device.read_nowait() for device in devices]
+        return [device.read_nowait().values for device in devices]
 
 
 def has_nowait(device: Device, nowait: str, blocking: str) -> bool:

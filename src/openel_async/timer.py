@@ -273,23 +273,22 @@ class EventTimer:
 
 
 class _InlineTicks:
-    """Ticks driven by an :class:`InlineScheduler` clock: each deadline's callback delivers
-    the tick and schedules the next one, with no task of its own."""
+    """Ticks driven by an :class:`InlineScheduler` clock: one periodic callback delivers
+    each tick and re-arms itself for the next, with no task of its own."""
 
-    __slots__ = ("_call", "_clock", "_deadline", "_timer")
+    __slots__ = ("_call", "_deadline", "_timer")
 
     def __init__(self, timer: EventTimer, clock: InlineScheduler) -> None:
         self._timer = timer
-        self._clock = clock
         self._deadline = clock.now_ns() + timer._period_ns
         self._call: ScheduledCall | None = clock.call_at(self._deadline, self._fire)
 
-    def _fire(self) -> None:
+    def _fire(self) -> int | None:
         timer = self._timer
-        self._deadline = timer._tick(self._deadline)
-        # An observer may have stopped (and restarted) the timer during the tick.
-        if timer._inline is self and self._call is not None:
-            self._call = self._clock.call_at(self._deadline, self._fire)
+        self._deadline = deadline = timer._tick(self._deadline)
+        # Re-armed by returning the next deadline, unless an observer stopped (and maybe
+        # restarted) the timer during the tick.
+        return deadline if timer._inline is self else None
 
     def cancel(self) -> None:
         if self._call is not None:

@@ -3,7 +3,7 @@
 Checked here: every value validated before any is sent (all or nothing), Motions built lazily
 yet behaving like set_value's (issue time, completion, supersession, faults), COMPLETED only
 for each actuator's final target while setpoints stream, the async path for devices without a
-synchronous one, SensorBank batching through ``read_many_nowait`` with link faults landing on
+synchronous one, SensorBank batching through ``read_values_many_nowait`` with link faults landing on
 the sensor that has them.
 """
 
@@ -15,6 +15,7 @@ from typing import ClassVar
 
 import anyio
 import anyio.lowlevel
+import numpy as np
 import pytest
 
 from openel_async import (
@@ -96,7 +97,7 @@ class InstantServo(ActuatorDevice):
 
 
 class BatchSensor(SensorDevice):
-    """A sensor on a shared bus: one ``read_many_nowait`` serves the whole bank."""
+    """A sensor on a shared bus: one ``read_values_many_nowait`` serves the whole bank."""
 
     units = ("V",)
     batches: ClassVar[list[int]] = []
@@ -120,15 +121,15 @@ class BatchSensor(SensorDevice):
         return Reading([self.value])  # a list: the component makes it a tuple
 
     @classmethod
-    def read_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Reading]:
+    def read_values_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Sequence[float]]:
         cls.batches.append(len(devices))
-        readings = []
+        values: list[Sequence[float]] = []
         for device in devices:
             assert isinstance(device, BatchSensor)
             if not device.connected:
                 raise NotConnectedError("bus error during the batch")
-            readings.append(Reading((device.value,)))
-        return readings
+            values.append((device.value,))
+        return values
 
 
 class OtherBatchSensor(BatchSensor):
@@ -734,6 +735,61 @@ async def test_sensor_bank_non_finite_values_raise_without_a_fault(
     with pytest.raises(HALError, match="non-finite"):
         alone.get_values_nowait()
     assert all(s.state is ComponentState.ACTIVE for s in sensors)
+
+
+class LooseBatchSensor(BatchSensor):
+    """A batch that returns its values as lists, NumPy arrays or tuples (``shape`` per device)."""
+
+    shapes: ClassVar[dict[int, str]] = {}
+
+    @classmethod
+    def read_values_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Sequence[float]]:
+        out: list[Sequence[float]] = []
+        for device in devices:
+            assert isinstance(device, BatchSensor)
+            shape = cls.shapes.get(id(device), "tuple")
+            if shape == "list":
+                out.append([device.value])
+            elif shape == "array":
+                out.append(np.array([device.value, device.value]))
+            else:
+                out.append((device.value,))
+        return out
+
+
+@pytest.mark.parametrize(
+    "shapes",
+    [("list", "tuple"), ("tuple", "array"), ("array", "list"), ("tuple", "tuple")],
+)
+async def test_sensor_bank_returns_tuples_whatever_the_batch_returns(
+    hal_components: ComponentStack, shapes: tuple[str, str]
+) -> None:
+    devices = [LooseBatchSensor(1.5), LooseBatchSensor(-2.5)]
+    LooseBatchSensor.shapes = {id(d): shape for d, shape in zip(devices, shapes, strict=True)}
+    sensors = [await hal_components.sensor(d) for d in devices]
+    bank = SensorBank(sensors)
+    values = bank.get_values_nowait()
+    expected = tuple(
+        (d.value, d.value) if shape == "array" else (d.value,)
+        for d, shape in zip(devices, shapes, strict=True)
+    )
+    assert values == expected
+    assert all(type(v) is tuple for v in values)
+    devices[1].value = math.nan  # a non-finite value is found whatever the container
+    with pytest.raises(HALError, match="non-finite"):
+        bank.get_values_nowait()
+
+
+class ShortBatchSensor(BatchSensor):
+    @classmethod
+    def read_values_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Sequence[float]]:
+        return [(1.0,)] * (len(devices) - 1)
+
+
+async def test_a_batch_with_the_wrong_count_is_an_error(hal_components: ComponentStack) -> None:
+    sensors = [await hal_components.sensor(ShortBatchSensor(1.0)) for _ in range(3)]
+    with pytest.raises(HALError, match="returned 2 values for 3 devices"):
+        SensorBank(sensors).get_values_nowait()
 
 
 async def test_sensor_bank_with_a_device_without_sync_path(

@@ -531,8 +531,8 @@ def test_device_defaults_refuse_with_would_block() -> None:
     with pytest.raises(WouldBlockError, match="AsyncOnlySensor"):
         sensor.read_nowait()
     with pytest.raises(WouldBlockError):
-        AsyncOnlySensor.read_many_nowait([sensor])
-    assert AsyncOnlySensor.read_many_nowait([]) == []
+        AsyncOnlySensor.read_values_many_nowait([sensor])
+    assert AsyncOnlySensor.read_values_many_nowait([]) == []
 
 
 # -- the has_nowait subclass rule -----------------------------------------------------------

@@ -520,6 +520,59 @@ def test_call_at_from_a_callback_is_served_at_a_later_step() -> None:
     assert calls == [2 * MS, 3 * MS, 4 * MS]
 
 
+def test_a_callback_returning_a_deadline_is_called_again_under_the_same_handle() -> None:
+    sim = MujocoSim("arm2")
+    clock = sim.clock
+    assert isinstance(clock, LockstepClock)
+    calls: list[int] = []
+
+    def periodic() -> int | None:
+        calls.append(clock.now_ns())
+        if len(calls) == 2:
+            return 0  # a deadline already past: served at the next step
+        return clock.now_ns() + 3 * MS
+
+    handle = clock.call_at(2 * MS, periodic)
+    sim.step(12)
+    assert calls == [2 * MS, 5 * MS, 6 * MS, 9 * MS, 12 * MS]
+    assert not handle.done() and clock.next_deadline() == 15 * MS
+    handle.cancel()  # stops the re-arming: the pending entry is dropped
+    assert clock.next_deadline() is None
+    sim.step(10)
+    assert calls[-1] == 12 * MS
+
+    # cancelled from inside its own call, or returning None or a non-int: not called again
+    def cancels_itself() -> int:
+        calls.append(-1)
+        own.cancel()
+        return clock.now_ns() + MS
+
+    own = clock.call_at(clock.now_ns() + MS, cancels_itself)
+    once = clock.call_at(clock.now_ns() + MS, lambda: calls.append(-2))
+    sim.step(5)
+    assert calls[-2:] == [-1, -2] and own.done() and once.done()
+    assert clock.next_deadline() is None
+
+
+def test_a_periodic_callback_that_raises_is_not_rearmed() -> None:
+    sim = MujocoSim("arm2")
+    clock = sim.clock
+    assert isinstance(clock, LockstepClock)
+    calls: list[int] = []
+
+    def flaky() -> int:
+        calls.append(clock.now_ns())
+        if len(calls) == 2:
+            raise RuntimeError("flaky")
+        return clock.now_ns() + MS
+
+    handle = clock.call_at(MS, flaky)
+    with structlog.testing.capture_logs() as logs:
+        sim.step(6)
+    assert calls == [MS, 2 * MS] and handle.done()
+    assert [e["event"] for e in logs if e["log_level"] == "error"] == ["clock_callback_failed"]
+
+
 def test_a_raising_callback_is_logged_and_the_simulation_goes_on() -> None:
     sim = MujocoSim("arm2")
     clock = sim.clock

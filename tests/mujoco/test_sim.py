@@ -260,6 +260,31 @@ async def test_builtin_pd_over_a_motor_only_joint(stack: AsyncExitStack, tmp_pat
     assert math.isfinite(angle)
 
 
+def test_streamed_commands_write_ctrl_through_the_current_drive(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """Repeated commands in the current mode take the one-write path; every mode switch
+    (native actuator, built-in PD, de-energized) re-derives it."""
+    path = tmp_path / "pendulum.xml"
+    path.write_text(MOTOR_ONLY_XML)
+    sim = MujocoSim(path, joints=["hinge"])
+    device = sim.joints["hinge"]
+    for torque in (0.5, -1.5, 3.0):  # the motor: ctrl = joint torque / gear
+        device.command_nowait(Request.TORQUE, torque)
+        assert sim.data.ctrl[0] == pytest.approx(torque / 2)
+        assert device.pending and not device.uses_pd
+    device.command_nowait(Request.POSITION, 0.3)  # built-in PD: the target, not ctrl
+    assert device.uses_pd and device.commanded_position == 0.3
+    device.command_nowait(Request.POSITION, 0.4)
+    assert device.commanded_position == 0.4
+    sim.step(1)
+    pd_ctrl = float(sim.data.ctrl[0])
+    assert pd_ctrl != 0.0
+    device.command_nowait(Request.NO_EXCITE, 0.0)
+    assert not device.pending and sim.data.ctrl[0] == 0.0
+    device.command_nowait(Request.TORQUE, 1.0)
+    device.command_nowait(Request.TORQUE, 2.0)
+    assert sim.data.ctrl[0] == pytest.approx(1.0) and device.commands == 8
+
+
 async def test_unsupported_mode_is_refused(stack: AsyncExitStack) -> None:
     xml = """<mujoco><worldbody><body><joint name="j" type="slide" axis="1 0 0"/>
       <geom type="box" size=".1 .1 .1" mass="1"/></body></worldbody>
@@ -294,6 +319,22 @@ async def test_joint_limit_event_once_per_approach(stack: AsyncExitStack) -> Non
     assert sim.joints["elbow"].position == pytest.approx(-2.5, abs=0.01)
     assert first.source is elbow and second.time_ns > first.time_ns
     assert MujocoEventId.LIMIT_REACHED == EventId.LIMIT_REACHED == 2
+
+
+async def test_an_unlimited_joint_never_reaches_a_limit(stack: AsyncExitStack) -> None:
+    xml = """<mujoco><worldbody><body><joint name="spin" type="hinge" axis="0 0 1"/>
+      <geom type="cylinder" size=".1 .02" mass="1"/></body></worldbody>
+      <actuator><velocity name="spin_vel" joint="spin" kv="0.5"/></actuator></mujoco>"""
+    sim = MujocoSim(mujoco.MjModel.from_xml_string(xml))
+    assert sim.actuator("spin").limits.position == (-math.inf, math.inf)
+    rig = await start_rig(stack, sim, ("spin",))
+    with anyio.fail_after(10):
+        await (await rig.actuators["spin"].set_value(20.0, Request.VELOCITY))
+        await sim.sleep(2.0)  # several turns
+    assert sim.joints["spin"].position > 30.0
+    assert rig.events.count("event", MujocoEventId.LIMIT_REACHED) == 0
+    assert rig.events.count("event", MujocoEventId.SATURATED) == 0  # no force limit
+    assert rig.events.count("event", EventId.COMPLETED) == 1
 
 
 async def test_saturation_event_on_a_large_position_step(stack: AsyncExitStack) -> None:
