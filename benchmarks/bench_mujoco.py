@@ -24,10 +24,11 @@ the other ways to write the step:
 - *full, async*: an async observer (mailbox, task switch per tick) awaiting ``set_value`` and
   ``get_value`` per component.
 
-Each variant runs ROUNDS times, interleaved; the median time per step is reported.  Times are
-CPU time of the thread running the loop (``time.thread_time_ns``): every variant is CPU-bound
-and single-threaded, and CPU time is not inflated when a shared machine deschedules the
-process.
+Each variant runs ROUNDS times, interleaved; the median time per step is reported (many short
+rounds rather than a few long ones, so that a burst of load on a shared machine spoils a
+minority of the rounds of every variant alike).  Times are CPU time of the thread running
+the loop (``time.thread_time_ns``): every variant is CPU-bound and single-threaded, and CPU
+time is not inflated when a shared machine deschedules the process.
 
 **Real-time pacing.** The same arm and control step with ``pacing="realtime"`` on the real
 ``MonotonicClock`` for DURATION_S (in CHUNKS chunks): real-time factor (simulated / real time),
@@ -78,9 +79,9 @@ JOINTS = (
     "flange_roll",
 )
 SENSORS = ("imu_acc", "imu_gyro", "wrist_force", "wrist_torque", "tool_pos", "pad_touch")
-STEPS = 10_000
+STEPS = 5_000
 QUICK_STEPS = 2_000
-ROUNDS = 5
+ROUNDS = 9
 QUICK_ROUNDS = 2
 DURATION_S = 10.0
 QUICK_DURATION_S = 2.0

@@ -132,6 +132,7 @@ class LockstepClock:
 
     def _wake_due(self, now: int) -> bool:
         heap = self._heap
+        seq = self._seq
         woke = False
         while heap and heap[0][0] <= now:
             entry = heapq.heappop(heap)[2]
@@ -140,9 +141,7 @@ class LockstepClock:
                     continue
                 again = entry.run()
                 if again is not None:  # periodic: re-armed under the same handle
-                    if again <= now:
-                        again = now + 1
-                    heapq.heappush(heap, (again, next(self._seq), entry))
+                    heapq.heappush(heap, (again if again > now else now + 1, next(seq), entry))
             elif not entry.done():
                 entry.set_result(None)  # type: ignore[union-attr]  # a sleeper's future
                 self.wakeups += 1

@@ -357,9 +357,10 @@ def stream_targets(
             actuator._accept(req, target, sequence)
             continue
         previous = actuator._motion
-        if previous is not None and previous.outcome is _PENDING:
-            previous._supersede(sequence)
-        actuator._motion = None
+        if previous is not None:  # built because someone asked: it is replaced
+            if previous.outcome is _PENDING:
+                previous._supersede(sequence)
+            actuator._motion = None
         stamp = actuator._now_ns() if now_ns is None else now_ns
         actuator._latest = (req, target, sequence, stamp)
         actuator._commanded[req] = target
