@@ -109,6 +109,10 @@ class Actuator(HALComponent):
         )
         self.completion = completion or CompletionPolicy()
         self._sequence = 0
+        # A device may report the target reached from inside command_nowait (it reaches
+        # targets at once): that is the command being sent, whose Motion does not exist yet.
+        self._sync_send = 0  # sequence of the command inside command_nowait, else 0
+        self._reached_in_send = 0  # sequence reported reached from inside command_nowait
         self._motion: Motion | None = None
         self._latest: tuple[Request, float, int, int] | None = None
         """The latest command when no Motion was built for it yet (see ``stream_targets``)."""
@@ -194,12 +198,18 @@ class Actuator(HALComponent):
     def _send_now(self, req: Request, target: float) -> Motion:
         """:meth:`_send` through the device's synchronous path."""
         self._sequence += 1
-        sequence = self._sequence
+        sequence = self._sync_send = self._sequence
         try:
             self.device.command_nowait(req, target)
         except _LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
-        return self._accept(req, target, sequence)
+        finally:
+            self._sync_send = 0
+        motion = self._accept(req, target, sequence)
+        if self._reached_in_send == sequence:
+            self._reached_in_send = 0
+            self._on_target_reached()
+        return motion
 
     def _accept(self, req: Request, target: float, sequence: int) -> Motion:
         """The device accepted the command: make its Motion the current one."""
@@ -266,6 +276,9 @@ class Actuator(HALComponent):
             self._publish_event(EventId.COMPLETED)
 
     def _on_target_reached(self) -> None:
+        if self._sync_send:  # from inside command_nowait: completed once it is accepted
+            self._reached_in_send = self._sync_send
+            return
         motion = self.motion
         if motion is not None and self.state is S.ACTIVE:
             self._complete(motion)
@@ -348,13 +361,18 @@ def stream_targets(
     """
     lazy = req is not _NO_EXCITE  # NO_EXCITE completes at once: its Motion is needed now
     for actuator, target in zip(actuators, targets, strict=True):
-        sequence = actuator._sequence = actuator._sequence + 1
+        sequence = actuator._sequence = actuator._sync_send = actuator._sequence + 1
         try:
             actuator.device.command_nowait(req, target)
         except _LINK_FAULTS as exc:
             raise actuator._fault_from(exc) from exc
+        finally:
+            actuator._sync_send = 0
         if not (lazy and actuator._reports_completion and actuator.state is _ACTIVE):
             actuator._accept(req, target, sequence)
+            if actuator._reached_in_send == sequence:
+                actuator._reached_in_send = 0
+                actuator._on_target_reached()
             continue
         previous = actuator._motion
         if previous is not None:  # built because someone asked: it is replaced
@@ -364,3 +382,6 @@ def stream_targets(
         stamp = actuator._now_ns() if now_ns is None else now_ns
         actuator._latest = (req, target, sequence, stamp)
         actuator._commanded[req] = target
+        if actuator._reached_in_send == sequence:
+            actuator._reached_in_send = 0
+            actuator._on_target_reached()

@@ -17,6 +17,7 @@ import pytest
 
 from openel_async import (
     Actuator,
+    ActuatorBank,
     ActuatorDevice,
     ActuatorLimits,
     BadParameterError,
@@ -39,7 +40,7 @@ from openel_async import (
     VirtualClock,
     WouldBlockError,
 )
-from openel_async.device import has_nowait
+from openel_async.device import DeviceContext, has_nowait
 from openel_async.testing import ComponentStack, EventRecorder
 from openel_sim import SimEncoder, SimIMU, SimMotor, SimTemperature
 
@@ -786,3 +787,100 @@ async def test_state_errors_outside_active_name_the_operation(
     await encoder.finalize()
     check(ComponentState.FINALIZED)
     assert sim_motor.commands == 1
+
+
+# -- a device that reports the target reached from inside command_nowait --------------------
+
+
+class SnapServo(ActuatorDevice):
+    """Reaches every target at once and says so from inside ``command_nowait``."""
+
+    limits = ActuatorLimits((-1.0, 1.0), 1.0, 1.0)
+    supported_requests = frozenset({Request.POSITION, Request.NO_EXCITE})
+    reports_completion = True
+
+    def __init__(self) -> None:
+        self.position = 0.0
+        self.ctx: DeviceContext | None = None
+
+    async def open(self, ctx: DeviceContext) -> None:
+        self.ctx = ctx
+
+    async def command(self, request: Request, value: float) -> None:
+        self.command_nowait(request, value)
+
+    def command_nowait(self, request: Request, value: float) -> None:
+        if request is Request.POSITION:
+            self.position = value
+        assert self.ctx is not None
+        self.ctx.target_reached()
+
+    async def read(self, request: Request) -> float:
+        return self.read_nowait(request)
+
+    def read_nowait(self, request: Request) -> float:
+        return self.position if request is Request.POSITION_ACTUAL else 0.0
+
+
+async def test_reached_inside_command_nowait_completes_the_command_being_sent(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    events = EventRecorder(virtual_clock)
+    actuator = await hal_components.actuator(SnapServo())
+    actuator.add_observer(events)
+    first = actuator.set_value_nowait(0.2)
+    assert first.outcome is Outcome.REACHED
+    second = await actuator.set_value(0.4)  # the async call takes the same path
+    assert second.outcome is Outcome.REACHED and first.outcome is Outcome.REACHED
+    stop = actuator.set_value_nowait(0.0, Request.NO_EXCITE)  # completes once, not twice
+    assert stop.outcome is Outcome.REACHED
+    assert [r.id for r in events.records] == [COMPLETED] * 3
+    assert actuator.completed_count == 3
+
+
+async def test_reached_inside_command_nowait_while_streaming_through_a_bank(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    events = EventRecorder(virtual_clock)
+    actuators = [await hal_components.actuator(SnapServo()) for _ in range(3)]
+    for actuator in actuators:
+        actuator.add_observer(events)
+    bank = ActuatorBank(actuators)
+    for k in range(1, 4):
+        bank.set_values_nowait([0.1 * k, -0.1 * k, 0.05 * k])
+        motions = bank.motions
+        assert all(m is not None and m.outcome is Outcome.REACHED for m in motions)
+        assert [m.target for m in motions if m is not None] == pytest.approx(
+            [0.1 * k, -0.1 * k, 0.05 * k]
+        )
+    assert len(events.records) == 9 and {r.id for r in events.records} == {COMPLETED}
+    assert [a.completed_count for a in actuators] == [3, 3, 3]
+
+
+class LateReportServo(AsyncOnlyServo):
+    """A bus device whose status frame for the previous target arrives during the next send."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.ctx: DeviceContext | None = None
+
+    async def open(self, ctx: DeviceContext) -> None:
+        self.ctx = ctx
+
+    async def command(self, request: Request, value: float) -> None:
+        assert self.ctx is not None
+        self.ctx.target_reached()  # the previous target: reached before this one was sent
+        await super().command(request, value)
+
+
+async def test_reached_during_an_awaited_send_is_the_previous_target(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    events = EventRecorder(virtual_clock)
+    actuator = await hal_components.actuator(LateReportServo())
+    actuator.add_observer(events)
+    first = await actuator.set_value(0.5)
+    assert first.outcome is Outcome.PENDING
+    second = await actuator.set_value(0.7)
+    assert first.outcome is Outcome.REACHED and second.outcome is Outcome.PENDING
+    assert [r.id for r in events.records] == [COMPLETED]
