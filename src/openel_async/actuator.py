@@ -370,18 +370,15 @@ def stream_targets(
             actuator._sync_send = 0
         if not (lazy and actuator._reports_completion and actuator.state is _ACTIVE):
             actuator._accept(req, target, sequence)
-            if actuator._reached_in_send == sequence:
-                actuator._reached_in_send = 0
-                actuator._on_target_reached()
-            continue
-        previous = actuator._motion
-        if previous is not None:  # built because someone asked: it is replaced
-            if previous.outcome is _PENDING:
-                previous._supersede(sequence)
-            actuator._motion = None
-        stamp = actuator._now_ns() if now_ns is None else now_ns
-        actuator._latest = (req, target, sequence, stamp)
-        actuator._commanded[req] = target
+        else:
+            previous = actuator._motion
+            if previous is not None:  # built because someone asked: it is replaced
+                if previous.outcome is _PENDING:
+                    previous._supersede(sequence)
+                actuator._motion = None
+            stamp = actuator._now_ns() if now_ns is None else now_ns
+            actuator._latest = (req, target, sequence, stamp)
+            actuator._commanded[req] = target
         if actuator._reached_in_send == sequence:
             actuator._reached_in_send = 0
             actuator._on_target_reached()
