@@ -23,6 +23,8 @@ from .device import Device, ErrorId
 from .errors import DeviceFaultError, HALError, NotConnectedError, ReturnCode, StateError
 from .fanout import Fanout
 from .ids import DeviceKind, HALId, Property, component_name
+from .observers import ErrorNotice, EventNotice
+from .stats import ObserverStats
 
 log = structlog.get_logger(__name__)
 
@@ -52,6 +54,9 @@ LINK_FAULTS: tuple[type[BaseException], ...] = (
     anyio.ClosedResourceError,
 )
 _instances = itertools.count(1)
+
+EXIT_DRAIN_S = 1.0
+"""How long leaving ``async with component`` waits for async observers (real seconds)."""
 
 
 class _Context:
@@ -167,9 +172,9 @@ class HALComponent:
             with anyio.CancelScope(shield=True):
                 await self._close_device()
             self._set_state(S.FINALIZED)
-        self._observers.close()
-        with anyio.CancelScope(shield=True), anyio.move_on_after(1.0):
-            await self._observers.wait_delivered()
+        # Async observers get EXIT_DRAIN_S to handle what was published; what is left is
+        # counted and logged (observer_stats.abandoned) before the tasks are cancelled.
+        await self._observers.drain(EXIT_DRAIN_S)
         if self._tg is not None:
             self._tg.cancel_scope.cancel()
 
@@ -259,7 +264,13 @@ class HALComponent:
 
     # -- observers -------------------------------------------------------------------
     def add_observer(self, observer: object) -> None:
-        """AddObserver: register a HALObserver (plain or async methods) or ObserverQueue."""
+        """AddObserver: register a HALObserver (plain or async methods) or ObserverQueue.
+
+        A method that takes one more argument gets the notice (EventNotice/ErrorNotice,
+        with its ``missed`` count). Refused (BadParameterError naming ``observer``): None,
+        a class, an observer already registered, an object without notify_event or
+        notify_error, or one whose method cannot be called with (source, id).
+        """
         self._require("add_observer", S.ACTIVE)
         self._observers.add(observer)
 
@@ -272,15 +283,31 @@ class HALComponent:
     def observers(self) -> tuple[object, ...]:
         return self._observers.observers
 
+    @property
+    def observer_stats(self) -> ObserverStats:
+        """Delivery to the observers: notifications published, failures, and every notice
+        dropped on the way to an async observer (mailbox overflow, exit)."""
+        return self._observers.stats()
+
     def _publish_event(self, event_id: int) -> None:
         if self.state in _NOTIFYING:
-            self._observers.publish("notify_event", self, event_id)
+            observers = self._observers
+            if "notify_event" in observers.wants_notice:
+                notice = EventNotice(self, event_id)
+                observers.publish("notify_event", self, event_id, notice=notice)
+            else:
+                observers.publish("notify_event", self, event_id)
         else:
             self.log.debug("event_dropped", event_id=event_id, state=str(self.state))
 
     def _publish_error(self, error_id: int) -> None:
         if self.state in _NOTIFYING:
-            self._observers.publish("notify_error", self, error_id)
+            observers = self._observers
+            if "notify_error" in observers.wants_notice:
+                notice = ErrorNotice(self, error_id)
+                observers.publish("notify_error", self, error_id, notice=notice)
+            else:
+                observers.publish("notify_error", self, error_id)
         else:
             self.log.debug("error_dropped", error_id=error_id, state=str(self.state))
 

@@ -5,13 +5,18 @@ method gets a bounded mailbox and a task of its own, so a slow or raising observ
 never delays the publisher (a control loop) or the other observers. Order is kept per
 observer; the observer list is copied on write so adding or removing observers while
 a notification is being delivered is safe.
+
+Nothing is lost untold: a notice a mailbox drops (overflow, :meth:`Fanout.discard_pending`,
+:meth:`Fanout.abandon` at exit) is counted in :meth:`Fanout.stats`, logged, and reported
+to the observer with the next notice it gets (the notice's ``missed`` field, for an
+observer method that accepts the notice as an extra argument).
 """
 
 from __future__ import annotations
 
 import inspect
 from collections import deque
-from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import anyio
@@ -19,56 +24,105 @@ import anyio.abc
 import structlog
 
 from .errors import BadParameterError
-from .observers import observer_methods
+from .observers import Notice, Route, observer_routes
+from .stats import MailboxStats, ObserverStats
 
 log = structlog.get_logger(__name__)
+
+# What a mailbox holds per notification: (kind, spec arguments, notice or None). One
+# tuple per publish, shared by every mailbox that receives it.
+_Entry = tuple[str, tuple[Any, ...], Notice | None]
 
 
 class _Mailbox:
     """The queue and task that deliver to one observer with async methods."""
 
-    def __init__(self, fanout: Fanout, observer: object, size: int) -> None:
+    def __init__(
+        self, fanout: Fanout, observer: object, routes: dict[str, Route], size: int
+    ) -> None:
         self.fanout = fanout
         self.owner = fanout.owner
         self.observer = observer
+        self.routes = routes
         self.size = size
-        self.items: deque[tuple[Callable[..., Any], tuple[Any, ...]]] = deque()
+        self.items: deque[_Entry] = deque()
         self.wakeup = anyio.Event()
-        self.dropped = 0
-        self.overflowing = False
+        self.queued = 0
+        self.delivered = 0
+        self.overflowed = 0
+        self.discarded = 0
+        self.abandoned = 0
+        self.missed = 0
+        """Dropped since the last delivery: reported with the next notice delivered."""
+        self.busy = False
         self.closed = False
         self.idle = anyio.Event()
         self.idle.set()
 
-    def put(self, method: Callable[..., Any], args: tuple[Any, ...]) -> None:
+    def put(self, entry: _Entry) -> None:
+        self.queued += 1
         if len(self.items) >= self.size:
             self.items.popleft()
-            self.dropped += 1
-            if not self.overflowing:  # once per episode: the publisher is a hot path
-                self.overflowing = True
+            self.overflowed += 1
+            self.fanout.overflowed += 1
+            if not self.missed:  # once per episode: the publisher is a hot path
                 log.warning(
                     "observer_mailbox_overflow",
                     owner=self.owner,
                     observer=repr(self.observer),
-                    dropped_total=self.dropped,
+                    size=self.size,
+                    overflowed_total=self.overflowed,
                 )
-        self.items.append((method, args))
+            self.missed += 1
+        self.items.append(entry)
         if self.idle.is_set():
             self.idle = anyio.Event()
         self.wakeup.set()
 
+    def drop_all(self) -> int:
+        """Empty the mailbox; the dropped notices count as missed for the next one."""
+        count = len(self.items)
+        self.items.clear()
+        self.missed += count
+        return count
+
+    def snapshot(self) -> MailboxStats:
+        return MailboxStats(
+            observer=self.observer,
+            queued=self.queued,
+            delivered=self.delivered,
+            pending=len(self.items),
+            overflowed=self.overflowed,
+            discarded=self.discarded,
+            abandoned=self.abandoned,
+        )
+
     async def run(self) -> None:
         while True:
             while self.items:
-                method, args = self.items.popleft()
-                self.overflowing = False
+                kind, args, notice = self.items.popleft()
+                method, with_notice = self.routes[kind]
+                missed = self.missed
+                if missed:
+                    self.missed = 0
+                    log.warning(
+                        "observer_missed",
+                        owner=self.owner,
+                        observer=repr(self.observer),
+                        missed=missed,
+                    )
+                    if notice is not None:
+                        notice = replace(notice, missed=notice.missed + missed)
+                self.busy = True
                 try:
-                    result = method(*args)
+                    result = method(*args, notice) if with_notice else method(*args)
                     if inspect.isawaitable(result):
                         await result
                 except Exception:
                     self.fanout.failures += 1
                     log.exception("observer_failed", owner=self.owner, observer=repr(self.observer))
+                self.busy = False
+                self.delivered += 1
             self.idle.set()
             if self.closed:
                 return
@@ -79,11 +133,11 @@ class _Mailbox:
 
 
 class _Subscriber:
-    __slots__ = ("mailbox", "methods", "observer")
+    __slots__ = ("mailbox", "observer", "routes")
 
-    def __init__(self, observer: object, methods: dict[str, Any], mailbox: _Mailbox | None):
+    def __init__(self, observer: object, routes: dict[str, Route], mailbox: _Mailbox | None):
         self.observer = observer
-        self.methods = methods
+        self.routes = routes
         self.mailbox = mailbox
 
 
@@ -108,8 +162,15 @@ class Fanout:
         self.mailbox_size = mailbox_size
         self._subscribers: tuple[_Subscriber, ...] = ()
         self._task_group: anyio.abc.TaskGroup | None = None
+        self.published = 0
+        """Notifications published (each to every observer registered for its kind)."""
         self.failures = 0
         """Observer calls that raised, inline or in a mailbox task."""
+        self.overflowed = 0
+        self.discarded = 0
+        self.abandoned = 0
+        self.wants_notice: frozenset[str] = frozenset()
+        """Kinds for which some observer takes the notice: publishers build it only then."""
 
     def __len__(self) -> int:
         return len(self._subscribers)
@@ -135,10 +196,11 @@ class Fanout:
             raise BadParameterError("observer", observer, "an observer, not None")
         if observer in self:
             raise BadParameterError("observer", observer, "an observer not yet registered")
-        methods = observer_methods(observer, self.kinds)
-        is_async = any(_is_async(m) for m in methods.values())
-        mailbox = _Mailbox(self, observer, self.mailbox_size) if is_async else None
-        self._subscribers = (*self._subscribers, _Subscriber(observer, methods, mailbox))
+        routes = observer_routes(observer, self.kinds)
+        is_async = any(_is_async(method) for method, _ in routes.values())
+        mailbox = _Mailbox(self, observer, routes, self.mailbox_size) if is_async else None
+        self._subscribers = (*self._subscribers, _Subscriber(observer, routes, mailbox))
+        self._update_wants_notice()
         if mailbox is not None and self._task_group is not None:
             self._task_group.start_soon(mailbox.run)
 
@@ -146,12 +208,18 @@ class Fanout:
         for sub in self._subscribers:
             if _same(sub.observer, observer):
                 self._subscribers = tuple(s for s in self._subscribers if s is not sub)
+                self._update_wants_notice()
                 if sub.mailbox is not None:
                     # Let what was queued before removal arrive, then end the task.
                     sub.mailbox.closed = True
                     sub.mailbox.wakeup.set()
                 return
         raise BadParameterError("observer", observer, "an observer registered with this publisher")
+
+    def _update_wants_notice(self) -> None:
+        self.wants_notice = frozenset(
+            kind for sub in self._subscribers for kind, (_, wants) in sub.routes.items() if wants
+        )
 
     def close(self) -> None:
         """End every mailbox task after it delivered what it holds."""
@@ -160,28 +228,78 @@ class Fanout:
                 sub.mailbox.closed = True
                 sub.mailbox.wakeup.set()
 
-    def publish(self, kind: str, *args: Any) -> None:
+    def publish(self, kind: str, *args: Any, notice: Notice | None = None) -> None:
+        """Deliver ``observer.<kind>(*args)`` to every observer registered for ``kind``.
+
+        ``notice`` is passed as one more argument to the methods that accept it (build it
+        only when ``kind in self.wants_notice``); it is shared, never copied, except when
+        a mailbox reports missed notices with it.
+        """
+        self.published += 1
+        entry: _Entry | None = None
         for sub in self._subscribers:
-            method = sub.methods.get(kind)
-            if method is None:
+            route = sub.routes.get(kind)
+            if route is None:
                 continue
-            if sub.mailbox is not None:
-                sub.mailbox.put(method, args)
+            mailbox = sub.mailbox
+            if mailbox is not None:
+                if entry is None:
+                    entry = (kind, args, notice)
+                mailbox.put(entry)
                 continue
+            method, with_notice = route
             try:
-                method(*args)
+                if with_notice:
+                    method(*args, notice)
+                else:
+                    method(*args)
             except Exception:
                 self.failures += 1
                 log.exception("observer_failed", owner=self.owner, observer=repr(sub.observer))
 
     def discard_pending(self) -> int:
-        """Drop what async observers have not received yet; returns how many."""
-        dropped = 0
+        """Drop what async observers have not received yet (StopTimer); returns how many.
+
+        Counted as ``discarded`` and reported as ``missed`` with the next notice.
+        """
+        total = 0
         for sub in self._subscribers:
-            if sub.mailbox is not None:
-                dropped += len(sub.mailbox.items)
-                sub.mailbox.items.clear()
-        return dropped
+            mailbox = sub.mailbox
+            if mailbox is not None and mailbox.items:
+                count = mailbox.drop_all()
+                mailbox.discarded += count
+                total += count
+        self.discarded += total
+        return total
+
+    def abandon(self) -> int:
+        """What async observers still hold when the owner stops waiting for them at exit:
+        the queued notices and the one whose delivery is about to be cancelled.
+
+        Each observer's count is logged (warning) and added to ``abandoned``; returns the
+        total.
+        """
+        total = 0
+        for sub in self._subscribers:
+            mailbox = sub.mailbox
+            if mailbox is None:
+                continue
+            count = mailbox.drop_all()
+            if mailbox.busy:  # cut short by the cancellation that follows
+                mailbox.busy = False
+                mailbox.missed += 1
+                count += 1
+            if count:
+                mailbox.abandoned += count
+                total += count
+                log.warning(
+                    "observer_notices_abandoned",
+                    owner=self.owner,
+                    observer=repr(sub.observer),
+                    abandoned=count,
+                )
+        self.abandoned += total
+        return total
 
     async def wait_delivered(self) -> None:
         """Wait until every async observer has processed what was published so far."""
@@ -189,5 +307,23 @@ class Fanout:
             if sub.mailbox is not None:
                 await sub.mailbox.idle.wait()
 
-    def dropped(self) -> int:
-        return sum(s.mailbox.dropped for s in self._subscribers if s.mailbox is not None)
+    async def drain(self, timeout_s: float) -> int:
+        """Close the mailboxes and give async observers ``timeout_s`` seconds (shielded
+        from cancellation) to handle what they hold; then :meth:`abandon` the rest.
+
+        Returns how many notices were abandoned.
+        """
+        self.close()
+        with anyio.CancelScope(shield=True), anyio.move_on_after(timeout_s):
+            await self.wait_delivered()
+        return self.abandon()
+
+    def stats(self) -> ObserverStats:
+        return ObserverStats(
+            published=self.published,
+            failures=self.failures,
+            overflowed=self.overflowed,
+            discarded=self.discarded,
+            abandoned=self.abandoned,
+            mailboxes=tuple(s.mailbox.snapshot() for s in self._subscribers if s.mailbox),
+        )

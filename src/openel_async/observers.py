@@ -1,15 +1,21 @@
 """Observer interfaces of OpenEL (HALObserver, TimerObserver) and ObserverQueue.
 
-Observer methods may be plain or ``async`` functions. An :class:`ObserverQueue`
-implements both interfaces with non-blocking methods and hands the notifications to
-a consumer task, newest last; when it is full the oldest entry is dropped and the
-consumer learns how many it missed from the ``missed`` field of the next notice.
+Observer methods may be plain or ``async`` functions. Each may also accept one more
+positional argument after the spec's ones: the notice itself (:class:`EventNotice`,
+:class:`ErrorNotice`, :class:`TimerTick`), which tells exactly which notification it is
+and, in ``missed``, how many notices for this observer were dropped just before it.
+
+An :class:`ObserverQueue` implements both interfaces with non-blocking methods and
+hands the notifications to a consumer task, newest last; when it is full the oldest
+entry is dropped and the consumer learns how many it missed from the ``missed`` field
+of the next notice.
 """
 
 from __future__ import annotations
 
+import inspect
 from collections import deque
-from collections.abc import Awaitable
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, runtime_checkable
 
@@ -27,7 +33,11 @@ log = structlog.get_logger(__name__)
 
 @runtime_checkable
 class HALObserver(Protocol):
-    """Receives events and errors of HAL components (plain or async methods)."""
+    """Receives events and errors of HAL components (plain or async methods).
+
+    A method may take a third argument, ``notice: EventNotice | None = None`` (resp.
+    ``ErrorNotice``): the notification as a value, with its ``missed`` count.
+    """
 
     def notify_event(self, source: HALComponent, event_id: int) -> Awaitable[None] | None: ...
 
@@ -36,7 +46,12 @@ class HALObserver(Protocol):
 
 @runtime_checkable
 class TimerObserver(Protocol):
-    """Receives the ticks of an EventTimer (plain or async method)."""
+    """Receives the ticks of an EventTimer (plain or async method).
+
+    ``notify_timer`` may take a second argument, ``tick: TimerTick | None = None``: the
+    tick being delivered (index, deadline, lateness, missed counts), which an async
+    observer cannot learn from ``timer.last_tick`` once it runs behind the timer.
+    """
 
     def notify_timer(self, timer: EventTimer) -> Awaitable[None] | None: ...
 
@@ -48,7 +63,8 @@ class EventNotice:
     source: HALComponent
     event_id: int
     missed: int = 0
-    """Notifications dropped from the queue just before this one."""
+    """Notices for this observer dropped just before this one and never delivered (queue
+    or mailbox overflow, ticks discarded by StopTimer, notices abandoned at exit)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -71,8 +87,10 @@ class TimerTick:
     time_ns: int
     """Clock time at which the tick was delivered."""
     missed_ticks: int = 0
-    """Periods skipped (never delivered) just before this tick because it was late."""
+    """Periods skipped (never published) just before this tick because it was late."""
     missed: int = 0
+    """Ticks published but dropped for this observer just before this one (as for
+    :attr:`EventNotice.missed`)."""
 
     @property
     def lateness_ns(self) -> int:
@@ -98,14 +116,21 @@ class ObserverQueue:
         self._closed = False
 
     # -- observer side (never blocks) ---------------------------------------------
-    def notify_event(self, source: HALComponent, event_id: int) -> None:
-        self.put_nowait(EventNotice(source, event_id))
+    # Publishers pass the notice they built once for all their observers; called with
+    # the spec's arguments only, the queue builds it.
+    def notify_event(
+        self, source: HALComponent, event_id: int, notice: EventNotice | None = None
+    ) -> None:
+        self.put_nowait(notice if notice is not None else EventNotice(source, event_id))
 
-    def notify_error(self, source: HALComponent, error_id: int) -> None:
-        self.put_nowait(ErrorNotice(source, error_id))
+    def notify_error(
+        self, source: HALComponent, error_id: int, notice: ErrorNotice | None = None
+    ) -> None:
+        self.put_nowait(notice if notice is not None else ErrorNotice(source, error_id))
 
-    def notify_timer(self, timer: EventTimer) -> None:
-        tick = timer.last_tick
+    def notify_timer(self, timer: EventTimer, tick: TimerTick | None = None) -> None:
+        if tick is None:
+            tick = timer.last_tick
         if tick is not None:
             self.put_nowait(tick)
 
@@ -144,7 +169,7 @@ class ObserverQueue:
         if self._missed:
             missed, self._missed = self._missed, 0
             log.warning("observer_queue_missed", queue=self.name, missed=missed)
-            notice = replace(notice, missed=missed)
+            notice = replace(notice, missed=notice.missed + missed)
         return notice
 
     async def get(self) -> Notice:
@@ -177,8 +202,24 @@ class ObserverQueue:
         return f"ObserverQueue(name={self.name!r}, pending={len(self._items)}, missed_total={self.missed_total})"
 
 
+Route: TypeAlias = tuple[Callable[..., Any], bool]
+"""An observer's method for one kind, and whether it takes the notice as an extra argument."""
+
+SPEC_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "notify_event": ("source", "event_id"),
+    "notify_error": ("source", "error_id"),
+    "notify_timer": ("timer",),
+}
+"""The arguments the spec gives each notify method (the notice, if taken, comes after)."""
+
+
 def observer_methods(observer: Any, kinds: tuple[str, ...]) -> dict[str, Any]:
     """The notify_* methods of ``observer`` for ``kinds``; a bare callable serves one kind."""
+    if isinstance(observer, type):
+        name = observer.__name__
+        raise BadParameterError(
+            "observer", observer, f"an observer instance, not the class {name} (e.g. {name}())"
+        )
     methods = {
         kind: getattr(observer, kind) for kind in kinds if callable(getattr(observer, kind, None))
     }
@@ -191,3 +232,39 @@ def observer_methods(observer: Any, kinds: tuple[str, ...]) -> dict[str, Any]:
             "observer", observer, f"an object with {names} (plain or async methods){also}"
         )
     return methods
+
+
+def _binds(signature: inspect.Signature, count: int) -> bool:
+    try:
+        signature.bind(*(None,) * count)
+    except TypeError:
+        return False
+    return True
+
+
+def observer_routes(observer: Any, kinds: tuple[str, ...]) -> dict[str, Route]:
+    """:func:`observer_methods`, each checked against the spec's arguments of its kind.
+
+    A method that cannot be called with them is refused (BadParameterError naming
+    ``observer``); one that can take one more positional argument gets the notice.
+    Methods whose signature cannot be inspected are called with the spec's arguments.
+    """
+    routes: dict[str, Route] = {}
+    for kind, method in observer_methods(observer, kinds).items():
+        parameters = SPEC_PARAMETERS.get(kind)
+        try:
+            signature = inspect.signature(method)
+        except (TypeError, ValueError):
+            signature = None
+        if parameters is None or signature is None:
+            routes[kind] = (method, False)
+            continue
+        if not _binds(signature, len(parameters)):
+            call = f"{kind}({', '.join(parameters)})"
+            raise BadParameterError(
+                "observer",
+                observer,
+                f"{call} to be callable (plus optionally the notice); its signature is {signature}",
+            )
+        routes[kind] = (method, _binds(signature, len(parameters) + 1))
+    return routes

@@ -1,4 +1,5 @@
-"""Lateness statistics of periodic loops (timers, execution contexts, benchmarks)."""
+"""Statistics: lateness of periodic loops (timers, execution contexts, benchmarks) and
+delivery to observers (every notice dropped on the way is counted here)."""
 
 from __future__ import annotations
 
@@ -70,3 +71,56 @@ class LatenessRecorder:
         self._next = 0
         self.count = 0
         self.max_ns = 0
+
+
+@dataclass(frozen=True, slots=True)
+class MailboxStats:
+    """Delivery to one async observer (its mailbox), since it was added.
+
+    ``queued == delivered + pending + lost`` except while a notice is being delivered
+    (then one fewer is delivered).
+    """
+
+    observer: object
+    queued: int
+    """Notices put in the mailbox."""
+    delivered: int
+    """Notices whose observer call finished (returned or raised)."""
+    pending: int
+    """Notices in the mailbox now."""
+    overflowed: int
+    """Oldest notices dropped because the mailbox was full."""
+    discarded: int
+    """Notices dropped by EventTimer.stop_timer before delivery."""
+    abandoned: int
+    """Notices left undelivered, or cut short while running, when the owner exited."""
+
+    @property
+    def lost(self) -> int:
+        return self.overflowed + self.discarded + self.abandoned
+
+
+@dataclass(frozen=True, slots=True)
+class ObserverStats:
+    """Delivery figures of one publisher (a component's or a timer's ``observer_stats``).
+
+    Plain (inline) observers get every notice at once, so only async observers'
+    mailboxes can drop; the totals include observers removed since.
+    """
+
+    published: int
+    """Notifications published (each to every observer registered for its kind)."""
+    failures: int
+    """Observer calls that raised (logged, never propagated)."""
+    overflowed: int
+    """Notices dropped from full mailboxes."""
+    discarded: int
+    """Notices dropped from mailboxes by EventTimer.stop_timer."""
+    abandoned: int
+    """Notices left in mailboxes, or cut short, when the owner exited."""
+    mailboxes: tuple[MailboxStats, ...]
+    """The async observers registered now, in registration order."""
+
+    @property
+    def lost(self) -> int:
+        return self.overflowed + self.discarded + self.abandoned

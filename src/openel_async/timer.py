@@ -23,9 +23,12 @@ from .clock import NS_PER_MS, NS_PER_S, Clock, InlineScheduler, ScheduledCall, d
 from .errors import BadParameterError, StateError
 from .fanout import Fanout
 from .observers import ObserverQueue, TimerTick
-from .stats import LatenessRecorder, LatenessSummary
+from .stats import LatenessRecorder, LatenessSummary, ObserverStats
 
 log = structlog.get_logger(__name__)
+
+EXIT_DRAIN_S = 1.0
+"""How long leaving ``async with timer`` waits for async observers (real seconds)."""
 
 
 class TimerState(Enum):
@@ -36,15 +39,30 @@ class TimerState(Enum):
         return self.value
 
 
+MAX_PERIOD_NS = 2**62
+"""Longest period: about 146 years. Deadlines (clock time + period, in integer ns) must
+stay within the signed 64-bit nanoseconds that timerfd and the clocks use."""
+MAX_PERIOD_MS = MAX_PERIOD_NS / NS_PER_MS
+
+
 def period_to_ns(period_ms: object, parameter: str = "period_ms") -> int:
-    """Validate a period in milliseconds (int or float, > 0) and convert it to ns."""
+    """Validate a period in milliseconds (int or float) and convert it to integer ns.
+
+    Allowed: finite, > 0, rounding to 1 ns .. :data:`MAX_PERIOD_NS` (1e-6 .. ~4.6e12 ms).
+    """
+    allowed = (
+        f"a finite number of milliseconds from 1e-6 to {MAX_PERIOD_MS:.6g} "
+        "(1 ns to 2**62 ns, about 146 years)"
+    )
     if isinstance(period_ms, bool) or not isinstance(period_ms, int | float):
-        raise BadParameterError(parameter, period_ms, "a number of milliseconds > 0")
-    if not math.isfinite(period_ms) or period_ms <= 0:
-        raise BadParameterError(parameter, period_ms, "a finite number of milliseconds > 0")
+        raise BadParameterError(parameter, period_ms, allowed)
+    if isinstance(period_ms, float) and not math.isfinite(period_ms):
+        raise BadParameterError(parameter, period_ms, allowed)
+    if period_ms <= 0 or period_ms * NS_PER_MS > MAX_PERIOD_NS:
+        raise BadParameterError(parameter, period_ms, allowed)
     period_ns = round(period_ms * NS_PER_MS)
     if period_ns < 1:
-        raise BadParameterError(parameter, period_ms, "at least 1 ns (1e-6 ms)")
+        raise BadParameterError(parameter, period_ms, allowed)
     return period_ns
 
 
@@ -118,9 +136,9 @@ class EventTimer:
         assert self._tg is not None
         if self.state is TimerState.RUNNING:
             self.stop_timer()
-        self._observers.close()
-        with anyio.CancelScope(shield=True), anyio.move_on_after(1.0):
-            await self._observers.wait_delivered()  # let a running notify_timer finish
+        # Let a running notify_timer finish (at most EXIT_DRAIN_S); one cut short by the
+        # cancellation below is counted and logged (observer_stats.abandoned).
+        await self._observers.drain(EXIT_DRAIN_S)
         tg, self._tg = self._tg, None
         self._observers.bind(None)
         tg.cancel_scope.cancel()
@@ -168,8 +186,9 @@ class EventTimer:
     def stop_timer(self) -> None:
         """StopTimer: no tick is delivered after this returns.
 
-        Ticks queued for async observers and not yet delivered are discarded; a
-        notify_timer already running finishes (see :meth:`wait_idle`).
+        Ticks queued for async observers and not yet delivered are discarded (counted in
+        :meth:`observer_stats` and reported as ``missed`` with the observer's next tick);
+        a notify_timer already running finishes (see :meth:`wait_idle`).
         """
         if self.state is not TimerState.RUNNING:
             raise StateError("stop_timer", self.state, [TimerState.RUNNING])
@@ -180,8 +199,8 @@ class EventTimer:
         if self._scope is not None:
             self._scope.cancel()
             self._scope = None
-        self._observers.discard_pending()
-        self._log.info("timer_stopped", ticks=self._ticks, missed=self._missed)
+        discarded = self._observers.discard_pending()
+        self._log.info("timer_stopped", ticks=self._ticks, missed=self._missed, discarded=discarded)
 
     def set_event_period(self, period_ms: float) -> None:
         """SetEventPeriod: takes effect from the next tick on, even while running."""
@@ -189,7 +208,13 @@ class EventTimer:
         self._period_ms = period_ms
 
     def add_observer(self, observer: object) -> None:
-        """AddObserver: a TimerObserver (plain or async notify_timer), or a callable(timer)."""
+        """AddObserver: a TimerObserver (plain or async notify_timer), or a callable(timer).
+
+        ``notify_timer(timer, tick)`` (or ``f(timer, tick)``) also gets the
+        :class:`TimerTick` being delivered. Refused (BadParameterError naming
+        ``observer``): None, a class, an observer already registered, a callable that
+        cannot be called with ``(timer)``.
+        """
         self._observers.add(observer)
 
     def remove_observer(self, observer: object) -> None:
@@ -199,6 +224,12 @@ class EventTimer:
     @property
     def observers(self) -> tuple[object, ...]:
         return self._observers.observers
+
+    @property
+    def observer_stats(self) -> ObserverStats:
+        """Delivery to the observers: ticks published, failures, and every tick dropped
+        on the way to an async observer (overflow, StopTimer, exit)."""
+        return self._observers.stats()
 
     async def wait_idle(self) -> None:
         """Wait until async observers have finished handling the ticks delivered to them."""
@@ -244,10 +275,17 @@ class EventTimer:
         self._index += 1 + missed
         self._ticks += 1
         self._drift = now - deadline
-        # TimerTick is built when someone reads last_tick: plain observers that do not
-        # look at it save its construction on every tick.
-        self._tick_fields = (self._index, deadline, now, missed)
-        self._observers.publish("notify_timer", self)
+        observers = self._observers
+        if "notify_timer" in observers.wants_notice:
+            tick = TimerTick(self, self._index, deadline, now, missed)
+            self._last_tick = tick
+            self._tick_fields = None
+            observers.publish("notify_timer", self, notice=tick)
+        else:
+            # TimerTick is built when someone reads last_tick: plain observers that do
+            # not look at it save its construction on every tick.
+            self._tick_fields = (self._index, deadline, now, missed)
+            observers.publish("notify_timer", self)
         return deadline + self._period_ns
 
     # -- iteration and statistics ----------------------------------------------------

@@ -222,12 +222,12 @@ async def test_mailbox_overflow_drops_oldest_counted_and_logged() -> None:
     with structlog.testing.capture_logs() as logs:
         for event_id in range(5):  # no task group yet: nothing is consumed
             fan.publish("notify_event", SOURCE, event_id)
-    assert fan.dropped() == 3
+    assert fan.stats().overflowed == 3
     overflow = [e for e in logs if e["event"] == "observer_mailbox_overflow"]
     assert len(overflow) == 1  # logged when the episode starts
     assert overflow[0]["log_level"] == "warning"
     assert overflow[0]["owner"] == "pub"
-    assert overflow[0]["dropped_total"] == 1
+    assert overflow[0]["overflowed_total"] == 1
     assert "AsyncRecorder" in overflow[0]["observer"]
 
     async with anyio.create_task_group() as tg:
@@ -258,7 +258,7 @@ async def test_mailbox_overflow_logs_once_per_episode() -> None:
             await anyio.wait_all_tasks_blocked()  # the observer is stuck on notice 0
             for event_id in range(1, 1001):
                 fan.publish("notify_event", SOURCE, event_id)
-            assert fan.dropped() == 996
+            assert fan.stats().overflowed == 996
             assert len([e for e in logs if e["event"] == "observer_mailbox_overflow"]) == 1
             stuck.set()
             await fan.wait_delivered()
