@@ -1,10 +1,14 @@
 """The CANopen (CiA 301) subset a CiA 402 drive needs, pure and byte-exact.
 
-Covered: NMT node control, SYNC, EMCY, heartbeat / boot-up, expedited SDO
-upload and download (requests, responses, aborts), raw PDOs and bit-exact PDO
-packing from a mapping list. Segmented/block SDO, TIME and LSS are out of
-scope and decode to :class:`~openel_can.errors.CanOpenDecodeError` like any
-malformed frame. Encoders raise :class:`ValueError` for values that do not fit.
+Covered: NMT node control, SYNC, EMCY, heartbeat / boot-up, expedited and
+segmented SDO upload and download (initiate, segments, aborts), raw PDOs and
+bit-exact PDO packing from a mapping list. SDO block transfer is not
+implemented: a client's block (or invalid, ccs 7) request decodes to
+:class:`SdoUnsupportedRequest` so a server can abort it (0x05040001); a
+server's block response is a decode error. TIME and LSS are out of scope and
+decode to :class:`~openel_can.errors.CanOpenDecodeError` like any malformed
+frame. Unknown NMT state or command values are kept as plain ``int``.
+Encoders raise :class:`ValueError` for values that do not fit.
 
 COB-IDs use the CiA 301 predefined connection set: function code in bits 10..7,
 node id (1..127) in bits 6..0.
@@ -16,7 +20,7 @@ import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
-from typing import Final, TypeAlias
+from typing import Final, TypeAlias, TypeVar
 
 from openel_can.errors import CanOpenDecodeError
 
@@ -32,7 +36,9 @@ __all__ = [
     "RPDO_BASES",
     "RPDO_COMM_BASE",
     "RPDO_MAPPING_BASE",
+    "SDO_CLIENT_MESSAGES",
     "SDO_RX_BASE",
+    "SDO_SEGMENT_SIZE",
     "SDO_TX_BASE",
     "SYNC_COB_ID",
     "TPDO_BASES",
@@ -55,8 +61,15 @@ __all__ = [
     "SdoAbortCode",
     "SdoDownloadRequest",
     "SdoDownloadResponse",
+    "SdoDownloadSegment",
+    "SdoDownloadSegmentResponse",
+    "SdoSegmentedDownloadRequest",
+    "SdoSegmentedUploadResponse",
+    "SdoUnsupportedRequest",
     "SdoUploadRequest",
     "SdoUploadResponse",
+    "SdoUploadSegment",
+    "SdoUploadSegmentRequest",
     "Sync",
     "decode",
     "encode",
@@ -88,6 +101,8 @@ TPDO_MAPPING_BASE: Final = 0x1A00
 PDO_COB_ID_INVALID: Final = 0x8000_0000
 
 MAX_NODE_ID: Final = 127
+#: Data bytes per SDO segment (CiA 301 segmented transfer).
+SDO_SEGMENT_SIZE: Final = 7
 _SDO_LEN: Final = 8
 _MAX_PDO_BITS: Final = 64
 
@@ -101,6 +116,17 @@ def _check_node(node_id: int, *, allow_broadcast: bool = False) -> None:
 def _check_uint(value: int, bits: int, name: str) -> None:
     if not 0 <= value < 1 << bits:
         raise ValueError(f"{name} {value} does not fit {bits} unsigned bits")
+
+
+_E = TypeVar("_E", bound=IntEnum)
+
+
+def _enum_or_int(enum_type: type[_E], value: int) -> _E | int:
+    """The enum member for ``value``, or the plain int when the enum does not know it."""
+    try:
+        return enum_type(value)
+    except ValueError:
+        return int(value)
 
 
 def tpdo_cob_id(number: int, node_id: int) -> int:
@@ -145,11 +171,12 @@ class NmtState(IntEnum):
 class NmtControl:
     """NMT node control; ``node_id`` 0 addresses all nodes."""
 
-    command: NmtCommand
+    command: NmtCommand | int
     node_id: int = 0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "command", NmtCommand(self.command))
+        _check_uint(self.command, 8, "NMT command")
+        object.__setattr__(self, "command", _enum_or_int(NmtCommand, self.command))
         _check_node(self.node_id, allow_broadcast=True)
 
 
@@ -216,15 +243,16 @@ class Heartbeat:
     """Heartbeat producer message; ``state`` BOOT_UP is the boot-up message."""
 
     node_id: int
-    state: NmtState
+    state: NmtState | int
     toggle: bool = False  # only meaningful for node-guarding replies
 
     def __post_init__(self) -> None:
         _check_node(self.node_id)
-        object.__setattr__(self, "state", NmtState(self.state))
+        _check_uint(self.state, 7, "NMT state")
+        object.__setattr__(self, "state", _enum_or_int(NmtState, self.state))
 
 
-# --- Expedited SDO -------------------------------------------------------------------------
+# --- SDO (expedited and segmented) -------------------------------------------------------------------------
 
 
 class SdoAbortCode(IntEnum):
@@ -260,13 +288,19 @@ class SdoAbortCode(IntEnum):
 
 
 # Command specifiers (bits 7..5 of byte 0).
+_CCS_DOWNLOAD_SEGMENT: Final = 0  # download segment request   (client)
 _CCS_DOWNLOAD: Final = 1  # initiate download request  (client)
 _CCS_UPLOAD: Final = 2  # initiate upload request    (client)
+_CCS_UPLOAD_SEGMENT: Final = 3  # upload segment request     (client)
+_SCS_UPLOAD_SEGMENT: Final = 0  # upload segment response    (server)
+_SCS_DOWNLOAD_SEGMENT: Final = 1  # download segment response  (server)
 _SCS_UPLOAD: Final = 2  # initiate upload response   (server)
 _SCS_DOWNLOAD: Final = 3  # initiate download response (server)
 _CS_ABORT: Final = 4
 _E_BIT: Final = 0x02  # expedited
 _S_BIT: Final = 0x01  # size indicated (then n = bits 3..2 = 4 - data length)
+_T_BIT: Final = 0x10  # segment toggle
+_C_BIT: Final = 0x01  # last segment
 
 
 @dataclass(frozen=True)
@@ -307,18 +341,112 @@ class SdoUploadResponse(_SdoBase):
 
 @dataclass(frozen=True)
 class SdoDownloadRequest(_SdoBase):
-    """Expedited write, client -> server (0x23/0x27/0x2B/0x2F)."""
+    """Expedited write, client -> server (0x23/0x27/0x2B/0x2F).
+
+    ``size_indicated`` False is the 0x22 form: four data bytes and no size, the server
+    takes as many as its object holds (CiA 301).
+    """
 
     data: bytes
+    size_indicated: bool = True
 
     def __post_init__(self) -> None:
         super().__post_init__()
         _check_expedited(self.data)
+        if not self.size_indicated and len(self.data) != 4:
+            raise ValueError("an expedited download without size carries 4 bytes")
 
 
 @dataclass(frozen=True)
 class SdoDownloadResponse(_SdoBase):
     """Write confirmation, server -> client (0x60)."""
+
+
+def _check_size(size: int | None) -> None:
+    if size is not None:
+        _check_uint(size, 32, "size")
+
+
+@dataclass(frozen=True)
+class SdoSegmentedUploadResponse(_SdoBase):
+    """Initiate upload response of a segmented upload, server -> client (0x41, or 0x40
+    without size); the data follows in :class:`SdoUploadSegment` answers."""
+
+    size: int | None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_size(self.size)
+
+
+@dataclass(frozen=True)
+class SdoSegmentedDownloadRequest(_SdoBase):
+    """Initiate a segmented download, client -> server (0x21, or 0x20 without size);
+    answered by :class:`SdoDownloadResponse`, then the data goes in
+    :class:`SdoDownloadSegment` frames."""
+
+    size: int | None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_size(self.size)
+
+
+@dataclass(frozen=True)
+class _SdoSegmentBase:
+    node_id: int
+    toggle: bool
+
+    def __post_init__(self) -> None:
+        _check_node(self.node_id)
+
+
+@dataclass(frozen=True)
+class _SdoDataSegment(_SdoSegmentBase):
+    data: bytes
+    last: bool
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if len(self.data) > SDO_SEGMENT_SIZE:
+            raise ValueError(f"an SDO segment carries 0..7 bytes, got {len(self.data)}")
+
+
+@dataclass(frozen=True)
+class SdoUploadSegmentRequest(_SdoSegmentBase):
+    """Upload segment request, client -> server (0x60 / 0x70 with the toggle bit)."""
+
+
+@dataclass(frozen=True)
+class SdoUploadSegment(_SdoDataSegment):
+    """Upload segment response, server -> client: 0..7 data bytes, ``last`` = c bit."""
+
+
+@dataclass(frozen=True)
+class SdoDownloadSegment(_SdoDataSegment):
+    """Download segment request, client -> server: 0..7 data bytes, ``last`` = c bit."""
+
+
+@dataclass(frozen=True)
+class SdoDownloadSegmentResponse(_SdoSegmentBase):
+    """Download segment response, server -> client (0x20 / 0x30 with the toggle bit)."""
+
+
+@dataclass(frozen=True)
+class SdoUnsupportedRequest(_SdoBase):
+    """A client request this codec does not implement: block upload (ccs 5), block
+    download (ccs 6) or the invalid ccs 7. ``command`` is byte 0, ``payload`` bytes 4..7;
+    a server answers it with abort 0x05040001 on (``index``, ``subindex``)."""
+
+    command: int
+    payload: bytes = bytes(4)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.command >> 5 not in (5, 6, 7) or self.command > 0xFF:
+            raise ValueError(f"command {self.command:#x} is not a block/invalid SDO request")
+        if len(self.payload) != 4:
+            raise ValueError("payload is bytes 4..7 of the frame: exactly 4 bytes")
 
 
 @dataclass(frozen=True)
@@ -508,8 +636,25 @@ CanOpenMessage: TypeAlias = (
     | SdoUploadResponse
     | SdoDownloadRequest
     | SdoDownloadResponse
+    | SdoSegmentedUploadResponse
+    | SdoSegmentedDownloadRequest
+    | SdoUploadSegmentRequest
+    | SdoUploadSegment
+    | SdoDownloadSegment
+    | SdoDownloadSegmentResponse
+    | SdoUnsupportedRequest
     | SdoAbort
     | Pdo
+)
+
+#: Every SDO message sent by a client (on 0x600 + node).
+SDO_CLIENT_MESSAGES: Final = (
+    SdoUploadRequest,
+    SdoDownloadRequest,
+    SdoSegmentedDownloadRequest,
+    SdoUploadSegmentRequest,
+    SdoDownloadSegment,
+    SdoUnsupportedRequest,
 )
 
 
@@ -519,6 +664,21 @@ def _sdo_frame(command: int, msg: _SdoBase, data: bytes = b"") -> bytes:
 
 def _expedited_command(specifier: int, data: bytes) -> int:
     return specifier << 5 | (4 - len(data)) << 2 | _E_BIT | _S_BIT
+
+
+def _segmented_initiate(specifier: int, msg: _SdoBase, size: int | None) -> bytes:
+    if size is None:
+        return _sdo_frame(specifier << 5, msg)
+    return _sdo_frame(specifier << 5 | _S_BIT, msg, size.to_bytes(4, "little"))
+
+
+def _segment_frame(
+    specifier: int, msg: _SdoSegmentBase, data: bytes = b"", *, last: bool | None = None
+) -> bytes:
+    command = specifier << 5 | (_T_BIT if msg.toggle else 0)
+    if last is not None:
+        command |= (SDO_SEGMENT_SIZE - len(data)) << 1 | (_C_BIT if last else 0)
+    return bytes((command,)) + data.ljust(SDO_SEGMENT_SIZE, b"\x00")
 
 
 def encode(msg: CanOpenMessage) -> tuple[int, bytes]:
@@ -536,8 +696,27 @@ def encode(msg: CanOpenMessage) -> tuple[int, bytes]:
         case SdoUploadRequest():
             return SDO_RX_BASE + msg.node_id, _sdo_frame(_CCS_UPLOAD << 5, msg)
         case SdoDownloadRequest():
-            command = _expedited_command(_CCS_DOWNLOAD, msg.data)
+            if msg.size_indicated:
+                command = _expedited_command(_CCS_DOWNLOAD, msg.data)
+            else:
+                command = _CCS_DOWNLOAD << 5 | _E_BIT
             return SDO_RX_BASE + msg.node_id, _sdo_frame(command, msg, msg.data)
+        case SdoSegmentedDownloadRequest():
+            return SDO_RX_BASE + msg.node_id, _segmented_initiate(_CCS_DOWNLOAD, msg, msg.size)
+        case SdoSegmentedUploadResponse():
+            return SDO_TX_BASE + msg.node_id, _segmented_initiate(_SCS_UPLOAD, msg, msg.size)
+        case SdoUploadSegmentRequest():
+            return SDO_RX_BASE + msg.node_id, _segment_frame(_CCS_UPLOAD_SEGMENT, msg)
+        case SdoDownloadSegmentResponse():
+            return SDO_TX_BASE + msg.node_id, _segment_frame(_SCS_DOWNLOAD_SEGMENT, msg)
+        case SdoUploadSegment():
+            frame = _segment_frame(_SCS_UPLOAD_SEGMENT, msg, msg.data, last=msg.last)
+            return SDO_TX_BASE + msg.node_id, frame
+        case SdoDownloadSegment():
+            frame = _segment_frame(_CCS_DOWNLOAD_SEGMENT, msg, msg.data, last=msg.last)
+            return SDO_RX_BASE + msg.node_id, frame
+        case SdoUnsupportedRequest():
+            return SDO_RX_BASE + msg.node_id, _sdo_frame(msg.command, msg, msg.payload)
         case SdoUploadResponse():
             command = _expedited_command(_SCS_UPLOAD, msg.data)
             return SDO_TX_BASE + msg.node_id, _sdo_frame(command, msg, msg.data)
@@ -555,11 +734,19 @@ def encode(msg: CanOpenMessage) -> tuple[int, bytes]:
 
 
 def _expedited_data(command: int, payload: bytes) -> bytes:
-    if not command & _E_BIT:
-        raise CanOpenDecodeError("segmented SDO transfers are not supported")
     if not command & _S_BIT:
         return payload  # size not indicated: all four bytes
     return payload[: 4 - ((command >> 2) & 0x03)]
+
+
+def _indicated_size(command: int, payload: bytes) -> int | None:
+    return int.from_bytes(payload, "little") if command & _S_BIT else None
+
+
+def _segment_data(data: bytes) -> tuple[bool, bytes, bool]:
+    command = data[0]
+    size = SDO_SEGMENT_SIZE - ((command >> 1) & 0x07)
+    return bool(command & _T_BIT), data[1 : 1 + size], bool(command & _C_BIT)
 
 
 def _decode_sdo(node_id: int, data: bytes, *, from_client: bool) -> CanOpenMessage:
@@ -568,19 +755,39 @@ def _decode_sdo(node_id: int, data: bytes, *, from_client: bool) -> CanOpenMessa
     command, index, subindex = struct.unpack_from("<BHB", data)
     payload = data[4:8]
     specifier = command >> 5
+    toggle = bool(command & _T_BIT)
     if specifier == _CS_ABORT:
         code = int.from_bytes(payload, "little")
         return SdoAbort(node_id, index, subindex, code, from_client)
-    if from_client and specifier == _CCS_UPLOAD:
-        return SdoUploadRequest(node_id, index, subindex)
-    if from_client and specifier == _CCS_DOWNLOAD:
-        return SdoDownloadRequest(node_id, index, subindex, _expedited_data(command, payload))
-    if not from_client and specifier == _SCS_UPLOAD:
+    if from_client:
+        if specifier == _CCS_UPLOAD:
+            return SdoUploadRequest(node_id, index, subindex)
+        if specifier == _CCS_DOWNLOAD and command & _E_BIT:
+            indicated = bool(command & _S_BIT)
+            return SdoDownloadRequest(
+                node_id, index, subindex, _expedited_data(command, payload), indicated
+            )
+        if specifier == _CCS_DOWNLOAD:
+            size = _indicated_size(command, payload)
+            return SdoSegmentedDownloadRequest(node_id, index, subindex, size)
+        if specifier == _CCS_UPLOAD_SEGMENT:
+            return SdoUploadSegmentRequest(node_id, toggle)
+        if specifier == _CCS_DOWNLOAD_SEGMENT:
+            return SdoDownloadSegment(node_id, *_segment_data(data))
+        return SdoUnsupportedRequest(node_id, index, subindex, command, payload)
+    if specifier == _SCS_UPLOAD and command & _E_BIT:
         return SdoUploadResponse(node_id, index, subindex, _expedited_data(command, payload))
-    if not from_client and specifier == _SCS_DOWNLOAD:
+    if specifier == _SCS_UPLOAD:
+        return SdoSegmentedUploadResponse(
+            node_id, index, subindex, _indicated_size(command, payload)
+        )
+    if specifier == _SCS_DOWNLOAD:
         return SdoDownloadResponse(node_id, index, subindex)
-    side = "client" if from_client else "server"
-    raise CanOpenDecodeError(f"unsupported SDO {side} command specifier {specifier}")
+    if specifier == _SCS_UPLOAD_SEGMENT:
+        return SdoUploadSegment(node_id, *_segment_data(data))
+    if specifier == _SCS_DOWNLOAD_SEGMENT:
+        return SdoDownloadSegmentResponse(node_id, toggle)
+    raise CanOpenDecodeError(f"unsupported SDO server command specifier {specifier} (block)")
 
 
 def decode(cob_id: int, data: bytes | bytearray) -> CanOpenMessage:
@@ -594,7 +801,7 @@ def decode(cob_id: int, data: bytes | bytearray) -> CanOpenMessage:
         if len(data) != 2:
             raise CanOpenDecodeError(f"NMT frames are 2 bytes, got {len(data)}")
         try:
-            return NmtControl(NmtCommand(data[0]), data[1])
+            return NmtControl(data[0], data[1])
         except ValueError as exc:
             raise CanOpenDecodeError(f"bad NMT frame {data.hex()}: {exc}") from None
     if cob_id == SYNC_COB_ID:
@@ -612,11 +819,7 @@ def decode(cob_id: int, data: bytes | bytearray) -> CanOpenMessage:
     if function == HEARTBEAT_BASE:
         if len(data) != 1:
             raise CanOpenDecodeError(f"heartbeat frames are 1 byte, got {len(data)}")
-        try:
-            state = NmtState(data[0] & 0x7F)
-        except ValueError:
-            raise CanOpenDecodeError(f"unknown NMT state {data[0] & 0x7F:#04x}") from None
-        return Heartbeat(node_id, state, bool(data[0] & 0x80))
+        return Heartbeat(node_id, data[0] & 0x7F, bool(data[0] & 0x80))
     if function == SDO_TX_BASE:
         return _decode_sdo(node_id, data, from_client=False)
     if function == SDO_RX_BASE:

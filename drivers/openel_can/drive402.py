@@ -223,7 +223,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         self._tpdo1_ns: int | None = None
         self._tpdo2_ns: int | None = None
         self._heartbeat_ns: int | None = None
-        self.nmt_state: co.NmtState | None = None
+        self.nmt_state: co.NmtState | int | None = None
         self._mode: Mode | None = None
         self._controlword = 0
         self._targets = {Mode.PROFILE_POSITION: 0, Mode.PROFILE_VELOCITY: 0, Mode.PROFILE_TORQUE: 0}
@@ -693,6 +693,9 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
     def _on_heartbeat(self, frame: can.Message, now: int) -> None:
         msg = co.decode(frame.arbitration_id, frame.data)
         assert isinstance(msg, co.Heartbeat)
+        if not isinstance(msg.state, co.NmtState):
+            # The codec keeps the value; CiA 301 defines no other state: counted as malformed.
+            raise co.CanOpenDecodeError(f"unknown NMT state {msg.state:#04x}")
         self._heartbeat_ns = now
         previous, self.nmt_state = self.nmt_state, msg.state
         if msg.state is co.NmtState.BOOT_UP:

@@ -1,20 +1,30 @@
-"""Expedited SDO client (CiA 301) over a :class:`~openel_can.bus.CanBus`.
+"""SDO client (CiA 301: expedited and segmented transfers) over a :class:`~openel_can.bus.CanBus`.
 
 One :class:`SdoClient` per node and bus (``SdoClient.for_node(bus, node_id)``), shared by
 every device of that node: an SDO server serves one transfer at a time, so the client
-serializes them with a lock. Each transfer is bounded by ``timeout``:
+serializes them with a lock. Uploads take whatever the server answers: an expedited
+reply (1..4 bytes) or a segmented one (any size up to ``max_size``, 7 bytes per
+segment, toggle bit checked). Downloads of 1..4 bytes are expedited with the size
+indicated; any other length (0, or more than 4 bytes: 64-bit objects, strings) is
+segmented with the size indicated. Block transfer is not implemented. Every exchange
+(the initiate and each segment) is bounded by ``timeout``:
 
 * no answer in time -> the client sends an abort (0x05040000, SDO protocol timed out)
   and raises :class:`SdoTimeoutError`, a ``TimeoutError``: for a component, a link
   fault (Error state, ``ErrorId.TIMEOUT``);
 * the server aborts -> :class:`SdoAbortError`, a ``HALError`` naming the object and the
   abort code: the drive is there and refused the access, so the caller gets a clear
-  error and the component's state does not change.
+  error and the component's state does not change;
+* the server breaks the protocol (a reply of the wrong kind, a toggle bit that did not
+  alternate, more data than announced or than ``max_size``) -> the client aborts the
+  transfer itself (0x05040001, 0x05030000, 0x06070010, 0x05040005) and raises
+  :class:`SdoAbortError` with ``by_client`` True.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Final, NoReturn
 
 import anyio
 import can
@@ -26,7 +36,7 @@ from . import canopen as co
 from .bus import CanBus, NodePort
 from .errors import DecodeError
 
-__all__ = ["SdoAbortError", "SdoClient", "SdoTimeoutError"]
+__all__ = ["DEFAULT_MAX_SIZE", "SdoAbortError", "SdoClient", "SdoTimeoutError"]
 
 log = structlog.get_logger(__name__)
 
@@ -39,35 +49,60 @@ def _abort_name(code: int) -> str:
 
 
 class SdoAbortError(HALError):
-    """The SDO server (or this client) aborted a transfer."""
+    """An SDO transfer was aborted, by the server or (``by_client``) by this client."""
 
-    def __init__(self, node_id: int, index: int, subindex: int, code: int) -> None:
+    def __init__(
+        self, node_id: int, index: int, subindex: int, code: int, *, by_client: bool = False
+    ) -> None:
+        who = "aborted by the client" if by_client else f"from node {node_id}"
         super().__init__(
-            f"SDO abort {code:#010x} ({_abort_name(code)}) from node {node_id} "
-            f"on object {index:#06x}:{subindex}"
+            f"SDO abort {code:#010x} ({_abort_name(code)}) {who} on object "
+            f"{index:#06x}:{subindex} of node {node_id}"
         )
         self.node_id = node_id
         self.index = index
         self.subindex = subindex
         self.abort_code = code
+        self.by_client = by_client
 
 
 class SdoTimeoutError(TimeoutError):
     """The SDO server did not answer in time."""
 
 
-class SdoClient:
-    """Expedited SDO upload/download to one node; see the module docstring."""
+_INITIATE_REPLIES: Final = (
+    co.SdoUploadResponse,
+    co.SdoSegmentedUploadResponse,
+    co.SdoDownloadResponse,
+)
+_SEGMENT_REPLIES: Final = (co.SdoUploadSegment, co.SdoDownloadSegmentResponse)
+#: Default largest upload accepted (bytes).
+DEFAULT_MAX_SIZE: Final = 65536
 
-    def __init__(self, bus: CanBus, node_id: int, *, timeout: float = 0.1) -> None:
+
+class SdoClient:
+    """SDO upload/download to one node; see the module docstring."""
+
+    def __init__(
+        self,
+        bus: CanBus,
+        node_id: int,
+        *,
+        timeout: float = 0.1,
+        max_size: int = DEFAULT_MAX_SIZE,
+    ) -> None:
         if isinstance(node_id, bool) or not isinstance(node_id, int) or not 1 <= node_id <= 127:
             raise BadParameterError("node_id", node_id, "a CANopen node id in 1..127")
         if not (math.isfinite(timeout) and timeout > 0):
             raise BadParameterError("timeout", timeout, "a finite number of seconds > 0")
+        if isinstance(max_size, bool) or not isinstance(max_size, int) or not 4 <= max_size < 2**32:
+            raise BadParameterError("max_size", max_size, "an int in 4..2**32-1 (bytes)")
         self.bus = bus
         self.node_id = node_id
         self.timeout = timeout
+        self.max_size = max_size
         self.transfers = 0
+        self.segments = 0
         self.aborts = 0
         self.timeouts = 0
         self._lock = anyio.Lock()
@@ -109,7 +144,7 @@ class SdoClient:
     ) -> None:
         try:
             data = entry.encode(value)
-        except ValueError as exc:
+        except (ValueError, TypeError) as exc:
             raise BadParameterError(
                 f"{entry.index:#06x}:{entry.subindex}", value, f"a {entry.data_type.name}"
             ) from exc
@@ -117,11 +152,41 @@ class SdoClient:
 
     # -- raw transfers --------------------------------------------------------------------
     async def upload(self, index: int, subindex: int, *, timeout: float | None = None) -> bytes:  # noqa: ASYNC109
+        """The object's bytes, expedited or segmented as the server chooses."""
         request = co.SdoUploadRequest(self.node_id, index, subindex)
-        reply = await self._transfer(request, timeout)
-        if not isinstance(reply, co.SdoUploadResponse):
-            raise HALError(f"node {self.node_id}: unexpected SDO reply {reply!r}")
-        return reply.data
+        t = _Transfer(self, index, subindex, self.timeout if timeout is None else timeout)
+        async with self._lock:
+            t.port = self._begin()
+            reply = await t.exchange(request, _INITIATE_REPLIES)
+            if isinstance(reply, co.SdoUploadResponse):
+                return reply.data
+            if not isinstance(reply, co.SdoSegmentedUploadResponse):
+                await t.fail(co.SdoAbortCode.INVALID_COMMAND_SPECIFIER)
+            assert isinstance(reply, co.SdoSegmentedUploadResponse)
+            if reply.size is not None and reply.size > self.max_size:
+                await t.fail(co.SdoAbortCode.OUT_OF_MEMORY)
+            data = bytearray()
+            toggle = False
+            while True:
+                segment = await t.exchange(
+                    co.SdoUploadSegmentRequest(self.node_id, toggle), _SEGMENT_REPLIES
+                )
+                if not isinstance(segment, co.SdoUploadSegment):
+                    await t.fail(co.SdoAbortCode.INVALID_COMMAND_SPECIFIER)
+                assert isinstance(segment, co.SdoUploadSegment)
+                if segment.toggle is not toggle:
+                    await t.fail(co.SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED)
+                data += segment.data
+                if len(data) > self.max_size:
+                    await t.fail(co.SdoAbortCode.OUT_OF_MEMORY)
+                if reply.size is not None and len(data) > reply.size:
+                    await t.fail(co.SdoAbortCode.LENGTH_MISMATCH)
+                if segment.last:
+                    break
+                toggle = not toggle
+            if reply.size is not None and len(data) != reply.size:
+                await t.fail(co.SdoAbortCode.LENGTH_MISMATCH)
+            return bytes(data)
 
     async def download(
         self,
@@ -131,49 +196,90 @@ class SdoClient:
         *,
         timeout: float | None = None,  # noqa: ASYNC109
     ) -> None:
-        request = co.SdoDownloadRequest(self.node_id, index, subindex, bytes(data))
-        reply = await self._transfer(request, timeout)
-        if not isinstance(reply, co.SdoDownloadResponse):
-            raise HALError(f"node {self.node_id}: unexpected SDO reply {reply!r}")
-
-    async def _transfer(
-        self,
-        request: co.SdoUploadRequest | co.SdoDownloadRequest,
-        timeout: float | None,  # noqa: ASYNC109
-    ) -> co.CanOpenMessage:
-        limit = self.timeout if timeout is None else timeout
+        """Write ``data``: expedited for 1..4 bytes, segmented otherwise."""
+        data = bytes(data)
+        if len(data) > self.max_size:
+            raise BadParameterError("data", f"{len(data)} bytes", f"at most {self.max_size} bytes")
+        t = _Transfer(self, index, subindex, self.timeout if timeout is None else timeout)
         async with self._lock:
-            port = self._ensure_port()
-            while True:  # drop late answers to earlier (timed-out) transfers
+            t.port = self._begin()
+            if 1 <= len(data) <= 4:
+                request: co.CanOpenMessage = co.SdoDownloadRequest(
+                    self.node_id, index, subindex, data
+                )
+            else:
+                request = co.SdoSegmentedDownloadRequest(self.node_id, index, subindex, len(data))
+            reply = await t.exchange(request, _INITIATE_REPLIES)
+            if not isinstance(reply, co.SdoDownloadResponse):
+                await t.fail(co.SdoAbortCode.INVALID_COMMAND_SPECIFIER)
+            if isinstance(request, co.SdoDownloadRequest):
+                return
+            toggle = False
+            step = co.SDO_SEGMENT_SIZE
+            offsets = range(0, max(len(data), 1), step)
+            for offset in offsets:
+                chunk = data[offset : offset + step]
+                last = offset + step >= len(data)
+                segment = co.SdoDownloadSegment(self.node_id, toggle, chunk, last)
+                answer = await t.exchange(segment, _SEGMENT_REPLIES)
+                if not isinstance(answer, co.SdoDownloadSegmentResponse):
+                    await t.fail(co.SdoAbortCode.INVALID_COMMAND_SPECIFIER)
+                assert isinstance(answer, co.SdoDownloadSegmentResponse)
+                if answer.toggle is not toggle:
+                    await t.fail(co.SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED)
+                toggle = not toggle
+
+    def _begin(self) -> NodePort:
+        port = self._ensure_port()
+        while True:  # drop late answers to earlier (timed-out) transfers
+            try:
+                port.receive_nowait()
+            except (anyio.WouldBlock, anyio.EndOfStream):
+                break
+        self.transfers += 1
+        return port
+
+
+class _Transfer:
+    """One transfer in progress: its object, its bound per exchange, its port."""
+
+    def __init__(self, client: SdoClient, index: int, subindex: int, limit: float) -> None:
+        self.client = client
+        self.node_id = client.node_id
+        self.index = index
+        self.subindex = subindex
+        self.limit = limit
+        self.port: NodePort | None = None
+
+    async def exchange(
+        self, request: co.CanOpenMessage, replies: tuple[type[co.CanOpenMessage], ...]
+    ) -> co.CanOpenMessage:
+        """Send ``request``; the first answer of the kinds in ``replies`` (or an abort)."""
+        port = self.port
+        assert port is not None
+        cob_id, data = co.encode(request)
+        if replies is _SEGMENT_REPLIES:
+            self.client.segments += 1
+        await port.send(cob_id, data)
+        with anyio.move_on_after(self.limit):
+            while True:
                 try:
-                    port.receive_nowait()
-                except (anyio.WouldBlock, anyio.EndOfStream):
+                    batch = await port.receive()
+                except anyio.EndOfStream:
                     break
-            cob_id, data = co.encode(request)
-            self.transfers += 1
-            await port.send(cob_id, data)
-            with anyio.move_on_after(limit):
-                while True:
-                    try:
-                        batch = await port.receive()
-                    except anyio.EndOfStream:
-                        break
-                    for msg in batch:
-                        reply = self._match(port, msg, request)
-                        if reply is not None:
-                            return reply
-            self.timeouts += 1
-            await self._send_abort(port, request, co.SdoAbortCode.TIMEOUT)
-            raise SdoTimeoutError(
-                f"node {self.node_id}: no SDO answer for {request.index:#06x}:"
-                f"{request.subindex} within {limit * 1000:.0f} ms"
-            )
+                for msg in batch:
+                    reply = self._match(port, msg, replies)
+                    if reply is not None:
+                        return reply
+        self.client.timeouts += 1
+        await self._send_abort(co.SdoAbortCode.TIMEOUT)
+        raise SdoTimeoutError(
+            f"node {self.node_id}: no SDO answer for {self.index:#06x}:"
+            f"{self.subindex} within {self.limit * 1000:.0f} ms"
+        )
 
     def _match(
-        self,
-        port: NodePort,
-        msg: can.Message,
-        request: co.SdoUploadRequest | co.SdoDownloadRequest,
+        self, port: NodePort, msg: can.Message, replies: tuple[type[co.CanOpenMessage], ...]
     ) -> co.CanOpenMessage | None:
         if msg.is_remote_frame:
             port.malformed += 1
@@ -183,26 +289,37 @@ class SdoClient:
         except DecodeError:
             port.malformed += 1
             return None
-        if not isinstance(reply, co.SdoUploadResponse | co.SdoDownloadResponse | co.SdoAbort) or (
-            reply.index,
-            reply.subindex,
-        ) != (request.index, request.subindex):
-            return None  # an answer to someone else's transfer or a stale one
+        initiate = replies is _INITIATE_REPLIES
         if isinstance(reply, co.SdoAbort):
-            self.aborts += 1
-            raise SdoAbortError(self.node_id, reply.index, reply.subindex, reply.code)
+            # During the segments any abort is for this transfer (one at a time per server).
+            if initiate and (reply.index, reply.subindex) != (self.index, self.subindex):
+                return None
+            self.client.aborts += 1
+            raise SdoAbortError(self.node_id, self.index, self.subindex, reply.code)
+        if not isinstance(reply, _INITIATE_REPLIES + _SEGMENT_REPLIES):
+            return None
+        if initiate:
+            if not isinstance(reply, _INITIATE_REPLIES) or (
+                reply.index,
+                reply.subindex,
+            ) != (self.index, self.subindex):
+                return None  # an answer to someone else's transfer or a stale one
+        elif isinstance(reply, _INITIATE_REPLIES):
+            return None  # a stale initiate answer; the segment answer is still due
         return reply
 
-    async def _send_abort(
-        self,
-        port: NodePort,
-        request: co.SdoUploadRequest | co.SdoDownloadRequest,
-        code: int,
-    ) -> None:
-        abort = co.SdoAbort(self.node_id, request.index, request.subindex, code, from_client=True)
+    async def fail(self, code: co.SdoAbortCode) -> NoReturn:
+        """Abort the transfer from the client side and raise."""
+        await self._send_abort(code)
+        self.client.aborts += 1
+        raise SdoAbortError(self.node_id, self.index, self.subindex, code, by_client=True)
+
+    async def _send_abort(self, code: int) -> None:
+        assert self.port is not None
+        abort = co.SdoAbort(self.node_id, self.index, self.subindex, code, from_client=True)
         cob_id, data = co.encode(abort)
         try:
-            with anyio.move_on_after(self.timeout):
-                await port.send(cob_id, data)
+            with anyio.move_on_after(self.client.timeout):
+                await self.port.send(cob_id, data)
         except Exception as exc:  # best effort: the bus may be why it timed out
             log.debug("sdo_abort_not_sent", node=self.node_id, error=repr(exc))

@@ -1,11 +1,15 @@
-"""CANopen (CiA 301 subset) codec: golden frames, round trips, PDO packing, fuzzing."""
+"""CANopen (CiA 301 subset) codec: golden frames, round trips, PDO packing, fuzzing.
+
+Golden SDO frames are also checked against canopen-py's own constants and structs
+(an independent implementation) in ``tests/can/test_interop_canopen.py``.
+"""
 
 from __future__ import annotations
 
 import contextlib
 
 import pytest
-from hypothesis import given
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from openel_can import canopen as co
@@ -15,6 +19,9 @@ nodes = st.integers(1, co.MAX_NODE_ID)
 u16 = st.integers(0, 0xFFFF)
 u8 = st.integers(0, 0xFF)
 expedited = st.binary(min_size=1, max_size=4)
+u32 = st.integers(0, 0xFFFF_FFFF)
+segment = st.binary(max_size=7)
+FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 MESSAGES: st.SearchStrategy[co.CanOpenMessage] = st.one_of(
     st.builds(co.NmtControl, st.sampled_from(co.NmtCommand), st.integers(0, co.MAX_NODE_ID)),
@@ -24,7 +31,24 @@ MESSAGES: st.SearchStrategy[co.CanOpenMessage] = st.one_of(
     st.builds(co.SdoUploadRequest, nodes, u16, u8),
     st.builds(co.SdoUploadResponse, nodes, u16, u8, expedited),
     st.builds(co.SdoDownloadRequest, nodes, u16, u8, expedited),
+    st.builds(
+        co.SdoDownloadRequest, nodes, u16, u8, st.binary(min_size=4, max_size=4), st.just(False)
+    ),
     st.builds(co.SdoDownloadResponse, nodes, u16, u8),
+    st.builds(co.SdoSegmentedUploadResponse, nodes, u16, u8, st.none() | u32),
+    st.builds(co.SdoSegmentedDownloadRequest, nodes, u16, u8, st.none() | u32),
+    st.builds(co.SdoUploadSegmentRequest, nodes, st.booleans()),
+    st.builds(co.SdoUploadSegment, nodes, st.booleans(), segment, st.booleans()),
+    st.builds(co.SdoDownloadSegment, nodes, st.booleans(), segment, st.booleans()),
+    st.builds(co.SdoDownloadSegmentResponse, nodes, st.booleans()),
+    st.builds(
+        co.SdoUnsupportedRequest,
+        nodes,
+        u16,
+        u8,
+        st.integers(0xA0, 0xFF),
+        st.binary(min_size=4, max_size=4),
+    ),
     st.builds(co.SdoAbort, nodes, u16, u8, st.integers(0, 0xFFFF_FFFF), st.booleans()),
     st.builds(co.Pdo, nodes, st.integers(1, 4), st.booleans(), st.binary(max_size=8)),
 )
@@ -64,6 +88,43 @@ MESSAGES: st.SearchStrategy[co.CanOpenMessage] = st.one_of(
             0x601,
             "80 41 60 05 11 00 09 06",
         ),
+        # Segmented upload of a 64-bit object 0x2030:00 (8 bytes: 7 + 1).
+        (co.SdoSegmentedUploadResponse(1, 0x2030, 0, 8), 0x581, "41 30 20 00 08 00 00 00"),
+        (co.SdoSegmentedUploadResponse(1, 0x2030, 0, None), 0x581, "40 30 20 00 00 00 00 00"),
+        (co.SdoUploadSegmentRequest(1, False), 0x601, "60 00 00 00 00 00 00 00"),
+        (co.SdoUploadSegmentRequest(1, True), 0x601, "70 00 00 00 00 00 00 00"),
+        (
+            co.SdoUploadSegment(1, False, bytes(range(1, 8)), False),
+            0x581,
+            "00 01 02 03 04 05 06 07",
+        ),
+        (co.SdoUploadSegment(1, True, b"\x08", True), 0x581, "1d 08 00 00 00 00 00 00"),
+        # Segmented download of 9 bytes.
+        (co.SdoSegmentedDownloadRequest(1, 0x2031, 0, 9), 0x601, "21 31 20 00 09 00 00 00"),
+        (co.SdoDownloadSegment(1, False, b"abcdefg", False), 0x601, "00 61 62 63 64 65 66 67"),
+        (co.SdoDownloadSegment(1, True, b"hi", True), 0x601, "1b 68 69 00 00 00 00 00"),
+        (co.SdoDownloadSegment(1, False, b"", True), 0x601, "0f 00 00 00 00 00 00 00"),
+        (co.SdoDownloadSegmentResponse(1, False), 0x581, "20 00 00 00 00 00 00 00"),
+        (co.SdoDownloadSegmentResponse(1, True), 0x581, "30 00 00 00 00 00 00 00"),
+        # Expedited download without size (0x22): four bytes, the server's object decides.
+        (
+            co.SdoDownloadRequest(1, 0x6040, 0, b"\x0f\x00\x00\x00", size_indicated=False),
+            0x601,
+            "22 40 60 00 0f 00 00 00",
+        ),
+        # Block download / upload initiate: decoded so a server can abort them.
+        (
+            co.SdoUnsupportedRequest(1, 0x2031, 0, 0xC6, b"\x08\x00\x00\x00"),
+            0x601,
+            "c6 31 20 00 08 00 00 00",
+        ),
+        (
+            co.SdoUnsupportedRequest(1, 0x2030, 0, 0xA4, b"\x7f\x00\x00\x00"),
+            0x601,
+            "a4 30 20 00 7f 00 00 00",
+        ),
+        (co.Heartbeat(5, 0x42), 0x705, "42"),  # unknown NMT state: kept as an int
+        (co.NmtControl(0x03, 0), 0x000, "03 00"),  # unknown NMT command: kept as an int
         (co.Pdo(1, 1, True, b"\x37\x02"), 0x181, "37 02"),
         (co.Pdo(1, 4, False, b""), 0x501, ""),
     ],
@@ -86,15 +147,13 @@ def test_upload_response_without_size_gives_four_bytes() -> None:
 @pytest.mark.parametrize(
     ("cob_id", "hexdata"),
     [
-        (0x581, "41 00 10 00 10 00 00 00"),  # segmented upload initiate: unsupported
-        (0x601, "21 00 10 00 10 00 00 00"),  # segmented download initiate
-        (0x601, "60 00 10 00 00 00 00 00"),  # upload segment request
+        (0x581, "c4 00 10 00 10 00 00 00"),  # block upload response: not implemented
+        (0x581, "a0 00 10 00 10 00 00 00"),  # block download response
+        (0x581, "e0 00 10 00 10 00 00 00"),  # invalid server command specifier 7
         (0x581, "40 41 60 00 00 00 00"),  # SDO frames are 8 bytes
         (0x100, "00 00 00 00 00 00"),  # TIME
         (0x7E5, "00"),  # LSS
         (0x700, "05"),  # node id 0
-        (0x705, "03"),  # unknown NMT state
-        (0x000, "03 00"),  # unknown NMT command
         (0x000, "01 80"),  # node id 128
         (0x080, "00"),  # SYNC counter 0
         (0x083, "10 23 03"),  # short EMCY
@@ -166,6 +225,29 @@ def mapping_and_values(draw: st.DrawFn) -> tuple[list[co.PdoMapEntry], list[int]
     return mapping, values
 
 
+def test_unknown_nmt_values_are_plain_ints() -> None:
+    heartbeat = co.decode(0x705, b"\x42")
+    assert isinstance(heartbeat, co.Heartbeat)
+    assert type(heartbeat.state) is int and heartbeat.state == 0x42
+    assert co.decode(0x705, b"\x05") == co.Heartbeat(5, co.NmtState.OPERATIONAL)
+    with pytest.raises(ValueError):
+        co.Heartbeat(5, 0x80)  # 7 bits
+    with pytest.raises(ValueError):
+        co.NmtControl(0x100)
+
+
+def test_segment_and_size_bounds() -> None:
+    with pytest.raises(ValueError):
+        co.SdoUploadSegment(1, False, bytes(8), True)
+    with pytest.raises(ValueError):
+        co.SdoSegmentedDownloadRequest(1, 0x2000, 0, 2**32)
+    with pytest.raises(ValueError):
+        co.SdoDownloadRequest(1, 0x2000, 0, b"\x01", size_indicated=False)
+    with pytest.raises(ValueError):
+        co.SdoUnsupportedRequest(1, 0x2000, 0, 0x40)  # an upload initiate is supported
+
+
+@FUZZ
 @given(mapping_and_values())
 def test_pdo_pack_round_trip(case: tuple[list[co.PdoMapEntry], list[int]]) -> None:
     mapping, values = case
@@ -176,6 +258,7 @@ def test_pdo_pack_round_trip(case: tuple[list[co.PdoMapEntry], list[int]]) -> No
         assert co.PdoMapEntry.from_u32(entry.to_u32(), signed=entry.signed) == entry
 
 
+@FUZZ
 @given(st.sampled_from(co.DataType), st.data())
 def test_object_entry_round_trip(data_type: co.DataType, data: st.DataObject) -> None:
     bits = data_type.size * 8
@@ -191,6 +274,7 @@ def test_object_entry_round_trip(data_type: co.DataType, data: st.DataObject) ->
         entry.encode(high + 1)
 
 
+@FUZZ
 @given(MESSAGES)
 def test_round_trip(msg: co.CanOpenMessage) -> None:
     cob_id, data = co.encode(msg)
@@ -198,6 +282,7 @@ def test_round_trip(msg: co.CanOpenMessage) -> None:
     assert co.decode(cob_id, data) == msg
 
 
+@FUZZ
 @given(st.integers(-1, 0x800), st.binary(max_size=9))
 def test_random_frames_raise_only_decode_error(cob_id: int, data: bytes) -> None:
     try:
@@ -207,8 +292,47 @@ def test_random_frames_raise_only_decode_error(cob_id: int, data: bytes) -> None
     assert co.encode(msg)[0] == cob_id
 
 
+@FUZZ
 @given(nodes, st.binary(min_size=8, max_size=8), st.booleans())
 def test_random_sdo_payloads(node_id: int, data: bytes, to_server: bool) -> None:
     cob_id = (0x600 if to_server else 0x580) + node_id
     with contextlib.suppress(CanOpenDecodeError):
         co.decode(cob_id, data)
+
+
+@FUZZ
+@given(nodes, st.binary(min_size=8, max_size=8))
+def test_every_client_sdo_frame_decodes(node_id: int, data: bytes) -> None:
+    """A server must be able to answer anything a client sends: no client SDO frame of
+    8 bytes is undecodable (block and invalid requests decode to SdoUnsupportedRequest)."""
+    msg = co.decode(0x600 + node_id, data)
+    assert isinstance(msg, (*co.SDO_CLIENT_MESSAGES, co.SdoAbort))
+
+
+@FUZZ
+@given(
+    st.sampled_from(
+        [
+            co.NmtControl,
+            co.Emergency,
+            co.Heartbeat,
+            co.SdoUploadResponse,
+            co.SdoSegmentedUploadResponse,
+            co.SdoUploadSegment,
+            co.SdoAbort,
+            co.Pdo,
+            co.Sync,
+        ]
+    ),
+    st.lists(st.integers(-(2**33), 2**33) | st.binary(max_size=10) | st.booleans(), max_size=6),
+)
+def test_constructors_raise_only_value_or_type_error(kind: type, args: list[object]) -> None:
+    """Building a message from arbitrary values: a frame our decoder reads back to the
+    same bytes, or ValueError (a value that does not fit) / TypeError (wrong arity or
+    type)."""
+    try:
+        msg = kind(*args)
+        cob_id, data = co.encode(msg)
+    except (ValueError, TypeError):
+        return
+    assert co.encode(co.decode(cob_id, data)) == (cob_id, data)

@@ -56,7 +56,7 @@ from .. import cia402 as ds
 from ..bus import CanBus, NodePort
 from ..errors import DecodeError
 
-__all__ = ["DRIVE_TEMPERATURE", "SimCia402Drive"]
+__all__ = ["DRIVE_TEMPERATURE", "ENERGY_LIMIT", "OPERATING_TIME", "SimCia402Drive"]
 
 log = structlog.get_logger(__name__)
 
@@ -67,6 +67,12 @@ Mode = ds.ModeOfOperation
 DRIVE_TEMPERATURE: Final = co.ObjectEntry(0x2022, 0, DT.INTEGER16)
 """Manufacturer-specific: drive (power stage) temperature in 0.1 °C."""
 TORQUE_SLOPE: Final = co.ObjectEntry(0x6087, 0, DT.UNSIGNED32)
+OPERATING_TIME: Final = co.ObjectEntry(0x2030, 0, DT.UNSIGNED64)
+"""Manufacturer-specific, read-only 64-bit: microseconds since the last reset node
+(read by segmented SDO upload)."""
+ENERGY_LIMIT: Final = co.ObjectEntry(0x2031, 0, DT.INTEGER64)
+"""Manufacturer-specific, read-write 64-bit parameter in mJ (written by segmented SDO
+download; only stored)."""
 _DISCRETE: Final = frozenset({0x6041, 0x6061, 0x603F, 0x1001})
 _SUPPORTED_MODES: Final = {Mode.PROFILE_POSITION, Mode.PROFILE_VELOCITY, Mode.PROFILE_TORQUE}
 _AMBIENT_C: Final = 25.0
@@ -124,6 +130,8 @@ def _dictionary(
         (0x60FF, 0): _Obj(DT.INTEGER32, 0, "rw", True),
         (0x6502, 0): _Obj(DT.UNSIGNED32, 0b1101, "ro"),  # pp, pv, tq
         (0x2022, 0): _Obj(DT.INTEGER16, round(_AMBIENT_C * 10), "ro", True),
+        (0x2030, 0): _Obj(DT.UNSIGNED64, 0, "ro"),
+        (0x2031, 0): _Obj(DT.INTEGER64, 2**40),
     }
     for n in range(3):  # RPDO1..3
         valid = n == 0
@@ -148,6 +156,18 @@ def _dictionary(
         for sub in range(1, 9):
             od[(0x1A00 + n, sub)] = _Obj(DT.UNSIGNED32, 0x6041_0010 if valid and sub == 1 else 0)
     return od
+
+
+@dataclass
+class _Transfer:
+    """A segmented SDO transfer in progress (one at a time, as on a real server)."""
+
+    index: int
+    subindex: int
+    upload: bool
+    data: bytearray = field(default_factory=bytearray)
+    size: int | None = None
+    toggle: bool = False
 
 
 class _SdoAbort(Exception):
@@ -203,6 +223,7 @@ class SimCia402Drive:
         self._kicked = False
         self.od: dict[tuple[int, int], _Obj] = {}
         self._mappings: dict[int, tuple[co.PdoMapEntry, ...]] = {}
+        self._transfer: _Transfer | None = None
         self.segments = prof.hold(self.clock.now_ns(), 0.0)
         self._boot()
         self.log = log.bind(sim_cia402=node_id)
@@ -235,9 +256,11 @@ class SimCia402Drive:
             self.fault_reaction_end_ns: int | None = None
             self.temperature = _AMBIENT_C
             self._thermal_ns = now
+            self._booted_ns = now
         self.nmt_state = co.NmtState.BOOT_UP
         self.prev_controlword = 0
         self.tpdo_state = [_TpdoState() for _ in range(4)]
+        self._transfer = None
         self.next_heartbeat_ns = self.clock.now_ns()
         self.pending: list[co.CanOpenMessage] = [co.Heartbeat(self.node_id, co.NmtState.BOOT_UP)]
 
@@ -315,6 +338,7 @@ class SimCia402Drive:
         self._set(0x6077, 0, max(-32768, min(32767, round(self.torque_permille(now)))))
         self._update_thermal(now)
         self._set(0x6041, 0, self.statusword())
+        self._set(0x2030, 0, max(0, now - self._booted_ns) // 1000)
 
     def _update_thermal(self, now: int) -> None:
         dt = (now - self._thermal_ns) * NS
@@ -564,10 +588,12 @@ class SimCia402Drive:
                         state.sync_count += 1
                         if ttype == 0 or state.sync_count % ttype == 0:
                             state.sync_due = True
-        elif isinstance(msg, co.SdoUploadRequest | co.SdoDownloadRequest):
+        elif isinstance(msg, co.SDO_CLIENT_MESSAGES):
             if self.sdo_silent or self.nmt_state is co.NmtState.STOPPED:
                 return
-            await self._send(self._sdo(msg, now))
+            reply = self._sdo_server(msg, now)
+            if reply is not None:
+                await self._send(reply)
         elif (
             isinstance(msg, co.Pdo)
             and not msg.transmit
@@ -575,7 +601,7 @@ class SimCia402Drive:
         ):
             self._rpdo(msg, now)
 
-    def _nmt(self, command: co.NmtCommand) -> None:
+    def _nmt(self, command: co.NmtCommand | int) -> None:
         if command is co.NmtCommand.START:
             self.nmt_state = co.NmtState.OPERATIONAL
             self.tpdo_state = [_TpdoState() for _ in range(4)]
@@ -606,43 +632,118 @@ class SimCia402Drive:
             written.add(entry.index)
         self._after_write(written, now)
 
-    def _sdo(self, msg: co.SdoUploadRequest | co.SdoDownloadRequest, now: int) -> co.CanOpenMessage:
-        key = (msg.index, msg.subindex)
+    def _sdo_server(self, msg: co.CanOpenMessage, now: int) -> co.CanOpenMessage | None:
+        """One SDO request in, its answer out (None: nothing to send)."""
+        if isinstance(msg, co.SdoAbort):
+            self._transfer = None  # the client gave up; CiA 301: no answer
+            return None
+        if isinstance(msg, co.SdoUploadSegmentRequest | co.SdoDownloadSegment):
+            return self._sdo_segment(msg, now)
+        if not isinstance(
+            msg,
+            co.SdoUploadRequest
+            | co.SdoDownloadRequest
+            | co.SdoSegmentedDownloadRequest
+            | co.SdoUnsupportedRequest,
+        ):
+            return None
+        self._transfer = None  # a new initiate ends any transfer in progress
         try:
-            obj = self.od.get(key)
-            if obj is None:
-                exists = any(index == msg.index for index, _ in self.od)
-                raise _SdoAbort(
-                    co.SdoAbortCode.SUBINDEX_DOES_NOT_EXIST
-                    if exists
-                    else co.SdoAbortCode.OBJECT_DOES_NOT_EXIST
-                )
+            if isinstance(msg, co.SdoUnsupportedRequest):
+                raise _SdoAbort(co.SdoAbortCode.INVALID_COMMAND_SPECIFIER)  # block transfer
+            obj = self._object(msg.index, msg.subindex)
             if isinstance(msg, co.SdoUploadRequest):
                 if obj.access == "wo":
                     raise _SdoAbort(co.SdoAbortCode.WRITE_ONLY)
                 self._refresh_actuals(now)
                 entry = co.ObjectEntry(msg.index, msg.subindex, obj.data_type)
-                return co.SdoUploadResponse(
-                    self.node_id, msg.index, msg.subindex, entry.encode(obj.value)
+                data = entry.encode(obj.value)
+                if len(data) <= 4:
+                    return co.SdoUploadResponse(self.node_id, msg.index, msg.subindex, data)
+                self._transfer = _Transfer(
+                    msg.index, msg.subindex, upload=True, data=bytearray(data)
+                )
+                return co.SdoSegmentedUploadResponse(
+                    self.node_id, msg.index, msg.subindex, len(data)
                 )
             if obj.access in ("ro", "const"):
                 raise _SdoAbort(co.SdoAbortCode.READ_ONLY)
             size = obj.data_type.size
-            if len(msg.data) != size:
-                raise _SdoAbort(
-                    co.SdoAbortCode.LENGTH_TOO_HIGH
-                    if len(msg.data) > size
-                    else co.SdoAbortCode.LENGTH_TOO_LOW
-                )
-            value = co.ObjectEntry(msg.index, msg.subindex, obj.data_type).decode(msg.data)
-            self._check_write(msg.index, msg.subindex, value)
-            obj.value = value
-            if 0x1600 <= msg.index <= 0x1BFF:
-                self._mappings.clear()
-            self._after_write({msg.index}, now)
+            if isinstance(msg, co.SdoSegmentedDownloadRequest):
+                if msg.size is not None:
+                    self._check_length(msg.size, size)
+                self._transfer = _Transfer(msg.index, msg.subindex, upload=False, size=msg.size)
+                return co.SdoDownloadResponse(self.node_id, msg.index, msg.subindex)
+            data = msg.data
+            if not msg.size_indicated:
+                # CiA 301: without a size indication the object's own size applies.
+                if size > len(data):
+                    raise _SdoAbort(co.SdoAbortCode.LENGTH_TOO_LOW)
+                data = data[:size]
+            self._write(msg.index, msg.subindex, obj, data, now)
             return co.SdoDownloadResponse(self.node_id, msg.index, msg.subindex)
         except _SdoAbort as abort:
             return co.SdoAbort(self.node_id, msg.index, msg.subindex, abort.code)
+
+    def _sdo_segment(
+        self, msg: co.SdoUploadSegmentRequest | co.SdoDownloadSegment, now: int
+    ) -> co.CanOpenMessage:
+        transfer = self._transfer
+        index, sub = (transfer.index, transfer.subindex) if transfer is not None else (0, 0)
+        try:
+            upload = isinstance(msg, co.SdoUploadSegmentRequest)
+            if transfer is None or transfer.upload is not upload:
+                raise _SdoAbort(co.SdoAbortCode.INVALID_COMMAND_SPECIFIER)
+            if msg.toggle is not transfer.toggle:
+                raise _SdoAbort(co.SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED)
+            transfer.toggle = not transfer.toggle
+            if isinstance(msg, co.SdoUploadSegmentRequest):
+                chunk = bytes(transfer.data[: co.SDO_SEGMENT_SIZE])
+                del transfer.data[: co.SDO_SEGMENT_SIZE]
+                last = not transfer.data
+                if last:
+                    self._transfer = None
+                return co.SdoUploadSegment(self.node_id, msg.toggle, chunk, last)
+            transfer.data += msg.data
+            obj = self._object(index, sub)
+            if len(transfer.data) > obj.data_type.size:
+                raise _SdoAbort(co.SdoAbortCode.LENGTH_TOO_HIGH)
+            if msg.last:
+                self._transfer = None
+                if transfer.size is not None and transfer.size != len(transfer.data):
+                    raise _SdoAbort(co.SdoAbortCode.LENGTH_MISMATCH)
+                self._write(index, sub, obj, bytes(transfer.data), now)
+            return co.SdoDownloadSegmentResponse(self.node_id, msg.toggle)
+        except _SdoAbort as abort:
+            self._transfer = None
+            return co.SdoAbort(self.node_id, index, sub, abort.code)
+
+    def _object(self, index: int, sub: int) -> _Obj:
+        obj = self.od.get((index, sub))
+        if obj is None:
+            exists = any(i == index for i, _ in self.od)
+            raise _SdoAbort(
+                co.SdoAbortCode.SUBINDEX_DOES_NOT_EXIST
+                if exists
+                else co.SdoAbortCode.OBJECT_DOES_NOT_EXIST
+            )
+        return obj
+
+    @staticmethod
+    def _check_length(length: int, size: int) -> None:
+        if length != size:
+            raise _SdoAbort(
+                co.SdoAbortCode.LENGTH_TOO_HIGH if length > size else co.SdoAbortCode.LENGTH_TOO_LOW
+            )
+
+    def _write(self, index: int, sub: int, obj: _Obj, data: bytes, now: int) -> None:
+        self._check_length(len(data), obj.data_type.size)
+        value = co.ObjectEntry(index, sub, obj.data_type).decode(data)
+        self._check_write(index, sub, value)
+        obj.value = value
+        if 0x1600 <= index <= 0x1BFF:
+            self._mappings.clear()
+        self._after_write({index}, now)
 
     def _check_write(self, index: int, sub: int, value: int) -> None:
         if index == 0x6060 and value not in {int(m) for m in _SUPPORTED_MODES}:
