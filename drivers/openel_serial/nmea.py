@@ -58,6 +58,8 @@ _LON_RE: Final = re.compile(r"([0-9]{3})([0-9]{2}(?:\.[0-9]{1,9})?)")
 _FLOAT_RE: Final = re.compile(r"[+-]?(?:[0-9]{1,12}(?:\.[0-9]{0,12})?|\.[0-9]{1,12})")
 _INT_RE: Final = re.compile(r"[0-9]{1,4}")
 _HEX2_RE: Final = re.compile(r"[0-9A-Fa-f]{2}")
+_DELIMITER_RE: Final = re.compile(rb"[$\n]")
+_DOLLAR: Final = ord("$")
 
 
 class FixQuality(IntEnum):
@@ -420,12 +422,18 @@ def format_rmc(rmc: RMC, *, minute_decimals: int = 5) -> str:
 class NmeaParser:
     """Line-oriented decoder for a byte stream; never raises on garbage.
 
-    Lines end at LF (CR stripped). Text before the last ``$`` of a line is
-    dropped (``garbage_bytes``), which resynchronises after binary noise. A
-    partial line longer than ``max_line`` is cut back to its last ``$`` or
-    dropped, so the buffer stays bounded. Counters: ``sentences``,
-    ``checksum_errors``, ``malformed`` (including lines without ``$``),
-    ``garbage_bytes``.
+    Lines end at LF. A *candidate* runs from a ``$`` to the next ``$`` or the end of
+    its line. On each line:
+
+    * the candidate that ends the line is decoded (its trailing CR and whitespace
+      stripped): ``sentences``, ``checksum_errors`` or ``malformed``; one longer than
+      ``max_line`` bytes (``$`` to LF) is not kept and counts as ``malformed``;
+    * every byte before that candidate's ``$`` (noise, a sentence cut short by a new
+      ``$``) counts in ``garbage_bytes``; this resynchronises after binary noise;
+    * a line without ``$`` counts as ``malformed`` unless it is blank.
+
+    The results and counters depend only on the bytes, never on how they are split
+    into :meth:`feed` calls, and the buffer never holds more than ``max_line`` bytes.
     """
 
     def __init__(self, *, max_line: int = 256, require_checksum: bool = True) -> None:
@@ -433,7 +441,13 @@ class NmeaParser:
             raise ValueError(f"max_line must be at least {MAX_SENTENCE_LENGTH}")
         self.max_line = max_line
         self.require_checksum = require_checksum
-        self._buf = bytearray()
+        self._candidate = bytearray()
+        """The current candidate from its ``$``, while it is at most ``max_line`` bytes."""
+        self._candidate_len = 0
+        """Its length so far (0: no ``$`` on this line yet)."""
+        self._prefix = 0
+        """Bytes of this line before its first ``$``."""
+        self._prefix_blank = True
         self.sentences = 0
         self.checksum_errors = 0
         self.malformed = 0
@@ -441,41 +455,67 @@ class NmeaParser:
 
     @property
     def buffered(self) -> int:
-        return len(self._buf)
+        return len(self._candidate)
 
     def reset(self) -> None:
-        self._buf.clear()
+        """Forget the partial line (its bytes are counted in ``garbage_bytes``)."""
+        self.garbage_bytes += self._prefix + self._candidate_len
+        self._new_line()
+
+    def _new_line(self) -> None:
+        self._candidate.clear()
+        self._candidate_len = 0
+        self._prefix = 0
+        self._prefix_blank = True
 
     def feed(self, data: bytes) -> list[Sentence]:
-        self._buf += data
+        """The sentences completed by ``data``, in stream order."""
         out: list[Sentence] = []
-        while (newline := self._buf.find(b"\n")) >= 0:
-            line = bytes(self._buf[:newline])
-            del self._buf[: newline + 1]
-            self._line(line, out)
-        if len(self._buf) > self.max_line:
-            start = self._buf.rfind(b"$")
-            if start < 0 or len(self._buf) - start > self.max_line:
-                start = len(self._buf)
-            self.garbage_bytes += start
-            del self._buf[:start]
+        pos = 0
+        for match in _DELIMITER_RE.finditer(data):
+            at = match.start()
+            self._take(data[pos:at])
+            if data[at] == _DOLLAR:
+                # A new candidate: whatever came before it on this line is garbage.
+                self.garbage_bytes += self._candidate_len or self._prefix
+                self._prefix = 0
+                self._candidate[:] = b"$"
+                self._candidate_len = 1
+            else:
+                self._end_line(out)
+            pos = at + 1
+        self._take(data[pos:])
         return out
 
-    def _line(self, line: bytes, out: list[Sentence]) -> None:
-        line = line.strip()
-        if not line:
+    def _take(self, chunk: bytes) -> None:
+        if not chunk:
             return
-        start = line.rfind(b"$")
-        if start < 0:
-            self.malformed += 1
-            return
-        self.garbage_bytes += start
-        try:
-            sentence = decode_sentence(line[start:], require_checksum=self.require_checksum)
-        except NmeaChecksumError:
-            self.checksum_errors += 1
-        except NmeaDecodeError:
-            self.malformed += 1
+        if self._candidate_len:
+            self._candidate_len += len(chunk)
+            if self._candidate_len <= self.max_line:
+                self._candidate += chunk
+            else:
+                self._candidate.clear()  # too long for a sentence: not kept
         else:
-            self.sentences += 1
-            out.append(sentence)
+            self._prefix += len(chunk)
+            if self._prefix_blank and chunk.strip():
+                self._prefix_blank = False
+
+    def _end_line(self, out: list[Sentence]) -> None:
+        if self._candidate_len > self.max_line:
+            self.malformed += 1
+        elif self._candidate_len:
+            try:
+                sentence = decode_sentence(
+                    bytes(self._candidate), require_checksum=self.require_checksum
+                )
+            except NmeaChecksumError:
+                self.checksum_errors += 1
+            except NmeaDecodeError:
+                self.malformed += 1
+            else:
+                self.sentences += 1
+                out.append(sentence)
+        elif not self._prefix_blank:
+            self.malformed += 1
+        self._new_line()

@@ -332,6 +332,8 @@ class SimServo:
         self.injected_errors: list[int] = []
         """Error numbers put in the next status packets (the instruction is refused)."""
         self.instructions = 0
+        self.crc_errors = 0
+        """Instructions to this servo that failed their CRC (answered with CRC_ERROR)."""
         self.reboots = 0
 
     # -- control table ---------------------------------------------------------------
@@ -558,6 +560,26 @@ class SimServo:
             return False
         return level >= (1 if isinstance(msg, dx.Read) else 2)
 
+    def handle_corrupt(self, packet: dx.CorruptPacket) -> dx.Status | None:
+        """An instruction that failed its CRC: CRC_ERROR if it was addressed to this servo.
+
+        Nothing is executed. Like any status, the reply obeys Status Return Level
+        (judged from the instruction byte as received); broadcasts get no reply.
+        """
+        if not self.responsive or self.clock.now_ns() < self._booting_until:
+            return None
+        if packet.id != self.id or packet.instruction == dx.Instruction.STATUS:
+            return None
+        self.crc_errors += 1
+        level = self.table[X.STATUS_RETURN_LEVEL.address]
+        if packet.instruction == dx.Instruction.PING:
+            needed = 0
+        else:
+            needed = 1 if packet.instruction == dx.Instruction.READ else 2
+        if level < needed:
+            return None
+        return self._status(dx.ErrorNumber.CRC_ERROR)
+
     def handle(self, msg: dx.DynamixelMessage) -> dx.Status | None:
         """Execute one instruction; the status to send back, if any."""
         if not self.responsive or self.clock.now_ns() < self._booting_until:
@@ -631,6 +653,11 @@ class SimDynamixelBus(_PtyPeer):
         """Instructions whose replies are dropped (lost on the wire)."""
         self.corrupt_replies = 0
         """Replies sent with a corrupted CRC byte."""
+        self.corrupt_requests = 0
+        """Instruction packets still to be received as if damaged on the wire (CRC fails)."""
+        self.corrupt_instructions = 0
+        """Packets from the driver that failed their CRC (answered with CRC_ERROR when
+        addressed to a servo)."""
         self.replies = 0
 
     def __getitem__(self, dxl_id: int) -> SimServo:
@@ -647,13 +674,22 @@ class SimDynamixelBus(_PtyPeer):
             data = await self.pty.read()
             if self.keep_log:
                 self.received += data
-            for msg in parser.feed(data):
-                if self.keep_log:
+            for msg in parser.feed_all(data):
+                if self.corrupt_requests and not isinstance(msg, dx.CorruptPacket):
+                    self.corrupt_requests -= 1  # damaged on the wire: the CRC fails
+                    packet = dx.encode(msg)
+                    msg = dx.CorruptPacket(packet[4], packet[7], len(packet) - 7)
+                if isinstance(msg, dx.CorruptPacket):
+                    self.corrupt_instructions += 1
+                elif self.keep_log:
                     self.instructions.append(msg)
                 await self._answer(msg)
 
-    async def _answer(self, msg: dx.DynamixelMessage) -> None:
-        if isinstance(msg, dx.SyncRead):
+    async def _answer(self, msg: dx.DynamixelMessage | dx.CorruptPacket) -> None:
+        if isinstance(msg, dx.CorruptPacket):
+            servo = self.servos.get(msg.id)
+            order = [] if servo is None else [servo]
+        elif isinstance(msg, dx.SyncRead):
             order = [self.servos[i] for i in msg.ids if i in self.servos]
         elif isinstance(msg, dx.SyncWrite) or getattr(msg, "id", None) == dx.BROADCAST_ID:
             order = list(self.servos.values())
@@ -663,7 +699,10 @@ class SimDynamixelBus(_PtyPeer):
         replies: list[bytes] = []
         delay_units = 0
         for servo in order:
-            status = servo.handle(msg)
+            if isinstance(msg, dx.CorruptPacket):
+                status = servo.handle_corrupt(msg)
+            else:
+                status = servo.handle(msg)
             if status is not None:
                 replies.append(dx.encode(status))
                 delay_units += servo.table[X.RETURN_DELAY_TIME.address]

@@ -13,7 +13,9 @@ Timeouts and retries: a transaction waits for its status packets for
 are requested again up to ``retries`` times (a SYNC READ asks only the servos that did
 not answer), then :class:`~openel_serial.errors.DynamixelTimeoutError` is raised. A
 status with an error number raises :class:`~openel_serial.errors.DynamixelStatusError`
-at once (the servo answered: retrying would not help); the alert bit raises
+at once (the servo answered: retrying would not help), except CRC_ERROR (the servo
+received the instruction damaged and did not execute it): that instruction is sent
+again like a missing status, within the same ``retries``; the alert bit raises
 :class:`~openel_serial.errors.DynamixelHardwareAlert` with Hardware Error Status read.
 
 Reception: bytes from the port feed a :class:`~openel_serial.dynamixel.PacketParser`
@@ -139,6 +141,8 @@ class PortStats:
     poll_misses: int = 0
     reconnects: int = 0
     losses: int = 0
+    crc_rejected: int = 0
+    """Statuses with CRC_ERROR: a servo received the instruction damaged (it was resent)."""
 
 
 class PortClient(Protocol):
@@ -486,13 +490,23 @@ class DynamixelPort:
                 self._log.debug("dxl_retry", request=what, ids=remaining, attempt=attempt)
             got = await self._exchange(make_packet(remaining), remaining, param_length)
             result.update(got)
-            remaining = [i for i in remaining if i not in got]
+            # CRC_ERROR: the instruction was damaged on the wire and not executed: resend it.
+            garbled = [i for i, s in got.items() if s.error_number == dx.ErrorNumber.CRC_ERROR]
+            if garbled:
+                self.stats.crc_rejected += len(garbled)
+                self._log.debug("dxl_crc_rejected", request=what, ids=garbled)
+            remaining = [i for i in remaining if i not in got or i in garbled]
             if not remaining:
                 break
         else:
-            self.stats.timeouts += 1
+            missing = [i for i in remaining if i not in result]
+            if missing:
+                self.stats.timeouts += 1
             self._log.warning(
-                "dxl_no_status", request=what, ids=remaining, attempts=self.retries + 1
+                "dxl_no_status" if missing else "dxl_crc_rejected_every_attempt",
+                request=what,
+                ids=remaining,
+                attempts=self.retries + 1,
             )
         return result
 
