@@ -198,14 +198,6 @@ def _without(text: str, fragment: str) -> str:
         ),
         (
             MINIMAL.replace(
-                "</rtc:RtcProfile>",
-                '<rtc:Language xsi:type="rtcExt:language_ext" rtc:kind="C++"/></rtc:RtcProfile>',
-            ),
-            "rtcProfile.language.rtcExt::targets",
-            "required field missing",
-        ),
-        (
-            MINIMAL.replace(
                 'rtc:defaultValue="1.5"/>',
                 'rtc:defaultValue="1.5"><rtc:Constraint><rtc:ConstraintUnitType>'
                 "<rtc:propertyIsLessThan/></rtc:ConstraintUnitType></rtc:Constraint>"

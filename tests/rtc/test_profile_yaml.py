@@ -298,12 +298,6 @@ def _set(path: tuple[Any, ...], value: Any) -> Any:
             "rtcProfile.dataPorts[0].rtcExt::position",
             "required field missing",
         ),
-        (
-            ("language",),
-            {"kind": "Python", "rtcExt::targets": []},
-            "rtcProfile.language.rtcExt::targets",
-            "required field missing",
-        ),
     ],
 )
 def test_bad_fields_name_the_path(

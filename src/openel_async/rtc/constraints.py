@@ -56,8 +56,10 @@ __all__ = [
     "describe",
     "format_constraint",
     "is_unit",
+    "MAX_INT_DIGITS",
     "parse_bool",
     "parse_constraint",
+    "parse_int",
     "parse_number",
     "scalar_text",
 ]
@@ -81,13 +83,17 @@ class ConstraintError(ValueError):
         self.message = message
 
 
+_SHOWN = 80  # characters of a bad constraint text quoted in its error message
+
+
 class ConstraintSyntaxError(ConstraintError):
     """The text form could not be parsed; ``position`` is a 0-based index into ``text``."""
 
     def __init__(self, text: str, position: int, expected: str, problem: str | None = None) -> None:
         found = repr(text[position]) if position < len(text) else "end of input"
         detail = problem if problem is not None else f"expected {expected}, got {found}"
-        super().__init__(f"invalid constraint {text!r}: position {position}: {detail}")
+        shown = text if len(text) <= _SHOWN else text[:_SHOWN] + "..."
+        super().__init__(f"invalid constraint {shown!r}: position {position}: {detail}")
         self.text = text
         self.position = position
         self.expected = expected
@@ -113,11 +119,34 @@ _TRUE_WORDS = frozenset({"true", "1", "yes", "on"})
 _FALSE_WORDS = frozenset({"false", "0", "no", "off"})
 
 
+# Python refuses to convert decimal strings of more than 4300 digits to int
+# (sys.int_info.default_max_str_digits); stay below that everywhere.
+MAX_INT_DIGITS = 4000
+
+
+def parse_int(text: str) -> int | None:
+    """The integer a decimal literal denotes, or None (also for more than
+    ``MAX_INT_DIGITS`` significant digits: such text is refused, never a crash)."""
+    s = text.strip()
+    if not _INTEGER.fullmatch(s):
+        return None
+    if len(s.lstrip("+-").lstrip("0")) > MAX_INT_DIGITS:
+        return None
+    return int(s)
+
+
 def parse_number(text: str) -> int | float | None:
-    """The number a literal denotes (decimal notation only), or None."""
+    """The number a literal denotes (decimal notation only), or None.
+
+    The one guarded number parser of profiles, constraints and configuration: an
+    integer literal too long for ``int`` (more than ``MAX_INT_DIGITS`` digits) is read
+    as a float (``inf`` for such magnitudes), so comparisons stay correct and nothing
+    raises.
+    """
     s = text.strip()
     if _INTEGER.fullmatch(s):
-        return int(s)
+        value = parse_int(s)
+        return value if value is not None else float(s)
     if _NUMBER.fullmatch(s):
         return float(s)
     return None
@@ -525,12 +554,20 @@ _LITERAL_STOP = frozenset(",(){}<>=:")
 _ITEM_STOP = frozenset(",(){}")
 _UPPER_OPS = {"<": LessThan, "<=": LessThanOrEqualTo}
 _LOWER_OPS = {"<": GreaterThan, "<=": GreaterThanOrEqualTo}
+_ASCENDING = ("<", "<=")
+_DESCENDING = (">", ">=", "=>")
+# A descending operator as the ascending one with the sides swapped.
+_FLIP = {">": "<", ">=": "<=", "=>": "<="}
 _X_OPS: dict[str, type[_Comparison]] = {
     "<": LessThan,
     "<=": LessThanOrEqualTo,
     ">": GreaterThan,
     ">=": GreaterThanOrEqualTo,
 }
+
+
+def _clip(text: str) -> str:
+    return text if len(text) <= _SHOWN else text[:_SHOWN] + "..."
 
 
 class _Parser:
@@ -560,7 +597,7 @@ class _Parser:
 
     def read_op(self, allowed: Sequence[str]) -> str:
         two = self.text[self.pos : self.pos + 2]
-        op = two if two in ("<=", ">=") else self.peek()
+        op = two if two in ("<=", ">=", "=>") else self.peek()
         if op not in allowed:
             raise self.error(" or ".join(repr(a) for a in allowed))
         self.pos += len(op)
@@ -600,8 +637,10 @@ class _Parser:
         if self.peek() == "x" and self.text[self.ws_end(self.pos + 1) :][:1] in ("<", ">"):
             return self.parse_comparison()
         number = _NUMBER.match(self.text, self.pos)
-        if number is not None and self.text[self.ws_end(number.end()) :][:1] == "<":
-            return self.parse_range(number.group())
+        if number is not None:
+            after = self.text[self.ws_end(number.end()) :][:2]
+            if after[:1] in ("<", ">") or after == "=>":
+                return self.parse_range(number.group())
         literal = self.read_until(_LITERAL_STOP)
         if not literal:
             raise self.error("a constraint (a value, 'x<op>number', 'a<x<b' or '(a,b,...)')")
@@ -617,26 +656,46 @@ class _Parser:
         self.skip_ws()
         return _X_OPS[op](self.read_number())
 
-    def parse_range(self, lower: str) -> Constraint:
+    def parse_range(self, first: str) -> Constraint:
+        """``a<x``, ``a<=x``, ``a<x<b`` ... (ascending) or ``a>x``, ``a>=x``, ``a=>x``,
+        ``a>x>b`` ... (descending, as OpenRTP reads them)."""
         start = self.pos
-        self.pos += len(lower)
+        self.pos += len(first)
         self.skip_ws()
-        low_op = self.read_op(list(_LOWER_OPS))
+        op1 = self.read_op(["<", "<=", ">", ">=", "=>"])
+        ascending = op1 in _ASCENDING
         self.skip_ws()
         if self.peek() != "x":
             raise self.error("'x'")
         self.pos += 1
         self.skip_ws()
-        high_op = self.read_op(list(_UPPER_OPS))
+        follow = _ASCENDING if ascending else _DESCENDING
+        two = self.text[self.pos : self.pos + 2]
+        if self.peek() not in follow and two not in follow:
+            # One bound only: "a<x" is x > a, "a>x" is x < a.
+            if ascending:
+                return _LOWER_OPS[op1](first)
+            return _UPPER_OPS[_FLIP[op1]](first)
+        op2 = self.read_op(list(follow))
         self.skip_ws()
-        upper = self.read_number()
+        second = self.read_number()
+        if ascending:
+            lower, low_op, upper, high_op = first, op1, second, op2
+        else:
+            lower, low_op, upper, high_op = second, _FLIP[op2], first, _FLIP[op1]
         lo, hi = parse_number(lower), parse_number(upper)
         if lo is not None and hi is not None and lo > hi:
             self.pos = start
-            raise self.error("a range", f"lower bound {lower} is greater than upper bound {upper}")
+            raise self.error(
+                "a range",
+                f"lower bound {_clip(lower)} is greater than upper bound {_clip(upper)}",
+            )
         if low_op == "<=" and high_op == "<=":
             return Between(lower, upper)
-        return And((_LOWER_OPS[low_op](lower), _UPPER_OPS[high_op](upper)))
+        if ascending:
+            return And((_LOWER_OPS[low_op](lower), _UPPER_OPS[high_op](upper)))
+        # OpenRTP keeps the written order: "100>x>0" is x<100 and x>0.
+        return And((_UPPER_OPS[high_op](upper), _LOWER_OPS[low_op](lower)))
 
     def parse_enumeration(self) -> Constraint:
         self.pos += 1
@@ -702,6 +761,12 @@ def _format_unit(c: Constraint) -> str:
         ):
             low_op = "<" if isinstance(low, GreaterThan) else "<="
             return f"{low.literal}{low_op}x{high.op}{high.literal}"
+        high, low = c.children
+        if isinstance(high, LessThan | LessThanOrEqualTo) and isinstance(
+            low, GreaterThan | GreaterThanOrEqualTo
+        ):
+            high_op = ">" if isinstance(high, LessThan) else ">="
+            return f"{high.literal}{high_op}x{low.op}{low.literal}"
     raise ConstraintFormatError(f"{_describe(c)} has no text form")
 
 
@@ -817,6 +882,12 @@ def _yaml_map(data: object, path: str, allowed: Sequence[str] | None = None) -> 
 
 
 def _yaml_seq(data: object, path: str) -> list[object]:
+    """The children of and/or/constraintList/constraintHash: a sequence, or RTCBuilder's
+    wrapping mapping ``{constraint: [...]}`` (the XML's Constraint children)."""
+    if isinstance(data, Mapping) and len(data) == 1 and "constraint" in data:
+        data = data["constraint"]
+        if isinstance(data, Mapping):
+            data = [data]  # one child written as the child itself
     if isinstance(data, Sequence) and not isinstance(data, str):
         return list(data)
     raise ConstraintError(f"expected a sequence, got {type(data).__name__}", path)

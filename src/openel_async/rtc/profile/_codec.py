@@ -13,11 +13,11 @@ from __future__ import annotations
 import re
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
-from datetime import date, datetime
+from datetime import date, datetime, timedelta, timezone
 from enum import StrEnum
 from typing import Any, TypeVar
 
-from ..constraints import Constraint, parse_bool, parse_number
+from ..constraints import Constraint, parse_bool, parse_int, parse_number
 from .errors import ProfileError
 from .model import (
     ACTION_KEYS,
@@ -132,7 +132,6 @@ class Sink(ABC):
 
 # --- scalar conversion -------------------------------------------------------------
 
-_INTEGER = re.compile(r"\s*[+-]?\d+\s*")
 _E = TypeVar("_E", bound=StrEnum)
 
 
@@ -191,9 +190,16 @@ def opt_int(src: Source, key: str) -> int | None:
         return None
     if isinstance(raw, int) and not isinstance(raw, bool):
         return raw
-    if isinstance(raw, str) and _INTEGER.fullmatch(raw):
-        return int(raw)
-    raise ProfileError(path, f"expected an integer, got {raw!r}")
+    value = parse_int(raw) if isinstance(raw, str) else None
+    if value is None:
+        raise ProfileError(path, f"expected an integer, got {_shown(raw)}")
+    return value
+
+
+def _shown(raw: object) -> str:
+    """repr of a bad value for a one-line message (long text clipped)."""
+    text = repr(raw)
+    return text if len(text) <= 80 else text[:80] + "..."
 
 
 def opt_float(src: Source, key: str) -> float | None:
@@ -205,7 +211,7 @@ def opt_float(src: Source, key: str) -> float | None:
         return float(raw)
     number = parse_number(raw) if isinstance(raw, str) else None
     if number is None:
-        raise ProfileError(path, f"expected a number, got {raw!r}")
+        raise ProfileError(path, f"expected a number, got {_shown(raw)}")
     return float(number)
 
 
@@ -223,10 +229,68 @@ def req_bool(src: Source, key: str) -> bool:
 
 
 _DATE_PARTS = ("year", "month", "day", "hour", "minute", "second")
+# RTCBuilder's YAML export adds XMLGregorianCalendar's fields to the mapping.
+_DATE_EXTRA = ("fractionalSecond", "millisecond", "timezone")
+_TZ_UNDEFINED = -2147483648  # javax.xml.datatype.DatatypeConstants.FIELD_UNDEFINED
+_FRACTION = re.compile(r"\s*0*(?:\.(\d*))?\s*")
+
+
+def _date_int(value: object, path: str) -> int:
+    if isinstance(value, str):
+        parsed = parse_int(value)
+        if parsed is not None:
+            return parsed
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value
+    raise ProfileError(path, f"expected an integer, got {_shown(value)}")
+
+
+def _date_from_mapping(raw: Mapping[Any, Any], path: str) -> datetime:
+    unknown = [k for k in raw if k not in _DATE_PARTS + _DATE_EXTRA]
+    if unknown:
+        raise ProfileError(f"{path}.{unknown[0]}", "unknown date field")
+    parts: list[int] = []
+    for part in _DATE_PARTS:
+        value = raw.get(part)
+        if value is None:
+            raise ProfileError(f"{path}.{part}", "required field missing")
+        parts.append(_date_int(value, f"{path}.{part}"))
+    micro: int | None = None
+    fraction = raw.get("fractionalSecond")
+    if fraction is not None:
+        m = _FRACTION.fullmatch(fraction) if isinstance(fraction, str) else None
+        if m is None:
+            raise ProfileError(
+                f"{path}.fractionalSecond", f"expected a fraction 0.xxx, got {_shown(fraction)}"
+            )
+        micro = int(((m.group(1) or "") + "000000")[:6])
+    millis = raw.get("millisecond")
+    if millis is not None:
+        ms = _date_int(millis, f"{path}.millisecond")
+        if not 0 <= ms <= 999:
+            raise ProfileError(f"{path}.millisecond", f"expected 0..999, got {ms}")
+        if micro is None:
+            micro = ms * 1000
+        elif micro // 1000 != ms:
+            raise ProfileError(f"{path}.millisecond", "disagrees with fractionalSecond")
+    tz: timezone | None = None
+    zone = raw.get("timezone")
+    if zone is not None:
+        minutes = _date_int(zone, f"{path}.timezone")
+        if minutes != _TZ_UNDEFINED:
+            if not -14 * 60 <= minutes <= 14 * 60:
+                raise ProfileError(f"{path}.timezone", f"expected minutes -840..840, got {minutes}")
+            tz = timezone(timedelta(minutes=minutes))
+    try:
+        year, month, day, hour, minute, second = parts
+        return datetime(year, month, day, hour, minute, second, micro or 0, tzinfo=tz)
+    except (ValueError, OverflowError) as e:
+        raise ProfileError(path, f"invalid date: {e}") from None
 
 
 def req_datetime(src: Source, key: str) -> datetime:
-    """xsd:dateTime text, or the YAML mapping of year..second (§3.2.1)."""
+    """xsd:dateTime text, or the YAML mapping of year..second (§3.2.1) with
+    RTCBuilder's optional fractionalSecond, millisecond and timezone (minutes)."""
     path = f"{src.path}.{key}"
     raw = src.raw(key)
     if raw is None:
@@ -239,26 +303,11 @@ def req_datetime(src: Source, key: str) -> datetime:
         try:
             return datetime.fromisoformat(raw.strip())
         except ValueError:
-            raise ProfileError(path, f"expected an ISO 8601 date-time, got {raw!r}") from None
+            raise ProfileError(
+                path, f"expected an ISO 8601 date-time, got {_shown(raw)}"
+            ) from None
     if isinstance(raw, Mapping):
-        parts: list[int] = []
-        for part in _DATE_PARTS:
-            value = raw.get(part)
-            if value is None:
-                raise ProfileError(f"{path}.{part}", "required field missing")
-            if isinstance(value, str) and _INTEGER.fullmatch(value):
-                value = int(value)
-            if not isinstance(value, int) or isinstance(value, bool):
-                raise ProfileError(f"{path}.{part}", f"expected an integer, got {value!r}")
-            parts.append(value)
-        unknown = [k for k in raw if k not in _DATE_PARTS]
-        if unknown:
-            raise ProfileError(f"{path}.{unknown[0]}", "unknown date field")
-        try:
-            year, month, day, hour, minute, second = parts
-            return datetime(year, month, day, hour, minute, second)
-        except (ValueError, OverflowError) as e:
-            raise ProfileError(path, f"invalid date: {e}") from None
+        return _date_from_mapping(raw, path)
     raise ProfileError(path, f"expected a date-time, got {_kind(raw)}")
 
 
@@ -335,9 +384,12 @@ def _write_doc(sink: Sink, doc: object) -> None:
 
 
 def _read_properties(src: Source) -> tuple[Property, ...]:
+    # The spec's YAML says rtcExt::property, RTCBuilder writes rtcExt::properties (the
+    # XML element is Properties for both): read both.
+    items = src.children("rtcExt::property") or src.children("rtcExt::properties")
     return tuple(
         Property(name=req_str(p, "name"), value=opt_str(p, "value"), extra=p.extras())
-        for p in src.children("rtcExt::property")
+        for p in items
     )
 
 
@@ -447,9 +499,15 @@ def _read_configuration(src: Source) -> ConfigurationProfile:
     )
 
 
-_DATA_PORT_EXT = ("rtcExt::position", "rtcExt::comment", "rtcExt::variableName", "rtcExt::property")
-_SERVICE_PORT_EXT = ("rtcExt::position", "rtcExt::comment", "rtcExt::property")
-_LANGUAGE_EXT = ("rtcExt::targets", "rtcExt::property")
+_DATA_PORT_EXT = (
+    "rtcExt::position",
+    "rtcExt::comment",
+    "rtcExt::variableName",
+    "rtcExt::property",
+    "rtcExt::properties",
+)
+_SERVICE_PORT_EXT = ("rtcExt::position", "rtcExt::comment", "rtcExt::property", "rtcExt::properties")
+_LANGUAGE_EXT = ("rtcExt::targets", "rtcExt::property", "rtcExt::properties")
 
 
 def _read_data_port(src: Source) -> DataPortProfile:
@@ -520,10 +578,12 @@ def _read_language(src: Source) -> Language:
     kind = req_str(src, "kind")
     ext = None
     if has_ext:
+        # OpenRTP's schema makes targets optional (spec 0.2 required one); RTCBuilder
+        # writes a bare <rtc:Language xsi:type="rtcExt:language_ext" rtc:kind="C++"/>.
         targets = tuple(_read_target(t) for t in src.children("rtcExt::targets"))
-        if not targets:
-            raise ProfileError(f"{src.path}.rtcExt::targets", "required field missing")
-        ext = LanguageExt(targets=targets, properties=_read_properties(src))
+        properties = _read_properties(src)
+        if targets or properties:
+            ext = LanguageExt(targets=targets, properties=properties)
     return Language(kind=kind, ext=ext, extra=src.extras())
 
 

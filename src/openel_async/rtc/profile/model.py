@@ -20,7 +20,7 @@ from datetime import datetime
 from enum import StrEnum
 from typing import TypeAlias
 
-from ..constraints import Constraint
+from ..constraints import MAX_INT_DIGITS, Constraint
 from .errors import ProfileError
 
 ExtraValue: TypeAlias = (
@@ -51,6 +51,8 @@ class PortType(StrEnum):
 
     DATA_IN_PORT = "DataInPort"
     DATA_OUT_PORT = "DataOutPort"
+    EVENT_PORT = "EventPort"
+    """Event port of finite-state-machine components (OpenRTP's RtcProfile_basic.xsd)."""
 
 
 class InterfaceDirection(StrEnum):
@@ -230,7 +232,8 @@ class TargetEnvironment:
 
 @dataclass(frozen=True, kw_only=True)
 class LanguageExt:
-    """language_ext: one or more target environments."""
+    """language_ext: target environments and properties (OpenRTP's schema makes both
+    optional; an ext with neither is None)."""
 
     targets: tuple[TargetEnvironment, ...]
     properties: tuple[Property, ...] = ()
@@ -476,7 +479,7 @@ def _unique(names: Sequence[tuple[str, str]], what: str) -> None:
 def validate_profile(profile: RtcProfile) -> None:
     """Check the rules of the spec that the types cannot: names without whitespace,
     vendor/version without ':' (they are parts of the id), unique names, finite rate,
-    and a target in every language_ext.  Raises ProfileError naming the field."""
+    a maxInstances that can be written.  Raises ProfileError naming the field."""
     root = "rtcProfile"
     b = profile.basic_info
     _no_space(f"{root}.basicInfo.vendor", b.vendor, ":")
@@ -508,6 +511,12 @@ def validate_profile(profile: RtcProfile) -> None:
         for path, name in ifs:
             _no_space(path, name)
         _unique(ifs, "service interface")
+    if b.max_instances is not None and abs(b.max_instances) >= 10**MAX_INT_DIGITS:
+        raise ProfileError(f"{root}.basicInfo.maxInstances", f"more than {MAX_INT_DIGITS} digits")
     lang = profile.language
     if lang is not None and lang.ext is not None and not lang.ext.targets:
-        raise ProfileError(f"{root}.language.rtcExt::targets", "required field missing")
+        if not lang.ext.properties:
+            # Read back as no ext at all: refuse rather than change on a round trip.
+            raise ProfileError(
+                f"{root}.language.rtcExt::targets", "an empty language_ext (use ext=None)"
+            )
