@@ -51,6 +51,7 @@ from ..motion import (
     Waypoint,
 )
 from .arm_demo import (
+    MAX_DURATION_S,
     ArmOptions,
     Artifacts,
     UnreachableError,
@@ -69,6 +70,7 @@ from .arm_demo import (
     save_snapshot,
     times_text,
 )
+from .interrupt import atomic_output
 from .progress import LiveLine
 
 if TYPE_CHECKING:
@@ -106,6 +108,8 @@ DEFAULT_PERIOD_MS = 2.0
 DEFAULT_SIDE_M = 0.15
 DEFAULT_CENTER_M = (0.35, 0.0)
 DEFAULT_POINTS = 16
+MAX_POINTS = 1000
+"""Most IK waypoints per edge (``--points``)."""
 LIMITS = AxisLimits(max_velocity=2.5, max_acceleration=15.0, max_jerk=200.0)
 """Group limits (rad, s) of the approach move."""
 EDGE_LIMITS = AxisLimits(max_velocity=3.0, max_acceleration=60.0, max_jerk=3000.0)
@@ -461,8 +465,8 @@ async def run_square(
         title=f"arm2 square: commanded vs actual joint positions ({sim.pacing})",
     )
     tip_plot = out_dir / f"{APP}_tip.png"
-    with anyio.fail_after(60):
-        await anyio.to_thread.run_sync(lambda: plot_tip_path(tip_plot, result))
+    with anyio.fail_after(60), atomic_output(tip_plot) as partial:
+        await anyio.to_thread.run_sync(lambda: plot_tip_path(partial, result))
     result.artifacts.extra.append(("tip path plot", tip_plot))
     return result
 
@@ -591,12 +595,17 @@ def build_parser(prog: str = "arm2_square") -> argparse.ArgumentParser:
 
 
 def square_from(args: argparse.Namespace, lap_s: float) -> SquareOptions:
-    if args.laps < 1:
-        raise ValueError(f"--laps must be >= 1, not {args.laps}")
-    if args.points < 1:
-        raise ValueError(f"--points must be >= 1, not {args.points}")
+    if not (args.laps >= 1 and args.laps * lap_s <= MAX_DURATION_S):
+        raise ValueError(
+            f"--laps must be >= 1, with --laps x --duration at most {MAX_DURATION_S:g} s, "
+            f"not {args.laps} x {lap_s:g} s"
+        )
+    if not 1 <= args.points <= MAX_POINTS:
+        raise ValueError(f"--points must be from 1 to {MAX_POINTS}, not {args.points}")
     if not (math.isfinite(args.side) and args.side > 0):
         raise ValueError(f"--side must be > 0 m, not {args.side}")
+    if not all(math.isfinite(v) for v in args.center):
+        raise ValueError(f"--center must be two finite numbers of m, not {args.center}")
     return SquareOptions(
         lap_s=lap_s,
         laps=args.laps,

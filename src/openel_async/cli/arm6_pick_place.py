@@ -607,6 +607,8 @@ async def main(argv: list[str]) -> int:
     args = build_parser().parse_args(argv)
     try:
         options = options_from(args, APP)
+        if not all(math.isfinite(v) for v in args.place):
+            raise ValueError(f"--place must be two finite numbers of m, not {args.place}")
         sim = open_sim(realtime=options.realtime)
     except ValueError as exc:  # a bad option, or the model failed to load
         print(f"{APP}: {exc}", file=sys.stderr)

@@ -41,6 +41,7 @@ from ..actuator import Actuator
 from ..errors import HALError
 from ..motion import AxisGroup, AxisLimits, GroupMotion, Tolerances, TrajectorySamples, Waypoint
 from ..timer import EventTimer
+from .interrupt import atomic_output
 from .progress import LiveLine
 
 if TYPE_CHECKING:
@@ -55,6 +56,13 @@ LOG_MARGIN_S = 30.0
 RENDER_TIMEOUT_S = 60.0
 """Real-time bound on one snapshot (the first one initializes OpenGL: ~0.3-3 s)."""
 PLOT_TIMEOUT_S = 60.0
+PHYSICS_STEP_MS = 1.0
+"""The arm models' physics step: ``--period-ms`` is a whole multiple of it."""
+MAX_PERIOD_MS = 100.0
+"""Longest ``--period-ms``: a coarser group period no longer follows the planned paths."""
+MAX_DURATION_S = 600.0
+"""Longest ``--duration`` (and square laps in all): the group's log holds the whole run, and a
+lockstep run must end in minutes."""
 
 
 class UnreachableError(ValueError):
@@ -114,19 +122,55 @@ def add_common_arguments(
 
 def options_from(args: argparse.Namespace, app: str) -> ArmOptions:
     """Validated :class:`ArmOptions`; raises ``ValueError`` with a message for the user."""
-    duration = float(args.duration)
-    if not (math.isfinite(duration) and duration > 0):
-        raise ValueError(f"--duration must be a number of seconds > 0, not {args.duration}")
-    period = float(args.period_ms)
-    if not (math.isfinite(period) and period > 0):
-        raise ValueError(f"--period-ms must be > 0, not {args.period_ms}")
+    out_dir = output_dir(app, args.out)
+    check_out_dir(out_dir)
     return ArmOptions(
-        duration=duration,
+        duration=check_duration(args.duration),
         realtime=bool(args.realtime),
-        out_dir=output_dir(app, args.out),
+        out_dir=out_dir,
         live=not args.no_live,
-        period_ms=period,
+        period_ms=check_period_ms(args.period_ms),
     )
+
+
+def check_duration(duration: float) -> float:
+    """``--duration``: a finite number of seconds, 0 < S <= :data:`MAX_DURATION_S`."""
+    if not (math.isfinite(duration) and 0 < duration <= MAX_DURATION_S):
+        raise ValueError(
+            f"--duration must be a number of seconds > 0 and <= {MAX_DURATION_S:g}, not {duration}"
+        )
+    return float(duration)
+
+
+def check_period_ms(period_ms: float) -> float:
+    """``--period-ms``: a whole multiple of the :data:`PHYSICS_STEP_MS` physics step, at most
+    :data:`MAX_PERIOD_MS`."""
+    steps = period_ms / PHYSICS_STEP_MS if math.isfinite(period_ms) else math.nan
+    if not (math.isfinite(steps) and steps >= 1 and steps == round(steps)) or not (
+        period_ms <= MAX_PERIOD_MS
+    ):
+        raise ValueError(
+            f"--period-ms must be a whole multiple of the {PHYSICS_STEP_MS:g} ms physics step "
+            f"from {PHYSICS_STEP_MS:g} to {MAX_PERIOD_MS:g} ms, not {period_ms}"
+        )
+    return float(period_ms)
+
+
+def check_out_dir(out_dir: Path) -> None:
+    """``--out``: a directory, or a path where one can be created; raises ``ValueError``
+    naming the obstacle (an existing file, a parent that is a file or not writable)."""
+    if out_dir.exists():
+        if not out_dir.is_dir():
+            raise ValueError(f"--out {out_dir}: exists and is not a directory")
+        existing = out_dir
+    else:
+        existing = out_dir.absolute().parent
+        while not existing.exists():
+            existing = existing.parent
+        if not existing.is_dir():
+            raise ValueError(f"--out {out_dir}: {existing} is a file, not a directory")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"--out {out_dir}: {existing} is not writable")
 
 
 def output_dir(app: str, out: str | os.PathLike[str] | None = None) -> Path:
@@ -233,9 +277,12 @@ async def save_snapshot(
     if _rendering_disabled():
         return None, "rendering disabled (MUJOCO_GL=" + os.environ.get("MUJOCO_GL", "") + ")"
     try:
-        with anyio.fail_after(RENDER_TIMEOUT_S):
+        with anyio.fail_after(RENDER_TIMEOUT_S), atomic_output(path) as partial:
             async with sim.paused():
-                written = await sim.render_snapshot(path, width=width, height=height, camera=camera)
+                rendered = await sim.render_snapshot(
+                    partial, width=width, height=height, camera=camera
+                )
+        written = None if rendered is None else path
     except TimeoutError:
         reason = f"rendering took longer than {RENDER_TIMEOUT_S:g} s"
     except Exception as exc:  # a renderer error must not lose the run's other results
@@ -266,8 +313,9 @@ async def preload_plotting() -> None:
 async def save_plot(recorder: TrajectoryRecorder, path: Path, *, title: str) -> Path:
     """``recorder.plot`` in a worker thread (matplotlib takes ~0.2-1 s); the recorder must be
     detached from the simulation (nothing appends to it meanwhile)."""
-    with anyio.fail_after(PLOT_TIMEOUT_S):
-        return await anyio.to_thread.run_sync(lambda: recorder.plot(path, title=title))
+    with anyio.fail_after(PLOT_TIMEOUT_S), atomic_output(path) as partial:
+        await anyio.to_thread.run_sync(lambda: recorder.plot(partial, title=title))
+    return path
 
 
 # -- synchronization --------------------------------------------------------------------------

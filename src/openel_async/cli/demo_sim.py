@@ -71,6 +71,17 @@ class DemoSummary:
             f"final positions    {self.final_positions[0]:+.4f}, {self.final_positions[1]:+.4f} rad",
         ]
 
+    def partial_lines(self) -> list[str]:
+        """What an interrupted demo did before it stopped."""
+        return [
+            f"timer ticks        {self.ticks} (missed {self.missed_ticks})",
+            f"setpoints sent     {self.setpoints}",
+            f"events             COMPLETED x{self.completed_events}, device-specific x{self.device_events}",
+            f"errors             {len(self.errors)} {self.errors if self.errors else ''}".rstrip(),
+            f"recoveries         {self.recoveries} (re_init)",
+            f"sensor reads       {self.sensor_reads}",
+        ]
+
 
 class Application:
     """The HALObserver and TimerObserver of the figures: the upper application."""
@@ -162,9 +173,14 @@ async def run_demo(
     inject_fault: bool = False,
     live: LiveLine | None = None,
     rig: RigFactory = sim_rig,
+    summary: DemoSummary | None = None,
 ) -> DemoSummary:
+    """Run the demo; ``summary`` (filled as the demo goes: the caller keeps what a cancelled
+    run did) or a new one is returned."""
     clock: Clock = VirtualClock() if virtual else MonotonicClock()
-    summary = DemoSummary(duration_s=duration_s)
+    if summary is None:
+        summary = DemoSummary(duration_s=duration_s)
+    summary.duration_s = duration_s
     async with AsyncExitStack() as stack:
         if isinstance(clock, VirtualClock):
             await stack.enter_async_context(clock.autojump())
@@ -200,52 +216,69 @@ async def _scenario(
         app.t0_ns = clock.now_ns()
         timer.add_observer(app)
         timer.start_timer()
-        end_ns = app.t0_ns + round(summary.duration_s * NS_PER_S)
-        fault_at = app.t0_ns + (end_ns - app.t0_ns) // 2 if inject_fault else None
-        async with anyio.create_task_group() as tg:
-            if fault_at is not None:
-                tg.start_soon(_fault_and_recover, clock, fault_at, rig, app, summary)
-            # Fig. 7.8: read the sensors with their times, every 100 ms.
-            next_read = app.t0_ns
-            while clock.now_ns() < end_ns:
-                next_read += 100_000_000
-                await clock.sleep_until(min(next_read, end_ns))
-                timed = [await s.get_timed_value() for s in sensors]
-                summary.sensor_reads += len(timed)
-                skew = abs(timed[0].time_ns - timed[1].time_ns) / 1e3
-                summary.max_sensor_skew_us = max(summary.max_sensor_skew_us, skew)
-                if live is not None:
-                    live.update(
-                        f"t={(clock.now_ns() - app.t0_ns) / NS_PER_S:5.2f}s ticks={timer.stats.ticks} "
-                        f"q1={timed[0].values[0]:+.3f} rad T2={timed[1].values[0]:.2f} K "
-                        f"events={summary.completed_events} errors={len(summary.errors)}"
-                    )
-            tg.cancel_scope.cancel()
-        timer.stop_timer()
-        await timer.wait_idle()
-        # Bring both axes home in step and wait for their COMPLETED.
-        with anyio.fail_after(30):
-            for axis in axes:
-                if axis.state.value == "Error":
-                    await axis.re_init()
-            motions = [await axis.set_value(0.0, Request.POSITION) for axis in axes]
-            for motion in motions:
-                await motion
-            await anyio.lowlevel.checkpoint()
-        stats = timer.stats
-        summary.ticks = stats.ticks
-        summary.missed_ticks = stats.missed_ticks
-        summary.lateness_p50_us = stats.lateness.p50_ns / 1e3
-        summary.lateness_p99_us = stats.lateness.p99_ns / 1e3
-        summary.lateness_max_us = stats.lateness.max_ns / 1e3
-        summary.setpoints = app.setpoints
-        summary.max_tracking_error_rad = app.max_error
+        try:
+            await _run(clock, rig, app, timer, summary, inject_fault, live)
+        finally:  # also when cancelled (Ctrl-C): what the demo did so far
+            if live is not None:
+                live.finish()
+            stats = timer.stats
+            summary.ticks = stats.ticks
+            summary.missed_ticks = stats.missed_ticks
+            summary.lateness_p50_us = stats.lateness.p50_ns / 1e3
+            summary.lateness_p99_us = stats.lateness.p99_ns / 1e3
+            summary.lateness_max_us = stats.lateness.max_ns / 1e3
+            summary.setpoints = app.setpoints
+            summary.max_tracking_error_rad = app.max_error
         summary.final_positions = (
             await axes[0].get_value(Request.POSITION_ACTUAL),
             await axes[1].get_value(Request.POSITION_ACTUAL),
         )
-    if live is not None:
-        live.finish()
+
+
+async def _run(
+    clock: Clock,
+    rig: Rig,
+    app: Application,
+    timer: EventTimer,
+    summary: DemoSummary,
+    inject_fault: bool,
+    live: LiveLine | None,
+) -> None:
+    """Stream the setpoints and read the sensors for the demo's duration, then bring both
+    axes home."""
+    axes, sensors = rig.axes, rig.sensors
+    end_ns = app.t0_ns + round(summary.duration_s * NS_PER_S)
+    fault_at = app.t0_ns + (end_ns - app.t0_ns) // 2 if inject_fault else None
+    async with anyio.create_task_group() as tg:
+        if fault_at is not None:
+            tg.start_soon(_fault_and_recover, clock, fault_at, rig, app, summary)
+        # Fig. 7.8: read the sensors with their times, every 100 ms.
+        next_read = app.t0_ns
+        while clock.now_ns() < end_ns:
+            next_read += 100_000_000
+            await clock.sleep_until(min(next_read, end_ns))
+            timed = [await s.get_timed_value() for s in sensors]
+            summary.sensor_reads += len(timed)
+            skew = abs(timed[0].time_ns - timed[1].time_ns) / 1e3
+            summary.max_sensor_skew_us = max(summary.max_sensor_skew_us, skew)
+            if live is not None:
+                live.update(
+                    f"t={(clock.now_ns() - app.t0_ns) / NS_PER_S:5.2f}s ticks={timer.stats.ticks} "
+                    f"q1={timed[0].values[0]:+.3f} rad T2={timed[1].values[0]:.2f} K "
+                    f"events={summary.completed_events} errors={len(summary.errors)}"
+                )
+        tg.cancel_scope.cancel()
+    timer.stop_timer()
+    await timer.wait_idle()
+    # Bring both axes home in step and wait for their COMPLETED.
+    with anyio.fail_after(30):
+        for axis in axes:
+            if axis.state.value == "Error":
+                await axis.re_init()
+        motions = [await axis.set_value(0.0, Request.POSITION) for axis in axes]
+        for motion in motions:
+            await motion
+        await anyio.lowlevel.checkpoint()
 
 
 async def _fault_and_recover(

@@ -2,23 +2,30 @@
 
 - ``validate FILE [--implementation]``: load and validate the profile, check every
   configuration default against its constraint and the execution type and rate; with
-  ``--implementation`` also import the component class the profile names.
+  ``--implementation`` also import the component class the profile names, which
+  *executes* that module's code (only ``--implementation`` does: without it no code of
+  the profile runs).
 - ``show FILE``: a readable summary (identity, execution, actions, configuration,
   ports, implementation).
 - ``convert FILE [OUT] [--to yaml|xml]``: rewrite the profile in the form OUT's suffix
-  names, or print it (in the other form unless ``--to`` says) when OUT is omitted.
+  names, or print it (in the other form unless ``--to`` says) when OUT is omitted. OUT's
+  suffix and folder are checked before FILE is read; OUT is written whole or not at all.
 
-Exit status: 0 on success, 1 when the profile is invalid or cannot be written.
+Exit status: 0 on success, 1 when the profile is invalid or OUT cannot be written (the
+message names the file at fault).
 """
 
 from __future__ import annotations
 
 import argparse
 import inspect
+import os
 import sys
 from pathlib import Path
 
 __all__ = ["add_parser", "run"]
+
+OUT_SUFFIXES = (".yaml", ".yml", ".xml")
 
 
 def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -32,13 +39,20 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
     validate.add_argument(
         "--implementation",
         action="store_true",
-        help="also import the component class the profile names",
+        help="also import the component class the profile names: this EXECUTES the Python "
+        "module its 'implementation' parameter names (next to the profile, or installed); "
+        "use it only on profiles you trust",
     )
     show = actions.add_parser("show", help="print a summary of a profile")
     show.add_argument("file", help="RTC Profile (.yaml, .yml or .xml)")
     convert = actions.add_parser("convert", help="rewrite a profile as YAML or XML")
     convert.add_argument("file", help="RTC Profile (.yaml, .yml or .xml)")
-    convert.add_argument("out", nargs="?", help="output file; its suffix selects the form")
+    convert.add_argument(
+        "out",
+        nargs="?",
+        help="output file (.yaml, .yml or .xml: the suffix selects the form) in an existing "
+        "folder; written whole or not at all",
+    )
     convert.add_argument(
         "--to", choices=("yaml", "xml"), help="form printed when OUT is omitted (default: other)"
     )
@@ -51,6 +65,11 @@ def run(args: argparse.Namespace) -> int:
 
     action: str = args.profile_action
     path = Path(args.file)
+    if action == "convert" and args.out is not None:
+        problem = _check_out(Path(args.out))
+        if problem is not None:
+            print(f"{args.out}: {problem}", file=sys.stderr)
+            return 1
     try:
         if action == "validate":
             return _validate(path, bool(args.implementation))
@@ -132,12 +151,41 @@ def _show(path: Path) -> int:
     return 0
 
 
+def _check_out(out: Path) -> str | None:
+    """What makes ``convert``'s OUT unusable, or None."""
+    if out.suffix.lower() not in OUT_SUFFIXES:
+        return f"unknown profile format {out.suffix!r} (use .yaml, .yml or .xml)"
+    folder = out.absolute().parent
+    if not folder.is_dir():
+        what = "is not a folder" if folder.exists() else "does not exist"
+        return f"cannot write: the folder {folder} {what}"
+    if out.is_dir():
+        return "cannot write: is a folder"
+    return None
+
+
+def _write_whole(target: Path, text: str) -> None:
+    """Write ``text`` to a temporary file next to ``target``, then rename it."""
+    temporary = target.with_name(f".{target.name}.partial-{os.getpid()}")
+    try:
+        temporary.write_text(text, encoding="utf-8")
+        os.replace(temporary, target)
+    finally:
+        temporary.unlink(missing_ok=True)
+
+
 def _convert(path: Path, out: str | None, to: str | None) -> int:
-    from ..rtc.profile import dumps_xml, dumps_yaml, load_profile, save_profile
+    from ..rtc.profile import dumps_xml, dumps_yaml, load_profile
 
     profile = load_profile(path)
     if out is not None:
-        save_profile(profile, out)
+        target = Path(out)
+        text = dumps_xml(profile) if target.suffix.lower() == ".xml" else dumps_yaml(profile)
+        try:
+            _write_whole(target, text)
+        except OSError as exc:
+            print(f"{out}: cannot write: {exc.strerror or exc}", file=sys.stderr)
+            return 1
         print(f"wrote {out}", file=sys.stderr)
         return 0
     form = to or ("yaml" if path.suffix.lower() == ".xml" else "xml")

@@ -4,7 +4,10 @@
   hosted in the execution context its profile describes, and run until Ctrl-C.
 - ``*.py`` or a directory with ``app.py``/``__init__.py``: a Python application that
   defines ``async def main(argv: list[str]) -> int | None``; the remaining command-line
-  arguments are passed to it.
+  arguments are passed to it.  SIGINT (Ctrl-C) or SIGTERM cancels ``main`` (its clean-ups
+  run), prints a short summary and exits with 130 or 143.
+
+Both execute code: the application file, or the Python module a profile names.
 """
 
 from __future__ import annotations
@@ -13,11 +16,14 @@ import importlib
 import importlib.util
 import inspect
 import sys
+from functools import partial
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import anyio
+
+from .interrupt import Interrupted, run_interruptible
 
 PROFILE_SUFFIXES = (".yaml", ".yml", ".xml")
 
@@ -60,8 +66,16 @@ def run(path_text: str, argv: list[str]) -> int:
         print(f"openel-async run: {exc}", file=sys.stderr)
         return 2
     main: Any = module.main
-    try:
-        result = anyio.run(main, argv, backend="asyncio")
-    except KeyboardInterrupt:
-        return 130
+    result = anyio.run(run_interruptible, partial(main, argv), backend="asyncio")
+    if isinstance(result, Interrupted):
+        print(f"\nsummary ({path}, interrupted)")
+        for line in result.lines():
+            print("  " + line)
+        sys.stdout.flush()
+        print(
+            f"openel-async run: {path}: interrupted by {result.signum.name} "
+            f"(exit status {result.exit_code})",
+            file=sys.stderr,
+        )
+        return result.exit_code
     return int(result or 0)

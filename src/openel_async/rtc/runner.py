@@ -7,7 +7,9 @@ The profile names its Python implementation with a ``parameters`` entry::
         defaultValue: "pan_tilt:PanTilt"     # module:Class
 
 The module is looked up next to the profile file first (``pan_tilt.py`` or a package
-``pan_tilt/``), then on ``sys.path`` (a dotted name). Without the entry the module is
+``pan_tilt/``), then on ``sys.path`` (a dotted name). It is a Python module name, never a
+path: an absolute path, ``..`` or a path separator is refused (ProfileError). Loading
+the implementation *executes* that module's code. Without the entry the module is
 the snake_case form of ``basicInfo.name`` next to the profile (``PanTilt`` ->
 ``pan_tilt.py``) and the class is ``basicInfo.name``. The class must derive from
 :class:`~openel_async.rtc.RTObject` (from :class:`~openel_async.rtc.MultiModeObject`
@@ -75,6 +77,11 @@ IMPLEMENTATION_PARAMETER = "implementation"
 RATE_PARAMETER = "exec_ctxt.periodic.rate"
 DEFAULT_RATE_HZ = 1000.0
 CLI_SET = "cli"
+CLI_MAX_REALTIME_RATE_HZ = 10_000.0
+"""``openel-async run``: fastest periodic context on the real clock (a cycle costs tens of
+microseconds of Python; beyond this every period would be an overrun)."""
+CLI_MAX_VIRTUAL_CYCLES = 1_000_000
+"""``openel-async run --virtual``: most cycles (rate x duration), about a minute of CPU."""
 """Name of the configuration set made of ``--set`` values."""
 
 _PERIODIC_TYPES = frozenset({"periodicexecutioncontext", "periodic"})
@@ -112,6 +119,8 @@ class RunSummary:
     """State in the context just before deactivation."""
     mode: str | None = None
     report: dict[str, object] = field(default_factory=dict)
+    stopped_by: str | None = None
+    """The signal that ended the run (``"SIGINT"``, ``"SIGTERM"``), None otherwise."""
 
     def lines(self) -> list[str]:
         rate = f" at {self.rate_hz:g} Hz" if self.rate_hz is not None else ""
@@ -126,6 +135,8 @@ class RunSummary:
         ]
         if self.mode is not None:
             out.append(f"mode at the end    {self.mode}")
+        if self.stopped_by is not None:
+            out.append(f"stopped by         {self.stopped_by}")
         out += [f"{key:<18} {value}" for key, value in self.report.items()]
         return out
 
@@ -236,6 +247,12 @@ def load_implementation(profile: RtcProfile, profile_path: Path) -> type[RTObjec
         module_name, class_name = module_name.strip(), class_name.strip() or basic.name
         if not module_name:
             raise ProfileError(path, f"expected 'module:Class', got {text!r}")
+        if not all(part.isidentifier() for part in module_name.split(".")):
+            raise ProfileError(
+                path,
+                f"expected 'module:Class' with a Python module name (a file next to the "
+                f"profile, or a dotted importable module), not a path: got {text!r}",
+            )
     else:
         path, module_name, class_name = f"{_BASIC}.name", _snake(basic.name), basic.name
     directory = profile_path.resolve().parent
@@ -298,10 +315,11 @@ def make_context(
 # -- running ---------------------------------------------------------------------------
 
 
-async def _until_signal(scope: anyio.CancelScope) -> None:
+async def _until_signal(scope: anyio.CancelScope, summary: RunSummary) -> None:
     with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
         async for signum in signals:
-            log.info("signal_received", signal=signal.Signals(signum).name)
+            summary.stopped_by = signal.Signals(signum).name
+            log.info("signal_received", signal=summary.stopped_by)
             scope.cancel()
             return
 
@@ -409,7 +427,7 @@ async def run_prepared(
             with anyio.CancelScope() as waiting:
                 async with anyio.create_task_group() as tg:
                     if handle_signals:
-                        tg.start_soon(_until_signal, waiting)
+                        tg.start_soon(_until_signal, waiting, summary)
                     if duration_s is not None:
                         end = start_ns + round(duration_s * NS_PER_S)
                         tg.start_soon(_until_duration, clock, end, waiting)
@@ -435,7 +453,11 @@ async def run_prepared(
 def _parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="openel-async run PROFILE",
-        description="Run the RT component an RTC Profile (.yaml/.yml/.xml) describes.",
+        description="Run the RT component an RTC Profile (.yaml/.yml/.xml) describes. This "
+        "imports and executes the Python module the profile names (its 'implementation' "
+        "parameter: a module next to the profile or an installed one): run only profiles "
+        "you trust. Ctrl-C (SIGINT) ends the run with exit status 130, SIGTERM with 143, "
+        "after the summary.",
     )
     parser.add_argument("--duration", type=float, help="seconds to run (default: until Ctrl-C)")
     parser.add_argument(
@@ -443,7 +465,13 @@ def _parse_args(argv: Sequence[str]) -> argparse.Namespace:
         action="store_true",
         help="run on the virtual clock (simulated time, as fast as possible; needs --duration)",
     )
-    parser.add_argument("--rate", type=float, help="rate in Hz of a periodic context")
+    parser.add_argument(
+        "--rate",
+        type=float,
+        help=f"rate in Hz of a periodic context (at most {CLI_MAX_REALTIME_RATE_HZ:g} on the "
+        f"real clock; with --virtual, rate x duration at most {CLI_MAX_VIRTUAL_CYCLES:,} "
+        "cycles)",
+    )
     parser.add_argument(
         "--set",
         action="append",
@@ -472,11 +500,34 @@ def _single(exc: BaseException) -> BaseException:
     return exc
 
 
+def _check_cli_rate(spec: ExecutionSpec, args: argparse.Namespace) -> str | None:
+    """The work a command-line run may ask for: the problem, or None."""
+    if spec.rate_hz is None:
+        return None
+    rate = spec.rate_hz
+    source = "--rate" if args.rate is not None else "the profile's rate"
+    if not args.virtual and rate > CLI_MAX_REALTIME_RATE_HZ:
+        return (
+            f"{source} {rate:g} Hz: the context cannot run faster than "
+            f"{CLI_MAX_REALTIME_RATE_HZ:g} Hz on the real clock"
+        )
+    if args.virtual and args.duration is not None:
+        cycles = rate * args.duration
+        if cycles > CLI_MAX_VIRTUAL_CYCLES:
+            return (
+                f"{source} {rate:g} Hz for --duration {args.duration:g} s is {cycles:.3g} "
+                f"cycles on the virtual clock; at most {CLI_MAX_VIRTUAL_CYCLES:,} (a lower "
+                "rate or a shorter duration)"
+            )
+    return None
+
+
 def run_profile_cli(path: Path, argv: list[str]) -> int:
     """``openel-async run PROFILE [--duration S] [--virtual] [--rate HZ] [--set N=V]...``.
 
     Exit status: 0 after a clean run, 1 when a lifecycle step failed, 2 for a bad
-    profile, configuration or command line.
+    profile, configuration or command line (a rate the context cannot run included),
+    130 / 143 when SIGINT / SIGTERM ended the run (after the summary).
     """
     try:
         args = _parse_args(argv)
@@ -509,6 +560,10 @@ def run_profile_cli(path: Path, argv: list[str]) -> int:
     except ConfigurationError as exc:
         print(f"{prog}: {path}: configuration: {exc}", file=sys.stderr)
         return 2
+    problem = _check_cli_rate(prepared.spec, args)
+    if problem is not None:
+        print(f"{prog}: {path}: {problem}", file=sys.stderr)
+        return 2
 
     async def main() -> RunSummary:
         run = partial(run_prepared, prepared, duration_s=args.duration, instance_name=args.name)
@@ -534,4 +589,6 @@ def run_profile_cli(path: Path, argv: list[str]) -> int:
     print("summary")
     for line in summary.lines():
         print("  " + line)
+    if summary.stopped_by is not None:
+        return 128 + int(signal.Signals[summary.stopped_by])
     return 0

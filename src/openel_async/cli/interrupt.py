@@ -1,0 +1,193 @@
+"""Stopping a command on SIGINT (Ctrl-C) or SIGTERM: promptly, cleanly, with a known status.
+
+Every long-running command runs its work through :func:`run_interruptible`: the first SIGINT
+or SIGTERM cancels the work (its ``finally`` blocks and ``async with`` exits run: devices
+closed, live line ended); further signals while it cleans up are logged and ignored.  The
+command then prints a short summary and exits with :func:`exit_code` (130 for SIGINT, 143
+for SIGTERM: 128 + the signal number, as a shell reports a process killed by it).
+
+Outside the event loop (imports, argument checks, printing), :func:`install_sigterm_handler`
+turns SIGTERM into ``SystemExit(143)`` and the CLI's ``main`` turns ``KeyboardInterrupt`` into
+130, so no signal ends a command with a traceback.
+
+Output files are written through :func:`atomic_output`: a file is either complete or absent
+(a temporary name, renamed when written; removed when interrupted or failed).  The files a
+command wrote are collected by :func:`collect_written` for its summary.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import time
+from collections.abc import Awaitable, Callable, Iterator
+from contextvars import ContextVar
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import FrameType
+from typing import TypeVar
+
+import anyio
+import structlog
+from anyio.abc import TaskStatus
+
+__all__ = [
+    "EXIT_SIGINT",
+    "EXIT_SIGTERM",
+    "Interrupted",
+    "atomic_output",
+    "collect_written",
+    "exit_code",
+    "install_sigterm_handler",
+    "interrupt_code",
+    "run_interruptible",
+]
+
+log = structlog.get_logger(__name__)
+
+EXIT_SIGINT = 128 + signal.SIGINT  # 130
+EXIT_SIGTERM = 128 + signal.SIGTERM  # 143
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+T = TypeVar("T")
+
+_written: ContextVar[list[Path] | None] = ContextVar("openel_cli_written", default=None)
+
+
+def exit_code(signum: int) -> int:
+    """The exit status of a command stopped by ``signum``: 128 + its number (130, 143)."""
+    return 128 + int(signum)
+
+
+@dataclass(frozen=True, slots=True)
+class Interrupted:
+    """The work was stopped by a signal before it finished."""
+
+    signum: signal.Signals
+    elapsed_s: float
+    """Real time from the start of the work to the end of its clean-up."""
+    cleanup_error: str | None = None
+    """An error raised while the work was being cancelled (logged, not raised)."""
+    files: list[Path] = field(default_factory=list)
+    """Complete files the work wrote before it was stopped."""
+
+    @property
+    def exit_code(self) -> int:
+        return exit_code(self.signum)
+
+    def lines(self) -> list[str]:
+        """The summary of an interrupted command."""
+        out = [f"interrupted        by {self.signum.name} after {self.elapsed_s:.2f} s"]
+        if self.cleanup_error is not None:
+            out.append(f"clean-up error     {self.cleanup_error}")
+        if self.files:
+            out += [f"file written       {path}" for path in self.files]
+        else:
+            out.append("files              none written")
+        return out
+
+
+async def _watch(
+    work: anyio.CancelScope,
+    caught: list[signal.Signals],
+    *,
+    task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED,
+) -> None:
+    with anyio.open_signal_receiver(*STOP_SIGNALS) as signals:
+        task_status.started()
+        async for signum in signals:
+            if caught:
+                log.warning("signal_ignored", signal=signum.name, reason="already stopping")
+                continue
+            log.info("signal_received", signal=signum.name)
+            caught.append(signum)
+            work.cancel()
+
+
+async def run_interruptible(work: Callable[[], Awaitable[T]]) -> T | Interrupted:
+    """Run ``work()`` until it returns or SIGINT/SIGTERM arrives (then cancel it and wait for
+    its clean-up, bounded only by the work's own bounded waits).
+
+    Returns the work's result, or :class:`Interrupted` when a signal stopped it.  The signal
+    handlers are installed (through ``anyio.open_signal_receiver``) before the work starts and
+    kept until its clean-up is over, so a second Ctrl-C cannot interrupt the clean-up; the
+    previous SIGTERM handler is restored afterwards.
+    """
+    previous_sigterm = signal.getsignal(signal.SIGTERM)
+    caught: list[signal.Signals] = []
+    written: list[Path] = []
+    token = _written.set(written)
+    start = time.monotonic()
+    scope = anyio.CancelScope()
+    result: T | None = None
+    finished = False
+    error: str | None = None
+    try:
+        async with anyio.create_task_group() as tg:
+            await tg.start(_watch, scope, caught)
+            try:
+                with scope:
+                    result = await work()
+                    finished = True
+            except Exception as exc:
+                if not caught:
+                    raise
+                error = f"{type(exc).__name__}: {exc}"
+                log.warning("interrupted_cleanup_failed", error=error)
+            tg.cancel_scope.cancel()
+    finally:
+        _written.reset(token)
+        with contextlib.suppress(ValueError, TypeError, OSError):
+            signal.signal(signal.SIGTERM, previous_sigterm)
+    if finished or not caught:
+        return result  # type: ignore[return-value]  # finished: the work's result
+    return Interrupted(caught[0], time.monotonic() - start, error, written)
+
+
+def _raise_terminated(signum: int, frame: FrameType | None) -> None:
+    raise SystemExit(exit_code(signum))
+
+
+def install_sigterm_handler() -> None:
+    """SIGTERM outside :func:`run_interruptible` raises ``SystemExit(143)`` (clean-ups run,
+    no traceback) instead of killing the process on the spot."""
+    with contextlib.suppress(ValueError):  # not the main thread: leave it alone
+        signal.signal(signal.SIGTERM, _raise_terminated)
+
+
+def interrupt_code(exc: BaseException) -> int | None:
+    """The exit status of a ``KeyboardInterrupt`` or ``SystemExit`` from a signal, also inside
+    (nested) exception groups of task groups; None for anything else."""
+    while isinstance(exc, BaseExceptionGroup) and len(exc.exceptions) == 1:
+        exc = exc.exceptions[0]
+    if isinstance(exc, KeyboardInterrupt):
+        return EXIT_SIGINT
+    if isinstance(exc, SystemExit) and exc.code in (EXIT_SIGINT, EXIT_SIGTERM):
+        return int(exc.code)
+    return None
+
+
+@contextlib.contextmanager
+def atomic_output(path: Path) -> Iterator[Path]:
+    """Yield a temporary path next to ``path`` (same suffix, so writers that go by the suffix
+    pick the same format); when the block ends normally the temporary file, if written,
+    replaces ``path``; on any exception or cancellation it is removed.  ``path`` is thus either
+    complete or untouched.  Records ``path`` for :func:`collect_written`."""
+    temporary = path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
+    try:
+        yield temporary
+        if temporary.exists():
+            os.replace(temporary, path)
+            written = _written.get()
+            if written is not None:
+                written.append(path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            temporary.unlink()
+
+
+def collect_written() -> list[Path]:
+    """The files written through :func:`atomic_output` so far in this command (empty outside
+    :func:`run_interruptible`)."""
+    return list(_written.get() or [])
