@@ -4,6 +4,11 @@
 ``VirtualClock`` is deterministic simulated time for tests and lockstep simulation:
 with auto-jump running, time leaps to the next deadline whenever every task is
 waiting, so ten simulated seconds of a 1 kHz timer take a fraction of a wall second.
+
+"Every task is waiting" is decided by :func:`wait_idle`, one idle detector per event
+loop shared by every clock on it: idle moments are handed to the waiting clocks one
+at a time, in the order they asked, so several virtual clocks (or concurrent
+``advance`` calls) in one loop take turns instead of keeping each other busy.
 """
 
 from __future__ import annotations
@@ -12,6 +17,8 @@ import asyncio
 import heapq
 import itertools
 import time
+import weakref
+from collections import deque
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from typing import Protocol, runtime_checkable
@@ -20,7 +27,7 @@ import anyio
 import anyio.abc
 
 from . import timerfd
-from .errors import BadParameterError
+from .errors import BadParameterError, StateError
 
 NS_PER_S = 1_000_000_000
 NS_PER_MS = 1_000_000
@@ -138,8 +145,9 @@ class VirtualClock:
     """Deterministic simulated time.
 
     Sleepers are woken strictly in deadline order (ties in arrival order). Time moves
-    only through :meth:`advance`/:meth:`advance_to` or, inside :meth:`autojump`,
-    whenever every other task of the event loop is waiting.
+    only through :meth:`advance`/:meth:`advance_to` (manual mode) or, inside
+    :meth:`autojump`, whenever every other task of the event loop is waiting; the two
+    modes exclude each other (:class:`StateError`).
     """
 
     def __init__(self, start_ns: int = 0) -> None:
@@ -148,6 +156,9 @@ class VirtualClock:
         self._heap: list[tuple[int, int, asyncio.Future[None]]] = []
         self._seq = itertools.count()
         self._new_sleeper: asyncio.Future[None] | None = None
+        self._autojumping = False
+        self._advancing = 0  # advance calls running or queued
+        self._advance_lock = anyio.Lock()
         self.jumps = 0
 
     def now_ns(self) -> int:
@@ -161,7 +172,7 @@ class VirtualClock:
             await anyio.lowlevel.checkpoint()
             return
         # Loop futures rather than anyio.Event: this is the clock's innermost hot path,
-        # and the clock is tied to the asyncio backend anyway (see _settle).
+        # and the clock is tied to the asyncio backend anyway (see wait_idle).
         future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         heapq.heappush(self._heap, (deadline_ns, next(self._seq), future))
         waker = self._new_sleeper
@@ -180,27 +191,97 @@ class VirtualClock:
         self._drop_cancelled()
         return self._heap[0][0] if self._heap else None
 
+    @property
+    def autojumping(self) -> bool:
+        """Whether auto-jump drives this clock (then :meth:`advance` is refused)."""
+        return self._autojumping
+
     async def advance(self, delta_ns: int) -> None:
-        """Move time forward by ``delta_ns``, waking every sleeper due on the way in order."""
+        """Move time forward by ``delta_ns``, waking every sleeper due on the way in order.
+
+        Concurrent calls on one clock run one after another, in call order; ``delta_ns``
+        counts from the time at which the call's turn comes.
+        """
         _check_ns("delta_ns", delta_ns, 0)
-        await self.advance_to(self._now + delta_ns)
+        self._check_manual("advance")
+        self._advancing += 1
+        try:
+            async with self._advance_lock:
+                await self._advance_to(self._now + delta_ns)
+        finally:
+            self._advancing -= 1
 
     async def advance_to(self, target_ns: int) -> None:
+        """Move time forward to ``target_ns``, waking every sleeper due on the way in order.
+
+        Concurrent calls on one clock run one after another, in call order; a call whose
+        target an earlier one already passed only lets the woken tasks run.
+        """
         _check_ns("target_ns", target_ns, self._now, f"now ({self._now})")
-        await _settle()
+        self._check_manual("advance_to")
+        self._advancing += 1
+        try:
+            async with self._advance_lock:
+                await self._advance_to(max(target_ns, self._now))
+        finally:
+            self._advancing -= 1
+
+    async def _advance_to(self, target_ns: int) -> None:
+        await wait_idle()
         while True:
             deadline = self.next_deadline()
             if deadline is None or deadline > target_ns:
                 break
             self._wake_next()
-            await _settle()
+            await wait_idle()
         self._now = target_ns
 
     async def run_autojump(self) -> None:
-        """Drive time forever: whenever the loop is idle, jump to the next deadline."""
+        """Drive time forever: whenever the loop is idle, jump to the next deadline.
+
+        Refused (:class:`StateError`) while another auto-jump or an :meth:`advance`
+        drives this clock.
+        """
+        self._claim_autojump("run_autojump")
+        try:
+            await self._drive()
+        finally:
+            self._autojumping = False
+
+    @asynccontextmanager
+    async def autojump(self) -> AsyncIterator[VirtualClock]:
+        """Run auto-jump in the background for the duration of the block.
+
+        Refused (:class:`StateError`) while another auto-jump or an :meth:`advance`
+        drives this clock; inside the block, :meth:`advance` is refused.
+        """
+        self._claim_autojump("autojump")
+        try:
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(self._drive)
+                try:
+                    yield self
+                finally:
+                    tg.cancel_scope.cancel()
+        finally:
+            self._autojumping = False
+
+    def _claim_autojump(self, operation: str) -> None:
+        if self._autojumping:
+            raise StateError(operation, "auto-jump", ["manual"])
+        if self._advancing:
+            raise StateError(operation, "advancing", ["manual, with no advance running"])
+        self._autojumping = True
+
+    def _check_manual(self, operation: str) -> None:
+        if self._autojumping:
+            raise StateError(operation, "auto-jump", ["manual"])
+
+    async def _drive(self) -> None:
         loop = asyncio.get_running_loop()
+        wait_idle = _idle_detector(loop).wait
         while True:
-            await _settle()
+            await wait_idle()
             if self.next_deadline() is None:
                 self._new_sleeper = loop.create_future()
                 try:
@@ -209,16 +290,6 @@ class VirtualClock:
                     self._new_sleeper = None
                 continue
             self._wake_next()
-
-    @asynccontextmanager
-    async def autojump(self) -> AsyncIterator[VirtualClock]:
-        """Run :meth:`run_autojump` in the background for the duration of the block."""
-        async with anyio.create_task_group() as tg:
-            tg.start_soon(self.run_autojump)
-            try:
-                yield self
-            finally:
-                tg.cancel_scope.cancel()
 
     def _drop_cancelled(self) -> None:
         heap = self._heap
@@ -246,18 +317,63 @@ def _check_ns(name: str, value: object, minimum: int, what: str | None = None) -
         raise BadParameterError(name, value, f"an int >= {what or minimum}")
 
 
-async def _settle() -> None:
-    """Yield until no other task is runnable: every task waits on time or I/O.
+class _IdleDetector:
+    """Hands the idle moments of one event loop to its waiters, one at a time, in FIFO order.
 
-    The ready queue of asyncio's loop tells when all woken tasks have run; where a
-    loop does not expose it, a bounded number of yields is the best approximation.
+    Only the waiter at the head of the queue polls the loop's ready queue; the others
+    wait on a future, outside the ready queue, so they cannot keep the poller from
+    seeing the loop idle (two pollers yielding in turn would each always see the other
+    runnable: a busy loop that never ends). When the head's idle moment comes it leaves
+    the queue and hands the polling turn to the next waiter, which sees the loop idle
+    only once everything the head woke has run.
     """
-    loop = asyncio.get_running_loop()
-    ready = getattr(loop, "_ready", None)
-    if ready is None:
-        for _ in range(64):
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._loop = loop
+        self._queue: deque[asyncio.Future[None]] = deque()
+
+    async def wait(self) -> None:
+        queue = self._queue
+        loop = self._loop
+        turn = loop.create_future()
+        queue.append(turn)
+        try:
+            if queue[0] is not turn:
+                await turn  # resolved when the waiter before this one got its idle moment
+            ready = getattr(loop, "_ready", None)
+            if ready is None:  # a loop that does not expose its ready queue: bounded yields
+                for _ in range(64):
+                    await asyncio.sleep(0)
+                return
             await asyncio.sleep(0)
-        return
-    await asyncio.sleep(0)
-    while ready:  # noqa: ASYNC110 - polling the ready queue is the point
-        await asyncio.sleep(0)
+            while ready:  # noqa: ASYNC110 - polling the ready queue is the point
+                await asyncio.sleep(0)
+        finally:
+            head = queue[0] is turn
+            queue.remove(turn)
+            if head and queue and not queue[0].done():
+                queue[0].set_result(None)
+
+
+_IDLE_DETECTORS: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, _IdleDetector] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+async def wait_idle() -> None:
+    """Return at a moment when no other task of the event loop is runnable.
+
+    "Not runnable" means waiting on time, I/O, an event or a lock. All callers on one
+    loop share one detector: each idle moment goes to one caller, in the order they
+    called, and the next caller's moment comes only after every task that the previous
+    one woke has run. Needs asyncio (it reads the loop's ready queue; a loop that does
+    not expose it gets a bounded number of yields instead).
+    """
+    await _idle_detector(asyncio.get_running_loop()).wait()
+
+
+def _idle_detector(loop: asyncio.AbstractEventLoop) -> _IdleDetector:
+    detector = _IDLE_DETECTORS.get(loop)
+    if detector is None:
+        detector = _IDLE_DETECTORS[loop] = _IdleDetector(loop)
+    return detector

@@ -18,11 +18,11 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import AsyncIterator
-from contextlib import AsyncExitStack
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import anyio
+import anyio.abc
 import pytest
 
 from .actuator import Actuator
@@ -112,15 +112,26 @@ class EventRecorder:
 
 
 class ComponentStack:
-    """Enters components for a test and exits them (finalize) in reverse order."""
+    """Enters components for a test and exits them (finalize) in reverse order.
 
-    def __init__(self, stack: AsyncExitStack, clock: VirtualClock) -> None:
-        self._stack = stack
+    Each component lives in a task of its own in the fixture's task group: its
+    ``__aenter__`` and ``__aexit__`` (and the task group it opens) run there, never in
+    the test's task, so the test's cancel scopes (``anyio.fail_after``, ``move_on_after``)
+    and the component's lifetime never interleave. Entering still belongs to the caller:
+    until the component is entered, cancelling the caller (a ``fail_after`` expiring)
+    cancels the entering, and an error from ``__aenter__`` is raised to the caller.
+    """
+
+    def __init__(self, task_group: anyio.abc.TaskGroup, clock: VirtualClock) -> None:
+        self._task_group = task_group
+        self._hosts: list[tuple[anyio.Event, anyio.Event]] = []
         self.clock = clock
 
     async def enter(self, component: C) -> C:
-        await component.__aenter__()
-        self._stack.push_async_exit(component.__aexit__)
+        stop = anyio.Event()
+        done = anyio.Event()
+        await self._task_group.start(_host, component, stop, done)
+        self._hosts.append((stop, done))
         return component
 
     async def actuator(self, device: Any, **kwargs: Any) -> Actuator:
@@ -130,6 +141,29 @@ class ComponentStack:
     async def sensor(self, device: Any, **kwargs: Any) -> Sensor:
         kwargs.setdefault("clock", self.clock)
         return await self.enter(Sensor(device, **kwargs))
+
+    async def aclose(self) -> None:
+        """Exit every component, last entered first, each after the one entered after it."""
+        while self._hosts:
+            stop, done = self._hosts.pop()
+            stop.set()
+            await done.wait()
+
+
+async def _host(
+    component: HALComponent,
+    stop: anyio.Event,
+    done: anyio.Event,
+    *,
+    task_status: anyio.abc.TaskStatus[None] = anyio.TASK_STATUS_IGNORED,
+) -> None:
+    """Hold ``component`` entered, in this task, until ``stop`` is set."""
+    try:
+        async with component:
+            task_status.started()
+            await stop.wait()
+    finally:
+        done.set()
 
 
 @pytest.fixture
@@ -152,8 +186,12 @@ def hal_events(virtual_clock: VirtualClock) -> EventRecorder:
 
 @pytest.fixture
 async def hal_components(virtual_clock: VirtualClock) -> AsyncIterator[ComponentStack]:
-    async with AsyncExitStack() as stack:
-        yield ComponentStack(stack, virtual_clock)
+    async with anyio.create_task_group() as task_group:
+        components = ComponentStack(task_group, virtual_clock)
+        try:
+            yield components
+        finally:
+            await components.aclose()
 
 
 @pytest.fixture
