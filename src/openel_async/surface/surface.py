@@ -1,0 +1,395 @@
+"""The HAL4RT surface layer (spec §7.4.2-7.4.3) over a set of components.
+
+``execute(device)`` parses each command message, selects the component by device kind
+and logical id, and runs the operation its kind's dispatch table names. A synchronous
+operation's results come back in the message; an asynchronous one (SetPosition,
+SetSpeed...) returns a surface-chosen ``command_id`` at once and the application's
+``completed(command_id, status)`` is called when the command ends. Component events go to
+the applications that ``subscribe``d to their device kind and event type; component
+errors go to every attached application. Details stay available by id for a while (the
+most recent ``details_size``).
+
+Every command's results start with ``return_code`` (INT, a ReturnCode) and, when it is
+not HAL_OK, ``message`` (STRING). A refused command is logged once and never stops the
+surface.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections import OrderedDict
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Any, Self
+
+import anyio
+import anyio.abc
+import structlog
+
+from ..completion import Motion
+from ..component import ComponentState, HALComponent
+from ..device import ErrorId
+from ..errors import (
+    BadParameterError,
+    DeviceFaultError,
+    HALError,
+    MotionCancelledError,
+    ReturnCode,
+    StateError,
+    SupersededError,
+)
+from ..requests import EventId
+from .application import Delivery
+from .messages import CommandMessage, DataType, Device, Parameter, ResultList
+from .profiles import DEFAULT_PROFILES, KindProfile, argument, kind_of, normalize_kind
+
+log = structlog.get_logger(__name__)
+
+LOGICAL_ID = "logical_id"
+"""The argument that selects the component among those of a device kind (INT)."""
+ANY_EVENT = "*"
+"""``subscribe``'s event_type for every event of the kind."""
+
+
+@dataclass(frozen=True)
+class SurfaceEntry:
+    """A component as the surface layer addresses it."""
+
+    device_kind: str
+    logical_id: int
+    component: HALComponent
+
+
+@dataclass(frozen=True)
+class Subscription:
+    subscribe_id: int
+    device_kind: str
+    event_type: str
+    application: object
+
+
+def event_type_name(event_id: int) -> str:
+    try:
+        return EventId(event_id).name
+    except ValueError:
+        return f"EVENT_{event_id}"
+
+
+def error_type_name(error_id: int) -> str:
+    try:
+        return ErrorId(error_id).name
+    except ValueError:
+        return f"ERROR_{error_id}"
+
+
+def status_of(motion: Motion, error: BaseException | None) -> ReturnCode:
+    """The ``completed`` status of a finished command."""
+    if error is None:
+        return ReturnCode.HAL_OK
+    if isinstance(error, HALError):
+        if isinstance(error, SupersededError | MotionCancelledError):
+            return ReturnCode.HAL_ERROR
+        return error.code
+    return ReturnCode.HAL_ERROR
+
+
+def failure(command: CommandMessage, code: ReturnCode, message: str) -> CommandMessage:
+    """``command`` with results return_code=code and message."""
+    return CommandMessage(
+        command.function_name,
+        command.command_id,
+        command.arguments,
+        ResultList(
+            (
+                Parameter(DataType.INT, "return_code", int(code)),
+                Parameter(DataType.STRING, "message", message),
+            )
+        ),
+    )
+
+
+class Surface:
+    """The surface layer over components that are already Active (``async with``)."""
+
+    def __init__(
+        self,
+        components: Sequence[HALComponent],
+        *,
+        profiles: Mapping[str, KindProfile] | None = None,
+        details_size: int = 4096,
+        name: str = "surface",
+    ) -> None:
+        self.profiles = {normalize_kind(k): p for k, p in (profiles or DEFAULT_PROFILES).items()}
+        self.name = name
+        self.details_size = details_size
+        self.entries: list[SurfaceEntry] = []
+        self._by_kind: dict[str, list[SurfaceEntry]] = {}
+        self._by_component: dict[int, SurfaceEntry] = {}
+        for component in components:
+            kind = kind_of(component)
+            key = normalize_kind(kind)
+            if key not in self.profiles:
+                raise BadParameterError(
+                    "components", component, f"a kind among {sorted(self.profiles)}"
+                )
+            same = self._by_kind.setdefault(key, [])
+            entry = SurfaceEntry(kind, len(same), component)  # §7.4.3: logical ids 0, 1, ...
+            same.append(entry)
+            self.entries.append(entry)
+            self._by_component[id(component)] = entry
+        self._command_ids = itertools.count(1)
+        self._event_ids = itertools.count(1)
+        self._error_ids = itertools.count(1)
+        self._subscribe_ids = itertools.count(1)
+        self._subscriptions: dict[int, Subscription] = {}
+        self._event_details: OrderedDict[str, ResultList] = OrderedDict()
+        self._error_details: OrderedDict[str, ResultList] = OrderedDict()
+        self._deliveries: dict[int, Delivery] = {}
+        self._attached: dict[int, object] = {}
+        self._tg: anyio.abc.TaskGroup | None = None
+        self.refused = 0
+        """Commands answered with a return code other than HAL_OK."""
+
+    # -- lifecycle ---------------------------------------------------------------------
+    async def __aenter__(self) -> Self:
+        self._tg = await anyio.create_task_group().__aenter__()
+        for entry in self.entries:
+            if entry.component.state is not ComponentState.ACTIVE:
+                await self._tg.__aexit__(None, None, None)
+                raise StateError("Surface", entry.component.state, [ComponentState.ACTIVE])
+            entry.component.add_observer(self)
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool | None:
+        for entry in self.entries:
+            if entry.component.state is ComponentState.ACTIVE and self in entry.component.observers:
+                entry.component.remove_observer(self)
+        assert self._tg is not None
+        self._tg.cancel_scope.cancel()
+        return await self._tg.__aexit__(exc_type, exc, tb)
+
+    def _delivery(self, application: object) -> Delivery:
+        delivery = self._deliveries.get(id(application))
+        if delivery is None:
+            if self._tg is None:
+                raise StateError("Surface", "not entered", ["inside 'async with surface'"])
+            delivery = self._deliveries[id(application)] = Delivery(application, self._tg)
+        return delivery
+
+    def attach(self, application: object) -> None:
+        """Receive notify_error for every component (and completed for its own commands)."""
+        self._delivery(application)
+        self._attached[id(application)] = application
+
+    def detach(self, application: object) -> None:
+        """Stop every notification to ``application`` and drop its subscriptions."""
+        self._attached.pop(id(application), None)
+        for sid in [
+            s.subscribe_id for s in self._subscriptions.values() if s.application is application
+        ]:
+            del self._subscriptions[sid]
+        self._deliveries.pop(id(application), None)
+
+    # -- addressing --------------------------------------------------------------------
+    def kinds(self) -> list[str]:
+        return sorted({e.device_kind for e in self.entries})
+
+    def resolve(self, device_kind: str, logical_id: int | None) -> SurfaceEntry:
+        entries = self._by_kind.get(normalize_kind(device_kind))
+        if not entries:
+            raise BadParameterError("device_kind", device_kind, f"one of {self.kinds()}")
+        if logical_id is None:
+            if len(entries) == 1:
+                return entries[0]
+            raise BadParameterError(
+                LOGICAL_ID,
+                None,
+                f"one of 0..{len(entries) - 1} ({len(entries)} {entries[0].device_kind} components)",
+            )
+        if not 0 <= logical_id < len(entries):
+            raise BadParameterError(
+                LOGICAL_ID, logical_id, f"one of 0..{len(entries) - 1} for {entries[0].device_kind}"
+            )
+        return entries[logical_id]
+
+    def entry_of(self, component: HALComponent) -> SurfaceEntry:
+        return self._by_component[id(component)]
+
+    # -- Command interface (Table 7.5) ---------------------------------------------------
+    async def execute(self, device: Device, application: object | None = None) -> Device:
+        """execute(): run each command message; the messages come back with results."""
+        if not isinstance(device, Device):
+            raise BadParameterError("device", device, "a Device message")
+        done = [
+            await self.execute_command(device.device_kind, c, application) for c in device.commands
+        ]
+        return Device(device.device_kind, tuple(done))
+
+    async def execute_command(
+        self, device_kind: str, command: CommandMessage, application: object | None = None
+    ) -> CommandMessage:
+        command_id = f"c{next(self._command_ids)}"
+        command = CommandMessage(
+            command.function_name, command_id, command.arguments, command.results
+        )
+        try:
+            logical_id = argument(command, LOGICAL_ID, DataType.INT, required=False)
+            entry = self.resolve(device_kind, logical_id)
+            operation = self.profiles[normalize_kind(entry.device_kind)].operation(
+                command.function_name
+            )
+            outcome: Any = await operation.run(entry.component, command)
+        except HALError as exc:
+            return self._refuse(device_kind, command, exc.code, str(exc))
+        except Exception as exc:  # a component raising something else: still an answer
+            log.exception("surface_operation_failed", function=command.function_name)
+            return self._refuse(device_kind, command, ReturnCode.HAL_ERROR, repr(exc))
+        head = Parameter(DataType.INT, "return_code", int(ReturnCode.HAL_OK))
+        if isinstance(outcome, Motion):
+            self._watch(command_id, outcome, application)
+            results: tuple[Parameter, ...] = (head,)
+        elif isinstance(outcome, ResultList):
+            results = (head, *outcome.parameters)
+        else:
+            results = (head,)
+        return CommandMessage(
+            command.function_name, command_id, command.arguments, ResultList(results)
+        )
+
+    def _refuse(
+        self, device_kind: str, command: CommandMessage, code: ReturnCode, message: str
+    ) -> CommandMessage:
+        self.refused += 1
+        log.warning(
+            "command_refused",
+            device_kind=device_kind,
+            function=command.function_name,
+            code=code.name,
+            reason=message,
+        )
+        return failure(command, code, message)
+
+    def _watch(self, command_id: str, motion: Motion, application: object | None) -> None:
+        if application is None:
+            return
+        delivery = self._delivery(application)
+        if motion.done():
+            delivery.call("completed", command_id, status_of(motion, motion.error()))
+            return
+        assert self._tg is not None
+        self._tg.start_soon(self._await_motion, command_id, motion, delivery)
+
+    async def _await_motion(self, command_id: str, motion: Motion, delivery: Delivery) -> None:
+        error: BaseException | None = None
+        try:
+            await motion
+        except HALError as exc:
+            error = exc
+        delivery.call("completed", command_id, status_of(motion, error))
+
+    # -- Event interface (Table 7.6) ------------------------------------------------------
+    def subscribe(self, device_kind: str, event_type: str, application: object) -> int:
+        """Register ``application`` for events ``event_type`` ('*' for all) of a device kind."""
+        if normalize_kind(device_kind) not in self._by_kind:
+            raise BadParameterError("device_kind", device_kind, f"one of {self.kinds()}")
+        if not isinstance(event_type, str) or not event_type:
+            raise BadParameterError(
+                "event_type",
+                event_type,
+                "an event type name (COMPLETED, LIMIT_REACHED, EVENT_<n>) or '*'",
+            )
+        self._delivery(application)
+        sid = next(self._subscribe_ids)
+        self._subscriptions[sid] = Subscription(
+            sid, normalize_kind(device_kind), event_type, application
+        )
+        return sid
+
+    def unsubscribe(self, subscribe_id: int) -> None:
+        if self._subscriptions.pop(subscribe_id, None) is None:
+            raise BadParameterError(
+                "subscribe_id", subscribe_id, f"one of {sorted(self._subscriptions)}"
+            )
+
+    def get_event_detail(self, event_id: str) -> ResultList:
+        found = self._event_details.get(event_id)
+        if found is None:
+            raise BadParameterError(
+                "event_id", event_id, f"one of the last {self.details_size} events' ids"
+            )
+        return found
+
+    def get_error_detail(self, error_id: str) -> ResultList:
+        found = self._error_details.get(error_id)
+        if found is None:
+            raise BadParameterError(
+                "error_id", error_id, f"one of the last {self.details_size} errors' ids"
+            )
+        return found
+
+    def _remember(self, table: OrderedDict[str, ResultList], key: str, detail: ResultList) -> None:
+        table[key] = detail
+        if len(table) > self.details_size:
+            table.popitem(last=False)
+
+    # -- HALObserver of the components ----------------------------------------------------
+    def notify_event(self, source: HALComponent, event_id: int) -> None:
+        entry = self._by_component.get(id(source))
+        if entry is None:
+            return
+        key = normalize_kind(entry.device_kind)
+        event_type = event_type_name(event_id)
+        targets = [
+            s
+            for s in self._subscriptions.values()
+            if s.device_kind == key and (s.event_type == event_type or s.event_type == ANY_EVENT)
+        ]
+        if not targets:
+            return
+        eid = f"e{next(self._event_ids)}"
+        self._remember(
+            self._event_details,
+            eid,
+            ResultList.of(
+                device_kind=entry.device_kind,
+                logical_id=entry.logical_id,
+                device_name=source.device_name,
+                event_code=int(event_id),
+                event_type=event_type,
+                time_ns=source.clock.now_ns(),
+            ),
+        )
+        for s in targets:
+            self._delivery(s.application).call("notify_event", eid, event_type, s.subscribe_id)
+
+    def notify_error(self, source: HALComponent, error_id: int) -> None:
+        entry = self._by_component.get(id(source))
+        if entry is None:
+            return
+        rid = f"r{next(self._error_ids)}"
+        fault: DeviceFaultError | None = source.last_fault
+        error_type = error_type_name(error_id)
+        self._remember(
+            self._error_details,
+            rid,
+            ResultList.of(
+                device_kind=entry.device_kind,
+                logical_id=entry.logical_id,
+                device_name=source.device_name,
+                error_code=int(error_id),
+                error_type=error_type,
+                state=str(source.state),
+                faulted=source.state is ComponentState.ERROR,
+                return_code=int(fault.code) if fault is not None else int(ReturnCode.HAL_ERROR),
+                message=str(fault) if fault is not None else "",
+                time_ns=source.clock.now_ns(),
+            ),
+        )
+        for application in tuple(self._attached.values()):
+            self._delivery(application).call("notify_error", rid, error_type)
