@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import math
+import random
+import time
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from openel_serial import dynamixel as dx
@@ -290,3 +292,158 @@ def test_acceleration_unit_and_status_flags() -> None:
 @given(st.floats(-100.0, 100.0))
 def test_position_quantisation(rad: float) -> None:
     assert abs(dx.ticks_to_rad(dx.rad_to_ticks(rad)) - rad) <= math.pi / 4096 + 1e-12
+
+
+# --- parser robustness: resynchronisation cost, chunking, accounting -------------------------
+
+LINE_RATE = 100_000  # bytes/s of a 1 Mbaud line (8N1)
+MIN_RATE = 2 * LINE_RATE
+
+
+def _filler(size: int, seed: int) -> bytes:
+    """Deterministic noise without a header in it."""
+    data = random.Random(seed).randbytes(size)
+    return data.replace(b"\xff\xff\xfd", b"\xff\x00\xfd")
+
+
+def _fake(dxl_id: int, length: int, rest: bytes = b"") -> bytes:
+    return dx.HEADER + bytes((dxl_id,)) + length.to_bytes(2, "little") + rest
+
+
+def _adversarial_streams() -> dict[str, bytes]:
+    size = 200_000
+    max_len = 1024
+    rng = random.Random(7)
+    sprinkled = bytearray()
+    while len(sprinkled) < size:
+        sprinkled += _fake(rng.randrange(256), rng.randrange(3, max_len + 1))
+        sprinkled += rng.randbytes(rng.randrange(0, 64))
+    # Each candidate needs a CRC: the next header starts in its last 4 bytes (allowed).
+    chained = _fake(1, max_len, b"\x55\x00" + _filler(max_len - 6, 3))
+    return {
+        # The issue's case: a status header claiming 1 kB, again and again.
+        "dense_status_headers": _fake(1, max_len, b"\x55\x00") * (size // 11),
+        "headers_every_7_bytes": _fake(1, max_len) * (size // 7),
+        "full_length_bad_crc": _fake(1, max_len - 7, b"\x55\x00" + _filler(max_len, 1))
+        * (size // (max_len + 7)),
+        "chained_at_last_4_bytes": chained * (size // len(chained)),
+        "sprinkled_random": bytes(sprinkled),
+        "random_bytes": random.Random(11).randbytes(size),
+    }
+
+
+@pytest.mark.parametrize("name", list(_adversarial_streams()))
+def test_parser_keeps_up_with_a_1_mbaud_line_on_adversarial_noise(name: str) -> None:
+    noise = _adversarial_streams()[name]
+    good = dx.encode(dx.Status(1, 0, bytes(range(14))))
+    stream = noise + good
+    for chunk in (len(stream), 64):  # one read, then reads as a USB adapter delivers them
+        parser = dx.PacketParser(max_length=1024)
+        got: list[dx.DynamixelMessage] = []
+        start = time.perf_counter()
+        for i in range(0, len(stream), chunk):
+            got += parser.feed(stream[i : i + chunk])
+        rate = len(stream) / (time.perf_counter() - start)
+        assert rate >= MIN_RATE, f"{name}: {rate / 1e3:.0f} kB/s in {chunk}-byte reads"
+        assert got[-1] == dx.Status(1, 0, bytes(range(14)))  # the reply after the noise
+        assert parser.buffered == 0
+
+
+def test_false_header_does_not_hold_back_the_reply_behind_it() -> None:
+    # A header claiming 1 kB, then the genuine reply: delivered at once, not after 1 kB more.
+    parser = dx.PacketParser()
+    reply = dx.Status(1, 0, b"\x01\x02")
+    assert parser.feed(_fake(1, 1000, b"\x55\x00\x12") + dx.encode(reply)) == [reply]
+    assert parser.interrupted == 1 and parser.crc_errors == 0
+    assert parser.buffered == 0
+
+
+def test_packet_ending_in_a_header_pattern_is_kept() -> None:
+    # Body ending FF FF and CRC FD 00 form a header in the packet's last 4 bytes.
+    for address in range(0x10000):
+        packet = dx.encode(dx.Write(1, address, b"\xff\xff"))
+        if packet.endswith(b"\xfd\x00"):
+            break
+    else:
+        pytest.fail("no WRITE with CRC 0x00FD found")
+    parser = dx.PacketParser()
+    follower = dx.encode(dx.Ping(2))
+    assert parser.feed(packet + follower) == [dx.decode(packet), dx.Ping(2)]
+    assert parser.interrupted == parser.crc_errors == 0
+
+
+def test_feed_all_reports_crc_failures_with_their_id() -> None:
+    corrupt = bytearray(dx.encode(dx.Write(3, 116, b"\x00\x08\x00\x00")))
+    corrupt[10] ^= 0x40
+    parser = dx.PacketParser()
+    got = parser.feed_all(bytes(corrupt) + dx.encode(dx.Ping(3)))
+    assert got == [dx.CorruptPacket(3, dx.Instruction.WRITE, 9), dx.Ping(3)]
+    assert parser.crc_errors == 1
+    corrupt2 = bytearray(dx.encode(dx.Ping(4)))
+    corrupt2[-2] ^= 1
+    assert parser.feed(bytes(corrupt2)) == []  # feed() leaves them out
+    assert parser.crc_errors == 2
+
+
+def _damaged(packet: bytes, rng_seed: int) -> bytes:
+    rng = random.Random(rng_seed)
+    data = bytearray(packet)
+    data[rng.randrange(len(data))] ^= 1 << rng.randrange(8)
+    return bytes(data)
+
+
+segments = st.one_of(
+    MESSAGES.map(dx.encode),  # valid packets
+    st.tuples(MESSAGES.map(dx.encode), st.integers(0, 2**32)).map(lambda t: _damaged(*t)),
+    st.tuples(MESSAGES.map(dx.encode), st.integers(1, 12)).map(lambda t: t[0][: -t[1]]),
+    st.builds(_fake, st.integers(0, 255), st.integers(0, 0xFFFF), st.binary(max_size=4)),
+    st.binary(max_size=24),
+    st.sampled_from([dx.HEADER, dx.HEADER[:3], b"\xff\xff\xfd\xfd", b"\xff"]),
+)
+
+
+def _parse_in_pieces(
+    stream: bytes, cuts: list[int], max_length: int
+) -> tuple[list[dx.DynamixelMessage | dx.CorruptPacket], tuple[int, ...]]:
+    parser = dx.PacketParser(max_length=max_length)
+    got: list[dx.DynamixelMessage | dx.CorruptPacket] = []
+    for start, end in zip([0, *cuts], [*cuts, len(stream)], strict=True):
+        got += parser.feed_all(stream[start:end])
+    counters = (
+        parser.packets,
+        parser.crc_errors,
+        parser.length_errors,
+        parser.interrupted,
+        parser.malformed,
+        parser.dropped_bytes,
+        parser.buffered,
+    )
+    return got, counters
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(segments, max_size=12).map(b"".join), st.data(), st.sampled_from([16, 64, 1024]))
+def test_fuzz_parser_split_anywhere_parses_as_whole(
+    stream: bytes, data: st.DataObject, max_length: int
+) -> None:
+    cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=8)))
+    whole, whole_counters = _parse_in_pieces(stream, [], max_length)
+    split, split_counters = _parse_in_pieces(stream, cuts, max_length)
+    bytewise, bytewise_counters = _parse_in_pieces(stream, list(range(1, len(stream))), max_length)
+    assert split == whole == bytewise
+    assert split_counters == whole_counters == bytewise_counters
+    # Nothing lost untold: every byte is in a packet, counted as dropped, or buffered.
+    packets = [m for m in whole if not isinstance(m, dx.CorruptPacket)]
+    delivered = sum(len(dx.encode(m)) for m in packets)
+    assert delivered + whole_counters[5] + whole_counters[6] == len(stream)
+    assert whole_counters[6] <= 7 + max_length
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=64) | st.lists(segments, max_size=3).map(b"".join))
+def test_fuzz_decode_raises_only_decode_errors(data: bytes) -> None:
+    try:
+        msg = dx.decode(data)
+    except DynamixelDecodeError:
+        return
+    assert dx.encode(msg) == data  # what decodes is exactly what encodes
