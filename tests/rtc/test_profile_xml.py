@@ -254,7 +254,7 @@ def test_unsafe_xml_is_refused(text: str) -> None:
         ("<x:RtcProfile/>", "invalid XML: unbound prefix"),
         ("<RtcProfile xmlns='urn:other'/>", "expected an rtc:RtcProfile root element"),
         ("<Profile/>", "expected an rtc:RtcProfile root element"),
-        (b'<?xml version="1.0" encoding="no-such-codec"?><a/>', "invalid XML"),
+        (b'<?xml version="1.0" encoding="no-such-codec"?><a/>', "unknown encoding"),
         (b"<a>\xff</a>", "invalid XML"),
     ],
 )

@@ -150,7 +150,7 @@ BAD_PROFILES: dict[str, tuple[dict[str, Any], str]] = {
     ),
     "zero rate": (
         _edit(("basicInfo", "executionRate"), 0.0),
-        "rtcProfile.basicInfo.executionRate: the rate must be a finite number of Hz > 0",
+        "rtcProfile.basicInfo.executionRate: the rate must be a number of Hz, 1e-06 <= rate <= 10000, got 0.0",
     ),
     "bad rate parameter": (
         _edit(

@@ -54,6 +54,8 @@ from .modes import MultiModeObject
 from .rtobject import ObjectState, RTObject
 
 __all__ = [
+    "MAX_RATE_HZ",
+    "MIN_RATE_HZ",
     "EventDrivenExecutionContext",
     "ExecutionContext",
     "ExecutionContextStats",
@@ -68,6 +70,14 @@ T = TypeVar("T")
 _instances = itertools.count(1)
 
 DEFAULT_LIFECYCLE_TIMEOUT_S = 10.0
+
+MAX_RATE_HZ = 10_000.0
+"""The fastest periodic context: a 100 us period.  A cycle costs the context some
+microseconds of bookkeeping plus the participants' callbacks, so faster rates could
+only overrun on a real clock, and on a virtual clock they turn seconds of simulated
+time into minutes of CPU."""
+MIN_RATE_HZ = 1e-6
+"""The slowest periodic context (a period of about 11.6 days)."""
 
 
 class ExecutionKind(IntEnum):
@@ -362,6 +372,7 @@ class ExecutionContext:
         PRECONDITION_NOT_MET when already running or outside ``async with``. A failing
         on_startup moves that participant to Error; the context starts all the same.
         """
+        self._refuse_own_callback("start")
         async with self._op_lock:
             if self._tg is None:
                 raise PreconditionNotMetError(
@@ -381,6 +392,7 @@ class ExecutionContext:
 
         PRECONDITION_NOT_MET when not running. Participants keep their states.
         """
+        self._refuse_own_callback("stop")
         async with self._op_lock:
             if not self._running:
                 raise PreconditionNotMetError("stop", "Stopped", ["Running"])
@@ -547,6 +559,19 @@ class ExecutionContext:
         await self._locked(p, "set_mode", body)
 
     # -- helpers -----------------------------------------------------------------------
+    def _refuse_own_callback(self, operation: str) -> None:
+        """start/stop/set_rate run a callback of every participant: called from one of
+        them, the caller's own callback could not run (it holds its gate), so refuse
+        before changing anything (PRECONDITION_NOT_MET)."""
+        p = _HOLDING.get()
+        if p is not None and self._participants.get(p.rtc) is p:
+            raise PreconditionNotMetError(
+                operation,
+                f"inside a callback of {p.rtc.instance_name} in {self.name}",
+                "outside the callbacks of this context's participants "
+                "(e.g. from another task or another context)",
+            )
+
     def _participant(self, comp: RTObject) -> _Participant:
         p = self._participants.get(comp) if isinstance(comp, RTObject) else None
         if p is None:
@@ -856,10 +881,12 @@ class PeriodicExecutionContext(ExecutionContext):
         return self._rate
 
     async def set_rate(self, rate: float) -> None:
-        """Change the rate (Hz > 0, BAD_PARAMETER otherwise) from the next period on, then
-        run on_rate_changed for every participant (concurrently, each under its lock;
-        a failure moves that participant to Error)."""
+        """Change the rate (MIN_RATE_HZ..MAX_RATE_HZ, BAD_PARAMETER otherwise) from the
+        next period on, then run on_rate_changed for every participant (concurrently,
+        each under its lock; a failure moves that participant to Error).
+        PRECONDITION_NOT_MET, changing nothing, from a participant's own callback."""
         _check_rate(rate)
+        self._refuse_own_callback("set_rate")
         async with self._op_lock:
             old = self._rate
             self._rate = float(rate)
@@ -937,6 +964,8 @@ def _check_rate(rate: object) -> None:
         isinstance(rate, bool)
         or not isinstance(rate, int | float)
         or not math.isfinite(rate)
-        or not 0 < rate <= 1e9
+        or not MIN_RATE_HZ <= rate <= MAX_RATE_HZ
     ):
-        raise RTCBadParameterError("rate", rate, "a finite rate in Hz, 0 < rate <= 1e9")
+        raise RTCBadParameterError(
+            "rate", rate, f"a rate in Hz, {MIN_RATE_HZ:g} <= rate <= {MAX_RATE_HZ:g}"
+        )

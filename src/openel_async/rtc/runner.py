@@ -43,6 +43,8 @@ import structlog
 from ..clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
 from .configuration import Configuration, ConfigurationError
 from .context import (
+    MAX_RATE_HZ,
+    MIN_RATE_HZ,
     EventDrivenExecutionContext,
     ExecutionContext,
     ExecutionKind,
@@ -179,8 +181,12 @@ def execution_spec(profile: RtcProfile, rate_hz: float | None = None) -> Executi
             raise ProfileError(path, f"{RATE_PARAMETER} must be a number, got {text!r}") from None
     else:
         path, rate = "", DEFAULT_RATE_HZ
-    if not (math.isfinite(rate) and 0 < rate <= 1e9):
-        raise ProfileError(path, f"the rate must be a finite number of Hz > 0, got {rate!r}")
+    if not (math.isfinite(rate) and MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
+        raise ProfileError(
+            path,
+            f"the rate must be a number of Hz, {MIN_RATE_HZ:g} <= rate <= {MAX_RATE_HZ:g}, "
+            f"got {rate!r}",
+        )
     return ExecutionSpec(ExecutionKind.PERIODIC, float(rate))
 
 

@@ -1,6 +1,14 @@
-"""The one error raised for bad RTC Profile documents."""
+"""The one error raised for bad RTC Profile documents, and the limits both forms share."""
 
 from __future__ import annotations
+
+# One budget for both forms (YAML: nodes after alias expansion, keys included; XML:
+# elements and attributes, each attribute counting as a key and a value).  Writers
+# check the same budget, so a file this library wrote always loads again.
+# The depth is that of the document tree (a constraint level takes about three), so
+# any constraint within the constraint module's own depth limit fits in both forms.
+MAX_NODES = 2_000_000
+MAX_DEPTH = 256
 
 
 class ProfileError(ValueError):

@@ -33,7 +33,7 @@ from ..constraints import (
     constraint_to_xml,
 )
 from ._codec import Sink, SinkScalar, Source, read_profile, write_profile
-from .errors import ProfileError
+from .errors import MAX_DEPTH, MAX_NODES, ProfileError
 from .model import Extra, ExtraValue, Position, RtcProfile, validate_profile
 
 __all__ = [
@@ -53,7 +53,6 @@ XSI_NS = "http://www.w3.org/2001/XMLSchema-instance"
 PREFIXES = {RTC_NS: "rtc", DOC_NS: "rtcDoc", EXT_NS: "rtcExt", XSI_NS: "xsi"}
 DOCUMENT = "<document>"
 ROOT = "rtcProfile"
-MAX_DEPTH = 64
 _XSI_TYPE = f"{{{XSI_NS}}}type"
 _KEY_NS = {"rtcExt": EXT_NS, "rtcDoc": DOC_NS}
 
@@ -232,6 +231,17 @@ def _scalar_text(value: object) -> str:
     return str(value)
 
 
+# XML 1.0 NCName (no colon), so an unknown YAML key never becomes markup; a namespace
+# URI must not contain what would break the Clark notation or the declaration.
+_NAME_START = "A-Z_a-z\u00c0-\u00d6\u00d8-\u00f6\u00f8-\u02ff\u0370-\u037d\u037f-\u1fff\u200c-\u200d\u2070-\u218f\u2c00-\u2fef\u3001-\ud7ff\uf900-\ufdcf\ufdf0-\ufffd\U00010000-\U000effff"
+_NCNAME = re.compile(f"[{_NAME_START}][{_NAME_START}\\-.0-9\u00b7\u0300-\u036f\u203f-\u2040]*")
+_URI = re.compile(r"[^\s{}<>\"'&\x00-\x1f]+")
+
+
+def _clip(text: str) -> str:
+    return text if len(text) <= 80 else text[:80] + "..."
+
+
 def _write_extra(elem: ET.Element, extra: Extra, ns: str, path: str) -> None:
     for key, value in extra.items():
         if value is None:
@@ -240,6 +250,10 @@ def _write_extra(elem: ET.Element, extra: Extra, ns: str, path: str) -> None:
             elem.text = _scalar_text(value)
             continue
         uri, local = _split(key, ns)
+        if not _NCNAME.fullmatch(local) or not _URI.fullmatch(uri):
+            raise ProfileError(
+                f"{path}.{_clip(key)}", "key cannot be written as an XML name (not an NCName)"
+            )
         name = f"{{{uri}}}{local}"
         items: Sequence[ExtraValue]
         if isinstance(value, Mapping) or (
@@ -349,7 +363,54 @@ def _serialize(root: ET.Element, *, declare_all: bool) -> str:
     return "\n".join(lines) + "\n"
 
 
+_DECLARATION = re.compile(
+    rb"""^<\?xml[^>]*?encoding\s*=\s*(["'])([A-Za-z][A-Za-z0-9._-]*)\1""", re.ASCII
+)
+# Encodings expat reads itself; anything else is decoded here first.
+_EXPAT_ENCODINGS = frozenset({"utf-8", "utf8", "utf-16", "utf16", "iso-8859-1", "latin-1",
+                              "latin1", "us-ascii", "ascii"})
+
+
+def _decode(data: bytes) -> str | bytes:
+    """Bytes in an encoding expat cannot read (Shift_JIS, EUC-JP...) as text, decoded
+    as their XML declaration says; other bytes are left to expat."""
+    if data.startswith((b"\xef\xbb\xbf", b"\xff\xfe", b"\xfe\xff")):
+        return data  # a BOM: UTF-8/16, expat's own
+    m = _DECLARATION.match(data)
+    if m is None or m.group(2).decode().lower() in _EXPAT_ENCODINGS:
+        return data
+    name = m.group(2).decode()
+    try:
+        text = data.decode(name)
+    except LookupError:
+        raise ProfileError(DOCUMENT, f"unknown encoding {name!r} in the XML declaration") from None
+    except UnicodeDecodeError as e:
+        raise ProfileError(DOCUMENT, f"not valid {name}: {e}") from None
+    return text
+
+
+def _check_budget(root: ET.Element) -> None:
+    nodes = 0
+    stack = [(root, 0)]
+    while stack:
+        elem, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise ProfileError(DOCUMENT, f"nested deeper than {MAX_DEPTH} levels")
+        nodes += 1 + 2 * len(elem.attrib) + (1 if (elem.text or "").strip() else 0)
+        if nodes > MAX_NODES:
+            raise ProfileError(DOCUMENT, f"more than {MAX_NODES} nodes")
+        stack.extend((child, depth + 1) for child in elem)
+
+
 def _parse(text: str | bytes) -> ET.Element:
+    if isinstance(text, bytes):
+        text = _decode(text)
+    root = _parse_safely(text)
+    _check_budget(root)
+    return root
+
+
+def _parse_safely(text: str | bytes) -> ET.Element:
     refused = "unsafe XML refused: "
     try:
         root: ET.Element = DefusedET.fromstring(text, forbid_dtd=True)
@@ -388,6 +449,7 @@ def dumps_xml(profile: RtcProfile) -> str:
     validate_profile(profile)
     root = ET.Element(f"{{{RTC_NS}}}RtcProfile")
     write_profile(profile, _XmlSink(root, ROOT, RTC_NS))
+    _check_budget(root)  # never write what loads_xml would refuse
     return _serialize(root, declare_all=True)
 
 

@@ -24,15 +24,13 @@ from ..constraints import (
     constraint_to_yaml,
 )
 from ._codec import Sink, SinkScalar, Source, read_profile, write_profile
-from .errors import ProfileError
+from .errors import MAX_DEPTH, MAX_NODES, ProfileError
 from .model import Extra, ExtraValue, Position, RtcProfile, validate_profile
 
 __all__ = ["dumps_yaml", "loads_yaml"]
 
 DOCUMENT = "<document>"
 ROOT = "rtcProfile"
-MAX_NODES = 100_000
-MAX_DEPTH = 64
 _NULL_TAG = "tag:yaml.org,2002:null"
 
 
@@ -173,6 +171,25 @@ def _plain(value: ExtraValue) -> object:
     return copy.copy(value)
 
 
+def _date_value(value: datetime) -> object:
+    """The year..second mapping (§3.2.1), with RTCBuilder's ``millisecond`` and
+    ``timezone`` (minutes east of UTC) when needed; ISO text for what the mapping
+    cannot hold (sub-millisecond times, zones with seconds)."""
+    parts = ("year", "month", "day", "hour", "minute", "second")
+    out: dict[str, object] = {p: getattr(value, p) for p in parts}
+    if value.microsecond:
+        if value.microsecond % 1000:
+            return value.isoformat()
+        out["millisecond"] = value.microsecond // 1000
+    offset = value.utcoffset()
+    if offset is not None:
+        seconds = int(offset.total_seconds())
+        if seconds % 60 or offset.microseconds:
+            return value.isoformat()
+        out["timezone"] = seconds // 60
+    return out
+
+
 class _YamlSink(Sink):
     def __init__(self, data: dict[str, object], path: str) -> None:
         self._data = data
@@ -185,12 +202,7 @@ class _YamlSink(Sink):
         if value is None:
             return
         if isinstance(value, datetime):
-            if value.tzinfo is not None or value.microsecond:
-                # The spec's year..second mapping would lose these; ISO text keeps them.
-                self._set(key, value.isoformat())
-            else:
-                parts = ("year", "month", "day", "hour", "minute", "second")
-                self._set(key, {p: getattr(value, p) for p in parts})
+            self._set(key, _date_value(value))
         elif isinstance(value, str):
             self._set(key, str(value))  # plain str: the safe dumper refuses StrEnum
         else:
@@ -247,6 +259,7 @@ def dumps_yaml(profile: RtcProfile) -> str:
     validate_profile(profile)
     body: dict[str, object] = {}
     write_profile(profile, _YamlSink(body, ROOT))
+    _check_budget({ROOT: body})  # never write what loads_yaml would refuse
     return yaml.safe_dump(
         {ROOT: body}, sort_keys=False, allow_unicode=True, explicit_start=True, width=100
     )
