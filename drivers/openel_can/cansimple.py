@@ -12,6 +12,11 @@ The same command id carries different payloads per direction, so
 :func:`decode` needs ``from_host``. Malformed frames raise
 :class:`~openel_can.errors.CanSimpleDecodeError` and nothing else; encoders
 raise :class:`ValueError` for values that do not fit the wire format.
+
+Enumerated fields (axis state, control and input mode, reboot action, SDO opcode) hold
+the enum member when this codec knows the value and the plain ``int`` otherwise: newer
+firmware adds values (0.6.11 reports axis states 15 and 16), and a frame carrying one is
+a valid frame, not a malformed one. :func:`value_name` names either.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass, fields
 from enum import IntEnum
-from typing import Any, ClassVar, Final, Self
+from typing import Any, ClassVar, Final, Self, TypeVar
 
 from openel_can.errors import CanSimpleDecodeError
 
@@ -69,6 +74,7 @@ __all__ = [
     "decode",
     "encode",
     "split_arbitration_id",
+    "value_name",
 ]
 
 MAX_NODE_ID: Final = 0x3F
@@ -181,6 +187,21 @@ class SdoOpcode(IntEnum):
     WRITE = 1
 
 
+_E = TypeVar("_E", bound=IntEnum)
+
+
+def _enum_or_int(enum_type: type[_E], value: int) -> _E | int:
+    try:
+        return enum_type(value)
+    except ValueError:
+        return int(value)
+
+
+def value_name(value: int) -> str:
+    """``name`` of an enum member, ``"unknown (n)"`` for a value kept as a plain int."""
+    return value.name if isinstance(value, IntEnum) else f"unknown ({int(value)})"
+
+
 def arbitration_id(node_id: int, cmd: CmdId) -> int:
     """``node_id << 5 | cmd``; raises :class:`ValueError` for a node id outside 0..0x3F."""
     if not 0 <= node_id <= MAX_NODE_ID:
@@ -223,14 +244,15 @@ class CanSimpleMessage:
     _CMD: ClassVar[CmdId]
     _FMT: ClassVar[str] = "<"
     _DLC: ClassVar[int] = _MAX_DLC
-    #: Enum types the raw unpacked integers are coerced to, by field name.
+    #: Enum types the raw unpacked integers are coerced to, by field name (values the
+    #: enum does not know stay plain ints).
     _ENUMS: ClassVar[tuple[tuple[str, type[IntEnum]], ...]] = ()
 
     def __post_init__(self) -> None:
         if not 0 <= self.node_id <= MAX_NODE_ID:
             raise ValueError(f"node_id {self.node_id} outside 0..{MAX_NODE_ID}")
         for name, enum_type in self._ENUMS:
-            object.__setattr__(self, name, enum_type(getattr(self, name)))
+            object.__setattr__(self, name, _enum_or_int(enum_type, getattr(self, name)))
 
     @property
     def cmd(self) -> CmdId:
@@ -291,7 +313,7 @@ class Version(CanSimpleMessage):
 @dataclass(frozen=True)
 class Heartbeat(CanSimpleMessage):
     axis_error: int
-    axis_state: AxisState
+    axis_state: AxisState | int
     procedure_result: int
     trajectory_done: bool = False
 
@@ -453,7 +475,7 @@ class EnterDfu(CanSimpleMessage):
 class RxSdo(CanSimpleMessage):
     """Endpoint access; ``value`` is the raw 4-byte little-endian value field."""
 
-    opcode: SdoOpcode
+    opcode: SdoOpcode | int
     endpoint_id: int
     value: bytes = bytes(4)
 
@@ -468,7 +490,7 @@ class RxSdo(CanSimpleMessage):
 
 @dataclass(frozen=True)
 class SetAxisState(CanSimpleMessage):
-    state: AxisState
+    state: AxisState | int
 
     _CMD = CmdId.SET_AXIS_STATE
     _FMT = "<I"
@@ -477,8 +499,8 @@ class SetAxisState(CanSimpleMessage):
 
 @dataclass(frozen=True)
 class SetControllerMode(CanSimpleMessage):
-    control_mode: ControlMode
-    input_mode: InputMode
+    control_mode: ControlMode | int
+    input_mode: InputMode | int
 
     _CMD = CmdId.SET_CONTROLLER_MODE
     _FMT = "<II"
@@ -565,7 +587,7 @@ class SetTrajInertia(CanSimpleMessage):
 
 @dataclass(frozen=True)
 class Reboot(CanSimpleMessage):
-    action: RebootAction = RebootAction.REBOOT
+    action: RebootAction | int = RebootAction.REBOOT
 
     _CMD = CmdId.REBOOT
     _FMT = "<B"

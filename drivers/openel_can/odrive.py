@@ -318,6 +318,20 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         ):
             if optional is not None and not (math.isfinite(optional) and optional > 0):
                 raise BadParameterError(name, optional, "None or a finite value > 0")
+        if (velocity_limit is None) != (current_limit is None):
+            # Set_Limits carries both; CANSimple 0.6.x cannot read either back (no
+            # Get_Limits), so sending one alone would overwrite the other blindly.
+            given, missing = (
+                ("velocity_limit", "current_limit")
+                if current_limit is None
+                else ("current_limit", "velocity_limit")
+            )
+            raise BadParameterError(
+                missing,
+                None,
+                f"a value since {given} is given: Set_Limits writes both limits and the "
+                "ODrive's configured one cannot be read back over CANSimple",
+            )
         for name, tol in (
             ("position_tolerance", position_tolerance),
             ("velocity_tolerance", velocity_tolerance),
@@ -453,9 +467,9 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
 
     async def _configure(self) -> None:
         node = self.node_id
-        if self.velocity_limit is not None or self.current_limit is not None:
-            vel = rad_to_turns(self.velocity_limit) if self.velocity_limit is not None else math.inf
-            await self._link.send(cs.SetLimits(node, vel, self.current_limit or math.inf))
+        if self.velocity_limit is not None and self.current_limit is not None:
+            vel = rad_to_turns(self.velocity_limit)
+            await self._link.send(cs.SetLimits(node, vel, self.current_limit))
         if self.traj_velocity is not None:
             await self._link.send(cs.SetTrajVelLimit(node, rad_to_turns(self.traj_velocity)))
         if self.traj_acceleration is not None:
@@ -491,7 +505,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
                     continue
         if hb is None:
             last = self.last_heartbeat
-            state = last.axis_state.name if last else "no heartbeat"
+            state = cs.value_name(last.axis_state) if last else "no heartbeat"
             raise TimeoutError(
                 f"ODrive node {self.node_id} not in CLOSED_LOOP_CONTROL after "
                 f"{self.engage_timeout} s ({state})"
@@ -649,7 +663,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
                 self._fault(
                     ErrorId.DEVICE_ERROR,
                     f"ODrive node {self.node_id} disarmed: axis error {hb.axis_error:#x} "
-                    f"({error_names(hb.axis_error)}), state {hb.axis_state.name}",
+                    f"({error_names(hb.axis_error)}), state {cs.value_name(hb.axis_state)}",
                 )
                 return
             if hb.axis_error != self._posted_error:
@@ -657,8 +671,12 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
                 self.log.warning("odrive_axis_error", error=error_names(hb.axis_error))
                 assert self._ctx is not None
                 self._ctx.post_error(ErrorId.DEVICE_ERROR)
-        elif self._closed_loop_wanted and hb.axis_state is cs.AxisState.IDLE:
-            self._fault(ErrorId.DEVICE_ERROR, f"ODrive node {self.node_id} left closed loop")
+        elif self._closed_loop_wanted and hb.axis_state is not cs.AxisState.CLOSED_LOOP_CONTROL:
+            self._fault(
+                ErrorId.DEVICE_ERROR,
+                f"ODrive node {self.node_id} left closed loop "
+                f"(state {cs.value_name(hb.axis_state)})",
+            )
             return
         setpoint = self._pending
         if setpoint is not None and setpoint.trap and not setpoint.reported:

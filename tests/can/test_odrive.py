@@ -300,8 +300,10 @@ async def test_corrupt_frames_are_counted_and_dropped(
     encoder = cs.arbitration_id(NODE, cs.CmdId.GET_ENCODER_ESTIMATES)
     raw_bus.send(can.Message(arbitration_id=heartbeat, data=b"\x00\x00\x00", is_extended_id=False))
     raw_bus.send(can.Message(arbitration_id=encoder, data=b"\x01\x02", is_extended_id=False))
-    bad_state = b"\x00\x00\x00\x00\x63\x00\x00\x00"  # axis state 99 does not exist
-    raw_bus.send(can.Message(arbitration_id=heartbeat, data=bad_state, is_extended_id=False))
+    remote_reply = can.Message(arbitration_id=heartbeat, is_remote_frame=True, dlc=8)
+    raw_bus.send(remote_reply)  # a poll by another host: ignored, not counted
+    bad_dlc = can.Message(arbitration_id=heartbeat, data=bytes(9)[:6], is_extended_id=False)
+    raw_bus.send(bad_dlc)  # 6 bytes: the heartbeat needs 7
     await wait_until(lambda: device.malformed_frames == 3, 1)
     assert axis.state is ComponentState.ACTIVE
     with anyio.fail_after(2):
@@ -333,6 +335,78 @@ async def test_sensors(peers: Peers, host_bus: CanBus, components: Components) -
     assert 290 < fet < 320 and 290 < motor < 320
     volts, amps = await monitor.get_value()
     assert volts == pytest.approx(24.0, abs=0.5) and amps >= 0
+
+
+@pytest.mark.parametrize("state", [15, 16])
+async def test_unknown_axis_states_are_heartbeats_not_malformed_frames(
+    peers: Peers,
+    host_bus: CanBus,
+    components: Components,
+    recorder: EventRecorder,
+    state: int,
+) -> None:
+    """Firmware 0.6.11 reports axis states 15 and 16. Before: each such heartbeat was
+    dropped as malformed, so a run of them ended in a false DISCONNECTED fault."""
+    sim = await peers.start(_sim())
+    axis = await components.actuator(_axis(host_bus))
+    device = axis.device
+    assert isinstance(device, ODriveAxis)
+    await axis.set_value(0.0, Request.NO_EXCITE)  # closed loop no longer wanted
+    await wait_until(lambda: sim.axis_state is cs.AxisState.IDLE, 1)
+    sim.axis_state = state  # e.g. a calibration started by another tool
+    await anyio.sleep(4 * device.heartbeat_timeout)  # the condition: time without a fault
+    assert device.malformed_frames == 0
+    assert device.last_heartbeat is not None and device.last_heartbeat.axis_state == state
+    assert axis.state is ComponentState.ACTIVE and recorder.errors == []
+    # While closed loop is wanted, the same state is a drop out of closed loop, named.
+    sim.axis_state = cs.AxisState.IDLE
+    with anyio.fail_after(2):
+        await (await axis.set_value(0.1))
+    sim.axis_state = state
+    record = await recorder.wait_for("error", source=axis, timeout=1)
+    assert record.id == ErrorId.DEVICE_ERROR
+    assert f"unknown ({state})" in str(axis.last_fault)
+
+
+def test_one_limit_alone_is_refused() -> None:
+    """Set_Limits carries both limits: before, velocity_limit alone sent current = +inf
+    (and the reverse), wiping the drive's configured limit."""
+    from openel_async import BadParameterError
+
+    bus = CanBus(interface="virtual", channel="unused")
+    with pytest.raises(BadParameterError, match="current_limit"):
+        ODriveAxis(bus, 1, velocity_limit=10.0)
+    with pytest.raises(BadParameterError, match="velocity_limit"):
+        ODriveAxis(bus, 1, current_limit=5.0)
+
+
+async def test_both_limits_are_sent_as_given(
+    peers: Peers, host_bus: CanBus, components: Components
+) -> None:
+    sim = await peers.start(_sim(current_limit=7.5))
+    await components.actuator(_axis(host_bus, velocity_limit=turns_to_rad(3.0), current_limit=12))
+    limits = [c for c in sim.commands if isinstance(c, cs.SetLimits)]
+    assert limits == [cs.SetLimits(NODE, 3.0, 12.0)]
+    assert sim.current_limit == 12.0 and sim.vel_limit == 3.0
+
+
+async def test_sim_command_history_is_bounded_and_counts_what_it_dropped(
+    peers: Peers, host_bus: CanBus, components: Components
+) -> None:
+    sim = await peers.start(_sim(history=8))
+    axis = await components.actuator(_axis(host_bus))
+    for n in range(20):
+        await axis.set_value(0.001 * n, Request.VELOCITY)
+    last = rad_to_turns(0.019)
+
+    def arrived() -> bool:
+        command = sim.commands[-1]
+        return isinstance(command, cs.SetInputVel) and command.vel == pytest.approx(last)
+
+    await wait_until(arrived, 1)
+    assert len(sim.commands) == 8
+    assert sim.commands.total >= 21  # the init commands + 20 Set_Input_Vel
+    assert sim.commands.discarded == sim.commands.total - 8
 
 
 def test_bad_parameters_name_the_parameter() -> None:

@@ -55,6 +55,7 @@ from .. import canopen as co
 from .. import cia402 as ds
 from ..bus import CanBus, NodePort
 from ..errors import DecodeError
+from .history import DEFAULT_HISTORY, History
 
 __all__ = ["DRIVE_TEMPERATURE", "ENERGY_LIMIT", "OPERATING_TIME", "SimCia402Drive"]
 
@@ -197,6 +198,7 @@ class SimCia402Drive:
         heartbeat_ms: int = 1000,
         fault_reaction_s: float = 0.005,
         setpoint_ack_delay: float = 0.0,
+        history: int = DEFAULT_HISTORY,
         clock: Clock | None = None,
     ) -> None:
         if not 1 <= node_id <= co.MAX_NODE_ID:
@@ -215,9 +217,9 @@ class SimCia402Drive:
         self.silent = False
         self.sdo_silent = False
         self.malformed = 0
-        self.received_controlwords: list[int] = []
-        """Every controlword written, in order (for tests)."""
-        self.emcy_sent: list[co.Emergency] = []
+        self.received_controlwords: History[int] = History(history)
+        """The newest controlwords written, in order (``.discarded``: older ones)."""
+        self.emcy_sent: History[co.Emergency] = History(history)
         self._port: NodePort | None = None
         self._scope: anyio.CancelScope | None = None
         self._kicked = False
@@ -426,6 +428,14 @@ class SimCia402Drive:
                 task_status.started()
         finally:
             port.close()
+            self.log.info(
+                "sim_stopped",
+                controlwords=self.received_controlwords.total,
+                controlwords_discarded=self.received_controlwords.discarded,
+                emcy=self.emcy_sent.total,
+                emcy_discarded=self.emcy_sent.discarded,
+                malformed=self.malformed,
+            )
 
     def _kick(self) -> None:
         self._kicked = True

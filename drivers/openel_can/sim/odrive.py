@@ -15,7 +15,15 @@ Temperatures follow a first-order thermal model of the I²R losses.
 
 Fault injection: :meth:`inject_error` (an axis error that disarms, or not),
 :meth:`set_silent` (the node stops transmitting and listening: heartbeat loss), and
-Estop from the host (ESTOP_REQUESTED).
+Estop from the host (ESTOP_REQUESTED). ``axis_state`` may be set to any int (newer
+firmware reports states this codec does not name, e.g. 15 and 16 in 0.6.11).
+
+Set_Limits overwrites both limits with the values received, as the firmware does
+(``vel_limit`` turn/s, ``current_limit`` A); an infinite velocity limit is stored but the
+motion model keeps the last finite one. ``commands`` keeps the newest
+``history`` host commands (a :class:`~openel_can.sim.history.History`: ``discarded``
+counts the older ones); a command with an enum value the codec does not know is
+recorded and otherwise ignored.
 """
 
 from __future__ import annotations
@@ -35,6 +43,7 @@ from .. import cansimple as cs
 from ..bus import CanBus, NodePort
 from ..errors import DecodeError
 from ..odrive import ODriveError
+from .history import DEFAULT_HISTORY, History
 
 __all__ = ["SimODrive"]
 
@@ -83,6 +92,7 @@ class SimODrive:
         heartbeat_period: float = 0.1,
         encoder_period: float = 0.01,
         vel_limit: float = 2.0,
+        current_limit: float = 10.0,
         traj_vel_limit: float = 1.0,
         traj_accel_limit: float = 8.0,
         vel_ramp_rate: float = 8.0,
@@ -93,6 +103,7 @@ class SimODrive:
         thermal_resistance: float = 4.0,
         bus_voltage: float = 24.0,
         initial_position: float = 0.0,
+        history: int = DEFAULT_HISTORY,
         clock: Clock | None = None,
     ) -> None:
         if not 0 <= node_id < cs.MAX_NODE_ID:
@@ -101,6 +112,8 @@ class SimODrive:
         self.heartbeat_period = heartbeat_period
         self.encoder_period = encoder_period
         self.vel_limit = vel_limit
+        self.current_limit = current_limit
+        """A: as last set by Set_Limits (not modelled beyond being stored)."""
         self.traj_vel_limit = traj_vel_limit
         self.traj_accel_limit = traj_accel_limit
         self.vel_ramp_rate = vel_ramp_rate
@@ -112,7 +125,7 @@ class SimODrive:
         self.nominal_bus_voltage = bus_voltage
         self.clock: Clock = clock or default_clock()
         now = self.clock.now_ns()
-        self.axis_state = cs.AxisState.IDLE
+        self.axis_state: cs.AxisState | int = cs.AxisState.IDLE
         self.control_mode = cs.ControlMode.POSITION
         self.input_mode = cs.InputMode.PASSTHROUGH
         self.active_errors = 0
@@ -126,8 +139,8 @@ class SimODrive:
         self.motor_temp = AMBIENT_C
         self.fet_temp = AMBIENT_C
         self._thermal_ns = now
-        self.commands: list[cs.CanSimpleMessage] = []
-        """Every host command received, in order (for tests)."""
+        self.commands: History[cs.CanSimpleMessage] = History(history)
+        """The newest host commands received, in order (``commands.discarded``: older ones)."""
         self.malformed = 0
         self._port: NodePort | None = None
         self.log = log.bind(sim_odrive=node_id)
@@ -161,6 +174,12 @@ class SimODrive:
                 task_status.started()
         finally:
             port.close()
+            self.log.info(
+                "sim_stopped",
+                commands=self.commands.total,
+                commands_discarded=self.commands.discarded,
+                malformed=self.malformed,
+            )
 
     # -- fault injection ------------------------------------------------------------------
     def inject_error(self, error: int = ODriveError.DRV_FAULT, *, disarm: bool = True) -> None:
@@ -306,11 +325,14 @@ class SimODrive:
             if msg.state is cs.AxisState.CLOSED_LOOP_CONTROL and self.disarm_reason:
                 self.procedure_result = cs.ProcedureResult.DISARMED
                 return  # refused: errors must be cleared first
-            if msg.state in (cs.AxisState.CLOSED_LOOP_CONTROL, cs.AxisState.IDLE):
+            if msg.state is cs.AxisState.CLOSED_LOOP_CONTROL or msg.state is cs.AxisState.IDLE:
                 self.procedure_result = cs.ProcedureResult.SUCCESS
                 self._set_state(msg.state)
         elif isinstance(msg, cs.SetControllerMode):
-            self.control_mode, self.input_mode = msg.control_mode, msg.input_mode
+            control, inputs = msg.control_mode, msg.input_mode
+            if not (isinstance(control, cs.ControlMode) and isinstance(inputs, cs.InputMode)):
+                return  # a mode this simulation does not know: ignored
+            self.control_mode, self.input_mode = control, inputs
             if self.axis_state is cs.AxisState.CLOSED_LOOP_CONTROL:
                 self._set_state(cs.AxisState.CLOSED_LOOP_CONTROL)  # new mode: hold here
         elif isinstance(msg, cs.SetInputPos | cs.SetInputVel | cs.SetInputTorque):
@@ -321,6 +343,8 @@ class SimODrive:
             self.active_errors = self.disarm_reason = 0
             self.procedure_result = cs.ProcedureResult.SUCCESS
         elif isinstance(msg, cs.SetLimits):
+            # The firmware overwrites both limits with whatever it receives.
+            self.current_limit = msg.current_limit
             self.vel_limit = (
                 msg.velocity_limit if math.isfinite(msg.velocity_limit) else self.vel_limit
             )
