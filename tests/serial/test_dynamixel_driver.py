@@ -325,6 +325,24 @@ async def test_corrupt_bytes_are_counted_and_dropped(
         assert recorder.errors == [] and a1.state is ComponentState.ACTIVE
 
 
+async def test_instruction_damaged_on_the_wire_is_answered_crc_error_and_resent(
+    bus: SimDynamixelBus, port: DynamixelPort
+) -> None:
+    bus.corrupt_requests = 1  # the servo receives the READ with a bad CRC
+    assert await port.read_item(1, X.PRESENT_POSITION) == 2048
+    assert (bus[1].crc_errors, port.stats.crc_rejected, port.stats.retries) == (1, 1, 1)
+    bus.corrupt_requests = 1
+    await port.write_item(2, X.PROFILE_VELOCITY, 77)  # executed once, after the resend
+    assert bus[2].get(X.PROFILE_VELOCITY) == 77 and bus[2].crc_errors == 1
+    bus.corrupt_requests = port.retries + 1  # every attempt damaged: the servo's answer
+    with pytest.raises(DynamixelStatusError) as info:
+        await port.ping(1)
+    assert info.value.error_number == dx.ErrorNumber.CRC_ERROR
+    assert port.stats.crc_rejected == 2 + port.retries + 1
+    assert port.stats.timeouts == 0  # the servo answered every time
+    assert bus.corrupt_instructions == 2 + port.retries + 1
+
+
 async def test_port_vanishing_faults_every_servo_and_re_init_recovers(
     bus: SimDynamixelBus, port: DynamixelPort, recorder: EventRecorder
 ) -> None:
