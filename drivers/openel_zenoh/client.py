@@ -1,0 +1,417 @@
+"""RemoteSurface: the surface layer of a server, used over Zenoh.
+
+The same operations as :class:`openel_async.surface.Surface` (``execute``, ``subscribe``,
+``unsubscribe``, ``get_event_detail``, ``get_error_detail``) as one Zenoh query each, every
+query bounded by ``timeout``. The server's notices for this client arrive numbered on one
+stream and are handed to the applications (``completed`` to the one that executed the
+command, ``notify_event`` to the subscriber, ``notify_error`` to every attached one); a gap
+in the numbering (notices dropped on the way) is logged, counted in ``missed_total`` and
+reported to applications that have ``report_missed`` (as :class:`ApplicationQueue`).
+
+The server's presence is followed through its liveliness token: ``on_server`` listeners
+hear of it leaving and coming back; when it comes back, subscriptions are made again
+(their local ids stay the same) and commands still awaiting completion end with
+``HAL_NO_CONNECTED``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import uuid
+from collections.abc import Callable
+from types import TracebackType
+from typing import Any, Literal, Self, cast
+
+import anyio
+import anyio.abc
+import msgspec
+import structlog
+import zenoh
+
+from openel_async.errors import BadParameterError, NotConnectedError, ReturnCode, check_code
+from openel_async.surface import compact, xml_psm
+from openel_async.surface.application import Delivery
+from openel_async.surface.messages import CommandMessage, Device, ResultList
+
+from . import wire
+from .bridge import ThreadInbox
+from .keys import Keys
+
+log = structlog.get_logger(__name__)
+
+DEFAULT_TIMEOUT_S = 2.0
+DETAILS_SIZE = 4096
+Encoding = Literal["compact", "xml"]
+
+
+class RemoteSurface:
+    """``async with RemoteSurface(session, namespace) as remote``: a server's surface layer."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        namespace: str = "default",
+        *,
+        timeout: float = DEFAULT_TIMEOUT_S,
+        client_id: str | None = None,
+        encoding: Encoding = "compact",
+    ) -> None:
+        if not timeout > 0:
+            raise BadParameterError("timeout", timeout, "a number of seconds > 0")
+        if encoding not in ("compact", "xml"):
+            raise BadParameterError("encoding", encoding, "'compact' or 'xml'")
+        self.session = session
+        self.keys = Keys(namespace)
+        self.timeout = float(timeout)
+        self.client_id = client_id or uuid.uuid4().hex
+        self.keys.client_alive(self.client_id)  # checks the id
+        self.encoding: Encoding = encoding
+        self._attachment = self.client_id.encode()
+        self.server_alive = False
+        self._was_lost = False
+        self.missed_total = 0
+        self._next_index = 0
+        self._tg: anyio.abc.TaskGroup | None = None
+        self._deliveries: dict[int, Delivery] = {}
+        self._attached: dict[int, Delivery] = {}
+        self._pending: dict[str, Delivery] = {}
+        self._early: dict[str, ReturnCode] = {}
+        self._subscriptions: dict[int, tuple[str, str, Delivery, int]] = {}
+        """local id -> (device_kind, event_type, delivery, remote id)"""
+        self._by_remote: dict[int, int] = {}
+        self._local_ids = iter(range(1, 1 << 62))
+        self._event_details: dict[str, ResultList] = {}
+        self._error_details: dict[str, ResultList] = {}
+        self._listeners: list[Callable[[bool], None]] = []
+        self._declared: list[Any] = []
+        self._up = anyio.Event()
+
+    # -- lifecycle -----------------------------------------------------------------------
+    async def __aenter__(self) -> Self:
+        self._loop = asyncio.get_running_loop()
+        self._notices: ThreadInbox[bytes] = ThreadInbox(65536)
+        self._presence: ThreadInbox[bool] = ThreadInbox(64)
+        tg = anyio.create_task_group()
+        await tg.__aenter__()
+        self._tg = tg
+        try:
+            self._declared.append(
+                self.session.declare_subscriber(
+                    self.keys.notices(self.client_id),
+                    zenoh.handlers.Callback(self._on_notices, indirect=False),
+                )
+            )
+            self._declared.append(
+                self.session.liveliness().declare_subscriber(
+                    self.keys.server_alive,
+                    zenoh.handlers.Callback(self._on_presence, indirect=False),
+                    history=True,
+                )
+            )
+            self._declared.append(
+                self.session.liveliness().declare_token(self.keys.client_alive(self.client_id))
+            )
+            tg.start_soon(self._read_notices)
+            tg.start_soon(self._follow_server)
+        except BaseException:
+            await self._close()
+            raise
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        await self._close()
+
+    async def _close(self) -> None:
+        for entity in reversed(self._declared):
+            with contextlib.suppress(zenoh.ZError):
+                cast(Any, entity).undeclare()
+        self._declared.clear()
+        if self._tg is not None:
+            self._tg.cancel_scope.cancel()
+            await self._tg.__aexit__(None, None, None)
+            self._tg = None
+
+    async def wait_server(self, timeout: float | None = None) -> None:  # noqa: ASYNC109
+        """Wait until the server's liveliness token is seen (TimeoutError after ``timeout``)."""
+        with anyio.fail_after(self.timeout if timeout is None else timeout):
+            while not self.server_alive:
+                await self._up.wait()
+
+    def on_server(self, listener: Callable[[bool], None]) -> Callable[[], None]:
+        """Call ``listener(alive)`` when the server leaves (False) or comes back (True)."""
+        self._listeners.append(listener)
+        return lambda: self._listeners.remove(listener) if listener in self._listeners else None
+
+    # -- Zenoh threads -----------------------------------------------------------------
+    def _on_notices(self, sample: zenoh.Sample) -> None:
+        self._notices.put(sample.payload.to_bytes())
+
+    def _on_presence(self, sample: zenoh.Sample) -> None:
+        self._presence.put(sample.kind == zenoh.SampleKind.PUT)
+
+    # -- queries -------------------------------------------------------------------------
+    async def query(self, key: str, payload: bytes) -> bytes:
+        """One Zenoh query, its first reply's payload; TimeoutError/NotConnectedError."""
+        loop = self._loop
+        future: asyncio.Future[bytes | BaseException] = loop.create_future()
+
+        def settle(value: bytes | BaseException) -> None:
+            if not future.done():
+                future.set_result(value)
+
+        def on_reply(reply: zenoh.Reply) -> None:
+            ok = reply.ok
+            value: bytes | BaseException
+            if ok is not None:
+                value = ok.payload.to_bytes()
+            else:
+                err = reply.err
+                text = err.payload.to_string() if err is not None else "error reply"
+                value = NotConnectedError(f"{key}: {text}")
+            loop.call_soon_threadsafe(settle, value)
+
+        def on_done() -> None:
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(
+                    settle, TimeoutError(f"{key}: no reply within {self.timeout} s")
+                )
+
+        self.session.get(
+            key,
+            zenoh.handlers.Callback(on_reply, on_done, indirect=False),
+            payload=payload,
+            attachment=self._attachment,
+            timeout=self.timeout,
+            consolidation=zenoh.ConsolidationMode.NONE,
+        )
+        with anyio.fail_after(self.timeout + 1.0):
+            result = await future
+        if isinstance(result, BaseException):
+            raise result
+        return result
+
+    def _delivery(self, application: object) -> Delivery:
+        found = self._deliveries.get(id(application))
+        if found is None:
+            if self._tg is None:
+                raise BadParameterError("RemoteSurface", "closed", "inside 'async with'")
+            found = self._deliveries[id(application)] = Delivery(application, self._tg)
+        return found
+
+    async def execute(
+        self, device: Device, application: object | None = None, *, encoding: Encoding | None = None
+    ) -> Device:
+        """execute(): the Device message with results; ``application`` gets ``completed``."""
+        encoding = encoding or self.encoding
+        delivery = self._delivery(application) if application is not None else None
+        if encoding == "xml":
+            reply = xml_psm.device_from_xml(
+                await self.query(self.keys.execute, xml_psm.to_xml(device, declaration=False))
+            )
+        else:
+            reply = compact.device_from_compact(
+                await self.query(self.keys.execute, compact.encode(device))
+            )
+        if delivery is not None:
+            for command in reply.commands:
+                results = command.results
+                if (
+                    results is None
+                    or results.get("return_code") is None
+                    or results.value("return_code") != 0
+                ):
+                    continue
+                early = self._early.pop(command.command_id, None)
+                if early is not None:
+                    delivery.call("completed", command.command_id, early)
+                else:
+                    self._pending[command.command_id] = delivery
+        return reply
+
+    async def execute_command(
+        self, device_kind: str, command: CommandMessage, application: object | None = None
+    ) -> CommandMessage:
+        reply = await self.execute(Device(device_kind, (command,)), application)
+        return reply.commands[0]
+
+    async def components(self) -> list[wire.ComponentInfo]:
+        return wire.components_decoder.decode(await self.query(self.keys.components, b""))
+
+    async def _answer(self, key: str, payload: bytes) -> wire.Answer:
+        answer = wire.answer_decoder.decode(await self.query(key, payload))
+        check_code(answer.return_code, answer.message)
+        return answer
+
+    async def subscribe(self, device_kind: str, event_type: str, application: object) -> int:
+        delivery = self._delivery(application)
+        answer = await self._answer(
+            self.keys.subscribe, wire.encoder.encode(wire.SubscribeRequest(device_kind, event_type))
+        )
+        local = next(self._local_ids)
+        self._subscriptions[local] = (device_kind, event_type, delivery, answer.subscribe_id)
+        self._by_remote[answer.subscribe_id] = local
+        return local
+
+    async def unsubscribe(self, subscribe_id: int) -> None:
+        found = self._subscriptions.pop(subscribe_id, None)
+        if found is None:
+            raise BadParameterError(
+                "subscribe_id", subscribe_id, f"one of {sorted(self._subscriptions)}"
+            )
+        self._by_remote.pop(found[3], None)
+        if self.server_alive:
+            await self._answer(self.keys.unsubscribe, wire.encoder.encode(found[3]))
+
+    def attach(self, application: object) -> None:
+        """``application`` gets notify_error for every component of the server."""
+        delivery = self._delivery(application)
+        self._attached[id(application)] = delivery
+
+    def detach(self, application: object) -> None:
+        self._attached.pop(id(application), None)
+
+    async def get_event_detail(self, event_id: str) -> ResultList:
+        found = self._event_details.get(event_id)
+        if found is not None:
+            return found
+        answer = await self._answer(self.keys.event_detail, wire.encoder.encode(event_id))
+        assert answer.detail is not None
+        return answer.detail
+
+    async def get_error_detail(self, error_id: str) -> ResultList:
+        found = self._error_details.get(error_id)
+        if found is not None:
+            return found
+        answer = await self._answer(self.keys.error_detail, wire.encoder.encode(error_id))
+        assert answer.detail is not None
+        return answer.detail
+
+    def cached_event_detail(self, event_id: str) -> ResultList | None:
+        return self._event_details.get(event_id)
+
+    def cached_error_detail(self, error_id: str) -> ResultList | None:
+        return self._error_details.get(error_id)
+
+    # -- notices ---------------------------------------------------------------------------
+    @staticmethod
+    def _remember(table: dict[str, ResultList], key: str, detail: ResultList) -> None:
+        table[key] = detail
+        if len(table) > DETAILS_SIZE:
+            del table[next(iter(table))]
+
+    def _report_missed(self, count: int) -> None:
+        self.missed_total += count
+        log.warning(
+            "notices_missed", client=self.client_id, missed=count, missed_total=self.missed_total
+        )
+        seen: set[int] = set()
+        for delivery in [
+            *self._attached.values(),
+            *(s[2] for s in self._subscriptions.values()),
+            *self._pending.values(),
+        ]:
+            if id(delivery) in seen:
+                continue
+            seen.add(id(delivery))
+            report = getattr(delivery.application, "report_missed", None)
+            if callable(report):
+                report(count)
+
+    async def _read_notices(self) -> None:
+        while True:
+            for payload in await self._notices.wait():
+                try:
+                    batch = wire.batch_decoder.decode(payload)
+                except (msgspec.ValidationError, msgspec.DecodeError) as exc:
+                    log.warning("bad_notice_batch", error=str(exc))
+                    continue
+                if batch.first_index < self._next_index:
+                    self._next_index = batch.first_index  # a restarted server numbers from 0
+                gap = batch.first_index - self._next_index
+                if gap > 0:
+                    self._report_missed(gap)
+                self._next_index = batch.first_index + len(batch.notices)
+                for notice in batch.notices:
+                    self._deliver(notice)
+
+    def _deliver(self, notice: wire.Notice) -> None:
+        if isinstance(notice, wire.CompletedNotice):
+            status = (
+                ReturnCode(notice.status)
+                if notice.status in ReturnCode._value2member_map_
+                else ReturnCode.HAL_ERROR
+            )
+            delivery = self._pending.pop(notice.command_id, None)
+            if delivery is None:
+                self._early[notice.command_id] = status
+                if len(self._early) > DETAILS_SIZE:
+                    del self._early[next(iter(self._early))]
+                return
+            delivery.call("completed", notice.command_id, status)
+        elif isinstance(notice, wire.EventNotice):
+            self._remember(self._event_details, notice.event_id, notice.detail)
+            local = self._by_remote.get(notice.subscribe_id)
+            if local is None:
+                return
+            subscription = self._subscriptions[local]
+            subscription[2].call("notify_event", notice.event_id, notice.event_type, local)
+        else:
+            self._remember(self._error_details, notice.error_id, notice.detail)
+            for delivery in tuple(self._attached.values()):
+                delivery.call("notify_error", notice.error_id, notice.error_type)
+
+    # -- server presence -----------------------------------------------------------------
+    async def _follow_server(self) -> None:
+        while True:
+            for alive in await self._presence.wait():
+                if alive == self.server_alive:
+                    continue
+                self.server_alive = alive
+                log.info("server_presence", namespace=self.keys.namespace, alive=alive)
+                if alive:
+                    self._next_index = 0
+                    if self._was_lost:
+                        await self._resubscribe()
+                    self._up.set()
+                    self._up = anyio.Event()
+                else:
+                    self._was_lost = True
+                    pending, self._pending = self._pending, {}
+                    for command_id, delivery in pending.items():
+                        delivery.call("completed", command_id, ReturnCode.HAL_NO_CONNECTED)
+                for listener in tuple(self._listeners):
+                    try:
+                        listener(alive)
+                    except Exception:
+                        log.exception("server_listener_failed")
+
+    async def _resubscribe(self) -> None:
+        self._by_remote.clear()
+        for local, (kind, event_type, delivery, _) in list(self._subscriptions.items()):
+            try:
+                answer = await self._answer(
+                    self.keys.subscribe,
+                    wire.encoder.encode(wire.SubscribeRequest(kind, event_type)),
+                )
+            except Exception as exc:
+                log.warning(
+                    "resubscribe_failed", device_kind=kind, event_type=event_type, error=str(exc)
+                )
+                continue
+            self._subscriptions[local] = (kind, event_type, delivery, answer.subscribe_id)
+            self._by_remote[answer.subscribe_id] = local
+
+
+async def open_session(config: zenoh.Config) -> zenoh.Session:
+    """``zenoh.open`` off the event loop (it connects and may wait)."""
+    return await anyio.to_thread.run_sync(zenoh.open, config)
+
+
+async def close_session(session: zenoh.Session) -> None:
+    await anyio.to_thread.run_sync(session.close)

@@ -1,0 +1,447 @@
+"""SurfaceServer: a Surface served over Zenoh (queryables, a notice stream per client,
+liveliness).
+
+Queries arrive on Zenoh's threads and are moved into the event loop through a bounded
+inbox. Each client (named by the query's attachment) has a bounded queue of its own and
+at most one query executing at a time, so its commands run in order; workers take
+clients round robin, so a flooding client is refused (``HAL_NO_MEMORY``, counted in
+``refused_busy``) while the others keep being served. A malformed, oversized or invalid
+message gets an answer with the matching return code and is logged once.
+
+Notices for a client (completed, notify_event, notify_error) are numbered and published
+in batches, at most one batch per client per event-loop turn; the outbound buffer is
+bounded, and whatever it drops leaves a gap in the numbering that the client reports.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections import deque
+from dataclasses import dataclass, field
+from types import TracebackType
+from typing import Any, Self, cast
+
+import anyio
+import anyio.abc
+import msgspec
+import structlog
+import zenoh
+
+from openel_async.errors import BadParameterError, HALError, ReturnCode
+from openel_async.surface import Surface, compact, xml_psm
+from openel_async.surface.messages import CommandMessage, DataType, Device, Parameter, ResultList
+
+from . import wire
+from .bridge import ThreadInbox
+from .keys import Keys
+
+log = structlog.get_logger(__name__)
+
+CLIENT_QUEUE = 32
+"""Queries one client may have waiting; more are refused with HAL_NO_MEMORY."""
+INBOX_SIZE = 4096
+OUTBOX_SIZE = 65536
+"""Notices one client may have waiting to be published; older ones are dropped (counted)."""
+WORKERS = 4
+ANONYMOUS = "anonymous"
+
+
+@dataclass
+class _Request:
+    kind: str
+    client: str
+    payload: bytes
+    query: zenoh.Query
+
+
+@dataclass
+class _Client:
+    name: str
+    queue: deque[_Request] = field(default_factory=deque)
+    busy: bool = False
+    link: _ClientLink | None = None
+
+
+class _ClientLink:
+    """The ApplicationBase of one remote client inside the server's Surface."""
+
+    def __init__(self, server: SurfaceServer, client: str) -> None:
+        self.server = server
+        self.client = client
+        self.publisher = server.session.declare_publisher(
+            server.keys.notices(client), congestion_control=zenoh.CongestionControl.DROP
+        )
+        self.next_index = 0
+        self.pending: deque[tuple[int, wire.Notice]] = deque()
+        self.dropped = 0
+        self.flush_scheduled = False
+        self.closed = False
+
+    def completed(self, command_id: str, status: ReturnCode) -> None:
+        self._add(wire.CompletedNotice(command_id, int(status)))
+
+    def notify_event(self, event_id: str, event_type: str, subscribe_id: int) -> None:
+        detail = self.server.surface.get_event_detail(event_id)
+        self._add(wire.EventNotice(event_id, event_type, subscribe_id, detail))
+
+    def notify_error(self, error_id: str, error_type: str) -> None:
+        detail = self.server.surface.get_error_detail(error_id)
+        self._add(wire.ErrorNotice(error_id, error_type, detail))
+
+    def _add(self, notice: wire.Notice) -> None:
+        if self.closed:
+            return
+        self.pending.append((self.next_index, notice))
+        self.next_index += 1
+        if len(self.pending) > OUTBOX_SIZE:
+            self.pending.popleft()
+            self.dropped += 1
+        if not self.flush_scheduled:
+            self.flush_scheduled = True
+            self.server.schedule_flush(self)
+
+    def flush(self) -> None:
+        self.flush_scheduled = False
+        if self.closed:
+            return
+        while self.pending:
+            first = self.pending[0][0]
+            batch: list[wire.Notice] = []
+            index = first
+            while self.pending and self.pending[0][0] == index and len(batch) < 512:
+                batch.append(self.pending.popleft()[1])
+                index += 1
+            try:
+                self.publisher.put(wire.encoder.encode(wire.NoticeBatch(first, batch)))
+            except zenoh.ZError as exc:
+                log.warning("notice_publish_failed", client=self.client, error=str(exc))
+
+    def close(self) -> None:
+        self.closed = True
+        _undeclare(self.publisher)
+
+
+def _drop(query: zenoh.Query) -> None:
+    """Finalize a query (the querier's get ends once every queryable dropped it)."""
+    cast(Any, query).drop()
+
+
+def _undeclare(entity: object) -> None:
+    with contextlib.suppress(zenoh.ZError):
+        cast(Any, entity).undeclare()
+
+
+def _result_code(exc: BaseException) -> tuple[int, str]:
+    if isinstance(exc, HALError):
+        return int(exc.code), str(exc)
+    return int(ReturnCode.HAL_ERROR), repr(exc)
+
+
+class SurfaceServer:
+    """Serve ``surface`` on ``session`` under ``openel/<namespace>/`` (``async with``)."""
+
+    def __init__(
+        self, surface: Surface, session: zenoh.Session, namespace: str = "default"
+    ) -> None:
+        self.surface = surface
+        self.session = session
+        self.keys = Keys(namespace)
+        self.clients: dict[str, _Client] = {}
+        self.refused_busy = 0
+        self.refused_bad = 0
+        self.served = 0
+        self._ready: deque[_Client] = deque()
+        self._work = anyio.Event()
+        self._declared: list[Any] = []
+        self._tg: anyio.abc.TaskGroup | None = None
+        self._inbox: ThreadInbox[_Request] | None = None
+        self._alive: ThreadInbox[tuple[str, bool]] | None = None
+        self._flush_queue: list[_ClientLink] = []
+        self._flush_event = anyio.Event()
+
+    async def __aenter__(self) -> Self:
+        self._inbox = ThreadInbox(INBOX_SIZE, on_drop=self._refuse_dropped)
+        self._alive = ThreadInbox(1024)
+        tg = anyio.create_task_group()
+        await tg.__aenter__()
+        self._tg = tg
+        try:
+            for kind in (
+                "execute",
+                "subscribe",
+                "unsubscribe",
+                "event_detail",
+                "error_detail",
+                "components",
+            ):
+                key = getattr(self.keys, kind)
+                self._declared.append(
+                    self.session.declare_queryable(
+                        key,
+                        zenoh.handlers.Callback(self._on_query(kind), indirect=False),
+                        complete=True,
+                    )
+                )
+            self._declared.append(
+                self.session.liveliness().declare_subscriber(
+                    self.keys.clients_alive,
+                    zenoh.handlers.Callback(self._on_client_alive, indirect=False),
+                    history=True,
+                )
+            )
+            tg.start_soon(self._dispatch)
+            tg.start_soon(self._watch_clients)
+            tg.start_soon(self._flusher)
+            for _ in range(WORKERS):
+                tg.start_soon(self._worker)
+            self._token = self.session.liveliness().declare_token(self.keys.server_alive)
+        except BaseException:
+            await self._close()
+            raise
+        log.info(
+            "surface_server_started",
+            namespace=self.keys.namespace,
+            components=len(self.surface.entries),
+        )
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        await self._close()
+
+    async def _close(self) -> None:
+        token = getattr(self, "_token", None)
+        for entity in [*self._declared, *([token] if token is not None else [])]:
+            _undeclare(entity)
+        self._declared.clear()
+        for client in self.clients.values():
+            if client.link is not None:
+                client.link.close()
+                self.surface.detach(client.link)
+        if self._alive is not None:
+            self._alive.close()
+        if self._inbox is not None:
+            self._inbox.close()
+            for request in self._inbox.take_all():
+                self._answer_error(request, ReturnCode.HAL_NO_CONNECTED, "server shutting down")
+        if self._tg is not None:
+            self._tg.cancel_scope.cancel()
+            await self._tg.__aexit__(None, None, None)
+            self._tg = None
+
+    # -- Zenoh threads ---------------------------------------------------------------------
+    def _on_query(self, kind: str) -> Any:
+        inbox = self._inbox
+        assert inbox is not None
+
+        def on_query(query: zenoh.Query) -> None:
+            payload = query.payload
+            attachment = query.attachment
+            client = attachment.to_bytes().decode("utf-8", "replace") if attachment else ANONYMOUS
+            inbox.put(_Request(kind, client, payload.to_bytes() if payload else b"", query))
+
+        return on_query
+
+    def _on_client_alive(self, sample: zenoh.Sample) -> None:
+        assert self._alive is not None
+        client = self.keys.client_of_alive_key(str(sample.key_expr))
+        self._alive.put((client, sample.kind == zenoh.SampleKind.PUT))
+
+    def _refuse_dropped(self, request: _Request) -> None:
+        self.refused_busy += 1
+        self._answer_error(request, ReturnCode.HAL_NO_MEMORY, "server busy: request dropped")
+
+    # -- the event loop ------------------------------------------------------------------------
+    def _client(self, name: str) -> _Client:
+        client = self.clients.get(name)
+        if client is None:
+            client = self.clients[name] = _Client(name)
+            if name != ANONYMOUS:
+                try:
+                    client.link = _ClientLink(self, name)
+                    self.surface.attach(client.link)
+                except (BadParameterError, zenoh.ZError) as exc:
+                    log.warning("client_link_failed", client=name, error=str(exc))
+        return client
+
+    async def _watch_clients(self) -> None:
+        assert self._alive is not None
+        while True:
+            for name, alive in await self._alive.wait():
+                if alive:
+                    self._client(name)
+                    log.info("client_joined", client=name)
+                    continue
+                client = self.clients.pop(name, None)
+                if client is not None:
+                    log.info("client_left", client=name)
+                    if client.link is not None:
+                        client.link.close()
+                        self.surface.detach(client.link)
+                    for request in client.queue:
+                        _drop(request.query)
+                    client.queue.clear()
+
+    async def _dispatch(self) -> None:
+        assert self._inbox is not None
+        while True:
+            for request in await self._inbox.wait():
+                client = self._client(request.client)
+                if len(client.queue) >= CLIENT_QUEUE:
+                    self.refused_busy += 1
+                    if self.refused_busy == 1 or self.refused_busy % 1000 == 0:
+                        log.warning(
+                            "client_flooding", client=client.name, refused_total=self.refused_busy
+                        )
+                    self._answer_error(
+                        request,
+                        ReturnCode.HAL_NO_MEMORY,
+                        f"server busy: more than {CLIENT_QUEUE} requests queued for this client",
+                    )
+                    continue
+                client.queue.append(request)
+                if not client.busy and len(client.queue) == 1:
+                    self._ready.append(client)
+            self._work.set()
+
+    async def _worker(self) -> None:
+        while True:
+            while not self._ready:
+                await self._work.wait()
+                self._work = anyio.Event()
+            client = self._ready.popleft()
+            if not client.queue or client.busy:
+                continue
+            request = client.queue.popleft()
+            client.busy = True
+            try:
+                await self._serve(request)
+            finally:
+                client.busy = False
+                if client.queue:
+                    self._ready.append(client)
+                    self._work.set()
+
+    def schedule_flush(self, link: _ClientLink) -> None:
+        self._flush_queue.append(link)
+        self._flush_event.set()
+
+    async def _flusher(self) -> None:
+        while True:
+            await self._flush_event.wait()
+            self._flush_event = anyio.Event()
+            await anyio.lowlevel.checkpoint()  # let this turn's notices gather
+            links, self._flush_queue = self._flush_queue, []
+            for link in links:
+                link.flush()
+
+    # -- requests --------------------------------------------------------------------------------
+    def _reply(self, request: _Request, payload: bytes) -> None:
+        try:
+            request.query.reply(str(request.query.key_expr), payload)
+        except zenoh.ZError as exc:
+            log.warning("reply_failed", kind=request.kind, error=str(exc))
+        finally:
+            _drop(request.query)
+
+    def _answer_error(self, request: _Request, code: ReturnCode, message: str) -> None:
+        if request.kind == "execute":
+            payload = self._execute_failure(request.payload, code, message)
+        else:
+            payload = wire.encoder.encode(wire.Answer(int(code), message))
+        self._reply(request, payload)
+
+    def _execute_failure(self, payload: bytes, code: ReturnCode, message: str) -> bytes:
+        """A Device reply carrying the failure, in the request's encoding."""
+        reply = Device(
+            "unknown",
+            (
+                CommandMessage(
+                    "execute",
+                    "",
+                    None,
+                    ResultList(
+                        (
+                            Parameter(DataType.INT, "return_code", int(code)),
+                            Parameter(DataType.STRING, "message", message),
+                        )
+                    ),
+                ),
+            ),
+        )
+        return xml_psm.to_xml(reply) if is_xml(payload) else compact.encode(reply)
+
+    async def _serve(self, request: _Request) -> None:
+        self.served += 1
+        try:
+            if request.kind == "execute":
+                payload = await self._execute(request)
+            else:
+                payload = wire.encoder.encode(await self._small(request))
+        except BadParameterError as exc:
+            self.refused_bad += 1
+            log.warning(
+                "request_refused", kind=request.kind, client=request.client, reason=str(exc)
+            )
+            self._answer_error(request, exc.code, str(exc))
+            return
+        except Exception as exc:
+            log.exception("request_failed", kind=request.kind, client=request.client)
+            code, message = _result_code(exc)
+            self._answer_error(request, ReturnCode(code), message)
+            return
+        self._reply(request, payload)
+
+    async def _execute(self, request: _Request) -> bytes:
+        client = self.clients.get(request.client)
+        app = client.link if client is not None else None
+        if is_xml(request.payload):
+            device = xml_psm.device_from_xml(request.payload)
+            return xml_psm.to_xml(await self.surface.execute(device, app), declaration=False)
+        device = compact.device_from_compact(request.payload)
+        return compact.encode(await self.surface.execute(device, app))
+
+    async def _small(self, request: _Request) -> Any:
+        surface = self.surface
+        client = self.clients.get(request.client)
+        try:
+            if request.kind == "components":
+                return [
+                    wire.ComponentInfo(
+                        e.device_kind, e.logical_id, e.component.device_name, str(e.component.state)
+                    )
+                    for e in surface.entries
+                ]
+            if request.kind == "subscribe":
+                if client is None or client.link is None:
+                    raise BadParameterError(
+                        "client", request.client, "a named client (the query's attachment)"
+                    )
+                sub = wire.subscribe_decoder.decode(request.payload)
+                return wire.Answer(
+                    0, subscribe_id=surface.subscribe(sub.device_kind, sub.event_type, client.link)
+                )
+            text = (
+                msgspec.msgpack.decode(request.payload, type=str)
+                if request.kind != "unsubscribe"
+                else None
+            )
+            if request.kind == "unsubscribe":
+                surface.unsubscribe(msgspec.msgpack.decode(request.payload, type=int))
+                return wire.Answer(0)
+            if request.kind == "event_detail":
+                return wire.Answer(0, detail=surface.get_event_detail(text or ""))
+            return wire.Answer(0, detail=surface.get_error_detail(text or ""))
+        except (msgspec.ValidationError, msgspec.DecodeError) as exc:
+            raise BadParameterError(
+                "payload", f"<{len(request.payload)} bytes>", f"a {request.kind} request ({exc})"
+            ) from None
+
+
+def is_xml(payload: bytes) -> bool:
+    """Whether an execute payload is XML (it starts with '<', after a BOM or whitespace)."""
+    return payload.lstrip(b"\xef\xbb\xbf \t\r\n")[:1] == b"<"

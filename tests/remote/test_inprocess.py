@@ -1,0 +1,115 @@
+"""RemoteSurface and the remote devices against a server in the same process (loopback)."""
+
+from __future__ import annotations
+
+import anyio
+import pytest
+
+from openel_async import (
+    Actuator,
+    BadParameterError,
+    ComponentState,
+    EventId,
+    ObserverQueue,
+    Request,
+    ReturnCode,
+    Sensor,
+)
+from openel_async.surface import (
+    ApplicationQueue,
+    CommandMessage,
+    Completed,
+    Device,
+    EventNotification,
+)
+from openel_zenoh import RemoteActuator, RemoteSensor, RemoteSurface
+
+from .conftest import client_cfg, free_port, session, sim_server
+
+
+async def test_remote_actuator_behaves_as_a_local_one() -> None:
+    port = free_port()
+    async with (
+        sim_server(port) as (_, motors, components),
+        session(client_cfg(port)) as zs,
+        RemoteSurface(zs, "test") as remote,
+    ):
+        await remote.wait_server(5)
+        async with (
+            Actuator(RemoteActuator(remote, 1)) as axis,
+            Sensor(RemoteSensor(remote, 0)) as enc,
+        ):
+            events = ObserverQueue()
+            axis.add_observer(events)
+            with anyio.fail_after(10):
+                motion = await axis.set_value(0.5, Request.POSITION)
+                assert not motion.done()  # returned at once
+                notice = await events.get()
+            assert notice.event_id == EventId.COMPLETED
+            await motion
+            assert await axis.get_value(Request.POSITION_ACTUAL) == pytest.approx(0.5)
+            assert await components[1].get_value() == pytest.approx(0.5)  # type: ignore[attr-defined]
+            assert enc.units == components[2].units  # type: ignore[attr-defined]
+            assert (await enc.get_value())[0] == pytest.approx(await components[0].get_value())  # type: ignore[attr-defined]
+            with pytest.raises(BadParameterError):
+                await axis.set_value(100.0)  # the server's limits, checked locally
+            # A fault on the server arrives as a fault here.
+            motors[1].inject_fault(error_id=7, reason="over-temperature")
+            with anyio.fail_after(5):
+                error = await events.get()
+            assert error.error_id == 7  # type: ignore[union-attr]
+            assert axis.state is ComponentState.ERROR
+            await axis.re_init()
+            assert axis.state is ComponentState.ACTIVE
+            assert components[1].state is ComponentState.ACTIVE
+
+
+async def test_bad_messages_get_return_codes_and_others_keep_being_served() -> None:
+    port = free_port()
+    async with (
+        sim_server(port) as (server, _, _),
+        session(client_cfg(port)) as zs,
+        RemoteSurface(zs, "test") as remote,
+    ):
+        reply = await remote.query(remote.keys.execute, b"<Device><oops/></Device>")
+        assert b"return_code" in reply and b"valid against the HAL4RT schema" in reply
+        reply = await remote.query(remote.keys.execute, b"\x93garbage")
+        assert b"compact Device" in reply
+        bad = await remote.execute_command("Motor", CommandMessage.call("Fly", "", logical_id=0))
+        assert (
+            bad.results is not None
+            and bad.results.value("return_code") == ReturnCode.HAL_NOT_IMPLEMENTED
+        )
+        ok = await remote.execute(
+            Device("Motor", (CommandMessage.call("GetPosition", "", logical_id=0),)),
+            encoding="xml",
+        )
+        assert ok.commands[0].results is not None
+        assert ok.commands[0].results.value("return_code") == 0
+        assert server.refused_bad == 2
+
+
+async def test_events_and_completions_reach_the_right_applications() -> None:
+    port = free_port()
+    async with (
+        sim_server(port) as (_, _, _),
+        session(client_cfg(port)) as za,
+        session(client_cfg(port)) as zb,
+        RemoteSurface(za, "test") as commander,
+        RemoteSurface(zb, "test") as listener,
+    ):
+        await commander.wait_server(5)
+        await listener.wait_server(5)
+        cmd_app, listen_app = ApplicationQueue(), ApplicationQueue()
+        sid = await listener.subscribe("Motor", "COMPLETED", listen_app)
+        reply = await commander.execute_command(
+            "Motor", CommandMessage.call("SetPosition", "", logical_id=0, position=0.2), cmd_app
+        )
+        with anyio.fail_after(5):
+            done = await cmd_app.get()
+            event = await listen_app.get()
+        assert done == Completed(reply.command_id, ReturnCode.HAL_OK)
+        assert isinstance(event, EventNotification) and event.subscribe_id == sid
+        detail = await listener.get_event_detail(event.event_id)
+        assert detail.value("logical_id") == 0
+        assert len(cmd_app) == 0  # the commander did not subscribe
