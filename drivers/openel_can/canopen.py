@@ -123,6 +123,8 @@ _E = TypeVar("_E", bound=IntEnum)
 
 def _enum_or_int(enum_type: type[_E], value: int) -> _E | int:
     """The enum member for ``value``, or the plain int when the enum does not know it."""
+    if not isinstance(value, int):
+        raise ValueError(f"{enum_type.__name__} value must be an int, got {value!r}")
     try:
         return enum_type(value)
     except ValueError:

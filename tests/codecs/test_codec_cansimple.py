@@ -5,7 +5,7 @@ from __future__ import annotations
 import struct
 
 import pytest
-from hypothesis import given
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from openel_can import cansimple as cs
@@ -16,6 +16,7 @@ f32 = st.floats(width=32, allow_nan=False)
 u8 = st.integers(0, 0xFF)
 u32 = st.integers(0, 0xFFFF_FFFF)
 ff = st.integers(-32768, 32767).map(lambda k: k * cs.FF_SCALE)
+FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 REQUESTABLE = [
@@ -38,7 +39,7 @@ def _f32s(cls: type[cs.CanSimpleMessage], count: int) -> st.SearchStrategy[cs.Ca
 
 AXIS_MESSAGES: st.SearchStrategy[cs.CanSimpleMessage] = st.one_of(
     st.builds(cs.Version, nodes, u8, u8, u8, u8, u8, u8, u8, u8),
-    st.builds(cs.Heartbeat, nodes, u32, st.sampled_from(cs.AxisState), u8, st.booleans()),
+    st.builds(cs.Heartbeat, nodes, u32, st.sampled_from(cs.AxisState) | u8, u8, st.booleans()),
     st.builds(cs.ErrorStatus, nodes, u32, u32),
     st.builds(cs.TxSdo, nodes, st.integers(0, 0xFFFF), st.binary(min_size=4, max_size=4)),
     st.builds(cs.Address, nodes, u8, st.integers(0, (1 << 48) - 1)),
@@ -53,14 +54,17 @@ HOST_MESSAGES: st.SearchStrategy[cs.CanSimpleMessage] = st.one_of(
     st.builds(
         cs.RxSdo,
         nodes,
-        st.sampled_from(cs.SdoOpcode),
+        st.sampled_from(cs.SdoOpcode) | u8,
         st.integers(0, 0xFFFF),
         st.binary(min_size=4, max_size=4),
     ),
     st.builds(cs.Address, nodes, u8, st.integers(0, (1 << 48) - 1)),
-    st.builds(cs.SetAxisState, nodes, st.sampled_from(cs.AxisState)),
+    st.builds(cs.SetAxisState, nodes, st.sampled_from(cs.AxisState) | u32),
     st.builds(
-        cs.SetControllerMode, nodes, st.sampled_from(cs.ControlMode), st.sampled_from(cs.InputMode)
+        cs.SetControllerMode,
+        nodes,
+        st.sampled_from(cs.ControlMode) | u32,
+        st.sampled_from(cs.InputMode) | u32,
     ),
     st.builds(cs.SetInputPos, nodes, f32, ff, ff),
     _f32s(cs.SetInputVel, 2),
@@ -69,7 +73,7 @@ HOST_MESSAGES: st.SearchStrategy[cs.CanSimpleMessage] = st.one_of(
     _f32s(cs.SetTrajVelLimit, 1),
     _f32s(cs.SetTrajAccelLimits, 2),
     _f32s(cs.SetTrajInertia, 1),
-    st.builds(cs.Reboot, nodes, st.sampled_from(cs.RebootAction)),
+    st.builds(cs.Reboot, nodes, st.sampled_from(cs.RebootAction) | u8),
     st.builds(cs.ClearErrors, nodes, st.booleans()),
     _f32s(cs.SetAbsolutePosition, 1),
     _f32s(cs.SetPosGain, 1),
@@ -156,12 +160,27 @@ def test_legacy_empty_reboot_and_clear() -> None:
         (-1, bytes(8)),
         (0x021, bytes(6)),  # heartbeat too short
         (0x021, bytes(9)),  # more than classic CAN
-        (0x021, bytes((0, 0, 0, 0, 99, 0, 0, 0))),  # unknown axis state
     ],
 )
 def test_invalid_frames(arb_id: int, data: bytes) -> None:
     with pytest.raises(CanSimpleDecodeError):
         cs.decode(arb_id, data, from_host=False)
+
+
+@pytest.mark.parametrize("state", [15, 16, 99, 255])
+def test_unknown_enum_values_are_kept_as_ints(state: int) -> None:
+    """Firmware 0.6.11 reports axis states 15 and 16: a valid heartbeat, not a bad frame."""
+    data = bytes((0, 0, 0, 0, state, 0, 1, 0))
+    hb = cs.decode(0x021, data, from_host=False)
+    assert isinstance(hb, cs.Heartbeat)
+    assert type(hb.axis_state) is int and hb.axis_state == state
+    assert cs.value_name(hb.axis_state) == f"unknown ({state})"
+    assert cs.encode(hb) == (0x021, data)
+    assert cs.value_name(cs.AxisState.IDLE) == "IDLE"
+    mode = cs.decode(0x02B, bytes((3, 0, 0, 0, 9, 0, 0, 0)), from_host=True)
+    assert mode == cs.SetControllerMode(1, cs.ControlMode.POSITION, 9)
+    assert isinstance(mode, cs.SetControllerMode) and mode.control_mode is cs.ControlMode.POSITION
+    assert cs.decode(0x036, b"\x07", from_host=True) == cs.Reboot(1, 7)
 
 
 def test_encoder_range_errors() -> None:
@@ -175,6 +194,7 @@ def test_encoder_range_errors() -> None:
         cs.TxSdo(1, 2, b"\x00")
 
 
+@FUZZ
 @given(AXIS_MESSAGES)
 def test_round_trip_from_axis(msg: cs.CanSimpleMessage) -> None:
     arb_id, data = cs.encode(msg)
@@ -183,6 +203,7 @@ def test_round_trip_from_axis(msg: cs.CanSimpleMessage) -> None:
     assert cs.decode(arb_id, data, from_host=False) == msg
 
 
+@FUZZ
 @given(HOST_MESSAGES)
 def test_round_trip_from_host(msg: cs.CanSimpleMessage) -> None:
     arb_id, data = cs.encode(msg)
@@ -190,6 +211,7 @@ def test_round_trip_from_host(msg: cs.CanSimpleMessage) -> None:
     assert cs.decode(arb_id, data, from_host=True, remote=remote) == msg
 
 
+@FUZZ
 @given(
     st.integers(-1, 0x801),
     st.binary(max_size=9),
@@ -211,3 +233,46 @@ def test_random_frames_raise_only_decode_error(
 def test_float_payload_is_little_endian_f32() -> None:
     _, data = cs.encode(cs.SetLimits(1, 10.0, 20.0))
     assert struct.unpack("<ff", data) == (10.0, 20.0)
+
+
+MESSAGE_CLASSES = sorted(
+    (
+        cls
+        for cls in vars(cs).values()
+        if isinstance(cls, type)
+        and issubclass(cls, cs.CanSimpleMessage)
+        and cls is not cs.CanSimpleMessage
+    ),
+    key=lambda cls: cls.__name__,
+)
+
+
+@FUZZ
+@given(
+    st.sampled_from(MESSAGE_CLASSES),
+    st.lists(
+        st.integers(-(2**40), 2**40)
+        | st.floats(allow_nan=False)
+        | st.binary(max_size=6)
+        | st.booleans(),
+        max_size=8,
+    ),
+    st.booleans(),
+)
+def test_constructors_and_encoders_raise_only_value_or_type_error(
+    kind: type[cs.CanSimpleMessage], args: list[object], from_host: bool
+) -> None:
+    """Any values: a message whose frame decodes back to the same bytes, or ValueError (a
+    value that does not fit the wire format) / TypeError (wrong arity or type)."""
+    try:
+        msg = kind(*args)  # type: ignore[arg-type]
+        arb_id, data = cs.encode(msg)
+    except (ValueError, TypeError):
+        return
+    remote = isinstance(msg, cs.Request)
+    for direction in (True, False):
+        try:
+            again = cs.decode(arb_id, data, from_host=direction, remote=remote and direction)
+        except CanSimpleDecodeError:
+            continue  # not a frame of that direction
+        assert cs.encode(again) == (arb_id, data)

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import pytest
-from hypothesis import given
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from openel_can import cia402 as ds
 from openel_can.errors import Cia402DecodeError
 
 S = ds.PowerState
+FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 @pytest.mark.parametrize(
@@ -57,6 +58,7 @@ def test_state_patterns_are_disjoint() -> None:
                 ds.state_from_statusword(word)
 
 
+@FUZZ
 @given(
     st.sampled_from(S),
     st.booleans(),
@@ -193,6 +195,7 @@ COMMANDABLE = [
 ]
 
 
+@FUZZ
 @given(st.sampled_from([*COMMANDABLE, S.FAULT]), st.sampled_from(COMMANDABLE), st.integers(0, 0xFF))
 def test_host_and_device_converge(
     start: ds.PowerState, target: ds.PowerState, previous: int
@@ -233,3 +236,29 @@ def test_modes_of_operation() -> None:
     assert (mode.PROFILE_POSITION, mode.PROFILE_VELOCITY, mode.PROFILE_TORQUE) == (1, 3, 4)
     assert (mode.HOMING, mode.CYCLIC_SYNC_POSITION) == (6, 8)
     assert (mode.CYCLIC_SYNC_VELOCITY, mode.CYCLIC_SYNC_TORQUE) == (9, 10)
+
+
+@FUZZ
+@given(st.integers(-(2**20), 2**20))
+def test_statusword_parsers_raise_only_the_decode_error(raw: int) -> None:
+    """Any int: a state (and a Statusword whose accessors agree) or Cia402DecodeError."""
+    try:
+        state = ds.state_from_statusword(raw)
+    except Cia402DecodeError:
+        with pytest.raises(Cia402DecodeError):
+            ds.Statusword.decode(raw)
+        return
+    word = ds.Statusword.decode(raw)
+    assert word.state is state and 0 <= raw <= 0xFFFF
+    assert word.setpoint_acknowledge == bool(raw & ds.StatusBit.SETPOINT_ACKNOWLEDGE)
+
+
+@FUZZ
+@given(st.sampled_from(S), st.integers(0, 0xFFFF), st.integers(0, 0xFFFF))
+def test_any_controlword_gives_a_state(state: ds.PowerState, word: int, previous: int) -> None:
+    """Every u16 controlword maps to one command and every state/word pair to a state."""
+    assert isinstance(ds.decode_command(word), ds.Command)
+    after = ds.apply_controlword(state, word, previous_controlword=previous)
+    assert isinstance(after, ds.PowerState)
+    if state in (S.NOT_READY_TO_SWITCH_ON, S.FAULT_REACTION_ACTIVE):
+        assert after is state  # only automatic transitions leave these
