@@ -8,7 +8,7 @@ import math
 from functools import reduce
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from openel_serial import nmea
@@ -327,3 +327,90 @@ def test_parser_never_raises_and_stays_bounded(chunks: list[bytes]) -> None:
         assert parser.buffered <= 100
     parser.feed(b"\n" + CLASSIC_GGA.encode() + b"\r\n")
     assert parser.sentences >= 1
+
+
+# --- fuzzing the stream parser: read boundaries never change the outcome ---------------------
+
+
+def _parse_nmea(
+    stream: bytes, cuts: list[int], max_line: int
+) -> tuple[list[nmea.Sentence], tuple[int, ...]]:
+    parser = nmea.NmeaParser(max_line=max_line)
+    got: list[nmea.Sentence] = []
+    for start, end in zip([0, *cuts], [*cuts, len(stream)], strict=True):
+        got += parser.feed(stream[start:end])
+        assert parser.buffered <= max_line
+    counters = (
+        parser.sentences,
+        parser.checksum_errors,
+        parser.malformed,
+        parser.garbage_bytes,
+        parser.buffered,
+    )
+    return got, counters
+
+
+VALID = [CLASSIC_GGA, CLASSIC_RMC, GGA_MS, RMC_MODE]
+nmea_segments = st.one_of(
+    st.sampled_from(VALID).map(lambda s: s.encode() + b"\r\n"),
+    st.sampled_from(VALID).map(lambda s: s[:-2].encode() + b"00\r\n"),  # bad checksum
+    st.builds(lambda s, n: s.encode()[:n], st.sampled_from(VALID), st.integers(0, 80)),  # cut short
+    st.sampled_from([b"$", b"\r\n", b"\n", b"\r", b"*", b",", b" "]),
+    st.binary(max_size=30),
+    st.text(st.characters(min_codepoint=0x20, max_codepoint=0x7E), min_size=40, max_size=140).map(
+        str.encode
+    ),  # long printable runs: lines over max_line
+    st.builds(  # long sentences with a valid checksum
+        lambda n: nmea.format_sentence("GPTXT", ["x" * n]).encode(), st.integers(60, 200)
+    ),
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(nmea_segments, max_size=12).map(b"".join),
+    st.data(),
+    st.sampled_from([nmea.MAX_SENTENCE_LENGTH, 120, 256]),
+)
+def test_fuzz_parser_split_anywhere_parses_as_whole(
+    stream: bytes, data: st.DataObject, max_line: int
+) -> None:
+    cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=8)))
+    whole = _parse_nmea(stream, [], max_line)
+    assert _parse_nmea(stream, cuts, max_line) == whole
+    assert _parse_nmea(stream, list(range(1, len(stream))), max_line) == whole
+
+
+def test_overlong_sentence_is_malformed_however_it_is_read() -> None:
+    # A valid sentence longer than max_line: counted as malformed whether it arrives in
+    # one read or in two (it used to be decoded whole but dropped when split).
+    sentence = nmea.format_sentence("GPTXT", ["y" * 150]).encode()
+    for cut in (len(sentence), 120, 10):
+        parser = nmea.NmeaParser(max_line=100)
+        got = parser.feed(sentence[:cut]) + parser.feed(sentence[cut:])
+        assert got == []
+        assert (parser.malformed, parser.garbage_bytes, parser.buffered) == (1, 0, 0)
+    short = nmea.format_sentence("GPTXT", ["y" * 50]).encode()
+    parser = nmea.NmeaParser(max_line=100)
+    assert parser.feed(short[:30]) + parser.feed(short[30:]) == [nmea.decode_sentence(short)]
+
+
+def test_garbage_before_a_sentence_is_counted_byte_for_byte() -> None:
+    parser = nmea.NmeaParser()
+    noise = b"\x00\x13$GPG\xffjunk"  # includes a sentence cut short by the next '$'
+    got = parser.feed(noise + CLASSIC_GGA.encode() + b"\r\nno dollar here\r\n\r\n")
+    assert got == [nmea.decode_sentence(CLASSIC_GGA)]
+    assert (parser.garbage_bytes, parser.malformed, parser.sentences) == (len(noise), 1, 1)
+    parser.feed(b"$GPRMC,1234")
+    parser.reset()  # a partial sentence forgotten on reconnect is counted, not lost untold
+    assert parser.garbage_bytes == len(noise) + len(b"$GPRMC,1234") and parser.buffered == 0
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(nmea_segments, max_size=4).map(b"".join) | st.binary(max_size=120))
+def test_fuzz_decode_raises_only_nmea_decode_error(line: bytes) -> None:
+    try:
+        sentence = nmea.decode_sentence(line)
+    except NmeaDecodeError:
+        return
+    assert isinstance(sentence, nmea.GGA | nmea.RMC | nmea.RawSentence)
