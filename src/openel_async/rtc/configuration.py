@@ -28,6 +28,7 @@ from .constraints import (
     describe,
     parse_bool,
     parse_constraint,
+    parse_int,
     parse_number,
     scalar_text,
 )
@@ -109,6 +110,12 @@ _SCALARS: dict[str, tuple[ScalarKind, int, bool]] = {
 _SEQUENCE = re.compile(r"(?:vector|sequence)\s*<\s*(.+?)\s*>")
 _MAP = re.compile(r"map\s*<\s*string\s*,\s*(.+?)\s*>")
 _INT = re.compile(r"[+-]?\d+")
+
+
+def _clip(value: object) -> str:
+    """repr of a value for a one-line message (long text clipped)."""
+    text = repr(value)
+    return text if len(text) <= 80 else text[:80] + "..."
 _FLOAT_WORDS = frozenset({"inf", "+inf", "-inf", "infinity", "+infinity", "-infinity", "nan"})
 _FLOAT32_MAX = 3.4028234663852886e38
 
@@ -157,7 +164,10 @@ class ParamType:
         if kind is ScalarKind.INTEGER:
             if not _INT.fullmatch(s):
                 raise ValueError("expected an integer")
-            return self._in_range(int(s))
+            number = parse_int(s)
+            if number is None:  # more digits than any integer type holds
+                raise ValueError(f"out of range for a {self.bits}-bit integer")
+            return self._in_range(number)
         if parse_number(s) is None and s.lower() not in _FLOAT_WORDS:
             raise ValueError("expected a number")
         number = float(s)
@@ -306,14 +316,14 @@ class ParameterSpec:
             parsed, operand = self.param_type.parse_text(text)
         except ValueError as e:
             raise ConfigurationError(
-                f"parameter {self.name!r}: value {value!r} is not a valid {self.type}: {e}",
+                f"parameter {self.name!r}: value {_clip(value)} is not a valid {self.type}: {e}",
                 parameter=self.name,
                 value=value,
                 constraint=self.constraint_text,
             ) from None
         if check_constraint and self.constraint is not None and not self.constraint.check(operand):
             raise ConfigurationError(
-                f"parameter {self.name!r}: value {value!r} violates constraint "
+                f"parameter {self.name!r}: value {_clip(value)} violates constraint "
                 f"{self.constraint_text!r}",
                 parameter=self.name,
                 value=value,

@@ -212,7 +212,7 @@ def opt_float(src: Source, key: str) -> float | None:
     number = parse_number(raw) if isinstance(raw, str) else None
     if number is None:
         raise ProfileError(path, f"expected a number, got {_shown(raw)}")
-    return float(number)
+    return float(raw)  # validated decimal text: huge magnitudes become inf, never raise
 
 
 def req_bool(src: Source, key: str) -> bool:
