@@ -368,6 +368,30 @@ async def test_temperature_sensor(peers: Peers, host_bus: CanBus, components: Co
     assert kelvin == pytest.approx(298.15, abs=2)
 
 
+async def test_temperature_sensor_survives_an_sdo_silence(
+    peers: Peers, host_bus: CanBus, components: Components, recorder: EventRecorder
+) -> None:
+    """A 0.3 s SDO silence (the CAN demo's case): the read fails with a TIMEOUT fault that
+    is notified; once the drive answers again re_init brings the sensor back, and the
+    drive's actuator on the same node is untouched."""
+    sim = await peers.start(_sim())
+    axis = await components.actuator(_drive(host_bus))
+    thermometer = await components.sensor(Cia402Temperature(host_bus, NODE))
+    sim.sdo_silent = True
+    with pytest.raises(DeviceFaultError) as info:
+        await thermometer.get_value()
+    assert info.value.error_id == ErrorId.TIMEOUT
+    assert (await recorder.wait_for("error", source=thermometer, timeout=1)).id == ErrorId.TIMEOUT
+    assert thermometer.state is ComponentState.ERROR
+    await anyio.sleep(0.3)
+    sim.sdo_silent = False
+    with anyio.fail_after(2):
+        await thermometer.re_init()
+    (kelvin,) = await thermometer.get_value()
+    assert kelvin == pytest.approx(298.15, abs=2)
+    assert axis.state is ComponentState.ACTIVE
+
+
 def test_bad_parameters_name_the_parameter() -> None:
     bus = CanBus(interface="virtual", channel="unused")
     with pytest.raises(BadParameterError, match="node_id"):

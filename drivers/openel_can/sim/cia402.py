@@ -6,10 +6,15 @@ given :class:`~openel_can.bus.CanBus`) implements:
 * **NMT**: boot-up message, then Pre-operational; start/stop/pre-operational, reset
   node (every object back to its default) and reset communication (0x1000-0x1FFF).
   Heartbeat producer every 0x1017 ms (default 1000 ms; 0 disables it).
-* **Expedited SDO server** over the object dictionary below, with CiA 301 abort codes:
+* **SDO server** over the object dictionary below, with CiA 301 abort codes:
   object/sub-index does not exist, read-only, write-only, length mismatch, value
   range, PDO mapping rules (mapping and COB-ID may change only while the PDO is
-  invalid, bit 31; only mappable objects; at most 64 bits).
+  invalid, bit 31; only mappable objects; at most 64 bits). Expedited transfers (a
+  download without size indication writes the object's own size) and segmented upload
+  and download (one transfer at a time; toggle bit and length checked; a new initiate or
+  a client abort ends the transfer in progress). Block transfers, unknown command
+  specifiers and segments outside a transfer are aborted with 0x05040001.
+  :data:`OPERATING_TIME` and :data:`ENERGY_LIMIT` are 64-bit objects (segmented).
 * **PDOs**: RPDO1-3 and TPDO1-4 with configurable COB-ID, mapping and transmission
   type. RPDOs act on reception (a too-short RPDO raises EMCY 0x8210). TPDO types
   0xFE/0xFF are event-driven: sent when a discrete mapped object changes (statusword,
@@ -34,7 +39,9 @@ Fault injection: :meth:`trip` (fault with an EMCY code), :meth:`warn`,
 :meth:`set_silent` (no transmit/receive: heartbeat loss), ``sdo_silent`` (SDO
 requests unanswered: SDO timeouts), :meth:`reboot` (reset node), and
 ``setpoint_ack_delay`` (set-points latched and acknowledged that much later, like a
-drive with a slow cycle).
+drive with a slow cycle). ``received_controlwords`` and ``emcy_sent`` keep the newest
+``history`` items (:class:`~openel_can.sim.history.History`, ``discarded`` counts the
+rest; logged when the peer stops).
 """
 
 from __future__ import annotations
