@@ -112,6 +112,11 @@ def _build_parser() -> argparse.ArgumentParser:
     from .profile_cmd import add_parser as add_profile_parser
 
     add_profile_parser(sub)
+    from .hal4rt_cmd import add_parser as add_hal4rt_parser
+    from .serve_cmd import add_parser as add_serve_parser
+
+    add_serve_parser(sub)
+    add_hal4rt_parser(sub)
     return parser
 
 
@@ -152,6 +157,10 @@ def _main(argv: Sequence[str] | None) -> int:
         from .profile_cmd import run as run_profile_cmd
 
         return run_profile_cmd(args)
+    if args.command in ("serve", "hal4rt"):
+        module = importlib.import_module(f"{__name__}.{args.command}_cmd")
+        code: int = module.run(args)
+        return code
     return 2
 
 
