@@ -15,8 +15,9 @@ event loop. A pty has no baud rate: bytes arrive as fast as the two ends run.
 * :class:`SimDynamixelBus` with :class:`SimServo` s: control table, trapezoidal
   profile moves (Profile Velocity/Acceleration), velocity and current modes, Moving /
   Moving Status, Return Delay Time, read-only and EEPROM access rules, limit errors,
-  REBOOT; injection of status errors, hardware errors (alert bit), unresponsive
-  servos, dropped and corrupted replies, garbage bytes; unplug/plug.
+  REBOOT, error 3 (CRC error) for an instruction received damaged; injection of status
+  errors, hardware errors (alert bit), unresponsive servos, dropped and corrupted
+  replies, damaged instructions, garbage bytes; unplug/plug.
 * :class:`SimGps`: GGA + RMC at ``rate_hz`` along a :class:`GpsPath`; injection of
   checksum errors, garbage, silence (pause) and unplug/plug.
 """

@@ -343,6 +343,23 @@ async def test_instruction_damaged_on_the_wire_is_answered_crc_error_and_resent(
     assert bus.corrupt_instructions == 2 + port.retries + 1
 
 
+def test_simulated_servo_answers_crc_error_by_status_return_level() -> None:
+    servo = make_servo(4)
+    crc_error = dx.Status(4, dx.ErrorNumber.CRC_ERROR)
+    write = dx.CorruptPacket(4, dx.Instruction.WRITE, 9)
+    read = dx.CorruptPacket(4, dx.Instruction.READ, 7)
+    ping = dx.CorruptPacket(4, dx.Instruction.PING, 3)
+    assert servo.handle_corrupt(write) == crc_error
+    assert servo.handle_corrupt(dx.CorruptPacket(5, dx.Instruction.WRITE, 9)) is None
+    assert servo.handle_corrupt(dx.CorruptPacket(4, dx.Instruction.STATUS, 4)) is None
+    servo.handle(X.STATUS_RETURN_LEVEL.write(4, 1))  # level 1: reads answered, writes not
+    assert servo.handle_corrupt(write) is None
+    assert servo.handle_corrupt(read) == servo.handle_corrupt(ping) == crc_error
+    servo.responsive = False
+    assert servo.handle_corrupt(ping) is None
+    assert servo.crc_errors == 4 and servo.instructions == 1  # nothing executed
+
+
 async def test_port_vanishing_faults_every_servo_and_re_init_recovers(
     bus: SimDynamixelBus, port: DynamixelPort, recorder: EventRecorder
 ) -> None:
