@@ -41,8 +41,9 @@ from openel_async.rtc.profile import (
     load_profile,
     loads_xml,
     loads_yaml,
+    xml_io,
+    yaml_io,
 )
-from openel_async.rtc.profile import xml_io, yaml_io
 
 REAL = Path(__file__).parent / "data" / "real"
 PROFILES = sorted(p for p in REAL.iterdir() if p.suffix in (".xml", ".yaml"))
@@ -275,7 +276,9 @@ def test_openrtp_xml_hash_constraint() -> None:
         ),
         (
             "{el1:100<=x,el2:150}",
-            HashConstraint((("el1", GreaterThanOrEqualTo("100")), ("el2", parse_constraint("150")))),
+            HashConstraint(
+                (("el1", GreaterThanOrEqualTo("100")), ("el2", parse_constraint("150")))
+            ),
             "{el1: x>=100, el2: 150}",
         ),
     ],
@@ -325,7 +328,7 @@ def test_long_constraint_bounds() -> None:
     spec = ParameterSpec.from_text("n", "long", "5", "x<" + LONG)
     assert spec.check("7")
     config = Configuration([spec])
-    with pytest.raises(ConfigurationError, match="out of range|expected an integer"):
+    with pytest.raises(ConfigurationError, match=r"out of range|expected an integer"):
         config.set_value("default", "n", LONG)
     assert config.get("n") == 5
 

@@ -83,7 +83,7 @@ async def test_own_callback_context_calls_are_refused_and_change_nothing(
     journal: Journal,
     action: Callable[[PeriodicExecutionContext], Awaitable[None]],
 ) -> None:
-    a, b, ec = await _run(virtual_clock, journal, action)
+    a, _, ec = await _run(virtual_clock, journal, action)
     assert isinstance(a.raised, PreconditionNotMetError)
     assert "inside a callback of A" in str(a.raised)
     # nothing changed: same rate, still running (cycles at 10, 20, 30 ms), nobody told

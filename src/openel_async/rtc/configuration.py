@@ -116,6 +116,8 @@ def _clip(value: object) -> str:
     """repr of a value for a one-line message (long text clipped)."""
     text = repr(value)
     return text if len(text) <= 80 else text[:80] + "..."
+
+
 _FLOAT_WORDS = frozenset({"inf", "+inf", "-inf", "infinity", "+infinity", "-infinity", "nan"})
 _FLOAT32_MAX = 3.4028234663852886e38
 
@@ -164,10 +166,10 @@ class ParamType:
         if kind is ScalarKind.INTEGER:
             if not _INT.fullmatch(s):
                 raise ValueError("expected an integer")
-            number = parse_int(s)
-            if number is None:  # more digits than any integer type holds
+            integer = parse_int(s)
+            if integer is None:  # more digits than any integer type holds
                 raise ValueError(f"out of range for a {self.bits}-bit integer")
-            return self._in_range(number)
+            return self._in_range(integer)
         if parse_number(s) is None and s.lower() not in _FLOAT_WORDS:
             raise ValueError("expected a number")
         number = float(s)

@@ -26,6 +26,7 @@ from typing import ClassVar, TypeAlias, Union
 __all__ = [
     "COMPARISONS",
     "MAX_DEPTH",
+    "MAX_INT_DIGITS",
     "RTC_NS",
     "And",
     "Between",
@@ -56,7 +57,6 @@ __all__ = [
     "describe",
     "format_constraint",
     "is_unit",
-    "MAX_INT_DIGITS",
     "parse_bool",
     "parse_constraint",
     "parse_int",

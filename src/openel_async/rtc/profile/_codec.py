@@ -209,8 +209,7 @@ def opt_float(src: Source, key: str) -> float | None:
         return None
     if isinstance(raw, int | float) and not isinstance(raw, bool):
         return float(raw)
-    number = parse_number(raw) if isinstance(raw, str) else None
-    if number is None:
+    if not isinstance(raw, str) or parse_number(raw) is None:
         raise ProfileError(path, f"expected a number, got {_shown(raw)}")
     return float(raw)  # validated decimal text: huge magnitudes become inf, never raise
 
@@ -303,9 +302,7 @@ def req_datetime(src: Source, key: str) -> datetime:
         try:
             return datetime.fromisoformat(raw.strip())
         except ValueError:
-            raise ProfileError(
-                path, f"expected an ISO 8601 date-time, got {_shown(raw)}"
-            ) from None
+            raise ProfileError(path, f"expected an ISO 8601 date-time, got {_shown(raw)}") from None
     if isinstance(raw, Mapping):
         return _date_from_mapping(raw, path)
     raise ProfileError(path, f"expected a date-time, got {_kind(raw)}")
@@ -506,7 +503,12 @@ _DATA_PORT_EXT = (
     "rtcExt::property",
     "rtcExt::properties",
 )
-_SERVICE_PORT_EXT = ("rtcExt::position", "rtcExt::comment", "rtcExt::property", "rtcExt::properties")
+_SERVICE_PORT_EXT = (
+    "rtcExt::position",
+    "rtcExt::comment",
+    "rtcExt::property",
+    "rtcExt::properties",
+)
 _LANGUAGE_EXT = ("rtcExt::targets", "rtcExt::property", "rtcExt::properties")
 
 

@@ -514,9 +514,8 @@ def validate_profile(profile: RtcProfile) -> None:
     if b.max_instances is not None and abs(b.max_instances) >= 10**MAX_INT_DIGITS:
         raise ProfileError(f"{root}.basicInfo.maxInstances", f"more than {MAX_INT_DIGITS} digits")
     lang = profile.language
-    if lang is not None and lang.ext is not None and not lang.ext.targets:
-        if not lang.ext.properties:
-            # Read back as no ext at all: refuse rather than change on a round trip.
-            raise ProfileError(
-                f"{root}.language.rtcExt::targets", "an empty language_ext (use ext=None)"
-            )
+    if lang is not None and lang.ext is not None and not (lang.ext.targets or lang.ext.properties):
+        # Read back as no ext at all: refuse rather than change on a round trip.
+        raise ProfileError(
+            f"{root}.language.rtcExt::targets", "an empty language_ext (use ext=None)"
+        )

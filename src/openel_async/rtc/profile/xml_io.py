@@ -367,8 +367,9 @@ _DECLARATION = re.compile(
     rb"""^<\?xml[^>]*?encoding\s*=\s*(["'])([A-Za-z][A-Za-z0-9._-]*)\1""", re.ASCII
 )
 # Encodings expat reads itself; anything else is decoded here first.
-_EXPAT_ENCODINGS = frozenset({"utf-8", "utf8", "utf-16", "utf16", "iso-8859-1", "latin-1",
-                              "latin1", "us-ascii", "ascii"})
+_EXPAT_ENCODINGS = frozenset(
+    {"utf-8", "utf8", "utf-16", "utf16", "iso-8859-1", "latin-1", "latin1", "us-ascii", "ascii"}
+)
 
 
 def _decode(data: bytes) -> str | bytes:
