@@ -422,3 +422,17 @@ def test_bad_parameters_name_the_parameter() -> None:
     axis = ODriveAxis(bus, 1)
     with pytest.raises(BadParameterError, match="velocity"):
         axis.set_feedforward(velocity=math.inf)
+
+
+def test_history_keeps_the_newest_and_counts_the_rest() -> None:
+    from openel_can.sim.history import History
+
+    history: History[int] = History(3)
+    for n in range(5):
+        history.append(n)
+    assert list(history) == [2, 3, 4] and history[:2] == [2, 3] and history[-1] == 4
+    assert (len(history), history.discarded, history.total) == (3, 2, 5)
+    history.clear()
+    assert (len(history), history.discarded, history.total) == (0, 5, 5)
+    with pytest.raises(ValueError, match="maxlen"):
+        History(0)
