@@ -144,3 +144,35 @@ async def test_serve_kill_restart_mid_motion(tmp_path: Path) -> None:
                     assert isinstance(event, EventNotification)
                     assert motion.outcome.name == "REACHED"
                     assert await axis.get_value(Request.POSITION_ACTUAL) == pytest.approx(-0.1)
+
+
+SAMPLES = Path(__file__).parents[1] / "surface" / "samples"
+
+
+@pytest.mark.timeout(60)
+def test_hal4rt_exec_sends_a_message_to_a_running_server(tmp_path: Path) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(RIG.replace("namespace: proc", "namespace: cli"))
+    port = free_port()
+    with serve(rig, port):
+        common = ["--connect", f"tcp/127.0.0.1:{port}", "--namespace", "cli", "--timeout", "5"]
+        done = subprocess.run(
+            [sys.executable, "-m", "openel_async.cli", "--log-level", "warning", "hal4rt", "exec",
+             str(SAMPLES / "set_position.xml"), *common],
+            capture_output=True, text=True, timeout=30,
+        )  # fmt: skip
+        assert done.returncode == 0, done.stderr
+        assert "<return_code>" not in done.stdout  # results are parameters, not elements
+        assert "<name>return_code</name><value>0</value>" in done.stdout
+        bad = tmp_path / "bad.xml"
+        bad.write_text(
+            "<Device><device_kind>Motor</device_kind><CommandMessage><function_name>Fly"
+            "</function_name><command_id/><arguments><parameters><data_type_id>1</data_type_id>"
+            "<name>logical_id</name><value>0</value></parameters></arguments></CommandMessage></Device>"
+        )
+        done = subprocess.run(
+            [sys.executable, "-m", "openel_async.cli", "--log-level", "warning", "hal4rt", "exec", str(bad), *common],
+            capture_output=True, text=True, timeout=30,
+        )  # fmt: skip
+        assert done.returncode == 3
+        assert "<value>5</value>" in done.stdout and "no function" in done.stdout
