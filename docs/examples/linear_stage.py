@@ -16,7 +16,6 @@ from openel_async import (
     DeviceKind,
     DriverInfo,
     NotConnectedError,
-    NotImplementedHALError,
     Reading,
     Request,
     SensorDevice,
@@ -30,6 +29,8 @@ class LinearStage(ActuatorDevice):
     info = DeviceInfo(DeviceKind.MOTOR, 0x5A, 0x1, "Acme", "LinearStage")
     limits = ActuatorLimits(position=(0.0, 0.3), velocity=0.5)
     supported_requests = frozenset({Request.NO_EXCITE, Request.POSITION, Request.VELOCITY})
+    # No force sensor: get_value(TORQUE_ACTUAL) is the commanded torque, read() never sees it.
+    measured_requests = frozenset({Request.POSITION_ACTUAL, Request.VELOCITY_ACTUAL})
     reports_completion = False
 
     def __init__(self, time_constant: float = 0.05) -> None:
@@ -55,11 +56,7 @@ class LinearStage(ActuatorDevice):
     async def read(self, request: Request) -> float:
         self._check()
         position, velocity = self.state_at(self.clock.now_ns())
-        if request is Request.POSITION_ACTUAL:
-            return position
-        if request is Request.VELOCITY_ACTUAL:
-            return velocity
-        raise NotImplementedHALError("the stage has no force sensor")
+        return position if request is Request.POSITION_ACTUAL else velocity
 
     def state_at(self, t_ns: int) -> tuple[float, float]:
         """(position in m, velocity in m/s) at a time of the component's clock, closed-form."""

@@ -18,6 +18,7 @@ from .device import (
     ErrorId,
     Reading,
     SensorDevice,
+    ValueSource,
 )
 from .errors import (
     BadParameterError,
@@ -96,6 +97,7 @@ __all__ = [
     "TimerState",
     "TimerStats",
     "TimerTick",
+    "ValueSource",
     "VirtualClock",
     "WouldBlockError",
     "component_name",

@@ -9,6 +9,7 @@ exactly once and only for the final target: a replaced target's Motion raises
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -18,7 +19,7 @@ from .clock import Clock
 from .completion import Motion, Outcome
 from .component import LINK_FAULTS as _LINK_FAULTS
 from .component import ComponentState, HALComponent
-from .device import ActuatorDevice, ErrorId, has_nowait
+from .device import ACTUAL_REQUESTS, ActuatorDevice, ErrorId, ValueSource, has_nowait
 from .errors import (
     BadParameterError,
     DeviceFaultError,
@@ -36,6 +37,16 @@ _ACTIVE = S.ACTIVE
 _PENDING = Outcome.PENDING
 _NO_EXCITE = Request.NO_EXCITE
 _SETTABLE = frozenset(SET_VALUE_REQUESTS)
+_POSITION_ACTUAL = Request.POSITION_ACTUAL
+# get_value of a code the device does not read returns the commanded value of this code.
+COMMAND_OF = {
+    Request.POSITION: Request.POSITION,
+    Request.VELOCITY: Request.VELOCITY,
+    Request.TORQUE: Request.TORQUE,
+    Request.POSITION_ACTUAL: Request.POSITION,
+    Request.VELOCITY_ACTUAL: Request.VELOCITY,
+    Request.TORQUE_ACTUAL: Request.TORQUE,
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -75,7 +86,10 @@ def _finite(value: object) -> float:
         return value
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise BadParameterError("value", value, "a finite real number")
-    result = float(value)
+    try:
+        result = float(value)
+    except OverflowError:  # an int beyond the float range
+        result = math.inf
     if not math.isfinite(result):
         raise BadParameterError("value", value, "a finite real number (not NaN or infinity)")
     return result
@@ -85,6 +99,7 @@ class Actuator(HALComponent):
     """An OpenEL Actuator over an :class:`ActuatorDevice` driver."""
 
     device: ActuatorDevice
+    device_class = ActuatorDevice
 
     def __init__(
         self,
@@ -106,6 +121,17 @@ class Actuator(HALComponent):
             clock=clock,
             auto_init=auto_init,
             open_timeout=open_timeout,
+        )
+        if completion is not None and not isinstance(completion, CompletionPolicy):
+            raise BadParameterError("completion", completion, "a CompletionPolicy or None")
+        # The *_ACTUAL codes read from the device; the others are answered with the
+        # commanded value. A tuple: ``in`` finds a member by identity, where a set would call
+        # Enum.__hash__ (Python code) on every read.  (No more instance attributes than
+        # needed: past 29, CPython 3.11 gives up its fast attribute layout.)
+        self._read_codes = tuple(
+            req
+            for req, source in _value_sources(device).items()
+            if source is not ValueSource.COMMANDED
         )
         self.completion = completion or CompletionPolicy()
         self._sequence = 0
@@ -239,35 +265,86 @@ class Actuator(HALComponent):
 
     # -- GetValue ------------------------------------------------------------------
     async def get_value(self, request: Request | int = Request.POSITION_ACTUAL) -> float:
-        """GetValue: last commanded value (codes 1-3) or actual value (codes 5-7)."""
+        """GetValue: last commanded value (codes 1-3) or actual value (codes 5-7).
+
+        An actual quantity the device cannot measure is its estimate, or else the commanded
+        value (OpenEL §7.4.1.7); :meth:`value_source` tells which.
+        """
         if self.state is not _ACTIVE:
             raise StateError("get_value", self.state, (_ACTIVE,))
         req = coerce_request(request, GET_VALUE_REQUESTS)
-        if req.is_command:
-            return self._commanded[req]
+        if req not in self._read_codes:
+            return self._commanded[COMMAND_OF[req]]
         try:
             if self._read_nowait:  # a device that needs no I/O: the same, without suspending
-                return self.device.read_nowait(req)
-            return await self.device.read(req)
+                value = self.device.read_nowait(req)
+            else:
+                value = await self.device.read(req)
         except _LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
+        if type(value) is float and value - value == 0.0:  # finite
+            return value
+        return self._checked_actual(req, value)
 
     def get_value_nowait(self, request: Request | int = Request.POSITION_ACTUAL) -> float:
         """GetValue without suspending (see :meth:`set_value_nowait`)."""
         if self.state is not _ACTIVE:
             raise StateError("get_value_nowait", self.state, (_ACTIVE,))
         req = coerce_request(request, GET_VALUE_REQUESTS)
-        if req.is_command:
-            return self._commanded[req]
+        if req not in self._read_codes:
+            return self._commanded[COMMAND_OF[req]]
         if not self._read_nowait:
             raise WouldBlockError(
                 f"{self.device_name}: the device has no synchronous read path; "
                 "use 'await get_value(...)'"
             )
         try:
-            return self.device.read_nowait(req)
+            value = self.device.read_nowait(req)
         except _LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
+        if type(value) is float and value - value == 0.0:  # finite
+            return value
+        return self._checked_actual(req, value)
+
+    def value_source(self, request: Request | int = Request.POSITION_ACTUAL) -> ValueSource:
+        """Where ``get_value(request)`` comes from: MEASURED, ESTIMATED or COMMANDED.
+
+        Fixed when the component is constructed (the device's ``measured_requests`` and
+        ``estimated_requests``); codes 1-3 are always COMMANDED. Callable in any state.
+        """
+        req = coerce_request(request, GET_VALUE_REQUESTS)
+        if req not in self._read_codes:
+            return ValueSource.COMMANDED
+        if req in self.device.estimated_requests:
+            return ValueSource.ESTIMATED
+        return ValueSource.MEASURED
+
+    def _checked_actual(self, req: Request, value: object) -> float:
+        """A value ``read()`` returned, as a finite float; else the device faulted: the
+        component goes to Error and the DeviceFaultError is raised."""
+        if isinstance(value, numbers.Real):
+            try:
+                result = float(value)
+            except (TypeError, ValueError, OverflowError):
+                result = math.nan
+            if math.isfinite(result):
+                return result
+        raise self._fault(
+            ErrorId.DEVICE_ERROR,
+            f"read({req.name}) returned a non-finite or non-numeric value {value!r}",
+        )
+
+    async def _read_actual(self, req: Request) -> float:
+        """``get_value(req)`` of an *_ACTUAL code, whatever the state (the watcher's read)."""
+        if req not in self._read_codes:
+            return self._commanded[COMMAND_OF[req]]
+        try:
+            value = await self.device.read(req)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+        if type(value) is float and value - value == 0.0:
+            return value
+        return self._checked_actual(req, value)
 
     # -- completion ----------------------------------------------------------------
     def _complete(self, motion: Motion) -> None:
@@ -284,10 +361,13 @@ class Actuator(HALComponent):
             self._complete(motion)
 
     async def _on_active(self) -> None:
-        try:
-            position = await self.device.read(Request.POSITION_ACTUAL)
-        except Exception:  # a device without a position reading starts at 0
-            position = 0.0
+        position = self._commanded[Request.POSITION]  # kept if the device cannot read it
+        if _POSITION_ACTUAL in self._read_codes:
+            try:
+                raw: object = await self.device.read(_POSITION_ACTUAL)
+            except Exception:  # a device whose position reading fails starts at 0
+                raw = 0.0
+            position = self._checked_actual(_POSITION_ACTUAL, raw)  # NaN: a device fault
         self._commanded = {Request.POSITION: position, Request.VELOCITY: 0.0, Request.TORQUE: 0.0}
         if not self.device.reports_completion and not self._detector_started:
             self._detector_started = True  # one detector for the component's lifetime
@@ -308,11 +388,10 @@ class Actuator(HALComponent):
             next_poll = clock.now_ns()
             while motion is self.motion and not motion.done() and self.state is S.ACTIVE:
                 try:
-                    actual = await self.device.read(motion.request.actual)
-                except _LINK_FAULTS as exc:
-                    self._fault_from(exc)
-                    break
+                    actual = await self._read_actual(motion.request.actual)
                 except HALError as exc:
+                    if self.state is not S.ACTIVE:  # a link fault or a non-finite value
+                        break
                     self.log.warning("completion_read_failed", error=str(exc))
                     actual = math.nan
                 except Exception as exc:  # a driver bug must not tear the component down
@@ -345,6 +424,24 @@ class Actuator(HALComponent):
         if motion is not None:
             motion._cancel("the actuator was finalized")
         self._watch.set()
+
+
+def _value_sources(device: ActuatorDevice) -> dict[Request, ValueSource]:
+    """Where get_value of each code comes from, from the device's declarations."""
+    measured, estimated = device.measured_requests, device.estimated_requests
+    for name, codes in (("measured_requests", measured), ("estimated_requests", estimated)):
+        if not (isinstance(codes, frozenset | set) and codes <= ACTUAL_REQUESTS):
+            raise BadParameterError(
+                f"device.{name}", codes, "a set of POSITION_ACTUAL, VELOCITY_ACTUAL, TORQUE_ACTUAL"
+            )
+    if measured & estimated:
+        raise BadParameterError(
+            "device.estimated_requests", estimated, "no code also in measured_requests"
+        )
+    sources = dict.fromkeys(COMMAND_OF, ValueSource.COMMANDED)
+    sources.update(dict.fromkeys(measured, ValueSource.MEASURED))
+    sources.update(dict.fromkeys(estimated, ValueSource.ESTIMATED))
+    return sources
 
 
 def stream_targets(

@@ -17,7 +17,7 @@ import math
 from collections.abc import Iterable, Iterator, Sequence
 from typing import TypeVar, cast
 
-from .actuator import Actuator, stream_targets
+from .actuator import COMMAND_OF, Actuator, stream_targets
 from .completion import Motion
 from .component import LINK_FAULTS, ComponentState, HALComponent
 from .errors import BadParameterError, HALError, StateError, WouldBlockError
@@ -70,6 +70,13 @@ class ActuatorBank:
         self._devices = tuple(a.device for a in self.actuators)
         self._nowait = all(a._command_nowait for a in self.actuators)
         self._read_nowait = all(a._read_nowait for a in self.actuators)
+        # The *_ACTUAL codes every actuator reads from its device (the others answer some
+        # with the commanded value).
+        self._read_codes = tuple(
+            req
+            for req in self.actuators[0]._read_codes
+            if all(req in a._read_codes for a in self.actuators)
+        )
         clocks = {id(a.clock) for a in self.actuators}
         # Streamed commands are stamped with one clock reading when the actuators share it.
         self._now_ns = self.actuators[0].clock.now_ns if len(clocks) == 1 else None
@@ -125,9 +132,15 @@ class ActuatorBank:
             req = request
         else:
             req = coerce_request(request, SET_VALUE_REQUESTS)
-        if len(values) != len(actuators):
+        try:
+            count = len(values)
+        except TypeError:  # None, a number, an iterator: not a sequence
+            count = -1
+        if count != len(actuators):
             raise BadParameterError(
-                "values", values, f"{len(actuators)} values, one per actuator of the bank"
+                "values",
+                values,
+                f"a sequence of {len(actuators)} values, one per actuator of the bank",
             )
         if req is _POSITION:
             for actuator, device, value in zip(actuators, self._devices, values, strict=True):
@@ -172,18 +185,46 @@ class ActuatorBank:
 
     def _get_now(self, operation: str, request: Request | int) -> tuple[float, ...]:
         actuators = self.actuators
-        _require_active(actuators, operation)
+        for actuator in actuators:
+            if actuator.state is not _ACTIVE:
+                _require_active(actuators, operation)
         req = coerce_request(request, GET_VALUE_REQUESTS)
+        if req in self._read_codes:  # every device reads it: one loop, one try
+            if not self._read_nowait:
+                _require_nowait(actuators, "_read_nowait", "get_values")
+            out: list[float] = []
+            append = out.append
+            try:
+                for device in self._devices:
+                    append(device.read_nowait(req))
+            except LINK_FAULTS as exc:
+                raise actuators[len(out)]._fault_from(exc) from exc
+            # One sum: a finite float unless a value is non-finite or none is a float (ints
+            # among floats pass as they are: Python's numeric tower).
+            try:
+                total = sum(out)
+            except TypeError:
+                total = math.nan
+            if type(total) is float and total - total == 0.0:
+                return tuple(out)
+            return tuple([a._checked_actual(req, v) for a, v in zip(actuators, out, strict=True)])
         if req.is_command:
             return tuple([a._commanded[req] for a in actuators])
         if not self._read_nowait:
             _require_nowait(actuators, "_read_nowait", "get_values")
         out = []
+        append = out.append
         for actuator in actuators:
+            if req not in actuator._read_codes:  # neither measured nor estimated
+                append(actuator._commanded[COMMAND_OF[req]])
+                continue
             try:
-                out.append(actuator.device.read_nowait(req))
+                value = actuator.device.read_nowait(req)
             except LINK_FAULTS as exc:
                 raise actuator._fault_from(exc) from exc
+            if type(value) is not float or value - value != 0.0:  # not a finite float
+                value = actuator._checked_actual(req, value)
+            append(value)
         return tuple(out)
 
     def __repr__(self) -> str:
@@ -245,7 +286,7 @@ class SensorBank:
                     total = sum(flat) if type(flat) is tuple else math.nan
                 except Exception:  # a driver returned something else than tuples of floats
                     total = math.nan
-                if total - total == 0.0:
+                if type(total) is float and total - total == 0.0:
                     return cast(tuple[tuple[float, ...], ...], out)
                 return tuple([s._checked_values(v) for s, v in zip(sensors, out, strict=True)])
         values_out = []

@@ -8,11 +8,12 @@ checks the state and raises :class:`StateError` naming the state and the allowed
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Callable, Coroutine
 from contextlib import AsyncExitStack
 from enum import Enum
 from types import TracebackType
-from typing import Any, Self
+from typing import Any, ClassVar, Self
 
 import anyio
 import anyio.abc
@@ -20,7 +21,14 @@ import structlog
 
 from .clock import Clock, default_clock
 from .device import Device, ErrorId
-from .errors import DeviceFaultError, HALError, NotConnectedError, ReturnCode, StateError
+from .errors import (
+    BadParameterError,
+    DeviceFaultError,
+    HALError,
+    NotConnectedError,
+    ReturnCode,
+    StateError,
+)
 from .fanout import Fanout
 from .ids import DeviceKind, HALId, Property, component_name
 from .observers import ErrorNotice, EventNotice
@@ -73,6 +81,10 @@ class _Context:
     def name(self) -> str:
         return self._component.device_name
 
+    @property
+    def hal_id(self) -> HALId:
+        return self._component.hal_id
+
     def start_soon(self, func: Callable[..., Coroutine[Any, Any, Any]], *args: Any) -> None:
         self._component._task_group().start_soon(self._component._run_device_task, func, args)
 
@@ -89,6 +101,36 @@ class _Context:
         self._component._fault(error_id, reason, code)
 
 
+def _check_arguments(
+    device_class: type[Device],
+    device: object,
+    hal_id: object,
+    function_list: object,
+    clock: object,
+    auto_init: object,
+    open_timeout: object,
+) -> None:
+    """BadParameterError for a constructor argument of the wrong kind (before any is used)."""
+    if not isinstance(device, device_class):
+        raise BadParameterError("device", device, f"an instance of {device_class.__name__}")
+    if hal_id is not None and not isinstance(hal_id, HALId):
+        raise BadParameterError("hal_id", hal_id, "a HALId or None")
+    if function_list is not None and (
+        isinstance(function_list, str) or not isinstance(function_list, tuple | list)
+    ):
+        raise BadParameterError("function_list", function_list, "a tuple of strings or None")
+    if clock is not None and (isinstance(clock, type) or not isinstance(clock, Clock)):
+        raise BadParameterError("clock", clock, "a Clock (now_ns and sleep_until) or None")
+    if not isinstance(auto_init, bool):
+        raise BadParameterError("auto_init", auto_init, "True or False")
+    if (
+        isinstance(open_timeout, bool)
+        or not isinstance(open_timeout, int | float)
+        or not (math.isfinite(open_timeout) and open_timeout > 0)
+    ):
+        raise BadParameterError("open_timeout", open_timeout, "a finite number of seconds > 0")
+
+
 class HALComponent:
     """Common part of every OpenEL component; use it as an async context manager.
 
@@ -96,6 +138,9 @@ class HALComponent:
     ``auto_init=False`` (then call :meth:`init` yourself, as in the spec's Figure 7.6),
     and finalizes on exit.
     """
+
+    device_class: ClassVar[type[Device]] = Device
+    """The driver base class the constructor accepts (ActuatorDevice for an Actuator...)."""
 
     def __init__(
         self,
@@ -108,6 +153,9 @@ class HALComponent:
         auto_init: bool = True,
         open_timeout: float = 10.0,
     ) -> None:
+        _check_arguments(
+            self.device_class, device, hal_id, function_list, clock, auto_init, open_timeout
+        )
         info = device.info
         if hal_id is None:
             hal_id = HALId(int(info.kind), info.vendor_id, info.product_id, next(_instances))
@@ -124,12 +172,13 @@ class HALComponent:
         self.state = S.INITIALIZING
         self.last_fault: DeviceFaultError | None = None
         self._observers = Fanout(device_name, ("notify_event", "notify_error"))
+        # Set once entered. (Few instance attributes: past 29, CPython 3.11 stops sharing
+        # the instance dict's keys and every attribute read on the per-call paths slows.)
         self._stack: AsyncExitStack | None = None
         self._tg: anyio.abc.TaskGroup | None = None
         self._device_scopes: set[anyio.CancelScope] = set()
         self._ctx = _Context(self)
         self.log = log.bind(component=device_name)
-        self._entered = False
 
     @property
     def device_name(self) -> str:
@@ -137,12 +186,10 @@ class HALComponent:
 
     # -- async context manager -------------------------------------------------------
     async def __aenter__(self) -> Self:
-        if self._entered:
+        if self._stack is not None:  # entered before
             raise StateError("__aenter__", self.state, ["a component not yet entered"])
-        self._entered = True
-        stack = AsyncExitStack()
+        stack = self._stack = AsyncExitStack()
         self._tg = await stack.enter_async_context(anyio.create_task_group())
-        self._stack = stack
         self._observers.bind(self._tg)
         try:
             with anyio.fail_after(self.open_timeout):

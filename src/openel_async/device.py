@@ -12,12 +12,12 @@ import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Coroutine, Sequence
 from dataclasses import dataclass
-from enum import IntEnum
+from enum import Enum, IntEnum
 from typing import Any, NamedTuple, Protocol
 
 from .clock import Clock
 from .errors import BadParameterError, ReturnCode, WouldBlockError
-from .ids import DeviceKind
+from .ids import DeviceKind, HALId
 from .requests import Request
 
 
@@ -43,6 +43,25 @@ class DeviceInfo:
     product_name: str = "Device"
     functions: tuple[str, ...] = ()
 
+
+class ValueSource(Enum):
+    """Where an Actuator's actual value (``get_value`` of codes 5-7) comes from.
+
+    OpenEL 3.2 §7.4.1.7: "If the actual angle / position / velocity / torque cannot be
+    measured, return the estimated value or command value."
+    """
+
+    MEASURED = "measured"
+    """``read()`` measures it."""
+    ESTIMATED = "estimated"
+    """The device cannot measure it; ``read()`` returns the device's estimate."""
+    COMMANDED = "commanded"
+    """The device can neither measure nor estimate it: the last commanded value."""
+
+
+ACTUAL_REQUESTS: frozenset[Request] = frozenset(
+    {Request.POSITION_ACTUAL, Request.VELOCITY_ACTUAL, Request.TORQUE_ACTUAL}
+)
 
 # Enum members read as module constants on the per-command path (~80 ns saved each).
 _POSITION = Request.POSITION
@@ -93,6 +112,11 @@ class DeviceContext(Protocol):
     @property
     def name(self) -> str: ...
 
+    @property
+    def hal_id(self) -> HALId:
+        """The component's HALId (e.g. ``instance_id`` to key per-instance state)."""
+        ...
+
     def start_soon(self, func: Callable[..., Coroutine[Any, Any, Any]], *args: Any) -> None:
         """Run a background task owned by the component (cancelled at finalize)."""
 
@@ -139,6 +163,13 @@ class ActuatorDevice(Device):
     reports_completion: bool = False
     """True when the driver calls ``ctx.target_reached()``; else the framework detects
     completion by tolerance and settle time."""
+    measured_requests: frozenset[Request] = ACTUAL_REQUESTS
+    """The actual quantities (``*_ACTUAL`` codes) that ``read()`` measures."""
+    estimated_requests: frozenset[Request] = frozenset()
+    """The actual quantities the device cannot measure but estimates: ``read()`` returns the
+    estimate. For a code in neither set, ``read()`` is never called and ``get_value``
+    returns the last commanded value (OpenEL §7.4.1.7). Both are read when the Actuator
+    is constructed."""
 
     @abstractmethod
     async def command(self, request: Request, value: float) -> None:
@@ -146,7 +177,8 @@ class ActuatorDevice(Device):
 
     @abstractmethod
     async def read(self, request: Request) -> float:
-        """Read POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL in SI units."""
+        """Read POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL in SI units (a code of
+        ``measured_requests`` or ``estimated_requests``)."""
 
     # The synchronous fast path (``Actuator.set_value_nowait``/``get_value_nowait``), for
     # devices that never wait: simulations writing and reading memory.  Bus drivers keep the

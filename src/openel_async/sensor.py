@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Sequence
 from typing import NamedTuple
 
 from .clock import Clock
 from .component import LINK_FAULTS, ComponentState, HALComponent
-from .device import Reading, SensorDevice, has_nowait
+from .device import ErrorId, Reading, SensorDevice, has_nowait
 from .errors import HALError, StateError, WouldBlockError
 from .ids import HALId
 
@@ -31,6 +32,7 @@ class Sensor(HALComponent):
     """An OpenEL Sensor over a :class:`SensorDevice` driver."""
 
     device: SensorDevice
+    device_class = SensorDevice
 
     def __init__(
         self,
@@ -115,10 +117,29 @@ class Sensor(HALComponent):
         return TimedValue(values, self.clock.now_ns() if time_ns is None else time_ns)
 
     def _checked_values(self, raw: Sequence[float]) -> tuple[float, ...]:
-        values = raw if type(raw) is tuple else tuple(raw)
-        # One sum answers "all finite?" for the common case (x - x is 0.0 for finite x);
-        # look closer only if not.
-        total = sum(values)
-        if total - total != 0.0 and not all(math.isfinite(v) for v in values):
-            raise HALError(f"{self.device_name}: device returned a non-finite value {values}")
-        return values
+        """The values as a tuple of finite floats; anything else is a device fault."""
+        if type(raw) is tuple:
+            # One sum answers "finite floats?" for the common case: it is a float only if
+            # some value is a float (ints alone or NumPy scalars are converted below), and
+            # x - x is 0.0 only for finite x.
+            try:
+                total: object = sum(raw)
+            except TypeError:  # not numbers: a device fault, below
+                total = math.nan
+            if type(total) is float and total - total == 0.0:
+                return raw
+        return self._converted(raw)
+
+    def _converted(self, raw: object) -> tuple[float, ...]:
+        try:
+            values = tuple(
+                float(v) if isinstance(v, numbers.Real) else math.nan
+                for v in raw  # type: ignore[attr-defined]
+            )
+        except (TypeError, ValueError, OverflowError):
+            values = (math.nan,)
+        if all(math.isfinite(v) for v in values):
+            return values
+        raise self._fault(
+            ErrorId.DEVICE_ERROR, f"read() returned a non-finite or non-numeric value in {raw!r}"
+        )

@@ -25,6 +25,7 @@ from openel_async import (
     Request,
     ReturnCode,
     Sensor,
+    ValueSource,
     VirtualClock,
 )
 from openel_async.testing import ComponentStack, EventRecorder
@@ -90,8 +91,9 @@ async def test_stage_velocity_mode_and_unsupported_requests(
     assert await actuator.get_value(Request.VELOCITY_ACTUAL) == pytest.approx(0.05, abs=1e-2)
     with pytest.raises(NotImplementedHALError):
         await actuator.set_value(1.0, Request.TORQUE)  # not in supported_requests
-    with pytest.raises(NotImplementedHALError):
-        await actuator.get_value(Request.TORQUE_ACTUAL)  # raised by the driver's read()
+    # Not measured (measured_requests): the commanded torque, as OpenEL §7.4.1.7 says.
+    assert await actuator.get_value(Request.TORQUE_ACTUAL) == 0.0
+    assert actuator.value_source(Request.TORQUE_ACTUAL) is ValueSource.COMMANDED
     with pytest.raises(BadParameterError):
         await actuator.set_value(0.5, Request.POSITION)  # outside ActuatorLimits
     no_excite = await actuator.set_value(0.0, Request.NO_EXCITE)

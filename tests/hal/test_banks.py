@@ -718,23 +718,26 @@ async def test_disconnected_sim_sensor_in_a_default_batch(
     assert [r.source for r in events.errors] == [sensors[1]]
 
 
-async def test_sensor_bank_non_finite_values_raise_without_a_fault(
+async def test_sensor_bank_non_finite_values_fault_their_own_sensor(
     hal_components: ComponentStack,
 ) -> None:
     devices = [BatchSensor(1.0), BatchSensor(math.inf)]
     sensors = [await hal_components.sensor(d, device_name=f"Bus{i}") for i, d in enumerate(devices)]
     bank = SensorBank(sensors)
-    with pytest.raises(HALError, match="non-finite") as info:
+    with pytest.raises(DeviceFaultError, match="non-finite") as info:
         bank.get_values_nowait()
-    assert not isinstance(info.value, DeviceFaultError)
     assert "Bus1" in str(info.value) and "Bus0" not in str(info.value)
-    with pytest.raises(HALError, match="non-finite"):
+    assert [s.state for s in sensors] == [ComponentState.ACTIVE, ComponentState.ERROR]
+    await sensors[1].re_init()
+    with pytest.raises(DeviceFaultError, match="non-finite"):
         await bank.get_values()
+    await sensors[1].re_init()
     devices[1].value = math.nan  # one by one (per-device reads) too
     alone = SensorBank([sensors[1], await hal_components.sensor(OtherBatchSensor(0.0))])
-    with pytest.raises(HALError, match="non-finite"):
+    with pytest.raises(DeviceFaultError, match="non-finite"):
         alone.get_values_nowait()
-    assert all(s.state is ComponentState.ACTIVE for s in sensors)
+    assert sensors[0].state is ComponentState.ACTIVE
+    assert sensors[1].state is ComponentState.ERROR
 
 
 class LooseBatchSensor(BatchSensor):

@@ -403,15 +403,19 @@ async def test_noisy_sensor_nowait_and_async_draw_the_same_sequence(
 
 
 async def test_sensor_value_checks_are_the_same(hal_components: ComponentStack) -> None:
+    # A non-finite value is a device fault (as for an actuator's reading): Error state.
     bad = await hal_components.sensor(ConstantSensor([1.0, math.nan]))
-    with pytest.raises(HALError, match="non-finite") as fast:
+    with pytest.raises(DeviceFaultError, match="non-finite") as fast:
         bad.get_value_nowait()
-    with pytest.raises(HALError, match="non-finite") as slow:
+    assert bad.state is ComponentState.ERROR and fast.value.error_id == ErrorId.DEVICE_ERROR
+    await bad.re_init()
+    with pytest.raises(DeviceFaultError, match="non-finite") as slow:
         await bad.get_value()
-    assert type(fast.value) is type(slow.value) is HALError
-    with pytest.raises(HALError, match="non-finite"):
+    assert type(fast.value) is type(slow.value) is DeviceFaultError
+    await bad.re_init()
+    with pytest.raises(DeviceFaultError, match="non-finite"):
         bad.get_timed_value_nowait()
-    assert bad.state is ComponentState.ACTIVE  # a bad value is not a device fault
+    assert bad.state is ComponentState.ERROR and bad.last_fault is not None
 
     timeless = await hal_components.sensor(ConstantSensor([1.0, 2.0], has_time=False))
     assert timeless.get_value_nowait() == (1.0, 2.0)  # a list from the device becomes a tuple
