@@ -345,6 +345,35 @@ def test_long_numbers_give_one_line_from_the_cli(
     assert "Traceback" not in err and len(err.splitlines()) == 2
 
 
+def test_long_constraint_bounds_in_a_profile_give_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Was: a traceback from profile show/validate (int() of a 5000-digit bound).
+    doc = _minimal_yaml()
+    doc["rtcProfile"]["configurationSet"] = {
+        "configuration": [
+            {
+                "name": "gain",
+                "type": "int",
+                "defaultValue": "5",
+                "constraint": {
+                    "constraintUnit": {
+                        "propertyIsBetween": {"lowerBoundary": LONG, "upperBoundary": "1"}
+                    }
+                },
+            }
+        ]
+    }
+    path = tmp_path / "RTC.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    assert cli(["profile", "show", str(path)]) == 0
+    assert "gain" in capsys.readouterr().out
+    assert cli(["profile", "validate", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert "parameter 'gain': value '5' violates constraint" in err
+    assert len(err.splitlines()) == 1 and len(err) < 500
+
+
 # -- unknown YAML keys written as XML (issue 10, point 17) -----------------------------------
 
 

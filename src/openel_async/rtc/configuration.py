@@ -326,7 +326,7 @@ class ParameterSpec:
         if check_constraint and self.constraint is not None and not self.constraint.check(operand):
             raise ConfigurationError(
                 f"parameter {self.name!r}: value {_clip(value)} violates constraint "
-                f"{self.constraint_text!r}",
+                f"{_clip(self.constraint_text)}",
                 parameter=self.name,
                 value=value,
                 constraint=self.constraint_text,
