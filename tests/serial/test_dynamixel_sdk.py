@@ -187,15 +187,51 @@ def test_sdk_tx_packet_loses_its_byte_stuffing() -> None:
     assert parser.feed(wire) == [] and parser.malformed == 1
 
 
+def _sdk_status(dxl_id: int, error: int, params: bytes) -> bytes:
+    """A status packet stuffed and framed with the SDK's own addStuffing and updateCRC."""
+    length = len(params) + 4
+    packet = [0xFF, 0xFF, 0xFD, 0x00, dxl_id, length & 0xFF, length >> 8, 0x55, error]
+    stuffed = PH.addStuffing([*packet, *params, 0, 0])
+    crc = PH.updateCRC(0, stuffed, len(stuffed) - 2)
+    stuffed[-2:] = [crc & 0xFF, crc >> 8]
+    return bytes(stuffed)
+
+
+def _sdk_reads(wire: bytes) -> tuple[list[int], int]:
+    port = RecordingPort(b"\x00\xff" + wire)
+    result: tuple[list[int], int] = PH.rxPacket(port, False)
+    return result
+
+
 @settings(max_examples=150, deadline=None)
 @given(st.integers(0, dx.MAX_ID), st.integers(0, 0x7F), payload)
 def test_sdk_parses_our_status_packets(dxl_id: int, error: int, params: bytes) -> None:
-    port = RecordingPort(b"\x00\xff" + dx.encode(dx.Status(dxl_id, error, params)))
-    packet, result = PH.rxPacket(port, False)
+    ours = dx.encode(dx.Status(dxl_id, error, params))
+    assert ours == _sdk_status(dxl_id, error, params)  # the very bytes the SDK would build
+    packet, result = _sdk_reads(ours)
     assert result == sdk.COMM_SUCCESS
     assert (packet[4], packet[7], packet[8]) == (dxl_id, dx.Instruction.STATUS, error)
     # The SDK unstuffs in place and keeps the stuffed length of the list.
-    assert bytes(packet[9 : 9 + len(params)]) == params
+    sdk_params = bytes(packet[9 : 9 + len(params)])
+    if dx.stuff(params) == params:
+        assert sdk_params == params
+    else:  # where it unstuffs, it reads our packets exactly as it reads its own
+        assert sdk_params == bytes(
+            _sdk_reads(_sdk_status(dxl_id, error, params))[0][9:][: len(params)]
+        )
+    assert dx.decode(ours) == dx.Status(dxl_id, error, params)
+
+
+def test_sdk_remove_stuffing_loses_bytes() -> None:
+    # dynamixel-sdk 4.1.0 (Python): removeStuffing compacts the list in place and then
+    # tests bytes it has already moved, so some stuffed runs come back wrong, for its own
+    # packets as for ours. Our decoder reads them as sent.
+    params = b"\xff\xff\xfd\xff\xfd\xfd"
+    ours = dx.encode(dx.Status(1, 0, params))
+    assert ours == _sdk_status(1, 0, params)
+    packet, result = _sdk_reads(ours)
+    assert result == sdk.COMM_SUCCESS and bytes(packet[9:15]) != params
+    assert dx.decode(ours) == dx.Status(1, 0, params)
 
 
 # -- over a pty: the SDK talks to our simulated servos ----------------------------------------
