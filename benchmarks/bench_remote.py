@@ -1,0 +1,344 @@
+"""Remote devices over Zenoh, each figure against raw Zenoh measured in the same run.
+
+A server process (``python -m benchmarks.bench_remote serve PORT``: a SurfaceServer over a
+SimMotor and a burst device, the same stack as ``openel-async serve``) and a raw Zenoh
+process (``... raw PORT``: a queryable replying 8 bytes, and a publisher of N samples on
+request) run beside this process, which is the client; everything on loopback.
+
+- get_value round trip: ``await actuator.get_value()`` of an ``Actuator(RemoteActuator)``
+  vs a blocking ``session.get`` on the raw queryable; target p50 <= 1.5x raw.
+- set_value -> COMPLETED: from ``set_value`` to the COMPLETED event at the local observer
+  (the motor reaches a 1 mrad target within microseconds) vs a raw query whose server
+  then publishes a sample the client receives.
+- event throughput: N device events, published by the server's surface to a subscribed
+  RemoteSurface, counted with every drop reported (received + missed = N); vs N raw puts
+  counted by a raw subscriber callback; target >= 20 000 events/s with none lost untold.
+- execute through XML vs the compact encoding: the round trip of one GetPosition message.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import anyio
+import anyio.lowlevel
+
+from .harness import BenchResult, Row, ratio_of
+
+NAME = "remote"
+NAMESPACE = "bench"
+EVENTS = 100_000
+QUICK_EVENTS = 20_000
+CALLS = 2000
+QUICK_CALLS = 300
+TARGET_RT_RATIO = 1.5
+TARGET_EVENT_RATE = 20_000.0
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def _pct(samples: list[float], q: float) -> float:
+    ordered = sorted(samples)
+    return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
+
+
+# -- the server processes ----------------------------------------------------------------
+def _serve(port: int) -> None:
+    from openel_async import (
+        Actuator,
+        ActuatorDevice,
+        DeviceContext,
+        DeviceInfo,
+        DeviceKind,
+        Request,
+    )
+    from openel_async.surface import Surface
+    from openel_sim import SimMotor
+    from openel_zenoh import SurfaceServer, open_session
+    from openel_zenoh.config import endpoint, server_config
+
+    class Burst(ActuatorDevice):
+        """SetPosition(n) posts n device events (id 5) in chunks."""
+
+        info = DeviceInfo(kind=DeviceKind.MOTOR, vendor_name="Bench", product_name="Burst")
+        reports_completion = True
+
+        async def open(self, ctx: DeviceContext) -> None:
+            self.ctx = ctx
+
+        async def command(self, request: Request, value: float) -> None:
+            self.ctx.start_soon(self._burst, int(value))
+            self.ctx.target_reached()
+
+        async def _burst(self, count: int) -> None:
+            for start in range(0, count, 256):
+                for _ in range(min(256, count - start)):
+                    self.ctx.post_event(5)
+                await anyio.lowlevel.checkpoint()
+
+        async def read(self, request: Request) -> float:
+            return 0.0
+
+    from openel_async.cli.logs import configure_logging
+
+    configure_logging("console", "warning")
+
+    async def main() -> None:
+        session = await open_session(server_config([endpoint(port)]))
+        motor = SimMotor(max_velocity=1e6, max_acceleration=1e9, position_limits=(-1e9, 1e9))
+        burst = Burst()
+        burst.limits = type(burst.limits)((-1e9, 1e9))
+        async with (
+            Actuator(motor) as axis,
+            Actuator(burst) as source,
+            Surface([axis, source]) as surface,
+            SurfaceServer(surface, session, NAMESPACE),
+        ):
+            print("ready", flush=True)
+            await anyio.to_thread.run_sync(sys.stdin.read)  # until the parent closes stdin
+
+    anyio.run(main)
+
+
+def _raw(port: int) -> None:
+    import zenoh
+
+    from openel_zenoh.config import endpoint, server_config
+
+    session = zenoh.open(server_config([endpoint(port)]))
+    publisher = session.declare_publisher(
+        "raw/events", congestion_control=zenoh.CongestionControl.BLOCK
+    )
+    done = session.declare_publisher("raw/done")
+
+    def on_query(query: zenoh.Query) -> None:
+        with query:
+            query.reply("raw/q", b"\x00" * 8)
+            payload = query.payload.to_bytes() if query.payload else b""
+        if payload.startswith(b"burst"):
+            for _ in range(int(payload[5:])):
+                publisher.put(b"\x00" * 16)
+        elif payload == b"done":
+            done.put(b"d")
+
+    queryable = session.declare_queryable(
+        "raw/q", zenoh.handlers.Callback(on_query, indirect=False)
+    )
+    print("ready", flush=True)
+    sys.stdin.read()
+    queryable.undeclare()
+    session.close()
+
+
+def _spawn(kind: str, port: int) -> subprocess.Popen[str]:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "benchmarks.bench_remote", kind, str(port)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"}, cwd=Path(__file__).resolve().parent.parent,
+    )  # fmt: skip
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 30
+    while True:
+        line = proc.stdout.readline()
+        if line.strip() == "ready":
+            return proc
+        if not line or time.monotonic() > deadline:
+            proc.kill()
+            raise RuntimeError(f"the {kind} process did not start: {line!r}")
+
+
+def _stop(proc: subprocess.Popen[str]) -> None:
+    assert proc.stdin is not None
+    proc.stdin.close()
+    try:
+        proc.wait(10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(5)
+
+
+# -- raw Zenoh baseline ------------------------------------------------------------------
+def _raw_figures(port: int, calls: int, events: int) -> dict[str, float]:
+    import zenoh
+
+    from openel_zenoh.config import client_config, endpoint
+
+    session = zenoh.open(client_config([endpoint(port)]))
+    try:
+        time.sleep(0.5)
+        for _ in range(50):
+            list(session.get("raw/q", payload=b"x", timeout=2.0))
+        rtt = []
+        for _ in range(calls):
+            t0 = time.perf_counter()
+            replies = list(session.get("raw/q", payload=b"x", timeout=2.0))
+            rtt.append(time.perf_counter() - t0)
+            assert replies and replies[0].ok is not None
+        # query, then a published sample back (the raw analogue of set_value -> COMPLETED)
+        got = threading.Event()
+        sub = session.declare_subscriber("raw/done", lambda s: got.set())
+        time.sleep(0.2)
+        completion = []
+        for _ in range(calls // 2):
+            got.clear()
+            t0 = time.perf_counter()
+            list(session.get("raw/q", payload=b"done", timeout=2.0))
+            got.wait(2.0)
+            completion.append(time.perf_counter() - t0)
+        sub.undeclare()
+        count = [0]
+        finished = threading.Event()
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            count[0] += 1
+            if count[0] == events:
+                finished.set()
+
+        sub = session.declare_subscriber(
+            "raw/events", zenoh.handlers.Callback(on_sample, indirect=False)
+        )
+        time.sleep(0.2)
+        t0 = time.perf_counter()
+        list(session.get("raw/q", payload=f"burst{events}".encode(), timeout=60.0))
+        finished.wait(60)
+        rate = count[0] / (time.perf_counter() - t0)
+        sub.undeclare()
+        return {
+            "rtt_p50": _pct(rtt, 0.5), "rtt_p99": _pct(rtt, 0.99),
+            "completion_p50": _pct(completion, 0.5), "rate": rate, "lost": float(events - count[0]),
+        }  # fmt: skip
+    finally:
+        session.close()
+
+
+# -- ours ------------------------------------------------------------------------------------
+async def _our_figures(port: int, calls: int, events: int) -> dict[str, float]:
+    from openel_async import Actuator, EventId, ObserverQueue, Request
+    from openel_async.surface import ApplicationQueue, CommandMessage, Device, EventNotification
+    from openel_zenoh import RemoteActuator, RemoteSurface, close_session, open_session
+    from openel_zenoh.config import client_config, endpoint
+
+    session = await open_session(client_config([endpoint(port)]))
+    try:
+        async with RemoteSurface(session, NAMESPACE, timeout=5.0) as remote:
+            await remote.wait_server(10)
+            async with Actuator(RemoteActuator(remote, 0)) as axis:
+                for _ in range(50):
+                    await axis.get_value(Request.POSITION_ACTUAL)
+                rtt = []
+                for _ in range(calls):
+                    t0 = time.perf_counter()
+                    await axis.get_value(Request.POSITION_ACTUAL)
+                    rtt.append(time.perf_counter() - t0)
+                queue = ObserverQueue()
+                axis.add_observer(queue)
+                completion = []
+                target = 0.0
+                for _ in range(calls // 2):
+                    target = 0.001 if target == 0.0 else 0.0
+                    t0 = time.perf_counter()
+                    await axis.set_value(target)
+                    while True:
+                        notice = await queue.get()
+                        if getattr(notice, "event_id", None) == EventId.COMPLETED:
+                            break
+                    completion.append(time.perf_counter() - t0)
+                formats = {}
+                message = Device("Motor", (CommandMessage.call("GetPosition", "", logical_id=0),))
+                for encoding in ("xml", "compact"):
+                    samples = []
+                    for _ in range(calls // 2):
+                        t0 = time.perf_counter()
+                        await remote.execute(message, encoding=encoding)  # type: ignore[arg-type]
+                        samples.append(time.perf_counter() - t0)
+                    formats[encoding] = _pct(samples, 0.5)
+            app = ApplicationQueue(maxsize=events + 16)
+            await remote.subscribe("Motor", "EVENT_5", app)
+            t0 = time.perf_counter()
+            await remote.execute_command(
+                "Motor",
+                CommandMessage.call("SetPosition", "", logical_id=1, position=float(events)),
+            )
+            received = 0
+            missed = 0
+            with anyio.move_on_after(60):
+                while received + missed < events:
+                    notice = await app.get()
+                    assert isinstance(notice, EventNotification)
+                    received += 1
+                    missed += notice.missed
+            rate = (received + missed) / (time.perf_counter() - t0)
+            return {
+                "rtt_p50": _pct(rtt, 0.5), "rtt_p99": _pct(rtt, 0.99),
+                "completion_p50": _pct(completion, 0.5), "completion_p99": _pct(completion, 0.99),
+                "rate": rate, "received": float(received), "missed": float(missed),
+                "xml_p50": formats["xml"], "compact_p50": formats["compact"],
+            }  # fmt: skip
+    finally:
+        await close_session(session)
+
+
+def run(quick: bool) -> BenchResult:
+    calls = QUICK_CALLS if quick else CALLS
+    events = QUICK_EVENTS if quick else EVENTS
+    raw_port, our_port = _free_port(), _free_port()
+    raw_proc = _spawn("raw", raw_port)
+    try:
+        raw = _raw_figures(raw_port, calls, events)
+    finally:
+        _stop(raw_proc)
+    server = _spawn("serve", our_port)
+    try:
+        ours = anyio.run(_our_figures, our_port, calls, events, backend="asyncio")
+    finally:
+        _stop(server)
+    us = 1e6
+    rt_ratio = ratio_of(ours["rtt_p50"], raw["rtt_p50"])
+    told = ours["received"] + ours["missed"] == events
+    rows = (
+        Row("get_value round trip p50", ours["rtt_p50"] * us, "us", raw["rtt_p50"] * us, "raw Zenoh query p50",
+            rt_ratio, "ours/raw", f"<= {TARGET_RT_RATIO}x raw", rt_ratio <= TARGET_RT_RATIO),
+        Row("get_value round trip p99", ours["rtt_p99"] * us, "us", raw["rtt_p99"] * us, "raw Zenoh query p99",
+            ratio_of(ours["rtt_p99"], raw["rtt_p99"]), "ours/raw"),
+        Row("set_value -> COMPLETED p50", ours["completion_p50"] * us, "us", raw["completion_p50"] * us,
+            "raw query + published reply p50", ratio_of(ours["completion_p50"], raw["completion_p50"]), "ours/raw"),
+        Row("set_value -> COMPLETED p99", ours["completion_p99"] * us, "us"),
+        Row("event throughput", ours["rate"], "events/s", raw["rate"], "raw Zenoh puts",
+            ratio_of(ours["rate"], raw["rate"]), "ours/raw", f">= {TARGET_EVENT_RATE:.0f}/s, none lost untold",
+            ours["rate"] >= TARGET_EVENT_RATE and told, digits=0),
+        Row("events missed (reported)", ours["missed"], "events", digits=0),
+        Row("execute GetPosition, XML p50", ours["xml_p50"] * us, "us", ours["compact_p50"] * us,
+            "compact (msgpack) p50", ratio_of(ours["xml_p50"], ours["compact_p50"]), "xml/compact"),
+    )  # fmt: skip
+    return BenchResult(
+        name=NAME,
+        title="Remote devices over Zenoh (loopback, server in another process)",
+        rows=rows,
+        description=(__doc__ or "").split("\n\n", 1)[1].strip(),
+        params={"calls": str(calls), "events": str(events), "raw lost": f"{raw['lost']:.0f}"},
+        quick=quick,
+    )
+
+
+if __name__ == "__main__":
+    role, port_text = sys.argv[1], sys.argv[2]
+    if role == "serve":
+        _serve(int(port_text))
+    elif role == "raw":
+        _raw(int(port_text))
+    else:
+        print(json.dumps({"error": f"unknown role {role}"}))
+        sys.exit(2)
