@@ -146,6 +146,8 @@ class Surface:
         self._event_details: OrderedDict[str, ResultList] = OrderedDict()
         self._error_details: OrderedDict[str, ResultList] = OrderedDict()
         self._deliveries: dict[int, Delivery] = {}
+        self._identity: dict[int, tuple[Parameter, ...]] = {}
+        self._event_codes: dict[int, tuple[Parameter, ...]] = {}
         self._attached: dict[int, object] = {}
         self._tg: anyio.abc.TaskGroup | None = None
         self.refused = 0
@@ -353,17 +355,25 @@ class Surface:
         if not targets:
             return
         eid = f"e{next(self._event_ids)}"
+        # The component's identity parameters are built once; per event only the code
+        # (cached per code) and the time are new.
+        head = self._identity.get(id(source))
+        if head is None:
+            head = self._identity[id(source)] = (
+                Parameter(DataType.STRING, "device_kind", entry.device_kind),
+                Parameter(DataType.INT, "logical_id", entry.logical_id),
+                Parameter(DataType.STRING, "device_name", source.device_name),
+            )
+        code = self._event_codes.get(event_id)
+        if code is None:
+            code = self._event_codes[event_id] = (
+                Parameter(DataType.INT, "event_code", int(event_id)),
+                Parameter(DataType.STRING, "event_type", event_type),
+            )
         self._remember(
             self._event_details,
             eid,
-            ResultList.of(
-                device_kind=entry.device_kind,
-                logical_id=entry.logical_id,
-                device_name=source.device_name,
-                event_code=int(event_id),
-                event_type=event_type,
-                time_ns=source.clock.now_ns(),
-            ),
+            ResultList((*head, *code, Parameter(DataType.INT, "time_ns", source.clock.now_ns()))),
         )
         for s in targets:
             self._delivery(s.application).call("notify_event", eid, event_type, s.subscribe_id)
