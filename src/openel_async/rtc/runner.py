@@ -39,6 +39,7 @@ from types import ModuleType
 
 import anyio
 import structlog
+from anyio.abc import TaskStatus
 
 from ..clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
 from .configuration import Configuration, ConfigurationError
@@ -318,8 +319,14 @@ def make_context(
 # -- running ---------------------------------------------------------------------------
 
 
-async def _until_signal(scope: anyio.CancelScope, summary: RunSummary) -> None:
+async def _until_signal(
+    scope: anyio.CancelScope,
+    summary: RunSummary,
+    *,
+    task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED,
+) -> None:
     with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
+        task_status.started()
         async for signum in signals:
             summary.stopped_by = signal.Signals(signum).name
             log.info("signal_received", signal=summary.stopped_by)
@@ -426,11 +433,11 @@ async def run_prepared(
             await ec.add_component(comp)
             await ec.start()
             await ec.activate_component(comp)
-            run_log.info("profile_running", duration_s=duration_s)
             with anyio.CancelScope() as waiting:
                 async with anyio.create_task_group() as tg:
-                    if handle_signals:
-                        tg.start_soon(_until_signal, waiting, summary)
+                    if handle_signals:  # listening before the run is announced
+                        await tg.start(_until_signal, waiting, summary)
+                    run_log.info("profile_running", duration_s=duration_s)
                     if duration_s is not None:
                         end = start_ns + round(duration_s * NS_PER_S)
                         tg.start_soon(_until_duration, clock, end, waiting)
