@@ -125,6 +125,7 @@ class _Mailbox:
                 self.delivered += 1
             self.idle.set()
             if self.closed:
+                self.fanout.leaving.discard(self)
                 return
             self.wakeup = anyio.Event()
             if self.items:
@@ -171,6 +172,8 @@ class Fanout:
         self.abandoned = 0
         self.wants_notice: frozenset[str] = frozenset()
         """Kinds for which some observer takes the notice: publishers build it only then."""
+        self.leaving: set[_Mailbox] = set()
+        """Mailboxes of removed observers still delivering what was queued before."""
 
     def __len__(self) -> int:
         return len(self._subscribers)
@@ -213,6 +216,8 @@ class Fanout:
                     # Let what was queued before removal arrive, then end the task.
                     sub.mailbox.closed = True
                     sub.mailbox.wakeup.set()
+                    if self._task_group is not None:
+                        self.leaving.add(sub.mailbox)
                 return
         raise BadParameterError("observer", observer, "an observer registered with this publisher")
 
@@ -272,18 +277,21 @@ class Fanout:
         self.discarded += total
         return total
 
+    def _mailboxes(self) -> list[_Mailbox]:
+        """Every mailbox with a task: registered observers', then removed ones' (leaving)."""
+        mailboxes = [s.mailbox for s in self._subscribers if s.mailbox is not None]
+        return mailboxes + [m for m in self.leaving if m not in mailboxes]
+
     def abandon(self) -> int:
         """What async observers still hold when the owner stops waiting for them at exit:
-        the queued notices and the one whose delivery is about to be cancelled.
+        the queued notices and the one whose delivery is about to be cancelled (observers
+        removed but still delivering what was queued before included).
 
         Each observer's count is logged (warning) and added to ``abandoned``; returns the
         total.
         """
         total = 0
-        for sub in self._subscribers:
-            mailbox = sub.mailbox
-            if mailbox is None:
-                continue
+        for mailbox in self._mailboxes():
             count = mailbox.drop_all()
             if mailbox.busy:  # cut short by the cancellation that follows
                 mailbox.busy = False
@@ -295,17 +303,18 @@ class Fanout:
                 log.warning(
                     "observer_notices_abandoned",
                     owner=self.owner,
-                    observer=repr(sub.observer),
+                    observer=repr(mailbox.observer),
                     abandoned=count,
                 )
+        self.leaving.clear()  # their tasks are cancelled with the owner's
         self.abandoned += total
         return total
 
     async def wait_delivered(self) -> None:
-        """Wait until every async observer has processed what was published so far."""
-        for sub in self._subscribers:
-            if sub.mailbox is not None:
-                await sub.mailbox.idle.wait()
+        """Wait until every async observer (and every removed one still delivering) has
+        processed what was published so far."""
+        for mailbox in self._mailboxes():
+            await mailbox.idle.wait()
 
     async def drain(self, timeout_s: float) -> int:
         """Close the mailboxes and give async observers ``timeout_s`` seconds (shielded

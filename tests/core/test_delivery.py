@@ -379,6 +379,30 @@ async def test_component_exit_counts_and_logs_what_async_observers_never_got(
     assert "ForeverStuck" in abandoned[0]["observer"]
 
 
+async def test_exit_counts_what_a_removed_async_observer_had_still_to_handle(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A removed observer still gets what was queued before its removal; if the owner
+    exits first, that is counted and logged like any other abandoned notice."""
+    monkeypatch.setattr(openel_async.component, "EXIT_DRAIN_S", 0.01)
+    source = EventSource()
+    stuck = ForeverStuck()
+    with structlog.testing.capture_logs() as logs:
+        async with Actuator(source) as actuator:
+            actuator.add_observer(stuck)
+            assert source.ctx is not None
+            for k in range(5):
+                source.ctx.post_event(k)
+            await anyio.wait_all_tasks_blocked()  # stuck on notice 0, 1..4 queued
+            actuator.remove_observer(stuck)
+            source.ctx.post_event(5)  # after the removal: not for it
+    assert stuck.started == [0]
+    stats = actuator.observer_stats
+    assert (stats.published, stats.abandoned, stats.mailboxes) == (6, 5, ())
+    abandoned = [e for e in logs if e["event"] == "observer_notices_abandoned"]
+    assert [e["abandoned"] for e in abandoned] == [5]
+
+
 async def test_component_exit_within_the_drain_time_abandons_nothing() -> None:
     source = EventSource()
     observer = StuckHALObserver()
