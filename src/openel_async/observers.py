@@ -139,10 +139,11 @@ class ObserverQueue:
             return
         items = self._items
         if len(items) >= self.maxsize:
-            items.popleft()
+            dropped = items.popleft()
             if self._missed == 0:
                 log.warning("observer_queue_overflow", queue=self.name, maxsize=self.maxsize)
-            self._missed += 1
+            # A dropped notice that itself reported missed ones passes them on.
+            self._missed += 1 + dropped.missed
             self.missed_total += 1
         items.append(notice)
         wakeup = self._wakeup

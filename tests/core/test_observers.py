@@ -130,6 +130,32 @@ def test_missed_is_reported_on_timer_ticks_too() -> None:
     assert (tick.index, tick.missed, tick.missed_ticks) == (3, 2, 0)
 
 
+def test_a_notice_given_by_the_publisher_is_queued_as_is() -> None:
+    """Publishers build one notice per notification and share it among observers."""
+    queue = ObserverQueue(1)
+    notice = EventNotice(SOURCE, 1)
+    queue.notify_event(SOURCE, 1, notice)
+    assert queue.get_nowait() is notice
+    error = ErrorNotice(SOURCE, 4)
+    queue.notify_error(SOURCE, 4, error)
+    assert queue.get_nowait() is error
+    timer = _FakeTimer()
+    timer.tick(1)
+    tick = TimerTick(timer, 9, 90, 91)  # type: ignore[arg-type]
+    queue.notify_timer(timer, tick)  # type: ignore[arg-type]
+    assert queue.get_nowait() is tick  # the tick given, not timer.last_tick
+
+
+def test_missed_counts_add_up_through_forwarded_notices() -> None:
+    """A notice that already reports missed ones keeps them, plus the queue's own drops
+    (and those of a dropped notice)."""
+    queue = ObserverQueue(1)
+    queue.notify_event(SOURCE, 2, EventNotice(SOURCE, 2, missed=3))
+    queue.notify_event(SOURCE, 3, EventNotice(SOURCE, 3, missed=2))  # drops 2 (and its 3)
+    assert queue.get_nowait() == EventNotice(SOURCE, 3, missed=2 + 1 + 3)
+    assert queue.missed_total == 1
+
+
 def test_drain_returns_everything_oldest_first() -> None:
     queue = ObserverQueue(2)
     for event_id in (1, 2, 3):
