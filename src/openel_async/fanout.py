@@ -98,6 +98,7 @@ class _Mailbox:
         )
 
     async def run(self) -> None:
+        self.busy = False  # (re)started by bind: nothing is being delivered yet
         while True:
             while self.items:
                 kind, args, notice = self.items.popleft()
