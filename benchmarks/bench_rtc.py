@@ -97,7 +97,7 @@ async def ours(duration_ns: int) -> Figures:
         lateness=stats.lateness,
         execution=stats.execution,
         cycles=stats.cycles,
-        drift_ns=stats.drift_ns,
+        drift_ns=stats.last_lateness_ns,
         missed=max(0, periods - stats.cycles),
         overruns=stats.overruns,
         wakeup=wakeup,

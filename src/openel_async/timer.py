@@ -75,8 +75,17 @@ class TimerStats:
     missed_ticks: int
     """Periods skipped because a wake-up came a whole period or more late."""
     lateness: LatenessSummary
-    drift_ns: int
-    """Time of the last tick minus its ideal time (start + index x period)."""
+    last_lateness_ns: int
+    """The last tick's lateness: its delivery time minus its deadline (start + index x period).
+
+    Deadlines sit on an absolute grid, so lateness never accumulates into drift: this is
+    the lateness of one tick, not a running total."""
+
+    @property
+    def drift_ns(self) -> int:
+        """Deprecated alias of ``last_lateness_ns`` (the name promised a drift that an
+        absolute-deadline timer does not have)."""
+        return self.last_lateness_ns
 
 
 class EventTimer:
@@ -299,7 +308,7 @@ class EventTimer:
             late_ticks=self._late,
             missed_ticks=self._missed,
             lateness=self._lateness.summary(),
-            drift_ns=self._drift,
+            last_lateness_ns=self._drift,
         )
 
     def reset_stats(self) -> None:

@@ -17,7 +17,7 @@ from openel_async.clock import NS_PER_MS, NS_PER_S, Clock, MonotonicClock, Sleep
 from openel_async.errors import BadParameterError, StateError
 from openel_async.observers import ObserverQueue, TimerObserver, TimerTick
 from openel_async.stats import LatenessRecorder, LatenessSummary, percentile
-from openel_async.timer import EventTimer, TimerState, period_to_ns
+from openel_async.timer import EventTimer, TimerState, TimerStats, period_to_ns
 
 # -- helpers ------------------------------------------------------------------------------
 
@@ -108,7 +108,12 @@ async def test_ticks_arrive_exactly_on_the_grid(virtual_clock: VirtualClock) -> 
     assert ticks.indexes == list(range(1, 21))
     assert all(t.missed_ticks == 0 and t.lateness_ns == 0 and t.timer is timer for t in ticks.ticks)
     stats = timer.stats
-    assert (stats.ticks, stats.late_ticks, stats.missed_ticks, stats.drift_ns) == (20, 0, 0, 0)
+    assert (stats.ticks, stats.late_ticks, stats.missed_ticks, stats.last_lateness_ns) == (
+        20,
+        0,
+        0,
+        0,
+    )
     assert stats.lateness.count == 20
     assert stats.lateness.max_ns == stats.lateness.p99_ns == stats.lateness.p50_ns == 0
 
@@ -219,7 +224,7 @@ async def test_set_event_period_while_running_applies_from_the_next_tick(
     assert ticks.indexes == list(range(1, 10))
     assert [t.deadline_ns for t in ticks.ticks] == ticks.times
     assert timer.stats.missed_ticks == 0
-    assert timer.stats.drift_ns == 0
+    assert timer.stats.last_lateness_ns == 0
 
 
 async def test_set_event_period_from_an_observer_applies_to_the_next_interval(
@@ -537,7 +542,7 @@ async def test_late_wake_skips_missed_periods_without_a_burst(virtual_clock: Vir
     assert stats.missed_ticks == 3
     assert stats.late_ticks == 1
     assert stats.lateness.max_ns == 35 * ms
-    assert stats.drift_ns == 0
+    assert stats.last_lateness_ns == 0
     warnings = [e for e in logs if e["event"] == "timer_missed_ticks"]
     assert len(warnings) == 1
     assert warnings[0]["missed"] == 3
@@ -583,7 +588,7 @@ async def test_lateness_statistics_reflect_the_scripted_lateness(
     assert stats.lateness.mean_ns == pytest.approx(495 * us)
     # late_threshold 0.5 ms: 510, 520, ..., 990 µs are late.
     assert stats.late_ticks == 49
-    assert stats.drift_ns == ticks.ticks[-1].lateness_ns
+    assert stats.last_lateness_ns == ticks.ticks[-1].lateness_ns
 
     timer.reset_stats()
     cleared = timer.stats
@@ -635,7 +640,7 @@ async def test_drift_does_not_accumulate_over_1000_jittery_ticks(
     assert all(b > a for a, b in itertools.pairwise(ticks.indexes))
     assert stats.missed_ticks == sum(t.missed_ticks for t in ticks.ticks)
     assert stats.missed_ticks > 0
-    assert 0 <= stats.drift_ns < period
+    assert 0 <= stats.last_lateness_ns < period
     assert stats.lateness.max_ns == max(jitter)
 
 
@@ -733,3 +738,18 @@ async def test_real_clock_ticks_never_come_before_their_deadline(use_timerfd: bo
         assert b.index > a.index
         assert b.deadline_ns - a.deadline_ns == (b.index - a.index) * period
     assert timer.stats.ticks == 8
+
+
+async def test_stats_name_the_last_ticks_lateness_and_keep_drift_ns_as_its_alias() -> None:
+    """TimerStats reported the last tick's lateness under the name drift_ns (issue 10 #8):
+    it is now last_lateness_ns, and drift_ns is an alias of it."""
+    clock = VirtualClock()
+    async with clock.autojump(), EventTimer(10, clock=clock) as timer:
+        timer.start_timer()
+        await clock.sleep(0.055)
+        timer.stop_timer()
+    stats = timer.stats
+    assert stats.ticks >= 5
+    assert stats.last_lateness_ns == 0
+    assert stats.drift_ns == stats.last_lateness_ns
+    assert "last_lateness_ns" in TimerStats.__dataclass_fields__

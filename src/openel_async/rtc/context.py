@@ -122,8 +122,14 @@ class ExecutionContextStats:
     """Start of each cycle after its tick's deadline (or its trigger)."""
     execution: LatenessSummary
     """Duration of each cycle (both passes, every participant)."""
-    drift_ns: int
-    """Start of the last cycle minus its ideal time (periodic contexts)."""
+    last_lateness_ns: int
+    """Start of the last cycle minus its tick's deadline (periodic contexts). Deadlines sit
+    on an absolute grid, so this never accumulates into drift."""
+
+    @property
+    def drift_ns(self) -> int:
+        """Deprecated alias of ``last_lateness_ns``."""
+        return self.last_lateness_ns
 
 
 class _Gate:
@@ -516,7 +522,7 @@ class ExecutionContext:
             timer_missed=self._timer_missed(),
             lateness=self._lateness.summary(),
             execution=self._execution.summary(),
-            drift_ns=self._drift,
+            last_lateness_ns=self._drift,
         )
 
     def reset_stats(self) -> None:
