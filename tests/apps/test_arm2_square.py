@@ -92,6 +92,37 @@ def test_bad_options_are_refused_with_a_message(
     assert not list(tmp_path.iterdir())  # nothing ran, nothing written
 
 
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--period-ms", "nan"], "--period-ms must be a whole multiple of the 1 ms physics step"),
+        (["--period-ms", "1.5"], "--period-ms must be a whole multiple of the 1 ms physics step"),
+        (["--duration", "inf"], "--duration must be a number of seconds > 0 and <= 600"),
+        (["--laps", "101"], "--laps x --duration at most 600 s"),
+        (["--points", "0"], "--points must be from 1 to 1000"),
+        (["--points", "100000"], "--points must be from 1 to 1000"),
+        (["--center", "nan", "0"], "--center must be two finite numbers"),
+    ],
+)
+def test_every_option_is_checked_before_the_model_loads(
+    args: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out_dir = tmp_path / "out"
+    assert cli_main(["run", "apps/arm2_square.py", *args, "--out", str(out_dir)]) == 2
+    assert message in capsys.readouterr().err
+    assert not out_dir.exists()
+
+
+def test_an_out_that_is_a_file_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    existing = tmp_path / "file.png"
+    existing.write_bytes(b"mine")
+    assert cli_main(["run", "apps/arm2_square.py", "--out", str(existing)]) == 2
+    assert "exists and is not a directory" in capsys.readouterr().err
+    assert existing.read_bytes() == b"mine"
+
+
 async def test_a_snapshot_without_rendering_is_skipped_with_the_reason(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -69,6 +69,9 @@ def test_the_app_refuses_an_unreachable_place(
     )
     assert code == 2
     assert "out of reach" in capsys.readouterr().err
+    code = cli_main(["run", "apps/arm6_pick_place.py", "--place", "nan", "0"])
+    assert code == 2
+    assert "--place must be two finite numbers of m" in capsys.readouterr().err
 
 
 def test_the_apps_file_is_a_thin_wrapper_of_the_package() -> None:

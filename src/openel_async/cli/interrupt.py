@@ -120,16 +120,14 @@ async def run_interruptible(work: Callable[[], Awaitable[T]]) -> T | Interrupted
     token = _written.set(written)
     start = time.monotonic()
     scope = anyio.CancelScope()
-    result: T | None = None
-    finished = False
+    results: list[T] = []
     error: str | None = None
     try:
         async with anyio.create_task_group() as tg:
             await tg.start(_watch, scope, caught)
             try:
                 with scope:
-                    result = await work()
-                    finished = True
+                    results.append(await work())
             except Exception as exc:
                 if not caught:
                     raise
@@ -140,8 +138,9 @@ async def run_interruptible(work: Callable[[], Awaitable[T]]) -> T | Interrupted
         _written.reset(token)
         with contextlib.suppress(ValueError, TypeError, OSError):
             signal.signal(signal.SIGTERM, previous_sigterm)
-    if finished or not caught:
-        return result  # type: ignore[return-value]  # finished: the work's result
+    if results:
+        return results[0]
+    # Not finished: cancelled by the signal caught (the work cannot return without a result).
     return Interrupted(caught[0], time.monotonic() - start, error, written)
 
 
