@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import itertools
 from enum import Enum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeVar
 
 import anyio
 import structlog
@@ -30,6 +30,9 @@ from .errors import (
 
 if TYPE_CHECKING:
     from .context import ExecutionContext
+    from .ports.base import PortBase
+
+P = TypeVar("P", bound="PortBase")
 
 __all__ = ["ECOTHER_OFFSET", "CallbackResult", "ObjectState", "RTObject"]
 
@@ -84,6 +87,7 @@ class RTObject:
         self._next_owned = 0
         self._next_other = ECOTHER_OFFSET
         self._lifecycle_lock = anyio.Lock()
+        self._ports: dict[str, PortBase] = {}
         self.log = log.bind(rtc=self.instance_name)
 
     def __repr__(self) -> str:
@@ -258,6 +262,39 @@ class RTObject:
             if ec is cxt:
                 return handle
         raise RTCBadParameterError("cxt", cxt, "a context this RTC participates in")
+
+    # -- ports (PortService) ---------------------------------------------------------------
+    def add_port(self, port: P) -> P:
+        """Add a data or service port (names are unique within the RTC); returns it.
+
+        The port takes this RTC's clock unless it was given one; its full name becomes
+        ``instance_name.port``."""
+        from .ports.base import PortBase
+
+        if not isinstance(port, PortBase):
+            raise RTCBadParameterError("port", port, "an InPort, OutPort or ServicePort")
+        existing = self._ports.get(port.name)
+        if existing is not None and existing is not port:
+            raise RTCBadParameterError(
+                "port", port.name, f"a port name not yet used by {self.instance_name}"
+            )
+        port.bind(self)
+        self._ports[port.name] = port
+        return port
+
+    def get_port(self, name: str) -> PortBase:
+        """The port called ``name`` (BAD_PARAMETER naming the ports there are)."""
+        port = self._ports.get(name) if isinstance(name, str) else None
+        if port is None:
+            raise RTCBadParameterError(
+                "port", name, f"a port of {self.instance_name}: {sorted(self._ports) or 'none'}"
+            )
+        return port
+
+    @property
+    def ports(self) -> tuple[PortBase, ...]:
+        """The ports, in the order they were added."""
+        return tuple(self._ports.values())
 
     # -- hooks used by contexts and subclasses ----------------------------------------------
     def _own(self, ec: ExecutionContext) -> None:

@@ -1,0 +1,134 @@
+"""InPort and OutPort: OpenRTM's data ports over connectors (see :mod:`.connector`).
+
+- ``await out.write(value)`` stamps ``tm`` from the port's clock when the value has none
+  (a bare payload, ``await out.write(1.5)``, is converted to the port's type and
+  checked), then hands it to every connector; it returns True when all of them took it
+  (OpenRTM's ``OutPort::write``); ``out.status`` tells the first failure.
+- ``in_.is_new()`` is True while some connector has an unread value; ``await in_.read()``
+  returns the oldest unread value of the first connector (in connection order) that has
+  one, else what that first connector's empty policy gives (readback: the last value
+  again; do_nothing: None; block: waits up to its timeout); ``in_.status`` is the
+  PortStatus of the last read, ``in_.value`` the last value read.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Generic, TypeVar
+
+import msgspec
+
+from ...clock import Clock
+from ..errors import RTCBadParameterError
+from .base import PortBase
+from .buffer import ReadOutcome
+from .datatypes import TimedValue, data_type_name, stamp
+from .status import PortStatus
+
+if TYPE_CHECKING:
+    from .connector import InHalf, OutHalf
+
+__all__ = ["DataPort", "InPort", "OutPort"]
+
+T = TypeVar("T", bound=TimedValue)
+
+
+class DataPort(PortBase, Generic[T]):
+    """Common part of InPort and OutPort: the data type and the connectors."""
+
+    def __init__(self, name: str, data_type: type[T], *, clock: Clock | None = None) -> None:
+        super().__init__(name, clock=clock)
+        if not (isinstance(data_type, type) and issubclass(data_type, TimedValue)):
+            raise RTCBadParameterError("data_type", data_type, "a Timed* type of rtc.ports")
+        self.data_type: type[T] = data_type
+        self.status = PortStatus.PORT_OK
+        self.value: T | None = None
+
+    @property
+    def type_name(self) -> str:
+        """The IDL name, e.g. ``RTC::TimedDouble``."""
+        return data_type_name(self.data_type)
+
+
+class OutPort(DataPort[T]):
+    """A data output port."""
+
+    def __init__(self, name: str, data_type: type[T], *, clock: Clock | None = None) -> None:
+        super().__init__(name, data_type, clock=clock)
+        self.connectors: list[OutHalf] = []
+        self.writes = 0
+
+    def convert(self, value: object) -> T:
+        """``value`` as the port's type: an instance as is, a payload converted and
+        checked (BAD_PARAMETER naming the port otherwise)."""
+        data_type = self.data_type
+        if type(value) is data_type:
+            return value
+        if isinstance(value, TimedValue):
+            raise RTCBadParameterError(
+                f"{self.full_name}.write", value, f"a {self.type_name} or its payload"
+            )
+        try:
+            return msgspec.convert([None, value], data_type)
+        except msgspec.ValidationError as exc:
+            raise RTCBadParameterError(
+                f"{self.full_name}.write", value, f"a {self.type_name} payload ({exc})"
+            ) from None
+
+    async def write(self, value: T | object) -> bool:
+        """Send ``value`` on every connector; True when all took it."""
+        data = self.convert(value)
+        if data.tm is None:
+            data = stamp(data, self.clock.now_ns())  # type: ignore[assignment]
+        self.value = data
+        self.writes += 1
+        connectors = self.connectors
+        if not connectors:
+            self.status = PortStatus.PRECONDITION_NOT_MET
+            return False
+        status = PortStatus.PORT_OK
+        for half in connectors:
+            result = await half.write(data)
+            if result is not PortStatus.PORT_OK and status is PortStatus.PORT_OK:
+                status = result
+        self.status = status
+        return status is PortStatus.PORT_OK
+
+
+class InPort(DataPort[T]):
+    """A data input port."""
+
+    def __init__(self, name: str, data_type: type[T], *, clock: Clock | None = None) -> None:
+        super().__init__(name, data_type, clock=clock)
+        self.connectors: list[InHalf] = []
+
+    def is_new(self) -> bool:
+        """True while a connector holds an unread value."""
+        return any(half.readable() > 0 for half in self.connectors)
+
+    def is_empty(self) -> bool:
+        return not self.is_new()
+
+    def readable(self) -> int:
+        """Unread values over all connectors."""
+        return sum(half.readable() for half in self.connectors)
+
+    async def read(self) -> T | None:
+        """The next value (see the module docstring); None when nothing could be read,
+        ``status`` then says why (BUFFER_EMPTY, BUFFER_TIMEOUT, PRECONDITION_NOT_MET
+        without connectors)."""
+        connectors = self.connectors
+        if not connectors:
+            self.status = PortStatus.PRECONDITION_NOT_MET
+            return None
+        chosen = connectors[0]
+        if len(connectors) > 1 and chosen.readable() == 0:
+            for half in connectors:
+                if half.readable() > 0:
+                    chosen = half
+                    break
+        status, outcome, value = await chosen.read()
+        self.status = status
+        if outcome is ReadOutcome.NONE:
+            return None
+        self.value = value  # type: ignore[assignment]
+        return value  # type: ignore[return-value]
