@@ -10,6 +10,7 @@
 docs/rtc.md maps the RTC PIM to this API.
 """
 
+from .composite import CompositeRTObject, composite_of
 from .context import (
     EventDrivenExecutionContext,
     ExecutionContext,
@@ -17,6 +18,7 @@ from .context import (
     ExecutionKind,
     LifeCycleState,
     PeriodicExecutionContext,
+    SporadicExecutionContext,
 )
 from .errors import (
     CallbackFailedError,
@@ -36,6 +38,7 @@ __all__ = [
     "ECOTHER_OFFSET",
     "CallbackFailedError",
     "CallbackResult",
+    "CompositeRTObject",
     "EventDrivenExecutionContext",
     "ExecutionContext",
     "ExecutionContextStats",
@@ -51,6 +54,8 @@ __all__ = [
     "RTCTimeoutError",
     "RTObject",
     "ReturnCode_t",
+    "SporadicExecutionContext",
     "UnsupportedError",
     "check_return_code",
+    "composite_of",
 ]

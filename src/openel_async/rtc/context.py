@@ -62,6 +62,7 @@ __all__ = [
     "ExecutionKind",
     "LifeCycleState",
     "PeriodicExecutionContext",
+    "SporadicExecutionContext",
 ]
 
 log = structlog.get_logger(__name__)
@@ -426,6 +427,7 @@ class ExecutionContext:
         handle = comp.attach_context(self)
         self._participants[comp] = _Participant(comp, handle)
         self.log.info("component_added", rtc=comp.instance_name, handle=handle)
+        await comp._shared_context_event(self, "add")
 
     async def remove_component(self, comp: RTObject) -> None:
         """Remove a participant that is not Active (after its running callback returned).
@@ -435,6 +437,7 @@ class ExecutionContext:
         """
         p = self._participant(comp)
         self._require(p, "remove_component", S.INACTIVE, S.ERROR)
+        await comp._shared_context_event(self, "remove")
 
         async def body() -> None:
             self._require(p, "remove_component", S.INACTIVE, S.ERROR)
@@ -451,6 +454,7 @@ class ExecutionContext:
         runs) and CallbackFailedError is raised.
         """
         await self._transition(comp, "activate_component", S.INACTIVE, "on_activated", S.ACTIVE)
+        await comp._shared_context_event(self, "activate")
 
     async def deactivate_component(self, comp: RTObject) -> None:
         """Active -> Inactive after the component's running callback returned, running
@@ -461,6 +465,7 @@ class ExecutionContext:
         CallbackFailedError is raised.
         """
         await self._transition(comp, "deactivate_component", S.ACTIVE, "on_deactivated", S.INACTIVE)
+        await comp._shared_context_event(self, "deactivate")
 
     async def _transition(
         self,
@@ -948,6 +953,75 @@ class EventDrivenExecutionContext(ExecutionContext):
                 await end.wait()
             elif not await _wait_until(self.clock, end, deadline):
                 raise RTCTimeoutError(f"trigger_and_wait: no cycle finished on {self.name}")
+
+
+class SporadicExecutionContext(ExecutionContext):
+    """Runs a cycle when triggered, at most once per ``min_interval`` seconds.
+
+    The RTC Profile's SPORADIC activity type ("actions run irregularly"); the RTC
+    PIM's ExecutionKind has no SPORADIC, so ``get_kind()`` is OTHER. A trigger within
+    ``min_interval`` of the previous cycle's trigger is deferred to the end of the
+    interval (the classic sporadic task's minimum inter-arrival time); triggers that
+    come while one is deferred are merged into it (counted in ``stats.skipped``). With
+    ``min_interval=0`` it behaves like an event-driven context.
+    """
+
+    kind: ClassVar[ExecutionKind] = ExecutionKind.OTHER
+
+    def __init__(
+        self,
+        min_interval: float = 0.0,
+        *,
+        name: str = "",
+        owner: RTObject | None = None,
+        clock: Clock | None = None,
+        lifecycle_timeout: float | None = DEFAULT_LIFECYCLE_TIMEOUT_S,
+    ) -> None:
+        if (
+            isinstance(min_interval, bool)
+            or not isinstance(min_interval, int | float)
+            or not math.isfinite(min_interval)
+            or not 0 <= min_interval <= 1 / MIN_RATE_HZ
+        ):
+            raise RTCBadParameterError(
+                "min_interval", min_interval, f"seconds, 0 <= min_interval <= {1 / MIN_RATE_HZ:g}"
+            )
+        super().__init__(name=name, owner=owner, clock=clock, lifecycle_timeout=lifecycle_timeout)
+        self._min_interval_ns = round(min_interval * NS_PER_S)
+        self._last_release: int | None = None
+        self._deferred = False
+
+    @property
+    def min_interval_ns(self) -> int:
+        return self._min_interval_ns
+
+    def trigger(self) -> None:
+        """Release a cycle now, or at the end of the minimum interval; never blocks.
+        PRECONDITION_NOT_MET when stopped."""
+        if not self._running:
+            raise PreconditionNotMetError("trigger", "Stopped", ["Running"])
+        if self._deferred:
+            self._skipped += 1
+            return
+        now = self.clock.now_ns()
+        last = self._last_release
+        if last is None or now - last >= self._min_interval_ns:
+            self._last_release = now
+            self._submit(now)
+            return
+        due = last + self._min_interval_ns
+        assert self._tg is not None
+        self._deferred = True
+        self._tg.start_soon(self._release_at, due, self._generation)
+
+    async def _release_at(self, due_ns: int, generation: int) -> None:
+        try:
+            await self.clock.sleep_until(due_ns)
+        finally:
+            self._deferred = False
+        if self._running and self._generation == generation:
+            self._last_release = due_ns
+            self._submit(due_ns)
 
 
 async def _wait_until(clock: Clock, event: anyio.Event, deadline_ns: int) -> bool:

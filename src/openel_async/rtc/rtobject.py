@@ -300,6 +300,11 @@ class RTObject:
     def _own(self, ec: ExecutionContext) -> None:
         self._owned.append(ec)
 
+    async def _shared_context_event(self, ec: ExecutionContext, event: str) -> None:
+        """Subclass hook (composites): ``ec`` added, activated or deactivated this RTC
+        (after the change), or is about to remove it (``"add"``, ``"activate"``,
+        ``"deactivate"``, ``"remove"``)."""
+
     def _context_attached(self, ec: ExecutionContext) -> None:
         """Subclass hook (modes): a context was attached."""
 
