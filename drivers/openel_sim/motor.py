@@ -15,7 +15,14 @@ import random
 import anyio
 import structlog
 
-from openel_async.device import ActuatorDevice, ActuatorLimits, DeviceContext, DeviceInfo, ErrorId
+from openel_async.device import (
+    ActuatorDevice,
+    ActuatorLimits,
+    DeviceContext,
+    DeviceInfo,
+    ErrorId,
+    VelocityRamp,
+)
 from openel_async.errors import BadParameterError, NotConnectedError, ReturnCode
 from openel_async.ids import DeviceKind
 from openel_async.requests import EventId, Request
@@ -40,6 +47,8 @@ class SimMotor(ActuatorDevice):
         functions=("inject_fault", "disconnect", "reconnect", "set_stuck"),
     )
     reports_completion = True
+    velocity_ramp = True
+    """Its own velocity ramp (``Motor.set_speed`` with a tmAcc): see command_velocity_ramp."""
 
     def __init__(
         self,
@@ -52,6 +61,7 @@ class SimMotor(ActuatorDevice):
         initial_position: float = 0.0,
         position_noise: float = 0.0,
         seed: int = 0,
+        native_ramp: bool = True,
     ) -> None:
         for name, value in (
             ("max_velocity", max_velocity),
@@ -67,6 +77,7 @@ class SimMotor(ActuatorDevice):
                 "initial_position", initial_position, f"a position in [{low}, {high}]"
             )
         self.limits = ActuatorLimits(position_limits, max_velocity, max_torque)
+        self.velocity_ramp = native_ramp  # False: Motor.set_speed streams the ramp itself
         self.max_acceleration = max_acceleration
         self.inertia = inertia
         self.position_noise = position_noise
@@ -130,6 +141,21 @@ class SimMotor(ActuatorDevice):
         else:  # NO_EXCITE: the rotor coasts to rest under friction
             segments = prof.ramp(now, p, v, 0.0, amax / 4)
         self._set_profile(segments, request, arrival=not self.stuck)
+
+    async def command_velocity_ramp(self, ramp: VelocityRamp) -> None:
+        """The drive's own ramp: from its velocity to ``ramp.target`` at the constant
+        acceleration that takes ``ramp.duration_s`` (at most ``max_acceleration``: a ramp
+        asked to be steeper takes longer). COMPLETED when the target velocity is reached."""
+        self._check_connected()
+        self.commands += 1
+        now = self._now()
+        p, v, _ = prof.evaluate(self._segments, now)
+        rate = min(abs(ramp.target - v) / ramp.duration_s, self.max_acceleration)
+        if self.stuck:
+            segments = prof.hold(now, p)
+        else:
+            segments = prof.ramp(now, p, v, ramp.target, rate or self.max_acceleration)
+        self._set_profile(segments, Request.VELOCITY, arrival=not self.stuck)
 
     async def read(self, request: Request) -> float:
         return self.read_nowait(request)

@@ -19,6 +19,7 @@ from .device import (
     Reading,
     SensorDevice,
     ValueSource,
+    VelocityRamp,
 )
 from .errors import (
     BadParameterError,
@@ -34,7 +35,8 @@ from .errors import (
     SupersededError,
     WouldBlockError,
 )
-from .ids import DeviceKind, HALId, Property, component_name
+from .ids import EXTENSION_KIND_IDS, DeviceKind, HALId, Property, component_name
+from .motor import Motor, MotorControlMode
 from .observers import (
     ErrorNotice,
     EventNotice,
@@ -47,9 +49,20 @@ from .observers import (
 from .registry import DriverInfo
 from .requests import EventId, Request
 from .sensor import Sensor, TimedValue
+from .sensor_kinds import (
+    AccelerationSensor,
+    Encoder,
+    ForceSensor,
+    GyroSensor,
+    HumiditySensor,
+    TemperatureSensor,
+    TorqueSensor,
+)
 from .timer import EventTimer, TimerState, TimerStats
 
 __all__ = [
+    "EXTENSION_KIND_IDS",
+    "AccelerationSensor",
     "Actuator",
     "ActuatorBank",
     "ActuatorDevice",
@@ -64,18 +77,24 @@ __all__ = [
     "DeviceInfo",
     "DeviceKind",
     "DriverInfo",
+    "Encoder",
     "ErrorId",
     "ErrorNotice",
     "EventId",
     "EventNotice",
     "EventTimer",
+    "ForceSensor",
+    "GyroSensor",
     "HALComponent",
     "HALError",
     "HALId",
     "HALObserver",
+    "HumiditySensor",
     "MonotonicClock",
     "Motion",
     "MotionCancelledError",
+    "Motor",
+    "MotorControlMode",
     "NotConnectedError",
     "NotImplementedHALError",
     "Notice",
@@ -92,12 +111,15 @@ __all__ = [
     "SensorDevice",
     "StateError",
     "SupersededError",
+    "TemperatureSensor",
     "TimedValue",
     "TimerObserver",
     "TimerState",
     "TimerStats",
     "TimerTick",
+    "TorqueSensor",
     "ValueSource",
+    "VelocityRamp",
     "VirtualClock",
     "WouldBlockError",
     "component_name",

@@ -156,6 +156,11 @@ class Actuator(HALComponent):
         self._read_nowait = has_nowait(device, "read_nowait", "read")
 
     @property
+    def actuator_kind(self) -> int:
+        """HAL4RT ``actuatorKind``: the device kind id (``DeviceKind.MOTOR`` for a motor)."""
+        return self.hal_id.device_kind_id
+
+    @property
     def motion(self) -> Motion | None:
         """The latest command's Motion."""
         latest = self._latest

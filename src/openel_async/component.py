@@ -30,7 +30,7 @@ from .errors import (
     StateError,
 )
 from .fanout import Fanout
-from .ids import DeviceKind, HALId, Property, component_name
+from .ids import DeviceKind, HALId, Property, component_name, profile_name
 from .observers import ErrorNotice, EventNotice
 from .stats import ObserverStats
 
@@ -160,8 +160,7 @@ class HALComponent:
         if hal_id is None:
             hal_id = HALId(int(info.kind), info.vendor_id, info.product_id, next(_instances))
         if device_name is None:
-            kind = hal_id.device_kind
-            profile = kind.name.title().replace("_", "") if kind else f"Kind{hal_id.device_kind_id}"
+            profile = profile_name(hal_id.device_kind_id)
             device_name = component_name(profile, info.vendor_name, info.product_name)
         self.device = device
         self.hal_id = hal_id
@@ -404,6 +403,17 @@ class HALComponent:
     @property
     def kind(self) -> DeviceKind | None:
         return self.hal_id.device_kind
+
+    @property
+    def profile_id(self) -> int:
+        """HAL4RT ``profileId``: the id of the kind of the device (``hal_id.device_kind_id``)."""
+        return self.hal_id.device_kind_id
+
+    @property
+    def component_name(self) -> str:
+        """HAL4RT ``componentName`` (the device name: by default Hal + profile + vendor +
+        product, §4.4)."""
+        return self.property.device_name
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.device_name!r}, {self.hal_id}, state={self.state})"

@@ -16,7 +16,7 @@ from enum import Enum, IntEnum
 from typing import Any, NamedTuple, Protocol
 
 from .clock import Clock
-from .errors import BadParameterError, ReturnCode, WouldBlockError
+from .errors import BadParameterError, NotImplementedHALError, ReturnCode, WouldBlockError
 from .ids import DeviceKind, HALId
 from .requests import Request
 
@@ -153,10 +153,42 @@ class Device(ABC):  # noqa: B024 - every hook is optional
         """Finalize: stop and release the device. Must not raise for an already broken device."""
 
 
+@dataclass(frozen=True, slots=True)
+class VelocityRamp:
+    """A speed change spread over a time (HAL4RT ``SetSpeed(speed, tmAcc)``), in SI units.
+
+    Given to :meth:`ActuatorDevice.command_velocity_ramp` by ``Motor.set_speed``: the device
+    should go from its current velocity to ``target`` linearly in ``duration_s`` seconds.
+    ``start`` is the velocity the framework saw when the command was issued (the actual
+    velocity, or the setpoint of a ramp in progress); a device that knows its own velocity
+    better may use it instead, as long as it keeps ``duration_s``.
+    """
+
+    start: float
+    """rad/s or m/s."""
+    target: float
+    """rad/s or m/s."""
+    duration_s: float
+    """tmAcc: seconds, finite and > 0."""
+
+    @property
+    def rate(self) -> float:
+        """|target - start| / duration_s: the acceleration the ramp needs (rad/s^2 or m/s^2)."""
+        return abs(self.target - self.start) / self.duration_s
+
+
 class ActuatorDevice(Device):
     """A one-degree-of-freedom actuator."""
 
     limits: ActuatorLimits = ActuatorLimits()
+    linear: bool = False
+    """True for a linear axis (m, m/s, N), False for a rotary one (rad, rad/s, Nm). A
+    ``Motor``'s scale factor defaults to 2 pi per revolution (rotary) or 1.0 per metre."""
+    velocity_ramp: bool = False
+    """True when the driver implements :meth:`command_velocity_ramp` with the device's own
+    ramp (ODrive VEL_RAMP, CiA 402 profile acceleration, Dynamixel Profile Acceleration...);
+    else ``Motor.set_speed(speed, tm_acc)`` streams the ramp itself on the component's
+    clock."""
     supported_requests: frozenset[Request] = frozenset(
         {Request.NO_EXCITE, Request.POSITION, Request.VELOCITY, Request.TORQUE}
     )
@@ -179,6 +211,17 @@ class ActuatorDevice(Device):
     async def read(self, request: Request) -> float:
         """Read POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL in SI units (a code of
         ``measured_requests`` or ``estimated_requests``)."""
+
+    async def command_velocity_ramp(self, ramp: VelocityRamp) -> None:
+        """Start a velocity ramp with the device's own ramp generator (when
+        :attr:`velocity_ramp` is True); return once the device accepted it.
+
+        The device is in velocity control afterwards. A driver that reports completion
+        calls ``ctx.target_reached()`` when ``ramp.target`` is reached (the end of the ramp),
+        not before. Only called with ``duration_s > 0``; a zero tmAcc is a plain
+        ``command(VELOCITY, target)``.
+        """
+        raise NotImplementedHALError(f"{type(self).__name__} has no velocity ramp of its own")
 
     # The synchronous fast path (``Actuator.set_value_nowait``/``get_value_nowait``), for
     # devices that never wait: simulations writing and reading memory.  Bus drivers keep the

@@ -10,9 +10,18 @@ from .errors import BadParameterError
 
 _U32_MAX = 0xFFFF_FFFF
 
+EXTENSION_KIND_IDS = range(0x7F00_0000, 0x8000_0000)
+"""Device kind ids this project gives to kinds the OpenEL registry lacks (GPS): far above
+the registry's ids and inside the C PSM's ``int32_t deviceKindId``."""
+
+RESERVED_PRODUCT_IDS = frozenset({0x0000_0000, 0xFFFF_FFFF})
+"""Product ids the device kind id registry refuses: 0 ("no product", the default of a
+``DeviceInfo``) and 0xFFFFFFFF (all bits set, "any product")."""
+
 
 class DeviceKind(IntEnum):
-    """Device kind ids of the OpenEL reference implementation's registry."""
+    """Device kind ids of the OpenEL reference implementation's registry, plus GPS from
+    :data:`EXTENSION_KIND_IDS` (docs/psm.md §4.3)."""
 
     MOTOR = 0x1
     GYRO = 0x2
@@ -28,6 +37,8 @@ class DeviceKind(IntEnum):
     TOUCH = 0xC
     CURRENT = 0xD
     ROTARY_ANGLE = 0xE
+    GPS = 0x7F00_0001
+    """Not in the OpenEL registry: HAL4RT's GPS Sensor (§7.4.5.13), from the extension range."""
 
 
 def _u32(name: str, value: int) -> int:
@@ -36,6 +47,39 @@ def _u32(name: str, value: int) -> int:
     if not 0 <= value <= _U32_MAX:
         raise BadParameterError(name, value, "a 32-bit unsigned integer in 0..0xFFFFFFFF")
     return value
+
+
+def check_product_id(product_id: object, parameter: str = "product_id") -> int:
+    """A product id the device kind id registry accepts: 32-bit, not reserved."""
+    value = _u32(parameter, product_id)  # type: ignore[arg-type]
+    if value in RESERVED_PRODUCT_IDS:
+        raise BadParameterError(
+            parameter,
+            product_id,
+            "a product id in 0x00000001..0xFFFFFFFE (0 and 0xFFFFFFFF are reserved)",
+        )
+    return value
+
+
+def check_vendor_name(vendor_name: object) -> str:
+    """HAL4RT's vendor-name rule: 2 to 16 characters beginning with an uppercase letter."""
+    if not isinstance(vendor_name, str) or not _VENDOR_NAME.fullmatch(vendor_name):
+        raise BadParameterError(
+            "vendor_name",
+            vendor_name,
+            "2 to 16 letters, digits or '_' beginning with an uppercase letter",
+        )
+    return vendor_name
+
+
+def profile_name(kind_id: int) -> str:
+    """The profile name of a device kind id in component names: ``MOTOR`` -> ``Motor``,
+    ``ROTARY_ANGLE`` -> ``RotaryAngle``; ``Kind<id>`` (decimal) outside the registry."""
+    try:
+        kind = DeviceKind(kind_id)
+    except ValueError:
+        return f"Kind{kind_id}"
+    return kind.name.title().replace("_", "")
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,12 +136,7 @@ def component_name(profile_name: str, vendor_name: str, product_name: str) -> st
 
     The vendor name is a 2 to 16 character string beginning with an uppercase letter.
     """
-    if not _VENDOR_NAME.fullmatch(vendor_name):
-        raise BadParameterError(
-            "vendor_name",
-            vendor_name,
-            "2 to 16 letters, digits or '_' beginning with an uppercase letter",
-        )
+    check_vendor_name(vendor_name)
     for name, part in (("profile_name", profile_name), ("product_name", product_name)):
         if not _NAME_PART.fullmatch(part):
             raise BadParameterError(name, part, "an identifier beginning with a letter")

@@ -48,6 +48,7 @@ def test_device_kinds_of_the_reference_registry() -> None:
         "MOTOR": 1, "GYRO": 2, "TORQUE": 3, "ACCEL": 4, "COMPASS": 5, "DISTANCE": 6,
         "FORCE": 7, "TEMPERATURE": 8, "HUMIDITY": 9, "CO2": 0xA, "COLOR": 0xB,
         "TOUCH": 0xC, "CURRENT": 0xD, "ROTARY_ANGLE": 0xE,
+        "GPS": 0x7F00_0001,  # HAL4RT's GPS, from the extension range (docs/psm.md §4.3)
     }  # fmt: skip
     assert {k.name: k.value for k in DeviceKind} == expected
 
