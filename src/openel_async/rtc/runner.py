@@ -51,6 +51,7 @@ from .context import (
     ExecutionKind,
     LifeCycleState,
     PeriodicExecutionContext,
+    SporadicExecutionContext,
 )
 from .errors import RTCError
 from .modes import MultiModeObject
@@ -86,6 +87,7 @@ CLI_MAX_VIRTUAL_CYCLES = 1_000_000
 
 _PERIODIC_TYPES = frozenset({"periodicexecutioncontext", "periodic"})
 _EVENT_TYPES = frozenset({"eventdrivenexecutioncontext", "eventdriven", "event_driven"})
+_SPORADIC_TYPES = frozenset({"sporadicexecutioncontext", "sporadic"})
 _BASIC = "rtcProfile.basicInfo"
 _loaded: dict[Path, ModuleType] = {}
 """Implementation modules imported from files, by path (imported once per process)."""
@@ -97,7 +99,8 @@ class ExecutionSpec:
 
     kind: ExecutionKind
     rate_hz: float | None
-    """Rate of a periodic context; None for an event-driven one."""
+    """Rate of a periodic context; None for an event-driven one; for a sporadic one
+    (kind OTHER) its highest rate (None: no minimum interval)."""
 
 
 @dataclass(slots=True)
@@ -161,12 +164,16 @@ def execution_spec(profile: RtcProfile, rate_hz: float | None = None) -> Executi
     kind_text = basic.execution_type.strip().lower()
     if kind_text in _EVENT_TYPES:
         return ExecutionSpec(ExecutionKind.EVENT_DRIVEN, None)
-    if kind_text not in _PERIODIC_TYPES:
+    sporadic = kind_text in _SPORADIC_TYPES
+    if kind_text not in _PERIODIC_TYPES and not sporadic:
         raise ProfileError(
             f"{_BASIC}.executionType",
             f"unsupported execution type {basic.execution_type!r}; expected "
-            "PeriodicExecutionContext (PERIODIC) or EventDrivenExecutionContext (EVENTDRIVEN)",
+            "PeriodicExecutionContext (PERIODIC), EventDrivenExecutionContext (EVENTDRIVEN) "
+            "or SporadicExecutionContext (SPORADIC)",
         )
+    if sporadic and rate_hz is None and basic.execution_rate is None:
+        return ExecutionSpec(ExecutionKind.OTHER, None)
     if rate_hz is not None:
         path, rate = "--rate", rate_hz
     elif basic.execution_rate is not None:
@@ -185,7 +192,7 @@ def execution_spec(profile: RtcProfile, rate_hz: float | None = None) -> Executi
             f"the rate must be a number of Hz, {MIN_RATE_HZ:g} <= rate <= {MAX_RATE_HZ:g}, "
             f"got {rate!r}",
         )
-    return ExecutionSpec(ExecutionKind.PERIODIC, float(rate))
+    return ExecutionSpec(ExecutionKind.OTHER if sporadic else ExecutionKind.PERIODIC, float(rate))
 
 
 def build_configuration(
@@ -312,6 +319,9 @@ def make_context(
     """The context of an ExecutionSpec."""
     if spec.kind is ExecutionKind.EVENT_DRIVEN:
         return EventDrivenExecutionContext(name=name, owner=owner, clock=clock)
+    if spec.kind is ExecutionKind.OTHER:
+        interval = 0.0 if spec.rate_hz is None else 1.0 / spec.rate_hz
+        return SporadicExecutionContext(interval, name=name, owner=owner, clock=clock)
     assert spec.rate_hz is not None
     return PeriodicExecutionContext(spec.rate_hz, name=name, owner=owner, clock=clock)
 
