@@ -41,7 +41,8 @@ class DeviceKind(IntEnum):
     """Not in the OpenEL registry: HAL4RT's GPS Sensor (§7.4.5.13), from the extension range."""
 
 
-def _u32(name: str, value: int) -> int:
+def check_u32(name: str, value: int) -> int:
+    """``value`` if it is an int in 0..0xFFFFFFFF, else BadParameterError naming ``name``."""
     if isinstance(value, bool) or not isinstance(value, int):
         raise BadParameterError(name, value, "an int")
     if not 0 <= value <= _U32_MAX:
@@ -51,7 +52,7 @@ def _u32(name: str, value: int) -> int:
 
 def check_product_id(product_id: object, parameter: str = "product_id") -> int:
     """A product id the device kind id registry accepts: 32-bit, not reserved."""
-    value = _u32(parameter, product_id)  # type: ignore[arg-type]
+    value = check_u32(parameter, product_id)  # type: ignore[arg-type]
     if value in RESERVED_PRODUCT_IDS:
         raise BadParameterError(
             parameter,
@@ -93,7 +94,7 @@ class HALId:
 
     def __post_init__(self) -> None:
         for name in ("device_kind_id", "vendor_id", "product_id", "instance_id"):
-            _u32(name, getattr(self, name))
+            check_u32(name, getattr(self, name))
 
     @property
     def device_kind(self) -> DeviceKind | None:

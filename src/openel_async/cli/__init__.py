@@ -108,7 +108,13 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("path", help="application file or directory, or RTC Profile")
     run.add_argument("app_args", nargs=argparse.REMAINDER, help="arguments for the application")
 
-    sub.add_parser("devices", help="list the registered drivers and their devices")
+    devices = sub.add_parser("devices", help="list the registered drivers and their devices")
+    devices.add_argument(
+        "--profile",
+        action="store_true",
+        help="print every device's characteristics profile (kind, commands with ids, "
+        "parameters with units) as JSON",
+    )
     from .profile_cmd import add_parser as add_profile_parser
 
     add_profile_parser(sub)
@@ -146,6 +152,10 @@ def _main(argv: Sequence[str] | None) -> int:
     args = _build_parser().parse_args(argv)
     configure_logging(args.log_format, args.log_level)
     if args.command == "devices":
+        if args.profile:
+            from .devices_cmd import print_profiles
+
+            return print_profiles()
         return _devices()
     if args.command == "demo":
         return _demo(args)
