@@ -38,8 +38,12 @@ Use it as an async context manager and create the node drivers with it::
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import math
+import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable
 from contextlib import AsyncExitStack
 from dataclasses import dataclass
@@ -49,11 +53,14 @@ from typing import Any, Final, Literal, Self, TypeVar
 
 import anyio
 import anyio.abc
+import anyio.lowlevel
 import can
 import structlog
 from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
 from openel_async.errors import BadParameterError, NotConnectedError
+
+from .virtual_rx import WakingQueue, hook_virtual_bus
 
 __all__ = ["BusState", "BusStats", "CanBus", "NodePort", "SendMode"]
 
@@ -68,6 +75,8 @@ EXTENDED_FLAG: Final = 1 << 31
 _INLINE_RETRY_S: Final = 0.0005
 _INLINE_RETRY_MAX_S: Final = 0.01
 _DROP_LOG_EVERY: Final = 1000
+_INLINE_YIELD_EVERY: Final = 64
+"""Inline sends in a row before ``send`` yields to the event loop once (fairness)."""
 
 
 class BusState(Enum):
@@ -95,6 +104,9 @@ class BusStats:
     error_frames: int = 0
     overflow_frames: int = 0
     """Frames dropped because a port's queue was full (summed over ports)."""
+    rx_overflow: int = 0
+    """Frames the reader thread dropped because ``rx_buffer`` frames were already waiting
+    for the event loop (the loop fell that far behind the bus)."""
     bus_errors: int = 0
     """Transitions to DOWN."""
     recoveries: int = 0
@@ -108,6 +120,11 @@ class NodePort:
     the arbitration ids it registered; the iteration ends when the port is detached or
     the bus closes. Counters: ``received`` and ``dropped`` (queue overflow) are kept by
     the bus, ``malformed`` by the driver (frames it could not decode and dropped).
+
+    A port attached with a ``handler`` has no queue: the bus calls ``handler(frames)``
+    in the event loop as each batch is dispatched (it must not block; an exception it
+    raises is logged and its frames counted in ``dropped``). Such a port cannot be
+    iterated. It saves a queue and a task wake-up per batch on request/answer paths.
     """
 
     def __init__(
@@ -117,6 +134,7 @@ class NodePort:
         name: str,
         queue_size: int,
         on_bus_error: Callable[[str], None] | None,
+        handler: Callable[[list[can.Message]], None] | None = None,
     ) -> None:
         self.bus = bus
         self.ids = ids
@@ -125,6 +143,7 @@ class NodePort:
         self.received = 0
         self.dropped = 0
         self.malformed = 0
+        self.handler = handler
         send, receive = anyio.create_memory_object_stream[list[can.Message]](queue_size)
         self._send: MemoryObjectSendStream[list[can.Message]] = send
         self._receive: MemoryObjectReceiveStream[list[can.Message]] = receive
@@ -134,7 +153,12 @@ class NodePort:
     def __aiter__(self) -> NodePort:
         return self
 
+    def _check_queued(self) -> None:
+        if self.handler is not None:
+            raise RuntimeError(f"port {self.name!r} delivers to its handler: it has no queue")
+
     async def __anext__(self) -> list[can.Message]:
+        self._check_queued()
         try:
             return await self._receive.receive()
         except (anyio.EndOfStream, anyio.ClosedResourceError):
@@ -143,6 +167,7 @@ class NodePort:
 
     async def receive(self) -> list[can.Message]:
         """The next batch; raises ``anyio.EndOfStream`` once detached."""
+        self._check_queued()
         try:
             return await self._receive.receive()
         except anyio.ClosedResourceError:
@@ -150,6 +175,7 @@ class NodePort:
 
     def receive_nowait(self) -> list[can.Message]:
         """The next batch if one is queued; raises ``anyio.WouldBlock`` otherwise."""
+        self._check_queued()
         try:
             return self._receive.receive_nowait()
         except anyio.ClosedResourceError:
@@ -157,6 +183,14 @@ class NodePort:
 
     def _deliver(self, frames: list[can.Message]) -> None:
         self.received += len(frames)
+        handler = self.handler
+        if handler is not None:
+            try:
+                handler(frames)
+            except Exception as exc:  # a driver's bug must not kill the dispatcher
+                self.dropped += len(frames)
+                self.bus.log.exception("port_handler_failed", port=self.name, error=repr(exc))
+            return
         try:
             self._send.send_nowait(frames)
         except anyio.WouldBlock:
@@ -221,6 +255,7 @@ class CanBus:
         send_timeout: float = 0.2,
         poll_interval: float = 0.05,
         max_batch: int = 512,
+        rx_buffer: int = 8192,
         reconnect_backoff: tuple[float, float] = (0.02, 1.0),
         sync_period: float | None = None,
         **bus_kwargs: Any,
@@ -232,7 +267,7 @@ class CanBus:
             )
         if bus is not None and not isinstance(bus, can.BusABC):
             raise BadParameterError("bus", bus, "a can.BusABC")
-        for pname, value in (("port_queue_size", port_queue_size), ("tx_queue_size", tx_queue_size), ("max_batch", max_batch)):  # fmt: skip
+        for pname, value in (("port_queue_size", port_queue_size), ("tx_queue_size", tx_queue_size), ("max_batch", max_batch), ("rx_buffer", rx_buffer)):  # fmt: skip
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise BadParameterError(pname, value, "an int >= 1")
         for pname, fvalue in (("send_timeout", send_timeout), ("poll_interval", poll_interval)):
@@ -265,6 +300,7 @@ class CanBus:
         self.send_timeout = send_timeout
         self.poll_interval = poll_interval
         self.max_batch = max_batch
+        self.rx_buffer = rx_buffer
         self.reconnect_backoff = (low, high)
         self.sync_period = sync_period
         self.stats = BusStats()
@@ -287,12 +323,34 @@ class CanBus:
         """Frames queued for the sender task or being sent by it."""
         self._shared: dict[object, Any] = {}
         self._entered = False
+        self._loop: asyncio.AbstractEventLoop | None = None
+        # Reader thread -> event loop hand-off (see _post_batch / _drain_rx).
+        self._rx_queue: deque[list[can.Message]] = deque()
+        self._rx_wake_pending = False
+        self._rx_posted = 0
+        """Frames handed to the loop (written by the reader thread only)."""
+        self._rx_taken = 0
+        """Frames the loop took from the hand-off (written by the loop only)."""
+        self._rx_overflow = 0
+        """Frames dropped by the reader thread (written by the reader thread only)."""
+        self.reader_threads = 0
+        """Reader threads started (one per bus object: a reopen starts a new one)."""
+        self.reads_in_loop = 0
+        """Bus objects read in the event loop without a thread (python-can ``virtual``)."""
+        self._virtual_rx: WakingQueue | None = None
+        self._virtual_failed: anyio.Event | None = None
+        self._virtual_failure = ""
+        self._inline_streak = 0
 
     # -- lifecycle ------------------------------------------------------------------------
     async def __aenter__(self) -> Self:
         if self._entered:
             raise RuntimeError("a CanBus can be entered only once")
         self._entered = True
+        try:
+            self._loop = asyncio.get_running_loop()
+        except RuntimeError:
+            raise RuntimeError("CanBus needs anyio on the asyncio backend") from None
         self._bus = await self._open()
         self._inline = self._choose_inline(self._bus)
         stack = AsyncExitStack()
@@ -408,11 +466,14 @@ class CanBus:
         queue_size: int | None = None,
         on_bus_error: Callable[[str], None] | None = None,
         extended: bool = False,
+        handler: Callable[[list[can.Message]], None] | None = None,
     ) -> NodePort:
         """Register a port receiving the frames of ``ids`` (11-bit unless ``extended``).
 
         Several ports may register the same id; each gets every such frame.
         ``on_bus_error(reason)`` is called (in the event loop) whenever the bus goes down.
+        With ``handler``, batches are handed to ``handler(frames)`` in the event loop
+        instead of being queued (see :class:`NodePort`).
         """
         if self.state is BusState.CLOSED:
             raise NotConnectedError(f"CAN bus {self.name} is not open (use 'async with')")
@@ -423,7 +484,12 @@ class CanBus:
                 raise BadParameterError("ids", arb_id, f"arbitration ids in 0..{limit:#x}")
             keys.add(arb_id | EXTENDED_FLAG if extended else arb_id)
         port = NodePort(
-            self, frozenset(keys), name, queue_size or self.port_queue_size, on_bus_error
+            self,
+            frozenset(keys),
+            name,
+            queue_size or self.port_queue_size,
+            on_bus_error,
+            handler,
         )
         self._ports.append(port)
         routes = dict(self._routes)
@@ -472,6 +538,11 @@ class CanBus:
                 pass
             else:
                 self.stats.tx_frames += 1
+                self._inline_streak += 1
+                if self._inline_streak >= _INLINE_YIELD_EVERY:
+                    # A loop of sends that never suspend would starve the readers.
+                    self._inline_streak = 0
+                    await anyio.lowlevel.checkpoint()
                 return
         self._tx_pending += 1
         try:
@@ -572,7 +643,7 @@ class CanBus:
 
     # -- receive --------------------------------------------------------------------------
     def _recv_batch(self, bus: can.BusABC) -> list[can.Message]:
-        """Worker thread: one blocking recv (bounded), then drain what is queued."""
+        """Reader thread: one blocking recv (bounded), then drain what is queued."""
         first = bus.recv(self.poll_interval)
         if first is None:
             return []
@@ -595,13 +666,152 @@ class CanBus:
                 await self._recover()
             bus = self._bus
             assert bus is not None
-            try:
-                batch = await anyio.to_thread.run_sync(self._recv_batch, bus)
-            except Exception as exc:
-                self._set_down(f"receive failed: {exc!r}")
-                continue
-            if batch:
-                self._dispatch(batch)
+            if (reason := await self._run_in_loop(bus)) is None:
+                reason = await self._run_reader_thread(bus)
+            self._drain_rx()  # frames read before the failure go out first
+            self._set_down(reason)
+
+    # python-can's virtual interface: read in the event loop when the sender wakes it.
+    async def _run_in_loop(self, bus: can.BusABC) -> str | None:
+        """Read ``bus`` in the loop until it fails (the failure); None if not possible."""
+        failed = self._virtual_failed = anyio.Event()
+        rx = hook_virtual_bus(bus, self.rx_buffer, self._wake_virtual)
+        if rx is None:
+            return None
+        self._virtual_rx = rx
+        self.reads_in_loop += 1
+        try:
+            self._wake_virtual()  # frames queued before the hook
+            await failed.wait()
+        finally:
+            self._virtual_rx = None
+            rx.unhook()
+        return self._virtual_failure
+
+    def _wake_virtual(self) -> None:
+        """Any thread (a frame was put on the bus's queue): schedule one drain."""
+        if self._rx_wake_pending:
+            return
+        self._rx_wake_pending = True
+        loop = self._loop
+        assert loop is not None
+        with contextlib.suppress(RuntimeError):  # the loop is closed
+            loop.call_soon_threadsafe(self._drain_virtual)
+
+    def _drain_virtual(self) -> None:
+        """Event loop: non-blocking ``recv(0)`` of what is queued, then one dispatch."""
+        self._rx_wake_pending = False  # before reading: a frame put after this wakes again
+        rx, bus, failed = self._virtual_rx, self._bus, self._virtual_failed
+        if rx is None or bus is None or failed is None or failed.is_set():
+            return  # the bus went down or was closed meanwhile
+        if rx.overflow != self.stats.rx_overflow:
+            dropped = rx.overflow - self.stats.rx_overflow
+            self.stats.rx_overflow += dropped
+            self.log.warning("rx_overflow", dropped=dropped, total=self.stats.rx_overflow)
+        frames: list[can.Message] = []
+        recv = bus.recv
+        limit = self.max_batch
+        queued = rx.queue  # checked without the lock: a frame put later wakes us again
+        try:
+            while queued:
+                msg = recv(0.0)  # None: a frame python-can's filters rejected
+                if msg is None:
+                    continue
+                frames.append(msg)
+                if len(frames) >= limit:  # let other tasks run; the rest in the next drain
+                    self._rx_wake_pending = True
+                    assert self._loop is not None
+                    self._loop.call_soon(self._drain_virtual)
+                    break
+        except Exception as exc:
+            self._virtual_failure = f"receive failed: {exc!r}"
+            failed.set()
+        if frames:
+            self._dispatch(frames)
+
+    async def _run_reader_thread(self, bus: can.BusABC) -> str:
+        """Run one reader thread on ``bus`` until its ``recv`` fails; the failure.
+
+        The thread is stopped and joined when this task is cancelled (bus closing):
+        ``recv`` is bounded by ``poll_interval``, so the join is too.
+        """
+        stop = threading.Event()
+        ended = anyio.Event()
+        outcome: list[str] = []
+
+        def finished(reason: str) -> None:
+            outcome.append(reason)
+            ended.set()
+
+        thread = threading.Thread(
+            target=self._read_loop,
+            args=(bus, stop, finished),
+            name=f"can-reader-{self.name}",
+            daemon=True,
+        )
+        thread.start()
+        self.reader_threads += 1
+        try:
+            await ended.wait()
+        finally:
+            stop.set()
+            with anyio.CancelScope(shield=True):
+                await anyio.to_thread.run_sync(thread.join)
+        return outcome[0]
+
+    def _read_loop(
+        self, bus: can.BusABC, stop: threading.Event, finished: Callable[[str], None]
+    ) -> None:
+        """Reader thread: receive batches and hand them to the loop until stopped or failed."""
+        loop = self._loop
+        assert loop is not None
+        reason = "reader stopped"
+        try:
+            while not stop.is_set():
+                try:
+                    batch = self._recv_batch(bus)
+                except Exception as exc:
+                    reason = f"receive failed: {exc!r}"
+                    break
+                if batch:
+                    self._post_batch(loop, batch)
+        finally:
+            with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
+                loop.call_soon_threadsafe(finished, reason)
+
+    def _post_batch(self, loop: asyncio.AbstractEventLoop, batch: list[can.Message]) -> None:
+        """Reader thread: queue ``batch`` for the loop; wake it unless a wake-up is pending.
+
+        At most ``rx_buffer`` frames wait for the loop; a batch beyond that is dropped and
+        counted (``stats.rx_overflow``). One ``call_soon_threadsafe`` serves every batch
+        queued before the loop runs it, so a busy loop takes them all in one dispatch.
+        """
+        count = len(batch)
+        if self._rx_posted - self._rx_taken + count > self.rx_buffer:
+            self._rx_overflow += count  # published (and logged) by the loop's next drain
+        else:
+            self._rx_posted += count
+            self._rx_queue.append(batch)
+        if not self._rx_wake_pending:
+            self._rx_wake_pending = True
+            with contextlib.suppress(RuntimeError):  # the loop is closed
+                loop.call_soon_threadsafe(self._drain_rx)
+
+    def _drain_rx(self) -> None:
+        """Event loop: dispatch every batch the reader thread queued, in order, as one."""
+        self._rx_wake_pending = False  # before taking: a batch queued after this wakes again
+        if self._rx_overflow != self.stats.rx_overflow:
+            dropped = self._rx_overflow - self.stats.rx_overflow
+            self.stats.rx_overflow += dropped
+            self.log.warning("rx_overflow", dropped=dropped, total=self.stats.rx_overflow)
+        queue = self._rx_queue
+        if not queue:
+            return
+        frames = queue.popleft()
+        while queue:
+            frames = frames + queue.popleft()
+        self._rx_taken += len(frames)
+        self._dispatch(frames)
 
     def _dispatch(self, batch: list[can.Message]) -> None:
         stats = self.stats

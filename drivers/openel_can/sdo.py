@@ -2,7 +2,7 @@
 
 One :class:`SdoClient` per node and bus (``SdoClient.for_node(bus, node_id)``), shared by
 every device of that node: an SDO server serves one transfer at a time, so the client
-serializes them with a lock. Uploads take whatever the server answers: an expedited
+serializes them (one request slot per node: a lock that costs nothing when free). Uploads take whatever the server answers: an expedited
 reply (1..4 bytes) or a segmented one (any size up to ``max_size``, 7 bytes per
 segment, toggle bit checked). Downloads of 1..4 bytes are expedited with the size
 indicated; any other length (0, or more than 4 bytes: 64-bit objects, strings) is
@@ -23,6 +23,7 @@ segmented with the size indicated. Block transfer is not implemented. Every exch
 
 from __future__ import annotations
 
+import asyncio
 import math
 from typing import Final, NoReturn
 
@@ -105,8 +106,12 @@ class SdoClient:
         self.segments = 0
         self.aborts = 0
         self.timeouts = 0
-        self._lock = anyio.Lock()
+        self._lock = anyio.Lock(fast_acquire=True)
         self._port: NodePort | None = None
+        # The exchange waiting for an answer (None: answers now are late ones, dropped).
+        self._waiting: _Transfer | None = None
+        self._replies: tuple[type[co.CanOpenMessage], ...] = ()
+        self._answer: asyncio.Future[co.CanOpenMessage | SdoAbortError | None] | None = None
 
     @classmethod
     def for_node(cls, bus: CanBus, node_id: int, *, timeout: float = 0.1) -> SdoClient:
@@ -121,9 +126,27 @@ class SdoClient:
         port = self._port
         if port is None or not port.attached:
             port = self._port = self.bus.attach(
-                (co.SDO_TX_BASE + self.node_id,), name=f"sdo-{self.node_id}", queue_size=16
+                (co.SDO_TX_BASE + self.node_id,),
+                name=f"sdo-{self.node_id}",
+                handler=self._on_frames,
             )
         return port
+
+    def _on_frames(self, frames: list[can.Message]) -> None:
+        """Port handler (event loop): the first frame answering the waiting exchange."""
+        transfer, answer, port = self._waiting, self._answer, self._port
+        if transfer is None or answer is None or answer.done() or port is None:
+            return  # a late answer to an earlier (timed-out) transfer, or a second one
+        replies = self._replies
+        for msg in frames:
+            try:
+                reply = transfer.match(port, msg, replies)
+            except SdoAbortError as exc:
+                answer.set_result(exc)
+                return
+            if reply is not None:
+                answer.set_result(reply)
+                return
 
     # -- typed access ---------------------------------------------------------------------
     async def read(self, entry: co.ObjectEntry, *, timeout: float | None = None) -> int:  # noqa: ASYNC109
@@ -230,14 +253,14 @@ class SdoClient:
                 toggle = not toggle
 
     def _begin(self) -> NodePort:
-        port = self._ensure_port()
-        while True:  # drop late answers to earlier (timed-out) transfers
-            try:
-                port.receive_nowait()
-            except (anyio.WouldBlock, anyio.EndOfStream):
-                break
+        port = self._ensure_port()  # answers arriving while no exchange waits are dropped
         self.transfers += 1
         return port
+
+
+def _expire(answer: asyncio.Future[co.CanOpenMessage | SdoAbortError | None]) -> None:
+    if not answer.done():
+        answer.set_result(None)
 
 
 class _Transfer:
@@ -256,29 +279,37 @@ class _Transfer:
     ) -> co.CanOpenMessage:
         """Send ``request``; the first answer of the kinds in ``replies`` (or an abort)."""
         port = self.port
+        client = self.client
         assert port is not None
         cob_id, data = co.encode(request)
         if replies is _SEGMENT_REPLIES:
-            self.client.segments += 1
-        await port.send(cob_id, data)
-        with anyio.move_on_after(self.limit):
-            while True:
-                try:
-                    batch = await port.receive()
-                except anyio.EndOfStream:
-                    break
-                for msg in batch:
-                    reply = self._match(port, msg, replies)
-                    if reply is not None:
-                        return reply
-        self.client.timeouts += 1
+            client.segments += 1
+        # The answer slot: resolved by the port handler with the answer, or with None by
+        # the timer when ``limit`` passes (a future and a timer handle: the cheapest
+        # bounded wait on asyncio; cancelling the task cancels the wait).
+        loop = asyncio.get_running_loop()
+        answer: asyncio.Future[co.CanOpenMessage | SdoAbortError | None] = loop.create_future()
+        client._waiting, client._replies, client._answer = self, replies, answer
+        timer = loop.call_later(self.limit, _expire, answer)
+        try:
+            await port.send(cob_id, data)
+            outcome = await answer
+        finally:
+            timer.cancel()
+            client._waiting = client._answer = None
+        if isinstance(outcome, SdoAbortError):
+            client.aborts += 1
+            raise outcome
+        if outcome is not None:
+            return outcome
+        client.timeouts += 1
         await self._send_abort(co.SdoAbortCode.TIMEOUT)
         raise SdoTimeoutError(
             f"node {self.node_id}: no SDO answer for {self.index:#06x}:"
             f"{self.subindex} within {self.limit * 1000:.0f} ms"
         )
 
-    def _match(
+    def match(
         self, port: NodePort, msg: can.Message, replies: tuple[type[co.CanOpenMessage], ...]
     ) -> co.CanOpenMessage | None:
         if msg.is_remote_frame:
@@ -294,7 +325,6 @@ class _Transfer:
             # During the segments any abort is for this transfer (one at a time per server).
             if initiate and (reply.index, reply.subindex) != (self.index, self.subindex):
                 return None
-            self.client.aborts += 1
             raise SdoAbortError(self.node_id, self.index, self.subindex, reply.code)
         if not isinstance(reply, _INITIATE_REPLIES + _SEGMENT_REPLIES):
             return None

@@ -1,0 +1,75 @@
+"""Wake-on-put reception for python-can's ``virtual`` interface (no reader thread).
+
+python-can's ``VirtualBus`` delivers a frame by ``put`` into a ``queue.Queue`` of every
+other bus on the channel, in the sending thread; it has no file descriptor to wait on.
+:func:`hook_virtual_bus` turns that queue, in place, into a :class:`WakingQueue`: each
+frame put calls ``wake()`` (in the sender's thread, any thread), so a
+:class:`~openel_can.bus.CanBus` can read the bus in its event loop with non-blocking
+``recv(0)`` when told, instead of a thread blocking in ``recv`` and handing frames over.
+That saves a thread hop per frame burst (the sender wakes the loop directly).
+
+The queue object stays the same (its class is switched under its mutex), so a sender
+that already holds it never loses a frame. It is bounded: beyond ``limit`` queued frames
+a frame is dropped and counted in ``overflow`` (python-can's own ``rx_queue_size``
+would make the *sender* fail instead). :meth:`WakingQueue.unhook` makes it a plain
+``queue.Queue`` again (for a bus the ``CanBus`` was given and does not own).
+
+Only an exact ``VirtualBus`` whose queue is an unbounded ``queue.Queue`` registered on
+its channel is hooked; anything else returns None and the caller uses a reader thread.
+"""
+
+from __future__ import annotations
+
+import queue
+from collections.abc import Callable
+from typing import Any
+
+import can
+from can.interfaces import virtual
+
+__all__ = ["WakingQueue", "hook_virtual_bus"]
+
+
+class WakingQueue(queue.Queue[Any]):
+    """A ``queue.Queue`` that calls ``wake()`` on every put and drops beyond ``limit``."""
+
+    wake: Callable[[], None] | None
+    limit: int
+    overflow: int
+
+    def _put(self, item: Any) -> None:  # called by put() with the mutex held
+        wake = self.wake
+        if wake is None:
+            self.queue.append(item)
+            return
+        if len(self.queue) >= self.limit:
+            self.overflow += 1
+            return
+        self.queue.append(item)
+        wake()
+
+    def unhook(self) -> None:
+        """Back to a plain ``queue.Queue`` (frames queued stay queued)."""
+        with self.mutex:
+            self.wake = None
+            self.__class__ = queue.Queue  # type: ignore[assignment]
+
+
+def hook_virtual_bus(bus: can.BusABC, limit: int, wake: Callable[[], None]) -> WakingQueue | None:
+    """Make ``bus``'s receive queue a :class:`WakingQueue`; None if ``bus`` does not qualify."""
+    if type(bus) is not virtual.VirtualBus:
+        return None
+    rx = getattr(bus, "queue", None)
+    channel = getattr(bus, "channel", None)
+    if type(rx) is not queue.Queue or rx.maxsize != 0 or not isinstance(channel, list):
+        return None
+    with virtual.channels_lock:
+        if not any(q is rx for q in channel):
+            return None
+        with rx.mutex:
+            rx.__class__ = WakingQueue
+            hooked: WakingQueue = rx  # type: ignore[assignment]
+            hooked.limit = limit
+            hooked.overflow = 0
+            hooked.wake = wake
+    return hooked
