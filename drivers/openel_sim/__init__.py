@@ -3,17 +3,46 @@
 from openel_async.registry import DriverInfo
 
 from .motor import SimMotor
-from .sensors import SimEncoder, SimIMU, SimTemperature
+from .sensors import (
+    SimAccelerometer,
+    SimEncoder,
+    SimForceSensor,
+    SimGyro,
+    SimHumidity,
+    SimIMU,
+    SimMagnetometer,
+    SimTemperature,
+    SimTorqueSensor,
+)
 
 DRIVER = DriverInfo(
     name="sim",
-    description="Simulated devices in pure Python: motor, encoder, IMU, temperature",
+    description="Simulated devices in pure Python: motor, encoder, IMU, gyro, accelerometer, "
+    "force, torque, temperature, humidity, magnetometer",
     devices={
         "motor": SimMotor,
         "encoder": SimEncoder,
         "imu": SimIMU,
+        "gyro": SimGyro,
+        "accelerometer": SimAccelerometer,
+        "force": SimForceSensor,
+        "torque": SimTorqueSensor,
         "temperature": SimTemperature,
+        "humidity": SimHumidity,
+        "magnetometer": SimMagnetometer,
     },
 )
 
-__all__ = ["DRIVER", "SimEncoder", "SimIMU", "SimMotor", "SimTemperature"]
+__all__ = [
+    "DRIVER",
+    "SimAccelerometer",
+    "SimEncoder",
+    "SimForceSensor",
+    "SimGyro",
+    "SimHumidity",
+    "SimIMU",
+    "SimMagnetometer",
+    "SimMotor",
+    "SimTemperature",
+    "SimTorqueSensor",
+]

@@ -159,3 +159,192 @@ class SimTemperature(_SimSensor):
             t += dt
         self._last_ns = now
         return Reading((self._noisy(self._temperature),), now)
+
+
+class SimGyro(_SimSensor):
+    """A 3-axis gyro (rad/s) at rest or on a SimMotor's shaft (rotation about z)."""
+
+    info = DeviceInfo(DeviceKind.GYRO, 0x0E1, 0x310, "OpenEL", "SimGyro")
+    units = ("rad/s", "rad/s", "rad/s")
+
+    def __init__(
+        self, motor: SimMotor | None = None, *, bias: float = 0.0, noise: float = 0.0, seed: int = 0
+    ) -> None:
+        super().__init__(noise=noise, seed=seed)
+        self.motor = motor
+        self.bias = bias
+
+    def read_nowait(self) -> Reading:
+        self._check()
+        now = self._now()
+        omega = self.motor.state_at(now)[1] if self.motor is not None else 0.0
+        return Reading((self._noisy(0.0), self._noisy(0.0), self._noisy(omega + self.bias)), now)
+
+
+class SimAccelerometer(_SimSensor):
+    """A 3-axis accelerometer (m/s^2, gravity included) at ``radius`` on a SimMotor's link."""
+
+    info = DeviceInfo(DeviceKind.ACCEL, 0x0E1, 0x320, "OpenEL", "SimAccelerometer")
+    units = ("m/s^2", "m/s^2", "m/s^2")
+
+    def __init__(
+        self,
+        motor: SimMotor | None = None,
+        *,
+        radius: float = 0.0,
+        noise: float = 0.0,
+        seed: int = 0,
+    ) -> None:
+        super().__init__(noise=noise, seed=seed)
+        self.motor = motor
+        self.radius = radius
+
+    def read_nowait(self) -> Reading:
+        self._check()
+        now = self._now()
+        omega = alpha = 0.0
+        if self.motor is not None:
+            _, omega, alpha = self.motor.state_at(now)
+        values = (-omega * omega * self.radius, alpha * self.radius, STANDARD_GRAVITY)
+        return Reading(tuple(self._noisy(v) for v in values), now)
+
+
+class SimTorqueSensor(_SimSensor):
+    """An in-line torque sensor on a SimMotor's shaft (N*m): the motor's torque."""
+
+    info = DeviceInfo(DeviceKind.TORQUE, 0x0E1, 0x600, "OpenEL", "SimTorqueSensor")
+    units = ("N*m",)
+
+    def __init__(self, motor: SimMotor, *, noise: float = 0.0, seed: int = 0) -> None:
+        super().__init__(noise=noise, seed=seed)
+        self.motor = motor
+
+    def read_nowait(self) -> Reading:
+        self._check()
+        now = self._now()
+        return Reading((self._noisy(self.motor.torque_at(now)),), now)
+
+
+class SimForceSensor(_SimSensor):
+    """A force sensor at the tip of a SimMotor's lever arm (N): the tangential force
+    torque / ``lever_arm``, plus a constant ``load`` (N)."""
+
+    info = DeviceInfo(DeviceKind.FORCE, 0x0E1, 0x500, "OpenEL", "SimForceSensor")
+    units = ("N",)
+
+    def __init__(
+        self,
+        motor: SimMotor | None = None,
+        *,
+        lever_arm: float = 0.1,
+        load: float = 0.0,
+        noise: float = 0.0,
+        seed: int = 0,
+    ) -> None:
+        super().__init__(noise=noise, seed=seed)
+        if not (math.isfinite(lever_arm) and lever_arm > 0):
+            raise BadParameterError("lever_arm", lever_arm, "a finite length > 0 (m)")
+        self.motor = motor
+        self.lever_arm = lever_arm
+        self.load = load
+
+    def read_nowait(self) -> Reading:
+        self._check()
+        now = self._now()
+        torque = self.motor.torque_at(now) if self.motor is not None else 0.0
+        return Reading((self._noisy(torque / self.lever_arm + self.load),), now)
+
+
+class SimHumidity(_SimSensor):
+    """A relative-humidity sensor (percent): the air's water content fixed by
+    ``humidity`` at ``ambient`` K; next to a SimTemperature it follows that temperature
+    (Magnus formula: warmer air, lower relative humidity), clipped to 0-100 %."""
+
+    info = DeviceInfo(DeviceKind.HUMIDITY, 0x0E1, 0x900, "OpenEL", "SimHumidity")
+    units = ("percent",)
+
+    def __init__(
+        self,
+        thermometer: SimTemperature | None = None,
+        *,
+        humidity: float = 45.0,
+        ambient: float = 298.15,
+        noise: float = 0.0,
+        seed: int = 0,
+    ) -> None:
+        super().__init__(noise=noise, seed=seed)
+        if not (math.isfinite(humidity) and 0.0 <= humidity <= 100.0):
+            raise BadParameterError("humidity", humidity, "a relative humidity in 0..100 %")
+        self.thermometer = thermometer
+        self.humidity = humidity
+        self.ambient = ambient
+
+    @staticmethod
+    def _saturation(kelvin: float) -> float:
+        celsius = kelvin - 273.15
+        return 6.112 * math.exp(17.62 * celsius / (243.12 + celsius))  # hPa (Magnus)
+
+    def read_nowait(self) -> Reading:
+        self._check()
+        now = self._now()
+        rh = self.humidity
+        if self.thermometer is not None:
+            temperature = self.thermometer.read_nowait().values[0]
+            rh *= self._saturation(self.ambient) / self._saturation(temperature)
+        return Reading((min(100.0, max(0.0, self._noisy(rh))),), now)
+
+
+DEFAULT_FIELD_NED_NT = (30_500.0, -3_900.0, 35_600.0)
+"""Earth's field (north X, east Y, down Z, nT) used by default: WMM2025 near Tokyo, 2025.0
+(a declination of about -7.3 degrees, an inclination of about 49 degrees)."""
+
+
+class SimMagnetometer(_SimSensor):
+    """A 3-axis magnetometer (T): Earth's field seen in the sensor frame.
+
+    The sensor frame is x forward, y right, z down; it yaws with a SimMotor's shaft
+    (``motor`` position + ``mount_yaw``, rad, clockwise seen from above, 0 = x north).
+    With the field (X north, Y east, Z down) and yaw psi, the reading is
+    ``(X cos psi + Y sin psi, -X sin psi + Y cos psi, Z)`` plus a hard-iron ``offset``
+    (T), so ``atan2(-y, x)`` is the magnetic heading psi - D (D = atan2(Y, X), the
+    declination), and the true heading is that plus D.
+    """
+
+    info = DeviceInfo(DeviceKind.COMPASS, 0x0E1, 0x700, "OpenEL", "SimMagnetometer")
+    units = ("T", "T", "T")
+
+    def __init__(
+        self,
+        motor: SimMotor | None = None,
+        *,
+        field_ned_nt: tuple[float, float, float] = DEFAULT_FIELD_NED_NT,
+        mount_yaw: float = 0.0,
+        offset: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        noise: float = 0.0,
+        seed: int = 0,
+    ) -> None:
+        super().__init__(noise=noise, seed=seed)
+        if len(field_ned_nt) != 3 or not all(math.isfinite(v) for v in field_ned_nt):
+            raise BadParameterError("field_ned_nt", field_ned_nt, "3 finite values (nT)")
+        if len(offset) != 3 or not all(math.isfinite(v) for v in offset):
+            raise BadParameterError("offset", offset, "3 finite values (T)")
+        self.motor = motor
+        self.field_ned_nt = tuple(field_ned_nt)
+        self.mount_yaw = mount_yaw
+        self.offset = tuple(offset)
+
+    def yaw_at(self, t_ns: int) -> float:
+        """The sensor's yaw (rad) at a clock time."""
+        position = self.motor.state_at(t_ns)[0] if self.motor is not None else 0.0
+        return position + self.mount_yaw
+
+    def read_nowait(self) -> Reading:
+        self._check()
+        now = self._now()
+        psi = self.yaw_at(now)
+        north, east, down = (v * 1e-9 for v in self.field_ned_nt)
+        c, s = math.cos(psi), math.sin(psi)
+        field = (north * c + east * s, -north * s + east * c, down)
+        return Reading(
+            tuple(self._noisy(f + o) for f, o in zip(field, self.offset, strict=True)), now
+        )

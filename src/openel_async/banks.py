@@ -22,7 +22,7 @@ from .completion import Motion
 from .component import LINK_FAULTS, ComponentState, HALComponent
 from .errors import BadParameterError, HALError, StateError, WouldBlockError
 from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, Request, coerce_request
-from .sensor import Sensor
+from .sensor import MEASUREMENT_SETTINGS_VERSION, Measurement, Sensor
 
 __all__ = ["ActuatorBank", "SensorBank"]
 
@@ -242,6 +242,9 @@ class SensorBank:
         # One device call for the whole bank when every device is of one class.
         self._devices = devices
         self._read_many = classes.pop().read_values_many_nowait if len(classes) == 1 else None
+        # The members' unit/scale/origin settings, re-read when any sensor's changed.
+        self._settings_version = -1
+        self._measurements: tuple[Measurement | None, ...] | None = None
 
     def __len__(self) -> int:
         return len(self.sensors)
@@ -260,6 +263,21 @@ class SensorBank:
         return self._get_now("get_values_nowait")
 
     def _get_now(self, operation: str) -> tuple[tuple[float, ...], ...]:
+        values = self._read_now(operation)
+        if self._settings_version != MEASUREMENT_SETTINGS_VERSION.value:
+            self._settings_version = MEASUREMENT_SETTINGS_VERSION.value
+            measurements = tuple(s._measurement for s in self.sensors)
+            self._measurements = measurements if any(m is not None for m in measurements) else None
+        if self._measurements is None:
+            return values
+        return tuple(
+            [
+                v if m is None else s._converted_values(v)
+                for s, m, v in zip(self.sensors, self._measurements, values, strict=True)
+            ]
+        )
+
+    def _read_now(self, operation: str) -> tuple[tuple[float, ...], ...]:
         sensors = self.sensors
         for sensor in sensors:
             if sensor.state is not _ACTIVE:
