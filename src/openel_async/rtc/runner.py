@@ -544,6 +544,10 @@ def run_profile_cli(path: Path, argv: list[str]) -> int:
     profile, configuration or command line (a rate the context cannot run included),
     130 / 143 when SIGINT / SIGTERM ended the run (after the summary).
     """
+    from .system import is_system_file, run_system_cli
+
+    if is_system_file(path):  # a system of components, not one profile
+        return run_system_cli(path, argv)
     try:
         args = _parse_args(argv)
     except SystemExit as exc:  # argparse printed the problem
