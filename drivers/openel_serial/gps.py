@@ -1,38 +1,51 @@
-"""NmeaGps: an NMEA 0183 GPS receiver on a serial port, as an OpenEL sensor.
+"""NmeaGps: an NMEA 0183 GPS receiver on a serial port, as HAL4RT's GPS sensor.
 
 The receiver's lines are parsed as they arrive (in the transport's callback, no task
 in between) by :class:`~openel_serial.nmea.NmeaParser`: sentences with a bad checksum
-or malformed fields are counted and dropped. GGA gives the position, altitude, fix
-quality, satellites and HDOP; RMC the speed and course over ground and the date.
+or malformed fields are counted and dropped. What each sentence gives:
 
-Values (``units`` tells each one's unit):
+=====  ================================================================================
+GGA    position, altitude above mean sea level and geoid separation, fix quality,
+       satellites used, HDOP, UTC time of the fix
+RMC    position, speed and course over ground, UTC date and time, status A/V
+GSA    PDOP, HDOP, VDOP
+GSV    C/N0 ("SNR", dB-Hz) of the satellites in view, per talker and NMEA 4.1 signal
+GST    standard deviations of the latitude and longitude errors (m)
+=====  ================================================================================
 
-====  ===================  ==================================================
- #    value                unit
-====  ===================  ==================================================
- 0    latitude             rad (``angle_unit="deg"``: deg), N positive
- 1    longitude            rad (or deg), E positive
- 2    altitude             m above mean sea level (GGA)
- 3    speed over ground    m/s (RMC; knots on the wire)
- 4    course over ground   rad (or deg), true, clockwise from north (RMC)
- 5    fix quality          GGA code: 0 invalid, 1 GPS, 2 DGPS, 4 RTK fixed, ...
- 6    satellites in use    count
- 7    HDOP                 dimensionless
- 8    UTC time of day      s since UTC midnight of the latest fix
-====  ===================  ==================================================
+:class:`NmeaGps` is a :class:`~openel_async.gps.GPSDevice`: use it with
+:class:`~openel_async.gps.GPSSensor` for HAL4RT's named getters, whose values come from
+:meth:`NmeaGps.read_gps` (``GPSData``, HAL4RT's units):
 
-Radians are the SI default; degrees are what most GPS users expect, hence the option.
-A field the receiver leaves empty keeps its last value (0 before the first one); when
-the fix is lost the receiver sends empty positions and fix quality 0: the position
-values keep the last fix and value 5 says it is invalid. ``read`` raises
-:class:`~openel_serial.errors.NoFixError` until a first position arrived.
+* latitude, longitude: degrees; altitude: metres above the WGS-84 ellipsoid, GGA's
+  altitude above mean sea level plus its geoid separation (unavailable when the GGA
+  has no separation field);
+* accuracy: ``hypot(sigma_lat, sigma_lon)`` of the latest GST when the receiver sends
+  GST, else ``HDOP * uere`` with ``uere`` (default :data:`DEFAULT_UERE_M`) the user
+  equivalent range error; ``GpsFix.accuracy_source`` says which;
+* dop: HDOP (GGA, else GSA); time: ms since 1970 UTC from the fix's UTC time and the
+  RMC date (a GGA time earlier than the previous one by more than 12 h moves the date
+  to the next day, for receivers that send GGA before RMC at midnight);
+* speed: m/s (knots on the wire); course: degrees true in [0, 360);
+* signal strength: mean C/N0 over the satellites tracked (GSV SNR field not empty) in
+  the latest complete GSV cycle of each talker and signal id.
 
-The timestamp (``Reading.time_ns``) is the component clock's time when the latest
-GGA/RMC sentence was received; the receiver's own UTC time is in :attr:`NmeaGps.fix`
-(``utc``, a ``datetime`` once an RMC gave the date).
+**No fix.** A RMC with status V (or FAA mode N) or a GGA with fix quality 0 does not
+move the position, altitude, speed, course or fix time: they keep the last valid fix,
+and ``stale`` says the receiver reports no fix now. ``read`` raises
+:class:`~openel_serial.errors.NoFixError` until a first valid position arrived.
 
-No valid sentence for ``stale_timeout`` seconds faults the component with
-``ErrorId.TIMEOUT`` (stale fix); a vanished port with ``ErrorId.DISCONNECTED``.
+**Rate.** :meth:`NmeaGps.set_period` sends MediaTek's ``$PMTK220,<ms>`` (MT3333/MT3339
+chipsets: Adafruit Ultimate GPS, GlobalTop PA6H, Quectel L76/L80/L86, 100..10000 ms) and
+waits for its ``$PMTK001,220,<flag>`` acknowledgement (3: done). Other receiver
+families (u-blox UBX-CFG-RATE, SiRF) do not understand it: no acknowledgement within
+``ack_timeout`` raises ``HALError`` and the period is unchanged.
+
+The timestamp (``Reading.time_ns``, ``GPSData.time_ns``) is the component clock's time
+when the latest sentence was merged; the receiver's own UTC time is in ``GPSData.time_ms``.
+
+No valid GGA/RMC for ``stale_timeout`` seconds faults the component with
+``ErrorId.TIMEOUT`` (silent receiver); a vanished port with ``ErrorId.DISCONNECTED``.
 ``re_init`` reopens the port if needed and waits (up to ``stale_timeout``) for a
 fresh sentence.
 """
@@ -48,58 +61,77 @@ from typing import Any, Final, Literal
 import anyio
 import structlog
 
-from openel_async.device import DeviceContext, DeviceInfo, ErrorId, Reading, SensorDevice
-from openel_async.errors import BadParameterError, HALError, ReturnCode
+from openel_async.device import DeviceContext, DeviceInfo, ErrorId
+from openel_async.errors import BadParameterError, HALError, NotImplementedHALError, ReturnCode
+from openel_async.gps import GPSData, GPSDevice
+from openel_async.ids import DeviceKind
 from openel_serial import nmea
 from openel_serial.errors import NoFixError, PortDisconnectedError
 from openel_serial.link import SerialLink
 
-__all__ = ["GNSS_DEVICE_KIND", "GpsFix", "NmeaGps"]
+__all__ = ["DEFAULT_UERE_M", "GpsFix", "NmeaGps", "pmtk_set_period"]
 
 log = structlog.get_logger(__name__)
 
-GNSS_DEVICE_KIND: Final = 0x10
-"""Device kind id of the GPS: the OpenEL registry (``DeviceKind``) has no GNSS kind yet."""
+DEFAULT_UERE_M: Final = 5.0
+"""User equivalent range error (1 sigma, m) of a single-frequency GPS receiver without
+corrections, for ``accuracy = HDOP * UERE`` when the receiver sends no GST."""
 
-VALUE_NAMES: Final = (
-    "latitude",
-    "longitude",
-    "altitude",
-    "speed",
-    "course",
-    "fix_quality",
-    "satellites",
-    "hdop",
-    "utc_time_of_day",
-)
+PMTK_PERIOD_RANGE_MS: Final = (100.0, 10_000.0)
+"""Output periods PMTK220 accepts on MT3333/MT3339 receivers."""
+
+_DAY: Final = dt.timedelta(days=1)
+_HALF_DAY_S: Final = 12 * 3600
+
+
+def pmtk_set_period(period_ms: int) -> bytes:
+    """MediaTek's ``$PMTK220,<ms>*hh`` command: send a fix every ``period_ms`` ms."""
+    return nmea.format_sentence("PMTK220", [str(period_ms)]).encode("ascii")
 
 
 @dataclass(frozen=True, slots=True)
 class GpsFix:
-    """The receiver's latest data, merged from GGA and RMC (angles in degrees)."""
+    """The receiver's data merged from GGA, RMC, GSA, GSV and GST (angles in degrees).
+
+    Position, altitude, speed, course and ``fix_utc`` are those of the last valid fix.
+    """
 
     time_ns: int = 0
-    """Component clock time at which the latest sentence was received."""
+    """Component clock time at which the latest sentence was merged."""
     utc_time: dt.time | None = None
+    """The receiver's latest UTC time of day (any GGA/RMC, valid or not)."""
     utc_date: dt.date | None = None
+    fix_utc: dt.datetime | None = None
+    """UTC date and time of the last valid fix (needs the date of an RMC)."""
     latitude: float | None = None
     longitude: float | None = None
     altitude: float | None = None
+    """m above mean sea level (GGA)."""
+    geoid_separation: float | None = None
+    """m, the geoid above the WGS-84 ellipsoid (GGA)."""
     speed: float | None = None
     """m/s over ground."""
     course: float | None = None
-    """degrees true."""
+    """degrees true, [0, 360)."""
     fix_quality: int = 0
     satellites: int | None = None
     hdop: float | None = None
+    pdop: float | None = None
+    vdop: float | None = None
+    latitude_sigma: float | None = None
+    """m (GST)."""
+    longitude_sigma: float | None = None
+    """m (GST)."""
+    snr: tuple[int, ...] = ()
+    """C/N0 (dB-Hz) of the satellites tracked in the latest GSV cycles."""
     valid: bool = False
-    """RMC status A."""
+    """The latest GGA/RMC reported a fix (GGA quality > 0, RMC status A)."""
     sentences: int = 0
     """GGA/RMC sentences merged so far."""
 
     @property
     def utc(self) -> dt.datetime | None:
-        """Date and time of the fix in UTC (needs an RMC for the date)."""
+        """The receiver's latest UTC date and time (needs an RMC for the date)."""
         if self.utc_time is None or self.utc_date is None:
             return None
         return dt.datetime.combine(self.utc_date, self.utc_time, tzinfo=dt.UTC)
@@ -108,19 +140,44 @@ class GpsFix:
     def has_position(self) -> bool:
         return self.latitude is not None and self.longitude is not None
 
+    @property
+    def ellipsoidal_altitude(self) -> float | None:
+        """m above the WGS-84 ellipsoid: MSL altitude plus geoid separation."""
+        if self.altitude is None or self.geoid_separation is None:
+            return None
+        return self.altitude + self.geoid_separation
+
+    @property
+    def accuracy_source(self) -> Literal["gst", "hdop", None]:
+        if self.latitude_sigma is not None and self.longitude_sigma is not None:
+            return "gst"
+        return "hdop" if self.hdop is not None else None
+
+    @property
+    def signal_strength(self) -> float | None:
+        return sum(self.snr) / len(self.snr) if self.snr else None
+
 
 def _keep(new: Any, old: Any) -> Any:
     return old if new is None else new
 
 
-class NmeaGps(SensorDevice):
-    """A GPS receiver sending NMEA 0183 GGA and RMC sentences on ``url``."""
+def _seconds(t: dt.time) -> float:
+    return t.hour * 3600 + t.minute * 60 + t.second + t.microsecond * 1e-6
+
+
+class NmeaGps(GPSDevice):
+    """A GPS receiver sending NMEA 0183 sentences on ``url`` (HAL4RT GPS device)."""
 
     info = DeviceInfo(
-        kind=GNSS_DEVICE_KIND,
+        kind=DeviceKind.GPS,
+        vendor_id=0x4E4D,  # "NM"
+        product_id=0x1,
         vendor_name="Generic",
         product_name="NmeaGps",
+        functions=("set_target", "get_distance", "next_fix"),
     )
+    period_range_ms = PMTK_PERIOD_RANGE_MS
 
     def __init__(
         self,
@@ -128,32 +185,39 @@ class NmeaGps(SensorDevice):
         *,
         baudrate: int = 9600,
         stale_timeout: float = 2.0,
-        angle_unit: Literal["rad", "deg"] = "rad",
+        uere: float = DEFAULT_UERE_M,
+        ack_timeout: float = 1.0,
         serial_options: Mapping[str, Any] | None = None,
     ) -> None:
         if not isinstance(url, str) or not url:
             raise BadParameterError("url", url, "a serial device path or pyserial URL")
         if isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0:
             raise BadParameterError("baudrate", baudrate, "an int > 0 (bit/s)")
-        if (
-            isinstance(stale_timeout, bool)
-            or not isinstance(stale_timeout, int | float)
-            or not (math.isfinite(stale_timeout) and stale_timeout > 0)
+        for name, value, unit in (
+            ("stale_timeout", stale_timeout, "s"),
+            ("uere", uere, "m"),
+            ("ack_timeout", ack_timeout, "s"),
         ):
-            raise BadParameterError("stale_timeout", stale_timeout, "a finite number > 0 (s)")
-        if angle_unit not in ("rad", "deg"):
-            raise BadParameterError("angle_unit", angle_unit, "'rad' or 'deg'")
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float)
+                or not (math.isfinite(value) and value > 0)
+            ):
+                raise BadParameterError(name, value, f"a finite number > 0 ({unit})")
         self.url = url
         self.stale_timeout = float(stale_timeout)
-        self.angle_unit = angle_unit
-        self.units = (angle_unit, angle_unit, "m", "m/s", angle_unit, "1", "1", "1", "s")
+        self.uere = float(uere)
+        self.ack_timeout = float(ack_timeout)
         self.parser = nmea.NmeaParser()
         self.fix = GpsFix()
+        self.period_ms: float | None = None
         self.other_sentences = 0
+        self._gsv: dict[tuple[str, str | None], list[nmea.GSV]] = {}
+        self._gsv_snr: dict[tuple[str, str | None], tuple[int, ...]] = {}
         self._link = SerialLink(
             url,
             baudrate=baudrate,
-            on_data=self._on_data,
+            on_data=self.feed,
             on_lost=self._on_lost,
             serial_options=serial_options,
         )
@@ -161,6 +225,8 @@ class NmeaGps(SensorDevice):
         self._last_rx_ns = 0
         self._armed_ns = 0
         self._changed: anyio.Event | None = None
+        self._ack: tuple[anyio.Event, list[int]] | None = None
+        self._rate_lock = anyio.Lock()
         self._faulted = False
         self._closed = False
         self._watch_scope: anyio.CancelScope | None = None
@@ -169,10 +235,6 @@ class NmeaGps(SensorDevice):
     @property
     def link(self) -> SerialLink:
         return self._link
-
-    @property
-    def value_names(self) -> tuple[str, ...]:
-        return VALUE_NAMES
 
     # -- lifecycle -------------------------------------------------------------------
     async def open(self, ctx: DeviceContext) -> None:
@@ -206,31 +268,37 @@ class NmeaGps(SensorDevice):
         await self._link.close()
 
     # -- values ----------------------------------------------------------------------
-    async def read(self) -> Reading:
+    def gps_data(self) -> GPSData:
+        """The latest fix in HAL4RT's units (see the module's docstring)."""
+        fix = self.fix
+        accuracy: float | None = None
+        if fix.latitude_sigma is not None and fix.longitude_sigma is not None:
+            accuracy = math.hypot(fix.latitude_sigma, fix.longitude_sigma)
+        elif fix.hdop is not None:
+            accuracy = fix.hdop * self.uere
+        fix_utc = fix.fix_utc
+        return GPSData(
+            latitude=fix.latitude,
+            longitude=fix.longitude,
+            accuracy=accuracy,
+            dop=fix.hdop,
+            altitude=fix.ellipsoidal_altitude,
+            time_ms=None if fix_utc is None else fix_utc.timestamp() * 1000.0,
+            speed=fix.speed,
+            course=fix.course,
+            signal_strength=fix.signal_strength,
+            stale=not fix.valid,
+            fix_quality=fix.fix_quality,
+            satellites=fix.satellites,
+            time_ns=fix.time_ns,
+        )
+
+    async def read_gps(self) -> GPSData:
         if not self._link.is_open:
             raise PortDisconnectedError(self.url, self._link.lost_reason or "not open")
-        fix = self.fix
-        if fix.latitude is None or fix.longitude is None:
+        if not self.fix.has_position:
             raise NoFixError(f"{self.url}: no position received yet")
-        angle = math.radians if self.angle_unit == "rad" else float
-        utc = fix.utc_time
-        seconds = (
-            0.0
-            if utc is None
-            else utc.hour * 3600 + utc.minute * 60 + utc.second + utc.microsecond * 1e-6
-        )
-        values = (
-            angle(fix.latitude),
-            angle(fix.longitude),
-            fix.altitude or 0.0,
-            fix.speed or 0.0,
-            angle(fix.course or 0.0),
-            float(fix.fix_quality),
-            float(fix.satellites or 0),
-            fix.hdop or 0.0,
-            seconds,
-        )
-        return Reading(values, fix.time_ns)
+        return self.gps_data()
 
     async def next_fix(self) -> GpsFix:
         """Wait for the next GGA or RMC sentence and return the fix it updated.
@@ -243,8 +311,41 @@ class NmeaGps(SensorDevice):
             await self._wakeup().wait()
         return self.fix
 
+    # -- rate --------------------------------------------------------------------------
+    async def set_period(self, period_ms: float) -> None:
+        """``$PMTK220,<ms>`` (rounded to whole ms), then wait for ``$PMTK001,220,3``."""
+        low, high = self.period_range_ms
+        ms = round(period_ms)
+        if not low <= ms <= high:
+            raise BadParameterError("period_ms", period_ms, f"{low:g}..{high:g} ms (PMTK220)")
+        async with self._rate_lock:
+            if not self._link.is_open:
+                raise PortDisconnectedError(self.url, self._link.lost_reason or "not open")
+            event, flags = self._ack = (anyio.Event(), [])
+            try:
+                self._link.write(pmtk_set_period(ms))
+                with anyio.move_on_after(self.ack_timeout):
+                    await event.wait()
+            finally:
+                self._ack = None
+        if not flags:
+            raise HALError(
+                f"{self.url}: no $PMTK001 acknowledgement of PMTK220 within "
+                f"{self.ack_timeout:g} s (not a MediaTek PMTK receiver?); period unchanged"
+            )
+        if flags[0] == 1:
+            raise NotImplementedHALError(f"{self.url}: the receiver does not support PMTK220")
+        if flags[0] != 3:
+            raise HALError(f"{self.url}: PMTK220,{ms} refused (PMTK001 flag {flags[0]})")
+        self.period_ms = float(ms)
+        self._log.info("gps_period_set", period_ms=ms)
+
     # -- reception (transport callback) ----------------------------------------------
-    def _on_data(self, data: bytes) -> None:
+    def feed(self, data: bytes) -> None:
+        """Bytes from the receiver (the transport's callback; also to replay a log).
+
+        Needs the component (``open``) for the clock; before it the bytes are ignored.
+        """
         ctx = self._ctx
         if ctx is None:
             return
@@ -253,42 +354,130 @@ class NmeaGps(SensorDevice):
             return
         now = ctx.clock.now_ns()
         fix = self.fix
-        merged = False
+        merged = 0
         for sentence in sentences:
             if isinstance(sentence, nmea.GGA):
-                fix = replace(
-                    fix,
-                    utc_time=_keep(sentence.time, fix.utc_time),
-                    latitude=_keep(sentence.latitude, fix.latitude),
-                    longitude=_keep(sentence.longitude, fix.longitude),
-                    altitude=_keep(sentence.altitude, fix.altitude),
-                    fix_quality=sentence.fix_quality,
-                    satellites=_keep(sentence.satellites, fix.satellites),
-                    hdop=_keep(sentence.hdop, fix.hdop),
-                )
+                fix = self._merge_gga(fix, sentence)
+                merged += 1
             elif isinstance(sentence, nmea.RMC):
+                fix = self._merge_rmc(fix, sentence)
+                merged += 1
+            elif isinstance(sentence, nmea.GSA):
                 fix = replace(
                     fix,
-                    utc_time=_keep(sentence.time, fix.utc_time),
-                    utc_date=_keep(sentence.date, fix.utc_date),
-                    latitude=_keep(sentence.latitude, fix.latitude),
-                    longitude=_keep(sentence.longitude, fix.longitude),
-                    speed=_keep(sentence.speed, fix.speed),
-                    course=_keep(sentence.course, fix.course),
-                    valid=sentence.valid,
+                    pdop=_keep(sentence.pdop, fix.pdop),
+                    vdop=_keep(sentence.vdop, fix.vdop),
+                    hdop=fix.hdop if fix.hdop is not None else sentence.hdop,
+                )
+            elif isinstance(sentence, nmea.GSV):
+                snr = self._merge_gsv(sentence)
+                if snr is not None:
+                    fix = replace(fix, snr=snr)
+            elif isinstance(sentence, nmea.GST):
+                fix = replace(
+                    fix,
+                    latitude_sigma=sentence.latitude_sigma,
+                    longitude_sigma=sentence.longitude_sigma,
                 )
             else:
-                self.other_sentences += 1
+                self._on_other(sentence)
                 continue
-            merged = True
-            fix = replace(fix, time_ns=max(now, fix.time_ns), sentences=fix.sentences + 1)
-        if not merged:
-            return
+        fix = replace(fix, time_ns=max(now, fix.time_ns), sentences=fix.sentences + merged)
         self.fix = fix
-        self._last_rx_ns = now
-        self._log.debug("nmea_fix", sentences=fix.sentences, quality=fix.fix_quality)
+        if merged:
+            self._last_rx_ns = now
+            self._log.debug("nmea_fix", sentences=fix.sentences, quality=fix.fix_quality)
         if self._changed is not None:
             self._changed.set()
+
+    def _date_for(self, fix: GpsFix, time: dt.time) -> dt.date | None:
+        """The UTC date of ``time``: midnight passed when the time of day went back by
+        more than 12 h since the previous sentence."""
+        date = fix.utc_date
+        last = fix.utc_time
+        if date is not None and last is not None and _seconds(time) < _seconds(last) - _HALF_DAY_S:
+            date = date + _DAY
+        return date
+
+    def _fix_utc(self, date: dt.date | None, time: dt.time | None) -> dt.datetime | None:
+        if date is None or time is None:
+            return None
+        return dt.datetime.combine(date, time, tzinfo=dt.UTC)
+
+    def _merge_gga(self, fix: GpsFix, gga: nmea.GGA) -> GpsFix:
+        date = fix.utc_date if gga.time is None else self._date_for(fix, gga.time)
+        fix = replace(
+            fix,
+            utc_time=_keep(gga.time, fix.utc_time),
+            utc_date=date,
+            fix_quality=gga.fix_quality,
+            satellites=_keep(gga.satellites, fix.satellites),
+            valid=gga.fix_quality > 0,
+        )
+        if gga.fix_quality == 0:
+            return fix  # no fix: the position and its time stay those of the last fix
+        return replace(
+            fix,
+            fix_utc=_keep(self._fix_utc(date, gga.time), fix.fix_utc),
+            latitude=_keep(gga.latitude, fix.latitude),
+            longitude=_keep(gga.longitude, fix.longitude),
+            altitude=_keep(gga.altitude, fix.altitude),
+            geoid_separation=_keep(gga.geoid_separation, fix.geoid_separation),
+            hdop=_keep(gga.hdop, fix.hdop),
+        )
+
+    def _merge_rmc(self, fix: GpsFix, rmc: nmea.RMC) -> GpsFix:
+        valid = rmc.valid and rmc.mode != "N"
+        fix = replace(
+            fix,
+            utc_time=_keep(rmc.time, fix.utc_time),
+            utc_date=_keep(rmc.date, fix.utc_date),
+            valid=valid,
+        )
+        if not valid:
+            return fix
+        course = None if rmc.course is None else rmc.course % 360.0
+        return replace(
+            fix,
+            fix_utc=_keep(self._fix_utc(rmc.date, rmc.time), fix.fix_utc),
+            latitude=_keep(rmc.latitude, fix.latitude),
+            longitude=_keep(rmc.longitude, fix.longitude),
+            speed=_keep(rmc.speed, fix.speed),
+            course=_keep(course, fix.course),
+        )
+
+    def _merge_gsv(self, gsv: nmea.GSV) -> tuple[int, ...] | None:
+        """Collect a GSV cycle; at its last message, the SNRs of every latest cycle."""
+        key = (gsv.talker, gsv.signal_id)
+        parts = self._gsv.setdefault(key, [])
+        if gsv.number == 1:
+            parts.clear()
+        elif not parts or parts[-1].number != gsv.number - 1 or parts[-1].count != gsv.count:
+            parts.clear()  # a message of the cycle was lost: wait for the next cycle
+            return None
+        parts.append(gsv)
+        if gsv.number != gsv.count:
+            return None
+        self._gsv_snr[key] = tuple(
+            sat.snr for part in parts for sat in part.satellites if sat.snr is not None
+        )
+        parts.clear()
+        return tuple(snr for snrs in self._gsv_snr.values() for snr in snrs)
+
+    def _on_other(self, sentence: nmea.Sentence) -> None:
+        self.other_sentences += 1
+        if (
+            isinstance(sentence, nmea.RawSentence)
+            and sentence.talker == "P"
+            and sentence.sentence_type == "MTK001"
+            and len(sentence.fields) >= 2
+            and sentence.fields[0] == "220"
+            and sentence.fields[1].isdigit()
+            and self._ack is not None
+        ):
+            event, flags = self._ack
+            flags.append(int(sentence.fields[1]))
+            event.set()
 
     def _on_lost(self, reason: str) -> None:
         if self._ctx is not None:

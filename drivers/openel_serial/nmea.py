@@ -1,9 +1,10 @@
-"""NMEA 0183 sentences (GGA, RMC) with checksum, pure and byte-exact.
+"""NMEA 0183 sentences (GGA, RMC, GSA, GSV, GST) with checksum, pure and byte-exact.
 
 Sentence: ``$`` + address (talker + type, e.g. ``GNGGA``) + ``,``-separated
 fields + ``*hh`` (XOR of every character between ``$`` and ``*``, two hex
 digits) + CRLF. Any talker id is accepted; ``$P...`` sentences are proprietary.
-Sentences other than GGA/RMC decode to :class:`RawSentence`.
+Sentences of other types (and proprietary ``$P...`` ones such as MediaTek's
+``$PMTK``) decode to :class:`RawSentence`.
 
 Conventions: latitude/longitude are signed decimal degrees (N/E positive);
 RMC speed is m/s (knots on the wire), course stays in degrees with
@@ -29,6 +30,9 @@ from openel_serial.errors import NmeaChecksumError, NmeaDecodeError
 
 __all__ = [
     "GGA",
+    "GSA",
+    "GST",
+    "GSV",
     "KNOT_M_S",
     "MAX_SENTENCE_LENGTH",
     "RMC",
@@ -37,10 +41,14 @@ __all__ = [
     "NmeaDecodeError",
     "NmeaParser",
     "RawSentence",
+    "SatelliteInView",
     "Sentence",
     "checksum",
     "decode_sentence",
     "format_gga",
+    "format_gsa",
+    "format_gst",
+    "format_gsv",
     "format_rmc",
     "format_sentence",
 ]
@@ -58,6 +66,7 @@ _LON_RE: Final = re.compile(r"([0-9]{3})([0-9]{2}(?:\.[0-9]{1,9})?)")
 _FLOAT_RE: Final = re.compile(r"[+-]?(?:[0-9]{1,12}(?:\.[0-9]{0,12})?|\.[0-9]{1,12})")
 _INT_RE: Final = re.compile(r"[0-9]{1,4}")
 _HEX2_RE: Final = re.compile(r"[0-9A-Fa-f]{2}")
+_HEX1_RE: Final = re.compile(r"[0-9A-F]")
 _DELIMITER_RE: Final = re.compile(rb"[$\n]")
 _DOLLAR: Final = ord("$")
 
@@ -142,6 +151,72 @@ class RMC:
 
 
 @dataclass(frozen=True)
+class GSA:
+    """GNSS DOP and active satellites (NMEA 4.1+ adds the GNSS system id)."""
+
+    talker: str = "GP"
+    selection: str = "A"  # A automatic / M manual 2D-3D
+    fix_type: int = 1  # 1 no fix, 2 2D, 3 3D
+    satellites: tuple[int, ...] = ()  # ids used in the fix (up to 12)
+    pdop: float | None = None
+    hdop: float | None = None
+    vdop: float | None = None
+    system_id: int | None = None  # NMEA 4.1: 1 GPS, 2 GLONASS, 3 Galileo, 4 BeiDou, ...
+
+    def __post_init__(self) -> None:
+        _check_talker(self.talker)
+        if len(self.satellites) > 12:
+            raise ValueError(f"{len(self.satellites)} satellites: GSA lists at most 12")
+
+
+@dataclass(frozen=True)
+class SatelliteInView:
+    """One satellite of a GSV sentence; ``snr`` is C/N0 in dB-Hz, None when not tracked."""
+
+    prn: int
+    elevation: int | None = None  # deg
+    azimuth: int | None = None  # deg true
+    snr: int | None = None  # dB-Hz
+
+
+@dataclass(frozen=True)
+class GSV:
+    """GNSS satellites in view: message ``number`` of ``count`` of one talker's cycle."""
+
+    talker: str = "GP"
+    count: int = 1
+    number: int = 1
+    in_view: int = 0
+    satellites: tuple[SatelliteInView, ...] = ()  # up to 4 per sentence
+    signal_id: str | None = None  # NMEA 4.1 signal id (one hex digit)
+
+    def __post_init__(self) -> None:
+        _check_talker(self.talker)
+        if not 1 <= self.number <= self.count <= 9:
+            raise ValueError(f"GSV message {self.number} of {self.count}")
+        if len(self.satellites) > 4:
+            raise ValueError(f"{len(self.satellites)} satellites: GSV has at most 4")
+
+
+@dataclass(frozen=True)
+class GST:
+    """GNSS pseudorange error statistics (standard deviations in metres)."""
+
+    talker: str = "GP"
+    time: dt.time | None = None  # UTC of the associated fix
+    rms: float | None = None  # RMS of the range residuals
+    major: float | None = None  # sigma of the error ellipse's semi-major axis
+    minor: float | None = None
+    orientation: float | None = None  # deg true of the semi-major axis
+    latitude_sigma: float | None = None
+    longitude_sigma: float | None = None
+    altitude_sigma: float | None = None
+
+    def __post_init__(self) -> None:
+        _check_talker(self.talker)
+
+
+@dataclass(frozen=True)
 class RawSentence:
     """A valid sentence of another type; ``talker`` is ``"P"`` for proprietary ones."""
 
@@ -150,7 +225,7 @@ class RawSentence:
     fields: tuple[str, ...]
 
 
-Sentence: TypeAlias = GGA | RMC | RawSentence
+Sentence: TypeAlias = GGA | RMC | GSA | GSV | GST | RawSentence
 
 
 # --- Checksum and framing ------------------------------------------------------------------
@@ -326,6 +401,50 @@ def _parse_rmc(talker: str, f: Sequence[str]) -> RMC:
     )
 
 
+def _parse_gsa(talker: str, f: Sequence[str]) -> GSA:
+    if not 17 <= len(f) <= 18:
+        raise NmeaDecodeError(f"GSA has 17 or 18 fields, got {len(f)}")
+    if f[0] not in ("A", "M"):
+        raise NmeaDecodeError(f"GSA selection mode {f[0]!r} is not A or M")
+    fix_type = _int(f[1])
+    if fix_type not in (1, 2, 3):
+        raise NmeaDecodeError(f"GSA fix type {f[1]!r} is not 1, 2 or 3")
+    ids = tuple(i for i in (_int(x) for x in f[2:14]) if i is not None)
+    system = _int(f[17]) if len(f) == 18 and f[17] else None
+    return GSA(talker, f[0], fix_type, ids, _float(f[14]), _float(f[15]), _float(f[16]), system)
+
+
+def _parse_gsv(talker: str, f: Sequence[str]) -> GSV:
+    if len(f) < 3:
+        raise NmeaDecodeError(f"GSV has at least 3 fields, got {len(f)}")
+    count, number, in_view = _int(f[0]), _int(f[1]), _int(f[2])
+    if count is None or number is None or in_view is None:
+        raise NmeaDecodeError("GSV without message count, number or satellites in view")
+    blocks = f[3:]
+    signal = None
+    if len(blocks) % 4 == 1:  # NMEA 4.1: a trailing signal id
+        signal, blocks = blocks[-1] or None, blocks[:-1]
+        if signal is not None and not _HEX1_RE.fullmatch(signal):
+            raise NmeaDecodeError(f"bad GSV signal id {signal!r}")
+    elif len(blocks) % 4:
+        raise NmeaDecodeError(f"GSV satellite blocks of 4 fields, got {len(blocks)} fields")
+    satellites = []
+    for k in range(0, len(blocks), 4):
+        prn = _int(blocks[k])
+        if prn is None:
+            raise NmeaDecodeError("GSV satellite without id")
+        satellites.append(
+            SatelliteInView(prn, _int(blocks[k + 1]), _int(blocks[k + 2]), _int(blocks[k + 3]))
+        )
+    return GSV(talker, count, number, in_view, tuple(satellites), signal)
+
+
+def _parse_gst(talker: str, f: Sequence[str]) -> GST:
+    if len(f) != 8:
+        raise NmeaDecodeError(f"GST has 8 fields, got {len(f)}")
+    return GST(talker, _time(f[0]), *(_float(x) for x in f[1:]))
+
+
 def decode_sentence(line: str | bytes, *, require_checksum: bool = True) -> Sentence:
     """Decode one sentence (surrounding whitespace/CRLF allowed).
 
@@ -363,6 +482,12 @@ def decode_sentence(line: str | bytes, *, require_checksum: bool = True) -> Sent
             return _parse_gga(talker, fields)
         if kind == "RMC":
             return _parse_rmc(talker, fields)
+        if kind == "GSA":
+            return _parse_gsa(talker, fields)
+        if kind == "GSV":
+            return _parse_gsv(talker, fields)
+        if kind == "GST":
+            return _parse_gst(talker, fields)
     except NmeaDecodeError:
         raise
     except ValueError as exc:  # dataclass validation of decoded values
@@ -414,6 +539,45 @@ def format_rmc(rmc: RMC, *, minute_decimals: int = 5) -> str:
     if rmc.mode is not None:
         fields.append(rmc.mode)
     return format_sentence(rmc.talker + "RMC", fields)
+
+
+def format_gsa(gsa: GSA) -> str:
+    """Checksummed GSA sentence with CRLF (DOPs to 0.01; the system id when given)."""
+    ids = [f"{i:02d}" for i in gsa.satellites] + [""] * (12 - len(gsa.satellites))
+    fields = [gsa.selection, str(gsa.fix_type), *ids]
+    fields += [_fmt_float(gsa.pdop, 2), _fmt_float(gsa.hdop, 2), _fmt_float(gsa.vdop, 2)]
+    if gsa.system_id is not None:
+        fields.append(f"{gsa.system_id:X}")
+    return format_sentence(gsa.talker + "GSA", fields)
+
+
+def format_gsv(gsv: GSV) -> str:
+    """Checksummed GSV sentence with CRLF (the signal id when given)."""
+
+    def num(value: int | None, width: int) -> str:
+        return "" if value is None else f"{value:0{width}d}"
+
+    fields = [str(gsv.count), str(gsv.number), f"{gsv.in_view:02d}"]
+    for sat in gsv.satellites:
+        fields += [num(sat.prn, 2), num(sat.elevation, 2), num(sat.azimuth, 3), num(sat.snr, 2)]
+    if gsv.signal_id is not None:
+        fields.append(gsv.signal_id)
+    return format_sentence(gsv.talker + "GSV", fields)
+
+
+def format_gst(gst: GST) -> str:
+    """Checksummed GST sentence with CRLF (values to 0.01 m / 0.1 deg)."""
+    fields = [
+        _fmt_time(gst.time),
+        _fmt_float(gst.rms, 2),
+        _fmt_float(gst.major, 2),
+        _fmt_float(gst.minor, 2),
+        _fmt_float(gst.orientation, 1),
+        _fmt_float(gst.latitude_sigma, 2),
+        _fmt_float(gst.longitude_sigma, 2),
+        _fmt_float(gst.altitude_sigma, 2),
+    ]
+    return format_sentence(gst.talker + "GST", fields)
 
 
 # --- Streaming parser ----------------------------------------------------------------------

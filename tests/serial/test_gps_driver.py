@@ -17,8 +17,10 @@ from openel_async import (
     ReturnCode,
     Sensor,
 )
+from openel_async.gps import GPS_UNITS, GPS_VALUE_NAMES
 from openel_async.testing import EventRecorder
 from openel_serial import DRIVER, NmeaGps, NoFixError
+from openel_serial.gps import DEFAULT_UERE_M
 from openel_serial.peers import GpsPath, SimGps
 
 from .conftest import WAIT_S
@@ -45,7 +47,7 @@ async def test_values_units_and_monotonic_timestamps(gps: SimGps, recorder: Even
     device = NmeaGps(gps.path, baudrate=9600)
     async with Sensor(device) as sensor:
         sensor.add_observer(recorder)
-        assert sensor.units == ("rad", "rad", "m", "m/s", "rad", "1", "1", "1", "s")
+        assert sensor.units == GPS_UNITS
         readings = []
         for _ in range(4):
             with anyio.fail_after(WAIT_S):
@@ -56,33 +58,43 @@ async def test_values_units_and_monotonic_timestamps(gps: SimGps, recorder: Even
         times = [r.time_ns for r in readings]
         assert times == sorted(times) and len(set(times)) == len(times)
         assert all(t <= sensor.get_time() for t in times)
-        values = readings[-1].values
-        lat, lon, alt, speed, course, quality, satellites, hdop, utc_s = values
-        assert len(values) == readings[-1].num == 9
+        values = dict(zip(GPS_VALUE_NAMES, readings[-1].values, strict=True))
+        assert readings[-1].num == len(GPS_VALUE_NAMES)
         # Position on the track at the receiver's own UTC time (GPS time, not ours).
         fix = device.fix
         assert fix.utc is not None and fix.utc.date() == dt.date(2024, 5, 1)
+        assert fix.fix_utc == fix.utc
         elapsed = (fix.utc - gps.start_utc).total_seconds()
         want_lat, want_lon, _ = TRACK.at(elapsed)
-        assert lat == pytest.approx(math.radians(want_lat), abs=1e-8)
-        assert lon == pytest.approx(math.radians(want_lon), abs=1e-8)
-        assert (alt, quality, satellites, hdop) == (35.0, 1.0, 9.0, 0.9)
-        assert speed == pytest.approx(4.0, abs=1e-3)  # knots on the wire, m/s out
-        assert course == pytest.approx(math.radians(30.0))
-        assert utc_s == pytest.approx(12 * 3600 + elapsed, abs=0.01)
+        assert values["latitude"] == pytest.approx(want_lat, abs=1e-6)
+        assert values["longitude"] == pytest.approx(want_lon, abs=1e-6)
+        assert values["altitude"] == 35.0 + 39.5  # MSL + geoid separation
+        assert (values["fix_quality"], values["satellites"], values["dop"]) == (1.0, 9.0, 0.9)
+        assert values["accuracy"] == pytest.approx(0.9 * DEFAULT_UERE_M)  # no GST
+        assert values["speed"] == pytest.approx(4.0, abs=1e-3)  # knots on the wire, m/s out
+        assert values["course"] == pytest.approx(30.0)
+        assert values["time"] == pytest.approx(fix.utc.timestamp() * 1000)
+        assert values["stale"] == 0.0
         # The receiver moves: later fixes are further along the track (north-east).
         assert readings[-1].values[0] > readings[0].values[0]
         assert device.parser.checksum_errors == 0 and recorder.errors == []
 
 
-async def test_degrees_on_request(gps: SimGps) -> None:
-    device = NmeaGps(gps.path, angle_unit="deg")
+async def test_lost_fix_keeps_the_position_and_reads_stale(gps: SimGps) -> None:
+    device = NmeaGps(gps.path)
     async with Sensor(device) as sensor:
         await next_fixes(device, 2)
-        lat, lon, *_rest = await sensor.get_value()
-        assert sensor.units[:2] == ("deg", "deg") and sensor.units[4] == "deg"
-        assert lat == pytest.approx(TRACK.latitude, abs=1e-3)
-        assert lon == pytest.approx(TRACK.longitude, abs=1e-3)
+        gps.fix_quality = 0
+        with anyio.fail_after(WAIT_S):
+            while device.fix.valid:
+                await device.next_fix()
+        position = device.fix.latitude, device.fix.longitude
+        await next_fixes(device, 4)  # two epochs without a fix
+        assert (device.fix.latitude, device.fix.longitude) == position
+        values = dict(zip(GPS_VALUE_NAMES, await sensor.get_value(), strict=True))
+        assert (values["latitude"], values["longitude"]) == position
+        assert values["stale"] == 1.0 and values["fix_quality"] == 0.0
+        assert sensor.state is ComponentState.ACTIVE
 
 
 async def test_corrupted_checksums_and_garbage_are_counted_and_dropped(
@@ -124,7 +136,7 @@ async def test_stale_fix_faults_with_timeout_and_re_init_recovers(
         gps.paused = False
         await sensor.re_init()
         assert sensor.state is ComponentState.ACTIVE
-        assert len(await sensor.get_value()) == 9
+        assert len(await sensor.get_value()) == len(GPS_VALUE_NAMES)
         assert recorder.count("error", ErrorId.TIMEOUT) == 1
 
 
@@ -163,8 +175,10 @@ def test_bad_configuration_names_the_parameter() -> None:
         NmeaGps("")
     with pytest.raises(BadParameterError, match="stale_timeout"):
         NmeaGps("/dev/ttyUSB0", stale_timeout=0)
-    with pytest.raises(BadParameterError, match="angle_unit"):
-        NmeaGps("/dev/ttyUSB0", angle_unit="grad")  # type: ignore[arg-type]
+    with pytest.raises(BadParameterError, match="uere"):
+        NmeaGps("/dev/ttyUSB0", uere=math.nan)
+    with pytest.raises(BadParameterError, match="ack_timeout"):
+        NmeaGps("/dev/ttyUSB0", ack_timeout=-1)
     with pytest.raises(BadParameterError, match="baudrate"):
         NmeaGps("/dev/ttyUSB0", baudrate=-1)
     assert DRIVER.devices["nmea_gps"] is NmeaGps

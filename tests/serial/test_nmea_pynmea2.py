@@ -140,6 +140,46 @@ def assert_rmc_agrees(ours: nmea.RMC, theirs: Any) -> None:
     assert ours.mode == (theirs.mode_indicator or None)
 
 
+def assert_gsa_agrees(ours: nmea.GSA, theirs: Any) -> None:
+    assert (ours.talker, ours.selection, ours.fix_type) == (
+        theirs.talker,
+        theirs.mode,
+        int(theirs.mode_fix_type),
+    )
+    ids = [getattr(theirs, f"sv_id{k:02d}") for k in range(1, 13)]
+    assert list(ours.satellites) == [int(i) for i in ids if i]
+    _same_float(ours.pdop, _num(theirs.pdop))
+    _same_float(ours.hdop, _num(theirs.hdop))
+    _same_float(ours.vdop, _num(theirs.vdop))
+    extra = theirs.data[17:]  # pynmea2 keeps NMEA 4.1's system id as an extra field
+    assert ours.system_id == (int(extra[0], 16) if extra and extra[0] else None)
+
+
+def assert_gsv_agrees(ours: nmea.GSV, theirs: Any) -> None:
+    assert (ours.talker, ours.count, ours.number, ours.in_view) == (
+        theirs.talker,
+        int(theirs.num_messages),
+        int(theirs.msg_num),
+        int(theirs.num_sv_in_view),
+    )
+    for k, sat in enumerate(ours.satellites, start=1):
+        assert sat.prn == int(getattr(theirs, f"sv_prn_num_{k}"))
+        assert sat.elevation == _int(getattr(theirs, f"elevation_deg_{k}"))
+        assert sat.azimuth == _int(getattr(theirs, f"azimuth_{k}"))
+        assert sat.snr == _int(getattr(theirs, f"snr_{k}"))
+
+
+def assert_gst_agrees(ours: nmea.GST, theirs: Any) -> None:
+    assert ours.talker == theirs.talker and ours.time == _utc(theirs.timestamp)
+    _same_float(ours.rms, theirs.rms)
+    _same_float(ours.major, theirs.std_dev_major)
+    _same_float(ours.minor, theirs.std_dev_minor)
+    _same_float(ours.orientation, theirs.orientation)
+    _same_float(ours.latitude_sigma, theirs.std_dev_latitude)
+    _same_float(ours.longitude_sigma, theirs.std_dev_longitude)
+    _same_float(ours.altitude_sigma, theirs.std_dev_altitude)
+
+
 @pytest.mark.parametrize("sentence", REAL)
 def test_real_sentences_agree_with_pynmea2(sentence: str) -> None:
     theirs = pynmea2.parse(sentence, check=True)
@@ -151,6 +191,12 @@ def test_real_sentences_agree_with_pynmea2(sentence: str) -> None:
             assert_gga_agrees(ours, theirs)
         case nmea.RMC():
             assert_rmc_agrees(ours, theirs)
+        case nmea.GSA():
+            assert_gsa_agrees(ours, theirs)
+        case nmea.GSV():
+            assert_gsv_agrees(ours, theirs)
+        case nmea.GST():
+            assert_gst_agrees(ours, theirs)
         case nmea.RawSentence(talker="P"):
             assert isinstance(theirs, pynmea2.ProprietarySentence)
             assert "P" + ours.sentence_type == "P" + theirs.manufacturer
@@ -168,7 +214,7 @@ def test_real_stream_parses_like_pynmea2_stream_reader() -> None:
     assert len(ours) == len(theirs) == len(REAL) == parser.sentences
     for mine, other in zip(ours, theirs, strict=True):
         match mine:
-            case nmea.GGA() | nmea.RMC():
+            case nmea.GGA() | nmea.RMC() | nmea.GSA() | nmea.GSV() | nmea.GST():
                 assert other.sentence_type == type(mine).__name__
             case nmea.RawSentence(talker="P"):
                 assert isinstance(other, pynmea2.ProprietarySentence)
@@ -268,6 +314,64 @@ def test_simulated_gps_sentences_parse_with_pynmea2(talker: str, fix_quality: in
             lat, lon, _ = track.at(epoch / 10)
             assert abs(gga.latitude - lat) <= 1e-5 / 60 + 1e-12
             assert abs(rmc.longitude - lon) <= 1e-5 / 60 + 1e-12
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    talkers,
+    times,
+    st.lists(st.integers(1, 99), max_size=12),
+    st.lists(st.floats(0.5, 99.0), min_size=3, max_size=3),
+    st.lists(
+        st.tuples(
+            st.integers(1, 99),
+            st.none() | st.integers(0, 90),
+            st.none() | st.integers(0, 359),
+            st.none() | st.integers(0, 99),
+        ),
+        max_size=4,
+    ),
+    st.lists(st.none() | st.floats(0.0, 999.0), min_size=7, max_size=7),
+)
+def test_our_gsa_gsv_gst_parse_with_pynmea2(
+    talker: str,
+    time: dt.time,
+    ids: list[int],
+    dops: list[float],
+    sats: list[tuple[int, int | None, int | None, int | None]],
+    stats: list[float | None],
+) -> None:
+    gsa = nmea.GSA(talker, "A", 3, tuple(ids), *(round(d, 2) for d in dops))
+    gsv = nmea.GSV(talker, 1, 1, len(sats), tuple(nmea.SatelliteInView(*s) for s in sats))
+    rounded = [None if x is None else round(x, 2) for x in stats]
+    rounded[3] = None if stats[3] is None else round(stats[3], 1)
+    gst = nmea.GST(talker, time, *rounded)
+    for ours, text, check in (
+        (gsa, nmea.format_gsa(gsa), assert_gsa_agrees),
+        (gsv, nmea.format_gsv(gsv), assert_gsv_agrees),
+        (gst, nmea.format_gst(gst), assert_gst_agrees),
+    ):
+        theirs = pynmea2.parse(text.strip(), check=True)
+        decoded = nmea.decode_sentence(text)
+        assert decoded == ours
+        check(decoded, theirs)  # type: ignore[operator]
+
+
+def test_extended_simulated_gps_parses_with_pynmea2() -> None:
+    sim = SimGps(rate_hz=5, talker="GN", extended=True)
+    kinds = []
+    for text in sim.sentences_for(7):
+        theirs = pynmea2.parse(text.strip(), check=True)
+        ours = nmea.decode_sentence(text)
+        kinds.append(type(ours).__name__)
+        {
+            "GGA": assert_gga_agrees,
+            "RMC": assert_rmc_agrees,
+            "GSA": assert_gsa_agrees,
+            "GSV": assert_gsv_agrees,
+            "GST": assert_gst_agrees,
+        }[kinds[-1]](ours, theirs)
+    assert kinds == ["GGA", "GSA", "GSV", "GSV", "GSV", "RMC", "GST"]
 
 
 async def test_simulated_gps_over_a_pty_reads_with_pyserial_and_pynmea2() -> None:
