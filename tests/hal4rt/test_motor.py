@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import pytest
@@ -281,7 +282,7 @@ async def test_framework_ramp_streams_every_millisecond_and_completes_at_the_end
     values = [v for _, v in device.commands]
     assert len(values) == 101  # the start and one setpoint per ms
     assert values[-1] == 2.0 / (2 * math.pi) * 2 * math.pi  # SI target
-    steps = [b - a for a, b in zip(values, values[1:], strict=False)]
+    steps = [b - a for a, b in itertools.pairwise(values)]
     assert all(s == pytest.approx(0.02) for s in steps)
     assert hal_events.count("event", EventId.COMPLETED) == 1
     assert not motor.ramping and motor.get_control_mode() is M.SPEED
