@@ -11,7 +11,7 @@
 
 from openel_async.registry import DriverInfo
 
-from .bus import BusState, BusStats, CanBus, NodePort
+from .bus import BusState, BusStats, CanBus, NodePort, TxMessage
 from .drive402 import Cia402Drive, Cia402Temperature
 from .odrive import ODriveAxis, ODriveBusMonitor, ODriveEncoder, ODriveError, ODriveTemperature
 from .sdo import SdoAbortError, SdoClient, SdoTimeoutError
@@ -45,4 +45,5 @@ __all__ = [
     "SdoAbortError",
     "SdoClient",
     "SdoTimeoutError",
+    "TxMessage",
 ]

@@ -212,14 +212,16 @@ def arbitration_id(node_id: int, cmd: CmdId) -> int:
     return node_id << 5 | int(cmd)
 
 
+_CMD_BY_VALUE: Final = {int(cmd): cmd for cmd in CmdId}
+
+
 def split_arbitration_id(arb_id: int) -> tuple[int, CmdId]:
     """Inverse of :func:`arbitration_id`; unknown command ids are a decode error."""
     if not 0 <= arb_id <= _MAX_ARB_ID:
         raise CanSimpleDecodeError(f"arbitration id {arb_id:#x} is not an 11-bit id")
-    try:
-        cmd = CmdId(arb_id & 0x1F)
-    except ValueError:
-        raise CanSimpleDecodeError(f"unknown CANSimple command {arb_id & 0x1F:#04x}") from None
+    cmd = _CMD_BY_VALUE.get(arb_id & 0x1F)
+    if cmd is None:
+        raise CanSimpleDecodeError(f"unknown CANSimple command {arb_id & 0x1F:#04x}")
     return arb_id >> 5, cmd
 
 

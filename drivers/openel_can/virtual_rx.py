@@ -48,6 +48,13 @@ class WakingQueue(queue.Queue[Any]):
         self.queue.append(item)
         wake()
 
+    def take(self, limit: int) -> list[Any]:
+        """Up to ``limit`` queued frames, oldest first, under one lock (``get_nowait`` each)."""
+        with self.mutex:
+            queued = self.queue
+            count = min(len(queued), limit)
+            return [queued.popleft() for _ in range(count)]
+
     def unhook(self) -> None:
         """Back to a plain ``queue.Queue`` (frames queued stay queued)."""
         with self.mutex:
