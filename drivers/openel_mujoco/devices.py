@@ -29,6 +29,7 @@ from openel_async.device import (
     Reading,
     SensorDevice,
 )
+from openel_async.direction import MagneticField
 from openel_async.errors import BadParameterError, HALError
 from openel_async.ids import DeviceKind
 from openel_async.requests import EventId, Request
@@ -44,8 +45,10 @@ __all__ = [
     "MujocoEventId",
     "MujocoJoint",
     "MujocoSensor",
+    "geomagnetic_field_enu",
     "sensor_kind",
     "sensor_units",
+    "set_geomagnetic_field",
 ]
 
 log = structlog.get_logger(__name__)
@@ -813,6 +816,19 @@ def sensor_kind(model: mujoco.MjModel, sid: int) -> int:
             return DeviceKind.FORCE if slide else DeviceKind.TORQUE
         return DeviceKind.DISTANCE if slide else DeviceKind.ROTARY_ANGLE
     return OTHER_KIND
+
+
+def geomagnetic_field_enu(field: MagneticField) -> tuple[float, float, float]:
+    """A World Magnetic Model field (nT: X north, Y east, Z down) as MuJoCo's
+    ``opt.magnetic`` (tesla) in a world frame with x east, y north, z up (ENU)."""
+    return (field.y * 1e-9, field.x * 1e-9, -field.z * 1e-9)
+
+
+def set_geomagnetic_field(model: mujoco.MjModel, field: MagneticField) -> None:
+    """Make the model's magnetometers measure ``field`` (the world frame taken as ENU), so
+    that a :class:`~openel_async.direction.DirectionSensor` over a magnetometer on a site
+    (x forward, y left, z up) gives the site's heading."""
+    model.opt.magnetic[:] = geomagnetic_field_enu(field)
 
 
 class MujocoSensor(SensorDevice):

@@ -21,6 +21,7 @@ from .device import (
     ValueSource,
     VelocityRamp,
 )
+from .direction import DirectionSensor
 from .errors import (
     BadParameterError,
     DeviceFaultError,
@@ -35,6 +36,7 @@ from .errors import (
     SupersededError,
     WouldBlockError,
 )
+from .gps import GPSSensor
 from .ids import EXTENSION_KIND_IDS, DeviceKind, HALId, Property, component_name
 from .motor import Motor, MotorControlMode
 from .observers import (
@@ -76,6 +78,7 @@ __all__ = [
     "DeviceFaultError",
     "DeviceInfo",
     "DeviceKind",
+    "DirectionSensor",
     "DriverInfo",
     "Encoder",
     "ErrorId",
@@ -84,6 +87,7 @@ __all__ = [
     "EventNotice",
     "EventTimer",
     "ForceSensor",
+    "GPSSensor",
     "GyroSensor",
     "HALComponent",
     "HALError",

@@ -25,8 +25,8 @@ from .clock import Clock
 from .component import LINK_FAULTS, ComponentState
 from .device import Reading, SensorDevice
 from .errors import BadParameterError, HALError, StateError
-from .ids import HALId
-from .sensor import Sensor
+from .ids import DeviceKind, HALId
+from .sensor_kinds import KindSensor, register_sensor_class
 
 __all__ = [
     "EARTH_MEAN_RADIUS_M",
@@ -203,14 +203,15 @@ class GPSDevice(SensorDevice):
         return Reading(data.values(), data.time_ns)
 
 
-class GPSSensor(Sensor):
-    """HAL4RT's GPS Sensor over a :class:`GPSDevice`.
+class GPSSensor(KindSensor):
+    """HAL4RT's GPS Sensor over a :class:`GPSDevice` (kind ``DeviceKind.GPS``).
 
     The getters read the device's latest fix; a quantity the receiver has not given
     raises ``HALError`` naming it. The values are those of the last valid fix:
     :meth:`is_stale` says whether the receiver currently reports no fix.
     """
 
+    KIND = DeviceKind.GPS
     device: GPSDevice
     device_class = GPSDevice
 
@@ -345,3 +346,6 @@ class GPSSensor(Sensor):
             await self.device.set_period(period)
         except LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
+
+
+register_sensor_class(DeviceKind.GPS, GPSSensor)
