@@ -3,12 +3,13 @@
 Any project that installs openel-async gets these fixtures:
 
 - ``virtual_clock``: a :class:`VirtualClock` with auto-jump running;
-- ``sim_motor`` / ``sim_actuator``: a SimMotor and an active Actuator over it on the
-  virtual clock, with ``hal_events`` recording its notifications;
-- ``sim_encoder`` and ``sim_imu``: active Sensors attached to that motor;
 - ``hal_components``: enters any component you build, on the virtual clock, and
   finalizes it at the end of the test;
 - ``hal_events``: an :class:`EventRecorder`.
+
+The simulated devices (``sim_motor``, ``sim_actuator``, ``sim_encoder``, ``sim_imu``) come
+from the ``openel_sim`` driver's own plugin (:mod:`openel_sim.pytest_plugin`, also under
+``pytest11``), built on these fixtures: this module imports no driver.
 
 Async tests run on anyio's pytest plugin pinned to the asyncio backend; coroutine
 tests without an explicit marker are marked ``anyio`` automatically.
@@ -192,36 +193,6 @@ async def hal_components(virtual_clock: VirtualClock) -> AsyncIterator[Component
             yield components
         finally:
             await components.aclose()
-
-
-@pytest.fixture
-def sim_motor() -> Any:
-    from openel_sim import SimMotor
-
-    return SimMotor()
-
-
-@pytest.fixture
-async def sim_actuator(
-    hal_components: ComponentStack, sim_motor: Any, hal_events: EventRecorder
-) -> Actuator:
-    actuator = await hal_components.actuator(sim_motor)
-    actuator.add_observer(hal_events)
-    return actuator
-
-
-@pytest.fixture
-async def sim_encoder(hal_components: ComponentStack, sim_motor: Any) -> Sensor:
-    from openel_sim import SimEncoder
-
-    return await hal_components.sensor(SimEncoder(sim_motor))
-
-
-@pytest.fixture
-async def sim_imu(hal_components: ComponentStack, sim_motor: Any) -> Sensor:
-    from openel_sim import SimIMU
-
-    return await hal_components.sensor(SimIMU(sim_motor, radius=0.1))
 
 
 def pytest_pycollect_makeitem(

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from types import ModuleType
 
-from openel_async.cli.arm_demo import Artifacts
+from openel_apps.arm_demo import Artifacts
 from openel_async.cli.run_cmd import load_app
 
 APPS = Path(__file__).resolve().parents[2] / "apps"

@@ -10,9 +10,9 @@ from pathlib import Path
 import anyio
 import pytest
 
+from openel_apps import arm6_pick_place as app
+from openel_apps.arm_demo import ArmOptions
 from openel_async import Actuator, BadParameterError, NotImplementedHALError, Request
-from openel_async.cli import arm6_pick_place as app
-from openel_async.cli.arm_demo import ArmOptions
 from openel_async.cli.progress import LiveLine
 from openel_async.testing import EventRecorder
 from openel_mujoco import MujocoEffector, MujocoEventId, MujocoSim

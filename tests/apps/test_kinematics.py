@@ -9,7 +9,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from openel_async.cli.arm2_square import (
+from openel_apps.arm2_square import (
     PlanarArm,
     SquareOptions,
     UnreachableError,
@@ -18,7 +18,7 @@ from openel_async.cli.arm2_square import (
     plan_square,
     square_corners,
 )
-from openel_async.cli.arm6_pick_place import Arm6Kinematics
+from openel_apps.arm6_pick_place import Arm6Kinematics
 from openel_mujoco import load_model
 
 ARM2 = PlanarArm.from_model(load_model("arm2"))

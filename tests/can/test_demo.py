@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import pytest
 
+from openel_apps.can_rig import can_rig
+from openel_apps.twoaxis import run_demo
 from openel_async.cli import main
-from openel_async.cli.demo_sim import run_demo
 from openel_async.registry import discover_drivers
 from openel_can import DRIVER, Cia402Drive, ODriveAxis
-from openel_can.demo import can_rig
 
 
 async def test_demo_on_can_recovers_from_the_injected_fault() -> None:

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 import structlog
 
+from openel_apps.twoaxis import run_demo
 from openel_async.cli import main
-from openel_async.cli.demo_sim import run_demo
 from openel_async.registry import discover_drivers
 
 
@@ -105,8 +105,8 @@ def test_demo_app_options_are_checked(
     assert "--app needs --bus mujoco" in capsys.readouterr().err
     assert main(["demo", "--app", "arm6", "--virtual", "--duration", "1", "--no-live"]) == 2
     assert "openel-async demo: --duration 1 s is too short" in capsys.readouterr().err
-    with pytest.raises(SystemExit):
-        main(["demo", "--app", "arm7"])
+    assert main(["demo", "--app", "arm7"]) == 2
+    assert "no app named 'arm7' (registered: arm2, arm6, " in capsys.readouterr().err
     # asked for by name, the app does not fall back to the sim demo when MuJoCo cannot load
     monkeypatch.setitem(sys.modules, "openel_mujoco", None)
     assert main(["demo", "--app", "arm6", "--virtual", "--no-live"]) == 1
@@ -119,17 +119,18 @@ def test_demo_app_options_are_checked(
 def test_the_demo_falls_back_to_the_sim_demo_without_mujoco(
     failure: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from openel_async.cli import arm2_square
-    from openel_mujoco import ModelLoadError, MujocoSim
+    from openel_apps import arm_demo
+    from openel_mujoco import ModelLoadError
 
     if failure == "import":
         monkeypatch.setitem(sys.modules, "openel_mujoco", None)  # import raises ImportError
     else:
 
-        def broken(*, realtime: bool) -> MujocoSim:
-            raise ModelLoadError("model file not found: arm2.xml")
+        def broken(model: str, *, pacing: str) -> None:
+            raise ModelLoadError(f"model file not found: {model}.xml")
 
-        monkeypatch.setattr(arm2_square, "open_sim", broken)
+        monkeypatch.setattr("openel_mujoco.MujocoSim", broken)
+        assert arm_demo.open_arm_sim  # the app's loader imports MujocoSim when it runs
     code = main(["demo", "--virtual", "--duration", "1", "--no-live"])
     captured = capsys.readouterr()
     assert code == 0

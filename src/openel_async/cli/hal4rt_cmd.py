@@ -4,7 +4,8 @@
 - ``show FILE.xml``: print the message as a readable tree;
 - ``schema``: print the shipped XSD (the spec's, typos fixed);
 - ``exec FILE.xml``: send a ``<Device>`` message to a running ``openel-async serve`` and
-  print the reply as XML.
+  print the reply as XML -- contributed by the Zenoh driver (``openel_zenoh.commands``,
+  entry-point group ``openel_async.commands``, parent ``hal4rt``).
 """
 
 from __future__ import annotations
@@ -13,9 +14,7 @@ import argparse
 import sys
 from pathlib import Path
 
-import anyio
-
-from ..errors import BadParameterError, HALError
+from ..errors import BadParameterError
 from ..surface import xml_psm
 from ..surface.messages import (
     ArgumentList,
@@ -28,7 +27,10 @@ from ..surface.messages import (
 )
 
 
-def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_parser(
+    sub: argparse._SubParsersAction[argparse.ArgumentParser],
+) -> argparse._SubParsersAction[argparse.ArgumentParser]:
+    """Add ``hal4rt``; returns its actions, where drivers add theirs (``exec``)."""
     hal4rt = sub.add_parser("hal4rt", help="validate, show or execute HAL4RT XML messages")
     actions = hal4rt.add_subparsers(dest="hal4rt_command", required=True)
     validate = actions.add_parser(
@@ -38,21 +40,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     show = actions.add_parser("show", help="print a message as a tree")
     show.add_argument("file", metavar="FILE.xml")
     actions.add_parser("schema", help="print the shipped XML schema")
-    execute = actions.add_parser(
-        "exec", help="send a <Device> message to a server and print the reply"
-    )
-    execute.add_argument("file", metavar="FILE.xml", help="the message ('-' for standard input)")
-    execute.add_argument(
-        "--connect",
-        action="append",
-        metavar="ENDPOINT",
-        help="server endpoint (default tcp/127.0.0.1:7447)",
-    )
-    execute.add_argument(
-        "--config", metavar="FILE", help="Zenoh JSON5 configuration (replaces the safe defaults)"
-    )
-    execute.add_argument("--namespace", default="default")
-    execute.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for the reply")
+    return actions
 
 
 def run(args: argparse.Namespace) -> int:
@@ -68,16 +56,17 @@ def run(args: argparse.Namespace) -> int:
             return 1
         print("\n".join(describe(message)))
         return 0
-    return _exec(args)
+    raise AssertionError(f"unknown hal4rt action {command!r}")  # argparse allows no other
 
 
-def _load_bytes(name: str) -> bytes:
+def load_bytes(name: str) -> bytes:
+    """The bytes of file ``name`` (``-``: standard input)."""
     return sys.stdin.buffer.read() if name == "-" else Path(name).read_bytes()
 
 
 def _read(name: str) -> Message | None:
     try:
-        return xml_psm.from_xml(_load_bytes(name))
+        return xml_psm.from_xml(load_bytes(name))
     except (OSError, BadParameterError) as exc:
         print(f"{name}: {exc}", file=sys.stderr)
         return None
@@ -121,42 +110,3 @@ def describe(message: Message, indent: str = "") -> list[str]:
             f"{indent}  {_parameter(p)}" for p in message.parameters
         ]
     return [f"{indent}{_parameter(message)}"]
-
-
-def _exec(args: argparse.Namespace) -> int:
-    try:
-        device = xml_psm.device_from_xml(_load_bytes(args.file))
-    except (OSError, BadParameterError) as exc:
-        print(f"{args.file}: {exc}", file=sys.stderr)
-        return 1
-    try:
-        reply = anyio.run(_send, device, args, backend="asyncio")
-    except (HALError, TimeoutError) as exc:
-        print(f"openel-async hal4rt exec: {exc}", file=sys.stderr)
-        return 1
-    sys.stdout.write(xml_psm.to_xml(reply).decode("utf-8") + "\n")
-    codes = [
-        c.results.value("return_code")
-        for c in reply.commands
-        if c.results and c.results.get("return_code")
-    ]
-    return 0 if all(code == 0 for code in codes) else 3
-
-
-async def _send(device: Device, args: argparse.Namespace) -> Device:
-    from openel_zenoh import RemoteSurface, close_session, open_session
-    from openel_zenoh.config import DEFAULT_ENDPOINT, client_config, file_config
-
-    config = (
-        file_config(args.config)
-        if args.config
-        else client_config(args.connect or [DEFAULT_ENDPOINT])
-    )
-    session = await open_session(config)
-    try:
-        async with RemoteSurface(
-            session, args.namespace, timeout=args.timeout, encoding="xml"
-        ) as remote:
-            return await remote.execute(device)
-    finally:
-        await close_session(session)

@@ -1,11 +1,16 @@
-"""``openel-async run PATH``: run an application file or an RTC Profile.
+"""``openel-async run NAME|PATH``: run a registered app, an application file or an RTC Profile.
 
+- ``NAME`` (no path separator, no suffix, not an existing file): the app registered under
+  that name in the ``openel_async.apps`` entry-point group (``openel-async demo --list``);
+  the remaining arguments are its command line.
 - ``*.yaml``, ``*.yml``, ``*.xml``: an RTC Profile; the component it names is built,
   hosted in the execution context its profile describes, and run until Ctrl-C.
 - ``*.py`` or a directory with ``app.py``/``__init__.py``: a Python application that
   defines ``async def main(argv: list[str]) -> int | None``; the remaining command-line
-  arguments are passed to it.  SIGINT (Ctrl-C) or SIGTERM cancels ``main`` (its clean-ups
-  run), prints a short summary and exits with 130 or 143.
+  arguments are passed to it; or a module that defines ``APP_INFO``
+  (an :class:`~openel_async.cli.app.AppInfo`), run as a registered app would be. SIGINT
+  (Ctrl-C) or SIGTERM cancels ``main`` (its clean-ups run), prints a short summary and exits
+  with 130 or 143.
 
 Both execute code: the application file, or the Python module a profile names.
 """
@@ -23,6 +28,7 @@ from typing import Any
 
 import anyio
 
+from .app import AppInfo, AppUnavailable, find_app, run_app
 from .interrupt import Interrupted, run_interruptible
 
 PROFILE_SUFFIXES = (".yaml", ".yml", ".xml")
@@ -49,13 +55,38 @@ def load_app(path: Path) -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)
+    if isinstance(getattr(module, "APP_INFO", None), AppInfo):
+        return module
     main = getattr(module, "main", None)
     if main is None or not inspect.iscoroutinefunction(main):
-        raise AppLoadError(f"{path}: an application defines 'async def main(argv)'")
+        raise AppLoadError(
+            f"{path}: an application defines 'async def main(argv)' or an APP_INFO (AppInfo)"
+        )
     return module
 
 
+def is_app_name(text: str) -> bool:
+    """``text`` names a registered app rather than a file: an identifier, not a file here."""
+    return text.isidentifier() and not Path(text).exists()
+
+
+def _run_info(info: AppInfo, argv: list[str], prog: str, label: str) -> int:
+    try:
+        return run_app(info, argv, prog=prog, stop_label=label)
+    except AppUnavailable as exc:
+        print(f"{label}: {exc}", file=sys.stderr)
+        return 1
+
+
 def run(path_text: str, argv: list[str]) -> int:
+    if is_app_name(path_text):
+        try:
+            info = find_app(path_text)
+        except LookupError as exc:
+            print(f"openel-async run: {exc}", file=sys.stderr)
+            return 2
+        prog = f"openel-async run {path_text}"
+        return _run_info(info, argv, prog, f"openel-async run: {path_text}")
     path = Path(path_text)
     if path.suffix.lower() in PROFILE_SUFFIXES:
         runner = importlib.import_module("openel_async.rtc.runner")
@@ -65,6 +96,10 @@ def run(path_text: str, argv: list[str]) -> int:
     except AppLoadError as exc:
         print(f"openel-async run: {exc}", file=sys.stderr)
         return 2
+    app_info = getattr(module, "APP_INFO", None)
+    if isinstance(app_info, AppInfo):
+        prog = f"openel-async run {path}"
+        return _run_info(app_info, argv, prog, f"openel-async run: {path}")
     main: Any = module.main
     result = anyio.run(run_interruptible, partial(main, argv), backend="asyncio")
     if isinstance(result, Interrupted):

@@ -1,5 +1,5 @@
-"""The 2-DoF MuJoCo arm (``arm2``) traces a square with its tip: ``apps/arm2_square.py`` and the
-default ``openel-async demo``.
+"""The 2-DoF MuJoCo arm (``arm2``) traces a square with its tip: the app ``arm2``
+(``openel-async run arm2``, ``apps/arm2_square.py``) and the default ``openel-async demo``.
 
 - **Kinematics**: :class:`PlanarArm` is the analytic forward and inverse kinematics of the
   arm's two hinges (both about z, so the tip moves in the horizontal plane of the shoulder).
@@ -40,8 +40,11 @@ import anyio
 import anyio.to_thread
 import structlog
 
-from .. import EventTimer, HALError, Sensor
-from ..motion import (
+from openel_async import EventTimer, HALError, Sensor
+from openel_async.cli.app import AppContext, AppInfo, DemoOptions
+from openel_async.cli.interrupt import atomic_output
+from openel_async.cli.progress import LiveLine
+from openel_async.motion import (
     AxisGroup,
     AxisLimits,
     GroupMotion,
@@ -50,28 +53,30 @@ from ..motion import (
     Tolerances,
     Waypoint,
 )
+
 from .arm_demo import (
     MAX_DURATION_S,
     ArmOptions,
     Artifacts,
     UnreachableError,
     add_common_arguments,
+    arm_demo_args,
     arrival_spread,
     enter_arm,
     finish,
     fmt_mm,
     line_waypoints,
+    open_arm_sim,
     options_from,
     preload_plotting,
     print_report,
     record_times,
+    register,
     run_reported,
     save_plot,
     save_snapshot,
     times_text,
 )
-from .interrupt import atomic_output
-from .progress import LiveLine
 
 if TYPE_CHECKING:
     import mujoco
@@ -80,6 +85,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "APP",
+    "APP_INFO",
     "CornerArrival",
     "PlanarArm",
     "SquareOptions",
@@ -385,11 +391,10 @@ class _TipMonitor:
             )
 
 
-def open_sim(*, realtime: bool) -> MujocoSim:
-    """The ``arm2`` simulation; raises ImportError (no MuJoCo) or the model's load error."""
-    from openel_mujoco import MujocoSim
-
-    return MujocoSim("arm2", pacing="realtime" if realtime else "lockstep")
+def open_sim(*, realtime: bool, ctx: AppContext | None = None) -> MujocoSim:
+    """The ``arm2`` simulation; raises :class:`~openel_async.cli.app.AppUnavailable` when
+    MuJoCo or the model cannot load."""
+    return open_arm_sim("arm2", realtime=realtime, ctx=ctx)
 
 
 async def run_square(
@@ -398,6 +403,7 @@ async def run_square(
     options: ArmOptions,
     square: SquareOptions = SquareOptions(),
     live: LiveLine | None = None,
+    ctx: AppContext | None = None,
 ) -> SquareResult:
     """Trace the square on ``sim`` (not running yet: this enters it) and write the files.
 
@@ -434,9 +440,12 @@ async def run_square(
                 tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
                 planned_s=3.0 + square.laps * square.lap_s,
                 log_actual=True,
+                ctx=ctx,
             )
             timer, group = rig.timer, rig.group
-            tip = await stack.enter_async_context(Sensor(sim.sensor("tip_pos"), clock=sim.clock))
+            tip = await stack.enter_async_context(
+                register(ctx, Sensor(sim.sensor("tip_pos"), clock=sim.clock))
+            )
             monitor = _TipMonitor(tip, arm, group, result, live, sim)
             timer.add_observer(monitor)
             recorder.attach()
@@ -656,17 +665,18 @@ def plan_square(arm: PlanarArm, square: SquareOptions) -> list[list[Waypoint]]:
     return edges
 
 
-async def main(argv: list[str]) -> int:
-    """``openel-async run apps/arm2_square.py [options]``."""
-    args = build_parser().parse_args(argv)
+async def main(ctx: AppContext) -> int:
+    """The app ``arm2``: ``openel-async run arm2 [options]`` (``ctx.argv``)."""
+    args = build_parser(ctx.prog).parse_args(ctx.argv)
     try:
         options = options_from(args, APP)
         square = square_from(args, options.duration)
-        sim = open_sim(realtime=options.realtime)
-    except ValueError as exc:  # a bad option, or the model failed to load
-        print(f"{APP}: {exc}", file=sys.stderr)
+    except ValueError as exc:  # a bad option
+        print(f"{ctx.prog}: {exc}", file=sys.stderr)
         return 2
-    return await run_app(sim, options, square=square)
+    ctx.title = "MuJoCo arm2 demo"
+    sim = open_sim(realtime=options.realtime, ctx=ctx)
+    return await run_app(sim, options, square=square, prog=ctx.prog, ctx=ctx)
 
 
 async def run_app(
@@ -675,13 +685,14 @@ async def run_app(
     *,
     square: SquareOptions | None = None,
     prog: str = APP,
+    ctx: AppContext | None = None,
 ) -> int:
     """Plan, run and report the square on ``sim`` (default: one lap of ``options.duration``);
     returns the exit status (0: every corner reached; see :func:`~.arm_demo.run_reported`)."""
     square = square or SquareOptions(lap_s=options.duration)
 
     async def run(live: LiveLine | None) -> SquareResult:
-        return await run_square(sim, options=options, square=square, live=live)
+        return await run_square(sim, options=options, square=square, live=live, ctx=ctx)
 
     def reported(result: SquareResult) -> bool:
         report(result)
@@ -698,3 +709,22 @@ async def run_app(
 
 def report(result: SquareResult) -> None:
     print_report(f"MuJoCo arm2 square, {result.pacing}", result.lines(), result.artifacts)
+
+
+DEMO_LAP_S = 5.0
+"""The lap of ``openel-async demo`` (the app's own default is :data:`DEFAULT_LAP_S`)."""
+
+
+def demo_args(options: DemoOptions) -> list[str]:
+    """``openel-async demo`` options as this app's command line (a 5 s lap by default)."""
+    return arm_demo_args(options, default_duration=DEMO_LAP_S)
+
+
+APP_INFO = AppInfo(
+    name="arm2",
+    description="the 2-DoF MuJoCo arm traces a square with its tip (inverse kinematics, "
+    "AxisGroup); PNG plots and a snapshot",
+    main=main,
+    demo_args=demo_args,
+)
+"""The entry point ``arm2`` of the ``openel_async.apps`` group."""

@@ -1,7 +1,7 @@
-"""Shared parts of the MuJoCo arm apps and of ``openel-async demo`` (bus ``mujoco``).
+"""Shared parts of the MuJoCo arm apps (``openel-async run arm2|arm6``, ``openel-async demo
+[--app arm6]``).
 
-The arm apps (:mod:`.arm2_square` and :mod:`.arm6_pick_place`, run as ``apps/<app>.py`` or by
-``openel-async demo [--app arm6]``) share:
+The arm apps (:mod:`.arm2_square` and :mod:`.arm6_pick_place`) share:
 
 - the common command-line options (``--duration``, ``--realtime``, ``--out``, ``--no-live``,
   ``--period-ms``) and the output directory (``out/<app>/`` under the current directory);
@@ -14,10 +14,13 @@ The arm apps (:mod:`.arm2_square` and :mod:`.arm6_pick_place`, run as ``apps/<ap
 - entering the joints' Actuators, the EventTimer and the AxisGroup of a run (:func:`enter_arm`),
   its timing (:func:`record_times`, :func:`times_text`);
 - the flow of a run (:func:`run_reported`: plan, run, report, exit status), the summary printer
-  and bounded waits on group motions.
+  and bounded waits on group motions;
+- loading the model (:func:`open_arm_sim`: :class:`~openel_async.cli.app.AppUnavailable` when
+  MuJoCo or the model cannot load) and the ``openel-async demo`` options as an arm app's
+  command line (:func:`arm_demo_args`).
 
 This module imports neither MuJoCo nor matplotlib: the simulation objects are passed in, so the
-CLI can import it without paying for (or failing on) MuJoCo.
+apps can be discovered without paying for (or failing on) MuJoCo.
 """
 
 from __future__ import annotations
@@ -37,12 +40,21 @@ import anyio.to_thread
 import numpy as np
 import structlog
 
-from ..actuator import Actuator
-from ..errors import HALError
-from ..motion import AxisGroup, AxisLimits, GroupMotion, Tolerances, TrajectorySamples, Waypoint
-from ..timer import EventTimer
-from .interrupt import atomic_output
-from .progress import LiveLine
+from openel_async.actuator import Actuator
+from openel_async.cli.app import AppContext, AppUnavailable, DemoOptions
+from openel_async.cli.interrupt import atomic_output
+from openel_async.cli.progress import LiveLine
+from openel_async.component import HALComponent
+from openel_async.errors import HALError
+from openel_async.motion import (
+    AxisGroup,
+    AxisLimits,
+    GroupMotion,
+    Tolerances,
+    TrajectorySamples,
+    Waypoint,
+)
+from openel_async.timer import EventTimer
 
 if TYPE_CHECKING:
     from openel_mujoco import MujocoSim, TrajectoryRecorder
@@ -382,19 +394,21 @@ async def enter_arm(
     tolerances: Tolerances,
     planned_s: float,
     log_actual: bool = False,
+    ctx: AppContext | None = None,
 ) -> ArmRig:
     """Enter on ``stack`` one Actuator per joint of ``sim``, an EventTimer of
     ``options.period_ms`` on the simulation clock (``<name>-sync``) and the AxisGroup ``name``
     over them (goal time 1 s); its log holds ``planned_s`` seconds of motion plus
-    :data:`LOG_MARGIN_S`."""
+    :data:`LOG_MARGIN_S`. The Actuators and the timer are registered with ``ctx``."""
     clock = sim.clock
     axes = [
-        await stack.enter_async_context(Actuator(sim.actuator(joint), clock=clock))
+        await stack.enter_async_context(register(ctx, Actuator(sim.actuator(joint), clock=clock)))
         for joint in joints
     ]
-    timer = await stack.enter_async_context(
-        EventTimer(options.period_ms, clock=clock, name=f"{name}-sync")
-    )
+    timer = EventTimer(options.period_ms, clock=clock, name=f"{name}-sync")
+    if ctx is not None:
+        ctx.add_timer(timer)
+    timer = await stack.enter_async_context(timer)
     group = await stack.enter_async_context(
         AxisGroup(
             axes,
@@ -439,6 +453,48 @@ def times_text(result: RunTimes) -> str:
 
 
 R = TypeVar("R")
+H = TypeVar("H", bound=HALComponent)
+
+
+def register(ctx: AppContext | None, component: H) -> H:
+    """``component``, registered with ``ctx`` when there is one."""
+    return component if ctx is None else ctx.add_component(component)
+
+
+def open_arm_sim(model: str, *, realtime: bool, ctx: AppContext | None = None) -> MujocoSim:
+    """The simulation of ``model`` (its clock registered with ``ctx``); raises
+    :class:`AppUnavailable` when MuJoCo, ``openel_mujoco`` or the model cannot load."""
+    try:
+        from openel_mujoco import MujocoSim
+
+        sim = MujocoSim(model, pacing="realtime" if realtime else "lockstep")
+    except Exception as exc:  # ImportError, ModelLoadError, MuJoCo's own load errors
+        raise AppUnavailable("MuJoCo", f"{type(exc).__name__}: {exc}") from exc
+    if ctx is not None:
+        ctx.use_clock(sim.clock)
+    return sim
+
+
+def arm_demo_args(options: DemoOptions, *, default_duration: float | None = None) -> list[str]:
+    """``openel-async demo`` options as an arm app's command line (``--virtual``: lockstep,
+    else ``--realtime``); ValueError for an option an arm app cannot honour."""
+    if options.bus not in (None, "mujoco"):
+        raise ValueError("--app needs --bus mujoco (the arm apps run on MuJoCo)")
+    if options.inject_fault:
+        raise ValueError("--inject-fault needs --bus sim or --bus can")
+    argv: list[str] = []
+    duration = default_duration if options.duration is None else options.duration
+    if duration is not None:
+        argv += ["--duration", repr(duration)]
+    if options.period_ms is not None:
+        argv += ["--period-ms", repr(options.period_ms)]
+    if options.out is not None:
+        argv += ["--out", options.out]
+    if not options.virtual:
+        argv.append("--realtime")
+    if not options.live:
+        argv.append("--no-live")
+    return argv
 
 
 async def run_reported(

@@ -1,4 +1,5 @@
-"""The demo rig on CAN: ``openel-async demo --bus can``.
+"""The two-axis demo's rig on CAN: ``openel-async demo --bus can`` (``openel-async run twoaxis
+--bus can``).
 
 Axis 1 is an ODrive (node 1, CANSimple) and axis 2 a CiA 402 drive (node 2, CANopen),
 both simulated peers (:mod:`openel_can.sim`) on a fresh python-can ``virtual`` channel
@@ -7,7 +8,8 @@ that exists only for the duration of the rig; the drivers talk to them through o
 the ODrive's encoder estimates (``ENCODER_1``) and the CiA 402 drive's temperature read
 by SDO (``TEMP_2``). ``trip_axis2`` makes the CiA 402 peer trip on over-temperature:
 EMCY 0x4210 and Fault, so the driver posts the error and faults; the demo recovers it
-with ``re_init`` (fault reset and enable).
+with ``re_init`` (fault reset and enable). ``Rig.peers`` holds the two simulated peers
+(``"odrive"``, ``"cia402"``) for fault injection (e.g. ``sdo_silent``, ``set_silent``).
 """
 
 from __future__ import annotations
@@ -18,16 +20,15 @@ from contextlib import asynccontextmanager
 
 import anyio
 
+from openel_apps.twoaxis import Rig
 from openel_async import Actuator, Clock, HALId, Sensor
-from openel_async.cli.demo_sim import Rig
 from openel_async.ids import DeviceKind
-
-from . import canopen as co
-from .bus import CanBus
-from .drive402 import CIA402_VENDOR_ID, Cia402Drive, Cia402Temperature
-from .odrive import ODRIVE_VENDOR_ID, ODriveAxis, ODriveEncoder
-from .sim.cia402 import SimCia402Drive
-from .sim.odrive import SimODrive
+from openel_can import canopen as co
+from openel_can.bus import CanBus
+from openel_can.drive402 import CIA402_VENDOR_ID, Cia402Drive, Cia402Temperature
+from openel_can.odrive import ODRIVE_VENDOR_ID, ODriveAxis, ODriveEncoder
+from openel_can.sim.cia402 import SimCia402Drive
+from openel_can.sim.odrive import SimODrive
 
 __all__ = ["can_rig"]
 
@@ -63,5 +64,6 @@ async def can_rig(clock: Clock) -> AsyncIterator[Rig]:
                 axes,
                 sensors,
                 trip,
+                peers={"odrive": odrive, "cia402": drive},
             )
         peers.cancel_scope.cancel()

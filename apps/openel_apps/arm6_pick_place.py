@@ -40,8 +40,10 @@ from typing import TYPE_CHECKING, Any, Final
 import anyio
 import structlog
 
-from .. import Actuator, EventTimer, HALError, Request, Sensor
-from ..motion import (
+from openel_async import Actuator, EventTimer, HALError, Request, Sensor
+from openel_async.cli.app import AppContext, AppInfo, AppUnavailable, DemoOptions
+from openel_async.cli.progress import LiveLine
+from openel_async.motion import (
     AxisGroup,
     AxisLimits,
     GroupMotion,
@@ -50,11 +52,13 @@ from ..motion import (
     Tolerances,
     Waypoint,
 )
+
 from .arm_demo import (
     ArmOptions,
     Artifacts,
     UnreachableError,
     add_common_arguments,
+    arm_demo_args,
     arrival_spread,
     enter_arm,
     finish,
@@ -65,12 +69,12 @@ from .arm_demo import (
     preload_plotting,
     print_report,
     record_times,
+    register,
     run_reported,
     save_plot,
     save_snapshot,
     times_text,
 )
-from .progress import LiveLine
 
 if TYPE_CHECKING:
     import mujoco
@@ -79,6 +83,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "APP",
+    "APP_INFO",
     "DESCRIPTION",
     "Arm6Kinematics",
     "PickPlacePlan",
@@ -217,13 +222,20 @@ DESCRIPTION: Final[Mapping[str, Any]] = {
 """The devices of the app as a ``SimDescription`` (the pacing is added by :func:`open_sim`)."""
 
 
-def open_sim(*, realtime: bool) -> MujocoSim:
-    """The ``arm6`` simulation from :data:`DESCRIPTION`; raises ImportError (no MuJoCo) or the
-    model's load error."""
-    from openel_mujoco import MujocoSim
+def open_sim(*, realtime: bool, ctx: AppContext | None = None) -> MujocoSim:
+    """The ``arm6`` simulation from :data:`DESCRIPTION` (its clock registered with ``ctx``);
+    raises :class:`~openel_async.cli.app.AppUnavailable` when MuJoCo or the model cannot
+    load."""
+    try:
+        from openel_mujoco import MujocoSim
 
-    pacing = "realtime" if realtime else "lockstep"
-    return MujocoSim.from_description({**DESCRIPTION, "pacing": pacing})
+        pacing = "realtime" if realtime else "lockstep"
+        sim = MujocoSim.from_description({**DESCRIPTION, "pacing": pacing})
+    except Exception as exc:  # ImportError, ModelLoadError, MuJoCo's own load errors
+        raise AppUnavailable("MuJoCo", f"{type(exc).__name__}: {exc}") from exc
+    if ctx is not None:
+        ctx.use_clock(sim.clock)
+    return sim
 
 
 # -- the run --------------------------------------------------------------------------------------
@@ -470,6 +482,7 @@ async def run_pick_place(
     options: ArmOptions,
     place: tuple[float, float] = DEFAULT_PLACE_M,
     live: LiveLine | None = None,
+    ctx: AppContext | None = None,
 ) -> PickPlaceResult:
     """Run the sequence on ``sim`` (an ``arm6`` simulation, not running yet) and write the files.
 
@@ -511,12 +524,17 @@ async def run_pick_place(
                 limits=MOVE_LIMITS,
                 tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
                 planned_s=options.duration + 10.0,  # the dwells and the final rest on top
+                ctx=ctx,
             )
             timer, group = rig.timer, rig.group
             cup = sim.effector("suction")  # the adhesion actuator: a MujocoEffector
-            suction = await stack.enter_async_context(Actuator(cup, clock=clock))
-            tool = await stack.enter_async_context(Sensor(sim.sensor("tool_pos"), clock=clock))
-            touch = await stack.enter_async_context(Sensor(sim.sensor("pad_touch"), clock=clock))
+            suction = await stack.enter_async_context(register(ctx, Actuator(cup, clock=clock)))
+            tool = await stack.enter_async_context(
+                register(ctx, Sensor(sim.sensor("tool_pos"), clock=clock))
+            )
+            touch = await stack.enter_async_context(
+                register(ctx, Sensor(sim.sensor("pad_touch"), clock=clock))
+            )
             progress = None
             if live is not None:
                 every = max(1, round(50.0 / options.period_ms))  # every 50 ms of simulated time
@@ -602,18 +620,20 @@ def build_parser(prog: str = APP) -> argparse.ArgumentParser:
     return parser
 
 
-async def main(argv: list[str]) -> int:
-    """``openel-async run apps/arm6_pick_place.py [options]``."""
-    args = build_parser().parse_args(argv)
+async def main(ctx: AppContext) -> int:
+    """The app ``arm6``: ``openel-async run arm6 [options]`` (``ctx.argv``)."""
+    args = build_parser(ctx.prog).parse_args(ctx.argv)
     try:
         options = options_from(args, APP)
         if not all(math.isfinite(v) for v in args.place):
             raise ValueError(f"--place must be two finite numbers of m, not {args.place}")
-        sim = open_sim(realtime=options.realtime)
-    except ValueError as exc:  # a bad option, or the model failed to load
-        print(f"{APP}: {exc}", file=sys.stderr)
+    except ValueError as exc:  # a bad option
+        print(f"{ctx.prog}: {exc}", file=sys.stderr)
         return 2
-    return await run_app(sim, options, place=(float(args.place[0]), float(args.place[1])))
+    ctx.title = "MuJoCo arm6 demo"
+    sim = open_sim(realtime=options.realtime, ctx=ctx)
+    place = (float(args.place[0]), float(args.place[1]))
+    return await run_app(sim, options, place=place, prog=ctx.prog, ctx=ctx)
 
 
 async def run_app(
@@ -622,12 +642,13 @@ async def run_app(
     *,
     place: tuple[float, float] = DEFAULT_PLACE_M,
     prog: str = APP,
+    ctx: AppContext | None = None,
 ) -> int:
     """Plan, run and report the pick and place on ``sim``; returns the exit status (0: the box
     was carried; see :func:`~.arm_demo.run_reported`)."""
 
     async def run(live: LiveLine | None) -> PickPlaceResult:
-        return await run_pick_place(sim, options=options, place=place, live=live)
+        return await run_pick_place(sim, options=options, place=place, live=live, ctx=ctx)
 
     def reported(result: PickPlaceResult) -> bool:
         report(result)
@@ -644,3 +665,18 @@ async def run_app(
 
 def report(result: PickPlaceResult) -> None:
     print_report(f"MuJoCo arm6 pick and place, {result.pacing}", result.lines(), result.artifacts)
+
+
+def demo_args(options: DemoOptions) -> list[str]:
+    """``openel-async demo --app arm6`` options as this app's command line."""
+    return arm_demo_args(options)
+
+
+APP_INFO = AppInfo(
+    name="arm6",
+    description="the 6-DoF MuJoCo arm picks a box with its suction cup and places it "
+    "elsewhere; PNG plots and snapshots",
+    main=main,
+    demo_args=demo_args,
+)
+"""The entry point ``arm6`` of the ``openel_async.apps`` group."""

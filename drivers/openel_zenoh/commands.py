@@ -1,0 +1,170 @@
+"""The Zenoh driver's subcommands of ``openel-async`` (entry-point group
+``openel_async.commands``; the framework's command line imports no driver):
+
+- ``openel-async serve RIG.yaml``: host a rig's components and serve their surface layer over
+  Zenoh until interrupted (Ctrl-C or SIGTERM). Safe by default: a peer listening on
+  127.0.0.1 only (``--listen`` to change the endpoint, ``--config`` for a Zenoh JSON5 file of
+  your own, e.g. TLS or access control for a LAN), no multicast or gossip scouting.
+- ``openel-async hal4rt exec FILE.xml``: send a ``<Device>`` message to a running server and
+  print the reply as XML.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from typing import TYPE_CHECKING, TypeAlias
+
+import anyio
+import structlog
+
+from openel_async.cli.commands import CliCommand
+from openel_async.cli.hal4rt_cmd import load_bytes
+from openel_async.errors import BadParameterError, HALError
+from openel_async.surface import xml_psm
+from openel_async.surface.messages import Device
+
+log = structlog.get_logger(__name__)
+
+if TYPE_CHECKING:
+    SubParsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
+
+
+# -- serve --------------------------------------------------------------------------------------
+
+
+def add_serve_parser(sub: SubParsers) -> argparse.ArgumentParser:
+    serve: argparse.ArgumentParser = sub.add_parser(
+        "serve",
+        help="host the components of a rig file and serve their HAL4RT surface layer over Zenoh",
+    )
+    serve.add_argument(
+        "rig", help="rig file (YAML): namespace and components (driver, device, params)"
+    )
+    serve.add_argument(
+        "--listen",
+        action="append",
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to listen on (default tcp/127.0.0.1:7447; repeatable)",
+    )
+    serve.add_argument(
+        "--config", metavar="FILE", help="Zenoh JSON5 configuration (replaces the safe defaults)"
+    )
+    serve.add_argument("--namespace", help="key-expression namespace (default: the rig file's)")
+    return serve
+
+
+def run_serve(args: argparse.Namespace) -> int:
+    try:
+        return anyio.run(_serve, args, backend="asyncio")
+    except BadParameterError as exc:
+        print(f"openel-async serve: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+async def _serve(args: argparse.Namespace) -> int:
+    from openel_async.surface import Surface
+    from openel_async.surface.rig import load_rig, open_rig
+
+    from . import SurfaceServer, close_session, open_session
+    from .config import DEFAULT_ENDPOINT, file_config, server_config
+
+    spec = load_rig(args.rig)
+    namespace = args.namespace or spec.namespace
+    listen = args.listen or [DEFAULT_ENDPOINT]
+    config = file_config(args.config) if args.config else server_config(listen)
+    session = await open_session(config)
+    try:
+        async with (
+            open_rig(spec) as components,
+            Surface(components) as surface,
+            SurfaceServer(surface, session, namespace),
+        ):
+            where = f"config {args.config}" if args.config else ", ".join(listen)
+            names = ", ".join(
+                f"{e.device_kind}[{e.logical_id}]={e.component.device_name}"
+                for e in surface.entries
+            )
+            print(
+                f"serving {len(components)} components on {where}, namespace {namespace!r}: {names}",
+                flush=True,
+            )
+            with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
+                async for signum in signals:
+                    log.info("serve_stopping", signal=signal.Signals(signum).name)
+                    break
+    finally:
+        await close_session(session)
+    return 0
+
+
+SERVE = CliCommand("serve", add_serve_parser, run_serve)
+"""``openel-async serve``."""
+
+
+# -- hal4rt exec --------------------------------------------------------------------------------
+
+
+def add_exec_parser(actions: SubParsers) -> argparse.ArgumentParser:
+    execute: argparse.ArgumentParser = actions.add_parser(
+        "exec", help="send a <Device> message to a server and print the reply"
+    )
+    execute.add_argument("file", metavar="FILE.xml", help="the message ('-' for standard input)")
+    execute.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="server endpoint (default tcp/127.0.0.1:7447)",
+    )
+    execute.add_argument(
+        "--config", metavar="FILE", help="Zenoh JSON5 configuration (replaces the safe defaults)"
+    )
+    execute.add_argument("--namespace", default="default")
+    execute.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for the reply")
+    return execute
+
+
+def run_exec(args: argparse.Namespace) -> int:
+    try:
+        device = xml_psm.device_from_xml(load_bytes(args.file))
+    except (OSError, BadParameterError) as exc:
+        print(f"{args.file}: {exc}", file=sys.stderr)
+        return 1
+    try:
+        reply = anyio.run(_send, device, args, backend="asyncio")
+    except (HALError, TimeoutError) as exc:
+        print(f"openel-async hal4rt exec: {exc}", file=sys.stderr)
+        return 1
+    sys.stdout.write(xml_psm.to_xml(reply).decode("utf-8") + "\n")
+    codes = [
+        c.results.value("return_code")
+        for c in reply.commands
+        if c.results and c.results.get("return_code")
+    ]
+    return 0 if all(code == 0 for code in codes) else 3
+
+
+async def _send(device: Device, args: argparse.Namespace) -> Device:
+    from . import RemoteSurface, close_session, open_session
+    from .config import DEFAULT_ENDPOINT, client_config, file_config
+
+    config = (
+        file_config(args.config)
+        if args.config
+        else client_config(args.connect or [DEFAULT_ENDPOINT])
+    )
+    session = await open_session(config)
+    try:
+        async with RemoteSurface(
+            session, args.namespace, timeout=args.timeout, encoding="xml"
+        ) as remote:
+            return await remote.execute(device)
+    finally:
+        await close_session(session)
+
+
+HAL4RT_EXEC = CliCommand("exec", add_exec_parser, run_exec, parent="hal4rt")
+"""``openel-async hal4rt exec``."""

@@ -1,0 +1,66 @@
+"""Subcommands contributed by driver packages, through the ``openel_async.commands``
+entry-point group.
+
+The framework's command line imports no driver. A driver that offers a command (the Zenoh
+driver's ``serve``, ``hal4rt exec``) registers a :class:`CliCommand`::
+
+    [project.entry-points."openel_async.commands"]
+    serve = "openel_zenoh.commands:SERVE"
+
+``parent`` None adds a top-level subcommand (``openel-async serve``); ``"hal4rt"`` adds an
+action under ``openel-async hal4rt``. A contributed command whose package cannot be imported
+is left out of the command line (logged at debug level): the rest works without it.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from typing import TYPE_CHECKING, TypeAlias
+
+import structlog
+
+__all__ = ["ENTRY_POINT_GROUP", "CliCommand", "discover_commands"]
+
+log = structlog.get_logger(__name__)
+
+ENTRY_POINT_GROUP = "openel_async.commands"
+
+if TYPE_CHECKING:
+    SubParsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
+
+
+@dataclass(frozen=True)
+class CliCommand:
+    """A subcommand: ``add_parser(subparsers)`` returns the parser it added, ``run(args)``
+    runs it and returns the exit status."""
+
+    name: str
+    add_parser: Callable[[SubParsers], argparse.ArgumentParser]
+    run: Callable[[argparse.Namespace], int]
+    parent: str | None = None
+    """None: ``openel-async NAME``; ``"hal4rt"``: ``openel-async hal4rt NAME``."""
+
+
+def discover_commands() -> list[CliCommand]:
+    """Every contributed command that loads, in name order."""
+    found: list[CliCommand] = []
+    for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+        try:
+            command = ep.load()
+        except Exception as exc:  # a driver that cannot load contributes nothing
+            log.debug("command_unavailable", command=ep.name, error=repr(exc))
+            continue
+        if isinstance(command, CliCommand):
+            found.append(command)
+        else:
+            log.warning("command_invalid", command=ep.name, reason="not a CliCommand")
+    return found
+
+
+def attach(command: CliCommand, sub: SubParsers) -> None:
+    """Add ``command`` to ``sub``; the parsed arguments carry it as ``contributed``."""
+    parser = command.add_parser(sub)
+    parser.set_defaults(contributed=command)
