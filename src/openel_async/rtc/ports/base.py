@@ -34,6 +34,8 @@ class PortBase:
         self.owner: RTObject | None = None
         self._clock = clock
         self._listeners: dict[ListenerType, list[Listener]] = {}
+        self.has_listeners = False
+        """Whether any listener is registered (connectors skip events otherwise)."""
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.full_name!r})"
@@ -61,10 +63,6 @@ class PortBase:
             )
         self.owner = owner
 
-    @property
-    def has_listeners(self) -> bool:
-        return bool(self._listeners)
-
     def add_listener(self, kind: ListenerType, listener: Listener) -> None:
         """Call ``listener(event)`` inline on every event of ``kind``."""
         if not isinstance(kind, ListenerType):
@@ -72,6 +70,7 @@ class PortBase:
         if not callable(listener):
             raise RTCBadParameterError("listener", listener, "a callable taking a PortEvent")
         self._listeners.setdefault(kind, []).append(listener)
+        self.has_listeners = True
 
     def remove_listener(self, kind: ListenerType, listener: Listener) -> None:
         entries = self._listeners.get(kind, [])
@@ -80,12 +79,13 @@ class PortBase:
         entries.remove(listener)
         if not entries:
             del self._listeners[kind]
+        self.has_listeners = bool(self._listeners)
 
     def notify(
         self, kind: ListenerType, connector: ConnectorInfo, data: TimedValue | None = None
     ) -> None:
         """Call the listeners of ``kind`` (cheap when there are none)."""
-        entries = self._listeners.get(kind) if self._listeners else None
+        entries = self._listeners.get(kind) if self.has_listeners else None
         if not entries:
             return
         event = PortEvent(kind, connector, data)

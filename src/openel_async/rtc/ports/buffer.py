@@ -62,6 +62,9 @@ class BufferOptions:
         return self.full_policy is FullPolicy.BLOCK or self.empty_policy is EmptyPolicy.BLOCK
 
 
+_OK_NONE: tuple[PortStatus, None] = (PortStatus.PORT_OK, None)
+
+
 class RingBuffer(Generic[T]):
     """A bounded FIFO of values with OpenRTM's policies; waits are on ``clock``."""
 
@@ -112,6 +115,13 @@ class RingBuffer(Generic[T]):
         """Store ``value``: (PORT_OK, dropped value or None), (BUFFER_FULL, None) or
         (BUFFER_TIMEOUT, None)."""
         items = self._items
+        if len(items) < self._length:  # the common case, without a wait
+            items.append(value)
+            self.written += 1
+            if self._not_empty is not None:
+                self._not_empty.set()
+                self._not_empty = None
+            return _OK_NONE
         dropped: T | None = None
         if len(items) >= self._length:
             policy = self.options.full_policy

@@ -158,6 +158,8 @@ class PushReceiver:
     async def put(self, data: TimedValue) -> PortStatus:
         status, dropped = await self.buffer.write(data)
         port = self.port
+        if not port.has_listeners and status is PortStatus.PORT_OK:
+            return status
         _after_write(port, self.info, status, data, dropped)
         if status is PortStatus.PORT_OK:
             port.notify(L.ON_RECEIVED, self.info, data)

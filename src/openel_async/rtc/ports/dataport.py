@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Generic, TypeVar
 
 import msgspec
@@ -21,7 +22,7 @@ from ...clock import Clock
 from ..errors import RTCBadParameterError
 from .base import PortBase
 from .buffer import ReadOutcome
-from .datatypes import TimedValue, data_type_name, stamp
+from .datatypes import NS_PER_S, RTCTime, TimedValue, data_type_name, payload_type, stamp
 from .status import PortStatus
 
 if TYPE_CHECKING:
@@ -56,29 +57,36 @@ class OutPort(DataPort[T]):
         super().__init__(name, data_type, clock=clock)
         self.connectors: list[OutHalf] = []
         self.writes = 0
+        self._payload_type = payload_type(data_type)
+        self._fast = _fast_converter(self._payload_type)
 
     def convert(self, value: object) -> T:
-        """``value`` as the port's type: an instance as is, a payload converted and
-        checked (BAD_PARAMETER naming the port otherwise)."""
+        """``value`` as the port's type, stamped with the port clock's time when it has
+        no ``tm``: an instance as is, a payload converted and checked (BAD_PARAMETER
+        naming the port otherwise)."""
         data_type = self.data_type
         if type(value) is data_type:
+            if value.tm is None:
+                return stamp(value, self.clock.now_ns())  # type: ignore[return-value]
             return value
         if isinstance(value, TimedValue):
             raise RTCBadParameterError(
                 f"{self.full_name}.write", value, f"a {self.type_name} or its payload"
             )
-        try:
-            return msgspec.convert([None, value], data_type)
-        except msgspec.ValidationError as exc:
-            raise RTCBadParameterError(
-                f"{self.full_name}.write", value, f"a {self.type_name} payload ({exc})"
-            ) from None
+        payload = self._fast(value)
+        if payload is None:
+            try:
+                payload = msgspec.convert(value, self._payload_type)
+            except msgspec.ValidationError as exc:
+                raise RTCBadParameterError(
+                    f"{self.full_name}.write", value, f"a {self.type_name} payload ({exc})"
+                ) from None
+        now = self.clock.now_ns()
+        return data_type(RTCTime(now // NS_PER_S, now % NS_PER_S), payload)  # type: ignore[call-arg]
 
     async def write(self, value: T | object) -> bool:
         """Send ``value`` on every connector; True when all took it."""
         data = self.convert(value)
-        if data.tm is None:
-            data = stamp(data, self.clock.now_ns())  # type: ignore[assignment]
         self.value = data
         self.writes += 1
         connectors = self.connectors
@@ -94,6 +102,40 @@ class OutPort(DataPort[T]):
         return status is PortStatus.PORT_OK
 
 
+def _is_number(x: object) -> bool:
+    return type(x) is float or (type(x) is int and -(2**53) <= x <= 2**53)
+
+
+def _float_payload(value: object) -> float | None:
+    return float(value) if _is_number(value) else None  # type: ignore[arg-type]
+
+
+def _float_seq_payload(value: object) -> tuple[float, ...] | None:
+    kind = type(value)
+    if kind is not tuple and kind is not list:
+        return None
+    items: tuple[object, ...] | list[object] = value  # type: ignore[assignment]
+    for x in items:
+        if type(x) is not float:
+            break
+    else:  # all floats: the common case
+        return items if kind is tuple else tuple(items)  # type: ignore[return-value,arg-type]
+    for x in items:
+        if not _is_number(x):
+            return None
+    return tuple(map(float, items))  # type: ignore[arg-type]
+
+
+def _fast_converter(payload: object) -> Callable[[object], object | None]:
+    """A quick check-and-convert for the common payloads (doubles and sequences of
+    them); anything else (None) goes through msgspec.convert."""
+    if payload is float:
+        return _float_payload
+    if payload == tuple[float, ...]:
+        return _float_seq_payload
+    return lambda value: None
+
+
 class InPort(DataPort[T]):
     """A data input port."""
 
@@ -103,7 +145,10 @@ class InPort(DataPort[T]):
 
     def is_new(self) -> bool:
         """True while a connector holds an unread value."""
-        return any(half.readable() > 0 for half in self.connectors)
+        connectors = self.connectors
+        if len(connectors) == 1:
+            return connectors[0].readable() > 0
+        return any(half.readable() > 0 for half in connectors)
 
     def is_empty(self) -> bool:
         return not self.is_new()
