@@ -121,7 +121,7 @@ def test_dump_uses_the_schema_spelling() -> None:
         '<rtc:OnInitialize xsi:type="rtcDoc:action_status_doc" rtc:implemented="true">',
         '<rtc:propertyIsLessThan rtc:matchCase="false">',
         '<rtc:TransMethods rtc:kind="CORBA"/>',
-        'rtcExt:position="left"',
+        'rtcExt:position="LEFT"',
         '<rtc:Configuration xsi:type="rtcExt:configuration_ext"',
         'rtc:creationDate="2008-04-18T14:00:00"',
     ):

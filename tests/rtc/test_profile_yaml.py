@@ -453,3 +453,13 @@ def test_random_field_damage_only_raises_profile_errors(data: st.DataObject) -> 
     section = data.draw(st.sampled_from(["basicInfo", "actions", "configurationSet", "dataPorts"]))
     body[section] = data.draw(JSONISH)
     assert_loads_or_profile_error(yaml.safe_dump(doc))
+
+
+def test_rtcbuilder_plural_trans_methods_key() -> None:
+    """RTCBuilder writes ``transMethods``; it is read as the spec's ``transMethod``."""
+    text = (DATA / "rtc_sample.yaml").read_text(encoding="utf-8")
+    assert "transMethod:" in text
+    profile = loads_yaml(text.replace("transMethod:", "transMethods:"))
+    port = profile.service_ports[0]
+    assert [t.kind for t in port.trans_methods] == ["CORBA"]
+    assert "transMethods" not in port.extra

@@ -63,7 +63,7 @@ class InterfaceDirection(StrEnum):
 
 
 class Position(StrEnum):
-    """Position of a port in tools (§2.5.6); XML writes lower case, YAML upper case."""
+    """Position of a port in tools (§2.5.6); read in any case, written in upper case."""
 
     LEFT = "left"
     RIGHT = "right"

@@ -284,7 +284,7 @@ class _XmlSink(Sink):
             self._elem.set(f"{{{ns}}}{local}", _scalar_text(value))
 
     def position(self, key: str, value: Position) -> None:
-        self.scalar(key, value.value)
+        self.scalar(key, value.value.upper())  # OpenRTP's RtcProfile_ext.xsd: LEFT, RIGHT...
 
     def child(self, key: str) -> Sink:
         ns, names, child_ns = _child_spec(key, self._ns)

@@ -32,6 +32,8 @@ __all__ = ["dumps_yaml", "loads_yaml"]
 DOCUMENT = "<document>"
 ROOT = "rtcProfile"
 _NULL_TAG = "tag:yaml.org,2002:null"
+_PLURALS = {"transMethod": "transMethods"}
+"""Sequence keys RTCBuilder spells in the plural, read as the spec's singular key."""
 
 
 class _ProfileLoader(yaml.SafeLoader):
@@ -120,6 +122,9 @@ class _YamlSource(Source):
         return _YamlSource(_mapping(self._data[key], path), path)
 
     def children(self, key: str) -> list[Source]:
+        alias = _PLURALS.get(key)
+        if alias is not None and key not in self._data and alias in self._data:
+            key = alias  # RTCBuilder writes the plural (transMethods)
         self._used.add(key)
         path = f"{self.path}.{key}"
         value = self._data.get(key)
