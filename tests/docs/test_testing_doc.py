@@ -1,4 +1,7 @@
-"""The examples of docs/testing.md, verbatim (test_examples.py checks that they match)."""
+"""The examples of docs/testing.md, verbatim (test_examples.py checks that they match),
+then tests of the plugin's ComponentStack beyond the examples."""
+
+from contextlib import AsyncExitStack
 
 import anyio
 import pytest
@@ -120,7 +123,127 @@ async def test_time_moves_only_when_told() -> None:
         assert woken == [10, 20, 30]
 
 
+async def test_manual_clock_beside_the_fixture_clock(virtual_clock: VirtualClock) -> None:
+    rig = VirtualClock()  # manual mode
+    with anyio.fail_after(1):  # one second of real time
+        with pytest.raises(StateError):
+            await virtual_clock.advance(10)  # auto-jump drives this clock
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(rig.sleep_until, 10)
+            await virtual_clock.sleep(5)  # auto-jump moves the fixture clock
+            await rig.advance(10)  # and the rig's clock moves when told
+    assert (virtual_clock.now_ns(), rig.now_ns()) == (5 * 10**9, 10)
+
+
+async def test_bounds_around_a_component(hal_components: ComponentStack) -> None:
+    with anyio.fail_after(1):
+        actuator = await hal_components.actuator(SimMotor())
+    with anyio.fail_after(1):
+        await (await actuator.set_value(1.0))
+    assert actuator.state is ComponentState.ACTIVE
+
+
 async def test_bounded_in_real_time(virtual_clock: VirtualClock) -> None:
     with anyio.fail_after(1):  # one second of real time
         await virtual_clock.sleep(3600)  # one hour of simulated time
     assert virtual_clock.now_ns() == 3600 * 10**9
+
+
+# -- ComponentStack: cancel scopes of the test never interleave with components -----------
+
+
+class _Probe:
+    """A stand-in component recording which task enters and exits it, and when."""
+
+    def __init__(self, name: str, log: list[tuple[str, str, object]], hold: bool = False) -> None:
+        self.name = name
+        self.log = log
+        self.hold = hold  # wait forever in __aenter__ (until cancelled)
+        self.stack = AsyncExitStack()
+
+    async def __aenter__(self) -> "_Probe":
+        task = anyio.get_current_task().id
+        await self.stack.enter_async_context(anyio.create_task_group())  # like a component
+        try:
+            if self.hold:
+                await anyio.sleep_forever()
+        except BaseException:
+            self.log.append(("enter cancelled", self.name, task))
+            await self.stack.aclose()
+            raise
+        self.log.append(("entered", self.name, task))
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        self.log.append(("exited", self.name, anyio.get_current_task().id))
+        await self.stack.aclose()
+
+
+async def test_fail_after_inside_the_test_and_open_at_its_end(
+    hal_components: ComponentStack,
+) -> None:
+    """The test ends inside the scope it entered the component in (teardown comes after)."""
+    with anyio.fail_after(5):
+        actuator = await hal_components.actuator(SimMotor())
+        await (await actuator.set_value(1.0))
+
+
+async def test_fixture_component_then_fail_after(sim_actuator: Actuator) -> None:
+    """The other order: the component entered by a fixture, the bound in the test."""
+    with anyio.fail_after(5):
+        await (await sim_actuator.set_value(1.0))
+
+
+@pytest.mark.parametrize("scope", ["fail_after", "move_on_after", "none"])
+async def test_components_live_in_their_own_tasks(scope: str) -> None:
+    log: list[tuple[str, str, object]] = []
+    test_task = anyio.get_current_task().id
+    with anyio.fail_after(5):
+        async with anyio.create_task_group() as tg:
+            stack = ComponentStack(tg, VirtualClock())
+            first = _Probe("first", log)
+            await stack.enter(first)  # type: ignore[type-var]
+            if scope == "fail_after":
+                with anyio.fail_after(5):
+                    await stack.enter(_Probe("second", log))  # type: ignore[type-var]
+            elif scope == "move_on_after":
+                with anyio.move_on_after(5):
+                    await stack.enter(_Probe("second", log))  # type: ignore[type-var]
+            else:
+                await stack.enter(_Probe("second", log))  # type: ignore[type-var]
+            await stack.aclose()
+    assert [(what, name) for what, name, _ in log] == [
+        ("entered", "first"),
+        ("entered", "second"),
+        ("exited", "second"),  # last entered, first exited
+        ("exited", "first"),
+    ]
+    tasks = {name: {task for _, n, task in log if n == name} for name in ("first", "second")}
+    assert all(len(t) == 1 and test_task not in t for t in tasks.values())  # one task each
+    assert tasks["first"] != tasks["second"]
+
+
+async def test_an_expiring_scope_cancels_the_entering() -> None:
+    log: list[tuple[str, str, object]] = []
+    with anyio.fail_after(5):
+        async with anyio.create_task_group() as tg:
+            stack = ComponentStack(tg, VirtualClock())
+            with pytest.raises(TimeoutError):
+                with anyio.fail_after(0.01):
+                    await stack.enter(_Probe("stuck", log, hold=True))  # type: ignore[type-var]
+            await stack.enter(_Probe("next", log))  # type: ignore[type-var]
+            await stack.aclose()
+    assert [(what, name) for what, name, _ in log] == [
+        ("enter cancelled", "stuck"),  # never entered, so never exited
+        ("entered", "next"),
+        ("exited", "next"),
+    ]
+
+
+async def test_an_error_while_entering_is_raised_to_the_caller(
+    hal_components: ComponentStack,
+) -> None:
+    actuator = await hal_components.actuator(SimMotor())
+    with pytest.raises(StateError, match="__aenter__"):
+        await hal_components.enter(actuator)  # already entered
+    assert actuator.state is ComponentState.ACTIVE
