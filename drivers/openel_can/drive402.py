@@ -213,7 +213,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         self.sdo = SdoClient.for_node(bus, node_id, timeout=sdo_timeout)
         self._ctx: DeviceContext | None = None
         self._port: NodePort | None = None
-        self._lock = anyio.Lock()
+        self._lock = anyio.Lock(fast_acquire=True)
         self._changed = anyio.Event()
         self._statusword: int | None = None
         self._position = 0
@@ -274,8 +274,9 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         self.log = self.log.bind(component=ctx.name)
         n = self.node_id
         ids = (co.EMCY_BASE + n, co.TPDO_BASES[0] + n, co.TPDO_BASES[1] + n, co.HEARTBEAT_BASE + n)
-        self._port = self.bus.attach(ids, name=ctx.name, on_bus_error=self._on_bus_error)
-        ctx.start_soon(self._receive, self._port)
+        self._port = self.bus.attach(
+            ids, name=ctx.name, on_bus_error=self._on_bus_error, handler=self._on_frames
+        )
         ctx.start_soon(self._watchdog)
         await self._configure()
 
@@ -621,31 +622,33 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         assert self._ctx is not None, "used before open()"
         return self._ctx.clock.now_ns()
 
-    async def _receive(self, port: NodePort) -> None:
+    def _on_frames(self, batch: list[can.Message]) -> None:
+        """Port handler (event loop, as each batch is dispatched): decode, then wake waiters."""
+        port = self._port
+        assert port is not None
         n = self.node_id
         tpdo1, tpdo2 = co.TPDO_BASES[0] + n, co.TPDO_BASES[1] + n
         emcy, heartbeat = co.EMCY_BASE + n, co.HEARTBEAT_BASE + n
-        async for batch in port:
-            now = self._now()
-            for frame in batch:
-                if frame.is_remote_frame:
-                    continue
-                try:
-                    arb = frame.arbitration_id
-                    if arb == tpdo1:
-                        self._on_tpdo1(frame, now)
-                    elif arb == tpdo2:
-                        values = co.unpack_pdo(_TPDO2_MAP, frame.data)
-                        self._velocity, self._mode_display = values
-                        self._tpdo2_ns = now
-                    elif arb == emcy:
-                        self._on_emcy(frame)
-                    elif arb == heartbeat:
-                        self._on_heartbeat(frame, now)
-                except DecodeError:
-                    port.malformed += 1
-            changed, self._changed = self._changed, anyio.Event()
-            changed.set()
+        now = self._now()
+        for frame in batch:
+            if frame.is_remote_frame:
+                continue
+            try:
+                arb = frame.arbitration_id
+                if arb == tpdo1:
+                    self._on_tpdo1(frame, now)
+                elif arb == tpdo2:
+                    values = co.unpack_pdo(_TPDO2_MAP, frame.data)
+                    self._velocity, self._mode_display = values
+                    self._tpdo2_ns = now
+                elif arb == emcy:
+                    self._on_emcy(frame)
+                elif arb == heartbeat:
+                    self._on_heartbeat(frame, now)
+            except DecodeError:
+                port.malformed += 1
+        changed, self._changed = self._changed, anyio.Event()
+        changed.set()
 
     def _on_tpdo1(self, frame: can.Message, now: int) -> None:
         statusword, position, torque = co.unpack_pdo(_TPDO1_MAP, frame.data)
