@@ -5,7 +5,10 @@
 - :mod:`.context`: :class:`PeriodicExecutionContext`, :class:`EventDrivenExecutionContext`;
 - :mod:`.errors`: ``ReturnCode_t`` and the exceptions carrying it;
 - :mod:`.profile`, :mod:`.constraints`, :mod:`.configuration`: RTC Profiles and
-  configuration sets; :mod:`.runner`: running a component described by a profile.
+  configuration sets; :mod:`.runner`: running a component described by a profile;
+- :mod:`.ports`: data ports, connectors, service ports, the transport seam;
+- :mod:`.system`: systems of components (system files, ``openel-async run SYSTEM``);
+- :mod:`.composite`: composite components.
 
 docs/rtc.md maps the RTC PIM to this API.
 """
