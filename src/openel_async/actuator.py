@@ -245,6 +245,9 @@ class Actuator(HALComponent):
     def _accept(self, req: Request, target: float, sequence: int) -> Motion:
         """The device accepted the command: make its Motion the current one."""
         motion = Motion(req, target, sequence, self._now_ns())
+        listener = self._observers.listener
+        if listener is not None:
+            listener.on_command(self, req, target, motion.issued_ns)
         if self.state is not _ACTIVE:  # faulted or finalized while the command was sent
             if self.last_fault is not None:
                 motion._fault(self.last_fault)
@@ -287,9 +290,12 @@ class Actuator(HALComponent):
                 value = await self.device.read(req)
         except _LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
-        if type(value) is float and value - value == 0.0:  # finite
-            return value
-        return self._checked_actual(req, value)
+        if type(value) is not float or value - value != 0.0:  # not a finite float
+            value = self._checked_actual(req, value)
+        listener = self._observers.listener
+        if listener is not None:
+            listener.on_reading(self, req, (value,))
+        return value
 
     def get_value_nowait(self, request: Request | int = Request.POSITION_ACTUAL) -> float:
         """GetValue without suspending (see :meth:`set_value_nowait`)."""
@@ -307,9 +313,12 @@ class Actuator(HALComponent):
             value = self.device.read_nowait(req)
         except _LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
-        if type(value) is float and value - value == 0.0:  # finite
-            return value
-        return self._checked_actual(req, value)
+        if type(value) is not float or value - value != 0.0:  # not a finite float
+            value = self._checked_actual(req, value)
+        listener = self._observers.listener
+        if listener is not None:
+            listener.on_reading(self, req, (value,))
+        return value
 
     def value_source(self, request: Request | int = Request.POSITION_ACTUAL) -> ValueSource:
         """Where ``get_value(request)`` comes from: MEASURED, ESTIMATED or COMMANDED.
@@ -481,6 +490,9 @@ def stream_targets(
             stamp = actuator._now_ns() if now_ns is None else now_ns
             actuator._latest = (req, target, sequence, stamp)
             actuator._commanded[req] = target
+            listener = actuator._observers.listener
+            if listener is not None:
+                listener.on_command(actuator, req, target, stamp)
         if actuator._reached_in_send == sequence:
             actuator._reached_in_send = 0
             actuator._on_target_reached()

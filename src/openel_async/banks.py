@@ -21,6 +21,7 @@ from .actuator import COMMAND_OF, Actuator, stream_targets
 from .completion import Motion
 from .component import LINK_FAULTS, ComponentState, HALComponent
 from .errors import BadParameterError, HALError, StateError, WouldBlockError
+from .listeners import LISTENING, tell_readings
 from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, Request, coerce_request
 from .sensor import MEASUREMENT_SETTINGS_VERSION, Measurement, Sensor
 
@@ -184,6 +185,14 @@ class ActuatorBank:
         return self._get_now("get_values_nowait", request)
 
     def _get_now(self, operation: str, request: Request | int) -> tuple[float, ...]:
+        values = self._values_now(operation, request)
+        if LISTENING.count:
+            req = coerce_request(request, GET_VALUE_REQUESTS)
+            if not req.is_command:
+                tell_readings(self.actuators, req, [(v,) for v in values])
+        return values
+
+    def _values_now(self, operation: str, request: Request | int) -> tuple[float, ...]:
         actuators = self.actuators
         for actuator in actuators:
             if actuator.state is not _ACTIVE:
@@ -256,13 +265,19 @@ class SensorBank:
         """``get_value()`` of every sensor."""
         if self._nowait:
             return self._get_now("get_values")
-        return tuple([await s.get_value() for s in self.sensors])
+        return tuple([await s.get_value() for s in self.sensors])  # each tells its listener
 
     def get_values_nowait(self) -> tuple[tuple[float, ...], ...]:
         """:meth:`get_values` without suspending (devices that need no I/O)."""
         return self._get_now("get_values_nowait")
 
     def _get_now(self, operation: str) -> tuple[tuple[float, ...], ...]:
+        values = self._converted_now(operation)
+        if LISTENING.count:
+            tell_readings(self.sensors, None, values)
+        return values
+
+    def _converted_now(self, operation: str) -> tuple[tuple[float, ...], ...]:
         values = self._read_now(operation)
         if self._settings_version != MEASUREMENT_SETTINGS_VERSION.value:
             self._settings_version = MEASUREMENT_SETTINGS_VERSION.value

@@ -31,6 +31,7 @@ from .errors import (
 )
 from .fanout import Fanout
 from .ids import DeviceKind, HALId, Property, component_name, profile_name
+from .listeners import LISTENING, ComponentListener
 from .observers import ErrorNotice, EventNotice
 from .stats import ObserverStats
 
@@ -246,8 +247,30 @@ class HALComponent:
 
     def _set_state(self, state: ComponentState) -> None:
         if state is not self.state:
-            self.log.info("state_changed", old=str(self.state), new=str(state))
+            old = self.state
+            self.log.info("state_changed", old=str(old), new=str(state))
             self.state = state
+            listener = self._observers.listener
+            if listener is not None:
+                listener.on_state(self, old, state)
+
+    # -- listener (a recorder, a live view) --------------------------------------------
+    @property
+    def listener(self) -> ComponentListener | None:
+        """The :class:`~openel_async.listeners.ComponentListener` told of this component's
+        commands, readings and state changes (None: nobody)."""
+        return self._observers.listener
+
+    def set_listener(self, listener: ComponentListener | None) -> None:
+        """Attach ``listener`` (None detaches). One listener per component: attaching a
+        second one raises BadParameterError (detach the first, or fan out in the listener)."""
+        current = self._observers.listener
+        if listener is not None and current is not None and current is not listener:
+            raise BadParameterError(
+                "listener", listener, f"None: {self.device_name} already has {current!r}"
+            )
+        LISTENING.count += (listener is not None) - (current is not None)
+        self._observers.listener = listener
 
     async def init(self) -> None:
         """Init: Initialized -> Active."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 import inspect
 from collections import deque
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import anyio
 import anyio.abc
@@ -26,6 +26,9 @@ import structlog
 from .errors import BadParameterError
 from .observers import Notice, Route, observer_routes
 from .stats import MailboxStats, ObserverStats
+
+if TYPE_CHECKING:
+    from .listeners import ComponentListener
 
 log = structlog.get_logger(__name__)
 
@@ -175,6 +178,9 @@ class Fanout:
         """Kinds for which some observer takes the notice: publishers build it only then."""
         self.leaving: set[_Mailbox] = set()
         """Mailboxes of removed observers still delivering what was queued before."""
+        self.listener: ComponentListener | None = None
+        """The owner's :class:`~openel_async.listeners.ComponentListener` (components only):
+        kept here so that a component needs no instance attribute of its own for it."""
 
     def __len__(self) -> int:
         return len(self._subscribers)

@@ -265,9 +265,12 @@ class Sensor(HALComponent):
         if self.state is not _ACTIVE:
             raise StateError("get_value", self.state, (_ACTIVE,))
         values = self._checked_values((await self._read()).values)
-        if self._measurement is None:
-            return values
-        return self._converted_values(values)
+        if self._measurement is not None:
+            values = self._converted_values(values)
+        listener = self._observers.listener
+        if listener is not None:
+            listener.on_reading(self, None, values)
+        return values
 
     async def get_timed_value(self) -> TimedValue:
         """GetTimedValue: values and their measurement time on the component's clock (ns)."""
@@ -283,9 +286,12 @@ class Sensor(HALComponent):
         if self.state is not _ACTIVE:
             raise StateError("get_value_nowait", self.state, (_ACTIVE,))
         values = self._checked_values(self._read_now().values)
-        if self._measurement is None:
-            return values
-        return self._converted_values(values)
+        if self._measurement is not None:
+            values = self._converted_values(values)
+        listener = self._observers.listener
+        if listener is not None:
+            listener.on_reading(self, None, values)
+        return values
 
     def get_timed_value_nowait(self) -> TimedValue:
         """GetTimedValue without suspending (see :meth:`get_value_nowait`)."""
@@ -322,6 +328,9 @@ class Sensor(HALComponent):
         if self._measurement is not None:
             values = self._converted_values(values)
         time_ns = reading.time_ns
+        listener = self._observers.listener
+        if listener is not None:
+            listener.on_reading(self, None, values)
         return TimedValue(values, self.clock.now_ns() if time_ns is None else time_ns)
 
     def _checked_values(self, raw: Sequence[float]) -> tuple[float, ...]:

@@ -1,0 +1,66 @@
+"""Component listeners: what a tool attached to a component (a flight recorder, a live view)
+is told besides the observers' events and errors.
+
+A :class:`ComponentListener` is set with :meth:`HALComponent.set_listener
+<openel_async.component.HALComponent.set_listener>` (one per component). It hears every
+command an :class:`~openel_async.Actuator` accepts (``set_value``, ``set_value_nowait``, an
+``ActuatorBank``'s streamed setpoints), every value the application reads (``get_value`` and
+``get_timed_value`` of a Sensor, the actual values of an Actuator, the banks' reads) and every
+state change. Its methods run inline in the caller's task, on the per-command paths: they must
+be cheap, must not block and must not raise (an exception would reach the caller). Without a
+listener each path pays one attribute test.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Protocol
+
+if TYPE_CHECKING:
+    from .component import ComponentState, HALComponent
+    from .requests import Request
+
+__all__ = ["LISTENING", "ComponentListener", "tell_readings"]
+
+
+class _Listening:
+    """How many components have a listener, process-wide: the banks test it once per call
+    rather than every member's listener."""
+
+    __slots__ = ("count",)
+
+    def __init__(self) -> None:
+        self.count = 0
+
+
+LISTENING = _Listening()
+
+
+class ComponentListener(Protocol):
+    """What a component tells its listener (see the module docstring)."""
+
+    def on_command(
+        self, component: HALComponent, request: Request, value: float, time_ns: int
+    ) -> None:
+        """The actuator accepted the command ``request`` = ``value`` at ``time_ns`` (its clock)."""
+
+    def on_reading(
+        self, component: HALComponent, request: Request | None, values: tuple[float, ...]
+    ) -> None:
+        """The application read ``values`` (a Sensor: ``request`` None; an Actuator: the
+        actual-value code and one value), now on the component's clock."""
+
+    def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
+        """The component went from ``old`` to ``new``."""
+
+
+def tell_readings(
+    components: Iterable[HALComponent],
+    request: Request | None,
+    values: Iterable[tuple[float, ...]],
+) -> None:
+    """A bank's read: each component's values to its listener, if it has one."""
+    for component, value in zip(components, values, strict=True):
+        listener = component.listener
+        if listener is not None:
+            listener.on_reading(component, request, value)
