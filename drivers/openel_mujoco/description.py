@@ -27,9 +27,9 @@ from __future__ import annotations
 import math
 import os
 import pathlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any, Literal, get_args
+from typing import Any, Literal, TypeGuard, TypeVar, get_args
 
 from openel_async.errors import BadParameterError
 
@@ -73,25 +73,25 @@ DEFAULT_HOLD_FORCE = 0.1
 """N: an adhesion effector holds something while its touch sensor reads at least this."""
 
 
+def _finite(value: object) -> TypeGuard[int | float]:
+    """A real number (not a bool) that converts to a finite float (huge ints do not)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int beyond the float range
+        return False
+
+
 def _positive(owner: str, name: str, value: object, *, allow_none: bool = True) -> None:
     if value is None and allow_none:
         return
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | float)
-        or not math.isfinite(value)
-        or value <= 0
-    ):
+    if not _finite(value) or value <= 0:
         raise BadParameterError(f"{owner}.{name}", value, "a finite number > 0")
 
 
 def _settle(owner: str, value: object) -> None:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | float)
-        or not math.isfinite(value)
-        or value < 0
-    ):
+    if not _finite(value) or value < 0:
         raise BadParameterError(f"{owner}.settle_s", value, "a finite number >= 0")
 
 
@@ -149,14 +149,18 @@ class JointSpec:
                     raise BadParameterError(f"actuators[{mode!r}]", act, "an actuator name")
             object.__setattr__(self, "actuators", dict(self.actuators))
         if self.position_limits is not None:
-            limits = tuple(self.position_limits)
+            limits = self.position_limits
             if (
-                len(limits) != 2
-                or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in limits)
+                isinstance(limits, str | bytes)
+                or not isinstance(limits, Sequence)
+                or len(limits) != 2
+                or not all(_finite(v) for v in limits)
                 or not limits[0] < limits[1]
             ):
                 raise BadParameterError(
-                    "position_limits", self.position_limits, "a (low, high) pair with low < high"
+                    "position_limits",
+                    limits,
+                    "a (low, high) pair of finite numbers with low < high",
                 )
             object.__setattr__(self, "position_limits", (float(limits[0]), float(limits[1])))
         for name in ("max_velocity", "max_torque", "kp", "kd", "kv"):
@@ -212,7 +216,11 @@ class SensorSpec:
         ):
             raise BadParameterError("kind", self.kind, "a device kind id (int >= 0) or None")
         if self.units is not None:
-            if isinstance(self.units, str) or not all(isinstance(u, str) for u in self.units):
+            if (
+                isinstance(self.units, str | bytes)
+                or not isinstance(self.units, Sequence)
+                or not all(isinstance(u, str) for u in self.units)
+            ):
                 raise BadParameterError("units", self.units, "a sequence of unit strings")
             object.__setattr__(self, "units", tuple(self.units))
 
@@ -329,11 +337,15 @@ class SimDescription:
         if self.keyframe is not None and (not isinstance(self.keyframe, str) or not self.keyframe):
             raise BadParameterError("keyframe", self.keyframe, "a keyframe name or None")
         _positive("SimDescription", "timestep", self.timestep)
-        joints = tuple(JointSpec.from_value(j) for j in _sequence("joints", self.joints))
-        sensors = tuple(SensorSpec.from_value(s) for s in _sequence("sensors", self.sensors))
-        effectors = tuple(
-            EffectorSpec.from_value(e) for e in _sequence("effectors", self.effectors)
-        )
+        if self.name is not None and (not isinstance(self.name, str) or not self.name):
+            raise BadParameterError("name", self.name, "a non-empty string or None")
+        if not isinstance(self.extra, Mapping):
+            raise BadParameterError(
+                "extra", self.extra, "a mapping of application data (omit the key for none)"
+            )
+        joints = _specs("joints", self.joints, JointSpec.from_value)
+        sensors = _specs("sensors", self.sensors, SensorSpec.from_value)
+        effectors = _specs("effectors", self.effectors, EffectorSpec.from_value)
         specs: tuple[JointSpec | SensorSpec | EffectorSpec, ...]
         for label, specs in (("joints", joints), ("sensors", sensors), ("effectors", effectors)):
             keys = [s.key for s in specs]
@@ -355,26 +367,36 @@ class SimDescription:
         """
         values = _fields_of(cls, data, "description", required="model")
         model = values["model"]
-        if base_dir is not None and isinstance(model, str):
+        if base_dir is not None and isinstance(model, str) and model:
             from .models import SHIPPED_MODELS
 
-            path = pathlib.Path(model).expanduser()
+            try:
+                path = pathlib.Path(model).expanduser()
+            except RuntimeError as exc:  # "~user/..." of an unknown user
+                raise BadParameterError(
+                    "model", model, f"a shipped model name or a file path ({exc})"
+                ) from exc
             if model not in SHIPPED_MODELS and not path.is_absolute():
                 values["model"] = str(pathlib.Path(base_dir) / path)
         return cls(**values)
 
     @classmethod
     def from_yaml(cls, path: str | os.PathLike[str]) -> SimDescription:
-        """Read a YAML file; a relative model path is taken relative to that file."""
-        import yaml
+        """Read a YAML file; a relative model path is taken relative to that file.
 
+        Every problem with the file (unreadable, not UTF-8, not YAML, not a mapping, bad
+        fields) raises :class:`BadParameterError` naming the path or the field.
+        """
         file = pathlib.Path(path)
         try:
-            data = yaml.safe_load(file.read_text(encoding="utf-8"))
+            raw = file.read_bytes()
         except OSError as exc:
             raise BadParameterError("path", str(path), f"a readable YAML file ({exc})") from exc
+        data = _parse_yaml(str(path), raw)
         if not isinstance(data, Mapping):
-            raise BadParameterError("path", str(path), "a YAML file holding a mapping")
+            raise BadParameterError(
+                "path", str(path), f"a YAML file holding a mapping (it holds {_kind(data)})"
+            )
         return cls.from_dict(data, base_dir=file.parent)
 
     def to_dict(self) -> dict[str, Any]:
@@ -401,14 +423,58 @@ def _sequence(name: str, value: object) -> Sequence[Any]:
     return value
 
 
+_Spec = TypeVar("_Spec", JointSpec, SensorSpec, EffectorSpec)
+
+
+def _specs(name: str, value: object, build: Callable[[Any], _Spec]) -> tuple[_Spec, ...]:
+    """The specs of one list; a refused entry's error gets a note naming its index."""
+    specs = []
+    for index, item in enumerate(_sequence(name, value)):
+        try:
+            specs.append(build(item))
+        except BadParameterError as exc:
+            exc.add_note(f"in {name}[{index}]")
+            raise
+    return tuple(specs)
+
+
+def _parse_yaml(path: str, raw: bytes) -> object:
+    """The YAML document of a file, or BadParameterError naming the path and the problem."""
+    import yaml
+
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise BadParameterError(
+            "path",
+            path,
+            f"a UTF-8 text file (byte 0x{raw[exc.start]:02x} at offset {exc.start} is not UTF-8)",
+        ) from exc
+    try:
+        return yaml.safe_load(text)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = exc.problem or exc.context or "invalid YAML"
+        raise BadParameterError("path", path, f"a YAML file ({problem}{where})") from exc
+    except (yaml.YAMLError, ValueError, OverflowError, RecursionError) as exc:
+        # Also what PyYAML's constructors raise for values like the date 2020-13-45.
+        raise BadParameterError("path", path, f"a YAML file ({exc})") from exc
+
+
+def _kind(value: object) -> str:
+    return "nothing" if value is None else f"a {type(value).__name__}"
+
+
 def _fields_of(cls: type, data: object, where: str, *, required: str) -> dict[str, Any]:
     if not isinstance(data, Mapping):
         raise BadParameterError(where, data, "a name or a mapping of fields")
     known = {f.name for f in fields(cls)}
-    unknown = sorted(str(k) for k in data if k not in known)
+    unknown = sorted((k for k in data if k not in known), key=str)
     if unknown:
+        key = unknown[0]  # the key itself: YAML keys need not be strings (1, null, ...)
         raise BadParameterError(
-            f"{where}.{unknown[0]}", data[unknown[0]], f"a known field ({', '.join(sorted(known))})"
+            f"{where}.{key}", data[key], f"a known field ({', '.join(sorted(known))})"
         )
     if required not in data:
         raise BadParameterError(f"{where}.{required}", None, f"a {required} name (required)")

@@ -11,8 +11,10 @@ import anyio
 import numpy as np
 import pytest
 import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from openel_async import Actuator, Request
+from openel_async import Actuator, BadParameterError, Request
 from openel_mujoco import (
     JointSpec,
     MujocoSim,
@@ -144,3 +146,224 @@ async def test_a_failing_step_hook_is_dropped_not_fatal(stack: AsyncExitStack) -
     with anyio.fail_after(10):
         await sim.sleep(0.01)
     assert len(calls) == 1 and sim.steps >= 10 and sim.fault is None
+
+
+# -- bad descriptions: BadParameterError naming the field or the file, nothing raw ----------
+
+
+@pytest.mark.parametrize(
+    ("raw", "match"),
+    [
+        (b"model: arm2\nextra:\n", r"extra=None .*a mapping of application data"),
+        (b"model: arm2\nextra: [1, 2]\n", r"extra=\[1, 2\] .*a mapping"),
+        (b"?", r"description\.None=None .*a known field"),
+        (b"model: arm2\n1: 2\n", r"description\.1=2 .*a known field"),
+        (
+            b"model: arm2\njoints: [{joint: a, position_limits: 5}]\n",
+            r"position_limits=5 .*\(low, high\) pair",
+        ),
+        (
+            b"model: arm2\njoints: [{joint: a, position_limits: [0, 1e999]}]\n",
+            r"position_limits=.* finite numbers",
+        ),
+        (b"model: arm2\nsensors: [{sensor: s, units: 5}]\n", r"units=5 .*unit strings"),
+        (b"model: arm2\nsensors: [{sensor: s, units: {a: b}}]\n", r"units=\{'a': 'b'\}"),
+        (b"model: arm2\ntimestep: " + b"9" * 400 + b"\n", r"SimDescription\.timestep=9+ "),
+        (b"model: arm2\nname: 5\n", r"name=5 .*non-empty string"),
+        (b"model: [arm2\n", r"a YAML file \(.* at line 2, column 1\)"),
+        (b"model: arm2\n  pacing: lockstep\n", r"a YAML file \(.*line 2"),
+        (b"model: \xff\xfe\n", r"a UTF-8 text file \(byte 0xff at offset 7"),
+        (b"model: arm2\nkeyframe: 2020-13-45\n", r"a YAML file \(month must be in 1\.\.12\)"),
+        (b"- arm2\n", r"a YAML file holding a mapping \(it holds a list\)"),
+        (b"", r"a YAML file holding a mapping \(it holds nothing\)"),
+        (b"model: ~nosuchuser_h15/x.xml\n", r"model='~nosuchuser_h15/x\.xml' .*file path"),
+    ],
+)
+def test_bad_yaml_raises_bad_parameter(tmp_path: pathlib.Path, raw: bytes, match: str) -> None:
+    path = tmp_path / "rig.yaml"
+    path.write_bytes(raw)
+    with pytest.raises(BadParameterError, match=match):
+        SimDescription.from_yaml(path)
+
+
+def test_a_refused_list_entry_is_named_by_its_index() -> None:
+    with pytest.raises(BadParameterError, match="units") as info:
+        SimDescription.from_dict(
+            {"model": "arm2", "sensors": ["tip_pos", {"sensor": "s", "units": 5}]}
+        )
+    assert info.value.__notes__ == ["in sensors[1]"]
+    with pytest.raises(BadParameterError, match="max_velocity") as info:
+        SimDescription.from_dict(
+            {"model": "arm2", "joints": ["a", "b", {"joint": "c", "max_velocity": -1}]}
+        )
+    assert info.value.__notes__ == ["in joints[2]"]
+
+
+def test_an_unreadable_file_names_its_path(tmp_path: pathlib.Path) -> None:
+    with pytest.raises(BadParameterError, match=r"path=.*missing\.yaml.*readable YAML file"):
+        SimDescription.from_yaml(tmp_path / "missing.yaml")
+    with pytest.raises(BadParameterError, match=r"readable YAML file"):
+        SimDescription.from_yaml(tmp_path)  # a directory
+
+
+# -- fuzzing the loader: only a description or BadParameterError ever comes out ------------
+
+FUZZ = settings(
+    max_examples=200,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[
+        HealthCheck.function_scoped_fixture,  # one file, rewritten by every example
+        HealthCheck.too_slow,
+        HealthCheck.data_too_large,
+    ],
+)
+
+FIELDS = [
+    "model", "joints", "sensors", "effectors", "pacing", "keyframe", "timestep", "name", "extra",
+    "joint", "sensor", "actuator", "mode", "actuators", "position_limits", "max_velocity",
+    "max_torque", "kp", "kd", "kv", "position_tolerance", "settle_velocity",
+    "velocity_tolerance", "torque_tolerance", "settle_s", "limit_margin", "kind", "units",
+    "touch_sensor", "hold_force", "position", "velocity", "torque", "lockstep", "realtime",
+]  # fmt: skip
+SCALARS = st.one_of(  # hashable: they are dict keys too
+    st.none(),
+    st.booleans(),
+    st.integers(),
+    st.integers(min_value=10**300, max_value=10**400),  # beyond the float range
+    st.floats(),  # nan and +-inf included
+    st.sampled_from([*FIELDS, "arm2", "arm6", "", "~", "~nosuchuser_h15/m.xml", "m.xml"]),
+    st.text(max_size=8),
+)
+VALUES = st.recursive(
+    SCALARS,
+    lambda inner: (
+        st.lists(inner, max_size=4)
+        | st.dictionaries(st.sampled_from(FIELDS) | SCALARS, inner, max_size=5)
+    ),
+    max_leaves=20,
+)
+
+
+NUMBER = st.floats(0.001, 10.0)
+NAME = st.text(min_size=1, max_size=6)
+GOOD: dict[str, st.SearchStrategy[object]] = {
+    "pacing": st.sampled_from(["lockstep", "realtime"]),
+    "keyframe": st.sampled_from(["home", None]),
+    "timestep": st.floats(1e-4, 0.01),
+    "name": NAME,
+    "extra": st.dictionaries(NAME, VALUES, max_size=3),
+    "mode": st.sampled_from(["position", "velocity", "torque", None]),
+    "actuators": st.dictionaries(st.sampled_from(["position", "velocity", "torque"]), NAME),
+    "position_limits": st.tuples(st.floats(-3, -0.1), st.floats(0.1, 3)).map(list),
+    "kind": st.integers(0, 2**16),
+    "units": st.lists(st.sampled_from(["m", "rad", "N", "m/s^2"]), max_size=3),
+    "touch_sensor": NAME,
+    "settle_s": st.floats(0.0, 1.0),
+}
+ENTRIES = {  # list field: (name field, names in arm2/arm6, the other fields of its spec)
+    "joints": (
+        "joint",
+        ["shoulder", "elbow"],
+        ["name", "mode", "actuators", "position_limits", "max_velocity", "max_torque", "kp",
+         "kd", "kv", "position_tolerance", "settle_velocity", "velocity_tolerance",
+         "torque_tolerance", "settle_s", "limit_margin"],
+    ),
+    "sensors": ("sensor", ["tip_pos"], ["name", "kind", "units"]),
+    "effectors": (
+        "actuator",
+        ["suction"],
+        ["name", "position_tolerance", "settle_velocity", "velocity_tolerance",
+         "torque_tolerance", "settle_s", "touch_sensor", "hold_force"],
+    ),
+}  # fmt: skip
+
+
+def _mostly_good(draw: st.DrawFn, field: str) -> object:
+    """A value the field accepts, three times in four; anything at all otherwise."""
+    if draw(st.integers(0, 3)) == 3:
+        return draw(VALUES)
+    return draw(GOOD.get(field, NUMBER))
+
+
+@st.composite
+def descriptions(draw: st.DrawFn) -> dict[object, object]:
+    """Mostly well-formed descriptions with a few bad values, unknown or missing keys: the
+    checks of every field are reached, not only the first one."""
+    data: dict[object, object] = {}
+    if draw(st.integers(0, 15)) != 15:
+        data["model"] = (
+            draw(st.sampled_from(["arm2", "arm6"]))
+            if draw(st.integers(0, 3)) != 3
+            else draw(VALUES)
+        )
+    for key in draw(st.lists(st.sampled_from(FIELDS[1:9]), max_size=8, unique=True)):
+        if key not in ENTRIES or draw(st.integers(0, 7)) == 7:
+            data[key] = _mostly_good(draw, key)
+            continue
+        name_field, names, others = ENTRIES[key]
+        entries: list[object] = []
+        for _ in range(draw(st.integers(0, 3))):
+            name = draw(st.sampled_from(names)) if draw(st.integers(0, 7)) != 7 else draw(VALUES)
+            if draw(st.booleans()):
+                entries.append(name)  # a name alone
+                continue
+            entry = {name_field: name}
+            for other in draw(st.lists(st.sampled_from(others), max_size=4, unique=True)):
+                entry[other] = _mostly_good(draw, other)
+            if draw(st.integers(0, 7)) == 7:
+                entry[draw(SCALARS)] = draw(VALUES)  # maybe an unknown field
+            entries.append(entry)
+        data[key] = entries
+    if draw(st.integers(0, 7)) == 7:
+        data[draw(SCALARS)] = draw(VALUES)  # maybe an unknown key
+    return data
+
+
+def _load(path: pathlib.Path, raw: bytes) -> None:
+    path.write_bytes(raw)
+    try:
+        desc = SimDescription.from_yaml(path)
+    except BadParameterError as exc:
+        assert str(exc)  # names the field or the path
+        return
+    assert isinstance(desc, SimDescription)
+    assert SimDescription.from_dict(desc.to_dict()) == desc  # what loads, round-trips
+
+
+@FUZZ
+@given(data=descriptions())
+def test_fuzz_description_dicts(data: dict[object, object]) -> None:
+    try:
+        desc = SimDescription.from_dict(data)
+    except BadParameterError:
+        return
+    assert SimDescription.from_dict(desc.to_dict()) == desc
+
+
+@FUZZ
+@given(data=descriptions())
+def test_fuzz_description_yaml_files(tmp_path: pathlib.Path, data: dict[object, object]) -> None:
+    raw = yaml.safe_dump(data, allow_unicode=True, sort_keys=False).encode()
+    _load(tmp_path / "rig.yaml", raw)
+
+
+@FUZZ
+@given(
+    cut=st.integers(0, len(YAML)),
+    drop=st.integers(0, 8),
+    insert=st.binary(max_size=8)
+    | st.sampled_from([b"?", b":", b"[", b"{", b"- ", b"\n  ", b"\xff", b"!!", b"&a", b"*a", b"#"]),
+)
+def test_fuzz_mutated_yaml_files(
+    tmp_path: pathlib.Path, cut: int, drop: int, insert: bytes
+) -> None:
+    raw = YAML.encode()
+    _load(tmp_path / "rig.yaml", raw[:cut] + insert + raw[cut + drop :])
+
+
+@FUZZ
+@given(raw=st.binary(max_size=64) | st.text(max_size=64).map(str.encode))
+def test_fuzz_arbitrary_bytes(tmp_path: pathlib.Path, raw: bytes) -> None:
+    _load(tmp_path / "rig.yaml", raw)
