@@ -463,3 +463,21 @@ def test_rtcbuilder_plural_trans_methods_key() -> None:
     port = profile.service_ports[0]
     assert [t.kind for t in port.trans_methods] == ["CORBA"]
     assert "transMethods" not in port.extra
+
+
+def test_singular_and_plural_trans_methods_round_trip() -> None:
+    """Both spellings in one port: every entry is read, and the profile written back
+    (singular key) reads the same (the fuzzer found an empty singular key beside a
+    plural one that came back different)."""
+    text = (DATA / "rtc_sample.yaml").read_text(encoding="utf-8")
+    block = "      transMethod:\n        kind: CORBA\n"
+    assert block in text
+    both = text.replace(block, block + "      transMethods:\n        - kind: TCP\n", 1)
+    profile = loads_yaml(both)
+    assert [t.kind for t in profile.service_ports[0].trans_methods] == ["CORBA", "TCP"]
+    assert loads_yaml(dumps_yaml(profile)) == profile
+    empty_singular = text.replace(
+        block, "      transMethod:\n      transMethods:\n" + block[19:], 1
+    )
+    profile = loads_yaml(empty_singular)
+    assert loads_yaml(dumps_yaml(profile)) == profile

@@ -33,7 +33,8 @@ DOCUMENT = "<document>"
 ROOT = "rtcProfile"
 _NULL_TAG = "tag:yaml.org,2002:null"
 _PLURALS = {"transMethod": "transMethods"}
-"""Sequence keys RTCBuilder spells in the plural, read as the spec's singular key."""
+"""Sequence keys RTCBuilder spells in the plural: their entries are read after those of
+the spec's singular key (and written under the singular key)."""
 
 
 class _ProfileLoader(yaml.SafeLoader):
@@ -123,8 +124,11 @@ class _YamlSource(Source):
 
     def children(self, key: str) -> list[Source]:
         alias = _PLURALS.get(key)
-        if alias is not None and key not in self._data and alias in self._data:
-            key = alias  # RTCBuilder writes the plural (transMethods)
+        if alias is not None:  # RTCBuilder writes the plural (transMethods): both count
+            return self._children(key) + self._children(alias)
+        return self._children(key)
+
+    def _children(self, key: str) -> list[Source]:
         self._used.add(key)
         path = f"{self.path}.{key}"
         value = self._data.get(key)
