@@ -3,19 +3,33 @@
 A :class:`CanBus` owns one ``can.BusABC`` (any python-can interface: socketcan, pcan,
 kvaser, virtual ...) and runs, in its own task group:
 
-* **one reader** per bus. python-can's ``recv`` blocks, so it runs in a worker thread
-  (``anyio.to_thread.run_sync``), one *batch* per thread hop: a blocking ``recv`` of at
-  most ``poll_interval`` seconds for the first frame, then non-blocking ``recv(0)`` for
-  whatever else is queued (up to ``max_batch``). The batch is dispatched in the event
-  loop by arbitration id to every :class:`NodePort` registered for that id, one bounded
-  memory object stream per port (a full port drops the batch and counts it; the reader
-  never waits for a slow node). python-can's ``Notifier`` is not used: its thread dies
-  silently when ``recv`` raises, whereas here a failing ``recv`` is caught, reported
-  to every port (``on_bus_error``: the drivers fault their components with
-  ``ErrorId.BUS_ERROR``) and recovered from with exponential backoff: the bus is
-  reopened when the ``CanBus`` knows how to open it (interface kwargs or a
-  ``bus_factory``), else ``recv`` is retried on the same object; the first ``recv``
-  that does not raise brings the bus back up and ``re_init`` of the components succeeds.
+* **one reader** per bus, handing frames to the event loop, where they are dispatched
+  by arbitration id to every :class:`NodePort` registered for that id (one bounded
+  memory object stream per port: a full port drops the batch and counts it, the reader
+  never waits for a slow node; or a port ``handler`` called in the loop). Two forms:
+
+  - python-can ``virtual`` (the simulations and tests): no thread. The bus's receive
+    queue is hooked (:mod:`openel_can.virtual_rx`) so that a frame put on it, from any
+    thread, schedules one drain in the loop (``call_soon_threadsafe``), which takes
+    every queued frame under one lock and dispatches them as one batch; an idle check
+    every ``poll_interval`` notices a bus shut down under it.
+  - any other interface: **one reader thread** per bus object (started on entry and
+    after each reopen, joined on exit), looping on a blocking ``recv`` of at most
+    ``poll_interval`` for the first frame, then non-blocking ``recv(0)`` for whatever
+    else is queued (up to ``max_batch``), and handing each batch to the loop with
+    ``loop.call_soon_threadsafe``; one wake-up serves every batch queued before the loop
+    runs it (they are dispatched as one).
+
+  Either way at most ``rx_buffer`` frames wait for the loop; beyond that frames are
+  dropped and counted (``stats.rx_overflow``, logged). python-can's ``Notifier`` is not
+  used: its thread dies silently when ``recv`` raises, whereas here a failing ``recv``
+  ends the reader, is reported to every port (``on_bus_error``: the drivers fault
+  their components with ``ErrorId.BUS_ERROR``) and recovered from with exponential
+  backoff: the bus is reopened when the ``CanBus`` knows how to open it (interface
+  kwargs or a ``bus_factory``), else ``recv`` is retried on the same object; the first
+  ``recv`` that does not raise brings the bus back up, a new reader starts, and
+  ``re_init`` of the components succeeds. Frames read before the failure are
+  dispatched first, in order.
 * **sends that never block the event loop**. On interfaces whose ``send(msg,
   timeout=0)`` cannot block (``virtual``; ``socketcan``, which polls the socket and
   raises "Transmit buffer full" otherwise) ``NodePort.send`` sends inline when nothing
@@ -26,7 +40,10 @@ kvaser, virtual ...) and runs, in its own task group:
   buffer, or, on every other interface (whose ``send`` may block), in a worker thread
   with ``send(msg, timeout=send_timeout)``. Frames leave in call order. A send that
   keeps failing for ``send_timeout`` takes the bus down like a failed ``recv`` (frames
-  queued meanwhile are dropped and counted: a CAN command is worthless late).
+  queued meanwhile are dropped and counted: a CAN command is worthless late). After 64
+  inline sends in a row ``send`` yields to the loop once, so a sending loop cannot
+  starve the readers. Frames are sent as :class:`TxMessage` (a ``can.Message`` whose
+  deep copy, made by the ``virtual`` interface for every receiver, is cheap).
 * optionally a SYNC producer (CANopen, COB-ID 0x080) every ``sync_period`` seconds.
 
 Use it as an async context manager and create the node drivers with it::
@@ -257,7 +274,13 @@ class NodePort:
             is_remote_frame=remote,
             check=False,
         )
-        await self.bus.send_message(msg)
+        bus = self.bus  # send_message, without a second coroutine on the inline path
+        if bus._try_inline(msg):
+            if bus._inline_streak >= _INLINE_YIELD_EVERY:
+                bus._inline_streak = 0
+                await anyio.lowlevel.checkpoint()
+            return
+        await bus._enqueue(msg)
 
     def close(self) -> None:
         """Detach from the bus (same as ``bus.detach(port)``)."""
@@ -394,7 +417,7 @@ class CanBus:
             tg = await stack.enter_async_context(anyio.create_task_group())
             stack.callback(tg.cancel_scope.cancel)
             self._set_up()
-            tg.start_soon(self._reader)
+            await tg.start(self._reader)  # reading once entered
             tg.start_soon(self._sender)
             if self.sync_period is not None:
                 tg.start_soon(self._sync_producer, self.sync_period)
@@ -556,8 +579,21 @@ class CanBus:
         the hop to the sender task; anything else, and a frame the interface does not
         take at once, goes through the queue, so frames always leave in call order.
         """
-        tx = self._tx_send
-        if self.state is not BusState.UP or tx is None:
+        if self._try_inline(msg):
+            if self._inline_streak >= _INLINE_YIELD_EVERY:
+                self._inline_streak = 0
+                await anyio.lowlevel.checkpoint()
+            return
+        await self._enqueue(msg)
+
+    def _try_inline(self, msg: can.Message) -> bool:
+        """Send ``msg`` at once if the interface allows and nothing is queued (True: sent).
+
+        Raises NotConnectedError unless the bus is up. Counts consecutive inline sends:
+        the caller yields once every ``_INLINE_YIELD_EVERY`` (a loop of sends that never
+        suspend would starve the readers).
+        """
+        if self.state is not BusState.UP or self._tx_send is None:
             raise NotConnectedError(
                 f"CAN bus {self.name} is {self.state}"
                 + (f": {self.last_error}" if self.last_error else "")
@@ -568,15 +604,16 @@ class CanBus:
             try:
                 bus.send(msg, 0.0)
             except Exception:  # buffer full or failing: the sender retries with backoff
-                pass
-            else:
-                self.stats.tx_frames += 1
-                self._inline_streak += 1
-                if self._inline_streak >= _INLINE_YIELD_EVERY:
-                    # A loop of sends that never suspend would starve the readers.
-                    self._inline_streak = 0
-                    await anyio.lowlevel.checkpoint()
-                return
+                return False
+            self.stats.tx_frames += 1
+            self._inline_streak += 1
+            return True
+        return False
+
+    async def _enqueue(self, msg: can.Message) -> None:
+        """Queue ``msg`` for the sender task (waits at most ``send_timeout`` for room)."""
+        tx = self._tx_send
+        assert tx is not None
         self._tx_pending += 1
         try:
             tx.send_nowait(msg)
@@ -693,19 +730,25 @@ class CanBus:
             batch.append(msg)
         return batch
 
-    async def _reader(self) -> None:
+    async def _reader(
+        self, *, task_status: anyio.abc.TaskStatus[None] = anyio.TASK_STATUS_IGNORED
+    ) -> None:
+        started = task_status  # reported once the first reader is reading
         while True:
             if self.state is BusState.DOWN:
                 await self._recover()
             bus = self._bus
             assert bus is not None
-            if (reason := await self._run_in_loop(bus)) is None:
-                reason = await self._run_reader_thread(bus)
+            if (reason := await self._run_in_loop(bus, started)) is None:
+                reason = await self._run_reader_thread(bus, started)
+            started = anyio.TASK_STATUS_IGNORED
             self._drain_rx()  # frames read before the failure go out first
             self._set_down(reason)
 
     # python-can's virtual interface: read in the event loop when the sender wakes it.
-    async def _run_in_loop(self, bus: can.BusABC) -> str | None:
+    async def _run_in_loop(
+        self, bus: can.BusABC, task_status: anyio.abc.TaskStatus[None]
+    ) -> str | None:
         """Read ``bus`` in the loop until it fails (the failure); None if not possible."""
         failed = self._virtual_failed = anyio.Event()
         rx = hook_virtual_bus(bus, self.rx_buffer, self._wake_virtual)
@@ -713,6 +756,7 @@ class CanBus:
             return None
         self._virtual_rx = rx
         self.reads_in_loop += 1
+        task_status.started()
         try:
             self._wake_virtual()  # frames queued before the hook
             while not failed.is_set():
@@ -779,7 +823,9 @@ class CanBus:
         if frames:
             self._dispatch(frames)
 
-    async def _run_reader_thread(self, bus: can.BusABC) -> str:
+    async def _run_reader_thread(
+        self, bus: can.BusABC, task_status: anyio.abc.TaskStatus[None]
+    ) -> str:
         """Run one reader thread on ``bus`` until its ``recv`` fails; the failure.
 
         The thread is stopped and joined when this task is cancelled (bus closing):
@@ -801,6 +847,7 @@ class CanBus:
         )
         thread.start()
         self.reader_threads += 1
+        task_status.started()
         try:
             await ended.wait()
         finally:
@@ -868,6 +915,19 @@ class CanBus:
         stats.rx_frames += len(batch)
         stats.rx_batches += 1
         routes = self._routes
+        if len(batch) == 1:  # the request/answer case: no per-port lists to build
+            msg = batch[0]
+            if msg.is_error_frame:
+                stats.error_frames += 1
+                return
+            key = msg.arbitration_id | EXTENDED_FLAG if msg.is_extended_id else msg.arbitration_id
+            targets = routes.get(key)
+            if targets is None:
+                stats.unrouted += 1
+                return
+            for port in targets:  # each port gets a list of its own
+                port._deliver(batch if len(targets) == 1 else [msg])
+            return
         per_port: dict[NodePort, list[can.Message]] = {}
         for msg in batch:
             if msg.is_error_frame:

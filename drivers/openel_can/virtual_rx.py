@@ -52,6 +52,8 @@ class WakingQueue(queue.Queue[Any]):
         """Up to ``limit`` queued frames, oldest first, under one lock (``get_nowait`` each)."""
         with self.mutex:
             queued = self.queue
+            if len(queued) == 1 and limit >= 1:
+                return [queued.popleft()]
             count = min(len(queued), limit)
             return [queued.popleft() for _ in range(count)]
 

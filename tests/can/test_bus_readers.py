@@ -1,0 +1,287 @@
+"""CanBus readers: python-can virtual read in the loop, one reader thread otherwise.
+
+Both hand frames to the event loop in order, bound what waits for the loop (``rx_buffer``,
+drops counted in ``stats.rx_overflow``), leave no thread behind and survive a reopen.
+Also: handler ports, TxMessage's deep copy, inline sends yielding, SDO cancellation.
+"""
+
+from __future__ import annotations
+
+import copy
+import queue
+import threading
+from collections.abc import Iterator
+
+import anyio
+import anyio.lowlevel
+import can
+import pytest
+
+from openel_can import BusState, CanBus, SdoClient, TxMessage
+from openel_can import canopen as co
+from openel_can import cia402 as ds
+from openel_can.sim.cia402 import SimCia402Drive
+from openel_can.sim.faults import BusLink
+from openel_can.virtual_rx import WakingQueue
+
+from .conftest import Peers, drain, wait_until
+
+
+def _frame(arb_id: int, i: int) -> can.Message:
+    return can.Message(arbitration_id=arb_id, data=i.to_bytes(2, "little"), is_extended_id=False)
+
+
+def _reader_threads() -> list[threading.Thread]:
+    return [t for t in threading.enumerate() if t.name.startswith("can-reader-")]
+
+
+async def _collect(port: object, count: int) -> list[int]:
+    from openel_can import NodePort
+
+    assert isinstance(port, NodePort)
+    got: list[int] = []
+    with anyio.fail_after(5):
+        while len(got) < count:
+            got += [int.from_bytes(m.data, "little") for m in await port.receive()]
+    return got
+
+
+# -- python-can virtual: read in the event loop --------------------------------------------
+async def test_virtual_bus_is_read_in_the_loop_in_order_without_a_thread(
+    channel: str, raw_bus: can.BusABC
+) -> None:
+    async with CanBus(interface="virtual", channel=channel, port_queue_size=4096) as bus:
+        port = bus.attach([0x123], name="rx")
+        assert bus.reads_in_loop == 1 and bus.reader_threads == 0
+        assert isinstance(bus.bus, can.BusABC)
+        assert isinstance(bus.bus.queue, WakingQueue)  # type: ignore[attr-defined]
+        assert not _reader_threads()
+
+        def produce() -> None:  # another thread, as a peer or a notifier would
+            for i in range(3000):
+                raw_bus.send(_frame(0x123, i))
+
+        sender = threading.Thread(target=produce)
+        sender.start()
+        try:
+            assert await _collect(port, 3000) == list(range(3000))
+        finally:
+            sender.join(5)
+        assert bus.stats.rx_frames == 3000 and bus.stats.rx_overflow == 0
+
+
+async def test_virtual_overflow_beyond_rx_buffer_is_dropped_and_counted(
+    channel: str, raw_bus: can.BusABC
+) -> None:
+    async with CanBus(interface="virtual", channel=channel, rx_buffer=10) as bus:
+        port = bus.attach([0x200], name="rx")
+        for i in range(25):  # the loop cannot drain between these synchronous puts
+            raw_bus.send(_frame(0x200, i))
+        assert await _collect(port, 10) == list(range(10))
+        await wait_until(lambda: bus.stats.rx_overflow == 15, 1)
+        raw_bus.send(_frame(0x200, 99))  # room again
+        assert await _collect(port, 1) == [99]
+        assert bus.stats.rx_frames == 11
+
+
+async def test_a_given_virtual_bus_is_unhooked_at_exit(channel: str, raw_bus: can.BusABC) -> None:
+    given = can.Bus(interface="virtual", channel=channel)
+    try:
+        async with CanBus(given) as bus:
+            assert type(given.queue) is WakingQueue  # type: ignore[attr-defined]
+            port = bus.attach([0x300], name="rx")
+            raw_bus.send(_frame(0x300, 1))
+            assert await _collect(port, 1) == [1]
+        assert type(given.queue) is queue.Queue  # type: ignore[attr-defined]
+        raw_bus.send(_frame(0x300, 2))  # still a working python-can bus for its owner
+        msg = given.recv(1.0)
+        assert msg is not None and msg.data == b"\x02\x00"
+    finally:
+        given.shutdown()
+
+
+async def test_a_given_virtual_bus_shut_down_by_its_owner_takes_the_bus_down(
+    channel: str,
+) -> None:
+    given = can.Bus(interface="virtual", channel=channel)
+    reasons: list[str] = []
+    async with CanBus(given, poll_interval=0.01, reconnect_backoff=(0.01, 0.02)) as bus:
+        bus.attach([0x100], name="node", on_bus_error=reasons.append)
+        given.shutdown()  # the idle check's recv(0) raises
+        await wait_until(lambda: bus.state is BusState.DOWN, 1)
+    assert reasons and "receive failed" in reasons[0]
+
+
+async def test_python_can_filters_apply_on_the_virtual_path(
+    channel: str, raw_bus: can.BusABC
+) -> None:
+    async with CanBus(
+        interface="virtual",
+        channel=channel,
+        can_filters=[{"can_id": 0x100, "can_mask": 0x7FF, "extended": False}],
+    ) as bus:
+        port = bus.attach([0x100, 0x101], name="rx")
+        for i, arb_id in enumerate((0x101, 0x100, 0x101, 0x100)):
+            raw_bus.send(_frame(arb_id, i))
+        assert await _collect(port, 2) == [1, 3]
+        assert bus.stats.unrouted == 0 and bus.stats.rx_frames == 2
+
+
+# -- every other interface: one reader thread ------------------------------------------------
+async def test_reader_thread_delivers_in_order_restarts_on_reopen_and_is_joined(
+    channel: str, raw_bus: can.BusABC
+) -> None:
+    link = BusLink(channel)  # FlakyBus: not a VirtualBus, so read by a thread
+    async with CanBus(
+        bus_factory=link.open,
+        poll_interval=0.01,
+        reconnect_backoff=(0.01, 0.02),
+        port_queue_size=4096,
+    ) as bus:
+        port = bus.attach([0x123], name="rx")
+        assert bus.reader_threads == 1 and bus.reads_in_loop == 0
+        assert len(_reader_threads()) == 1
+        for i in range(2000):
+            raw_bus.send(_frame(0x123, i))
+        assert await _collect(port, 2000) == list(range(2000))
+        link.fail()
+        await wait_until(lambda: bus.state is BusState.DOWN, 1)
+        link.restore()
+        await bus.wait_up(1)
+        await wait_until(lambda: bus.reader_threads == 2, 1)
+        await wait_until(lambda: len(_reader_threads()) == 1, 1)  # the old one has ended
+        raw_bus.send(_frame(0x123, 7))
+        assert await _collect(port, 1) == [7]
+    assert not _reader_threads()
+
+
+class _ListBus(can.BusABC):
+    """After ``go``: its frames one per ``recv``, then blocks (bounded) and sets ``exhausted``."""
+
+    def __init__(self, frames: list[can.Message]) -> None:
+        super().__init__(channel="list")
+        self.frames: Iterator[can.Message] = iter(frames)
+        self.go = threading.Event()
+        self.exhausted = threading.Event()
+        self._idle = threading.Event()
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        pass
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        if not self.go.wait(min(timeout or 0.0, 0.01)):
+            return None, False
+        msg = next(self.frames, None)
+        if msg is None:
+            self.exhausted.set()
+            self._idle.wait(min(timeout or 0.0, 0.01))
+        return msg, False
+
+
+async def test_reader_thread_overflow_beyond_rx_buffer_is_dropped_and_counted() -> None:
+    fake = _ListBus([_frame(0x10, i) for i in range(20)])
+    try:
+        async with CanBus(fake, rx_buffer=5, max_batch=1, poll_interval=0.01) as bus:
+            port = bus.attach([0x10], name="rx")
+            fake.go.set()
+            # Block the loop (deliberately) until the thread has read every frame: it can
+            # hand 5 frames over, the other 15 are dropped.
+            assert fake.exhausted.wait(5)
+            assert await _collect(port, 5) == list(range(5))
+            await wait_until(lambda: bus.stats.rx_overflow == 15, 1)
+            assert bus.stats.rx_frames == 5
+    finally:
+        fake.shutdown()
+
+
+# -- handler ports, TxMessage, inline sends --------------------------------------------------
+async def test_a_handler_port_gets_batches_in_the_loop_and_a_failing_handler_is_counted(
+    channel: str, raw_bus: can.BusABC
+) -> None:
+    async with CanBus(interface="virtual", channel=channel) as bus:
+        seen: list[int] = []
+
+        def handler(frames: list[can.Message]) -> None:
+            for msg in frames:
+                if msg.data[0] == 0xFF:
+                    raise ValueError("driver bug")
+                seen.append(msg.data[0])
+
+        port = bus.attach([0x400], name="handled", handler=handler)
+        queued = bus.attach([0x400], name="queued")
+        with pytest.raises(RuntimeError, match="handler"):
+            await port.receive()
+        with pytest.raises(RuntimeError, match="handler"):
+            port.receive_nowait()
+        raw_bus.send(can.Message(arbitration_id=0x400, data=b"\x01", is_extended_id=False))
+        await wait_until(lambda: seen == [1], 1)
+        raw_bus.send(can.Message(arbitration_id=0x400, data=b"\xff", is_extended_id=False))
+        await wait_until(lambda: port.dropped == 1, 1)
+        raw_bus.send(can.Message(arbitration_id=0x400, data=b"\x02", is_extended_id=False))
+        await wait_until(lambda: seen == [1, 2], 1)
+        got = drain_port(queued)
+        assert [m.data[0] for m in got] == [1, 0xFF, 2]  # the other port is unaffected
+        assert port.received == 3
+
+
+def drain_port(port: object) -> list[can.Message]:
+    from openel_can import NodePort
+
+    assert isinstance(port, NodePort)
+    frames: list[can.Message] = []
+    while True:
+        try:
+            frames += port.receive_nowait()
+        except anyio.WouldBlock:
+            return frames
+
+
+def test_tx_message_deep_copy_is_an_equal_independent_plain_message() -> None:
+    msg = TxMessage(arbitration_id=0x1ABCDE, data=b"\x01\x02\x03", is_extended_id=True, channel="c")
+    dup = copy.deepcopy(msg)
+    assert type(dup) is can.Message
+    assert dup.equals(msg) and dup.channel == "c" and dup.dlc == 3
+    dup.data[0] = 0x7F
+    assert msg.data[0] == 0x01  # the data was copied
+    odd = TxMessage(arbitration_id=1, data=b"", is_extended_id=False, channel=("a", [1]))  # type: ignore[arg-type]
+    dup2 = copy.deepcopy(odd)
+    assert dup2.channel == ("a", [1]) and dup2.channel is not odd.channel
+
+
+async def test_inline_sends_yield_to_the_loop_every_64(channel: str, raw_bus: can.BusABC) -> None:
+    async with CanBus(interface="virtual", channel=channel) as bus:
+        port = bus.attach([], name="tx")
+        turns = 0
+
+        async def other() -> None:
+            nonlocal turns
+            while True:
+                turns += 1
+                await anyio.lowlevel.checkpoint()
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(other)
+            await anyio.lowlevel.checkpoint()
+            before = turns
+            for i in range(640):
+                await port.send(0x500, i.to_bytes(2, "little"))
+            assert turns - before >= 9  # a loop of sends no longer starves other tasks
+            tg.cancel_scope.cancel()
+        assert [int.from_bytes(m.data, "little") for m in drain(raw_bus)] == list(range(640))
+
+
+# -- SDO answer slot -------------------------------------------------------------------------
+async def test_a_cancelled_sdo_upload_frees_the_slot_and_is_no_timeout(
+    peers: Peers, host_bus: CanBus
+) -> None:
+    sim = await peers.start(SimCia402Drive(4))
+    client = SdoClient(host_bus, 4, timeout=1.0)
+    sim.sdo_silent = True
+    with anyio.move_on_after(0.02) as scope:
+        await client.upload(ds.STATUSWORD.index, 0)
+    assert scope.cancelled_caught
+    sim.sdo_silent = False
+    with anyio.fail_after(1):
+        await client.read(ds.STATUSWORD)
+        assert await client.read(co.ObjectEntry(0x1018, 1, co.DataType.UNSIGNED32)) == 0x0E1A
+    assert client.timeouts == 0 and client.transfers == 3
