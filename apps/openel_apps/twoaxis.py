@@ -228,6 +228,8 @@ async def sim_rig(clock: Clock) -> AsyncIterator[Rig]:
 def rig_for(bus: str) -> RigFactory:
     """The rig of ``--bus``: ``sim`` or ``can`` (ImportError when its driver cannot load)."""
     if bus == "sim":
+        import openel_sim  # noqa: F401  (here, before anything runs, when it cannot load)
+
         return sim_rig
     if bus == "can":
         from .can_rig import can_rig

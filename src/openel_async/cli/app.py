@@ -216,16 +216,16 @@ def find_app(name: str) -> AppInfo:
     return entry.info
 
 
-async def _run_main(info: AppInfo, ctx: AppContext) -> int | AppUnavailable | None:
-    """The app's exit status, or the AppUnavailable it raised (returned, so that no task
-    group wraps it in an ExceptionGroup)."""
+async def _run_main(info: AppInfo, ctx: AppContext) -> int | AppUnavailable | SystemExit | None:
+    """The app's exit status, or the AppUnavailable or SystemExit (its argparse) it raised,
+    returned so that no task group wraps it in an exception group."""
     assert info.main is not None
     try:
         async with AsyncExitStack() as stack:
             for hook in ctx.hooks:
                 await stack.enter_async_context(hook)
             return await info.main(ctx)
-    except AppUnavailable as exc:
+    except (AppUnavailable, SystemExit) as exc:
         return exc
 
 
@@ -241,7 +241,8 @@ def run_app(
 
     SIGINT or SIGTERM cancels the app (its clean-ups run), prints ``summary (<title>,
     interrupted)`` with what the app did so far, and gives 130 or 143; the stderr line is
-    ``<stop_label>: interrupted by ...`` (default ``prog``). :class:`AppUnavailable`
+    ``<stop_label>: interrupted by ...`` (default ``prog``). ``SystemExit`` raised by the app
+    (its argparse: ``--help``, a bad option) gives its code. :class:`AppUnavailable`
     propagates to the caller."""
     if info.profile is not None:
         from ..rtc.runner import run_profile_cli
@@ -251,6 +252,11 @@ def run_app(
     result = anyio.run(run_interruptible, partial(_run_main, info, ctx), backend="asyncio")
     if isinstance(result, AppUnavailable):
         raise result
+    if isinstance(result, SystemExit):  # the app's argparse: --help (0) or a bad option (2)
+        if result.code is None or isinstance(result.code, int):
+            return result.code or 0
+        print(result.code, file=sys.stderr)
+        return 1
     if isinstance(result, Interrupted):
         print(f"\nsummary ({ctx.title or info.name}, interrupted)")
         lines = [*result.lines(), *(ctx.progress() if ctx.progress is not None else [])]

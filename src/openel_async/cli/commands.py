@@ -9,7 +9,8 @@ driver's ``serve``, ``hal4rt exec``) registers a :class:`CliCommand`::
 
 ``parent`` None adds a top-level subcommand (``openel-async serve``); ``"hal4rt"`` adds an
 action under ``openel-async hal4rt``. A contributed command whose package cannot be imported
-is left out of the command line (logged at debug level): the rest works without it.
+is left out of the command line, silently (the parser is built before logging is configured;
+``openel-async devices`` reports a driver that fails to load): the rest works without it.
 """
 
 from __future__ import annotations
@@ -20,11 +21,7 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, TypeAlias
 
-import structlog
-
 __all__ = ["ENTRY_POINT_GROUP", "CliCommand", "discover_commands"]
-
-log = structlog.get_logger(__name__)
 
 ENTRY_POINT_GROUP = "openel_async.commands"
 
@@ -50,13 +47,10 @@ def discover_commands() -> list[CliCommand]:
     for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
         try:
             command = ep.load()
-        except Exception as exc:  # a driver that cannot load contributes nothing
-            log.debug("command_unavailable", command=ep.name, error=repr(exc))
+        except Exception:  # a driver that cannot load contributes nothing
             continue
         if isinstance(command, CliCommand):
             found.append(command)
-        else:
-            log.warning("command_invalid", command=ep.name, reason="not a CliCommand")
     return found
 
 

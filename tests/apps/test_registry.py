@@ -1,0 +1,194 @@
+"""Apps found by name through the ``openel_async.apps`` entry points, run by ``openel-async
+run NAME`` and ``demo``, the hooks of the app interface, and docs/apps.md's examples."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import structlog
+
+from openel_apps import arm2_square, arm6_pick_place, pan_tilt, twoaxis
+from openel_async import ComponentState, VirtualClock
+from openel_async.cli import main
+from openel_async.cli.app import (
+    AppContext,
+    AppHook,
+    AppInfo,
+    AppUnavailable,
+    discover_apps,
+    find_app,
+    run_app,
+)
+from openel_async.component import HALComponent
+from openel_async.timer import EventTimer
+
+ROOT = Path(__file__).resolve().parents[2]
+APPS_DOC = ROOT / "docs" / "apps.md"
+
+
+@pytest.fixture(autouse=True)
+def _reset_logging() -> Iterator[None]:
+    yield
+    structlog.reset_defaults()
+
+
+def _python_blocks(markdown: Path) -> list[str]:
+    return re.findall(r"^```python\n(.*?)^```$", markdown.read_text(), flags=re.M | re.S)
+
+
+def test_every_app_is_registered_with_its_app_info() -> None:
+    entries = {e.name: e for e in discover_apps()}
+    assert entries["arm2"].info is arm2_square.APP_INFO
+    assert entries["arm6"].info is arm6_pick_place.APP_INFO
+    assert entries["twoaxis"].info is twoaxis.APP_INFO
+    assert entries["pantilt"].info is pan_tilt.APP_INFO
+    assert pan_tilt.APP_INFO.profile == ROOT / "apps" / "openel_apps" / "pan_tilt" / "RTC.yaml"
+    assert all(e.error is None for e in entries.values())
+
+
+def test_demo_list_prints_one_line_per_app(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo", "--list"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split()[0] for line in lines] == [e.name for e in discover_apps()]
+    assert any(line.startswith("twoaxis  two axes in step") for line in lines)
+
+
+def test_find_app_names_the_registered_apps() -> None:
+    with pytest.raises(LookupError, match=r"no app named 'arm7' \(registered: arm2, arm6, "):
+        find_app("arm7")
+
+
+def test_run_by_name(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["run", "twoaxis", "--virtual", "--duration", "1", "--no-live"]) == 0
+    out = capsys.readouterr().out
+    assert "summary (simulated devices, openel_sim)" in out
+    assert "timer ticks        100 (missed 0)" in out
+    assert "sensor faults      0" in out
+    assert main(["run", "pantilt", "--virtual", "--duration", "0.2"]) == 0
+    assert "cycles             20" in capsys.readouterr().out
+    assert main(["run", "twoaxis", "--period-ms", "0"]) == 2
+    assert "openel-async run twoaxis: --period-ms must be from 0.1" in capsys.readouterr().err
+    assert main(["run", "nosuchapp"]) == 2
+    assert "no app named 'nosuchapp'" in capsys.readouterr().err
+
+
+def test_run_reports_an_app_that_cannot_load_what_it_needs(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sys
+
+    monkeypatch.setitem(sys.modules, "openel_mujoco", None)
+    assert main(["run", "arm2", "--no-live"]) == 1
+    err = capsys.readouterr().err
+    assert "openel-async run: arm2: MuJoCo is unavailable: ModuleNotFoundError" in err
+
+
+def test_demo_runs_an_app_without_demo_options_only_plain(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert main(["demo", "--app", "pantilt", "--duration", "1"]) == 2
+    assert "app 'pantilt' takes no demo options" in capsys.readouterr().err
+
+
+class Recorder(AppHook):
+    """Everything a hook is told, in order."""
+
+    def __init__(self) -> None:
+        self.events: list[str] = []
+
+    async def __aenter__(self) -> Recorder:
+        self.events.append("enter")
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        self.events.append("exit")
+
+    def clock_set(self, ctx: AppContext, clock: object) -> None:
+        self.events.append(f"clock {type(clock).__name__}")
+
+    def component_added(self, ctx: AppContext, component: HALComponent) -> None:
+        assert component.state is ComponentState.INITIALIZING  # before the app enters it
+        self.events.append(component.device_name)
+
+    def timer_added(self, ctx: AppContext, timer: EventTimer) -> None:
+        assert timer.stats.ticks == 0  # before it starts
+        self.events.append(f"timer {timer.name}")
+
+
+def test_hooks_see_the_clock_components_and_timers_of_an_app() -> None:
+    hook = Recorder()
+    argv = ["--virtual", "--duration", "0.3", "--no-live"]
+    assert run_app(twoaxis.APP_INFO, argv, prog="t", hooks=[hook]) == 0
+    assert hook.events == [
+        "enter",
+        "clock VirtualClock",
+        "MOTOR_1",
+        "MOTOR_2",
+        "ENCODER_1",
+        "TEMP_2",
+        "timer sync",
+        "exit",
+    ]
+
+
+def test_hooks_see_the_arm_apps_components(tmp_path: Path) -> None:
+    hook = Recorder()
+    argv = ["--no-live", "--out", str(tmp_path), "--duration", "4"]
+    assert run_app(arm2_square.APP_INFO, argv, prog="t", hooks=[hook]) == 0
+    assert hook.events == [
+        "enter",
+        "clock LockstepClock",
+        "HalMotorMuJoCoShoulder",
+        "HalMotorMuJoCoElbow",
+        "timer arm2-sync",
+        "HalDistanceMuJoCoTipPos",
+        "exit",
+    ]
+
+
+def test_an_app_unavailable_is_raised_to_the_caller() -> None:
+    async def needs_hardware(ctx: AppContext) -> int:
+        raise AppUnavailable("a robot", "no robot on this desk")
+
+    info = AppInfo("hw", "needs a robot", main=needs_hardware)
+    with pytest.raises(AppUnavailable, match="a robot is unavailable: no robot on this desk"):
+        run_app(info, [], prog="t")
+    with pytest.raises(ValueError, match="exactly one of main and profile"):
+        AppInfo("both", "x", main=needs_hardware, profile=Path("RTC.yaml"))
+    with pytest.raises(ValueError, match="exactly one of main and profile"):
+        AppInfo("none", "x")
+
+
+def test_context_registration_returns_what_it_registers() -> None:
+    ctx = AppContext(["--x"], prog="p")
+    clock = VirtualClock()
+    assert ctx.use_clock(clock) is clock and ctx.clock is clock
+    timer = EventTimer(5, clock=clock)
+    assert ctx.add_timer(timer) is timer and ctx.timers == [timer]
+    assert ctx.argv == ["--x"] and ctx.components == []
+
+
+# -- docs/apps.md ---------------------------------------------------------------------------------
+
+
+def test_the_documented_app_runs_by_path(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    app = next(b for b in _python_blocks(APPS_DOC) if "APP_INFO = AppInfo(" in b)
+    path = tmp_path / "hello_axis.py"
+    path.write_text(app)
+    assert main(["run", str(path), "--target", "0.5"]) == 0
+    out = capsys.readouterr().out
+    assert f"openel-async run {path}: back at +0.000 rad after " in out
+    assert main(["run", str(path), "--target", "x"]) == 2  # argparse refuses
+
+
+def test_the_documented_hook_runs() -> None:
+    block = next(b for b in _python_blocks(APPS_DOC) if "class Census(AppHook)" in b)
+    namespace: dict[str, object] = {"__name__": "docs_apps_census"}
+    exec(compile(block, "docs/apps.md", "exec"), namespace)
+    census = namespace["census"]
+    assert isinstance(census, AppHook)
