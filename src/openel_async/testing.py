@@ -3,8 +3,9 @@
 Any project that installs openel-async gets these fixtures:
 
 - ``virtual_clock``: a :class:`VirtualClock` with auto-jump running;
-- ``hal_components``: enters any component you build, on the virtual clock, and
-  finalizes it at the end of the test;
+- ``hal_components``: enters any component you build, on the virtual clock, in a task
+  of its own (so the test's cancel scopes never interleave with it), and finalizes it at
+  the end of the test;
 - ``hal_events``: an :class:`EventRecorder`.
 
 The simulated devices (``sim_motor``, ``sim_actuator``, ``sim_encoder``, ``sim_imu``) come
