@@ -279,9 +279,9 @@ class VirtualClock:
 
     async def _drive(self) -> None:
         loop = asyncio.get_running_loop()
-        wait_idle = _idle_detector(loop).wait
+        detector = _idle_detector(loop)
         while True:
-            await wait_idle()
+            await detector.wait(loop)
             if self.next_deadline() is None:
                 self._new_sleeper = loop.create_future()
                 try:
@@ -328,13 +328,13 @@ class _IdleDetector:
     only once everything the head woke has run.
     """
 
-    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
-        self._loop = loop
+    def __init__(self) -> None:
+        # No reference to the loop: the detector is the value of a weak mapping keyed by it.
         self._queue: deque[asyncio.Future[None]] = deque()
 
-    async def wait(self) -> None:
+    async def wait(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Wait for an idle moment of ``loop``, the running loop."""
         queue = self._queue
-        loop = self._loop
         turn = loop.create_future()
         queue.append(turn)
         try:
@@ -369,11 +369,12 @@ async def wait_idle() -> None:
     one woke has run. Needs asyncio (it reads the loop's ready queue; a loop that does
     not expose it gets a bounded number of yields instead).
     """
-    await _idle_detector(asyncio.get_running_loop()).wait()
+    loop = asyncio.get_running_loop()
+    await _idle_detector(loop).wait(loop)
 
 
 def _idle_detector(loop: asyncio.AbstractEventLoop) -> _IdleDetector:
     detector = _IDLE_DETECTORS.get(loop)
     if detector is None:
-        detector = _IDLE_DETECTORS[loop] = _IdleDetector(loop)
+        detector = _IDLE_DETECTORS[loop] = _IdleDetector()
     return detector

@@ -7,6 +7,8 @@ busy settle loop (each waiter's yield kept the other runnable) fails instead of 
 from __future__ import annotations
 
 import asyncio
+import gc
+import weakref
 
 import anyio
 import anyio.lowlevel
@@ -259,3 +261,21 @@ async def test_a_cancelled_wait_idle_passes_its_turn_on() -> None:
                 tg.start_soon(waiter, name)
             tg.start_soon(busy)
     assert order == ["w3"]
+
+
+def test_the_idle_detector_does_not_keep_its_loop_alive() -> None:
+    async def main() -> None:
+        clock = VirtualClock()
+        async with clock.autojump():
+            await clock.sleep(1)
+        await wait_idle()
+
+    loop = asyncio.new_event_loop()
+    try:
+        loop.run_until_complete(main())
+    finally:
+        loop.close()
+    ref = weakref.ref(loop)
+    del loop
+    gc.collect()
+    assert ref() is None
