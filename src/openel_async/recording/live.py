@@ -1,0 +1,92 @@
+"""The live view: the tap's messages published by the Foxglove SDK's WebSocket server, on
+the same channels and schemas as the recorder, so that a live session and a recording look the
+same in Foxglove.
+
+The server binds to 127.0.0.1 by default (``host="0.0.0.0"`` to be reached from elsewhere).
+Open https://app.foxglove.dev (or Foxglove desktop), "Open connection", Foxglove WebSocket,
+``ws://127.0.0.1:8765``, then import the layout :data:`LAYOUT_PATH` (docs/recording.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import foxglove
+import structlog
+
+from .pipeline import PipelineStats, Sink
+from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, ChannelSpec
+from .tap import Tap
+
+__all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "LAYOUT_PATH", "FoxgloveSink", "LiveView"]
+
+log = structlog.get_logger(__name__)
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8765
+LAYOUT_PATH = Path(__file__).with_name("foxglove_layout.json")
+"""The Foxglove layout shipped for the demos (joint plots, 3D, log, raw messages)."""
+
+
+class FoxgloveSink:
+    """Publishes to a Foxglove WebSocket server started here (``port=0``: any free port,
+    see :attr:`port`)."""
+
+    def __init__(
+        self, *, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, name: str = "openel-async"
+    ) -> None:
+        self.context = foxglove.Context()
+        self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context)
+        self.host = host
+        self.port: int = self.server.port
+        self._channels: dict[int, Any] = {}
+        log.info("foxglove_server_started", url=f"ws://{host}:{self.port}")
+
+    def add_channel(self, channel: ChannelSpec) -> None:
+        schema = foxglove.Schema(
+            name=channel.schema.name, encoding=SCHEMA_ENCODING, data=channel.schema.data
+        )
+        self._channels[channel.id] = foxglove.Channel(
+            channel.topic,
+            schema=schema,
+            message_encoding=MESSAGE_ENCODING,
+            context=self.context,
+            metadata=channel.metadata,
+        )
+
+    def write(self, channel: ChannelSpec, log_time_ns: int, data: bytes) -> None:
+        self._channels[channel.id].log(data, log_time=log_time_ns)
+
+    def flush(self) -> None:
+        pass
+
+    def close(self, stats: PipelineStats) -> None:
+        for channel in self._channels.values():
+            channel.close()
+        self.server.stop()
+
+
+class LiveView(Tap):
+    """A :class:`~.tap.Tap` publishing live through a :class:`FoxgloveSink` (and to
+    ``also``, e.g. a recorder's MCAP sink)."""
+
+    def __init__(
+        self,
+        *,
+        host: str = DEFAULT_HOST,
+        port: int = DEFAULT_PORT,
+        also: Sequence[Sink] = (),
+        joint_period_ms: float = 20.0,
+        capacity: int = 100_000,
+        logs: bool = True,
+    ) -> None:
+        self.sink = FoxgloveSink(host=host, port=port)
+        super().__init__(
+            [self.sink, *also], joint_period_ms=joint_period_ms, capacity=capacity, logs=logs
+        )
+
+    @property
+    def url(self) -> str:
+        return f"ws://{self.sink.host}:{self.sink.port}"

@@ -1,0 +1,111 @@
+"""A 3D scene for the live view and the recorder: body poses as frame transforms and their
+geometry as primitives, handed over by whoever knows the bodies (a MuJoCo rig's driver module
+``openel_mujoco.foxglove_scene``); the framework never imports a driver.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, Literal, Protocol
+
+from .schemas import stamp
+
+__all__ = ["Primitive", "SceneSource", "Transform", "scene_message", "transforms_message"]
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+"""(x, y, z, w)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Transform:
+    """The pose of frame ``child`` in frame ``parent``."""
+
+    parent: str
+    child: str
+    translation: Vec3
+    rotation: Quat
+
+
+@dataclass(frozen=True, slots=True)
+class Primitive:
+    """A shape fixed to the frame ``frame``: a cube (size = edge lengths), a sphere (size =
+    diameters) or a cylinder along z (size = x/y diameters and height)."""
+
+    shape: Literal["cube", "sphere", "cylinder"]
+    frame: str
+    position: Vec3
+    orientation: Quat
+    size: Vec3
+    color: tuple[float, float, float, float]
+
+
+class SceneSource(Protocol):
+    """What a rig offers the live view and the recorder."""
+
+    def transforms(self) -> Sequence[Transform]:
+        """The current pose of every body (called at the joint-state rate, in the control
+        loop's task: it must be cheap)."""
+        ...
+
+    def primitives(self) -> Sequence[Primitive]:
+        """The geometry, in the bodies' frames (called once)."""
+        ...
+
+
+def _xyz(v: Vec3) -> dict[str, float]:
+    return {"x": v[0], "y": v[1], "z": v[2]}
+
+
+def _quat(q: Quat) -> dict[str, float]:
+    return {"x": q[0], "y": q[1], "z": q[2], "w": q[3]}
+
+
+def transforms_message(transforms: Sequence[Transform], time_ns: int) -> dict[str, Any]:
+    """A ``foxglove.FrameTransforms`` message."""
+    ts = stamp(time_ns)
+    return {
+        "transforms": [
+            {
+                "timestamp": ts,
+                "parent_frame_id": t.parent,
+                "child_frame_id": t.child,
+                "translation": _xyz(t.translation),
+                "rotation": _quat(t.rotation),
+            }
+            for t in transforms
+        ]
+    }
+
+
+def scene_message(primitives: Sequence[Primitive], time_ns: int) -> dict[str, Any]:
+    """A ``foxglove.SceneUpdate`` message: one entity per frame, locked to it."""
+    ts = stamp(time_ns)
+    entities: dict[str, dict[str, Any]] = {}
+    for p in primitives:
+        entity = entities.setdefault(
+            p.frame,
+            {
+                "timestamp": ts,
+                "frame_id": p.frame,
+                "id": p.frame,
+                "lifetime": {"sec": 0, "nsec": 0},
+                "frame_locked": True,
+                "metadata": [],
+                "cubes": [],
+                "spheres": [],
+                "cylinders": [],
+            },
+        )
+        r, g, b, a = p.color
+        item: dict[str, Any] = {
+            "pose": {"position": _xyz(p.position), "orientation": _quat(p.orientation)},
+            "size": _xyz(p.size),
+            "color": {"r": r, "g": g, "b": b, "a": a},
+        }
+        if p.shape == "cylinder":
+            item["bottom_scale"] = item["top_scale"] = 1.0
+        entities[p.frame][f"{p.shape}s"].append(item)
+        del entity
+    return {"deletions": [], "entities": list(entities.values())}

@@ -1,0 +1,359 @@
+"""The tap: what the recorder and the live view attach to an application's components and
+timers. It turns every command, reading, event, completion, error, state change and timer
+tick into a message of :mod:`.schemas` and queues it on a :class:`~.pipeline.Pipeline`, whose
+thread hands it to the sinks. Nothing here blocks or raises into the control loop.
+
+A :class:`Tap` is an :class:`~openel_async.cli.app.AppHook` (``--record``/``--foxglove``
+attach it to any app) and can be used directly::
+
+    async with Recorder("run.mcap") as rec:
+        rec.observe(actuator)          # before or after entering it
+        rec.observe_timer(timer)
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+from collections.abc import Sequence
+from types import TracebackType
+from typing import Any
+
+import anyio
+import structlog
+
+from ..actuator import Actuator
+from ..cli.app import AppContext, AppHook
+from ..clock import Clock
+from ..component import ComponentState, HALComponent
+from ..errors import HALError
+from ..observers import TimerTick
+from ..requests import EventId, Request
+from ..timer import EventTimer
+from .pipeline import Pipeline, PipelineStats, Sink
+from .scene import SceneSource, scene_message, transforms_message
+from .schemas import (
+    FRAME_TRANSFORMS,
+    HAL_RECORD,
+    JOINT_STATES,
+    JOINT_STATES_TOPIC,
+    LOG,
+    LOG_TOPIC,
+    SCENE_TOPIC,
+    SCENE_UPDATE,
+    TF_TOPIC,
+    TIMER_TICK,
+    hal_topic,
+    stamp,
+    timer_topic,
+)
+
+__all__ = ["Tap"]
+
+log = structlog.get_logger(__name__)
+
+_ACTIVE = ComponentState.ACTIVE
+_COMPLETED = int(EventId.COMPLETED)
+_LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "critical": 5}
+
+
+class Tap(AppHook):
+    """Observe components and timers into ``sinks`` (see the module docstring).
+
+    ``joint_period_ms``: the period of ``/joint_states`` (and ``/tf``) samples, taken at the
+    observed timers' ticks, on the app's clock. ``capacity``: messages the queue holds before
+    it drops (counted in :attr:`stats`). ``logs``: forward log lines (info and above) to
+    ``/log``."""
+
+    def __init__(
+        self,
+        sinks: Sequence[Sink],
+        *,
+        joint_period_ms: float = 10.0,
+        capacity: int = 100_000,
+        logs: bool = True,
+    ) -> None:
+        if not joint_period_ms > 0:
+            raise ValueError(f"joint_period_ms must be > 0, got {joint_period_ms}")
+        self.pipeline = Pipeline(sinks, capacity=capacity)
+        self.joint_period_ns = round(joint_period_ms * 1e6)
+        self._logs = logs
+        self._offset: int | None = None
+        self._clock: Clock | None = None
+        self._channels: dict[int, int] = {}  # id(component or timer) -> channel
+        self._components: list[HALComponent] = []
+        self._observing: set[int] = set()
+        self._timers: list[EventTimer] = []
+        self._actuators: list[Actuator] = []
+        self._scenes: list[SceneSource] = []
+        self._next_joint_ns = 0
+        self._sampling = False
+        self._joint_channel = -1
+        self._log_channel = -1
+        self._tf_channel = -1
+        self._scene_channel = -1
+        self._processors: list[Any] | None = None
+        self._entered = False
+        self.final_stats: PipelineStats | None = None
+
+    # -- lifetime --------------------------------------------------------------------
+    async def __aenter__(self) -> Tap:
+        if self._entered:
+            raise RuntimeError("a Tap is entered once")
+        self._entered = True
+        self.pipeline.start()
+        self._log_channel = self.pipeline.add_channel(LOG_TOPIC, LOG)
+        if self._logs:
+            self._install_log_forwarder()
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self._remove_log_forwarder()
+        for component in self._components:
+            if component.listener is self:
+                component.set_listener(None)
+        for timer in self._timers:
+            with contextlib.suppress(Exception):  # already gone
+                timer.remove_observer(self)
+        with anyio.CancelScope(shield=True):
+            stats = await anyio.to_thread.run_sync(self.pipeline.stop)
+        self.final_stats = stats
+        if stats.dropped:
+            log.warning("recording_dropped", dropped=stats.dropped, capacity=stats.capacity)
+
+    @property
+    def stats(self) -> PipelineStats:
+        """Messages queued, written and dropped so far."""
+        return self.pipeline.stats
+
+    # -- time ------------------------------------------------------------------------
+    def _use_clock(self, clock: Clock) -> None:
+        if self._offset is None:
+            self._clock = clock
+            self._offset = time.time_ns() - clock.now_ns()
+
+    def _log_time(self, time_ns: int) -> int:
+        return time_ns + (self._offset or 0)
+
+    # -- AppHook ---------------------------------------------------------------------
+    def clock_set(self, ctx: AppContext, clock: Clock) -> None:
+        self._use_clock(clock)
+
+    def component_added(self, ctx: AppContext, component: HALComponent) -> None:
+        self.observe(component)
+
+    def timer_added(self, ctx: AppContext, timer: EventTimer) -> None:
+        self.observe_timer(timer)
+
+    def scene_added(self, ctx: AppContext, source: SceneSource) -> None:
+        self.add_scene(source)
+
+    # -- what to observe -------------------------------------------------------------
+    def observe(self, component: HALComponent) -> None:
+        """Record ``component``: its channel ``/hal/<name>``; its commands, readings and
+        state changes from now on, its events and errors once it is Active."""
+        if id(component) in self._channels:
+            return
+        self._use_clock(component.clock)
+        device = component.device
+        limits = getattr(device, "limits", None)
+        metadata = {
+            "component": component.device_name,
+            "kind": "actuator" if isinstance(component, Actuator) else "sensor",
+            "device": str(getattr(device, "name", "") or type(device).__name__),
+            "device_class": f"{type(device).__module__}.{type(device).__qualname__}",
+        }
+        if limits is not None:
+            low, high = limits.position
+            metadata.update(
+                position_min=repr(low), position_max=repr(high), velocity_max=repr(limits.velocity)
+            )
+        self._channels[id(component)] = self.pipeline.add_channel(
+            hal_topic(component.device_name), HAL_RECORD, metadata
+        )
+        self._components.append(component)
+        if isinstance(component, Actuator):
+            self._actuators.append(component)
+            if self._joint_channel < 0:
+                self._joint_channel = self.pipeline.add_channel(JOINT_STATES_TOPIC, JOINT_STATES)
+        component.set_listener(self)
+        if component.state is _ACTIVE:
+            self._observe_events(component)
+
+    def _observe_events(self, component: HALComponent) -> None:
+        if id(component) not in self._observing:
+            self._observing.add(id(component))
+            component.add_observer(self)
+
+    def observe_timer(self, timer: EventTimer) -> None:
+        """Record ``timer``'s ticks (``/timer/<name>``); its ticks also pace the joint
+        states and transforms."""
+        if id(timer) in self._channels:
+            return
+        self._use_clock(timer.clock)
+        self._channels[id(timer)] = self.pipeline.add_channel(
+            timer_topic(timer.name), TIMER_TICK, {"period_ms": repr(timer.period_ms)}
+        )
+        self._timers.append(timer)
+        timer.add_observer(self)
+
+    def add_scene(self, source: SceneSource) -> None:
+        """Publish ``source``'s geometry on ``/scene`` now and its body poses on ``/tf`` at
+        every joint-state sample."""
+        if self._tf_channel < 0:
+            self._tf_channel = self.pipeline.add_channel(TF_TOPIC, FRAME_TRANSFORMS)
+            self._scene_channel = self.pipeline.add_channel(SCENE_TOPIC, SCENE_UPDATE)
+        self._scenes.append(source)
+        now = self._clock.now_ns() if self._clock is not None else 0
+        log_time = self._log_time(now)
+        self.pipeline.put(self._scene_channel, log_time, scene_message(source.primitives(), now))
+        self.pipeline.put(self._tf_channel, log_time, transforms_message(source.transforms(), now))
+
+    # -- ComponentListener -------------------------------------------------------------
+    def on_command(
+        self, component: HALComponent, request: Request, value: float, time_ns: int
+    ) -> None:
+        self.pipeline.put(
+            self._channels[id(component)],
+            time_ns + (self._offset or 0),
+            {"kind": "command", "time_ns": time_ns, "request": request.name, "value": value},
+        )
+
+    def on_reading(
+        self, component: HALComponent, request: Request | None, values: tuple[float, ...]
+    ) -> None:
+        if self._sampling:  # the tap's own joint-state reads
+            return
+        now = component.clock.now_ns()
+        self.pipeline.put(
+            self._channels[id(component)],
+            now + (self._offset or 0),
+            {
+                "kind": "reading",
+                "time_ns": now,
+                "request": "VALUE" if request is None else request.name,
+                "value": values[0] if values else None,
+                "values": values,
+            },
+        )
+
+    def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
+        now = component.clock.now_ns()
+        self.pipeline.put(
+            self._channels[id(component)],
+            self._log_time(now),
+            {"kind": "state", "time_ns": now, "state": str(new), "old_state": str(old)},
+        )
+        if new is _ACTIVE:
+            self._observe_events(component)
+
+    # -- observers ---------------------------------------------------------------------
+    def notify_event(self, source: HALComponent, event_id: int) -> None:
+        now = source.clock.now_ns()
+        kind = "completion" if event_id == _COMPLETED else "event"
+        self.pipeline.put(
+            self._channels[id(source)],
+            self._log_time(now),
+            {"kind": kind, "time_ns": now, "id": event_id},
+        )
+
+    def notify_error(self, source: HALComponent, error_id: int) -> None:
+        now = source.clock.now_ns()
+        self.pipeline.put(
+            self._channels[id(source)],
+            self._log_time(now),
+            {"kind": "error", "time_ns": now, "id": error_id},
+        )
+
+    def notify_timer(self, timer: EventTimer, tick: TimerTick | None = None) -> None:
+        if tick is None:  # (the timer always passes it: the tap takes the notice)
+            return
+        now = tick.time_ns
+        offset = self._offset or 0
+        self.pipeline.put(
+            self._channels[id(timer)],
+            now + offset,
+            {
+                "time_ns": now,
+                "index": tick.index,
+                "deadline_ns": tick.deadline_ns,
+                "lateness_ns": now - tick.deadline_ns,
+                "missed_ticks": tick.missed_ticks,
+            },
+        )
+        if now >= self._next_joint_ns:
+            self._next_joint_ns = now + self.joint_period_ns
+            self._sample(now, now + offset)
+
+    def _sample(self, now: int, log_time: int) -> None:
+        """``/joint_states`` (and ``/tf``) at ``now``."""
+        if self._actuators:
+            joints = []
+            self._sampling = True
+            try:
+                for actuator in self._actuators:
+                    if actuator.state is not _ACTIVE:
+                        continue
+                    commanded = actuator.get_value_nowait(Request.POSITION)
+                    try:
+                        actual: float | None = actuator.get_value_nowait(Request.POSITION_ACTUAL)
+                    except HALError:  # no synchronous read path, or a fault
+                        actual = None
+                    joints.append(
+                        {"name": actuator.device_name, "commanded": commanded, "position": actual}
+                    )
+            finally:
+                self._sampling = False
+            self.pipeline.put(
+                self._joint_channel,
+                log_time,
+                {"timestamp": stamp(log_time), "time_ns": now, "joints": joints},
+            )
+        for source in self._scenes:
+            self.pipeline.put(
+                self._tf_channel, log_time, transforms_message(source.transforms(), now)
+            )
+
+    # -- log lines -------------------------------------------------------------------
+    def _install_log_forwarder(self) -> None:
+        config = structlog.get_config()
+        processors = list(config.get("processors", ()))
+        self._processors = processors
+        position = max(len(processors) - 1, 0)  # before the renderer
+        structlog.configure(
+            processors=[*processors[:position], self._forward, *processors[position:]]
+        )
+
+    def _remove_log_forwarder(self) -> None:
+        if self._processors is not None:
+            structlog.configure(processors=self._processors)
+            self._processors = None
+
+    def _forward(self, logger: Any, method_name: str, event_dict: Any) -> Any:
+        level = _LOG_LEVELS.get(method_name, 2)
+        if level >= 2:
+            now = self._clock.now_ns() if self._clock is not None else time.monotonic_ns()
+            log_time = self._log_time(now)
+            fields = " ".join(
+                f"{k}={v}"
+                for k, v in event_dict.items()
+                if k not in ("event", "timestamp", "level")
+            )
+            self.pipeline.put(
+                self._log_channel,
+                log_time,
+                {
+                    "timestamp": stamp(log_time),
+                    "level": level,
+                    "message": f"{event_dict.get('event', '')} {fields}".strip(),
+                    "name": str(event_dict.get("logger", event_dict.get("component", ""))),
+                    "file": "",
+                    "line": 0,
+                },
+            )
+        return event_dict
