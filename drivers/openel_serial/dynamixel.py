@@ -24,6 +24,8 @@ from dataclasses import dataclass
 from enum import IntEnum, IntFlag
 from typing import Final, TypeAlias
 
+from fastcrc.crc16 import umts as _umts
+
 from openel_serial.errors import DynamixelCrcError, DynamixelDecodeError
 
 __all__ = [
@@ -89,7 +91,12 @@ BROADCAST_ID: Final = 0xFE
 MAX_ID: Final = 0xFC  # 253 (0xFD) and 255 (0xFF) would clash with the header bytes
 _PREFIX_LEN: Final = 7  # header + id + length
 _CRC_LEN: Final = 2
+_HEADER_LEN: Final = 4
+_STATUS_OVERHEAD: Final = 11  # header 4, id, length 2, instruction, error, CRC 2
+_STATUS_LAYOUT_CACHE: Final = 32
+_STATUS_LAYOUTS: dict[int, struct.Struct] = {}
 _STUFF_PATTERN: Final = b"\xff\xff\xfd"
+_STATUS: Final = 0x55  # Instruction.STATUS as a plain int (fast comparison)
 
 
 class Instruction(IntEnum):
@@ -135,28 +142,13 @@ class FactoryResetMode(IntEnum):
 # --- CRC and stuffing ----------------------------------------------------------------------
 
 
-def _crc_table() -> tuple[int, ...]:
-    table = []
-    for i in range(256):
-        crc = i << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x8005 if crc & 0x8000 else crc << 1) & 0xFFFF
-        table.append(crc)
-    return tuple(table)
-
-
-_CRC_TABLE: Final = _crc_table()
-
-
 def crc16(data: bytes | bytearray | memoryview, crc: int = 0) -> int:
     """ROBOTIS ``update_crc``: CRC-16 poly 0x8005, MSB first, initial value ``crc``.
 
-    Table-driven, one lookup per byte (about 17 MB/s in CPython).
+    This is CRC-16/UMTS (no reflection, no final xor), computed by ``fastcrc`` (Rust):
+    about 0.06 µs for a status packet where a pure-Python table loop takes 1 µs.
     """
-    table = _CRC_TABLE
-    for byte in data:
-        crc = ((crc & 0xFF) << 8) ^ table[(crc >> 8) ^ byte]
-    return crc
+    return _umts(data, crc)
 
 
 def stuff(data: bytes) -> bytes:
@@ -653,59 +645,161 @@ class PacketParser:
 
     def feed(self, data: bytes) -> list[DynamixelMessage]:
         """The packets completed by ``data``, in stream order."""
-        return [msg for msg in self._parse(data) if not isinstance(msg, CorruptPacket)]
+        return self._parse(data, False)  # type: ignore[return-value]  # no CorruptPacket
+
+    def feed_statuses(self, data: bytes, param_length: int) -> list[DynamixelMessage]:
+        """:meth:`feed` for a stream expected to hold statuses of ``param_length`` params.
+
+        The same packets and counters as :meth:`feed`; faster when ``data`` starts
+        (with nothing buffered) with such statuses back to back, as the replies to a
+        SYNC READ do: those are checked and decoded in bulk, without byte stuffing
+        (a stuffed packet, or anything else, goes through :meth:`feed`).
+        """
+        size = _STATUS_OVERHEAD + param_length
+        count = len(data) // size
+        if self._buf or not count or param_length + 4 > self.max_length:
+            return self._parse(data, False)  # type: ignore[return-value]  # no CorruptPacket
+        whole = count * size
+        chunk = data[:whole] if type(data) is bytes else bytes(data[:whole])
+        # Exactly one FF FF FD per packet (its header): no stuffing, no inner header.
+        if chunk.count(_STUFF_PATTERN) != count:
+            return self._parse(data, False)  # type: ignore[return-value]
+        layout = _STATUS_LAYOUTS.get(param_length)
+        if layout is None:
+            layout = struct.Struct(f"<4sBHBB{param_length}sH")
+            if len(_STATUS_LAYOUTS) < _STATUS_LAYOUT_CACHE:
+                _STATUS_LAYOUTS[param_length] = layout
+        wire_length = param_length + 4  # instruction, error, params, CRC
+        body = size - _CRC_LEN
+        new = object.__new__
+        out: list[DynamixelMessage] = []
+        j = 0
+        for header, dxl_id, length, instruction, error, params, crc in layout.iter_unpack(chunk):
+            if (
+                header != HEADER
+                or length != wire_length
+                or instruction != _STATUS
+                or (dxl_id > MAX_ID and dxl_id != BROADCAST_ID)
+                or _umts(chunk[j : j + body]) != crc
+            ):
+                return self._parse(data, False)  # type: ignore[return-value]
+            msg = new(Status)
+            msg.__dict__.update(id=dxl_id, error=error, params=params)
+            out.append(msg)
+            j += size
+        self.packets += count
+        if whole < len(data):
+            out += self._parse(data[whole:], False)  # type: ignore[arg-type]
+        return out
 
     def feed_all(self, data: bytes) -> list[DynamixelMessage | CorruptPacket]:
         """Like :meth:`feed`, with a :class:`CorruptPacket` where a CRC did not match."""
-        return self._parse(data)
+        return self._parse(data, True)
 
-    def _parse(self, data: bytes) -> list[DynamixelMessage | CorruptPacket]:
-        buf = self._buf
-        buf += data
+    def _parse(self, data: bytes, corrupt: bool) -> list[DynamixelMessage | CorruptPacket]:
+        # Works on one bytes object with a read offset ``i`` (no per-packet buffer
+        # shifting); what is left after the last complete packet is kept in ``_buf``.
+        if self._buf:
+            self._buf += data
+            buf = bytes(self._buf)
+        else:
+            buf = data if type(data) is bytes else bytes(data)
+        n = len(buf)
+        i = 0  # first byte neither delivered nor dropped
+        scanned = self._scanned
+        dropped = 0
+        max_length = self.max_length
+        find = buf.find
         out: list[DynamixelMessage | CorruptPacket] = []
         while True:
-            start = buf.find(HEADER)
+            start = find(HEADER, i)
             if start < 0:
                 # Keep a tail that may be the start of a header split across reads.
-                keep = next((n for n in (3, 2, 1) if buf.endswith(HEADER[:n])), 0)
-                if len(buf) > keep:
-                    self._drop(len(buf) - keep)
-                return out
-            if start:
-                self._drop(start)
-            if len(buf) < _PREFIX_LEN:
-                return out
-            length = buf[5] | buf[6] << 8
-            if not 3 <= length <= self.max_length:
+                keep = next((k for k in (3, 2, 1) if buf.endswith(HEADER[:k], i)), 0)
+                if n - keep > i:
+                    dropped += n - keep - i
+                    i = n - keep
+                    scanned = 1
+                break
+            if start > i:
+                dropped += start - i
+                i = start
+                scanned = 1
+            if n - i < _PREFIX_LEN:
+                break
+            length = buf[i + 5] | buf[i + 6] << 8
+            if not 3 <= length <= max_length:
                 self.length_errors += 1
-                self._drop(len(HEADER))
+                dropped += _HEADER_LEN
+                i += _HEADER_LEN
+                scanned = 1
                 continue
             total = _PREFIX_LEN + length
             # A header starting at 1..total-5 lies wholly before the packet's last 4 bytes.
-            end = min(total - 1, len(buf))
-            if buf.find(HEADER, self._scanned, end) >= 0:
+            end = i + total - 1
+            if end > n:
+                end = n
+            if find(HEADER, i + scanned, end) >= 0:
                 self.interrupted += 1
-                self._drop(len(HEADER))
+                dropped += _HEADER_LEN
+                i += _HEADER_LEN
+                scanned = 1
                 continue
-            if len(buf) < total:
-                self._scanned = max(1, end - len(HEADER) + 1)
-                return out
-            packet = bytes(buf[:total])
-            if crc16(packet[:-_CRC_LEN]) != packet[-2] | packet[-1] << 8:
+            if n - i < total:
+                scanned = max(1, end - i - _HEADER_LEN + 1)
+                break
+            body_end = i + total - _CRC_LEN
+            if _umts(buf[i:body_end]) != buf[body_end] | buf[body_end + 1] << 8:
                 self.crc_errors += 1
-                out.append(CorruptPacket(packet[4], packet[7], length))
-                self._drop(len(HEADER))
+                if corrupt:
+                    out.append(CorruptPacket(buf[i + 4], buf[i + 7], length))
+                dropped += _HEADER_LEN
+                i += _HEADER_LEN
+                scanned = 1
                 continue
-            try:
-                msg = _decode_checked(packet)
-            except DynamixelDecodeError:
-                self.malformed += 1
-                self._drop(total)
-                continue
-            del buf[:total]
-            self._scanned = 1
+            msg: DynamixelMessage
+            dxl_id = buf[i + 4]
+            if (
+                buf[i + 7] == _STATUS
+                and length >= 4
+                and (dxl_id <= MAX_ID or dxl_id == BROADCAST_ID)
+                and find(_STUFF_PATTERN, i + _PREFIX_LEN, body_end) < 0
+            ):
+                # Fast path (every status a SYNC READ brings): no stuffing to undo, id
+                # valid, error byte present: the checks of _decode_checked all pass.
+                msg = _wire_status(dxl_id, buf[i + 8], buf[i + 9 : body_end])
+            else:
+                try:
+                    msg = _decode_checked(buf[i : i + total])
+                except DynamixelDecodeError:
+                    self.malformed += 1
+                    dropped += total
+                    i += total
+                    scanned = 1
+                    continue
+            i += total
+            scanned = 1
             self.packets += 1
             out.append(msg)
+        if dropped:
+            self.dropped_bytes += dropped
+        self._scanned = scanned
+        if i < n:
+            self._buf = bytearray(buf[i:])
+        elif self._buf:
+            self._buf = bytearray()
+        return out
+
+
+def _wire_status(dxl_id: int, error: int, params: bytes) -> Status:
+    """A :class:`Status` from fields already checked on the wire (id valid, error a byte).
+
+    Equal to ``Status(dxl_id, error, params)``; skips the dataclass ``__init__`` and its
+    validation, which cost more than the rest of the parse of a status.
+    """
+    msg = object.__new__(Status)
+    msg.__dict__.update(id=dxl_id, error=error, params=params)
+    return msg
 
 
 # --- X-series control table and units ------------------------------------------------------

@@ -7,11 +7,18 @@ transport reads whenever the fd is readable and passes the bytes to ``on_data`` 
 event loop's thread, with no task of ours in between. A read error or EOF (an
 unplugged USB adapter, a closed pty master) ends the transport; ``on_lost`` is then
 called once with the reason. Writes are buffered by the transport and never block.
+
+Hot path: for a port with a file descriptor (every POSIX tty), the transport reads and
+writes that descriptor with ``os.read``/``os.write`` itself (:class:`FdSerialTransport`)
+instead of through ``serial.Serial.read``/``write``, whose ``select`` call and timeout
+objects cost about 7 µs per request/reply on top of the system calls; errors and
+end of file end the transport exactly as pyserial's own messages would.
 """
 
 from __future__ import annotations
 
 import asyncio
+import os
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -23,12 +30,78 @@ import structlog
 
 from openel_serial.errors import PortDisconnectedError
 
-__all__ = ["SerialLink"]
+__all__ = ["FdSerialTransport", "SerialLink"]
 
 log = structlog.get_logger(__name__)
 
 CLOSE_TIMEOUT_S = 2.0
 """Bound on waiting for the transport to close the port (a worker thread does it)."""
+
+
+class FdSerialTransport(serial_asyncio_fast.SerialTransport):
+    """pyserial-asyncio-fast's transport, reading and writing the port's fd directly.
+
+    Only the two I/O primitives differ from the base class (buffering, flow control,
+    closing and ``connection_lost`` are its own): a read error raises the transport's
+    ``SerialException("read failed: ...")``, end of file
+    ``SerialException("device reports readiness to read but returned no data ...")``,
+    a write error ``SerialException("write failed: ...")``, like pyserial's.
+    """
+
+    def __init__(
+        self,
+        loop: asyncio.AbstractEventLoop,
+        protocol: asyncio.Protocol,
+        serial_instance: serial.Serial,
+    ) -> None:
+        super().__init__(loop, protocol, serial_instance)
+        self._fd: int = serial_instance.fileno()
+
+    def _read_ready(self) -> None:
+        try:
+            data = os.read(self._fd, self._max_read_size)
+        except (BlockingIOError, InterruptedError):
+            return  # spurious wake-up
+        except OSError as exc:
+            self._close(exc=serial.SerialException(f"read failed: {exc}"))
+            return
+        if not data:
+            self._close(
+                exc=serial.SerialException(
+                    "device reports readiness to read but returned no data "
+                    "(device disconnected or multiple access on port?)"
+                )
+            )
+            return
+        self._protocol.data_received(data)
+
+    def _write_data(self, data: bytes | bytearray | memoryview) -> None:
+        try:
+            written = os.write(self._fd, data)
+        except (BlockingIOError, InterruptedError):
+            written = 0
+        except OSError as exc:
+            error = serial.SerialException(f"write failed: {exc}")
+            self._fatal_error(error, "Fatal write error on serial transport")
+            return
+        if written == len(data):
+            if self._closing:
+                self._close()
+            return
+        self._write_buffer.append(data[written:])  # the rest when the fd is writable
+        self._maybe_pause_protocol()
+        self._ensure_writer()
+
+
+def _transport_for(
+    loop: asyncio.AbstractEventLoop, protocol: asyncio.Protocol, port: serial.Serial
+) -> serial_asyncio_fast.SerialTransport:
+    """The fd transport for a port with a file descriptor, else the library's own."""
+    try:
+        port.fileno()
+    except (AttributeError, OSError, ValueError, serial.SerialException):
+        return serial_asyncio_fast.SerialTransport(loop, protocol, port)
+    return FdSerialTransport(loop, protocol, port)
 
 
 class _Protocol(asyncio.Protocol):
@@ -96,9 +169,7 @@ class SerialLink:
         generation = self._generation
         closed = anyio.Event()
         loop = asyncio.get_running_loop()
-        transport, _ = await serial_asyncio_fast.connection_for_serial(
-            loop, lambda: _Protocol(self, generation, closed), port
-        )
+        transport = _transport_for(loop, _Protocol(self, generation, closed), port)
         self._transport = transport
         self._closed = closed
         self.lost_reason = None

@@ -35,6 +35,7 @@ whose component goes to Error (``ErrorId.DISCONNECTED``, ``HAL_NO_CONNECTED``);
 
 from __future__ import annotations
 
+import asyncio
 import math
 import struct
 from collections.abc import Callable, Mapping, Sequence
@@ -82,6 +83,10 @@ SYNC_READ_OVERHEAD: Final = 14
 """Bytes of a SYNC READ packet besides its id list: header 4, id, length 2, 0x82, address 2,
 data length 2, CRC 2 (without byte stuffing)."""
 BITS_PER_BYTE: Final = 10  # 8N1: start + 8 data + stop
+SYNC_READ_CACHE: Final = 64
+"""SYNC READ instruction packets kept per port, by (address, length, ids)."""
+_CRC_ERROR: Final = int(dx.ErrorNumber.CRC_ERROR)
+_ERROR_NUMBER: Final = 0x7F
 
 
 def wire_time(n_bytes: int, baudrate: int) -> float:
@@ -165,6 +170,12 @@ class PortClient(Protocol):
     def _port_lost(self, reason: str) -> None: ...
 
 
+def _complete(waiter: asyncio.Future[None]) -> None:
+    """Wake the task waiting on ``waiter`` (once; a cancelled wait stays cancelled)."""
+    if not waiter.done():
+        waiter.set_result(None)
+
+
 def _positive(name: str, value: float, *, allow_zero: bool = False) -> float:
     allowed = "a finite number " + (">= 0" if allow_zero else "> 0")
     if isinstance(value, bool) or not isinstance(value, int | float):
@@ -219,14 +230,21 @@ class DynamixelPort:
             on_lost=self._on_lost,
             serial_options=serial_options,
         )
-        self._lock = anyio.Lock()
+        # fast_acquire: an uncontended acquire does not yield (one event-loop pass less
+        # per transaction); a contended one still queues, and release hands the lock
+        # to the first waiter (FIFO).
+        self._lock = anyio.Lock(fast_acquire=True)
         self._reconnect_lock = anyio.Lock()
         self._clients: dict[int, PortClient] = {}
         self._transaction = 0
-        # The exchange in flight: ids still expected, what arrived, and its waker.
-        self._expect: dict[int, int | None] | None = None
+        # The exchange in flight: ids expected (and their param length), what arrived,
+        # how many of those are CRC_ERROR statuses, and the future its task waits on.
+        self._expect: set[int] | None = None
         self._replies: dict[int, dx.Status] = {}
-        self._arrived: anyio.Event | None = None
+        self._garbled = 0
+        self._param_length = 0
+        self._waiter: asyncio.Future[None] | None = None
+        self._sync_read_packets: dict[tuple[int, int, tuple[int, ...]], bytes] = {}
         self._poll_wake: anyio.Event | None = None
         self._stack: AsyncExitStack | None = None
         self._entered = False
@@ -380,32 +398,51 @@ class DynamixelPort:
         self, ids: Sequence[int], address: int, length: int, *, check_alert: bool = True
     ) -> dict[int, bytes]:
         """SYNC READ: ``{id: data}`` for every id, or raise (timeout, status error)."""
+        ids = tuple(ids)
         statuses = await self.sync_read_statuses(ids, address, length)
-        missing = [i for i in ids if i not in statuses]
-        if missing:
+        if len(statuses) != len(ids):  # statuses holds only ids asked for
+            missing = [i for i in ids if i not in statuses]
             timeout = self.response_timeout(SYNC_READ_OVERHEAD + len(ids), len(ids), length)
             raise DynamixelTimeoutError(
                 self.url, missing, f"SYNC READ {address}+{length}", timeout, self.retries + 1
             )
-        out: dict[int, bytes] = {}
-        for dxl_id in ids:
-            status = statuses[dxl_id]
-            if status.error_number or (check_alert and status.alert):
-                raise DynamixelStatusError(dxl_id, status.error, f"SYNC READ {address}+{length}")
-            out[dxl_id] = status.params
-        return out
+        refused = 0xFF if check_alert else _ERROR_NUMBER  # the alert bit is bit 7
+        for dxl_id in [i for i in ids if statuses[i].error & refused][:1]:
+            error = statuses[dxl_id].error
+            raise DynamixelStatusError(dxl_id, error, f"SYNC READ {address}+{length}")
+        return {i: statuses[i].params for i in ids}
+
+    def sync_read_packet(self, ids: Sequence[int], address: int, length: int) -> bytes:
+        """The SYNC READ instruction packet, built once per (address, length, ids).
+
+        Raises :class:`BadParameterError` for an empty or repeated id list and
+        :class:`ValueError` for an address, length or id out of range (nothing is cached
+        then). At most ``SYNC_READ_CACHE`` packets are kept (the oldest are forgotten).
+        """
+        key = (address, length, tuple(ids))
+        packet = self._sync_read_packets.get(key)
+        if packet is None:
+            ids = key[2]
+            if not ids or len(set(ids)) != len(ids):
+                raise BadParameterError("ids", ids, "a non-empty sequence of distinct servo ids")
+            packet = dx.encode(dx.SyncRead(address, length, ids))
+            cache = self._sync_read_packets
+            if len(cache) >= SYNC_READ_CACHE:
+                del cache[next(iter(cache))]
+            cache[key] = packet
+        return packet
 
     async def sync_read_statuses(
         self, ids: Sequence[int], address: int, length: int
     ) -> dict[int, dx.Status]:
         """SYNC READ returning the statuses that arrived (missing ones retried, not raised)."""
         ids = tuple(ids)
-        if not ids or len(set(ids)) != len(ids):
-            raise BadParameterError("ids", ids, "a non-empty sequence of distinct servo ids")
-        dx.SyncRead(address, length, ids)  # validates
+        packet = self.sync_read_packet(ids, address, length)  # validates
 
         def make(remaining: Sequence[int]) -> bytes:
-            return dx.encode(dx.SyncRead(address, length, tuple(remaining)))
+            if len(remaining) == len(ids):
+                return packet
+            return self.sync_read_packet(remaining, address, length)
 
         async with self._lock:
             return await self._transact(make, ids, f"SYNC READ {address}+{length}", length)
@@ -482,16 +519,19 @@ class DynamixelPort:
         param_length: int,
     ) -> dict[int, dx.Status]:
         """Send, collect a status per id, retry the missing ones (the lock is held)."""
+        got = await self._exchange(make_packet(ids), ids, param_length)
+        if len(got) == len(ids) and not self._garbled:
+            return got  # every status arrived, none says the instruction was damaged
+        result = got
         remaining = list(ids)
-        result: dict[int, dx.Status] = {}
         for attempt in range(self.retries + 1):
             if attempt:
                 self.stats.retries += 1
                 self._log.debug("dxl_retry", request=what, ids=remaining, attempt=attempt)
-            got = await self._exchange(make_packet(remaining), remaining, param_length)
-            result.update(got)
+                got = await self._exchange(make_packet(remaining), remaining, param_length)
+                result.update(got)
             # CRC_ERROR: the instruction was damaged on the wire and not executed: resend it.
-            garbled = [i for i, s in got.items() if s.error_number == dx.ErrorNumber.CRC_ERROR]
+            garbled = [i for i, s in got.items() if s.error & _ERROR_NUMBER == _CRC_ERROR]
             if garbled:
                 self.stats.crc_rejected += len(garbled)
                 self._log.debug("dxl_crc_rejected", request=what, ids=garbled)
@@ -513,48 +553,69 @@ class DynamixelPort:
     async def _exchange(
         self, packet: bytes, ids: Sequence[int], param_length: int
     ) -> dict[int, dx.Status]:
-        """One attempt: write ``packet`` and wait for a status from each id or the timeout."""
+        """One attempt: write ``packet`` and wait for a status from each id or the timeout.
+
+        The wait is one future, completed by the reception callback when the last status
+        arrived, by a loop timer at the timeout, or by a loss of the port; a cancellation
+        of the caller ends it too. No cancel scope and no extra event-loop pass.
+        """
         self.check_connected()
-        arrived = anyio.Event()
-        self._replies = {}
-        self._expect = {i: param_length for i in ids}
-        self._arrived = arrived
+        loop = asyncio.get_running_loop()
+        waiter: asyncio.Future[None] = loop.create_future()
+        replies: dict[int, dx.Status] = {}
+        self._replies = replies
+        self._garbled = 0
+        self._expect = set(ids)
+        self._param_length = param_length
+        self._waiter = waiter
         self._transaction += 1
         self.stats.transactions += 1
         timeout = self.response_timeout(len(packet), len(ids), param_length)
+        timer = loop.call_later(timeout, _complete, waiter)
         try:
             self._link.write(packet)
-            self._log.debug("dxl_tx", size=len(packet), expect=len(ids))
-            with anyio.move_on_after(timeout):
-                await arrived.wait()
+            await waiter
         finally:
+            timer.cancel()
             self._expect = None
-            self._arrived = None
+            self._waiter = None
         self.check_connected()  # lost while waiting: raise, not a timeout
-        return self._replies
+        return replies
 
     # -- reception (transport callback) ----------------------------------------------
     def _on_data(self, data: bytes) -> None:
-        for msg in self.parser.feed(data):
-            if not isinstance(msg, dx.Status):
+        expect = self._expect
+        if expect is None:
+            msgs = self.parser.feed(data)
+        else:  # the statuses we wait for, decoded in bulk when they come back to back
+            msgs = self.parser.feed_statuses(data, self._param_length)
+        replies = self._replies
+        length = self._param_length
+        status_type = dx.Status
+        for msg in msgs:
+            if not isinstance(msg, status_type):
                 continue  # an echo of an instruction (some half-duplex adapters)
-            expect = self._expect
-            if expect is None or msg.id not in expect or msg.id in self._replies:
+            dxl_id = msg.id
+            if expect is None or dxl_id not in expect or dxl_id in replies:
                 self.stats.stray += 1
-                self._log.debug("dxl_stray_status", id=msg.id)
+                self._log.debug("dxl_stray_status", id=dxl_id)
                 continue
-            length = expect[msg.id]
-            if msg.error_number == 0 and length is not None and len(msg.params) != length:
+            error_number = msg.error & _ERROR_NUMBER
+            if error_number:
+                if error_number == _CRC_ERROR:
+                    self._garbled += 1
+            elif len(msg.params) != length:
                 self.stats.stray += 1  # an answer to another request
                 continue
-            self._replies[msg.id] = msg
-            if len(self._replies) == len(expect) and self._arrived is not None:
-                self._arrived.set()
+            replies[dxl_id] = msg
+        waiter = self._waiter
+        if expect is not None and waiter is not None and len(replies) == len(expect):
+            _complete(waiter)
 
     def _on_lost(self, reason: str) -> None:
         self.stats.losses += 1
-        if self._arrived is not None:
-            self._arrived.set()  # the waiter sees the loss at once
+        if self._waiter is not None:
+            _complete(self._waiter)  # the waiter sees the loss at once
         for client in list(self._clients.values()):
             client._port_lost(f"{self.url}: {reason}")
 
