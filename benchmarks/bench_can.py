@@ -1,38 +1,39 @@
-"""CAN throughput and a two-axis command + feedback cycle on python-can's virtual bus.
+"""CAN frames per second vs raw python-can, and a two-axis cycle, on python-can's virtual bus.
 
 1. Frames per second through the driver stack: encode a CANSimple Set_Input_Pos
-   (``cansimple.encode``), queue it on a :class:`~openel_can.CanBus` port, the bus's
-   sender task sends it, a second CanBus on the same virtual channel receives it (reader
-   thread, batch, dispatch by id to a port), and a consumer task decodes it
-   (``cansimple.decode``). Baseline, in the same run: raw python-can on a virtual channel,
-   one synchronous loop of ``struct.pack`` + ``can.Message`` + ``send`` on one bus,
-   ``recv`` + ``struct.unpack`` on another (no framework, no threads, no event loop).
-2. Two-axis cycles per second: an ODrive (CANSimple) and a CiA 402 drive (CANopen),
-   simulated peers on the same virtual channel, each cycle ``set_value`` (position) on
-   both axes then ``get_value(POSITION_ACTUAL)`` on both. The CiA 402 profile-position
-   set-point needs two request/answer exchanges back to back (set-point acknowledge low
-   after the previous set-point, then new set-point -> acknowledge). Baseline: raw
-   python-can request/answer round trips between two threads (the floor of one exchange
-   on this bus).
+   (``cansimple.encode``), send it on a :class:`~openel_can.CanBus` port, a second CanBus
+   on the same virtual channel receives it (read in its event loop, dispatched by id to
+   a port) and a consumer task decodes it (``cansimple.decode``). Peer, in the same run:
+   raw python-can on a virtual channel, one synchronous loop of ``struct.pack`` +
+   ``can.Message`` + ``send`` on one bus, ``recv`` + ``struct.unpack`` on another (no
+   framework, no threads, no event loop). Target: ours >= 1.0x raw.
+2. Two-axis cycles per second (informational): an ODrive (CANSimple) and a CiA 402
+   drive (CANopen), simulated peers on the same virtual channel, each cycle ``set_value``
+   (position) on both axes then ``get_value(POSITION_ACTUAL)`` on both. Floor shown
+   beside it: raw python-can request/answer round trips between two threads.
 
-Rounds alternate ours and baseline; figures are medians.
+Rounds alternate ours and raw python-can; figures are medians. The notes break one
+frame's cost down (measured in the same run): python-can's deep copy in the virtual
+``send``, the typed codec, struct.
 """
 
 from __future__ import annotations
 
+import copy
 import gc
 import math
 import statistics
 import struct
 import threading
 import time
+import timeit
 import uuid
 
 import anyio
 import can
 
 from openel_async import Actuator, ComponentState, Request
-from openel_can import CanBus, Cia402Drive, ODriveAxis
+from openel_can import CanBus, Cia402Drive, ODriveAxis, TxMessage
 from openel_can import cansimple as cs
 from openel_can.sim.cia402 import SimCia402Drive
 from openel_can.sim.odrive import SimODrive
@@ -45,10 +46,9 @@ QUICK_FRAMES = 10_000
 CYCLES = 1_000
 QUICK_CYCLES = 200
 ROUND_TRIPS = 2_000
-ROUNDS = 3
+ROUNDS = 5
 QUICK_ROUNDS = 1
-TARGET_RATE = 9_000.0
-TARGET_RATIO = 0.5
+TARGET_RATIO = 1.0
 TARGET_CYCLES = 200.0
 NODE = 3
 
@@ -190,6 +190,28 @@ def raw_round_trips(count: int) -> float:
 # -- the benchmark --------------------------------------------------------------------------
 
 
+def per_frame_costs() -> dict[str, float]:
+    """Microseconds per call of the pieces of one frame (timeit, same run)."""
+    arb_id = cs.arbitration_id(NODE, cs.CmdId.SET_INPUT_POS)
+    msg = cs.SetInputPos(NODE, 1.5)
+    frame_id, data = cs.encode(msg)
+    plain = can.Message(arbitration_id=arb_id, data=data, is_extended_id=False)
+    ours = TxMessage(arbitration_id=arb_id, data=data, is_extended_id=False)
+    raw = bytearray(data)
+    number = 20_000
+    pieces = {
+        "can.Message deep copy": lambda: copy.deepcopy(plain),
+        "TxMessage deep copy": lambda: copy.deepcopy(ours),
+        "cansimple encode": lambda: cs.encode(msg),
+        "cansimple decode": lambda: cs.decode(frame_id, raw, from_host=True),
+        "struct pack + unpack": lambda: struct.unpack_from("<fhh", struct.pack("<fhh", 1.5, 0, 0)),
+    }
+    return {
+        name: min(timeit.repeat(fn, number=number, repeat=3)) / number * 1e6
+        for name, fn in pieces.items()
+    }
+
+
 def run(quick: bool) -> BenchResult:
     frames = QUICK_FRAMES if quick else FRAMES
     cycles = QUICK_CYCLES if quick else CYCLES
@@ -198,15 +220,16 @@ def run(quick: bool) -> BenchResult:
     raw_tp: list[float] = []
     ours_cycles: list[float] = []
     raw_rt: list[float] = []
-    for _ in range(rounds):  # alternate, so load changes hit both alike
-        gc.collect()
-        raw_tp.append(raw_throughput(frames))
+    for _ in range(rounds):  # interleaved: ours, raw, ours, raw ...
         gc.collect()
         ours_tp.append(anyio.run(driver_throughput, frames, backend="asyncio"))
         gc.collect()
-        raw_rt.append(raw_round_trips(ROUND_TRIPS if not quick else ROUND_TRIPS // 4))
+        raw_tp.append(raw_throughput(frames))
         gc.collect()
         ours_cycles.append(anyio.run(two_axis_cycles, cycles, backend="asyncio"))
+        gc.collect()
+        raw_rt.append(raw_round_trips(ROUND_TRIPS if not quick else ROUND_TRIPS // 4))
+    costs = per_frame_costs()
     rate, base_rate = statistics.median(ours_tp), statistics.median(raw_tp)
     cycle_rate, rt_rate = statistics.median(ours_cycles), statistics.median(raw_rt)
     ratio = ratio_of(rate, base_rate)
@@ -219,8 +242,8 @@ def run(quick: bool) -> BenchResult:
             baseline_label="raw python-can",
             ratio=ratio,
             ratio_label="ours/raw",
-            target=f">= {TARGET_RATE:,.0f}/s and >= {TARGET_RATIO:.1f}x raw",
-            passed=rate >= TARGET_RATE and ratio >= TARGET_RATIO,
+            target=f">= {TARGET_RATIO:.1f}x raw python-can",
+            passed=ratio >= TARGET_RATIO,
             digits=0,
         ),
         Row(
@@ -237,38 +260,41 @@ def run(quick: bool) -> BenchResult:
             "/s",
             baseline=rt_rate,
             baseline_label="raw request/answer round trips",
-            ratio=ratio_of(cycle_rate, rt_rate),
-            ratio_label="ours/raw",
             target=f">= {TARGET_CYCLES:,.0f}/s",
             passed=cycle_rate >= TARGET_CYCLES,
             digits=0,
         ),
-        Row(
-            "two-axis cycle time",
-            1e6 / cycle_rate,
-            "µs",
-            baseline=1e6 / rt_rate,
-            baseline_label="raw round trip",
-            digits=0,
-        ),
     )
+
+    def rates(values: list[float]) -> str:
+        return ", ".join(f"{v:,.0f}" for v in values)
+
     notes = (
-        f"Median of {rounds} alternating round(s); throughput rounds of {frames:,} frames "
-        f"(ours: {', '.join(f'{r:,.0f}' for r in ours_tp)}; raw: "
-        f"{', '.join(f'{r:,.0f}' for r in raw_tp)} frames/s); every frame was decoded and "
-        "none was dropped (checked).",
-        f"Cycle rounds of {cycles:,} cycles (ours: {', '.join(f'{r:,.0f}' for r in ours_cycles)}/s; "
-        f"raw round trips: {', '.join(f'{r:,.0f}' for r in raw_rt)}/s). A cycle holds two "
-        "request/answer exchanges with the simulated CiA 402 drive (set-point acknowledge "
-        "low, then new set-point -> acknowledge), each through both buses' reader threads, "
-        "the event loop and the drive simulation; the ODrive set-point is one frame sent "
-        "inline and both feedback reads hit the cache of the cyclic TPDO/encoder frames.",
+        f"Median of {rounds} interleaved round(s) (ours, raw, ours, ...) of {frames:,} frames "
+        f"(ours: {rates(ours_tp)}; raw python-can: {rates(raw_tp)} frames/s); every frame "
+        "was decoded and none was dropped (checked).",
+        "One frame's pieces, same run (µs per call): python-can's virtual `send` deep-copies "
+        f"the frame for every receiving bus: `can.Message` {costs['can.Message deep copy']:.2f} "
+        f"(the raw loop pays this), our `TxMessage` {costs['TxMessage deep copy']:.2f}; typed "
+        f"codec `cansimple.encode` {costs['cansimple encode']:.2f} + `decode` "
+        f"{costs['cansimple decode']:.2f} against `struct` pack + unpack "
+        f"{costs['struct pack + unpack']:.2f}. Ours also takes queued frames in one lock per "
+        "batch where the raw loop calls `recv` per frame. On an interface that does not copy "
+        "frames (socketcan) the copy saving does not exist and the typed codec is the "
+        "difference: without it ours would have to hand out raw `can.Message` objects.",
+        f"Cycle rounds of {cycles:,} cycles (ours: {rates(ours_cycles)}/s; raw round trips: "
+        f"{rates(raw_rt)}/s). A cycle holds two request/answer exchanges with the simulated "
+        "CiA 402 drive (set-point acknowledge low, then new set-point -> acknowledge), each "
+        "through both buses, both event loops' dispatch and the drive simulation; the ODrive "
+        "set-point is one frame sent inline and both feedback reads hit the cache of the "
+        "cyclic TPDO/encoder frames. The CiA 402 handshake is compared with canopen-py in "
+        "the `can_canopen` section.",
         "The simulated peers share the machine's cores with the host: on real hardware the "
         "peers' work is done by the drives.",
     )
     return BenchResult(
         name=NAME,
-        title="CAN driver stack on python-can's virtual bus vs raw python-can",
+        title="CAN frames per second vs raw python-can (virtual bus); two-axis cycle",
         rows=rows,
         description=DESCRIPTION,
         notes=notes,
@@ -276,27 +302,28 @@ def run(quick: bool) -> BenchResult:
             "frames": f"{frames:,}",
             "cycles": f"{cycles:,}",
             "interface": "virtual",
-            "send": "inline (timeout=0)",
+            "python-can": can.__version__,
         },
     )
 
 
 DESCRIPTION = """\
-**Throughput.** A CANSimple Set_Input_Pos is encoded (`cansimple.encode`) and queued on
-a `CanBus` port; the bus's sender task sends it inline (`send(msg, timeout=0)`, the
-virtual interface never blocks); a second `CanBus` on the same virtual channel receives
-it in its reader thread (a blocking `recv` then non-blocking drains, one batch per thread
-hop), dispatches it by arbitration id to a port (a bounded memory object stream), and a
-consumer task decodes it (`cansimple.decode`). The figure is frames decoded per second
-from the first send to the last decode; no frame may be lost. Baseline, same run: raw
-python-can on a virtual channel in one synchronous loop (`struct.pack`, `can.Message`,
-`send` on one bus; `recv`, `struct.unpack` on another), no event loop and no threads:
-the fastest a Python program can push frames through python-can's virtual bus.
+Peer: **raw python-can** (`can`, the library under every CAN stack in Python), same
+process, same run, same `virtual` interface.
 
-**Two-axis cycle.** An ODrive (CANSimple, node 1) and a CiA 402 drive (CANopen, node 2),
-simulated peers on the same virtual channel, under `Actuator`s on one `CanBus`: each
-cycle calls `set_value(POSITION)` on both, then `get_value(POSITION_ACTUAL)` on both.
-Baseline: raw python-can request/answer round trips between the main thread and a
-responder thread, the floor of one exchange; a cycle contains two (the CiA 402
-handshake: set-point acknowledge low after the previous set-point, then new set-point
--> set-point acknowledge). Ratios are ours/raw (> 1: faster)."""
+**Frames per second.** Ours: a CANSimple Set_Input_Pos is encoded (`cansimple.encode`)
+and sent on a `CanBus` port (inline: `send(msg, timeout=0)`); a second `CanBus` on the
+same virtual channel is woken by the put and takes every queued frame in its event
+loop, dispatches them by arbitration id to a port (a bounded memory object stream),
+and a consumer task decodes each (`cansimple.decode`). Figure: frames decoded per
+second from the first send to the last decode; no frame may be lost. Raw python-can:
+one synchronous loop (`struct.pack`, `can.Message`, `send` on one bus; `recv`,
+`struct.unpack` on another), no event loop and no threads. Ratio ours/raw (> 1: ours
+faster).
+
+**Two-axis cycle** (informational). An ODrive (CANSimple, node 1) and a CiA 402 drive
+(CANopen, node 2), simulated peers on the same virtual channel, under `Actuator`s on
+one `CanBus`: each cycle calls `set_value(POSITION)` on both, then
+`get_value(POSITION_ACTUAL)` on both. Shown beside it, not as a ratio: raw python-can
+request/answer round trips between the main thread and a responder thread, the floor
+of one exchange (a cycle holds two)."""

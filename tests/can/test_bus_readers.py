@@ -243,6 +243,16 @@ def test_tx_message_deep_copy_is_an_equal_independent_plain_message() -> None:
     assert dup.equals(msg) and dup.channel == "c" and dup.dlc == 3
     dup.data[0] = 0x7F
     assert msg.data[0] == 0x01  # the data was copied
+    for arb_id, data, extended, remote in (
+        (0x123, b"\x05\x06", False, False),
+        (0x1F, b"", True, True),
+    ):
+        fast = TxMessage.frame(arb_id, data, extended, remote)
+        slow = TxMessage(
+            arbitration_id=arb_id, data=data, is_extended_id=extended, is_remote_frame=remote
+        )
+        fields = [name for name in can.Message.__slots__ if name != "__weakref__"]
+        assert {f: getattr(fast, f) for f in fields} == {f: getattr(slow, f) for f in fields}
     odd = TxMessage(arbitration_id=1, data=b"", is_extended_id=False, channel=("a", [1]))  # type: ignore[arg-type]
     dup2 = copy.deepcopy(odd)
     assert dup2.channel == ("a", [1]) and dup2.channel is not odd.channel
