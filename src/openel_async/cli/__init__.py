@@ -11,6 +11,9 @@ from collections.abc import Sequence
 from .commands import attach, discover_commands
 from .interrupt import EXIT_SIGINT, install_sigterm_handler, interrupt_code
 from .logs import LEVELS, configure_logging
+from .record_cmd import add_parser as add_record_parser
+from .record_cmd import add_tap_arguments
+from .replay_cmd import add_parser as add_replay_parser
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -75,6 +78,7 @@ def _build_parser() -> argparse.ArgumentParser:
         help="device layer: mujoco (the MuJoCo arm; falls back to sim when MuJoCo cannot "
         "load), sim (openel_sim motors) or can (simulated CAN drives)",
     )
+    add_tap_arguments(demo)
 
     run = sub.add_parser(
         "run",
@@ -88,6 +92,7 @@ def _build_parser() -> argparse.ArgumentParser:
         "with exit status 130, SIGTERM with 143, after a summary. 'openel-async run NAME "
         "--help' lists an app's options, 'openel-async run PROFILE --help' a profile's.",
     )
+    add_tap_arguments(run)
     run.add_argument(
         "path", help="registered app name, application file or directory, or RTC Profile"
     )
@@ -103,6 +108,8 @@ def _build_parser() -> argparse.ArgumentParser:
     from .profile_cmd import add_parser as add_profile_parser
 
     add_profile_parser(sub)
+    add_record_parser(sub)
+    add_replay_parser(sub)
     from .hal4rt_cmd import add_parser as add_hal4rt_parser
 
     parents = {"hal4rt": add_hal4rt_parser(sub)}
@@ -155,7 +162,15 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.command == "run":
         from .run_cmd import run
 
-        return run(args.path, list(args.app_args))
+        return run(args.path, list(args.app_args), tap_args=args)
+    if args.command == "record":
+        from .record_cmd import run as run_record_cmd
+
+        return run_record_cmd(args)
+    if args.command == "replay":
+        from .replay_cmd import run as run_replay_cmd
+
+        return run_replay_cmd(args)
     if args.command == "profile":
         from .profile_cmd import run as run_profile_cmd
 

@@ -16,6 +16,7 @@ import sys
 import structlog
 
 from .app import AppInfo, AppUnavailable, DemoOptions, discover_apps, find_app, run_app
+from .record_cmd import taps_from_args
 
 __all__ = ["BUS_APP", "DEFAULT_APP", "PROG", "list_apps", "run"]
 
@@ -74,8 +75,11 @@ def run(args: argparse.Namespace) -> int:
     except (LookupError, ValueError) as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 2
+    hooks = taps_from_args(args, PROG)
+    if hooks is None:
+        return 2
     try:
-        return run_app(info, argv, prog=PROG, stop_label=STOP_LABEL)
+        return run_app(info, argv, prog=PROG, hooks=hooks, stop_label=STOP_LABEL)
     except AppUnavailable as exc:
         if args.app is not None:  # asked for by name: no fallback
             print(f"{PROG}: {exc.needs} cannot run --app {name}: {exc.reason}", file=sys.stderr)
@@ -99,4 +103,7 @@ def run(args: argparse.Namespace) -> int:
     except (LookupError, ValueError) as exc:
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 2
-    return run_app(info, argv, prog=PROG, stop_label=STOP_LABEL)
+    hooks = taps_from_args(args, PROG)  # anew: the first run closed its recording
+    if hooks is None:
+        return 2
+    return run_app(info, argv, prog=PROG, hooks=hooks, stop_label=STOP_LABEL)

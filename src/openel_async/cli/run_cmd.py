@@ -17,6 +17,7 @@ Both execute code: the application file, or the Python module a profile names.
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import importlib.util
 import inspect
@@ -30,6 +31,7 @@ import anyio
 
 from .app import AppInfo, AppUnavailable, find_app, run_app
 from .interrupt import Interrupted, run_interruptible
+from .record_cmd import taps_from_args
 
 PROFILE_SUFFIXES = (".yaml", ".yml", ".xml")
 
@@ -70,15 +72,22 @@ def is_app_name(text: str) -> bool:
     return text.isidentifier() and not Path(text).exists()
 
 
-def _run_info(info: AppInfo, argv: list[str], prog: str, label: str) -> int:
+def _run_info(
+    info: AppInfo, argv: list[str], prog: str, label: str, tap_args: argparse.Namespace | None
+) -> int:
+    hooks = [] if tap_args is None else taps_from_args(tap_args, "openel-async run")
+    if hooks is None:
+        return 2
     try:
-        return run_app(info, argv, prog=prog, stop_label=label)
+        return run_app(info, argv, prog=prog, hooks=hooks, stop_label=label)
     except AppUnavailable as exc:
         print(f"{label}: {exc}", file=sys.stderr)
         return 1
 
 
-def run(path_text: str, argv: list[str]) -> int:
+def run(path_text: str, argv: list[str], tap_args: argparse.Namespace | None = None) -> int:
+    """Run ``path_text``; ``tap_args``: the parsed ``--record``/``--foxglove`` options (for
+    registered apps and APP_INFO modules, which register their components)."""
     if is_app_name(path_text):
         try:
             info = find_app(path_text)
@@ -86,9 +95,15 @@ def run(path_text: str, argv: list[str]) -> int:
             print(f"openel-async run: {exc}", file=sys.stderr)
             return 2
         prog = f"openel-async run {path_text}"
-        return _run_info(info, argv, prog, f"openel-async run: {path_text}")
+        return _run_info(info, argv, prog, f"openel-async run: {path_text}", tap_args)
     path = Path(path_text)
+    tapped = tap_args is not None and (tap_args.record is not None or tap_args.foxglove)
     if path.suffix.lower() in PROFILE_SUFFIXES:
+        if tapped:
+            print(
+                "openel-async run: --record/--foxglove need an app (not a profile)", file=sys.stderr
+            )
+            return 2
         runner = importlib.import_module("openel_async.rtc.runner")
         return int(runner.run_profile_cli(path, argv))
     try:
@@ -99,7 +114,14 @@ def run(path_text: str, argv: list[str]) -> int:
     app_info = getattr(module, "APP_INFO", None)
     if isinstance(app_info, AppInfo):
         prog = f"openel-async run {path}"
-        return _run_info(app_info, argv, prog, f"openel-async run: {path}")
+        return _run_info(app_info, argv, prog, f"openel-async run: {path}", tap_args)
+    if tapped:
+        print(
+            f"openel-async run: {path}: --record/--foxglove need an app that registers its "
+            "components (an APP_INFO, docs/apps.md), not a bare main(argv)",
+            file=sys.stderr,
+        )
+        return 2
     main: Any = module.main
     result = anyio.run(run_interruptible, partial(main, argv), backend="asyncio")
     if isinstance(result, Interrupted):

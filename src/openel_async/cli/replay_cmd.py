@@ -1,0 +1,80 @@
+"""``openel-async replay FILE.mcap``: a recording's commands fed, at their recorded times, to
+a rig (``--rig sim``: the sim driver's motors on a virtual clock; ``--rig MODULE:FACTORY``:
+a driver's rig, e.g. ``openel_mujoco.foxglove_scene:replay_rig`` with ``--rig-arg arm2``)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+from typing import Any
+
+import anyio
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    replay = sub.add_parser(
+        "replay",
+        help="feed a recording's commands, at their recorded times, to a rig and compare the "
+        "final positions",
+    )
+    replay.add_argument("file", metavar="FILE.mcap")
+    replay.add_argument(
+        "--rig",
+        default="sim",
+        help="sim (default: openel_sim motors, one per recorded actuator) or MODULE:FACTORY, "
+        "a driver's rig factory (e.g. openel_mujoco.foxglove_scene:replay_rig)",
+    )
+    replay.add_argument(
+        "--rig-arg", default=None, help="argument of a MODULE:FACTORY rig (e.g. arm2)"
+    )
+    replay.add_argument(
+        "--option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="sim rig: a motor option (e.g. max_velocity=3.0); repeatable",
+    )
+    replay.add_argument(
+        "--realtime", action="store_true", help="sim rig: the real clock (default: virtual)"
+    )
+
+
+def _rig(args: argparse.Namespace) -> Any:
+    from ..recording.replay import parse_options, sim_rig
+
+    if args.rig == "sim":
+        return sim_rig(virtual=not args.realtime, **parse_options(args.option))
+    module_name, sep, factory_name = args.rig.partition(":")
+    if not sep:
+        raise ValueError(f"--rig must be sim or MODULE:FACTORY, not {args.rig!r}")
+    factory = getattr(importlib.import_module(module_name), factory_name)
+    return factory(args.rig_arg) if args.rig_arg is not None else factory()
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..recording import read_recording
+    from ..recording.replay import replay
+
+    path = Path(args.file)
+    if not path.is_file():
+        print(f"openel-async replay: {path}: no such file", file=sys.stderr)
+        return 2
+    try:
+        rig = _rig(args)
+    except (ValueError, LookupError, ImportError, AttributeError, TypeError) as exc:
+        print(f"openel-async replay: --rig: {exc}", file=sys.stderr)
+        return 2
+    recording = read_recording(path)
+    try:
+        result = anyio.run(replay, recording, rig, backend="asyncio")
+    except (ValueError, LookupError) as exc:
+        print(f"openel-async replay: {exc}", file=sys.stderr)
+        return 1
+    print(f"replay of {path} ({len(recording.messages)} messages)")
+    for line in result.lines():
+        print("  " + line)
+    return 0
