@@ -34,7 +34,7 @@ from collections.abc import Callable
 import anyio.lowlevel
 import structlog
 
-from openel_async.clock import NS_PER_S, DeadlineSleeper, Sleeper
+from openel_async.clock import NS_PER_S, DeadlineSleeper, Sleeper, wait_idle
 from openel_async.errors import BadParameterError
 
 __all__ = ["LockstepClock"]
@@ -196,15 +196,9 @@ class _InlineCall:
 async def settle() -> None:
     """Yield until no other task is runnable (every task waits on time, I/O or an event).
 
-    Uses the ready queue of asyncio's loop, as ``openel_async.clock`` does for VirtualClock; a
-    loop that does not expose it gets a bounded number of yields.
+    Asks the idle detector of the event loop that every VirtualClock of the loop shares
+    (:func:`openel_async.clock.wait_idle`), so a lockstep simulation and an auto-jumping
+    VirtualClock in one loop (the ``virtual_clock`` test fixture, say) take turns instead of
+    keeping each other busy forever.
     """
-    loop = asyncio.get_running_loop()
-    ready = getattr(loop, "_ready", None)
-    if ready is None:
-        for _ in range(64):
-            await asyncio.sleep(0)
-        return
-    await asyncio.sleep(0)
-    while ready:  # noqa: ASYNC110 - polling the ready queue is the point
-        await asyncio.sleep(0)
+    await wait_idle()

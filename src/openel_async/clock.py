@@ -330,16 +330,21 @@ class _IdleDetector:
 
     def __init__(self) -> None:
         # No reference to the loop: the detector is the value of a weak mapping keyed by it.
-        self._queue: deque[asyncio.Future[None]] = deque()
+        # The head of the queue is whatever token its waiter appended; every waiter behind
+        # it appended a future, resolved when its turn comes.
+        self._queue: deque[object] = deque()
 
     async def wait(self, loop: asyncio.AbstractEventLoop) -> None:
         """Wait for an idle moment of ``loop``, the running loop."""
         queue = self._queue
-        turn = loop.create_future()
+        # Behind another waiter: a future resolved when this one's turn comes. At the head
+        # (the common case, one waiter): a plain token, polling starts at once.
+        future: asyncio.Future[None] | None = loop.create_future() if queue else None
+        turn = object() if future is None else future
         queue.append(turn)
         try:
-            if queue[0] is not turn:
-                await turn  # resolved when the waiter before this one got its idle moment
+            if future is not None:
+                await future
             ready = getattr(loop, "_ready", None)
             if ready is None:  # a loop that does not expose its ready queue: bounded yields
                 for _ in range(64):
@@ -351,8 +356,11 @@ class _IdleDetector:
         finally:
             head = queue[0] is turn
             queue.remove(turn)
-            if head and queue and not queue[0].done():
-                queue[0].set_result(None)
+            if head and queue:
+                following = queue[0]
+                assert isinstance(following, asyncio.Future)
+                if not following.done():
+                    following.set_result(None)
 
 
 _IDLE_DETECTORS: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, _IdleDetector] = (
