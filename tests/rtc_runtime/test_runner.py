@@ -57,7 +57,7 @@ def cli(argv: list[str]) -> int:
 def test_run_the_app_on_the_virtual_clock(capsys: pytest.CaptureFixture[str]) -> None:
     assert run_profile_cli(APP, ["--virtual", "--duration", "5"]) == 0
     out = capsys.readouterr().out
-    assert "cycles             500 (overruns 0, skipped 0)" in out
+    assert "cycles             500 (overruns 0, skipped 0, periods missed 0)" in out
     assert "context            PERIODIC at 100 Hz" in out
     assert "state at the end   ACTIVE" in out
     # scan 0-2 s (200 cycles), hold 2-4 s, scan 4-5 s (100 cycles): two mode changes
@@ -402,7 +402,7 @@ def test_openel_async_run_dispatches_profiles(capsys: pytest.CaptureFixture[str]
     argv = ["--log-level", "warning", "run", str(APP), "--virtual", "--duration", "0.5"]
     assert main(argv) == 0
     captured = capsys.readouterr()
-    assert "cycles             50 (overruns 0, skipped 0)" in captured.out
+    assert "cycles             50 (overruns 0, skipped 0, periods missed 0)" in captured.out
     assert "profile_action_mismatch" not in captured.out + captured.err
 
 

@@ -115,6 +115,8 @@ class RunSummary:
     cycles: int = 0
     overruns: int = 0
     skipped: int = 0
+    timer_missed: int = 0
+    """Periods the context's timer skipped because it woke a whole period late."""
     lateness_p50_us: float = 0.0
     lateness_p99_us: float = 0.0
     lateness_max_us: float = 0.0
@@ -131,7 +133,8 @@ class RunSummary:
             f"component          {self.component} ({self.profile_id})",
             f"context            {self.kind}{rate}",
             f"duration           {self.duration_s:.3f} s",
-            f"cycles             {self.cycles} (overruns {self.overruns}, skipped {self.skipped})",
+            f"cycles             {self.cycles} (overruns {self.overruns}, skipped {self.skipped}"
+            f", periods missed {self.timer_missed})",
             f"cycle lateness     p50 {self.lateness_p50_us:.0f} us, p99 "
             f"{self.lateness_p99_us:.0f} us, max {self.lateness_max_us:.0f} us",
             f"state at the end   {self.final_state}",
@@ -460,13 +463,20 @@ async def run_prepared(
             await comp.exit()
     stats = ec.stats
     summary.cycles, summary.overruns, summary.skipped = stats.cycles, stats.overruns, stats.skipped
+    summary.timer_missed = stats.timer_missed
     summary.lateness_p50_us = stats.lateness.p50_ns / 1e3
     summary.lateness_p99_us = stats.lateness.p99_ns / 1e3
     summary.lateness_max_us = stats.lateness.max_ns / 1e3
     if isinstance(comp, MultiModeObject):
         summary.mode = comp.get_current_mode()
     summary.report = comp.report()
-    run_log.info("profile_finished", cycles=stats.cycles, overruns=stats.overruns)
+    run_log.info(
+        "profile_finished",
+        cycles=stats.cycles,
+        overruns=stats.overruns,
+        skipped=stats.skipped,
+        periods_missed=stats.timer_missed,
+    )
     return summary
 
 
