@@ -51,7 +51,7 @@ class Measurement:
     origin: tuple[float, ...]
     gain: tuple[float, ...]
     offset: tuple[float, ...]
-    apply: Callable[[tuple[float, ...]], tuple[float, ...]]
+    apply: Callable[[Sequence[float]], tuple[float, ...]]
 
     @property
     def identity(self) -> bool:
@@ -73,7 +73,7 @@ class Measurement:
 
 def _affine_map(
     gain: tuple[float, ...], offset: tuple[float, ...]
-) -> Callable[[tuple[float, ...]], tuple[float, ...]]:
+) -> Callable[[Sequence[float]], tuple[float, ...]]:
     """One closure per value count: unrolled up to 3 values (the common sensors)."""
     if len(gain) == 1:
         (g0,), (o0,) = gain, offset
@@ -150,6 +150,9 @@ class Sensor(HALComponent):
         )
         self._nowait = has_nowait(device, "read_nowait", "read")
         self._measurement: Measurement | None = None
+        # The read path's copy of it: the affine map and the number of values it takes.
+        self._convert: Callable[[Sequence[float]], tuple[float, ...]] | None = None
+        self._convert_n = 0
         """The per-value settings; None while they are the identity (SI values as read)."""
         self._settings: Measurement | None = None
         """The settings as set, kept even when they make the identity."""
@@ -246,6 +249,8 @@ class Sensor(HALComponent):
         settings = Measurement.build(si_units, units, scale, origin, conversions)
         self._settings = settings
         self._measurement = None if settings.identity else settings
+        self._convert = None if settings.identity else settings.apply
+        self._convert_n = len(settings.gain)
         MEASUREMENT_SETTINGS_VERSION.value += 1
 
     def _converted_values(self, values: tuple[float, ...]) -> tuple[float, ...]:
@@ -264,9 +269,17 @@ class Sensor(HALComponent):
         """GetValue: the measurement values in SI units (``len`` is the spec's ``num``)."""
         if self.state is not _ACTIVE:
             raise StateError("get_value", self.state, (_ACTIVE,))
-        values = self._checked_values((await self._read()).values)
-        if self._measurement is not None:
-            values = self._converted_values(values)
+        raw = (await self._read()).values
+        convert = self._convert
+        if convert is None:
+            values = self._checked_values(raw)
+        elif len(raw) == self._convert_n:  # converted, then checked: NaN stays NaN
+            try:
+                values = self._checked_values(convert(raw))
+            except (TypeError, ValueError):  # not numbers: the raw check tells the fault
+                values = self._converted_values(self._checked_values(raw))
+        else:
+            values = self._converted_values(self._checked_values(raw))  # a length fault
         listener = self._observers.listener
         if listener is not None:
             listener.on_reading(self, None, values)
@@ -285,9 +298,17 @@ class Sensor(HALComponent):
         """
         if self.state is not _ACTIVE:
             raise StateError("get_value_nowait", self.state, (_ACTIVE,))
-        values = self._checked_values(self._read_now().values)
-        if self._measurement is not None:
-            values = self._converted_values(values)
+        raw = self._read_now().values
+        convert = self._convert
+        if convert is None:
+            values = self._checked_values(raw)
+        elif len(raw) == self._convert_n:  # as in get_value
+            try:
+                values = self._checked_values(convert(raw))
+            except (TypeError, ValueError):
+                values = self._converted_values(self._checked_values(raw))
+        else:
+            values = self._converted_values(self._checked_values(raw))
         listener = self._observers.listener
         if listener is not None:
             listener.on_reading(self, None, values)
