@@ -18,6 +18,7 @@ request) run beside this process, which is the client; everything on loopback.
 
 from __future__ import annotations
 
+import asyncio
 import json
 import os
 import subprocess
@@ -25,6 +26,7 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import anyio
 import anyio.lowlevel
@@ -38,6 +40,7 @@ QUICK_EVENTS = 20_000
 CALLS = 2000
 QUICK_CALLS = 300
 TARGET_RT_RATIO = 1.5
+ROUNDS = 10
 TARGET_EVENT_RATE = 20_000.0
 
 
@@ -171,6 +174,32 @@ def _stop(proc: subprocess.Popen[str]) -> None:
 
 
 # -- raw Zenoh baseline ------------------------------------------------------------------
+async def _raw_async_round_trips(session: Any, calls: int) -> list[float]:
+    import zenoh
+
+    loop = asyncio.get_running_loop()
+    samples = []
+    for _ in range(calls):
+        future: asyncio.Future[bytes] = loop.create_future()
+
+        def settle(payload: bytes, future: asyncio.Future[bytes] = future) -> None:
+            if not future.done():
+                future.set_result(payload)
+
+        def on_reply(reply: zenoh.Reply) -> None:
+            payload = reply.ok.payload.to_bytes() if reply.ok is not None else b""
+            loop.call_soon_threadsafe(settle, payload)
+
+        t0 = time.perf_counter()
+        session.get(
+            "raw/q", zenoh.handlers.Callback(on_reply, lambda: None, indirect=False),
+            payload=b"x", timeout=2.0,
+        )  # fmt: skip
+        await asyncio.wait_for(future, 3.0)
+        samples.append(time.perf_counter() - t0)
+    return samples
+
+
 def _raw_figures(port: int, calls: int, events: int) -> dict[str, float]:
     import zenoh
 
@@ -179,14 +208,6 @@ def _raw_figures(port: int, calls: int, events: int) -> dict[str, float]:
     session = zenoh.open(client_config([endpoint(port)]))
     try:
         time.sleep(0.5)
-        for _ in range(50):
-            list(session.get("raw/q", payload=b"x", timeout=2.0))
-        rtt = []
-        for _ in range(calls):
-            t0 = time.perf_counter()
-            replies = list(session.get("raw/q", payload=b"x", timeout=2.0))
-            rtt.append(time.perf_counter() - t0)
-            assert replies and replies[0].ok is not None
         # query, then a published sample back (the raw analogue of set_value -> COMPLETED)
         got = threading.Event()
         sub = session.declare_subscriber("raw/done", lambda s: got.set())
@@ -217,16 +238,56 @@ def _raw_figures(port: int, calls: int, events: int) -> dict[str, float]:
         rate = count[0] / (time.perf_counter() - t0)
         sub.undeclare()
         return {
-            "rtt_p50": _pct(rtt, 0.5), "rtt_p99": _pct(rtt, 0.99),
             "completion_p50": _pct(completion, 0.5), "rate": rate, "lost": float(events - count[0]),
         }  # fmt: skip
     finally:
         session.close()
 
 
+# -- round trips, interleaved -------------------------------------------------------------
+async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, list[float]]:
+    """get_value of a remote actuator, a blocking raw query and a raw query awaited from
+    asyncio, in alternating rounds (a load change on the machine hits all three)."""
+
+    from openel_async import Actuator, Request
+    from openel_zenoh import RemoteActuator, RemoteSurface, close_session, open_session
+    from openel_zenoh.config import client_config, endpoint
+
+    raw = await open_session(client_config([endpoint(raw_port)]))
+    session = await open_session(client_config([endpoint(our_port)]))
+    samples: dict[str, list[float]] = {"ours": [], "raw": [], "raw_async": []}
+    try:
+        async with RemoteSurface(session, NAMESPACE, timeout=5.0) as remote:
+            await remote.wait_server(10)
+            async with Actuator(RemoteActuator(remote, 0)) as axis:
+                await anyio.sleep(0.3)
+                per_round = max(1, calls // ROUNDS)
+                for round_ in range(ROUNDS + 1):  # round 0 warms up
+                    ours = []
+                    for _ in range(per_round):
+                        t0 = time.perf_counter()
+                        await axis.get_value(Request.POSITION_ACTUAL)
+                        ours.append(time.perf_counter() - t0)
+                    blocking = []
+                    for _ in range(per_round):  # blocks this loop: nothing else runs here
+                        t0 = time.perf_counter()
+                        replies = list(raw.get("raw/q", payload=b"x", timeout=2.0))
+                        blocking.append(time.perf_counter() - t0)
+                        assert replies and replies[0].ok is not None
+                    awaited = await _raw_async_round_trips(raw, per_round)
+                    if round_:
+                        samples["ours"] += ours
+                        samples["raw"] += blocking
+                        samples["raw_async"] += awaited
+    finally:
+        await close_session(session)
+        await anyio.to_thread.run_sync(raw.close)
+    return samples
+
+
 # -- ours ------------------------------------------------------------------------------------
 async def _our_figures(port: int, calls: int, events: int) -> dict[str, float]:
-    from openel_async import Actuator, EventId, ObserverQueue, Request
+    from openel_async import Actuator, EventId, ObserverQueue
     from openel_async.surface import ApplicationQueue, CommandMessage, Device, EventNotification
     from openel_zenoh import RemoteActuator, RemoteSurface, close_session, open_session
     from openel_zenoh.config import client_config, endpoint
@@ -236,13 +297,6 @@ async def _our_figures(port: int, calls: int, events: int) -> dict[str, float]:
         async with RemoteSurface(session, NAMESPACE, timeout=5.0) as remote:
             await remote.wait_server(10)
             async with Actuator(RemoteActuator(remote, 0)) as axis:
-                for _ in range(50):
-                    await axis.get_value(Request.POSITION_ACTUAL)
-                rtt = []
-                for _ in range(calls):
-                    t0 = time.perf_counter()
-                    await axis.get_value(Request.POSITION_ACTUAL)
-                    rtt.append(time.perf_counter() - t0)
                 queue = ObserverQueue()
                 axis.add_observer(queue)
                 completion = []
@@ -282,7 +336,6 @@ async def _our_figures(port: int, calls: int, events: int) -> dict[str, float]:
                     missed += notice.missed
             rate = (received + missed) / (time.perf_counter() - t0)
             return {
-                "rtt_p50": _pct(rtt, 0.5), "rtt_p99": _pct(rtt, 0.99),
                 "completion_p50": _pct(completion, 0.5), "completion_p99": _pct(completion, 0.99),
                 "rate": rate, "received": float(received), "missed": float(missed),
                 "xml_p50": formats["xml"], "compact_p50": formats["compact"],
@@ -297,14 +350,20 @@ def run(quick: bool) -> BenchResult:
     raw_port, our_port = _free_port(), _free_port()
     raw_proc = _spawn("raw", raw_port)
     try:
+        server = _spawn("serve", our_port)
+        try:
+            rtt = anyio.run(_round_trips, raw_port, our_port, calls, backend="asyncio")
+            ours = anyio.run(_our_figures, our_port, calls, events, backend="asyncio")
+        finally:
+            _stop(server)
         raw = _raw_figures(raw_port, calls, events)
     finally:
         _stop(raw_proc)
-    server = _spawn("serve", our_port)
-    try:
-        ours = anyio.run(_our_figures, our_port, calls, events, backend="asyncio")
-    finally:
-        _stop(server)
+    ours.update(rtt_p50=_pct(rtt["ours"], 0.5), rtt_p99=_pct(rtt["ours"], 0.99))
+    raw.update(
+        rtt_p50=_pct(rtt["raw"], 0.5), rtt_p99=_pct(rtt["raw"], 0.99),
+        async_p50=_pct(rtt["raw_async"], 0.5),
+    )  # fmt: skip
     us = 1e6
     rt_ratio = ratio_of(ours["rtt_p50"], raw["rtt_p50"])
     told = ours["received"] + ours["missed"] == events
@@ -313,6 +372,8 @@ def run(quick: bool) -> BenchResult:
             rt_ratio, "ours/raw", f"<= {TARGET_RT_RATIO}x raw", rt_ratio <= TARGET_RT_RATIO),
         Row("get_value round trip p99", ours["rtt_p99"] * us, "us", raw["rtt_p99"] * us, "raw Zenoh query p99",
             ratio_of(ours["rtt_p99"], raw["rtt_p99"]), "ours/raw"),
+        Row("get_value round trip p50 (vs asyncio)", ours["rtt_p50"] * us, "us", raw["async_p50"] * us,
+            "raw Zenoh query awaited from asyncio p50", ratio_of(ours["rtt_p50"], raw["async_p50"]), "ours/raw"),
         Row("set_value -> COMPLETED p50", ours["completion_p50"] * us, "us", raw["completion_p50"] * us,
             "raw query + published reply p50", ratio_of(ours["completion_p50"], raw["completion_p50"]), "ours/raw"),
         Row("set_value -> COMPLETED p99", ours["completion_p99"] * us, "us"),

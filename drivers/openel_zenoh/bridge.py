@@ -2,7 +2,10 @@
 
 A :class:`ThreadInbox` takes items from any thread into a bounded deque and wakes the
 event loop once per batch (``call_soon_threadsafe``); when it is full the oldest item is
-dropped and counted. The loop side drains it from a task of the owner's task group.
+dropped and counted. The loop side drains it either from a task of the owner's task
+group (``await inbox.wait()``) or, with ``drain=``, in the loop callback itself: one
+thread-to-loop handoff per batch and no task switch (the drain function must not block
+and must not raise; what it raises is logged and the batch's rest is lost to it).
 """
 
 from __future__ import annotations
@@ -15,12 +18,21 @@ from collections.abc import Callable
 from typing import Generic, TypeVar
 
 import anyio
+import structlog
 
 T = TypeVar("T")
 
+log = structlog.get_logger(__name__)
+
 
 class ThreadInbox(Generic[T]):
-    def __init__(self, maxsize: int, on_drop: Callable[[T], None] | None = None) -> None:
+    def __init__(
+        self,
+        maxsize: int,
+        on_drop: Callable[[T], None] | None = None,
+        *,
+        drain: Callable[[list[T]], None] | None = None,
+    ) -> None:
         self.maxsize = maxsize
         self.dropped = 0
         self._items: deque[T] = deque()
@@ -30,6 +42,7 @@ class ThreadInbox(Generic[T]):
         self._scheduled = False
         self._closed = False
         self._on_drop = on_drop
+        self._drain = drain
 
     def put(self, item: T) -> None:
         """From any thread; never blocks."""
@@ -50,7 +63,18 @@ class ThreadInbox(Generic[T]):
                 self._loop.call_soon_threadsafe(self._wake)
 
     def _wake(self) -> None:
-        self._wakeup.set()
+        drain = self._drain
+        if drain is None:
+            self._wakeup.set()
+            return
+        if self._closed:  # what is left is the owner's to answer (take_all)
+            return
+        items = self.take_all()
+        if items:
+            try:
+                drain(items)
+            except Exception:
+                log.exception("inbox_drain_failed", items=len(items))
 
     def take_all(self) -> list[T]:
         with self._lock:

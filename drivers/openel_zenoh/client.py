@@ -19,7 +19,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from types import TracebackType
 from typing import Any, Literal, Self, cast
 
@@ -33,6 +33,7 @@ from openel_async.errors import BadParameterError, NotConnectedError, ReturnCode
 from openel_async.surface import compact, xml_psm
 from openel_async.surface.application import Delivery
 from openel_async.surface.messages import CommandMessage, Device, ResultList
+from openel_async.surface.profiles import DEFAULT_PROFILES
 
 from . import wire
 from .bridge import ThreadInbox
@@ -41,8 +42,16 @@ from .keys import Keys
 log = structlog.get_logger(__name__)
 
 DEFAULT_TIMEOUT_S = 2.0
+_NO_CONSOLIDATION = zenoh.ConsolidationMode.NONE
 DETAILS_SIZE = 4096
 Encoding = Literal["compact", "xml"]
+ASYNCHRONOUS_FUNCTIONS = frozenset(
+    name
+    for profile in DEFAULT_PROFILES.values()
+    for name, operation in profile.operations.items()
+    if not operation.synchronous
+)
+"""The asynchronous operations of the default dispatch tables (SetPosition, SetSpeed...)."""
 
 
 class RemoteSurface:
@@ -56,6 +65,7 @@ class RemoteSurface:
         timeout: float = DEFAULT_TIMEOUT_S,
         client_id: str | None = None,
         encoding: Encoding = "compact",
+        asynchronous: Collection[str] = ASYNCHRONOUS_FUNCTIONS,
     ) -> None:
         if not timeout > 0:
             raise BadParameterError("timeout", timeout, "a number of seconds > 0")
@@ -67,6 +77,9 @@ class RemoteSurface:
         self.client_id = client_id or uuid.uuid4().hex
         self.keys.client_alive(self.client_id)  # checks the id
         self.encoding: Encoding = encoding
+        self.asynchronous = frozenset(asynchronous)
+        """The function names whose ``completed`` follows later (the server's asynchronous
+        operations); a reply to any other command expects none."""
         self._attachment = self.client_id.encode()
         self.server_alive = False
         self._was_lost = False
@@ -90,7 +103,8 @@ class RemoteSurface:
     # -- lifecycle -----------------------------------------------------------------------
     async def __aenter__(self) -> Self:
         self._loop = asyncio.get_running_loop()
-        self._notices: ThreadInbox[bytes] = ThreadInbox(65536)
+        # Notices are handled in the loop callback that receives them (no task switch).
+        self._notices: ThreadInbox[bytes] = ThreadInbox(65536, drain=self._on_notice_batches)
         self._presence: ThreadInbox[bool] = ThreadInbox(64)
         tg = anyio.create_task_group()
         await tg.__aenter__()
@@ -112,7 +126,6 @@ class RemoteSurface:
             self._declared.append(
                 self.session.liveliness().declare_token(self.keys.client_alive(self.client_id))
             )
-            tg.start_soon(self._read_notices)
             tg.start_soon(self._follow_server)
         except BaseException:
             await self._close()
@@ -143,6 +156,11 @@ class RemoteSurface:
             while not self.server_alive:
                 await self._up.wait()
 
+    @property
+    def awaiting_completion(self) -> int:
+        """Asynchronous commands whose ``completed`` has not arrived yet."""
+        return len(self._pending)
+
     def on_server(self, listener: Callable[[bool], None]) -> Callable[[], None]:
         """Call ``listener(alive)`` when the server leaves (False) or comes back (True)."""
         self._listeners.append(listener)
@@ -157,15 +175,25 @@ class RemoteSurface:
 
     # -- queries -------------------------------------------------------------------------
     async def query(self, key: str, payload: bytes) -> bytes:
-        """One Zenoh query, its first reply's payload; TimeoutError/NotConnectedError."""
+        """One Zenoh query, its first reply's payload; TimeoutError/NotConnectedError.
+
+        The reply (or, without one, the end of the query) is handed to the event loop with
+        one ``call_soon_threadsafe``; Zenoh's own timeout ends the query, and a timer of
+        the loop ``timeout + 1`` s later bounds the wait even if Zenoh never calls back.
+        """
         loop = self._loop
         future: asyncio.Future[bytes | BaseException] = loop.create_future()
+        replied = False
 
         def settle(value: bytes | BaseException) -> None:
             if not future.done():
                 future.set_result(value)
 
         def on_reply(reply: zenoh.Reply) -> None:
+            nonlocal replied
+            if replied:
+                return
+            replied = True
             ok = reply.ok
             value: bytes | BaseException
             if ok is not None:
@@ -174,9 +202,12 @@ class RemoteSurface:
                 err = reply.err
                 text = err.payload.to_string() if err is not None else "error reply"
                 value = NotConnectedError(f"{key}: {text}")
-            loop.call_soon_threadsafe(settle, value)
+            with contextlib.suppress(RuntimeError):  # a closed loop: nobody waits
+                loop.call_soon_threadsafe(settle, value)
 
         def on_done() -> None:
+            if replied:  # the reply is on its way to the loop
+                return
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(
                     settle, TimeoutError(f"{key}: no reply within {self.timeout} s")
@@ -188,10 +219,17 @@ class RemoteSurface:
             payload=payload,
             attachment=self._attachment,
             timeout=self.timeout,
-            consolidation=zenoh.ConsolidationMode.NONE,
+            consolidation=_NO_CONSOLIDATION,
         )
-        with anyio.fail_after(self.timeout + 1.0):
+        guard = loop.call_later(
+            self.timeout + 1.0,
+            settle,
+            TimeoutError(f"{key}: no reply and no end of query within {self.timeout + 1.0} s"),
+        )
+        try:
             result = await future
+        finally:
+            guard.cancel()
         if isinstance(result, BaseException):
             raise result
         return result
@@ -207,32 +245,44 @@ class RemoteSurface:
     async def execute(
         self, device: Device, application: object | None = None, *, encoding: Encoding | None = None
     ) -> Device:
-        """execute(): the Device message with results; ``application`` gets ``completed``."""
+        """execute(): the Device message with results; ``application`` gets ``completed``
+        for its asynchronous commands (those named in ``asynchronous``)."""
         encoding = encoding or self.encoding
-        delivery = self._delivery(application) if application is not None else None
         if encoding == "xml":
+            delivery = self._delivery(application) if application is not None else None
             reply = xml_psm.device_from_xml(
                 await self.query(self.keys.execute, xml_psm.to_xml(device, declaration=False))
             )
-        else:
-            reply = compact.device_from_compact(
-                await self.query(self.keys.execute, compact.encode(device))
-            )
-        if delivery is not None:
-            for command in reply.commands:
-                results = command.results
-                if (
-                    results is None
-                    or results.get("return_code") is None
-                    or results.value("return_code") != 0
-                ):
-                    continue
-                early = self._early.pop(command.command_id, None)
-                if early is not None:
-                    delivery.call("completed", command.command_id, early)
-                else:
-                    self._pending[command.command_id] = delivery
+            self._expect_completions(reply, delivery)
+            return reply
+        return await self.execute_compact(compact.encode(device), application)
+
+    async def execute_compact(self, payload: bytes, application: object | None = None) -> Device:
+        """execute() of a Device message already in the compact encoding (a caller that
+        sends the same message often encodes it once); the reply is decoded and checked."""
+        delivery = self._delivery(application) if application is not None else None
+        reply = compact.device_from_compact(await self.query(self.keys.execute, payload))
+        self._expect_completions(reply, delivery)
         return reply
+
+    def _expect_completions(self, reply: Device, delivery: Delivery | None) -> None:
+        """Route the coming ``completed`` of each accepted asynchronous command."""
+        if delivery is None:
+            return
+        for command in reply.commands:
+            if command.function_name not in self.asynchronous:
+                continue
+            results = command.results
+            if results is None or not results.parameters:
+                continue
+            head = results.parameters[0]
+            if head.name != "return_code" or head.value != 0:
+                continue
+            early = self._early.pop(command.command_id, None)
+            if early is not None:
+                delivery.call("completed", command.command_id, early)
+            else:
+                self._pending[command.command_id] = delivery
 
     async def execute_command(
         self, device_kind: str, command: CommandMessage, application: object | None = None
@@ -323,22 +373,26 @@ class RemoteSurface:
             if callable(report):
                 report(count)
 
-    async def _read_notices(self) -> None:
-        while True:
-            for payload in await self._notices.wait():
+    def _on_notice_batches(self, payloads: list[bytes]) -> None:
+        if self._tg is None:  # closed
+            return
+        for payload in payloads:
+            try:
+                batch = wire.batch_decoder.decode(payload)
+            except (msgspec.ValidationError, msgspec.DecodeError) as exc:
+                log.warning("bad_notice_batch", error=str(exc))
+                continue
+            if batch.first_index < self._next_index:
+                self._next_index = batch.first_index  # a restarted server numbers from 0
+            gap = batch.first_index - self._next_index
+            if gap > 0:
+                self._report_missed(gap)
+            self._next_index = batch.first_index + len(batch.notices)
+            for notice in batch.notices:
                 try:
-                    batch = wire.batch_decoder.decode(payload)
-                except (msgspec.ValidationError, msgspec.DecodeError) as exc:
-                    log.warning("bad_notice_batch", error=str(exc))
-                    continue
-                if batch.first_index < self._next_index:
-                    self._next_index = batch.first_index  # a restarted server numbers from 0
-                gap = batch.first_index - self._next_index
-                if gap > 0:
-                    self._report_missed(gap)
-                self._next_index = batch.first_index + len(batch.notices)
-                for notice in batch.notices:
                     self._deliver(notice)
+                except Exception:  # one bad notice must not lose the rest of the batch
+                    log.exception("notice_delivery_failed")
 
     def _deliver(self, notice: wire.Notice) -> None:
         if isinstance(notice, wire.CompletedNotice):

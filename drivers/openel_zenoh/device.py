@@ -11,6 +11,8 @@ server going away is a link fault (``ErrorId.DISCONNECTED``, ``HAL_NO_CONNECTED`
 
 from __future__ import annotations
 
+import asyncio
+
 import structlog
 
 from openel_async.device import (
@@ -25,7 +27,8 @@ from openel_async.device import (
 from openel_async.errors import BadParameterError, NotConnectedError, ReturnCode, check_code
 from openel_async.ids import DeviceKind
 from openel_async.requests import EventId, Request
-from openel_async.surface.messages import CommandMessage, ResultList
+from openel_async.surface import compact
+from openel_async.surface.messages import CommandMessage, Device, ResultList
 
 from .client import RemoteSurface
 
@@ -67,10 +70,19 @@ class _RemoteLink:
         self.ctx: DeviceContext | None = None
         self._subscription: int | None = None
         self._unlisten: object = None
+        self._payloads: dict[str, bytes] = {}
 
-    async def call(self, function_name: str, **arguments: object) -> ResultList:
-        command = CommandMessage.call(function_name, "", logical_id=self.logical_id, **arguments)
-        return results_of(await self.remote.execute_command(self.device_kind, command, self))
+    async def call(self, function_name: str) -> ResultList:
+        """A synchronous command without arguments (GetPosition, GetState...): its results.
+
+        Its compact message is encoded once per function name and reused."""
+        payload = self._payloads.get(function_name)
+        if payload is None:
+            command = CommandMessage.call(function_name, "", logical_id=self.logical_id)
+            payload = self._payloads[function_name] = compact.encode(
+                Device(self.device_kind, (command,))
+            )
+        return results_of((await self.remote.execute_compact(payload)).commands[0])
 
     async def link_open(self, ctx: DeviceContext) -> ResultList:
         self.ctx = ctx
@@ -196,7 +208,15 @@ class RemoteActuator(_RemoteLink, ActuatorDevice):
         self._latest = reply.command_id
         status = self._completed.pop(reply.command_id, None)
         if status is not None:
-            self.completed(reply.command_id, status)
+            # Completed before its reply came back: the Actuator accepts this command only
+            # once command() returns, so the completion is reported right after that.
+            asyncio.get_running_loop().call_soon(
+                self._completed_after_send, reply.command_id, status
+            )
+
+    def _completed_after_send(self, command_id: str, status: ReturnCode) -> None:
+        if self.ctx is not None and command_id == self._latest and status == ReturnCode.HAL_OK:
+            self.ctx.target_reached()
 
     async def read(self, request: Request) -> float:
         name, result = _GET[request]

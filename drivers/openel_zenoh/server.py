@@ -2,11 +2,16 @@
 liveliness).
 
 Queries arrive on Zenoh's threads and are moved into the event loop through a bounded
-inbox. Each client (named by the query's attachment) has a bounded queue of its own and
-at most one query executing at a time, so its commands run in order; workers take
-clients round robin, so a flooding client is refused (``HAL_NO_MEMORY``, counted in
-``refused_busy``) while the others keep being served. A malformed, oversized or invalid
-message gets an answer with the matching return code and is logged once.
+inbox, one ``call_soon_threadsafe`` per batch, handled in that loop callback. Each client
+(named by the query's attachment) has a bounded queue of its own and at most one query
+executing at a time, so its commands run in order. A query of an idle client that can be
+answered without suspending (every request but execute; an execute whose one command has
+a synchronous path on its component, such as a simulated motor's GetPosition or
+SetPosition) is answered right there, at most one per client per batch; the others go to
+the client's queue, which workers take round robin, so a flooding client is refused
+(``HAL_NO_MEMORY``, counted in ``refused_busy``) while the others keep being served. A
+malformed, oversized or invalid message gets an answer with the matching return code
+and is logged once.
 
 Notices for a client (completed, notify_event, notify_error) are numbered and published
 in batches, at most one batch per client per event-loop turn; the outbound buffer is
@@ -15,6 +20,7 @@ bounded, and whatever it drops leaves a gap in the numbering that the client rep
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 from collections import deque
 from dataclasses import dataclass, field
@@ -27,7 +33,7 @@ import msgspec
 import structlog
 import zenoh
 
-from openel_async.errors import BadParameterError, HALError, ReturnCode
+from openel_async.errors import BadParameterError, HALError, ReturnCode, WouldBlockError
 from openel_async.surface import Surface, compact, xml_psm
 from openel_async.surface.messages import CommandMessage, DataType, Device, Parameter, ResultList
 
@@ -52,6 +58,9 @@ class _Request:
     client: str
     payload: bytes
     query: zenoh.Query
+    device: Device | None = None
+    """The execute payload, once decoded."""
+    xml: bool = False
 
 
 @dataclass
@@ -157,10 +166,11 @@ class SurfaceServer:
         self._inbox: ThreadInbox[_Request] | None = None
         self._alive: ThreadInbox[tuple[str, bool]] | None = None
         self._flush_queue: list[_ClientLink] = []
-        self._flush_event = anyio.Event()
+        self._loop: asyncio.AbstractEventLoop | None = None
 
     async def __aenter__(self) -> Self:
-        self._inbox = ThreadInbox(INBOX_SIZE, on_drop=self._refuse_dropped)
+        self._loop = asyncio.get_running_loop()
+        self._inbox = ThreadInbox(INBOX_SIZE, on_drop=self._refuse_dropped, drain=self._on_requests)
         self._alive = ThreadInbox(1024)
         tg = anyio.create_task_group()
         await tg.__aenter__()
@@ -189,9 +199,7 @@ class SurfaceServer:
                     history=True,
                 )
             )
-            tg.start_soon(self._dispatch)
             tg.start_soon(self._watch_clients)
-            tg.start_soon(self._flusher)
             for _ in range(WORKERS):
                 tg.start_soon(self._worker)
             self._token = self.session.liveliness().declare_token(self.keys.server_alive)
@@ -286,27 +294,41 @@ class SurfaceServer:
                         _drop(request.query)
                     client.queue.clear()
 
-    async def _dispatch(self) -> None:
-        assert self._inbox is not None
-        while True:
-            for request in await self._inbox.wait():
+    def _on_requests(self, requests: list[_Request]) -> None:
+        """A batch of queries, in the loop callback that received it (never suspends)."""
+        answered: set[str] = set()
+        for request in requests:
+            try:
                 client = self._client(request.client)
-                if len(client.queue) >= CLIENT_QUEUE:
-                    self.refused_busy += 1
-                    if self.refused_busy == 1 or self.refused_busy % 1000 == 0:
-                        log.warning(
-                            "client_flooding", client=client.name, refused_total=self.refused_busy
-                        )
-                    self._answer_error(
-                        request,
-                        ReturnCode.HAL_NO_MEMORY,
-                        f"server busy: more than {CLIENT_QUEUE} requests queued for this client",
-                    )
+                if (
+                    not client.busy
+                    and not client.queue
+                    and client.name not in answered
+                    and self._serve_now(request)
+                ):
+                    answered.add(client.name)
                     continue
-                client.queue.append(request)
-                if not client.busy and len(client.queue) == 1:
-                    self._ready.append(client)
+                self._enqueue(client, request)
+            except Exception:  # a bug here must not lose the other queries of the batch
+                log.exception("request_dispatch_failed", kind=request.kind)
+                self._answer_error(request, ReturnCode.HAL_ERROR, "server error")
+        if self._ready:
             self._work.set()
+
+    def _enqueue(self, client: _Client, request: _Request) -> None:
+        if len(client.queue) >= CLIENT_QUEUE:
+            self.refused_busy += 1
+            if self.refused_busy == 1 or self.refused_busy % 1000 == 0:
+                log.warning("client_flooding", client=client.name, refused_total=self.refused_busy)
+            self._answer_error(
+                request,
+                ReturnCode.HAL_NO_MEMORY,
+                f"server busy: more than {CLIENT_QUEUE} requests queued for this client",
+            )
+            return
+        client.queue.append(request)
+        if not client.busy and len(client.queue) == 1:
+            self._ready.append(client)
 
     async def _worker(self) -> None:
         while True:
@@ -327,22 +349,24 @@ class SurfaceServer:
                     self._work.set()
 
     def schedule_flush(self, link: _ClientLink) -> None:
+        """Publish ``link``'s notices once this event-loop turn is over (so that the
+        notices of one turn go in one batch): one loop callback, no task."""
+        if not self._flush_queue and self._loop is not None:
+            self._loop.call_soon(self._flush)
         self._flush_queue.append(link)
-        self._flush_event.set()
 
-    async def _flusher(self) -> None:
-        while True:
-            await self._flush_event.wait()
-            self._flush_event = anyio.Event()
-            await anyio.lowlevel.checkpoint()  # let this turn's notices gather
-            links, self._flush_queue = self._flush_queue, []
-            for link in links:
+    def _flush(self) -> None:
+        links, self._flush_queue = self._flush_queue, []
+        for link in links:
+            try:
                 link.flush()
+            except Exception:  # a loop callback must not raise
+                log.exception("notice_flush_failed", client=link.client)
 
     # -- requests --------------------------------------------------------------------------------
     def _reply(self, request: _Request, payload: bytes) -> None:
         try:
-            request.query.reply(str(request.query.key_expr), payload)
+            request.query.reply(request.query.key_expr, payload)
         except zenoh.ZError as exc:
             log.warning("reply_failed", kind=request.kind, error=str(exc))
         finally:
@@ -375,37 +399,72 @@ class SurfaceServer:
         )
         return xml_psm.to_xml(reply) if is_xml(payload) else compact.encode(reply)
 
-    async def _serve(self, request: _Request) -> None:
-        self.served += 1
+    def _serve_now(self, request: _Request) -> bool:
+        """Answer ``request`` without suspending if it can be; False: nothing was done."""
         try:
             if request.kind == "execute":
-                payload = await self._execute(request)
+                device = self._decoded(request)
+                client = self.clients.get(request.client)
+                app = client.link if client is not None else None
+                try:
+                    done = self.surface.execute_nowait(device, app)
+                except WouldBlockError:
+                    return False
+                payload = self._encoded(request, done)
             else:
-                payload = wire.encoder.encode(await self._small(request))
-        except BadParameterError as exc:
+                payload = wire.encoder.encode(self._small(request))
+        except Exception as exc:
+            self._refused(request, exc)
+            return True
+        self.served += 1
+        self._reply(request, payload)
+        return True
+
+    def _decoded(self, request: _Request) -> Device:
+        if request.device is None:
+            request.xml = is_xml(request.payload)
+            request.device = (
+                xml_psm.device_from_xml(request.payload)
+                if request.xml
+                else compact.device_from_compact(request.payload)
+            )
+        return request.device
+
+    @staticmethod
+    def _encoded(request: _Request, device: Device) -> bytes:
+        if request.xml:
+            return xml_psm.to_xml(device, declaration=False)
+        return compact.encode(device)
+
+    def _refused(self, request: _Request, exc: Exception) -> None:
+        self.served += 1
+        if isinstance(exc, BadParameterError):
             self.refused_bad += 1
             log.warning(
                 "request_refused", kind=request.kind, client=request.client, reason=str(exc)
             )
             self._answer_error(request, exc.code, str(exc))
             return
+        log.error("request_failed", kind=request.kind, client=request.client, exc_info=exc)
+        code, message = _result_code(exc)
+        self._answer_error(request, ReturnCode(code), message)
+
+    async def _serve(self, request: _Request) -> None:
+        try:
+            if request.kind == "execute":
+                device = self._decoded(request)
+                client = self.clients.get(request.client)
+                app = client.link if client is not None else None
+                payload = self._encoded(request, await self.surface.execute(device, app))
+            else:
+                payload = wire.encoder.encode(self._small(request))
         except Exception as exc:
-            log.exception("request_failed", kind=request.kind, client=request.client)
-            code, message = _result_code(exc)
-            self._answer_error(request, ReturnCode(code), message)
+            self._refused(request, exc)
             return
+        self.served += 1
         self._reply(request, payload)
 
-    async def _execute(self, request: _Request) -> bytes:
-        client = self.clients.get(request.client)
-        app = client.link if client is not None else None
-        if is_xml(request.payload):
-            device = xml_psm.device_from_xml(request.payload)
-            return xml_psm.to_xml(await self.surface.execute(device, app), declaration=False)
-        device = compact.device_from_compact(request.payload)
-        return compact.encode(await self.surface.execute(device, app))
-
-    async def _small(self, request: _Request) -> Any:
+    def _small(self, request: _Request) -> Any:
         surface = self.surface
         client = self.clients.get(request.client)
         try:

@@ -2,7 +2,10 @@
 
 A :class:`KindProfile` lists the operations of one device kind (spec §7.4.5: Motor,
 sensors). A synchronous operation returns its results; an asynchronous one returns the
-:class:`Motion` whose end the surface reports with ``completed``. Device characteristics
+:class:`Motion` whose end the surface reports with ``completed``. An operation may also
+have a ``run_nowait`` twin that does the same without suspending (``get_value_nowait``,
+``set_value_nowait``...) for components that need no I/O; it raises WouldBlockError,
+before any effect, when the component has no synchronous path. Device characteristics
 profiles can later build such tables from their own definitions; :data:`DEFAULT_PROFILES`
 covers the plain components (``Actuator`` as Motor, ``Sensor`` by its device kind).
 """
@@ -12,6 +15,7 @@ from __future__ import annotations
 import re
 from collections.abc import Awaitable, Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 from ..actuator import Actuator
 from ..completion import Motion
@@ -24,6 +28,7 @@ from .messages import CommandMessage, DataType, ResultList
 
 SyncRun = Callable[[HALComponent, CommandMessage], Awaitable[ResultList | None]]
 AsyncRun = Callable[[HALComponent, CommandMessage], Awaitable[Motion]]
+NowRun = Callable[[HALComponent, CommandMessage], ResultList | Motion | None]
 
 
 @dataclass(frozen=True)
@@ -36,6 +41,29 @@ class Operation:
     arguments: tuple[tuple[str, DataType], ...] = ()
     """The arguments it reads (name, data type), for documentation and listing."""
     description: str = ""
+    run_nowait: NowRun | None = None
+    """The same without suspending; WouldBlockError (nothing done) when the component
+    needs I/O for it. None: the operation always suspends (Reset)."""
+
+
+def now_and_async(now: NowRun) -> tuple[SyncRun, NowRun]:
+    """An operation that never suspends, as its ``run`` and ``run_nowait``."""
+
+    async def run(component: HALComponent, command: CommandMessage) -> Any:
+        return now(component, command)
+
+    return run, now
+
+
+def _op(
+    name: str,
+    now: NowRun,
+    synchronous: bool = True,
+    arguments: tuple[tuple[str, DataType], ...] = (),
+    description: str = "",
+) -> Operation:
+    run, nowait = now_and_async(now)
+    return Operation(name, run, synchronous, arguments, description, nowait)
 
 
 @dataclass(frozen=True)
@@ -56,9 +84,18 @@ class KindProfile:
         return found
 
 
+_KIND_SEPARATORS = re.compile(r"[\s_\-]")
+_NORMALIZED: dict[str, str] = {}
+
+
 def normalize_kind(name: str) -> str:
     """Device kind names compare without case, spaces, '_' or '-' ('Gyro sensor' = 'GyroSensor')."""
-    return re.sub(r"[\s_\-]", "", name).lower()
+    found = _NORMALIZED.get(name)
+    if found is None:
+        found = _KIND_SEPARATORS.sub("", name).lower()
+        if len(_NORMALIZED) < 1024:  # names from the network: the cache stays bounded
+            _NORMALIZED[name] = found
+    return found
 
 
 def argument(command: CommandMessage, name: str, data_type: DataType, *, required: bool = True):  # type: ignore[no-untyped-def]
@@ -76,48 +113,68 @@ def argument(command: CommandMessage, name: str, data_type: DataType, *, require
 
 
 # -- Motor (an Actuator) ---------------------------------------------------------------
-def _set(request: Request, name: str) -> AsyncRun:
-    async def run(component: HALComponent, command: CommandMessage) -> Motion:
-        assert isinstance(component, Actuator)
-        value = argument(command, name, DataType.FLOAT)
-        return await component.set_value(value, request)
+# Each Set* reads and checks its arguments first (refusals have no effect), then sends
+# the command through set_value or, without suspending, set_value_nowait.
+def _setpoint(request: Request, name: str) -> Callable[[CommandMessage], tuple[float, Request]]:
+    def parse(command: CommandMessage) -> tuple[float, Request]:
+        return argument(command, name, DataType.FLOAT), request
 
-    return run
+    return parse
 
 
-async def _set_speed(component: HALComponent, command: CommandMessage) -> Motion:
-    assert isinstance(component, Actuator)
+def _speed(command: CommandMessage) -> tuple[float, Request]:
     speed = argument(command, "speed", DataType.FLOAT)
     if argument(command, "tmAcc", DataType.FLOAT, required=False) is not None:
         raise NotImplementedHALError(
             "SetSpeed: tmAcc is not supported (the device ramps at its own acceleration limit)"
         )
-    return await component.set_value(speed, Request.VELOCITY)
+    return speed, Request.VELOCITY
 
 
-async def _set_control_mode(component: HALComponent, command: CommandMessage) -> Motion:
-    assert isinstance(component, Actuator)
+def _control_mode(command: CommandMessage) -> tuple[float, Request]:
     mode = argument(command, "mode", DataType.INT)
     if mode != 0:
         raise NotImplementedHALError(
             f"SetControlMode: mode {mode} is entered by SetPosition (1), SetSpeed (2) or "
             "SetTorque (3); only 0 (HALMOTOR_READY_TO_CONTROL) is set directly"
         )
-    return await component.set_value(0.0, Request.NO_EXCITE)
+    return 0.0, Request.NO_EXCITE
 
 
-async def _get_control_mode(component: HALComponent, command: CommandMessage) -> ResultList:
+def _set_op(
+    name: str,
+    parse: Callable[[CommandMessage], tuple[float, Request]],
+    arguments: tuple[tuple[str, DataType], ...],
+) -> Operation:
+    async def run(component: HALComponent, command: CommandMessage) -> Motion:
+        assert isinstance(component, Actuator)
+        value, request = parse(command)
+        return await component.set_value(value, request)
+
+    def nowait(component: HALComponent, command: CommandMessage) -> Motion:
+        assert isinstance(component, Actuator)
+        value, request = parse(command)
+        return component.set_value_nowait(value, request)
+
+    return Operation(name, run, False, arguments, run_nowait=nowait)
+
+
+def _get_control_mode(component: HALComponent, command: CommandMessage) -> ResultList:
     assert isinstance(component, Actuator)
     motion = component.motion
     return ResultList.of(mode=0 if motion is None else int(motion.request))
 
 
-def _get(request: Request, name: str) -> SyncRun:
+def _get_op(name: str, request: Request, result: str) -> Operation:
     async def run(component: HALComponent, command: CommandMessage) -> ResultList:
         assert isinstance(component, Actuator)
-        return ResultList.of(**{name: await component.get_value(request)})
+        return ResultList.of(**{result: await component.get_value(request)})
 
-    return run
+    def nowait(component: HALComponent, command: CommandMessage) -> ResultList:
+        assert isinstance(component, Actuator)
+        return ResultList.of(**{result: component.get_value_nowait(request)})
+
+    return Operation(name, run, run_nowait=nowait)
 
 
 # -- Sensors -----------------------------------------------------------------------------
@@ -129,20 +186,28 @@ async def _get_values(component: HALComponent, command: CommandMessage) -> Resul
     return ResultList.of(values=list(await component.get_value()))
 
 
-async def _get_units(component: HALComponent, command: CommandMessage) -> ResultList:
+def _get_values_nowait(component: HALComponent, command: CommandMessage) -> ResultList:
+    assert isinstance(component, Sensor)
+    if component.device.has_time:
+        timed = component.get_timed_value_nowait()
+        return ResultList.of(values=list(timed.values), time_ns=timed.time_ns)
+    return ResultList.of(values=list(component.get_value_nowait()))
+
+
+def _get_units(component: HALComponent, command: CommandMessage) -> ResultList:
     assert isinstance(component, Sensor)
     return ResultList.of(units=list(component.units) or [""])
 
 
-async def _get_kind(component: HALComponent, command: CommandMessage) -> ResultList:
+def _get_kind(component: HALComponent, command: CommandMessage) -> ResultList:
     return ResultList.of(sensor_kind=component.hal_id.device_kind_id)
 
 
-def _not_implemented(what: str) -> SyncRun:
-    async def run(component: HALComponent, command: CommandMessage) -> ResultList:
+def _not_implemented(name: str, what: str) -> Operation:
+    def now(component: HALComponent, command: CommandMessage) -> ResultList:
         raise NotImplementedHALError(f"{command.function_name}: {what}")
 
-    return run
+    return _op(name, now)
 
 
 # -- Every component ---------------------------------------------------------------------
@@ -150,7 +215,7 @@ async def _reset(component: HALComponent, command: CommandMessage) -> None:
     await component.re_init()
 
 
-async def _get_state(component: HALComponent, command: CommandMessage) -> ResultList:
+def _get_state(component: HALComponent, command: CommandMessage) -> ResultList:
     fault = component.last_fault
     return ResultList.of(
         state=str(component.state),
@@ -159,7 +224,7 @@ async def _get_state(component: HALComponent, command: CommandMessage) -> Result
     )
 
 
-async def _get_profile(component: HALComponent, command: CommandMessage) -> ResultList:
+def _get_profile(component: HALComponent, command: CommandMessage) -> ResultList:
     hal_id = component.hal_id
     values: dict[str, object] = {
         "device_name": component.device_name,
@@ -180,42 +245,40 @@ async def _get_profile(component: HALComponent, command: CommandMessage) -> Resu
     return ResultList.of(**values)
 
 
-async def _get_time(component: HALComponent, command: CommandMessage) -> ResultList:
+def _get_time(component: HALComponent, command: CommandMessage) -> ResultList:
     return ResultList.of(time_ns=component.get_time())
 
 
 COMMON = (
     Operation("Reset", _reset, description="ReInit: leave Error and return to Active"),
-    Operation("GetState", _get_state, description="state, error_id and message of the last fault"),
-    Operation("GetProfile", _get_profile, description="identity, limits, units"),
-    Operation("GetTime", _get_time, description="the component's clock, ns"),
+    _op("GetState", _get_state, description="state, error_id and message of the last fault"),
+    _op("GetProfile", _get_profile, description="identity, limits, units"),
+    _op("GetTime", _get_time, description="the component's clock, ns"),
 )
 
 MOTOR_OPERATIONS = (
-    Operation(
-        "SetPosition", _set(Request.POSITION, "position"), False, (("position", DataType.FLOAT),)
+    _set_op(
+        "SetPosition", _setpoint(Request.POSITION, "position"), (("position", DataType.FLOAT),)
     ),
-    Operation(
-        "SetSpeed", _set_speed, False, (("speed", DataType.FLOAT), ("tmAcc", DataType.FLOAT))
-    ),
-    Operation("SetTorque", _set(Request.TORQUE, "torque"), False, (("torque", DataType.FLOAT),)),
-    Operation("SetControlMode", _set_control_mode, False, (("mode", DataType.INT),)),
-    Operation("GetControlMode", _get_control_mode),
-    Operation("GetPosition", _get(Request.POSITION_ACTUAL, "position")),
-    Operation("GetSpeed", _get(Request.VELOCITY_ACTUAL, "speed")),
-    Operation("GetTorque", _get(Request.TORQUE_ACTUAL, "torque")),
-    Operation("SetOrigin", _not_implemented("the Actuator API has no origin")),
+    _set_op("SetSpeed", _speed, (("speed", DataType.FLOAT), ("tmAcc", DataType.FLOAT))),
+    _set_op("SetTorque", _setpoint(Request.TORQUE, "torque"), (("torque", DataType.FLOAT),)),
+    _set_op("SetControlMode", _control_mode, (("mode", DataType.INT),)),
+    _op("GetControlMode", _get_control_mode),
+    _get_op("GetPosition", Request.POSITION_ACTUAL, "position"),
+    _get_op("GetSpeed", Request.VELOCITY_ACTUAL, "speed"),
+    _get_op("GetTorque", Request.TORQUE_ACTUAL, "torque"),
+    _not_implemented("SetOrigin", "the Actuator API has no origin"),
     *COMMON,
 )
 
 SENSOR_OPERATIONS = (
-    Operation("GetSensorKind", _get_kind),
-    Operation("GetValueOfMeasurement", _get_values),
-    Operation("GetUnitOfMeasurement", _get_units),
-    Operation("SetUnitOfMeasurement", _not_implemented("units are fixed SI units")),
-    Operation("SetScaleFactor", _not_implemented("values are in SI units")),
-    Operation("GetScaleFactor", _not_implemented("values are in SI units")),
-    Operation("SetOrigin", _not_implemented("the Sensor API has no origin")),
+    _op("GetSensorKind", _get_kind),
+    Operation("GetValueOfMeasurement", _get_values, run_nowait=_get_values_nowait),
+    _op("GetUnitOfMeasurement", _get_units),
+    _not_implemented("SetUnitOfMeasurement", "units are fixed SI units"),
+    _not_implemented("SetScaleFactor", "values are in SI units"),
+    _not_implemented("GetScaleFactor", "values are in SI units"),
+    _not_implemented("SetOrigin", "the Sensor API has no origin"),
     *COMMON,
 )
 

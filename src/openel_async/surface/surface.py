@@ -17,7 +17,7 @@ surface.
 from __future__ import annotations
 
 import itertools
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import TracebackType
@@ -38,11 +38,12 @@ from ..errors import (
     ReturnCode,
     StateError,
     SupersededError,
+    WouldBlockError,
 )
 from ..requests import EventId
 from .application import Delivery
 from .messages import CommandMessage, DataType, Device, Parameter, ResultList
-from .profiles import DEFAULT_PROFILES, KindProfile, argument, kind_of, normalize_kind
+from .profiles import DEFAULT_PROFILES, KindProfile, Operation, argument, kind_of, normalize_kind
 
 log = structlog.get_logger(__name__)
 
@@ -94,6 +95,40 @@ def status_of(motion: Motion, error: BaseException | None) -> ReturnCode:
     return ReturnCode.HAL_ERROR
 
 
+_HAL_OK = Parameter(DataType.INT, "return_code", int(ReturnCode.HAL_OK))
+
+
+class _MotionWatcher:
+    """Reports the end of the commands of one component, in order.
+
+    A component has at most one pending Motion (a new command supersedes the previous),
+    so the motions end in the order they were accepted: awaiting them first-in first-out
+    costs no delay, and one task serves every command of the component.
+    """
+
+    def __init__(self) -> None:
+        self.pending: deque[tuple[str, Motion, Delivery]] = deque()
+        self.wakeup = anyio.Event()
+
+    def add(self, command_id: str, motion: Motion, delivery: Delivery) -> None:
+        self.pending.append((command_id, motion, delivery))
+        self.wakeup.set()
+
+    async def run(self) -> None:
+        while True:
+            while not self.pending:
+                await self.wakeup.wait()
+                self.wakeup = anyio.Event()
+            command_id, motion, delivery = self.pending[0]
+            error: BaseException | None = None
+            try:
+                await motion
+            except HALError as exc:
+                error = exc
+            self.pending.popleft()
+            delivery.call("completed", command_id, status_of(motion, error))
+
+
 def failure(command: CommandMessage, code: ReturnCode, message: str) -> CommandMessage:
     """``command`` with results return_code=code and message."""
     return CommandMessage(
@@ -138,7 +173,8 @@ class Surface:
             same.append(entry)
             self.entries.append(entry)
             self._by_component[id(component)] = entry
-        self._command_ids = itertools.count(1)
+        self._command_count = 0
+        self._watchers: dict[int, _MotionWatcher] = {}
         self._event_ids = itertools.count(1)
         self._error_ids = itertools.count(1)
         self._subscribe_ids = itertools.count(1)
@@ -233,35 +269,91 @@ class Surface:
         ]
         return Device(device.device_kind, tuple(done))
 
-    async def execute_command(
-        self, device_kind: str, command: CommandMessage, application: object | None = None
-    ) -> CommandMessage:
-        command_id = f"c{next(self._command_ids)}"
-        command = CommandMessage(
+    def execute_nowait(self, device: Device, application: object | None = None) -> Device:
+        """execute() without suspending, for a Device of one command whose operation has a
+        synchronous path on its component (a simulated motor's GetPosition, SetPosition...).
+
+        Raises WouldBlockError, with nothing done, when it cannot (more than one command,
+        an operation without ``run_nowait``, a component that needs I/O); use
+        :meth:`execute` then. Refusals (bad arguments...) are answers, as in execute().
+        """
+        if not isinstance(device, Device):
+            raise BadParameterError("device", device, "a Device message")
+        if len(device.commands) != 1:
+            raise WouldBlockError("execute_nowait runs one command message at a time")
+        command = device.commands[0]
+        try:
+            entry, operation = self._target(device.device_kind, command)
+        except HALError as exc:
+            done = self._refuse(device.device_kind, self._numbered(command), exc.code, str(exc))
+            return Device(device.device_kind, (done,))
+        nowait = operation.run_nowait
+        if nowait is None:
+            raise WouldBlockError(f"{command.function_name} has no synchronous path")
+        command_id = f"c{self._command_count + 1}"
+        numbered = CommandMessage(
             command.function_name, command_id, command.arguments, command.results
         )
         try:
-            logical_id = argument(command, LOGICAL_ID, DataType.INT, required=False)
-            entry = self.resolve(device_kind, logical_id)
-            operation = self.profiles[normalize_kind(entry.device_kind)].operation(
-                command.function_name
-            )
+            outcome: Any = nowait(entry.component, numbered)
+        except WouldBlockError:
+            raise  # nothing was done: the caller runs execute()
+        except HALError as exc:
+            self._command_count += 1
+            done = self._refuse(device.device_kind, numbered, exc.code, str(exc))
+            return Device(device.device_kind, (done,))
+        except Exception as exc:
+            self._command_count += 1
+            log.exception("surface_operation_failed", function=command.function_name)
+            done = self._refuse(device.device_kind, numbered, ReturnCode.HAL_ERROR, repr(exc))
+            return Device(device.device_kind, (done,))
+        self._command_count += 1
+        return Device(device.device_kind, (self._answer(numbered, outcome, entry, application),))
+
+    async def execute_command(
+        self, device_kind: str, command: CommandMessage, application: object | None = None
+    ) -> CommandMessage:
+        command = self._numbered(command)
+        try:
+            entry, operation = self._target(device_kind, command)
             outcome: Any = await operation.run(entry.component, command)
         except HALError as exc:
             return self._refuse(device_kind, command, exc.code, str(exc))
         except Exception as exc:  # a component raising something else: still an answer
             log.exception("surface_operation_failed", function=command.function_name)
             return self._refuse(device_kind, command, ReturnCode.HAL_ERROR, repr(exc))
-        head = Parameter(DataType.INT, "return_code", int(ReturnCode.HAL_OK))
-        if isinstance(outcome, Motion):
-            self._watch(command_id, outcome, application)
-            results: tuple[Parameter, ...] = (head,)
-        elif isinstance(outcome, ResultList):
-            results = (head, *outcome.parameters)
-        else:
-            results = (head,)
+        return self._answer(command, outcome, entry, application)
+
+    def _numbered(self, command: CommandMessage) -> CommandMessage:
+        """``command`` with the next surface-chosen command_id."""
+        self._command_count += 1
         return CommandMessage(
-            command.function_name, command_id, command.arguments, ResultList(results)
+            command.function_name, f"c{self._command_count}", command.arguments, command.results
+        )
+
+    def _target(self, device_kind: str, command: CommandMessage) -> tuple[SurfaceEntry, Operation]:
+        logical_id = argument(command, LOGICAL_ID, DataType.INT, required=False)
+        entry = self.resolve(device_kind, logical_id)
+        profile = self.profiles[normalize_kind(entry.device_kind)]
+        return entry, profile.operation(command.function_name)
+
+    def _answer(
+        self,
+        command: CommandMessage,
+        outcome: object,
+        entry: SurfaceEntry,
+        application: object | None,
+    ) -> CommandMessage:
+        """The executed command with its results (an accepted Motion is watched)."""
+        if isinstance(outcome, Motion):
+            self._watch(command.command_id, outcome, entry, application)
+            results: tuple[Parameter, ...] = (_HAL_OK,)
+        elif isinstance(outcome, ResultList):
+            results = (_HAL_OK, *outcome.parameters)
+        else:
+            results = (_HAL_OK,)
+        return CommandMessage(
+            command.function_name, command.command_id, command.arguments, ResultList(results)
         )
 
     def _refuse(
@@ -277,23 +369,23 @@ class Surface:
         )
         return failure(command, code, message)
 
-    def _watch(self, command_id: str, motion: Motion, application: object | None) -> None:
+    def _watch(
+        self, command_id: str, motion: Motion, entry: SurfaceEntry, application: object | None
+    ) -> None:
+        """Call ``completed`` when ``motion`` ends: at once when it already has, else from
+        one watcher task per component (not one task per command)."""
         if application is None:
             return
         delivery = self._delivery(application)
         if motion.done():
             delivery.call("completed", command_id, status_of(motion, motion.error()))
             return
-        assert self._tg is not None
-        self._tg.start_soon(self._await_motion, command_id, motion, delivery)
-
-    async def _await_motion(self, command_id: str, motion: Motion, delivery: Delivery) -> None:
-        error: BaseException | None = None
-        try:
-            await motion
-        except HALError as exc:
-            error = exc
-        delivery.call("completed", command_id, status_of(motion, error))
+        watcher = self._watchers.get(id(entry.component))
+        if watcher is None:
+            assert self._tg is not None
+            watcher = self._watchers[id(entry.component)] = _MotionWatcher()
+            self._tg.start_soon(watcher.run)
+        watcher.add(command_id, motion, delivery)
 
     # -- Event interface (Table 7.6) ------------------------------------------------------
     def subscribe(self, device_kind: str, event_type: str, application: object) -> int:
