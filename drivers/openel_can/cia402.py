@@ -132,12 +132,16 @@ _STATE_PATTERNS: Final = (
 )
 
 
+_STATE_MATCH: Final = tuple((mask, int(state.value), state) for mask, state in _STATE_PATTERNS)
+"""(mask, value as a plain int, state): the table above without enum lookups per call."""
+
+
 def state_from_statusword(statusword: int) -> PowerState:
     """Map a statusword to its power state; raises :class:`Cia402DecodeError` if none matches."""
     if not 0 <= statusword <= 0xFFFF:
         raise Cia402DecodeError(f"statusword {statusword} is not a u16")
-    for mask, state in _STATE_PATTERNS:
-        if statusword & mask == state.value:
+    for mask, value, state in _STATE_MATCH:
+        if statusword & mask == value:
             return state
     raise Cia402DecodeError(f"statusword {statusword:#06x} matches no CiA 402 state")
 

@@ -105,6 +105,11 @@ _TPDO1_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[0])
 _TPDO2_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[1])
 _RPDO_MAP_ENTRIES: Final = tuple(tuple(e.map_entry() for e in mapping) for mapping in RPDO_MAPS)
 _ENABLE: Final = int(ds.Command.ENABLE_OPERATION)
+# Plain ints of the bits tested on every set-point (IntFlag arithmetic is Python code).
+_ACK: Final = int(SB.SETPOINT_ACKNOWLEDGE)
+_REACHED: Final = int(SB.TARGET_REACHED)
+_NEW_SETPOINT: Final = int(CB.NEW_SETPOINT)
+_PP_BASE: Final = _ENABLE | int(CB.CHANGE_SET_IMMEDIATELY)
 
 
 def _emcy_name(code: int) -> str:
@@ -480,6 +485,11 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         await self._port.send(co.RPDO_BASES[number] + self.node_id, data)
 
     async def _wait_status(self, predicate: Callable[[int], bool], what: str) -> int:
+        if self._latched:
+            raise _FaultedError(what)
+        sw = self._statusword
+        if sw is not None and predicate(sw):  # already there: no timeout scope needed
+            return sw
         with anyio.move_on_after(self.state_timeout):
             while True:
                 if self._latched:
@@ -547,23 +557,19 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
             setpoint = _Setpoint(request)
             self._pending = setpoint  # armed right before returning (see ODriveAxis.command)
             sw = self._statusword
-            if sw is not None and sw & SB.TARGET_REACHED and self._ctx is not None:
+            if sw is not None and sw & _REACHED and self._ctx is not None:
                 # Already there: report once the Actuator has installed the new Motion.
                 self._ctx.start_soon(self._report_later, setpoint)
 
     async def _position_setpoint(self, counts: int) -> None:
         mode = Mode.PROFILE_POSITION
-        base = _ENABLE | CB.CHANGE_SET_IMMEDIATELY
-        if self._controlword & CB.NEW_SETPOINT or (self._statusword or 0) & SB.SETPOINT_ACKNOWLEDGE:
+        base = _PP_BASE
+        if self._controlword & _NEW_SETPOINT or (self._statusword or 0) & _ACK:
             await self._send_rpdo(mode, base, self._targets[mode])
-            await self._wait_status(
-                lambda sw: not sw & SB.SETPOINT_ACKNOWLEDGE, "set-point acknowledge low"
-            )
+            await self._wait_status(lambda sw: not sw & _ACK, "set-point acknowledge low")
         self._targets[mode] = counts
-        await self._send_rpdo(mode, base | CB.NEW_SETPOINT, counts)
-        await self._wait_status(
-            lambda sw: bool(sw & SB.SETPOINT_ACKNOWLEDGE), "set-point acknowledge"
-        )
+        await self._send_rpdo(mode, base | _NEW_SETPOINT, counts)
+        await self._wait_status(lambda sw: bool(sw & _ACK), "set-point acknowledge")
         await self._send_rpdo(mode, base, counts)
 
     async def _report_later(self, setpoint: _Setpoint) -> None:
@@ -676,7 +682,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
             )
             return
         setpoint = self._pending
-        if setpoint is not None and statusword & SB.TARGET_REACHED:
+        if setpoint is not None and statusword & _REACHED:
             self._report(setpoint)
 
     def _on_emcy(self, frame: can.Message) -> None:

@@ -3,10 +3,11 @@
 python-can's ``VirtualBus`` delivers a frame by ``put`` into a ``queue.Queue`` of every
 other bus on the channel, in the sending thread; it has no file descriptor to wait on.
 :func:`hook_virtual_bus` turns that queue, in place, into a :class:`WakingQueue`: each
-frame put calls ``wake()`` (in the sender's thread, any thread), so a
-:class:`~openel_can.bus.CanBus` can read the bus in its event loop with non-blocking
-``recv(0)`` when told, instead of a thread blocking in ``recv`` and handing frames over.
-That saves a thread hop per frame burst (the sender wakes the loop directly).
+frame put calls ``wake()`` (in the sender's thread, any thread, after releasing the
+queue's lock), so a :class:`~openel_can.bus.CanBus` can read the bus in its event loop
+when told (:meth:`WakingQueue.take`, or non-blocking ``recv(0)``), instead of a thread
+blocking in ``recv`` and handing frames over. That saves a thread hop per frame burst
+(the sender wakes the loop directly).
 
 The queue object stays the same (its class is switched under its mutex), so a sender
 that already holds it never loses a frame. It is bounded: beyond ``limit`` queued frames
@@ -31,22 +32,28 @@ __all__ = ["WakingQueue", "hook_virtual_bus"]
 
 
 class WakingQueue(queue.Queue[Any]):
-    """A ``queue.Queue`` that calls ``wake()`` on every put and drops beyond ``limit``."""
+    """A ``queue.Queue`` that calls ``wake()`` after every put and drops beyond ``limit``."""
 
     wake: Callable[[], None] | None
     limit: int
     overflow: int
 
-    def _put(self, item: Any) -> None:  # called by put() with the mutex held
-        wake = self.wake
-        if wake is None:
+    def put(self, item: Any, block: bool = True, timeout: float | None = None) -> None:
+        """Queue ``item`` (never blocks: unbounded but for ``limit``), then ``wake()``.
+
+        ``wake`` runs after the mutex is released: it may make a system call (waking the
+        event loop), and a reader must not wait for the lock meanwhile.
+        """
+        with self.mutex:
+            wake = self.wake
+            if wake is not None and len(self.queue) >= self.limit:
+                self.overflow += 1
+                return
             self.queue.append(item)
-            return
-        if len(self.queue) >= self.limit:
-            self.overflow += 1
-            return
-        self.queue.append(item)
-        wake()
+            self.unfinished_tasks += 1
+            self.not_empty.notify()
+        if wake is not None:
+            wake()
 
     def take(self, limit: int) -> list[Any]:
         """Up to ``limit`` queued frames, oldest first, under one lock (``get_nowait`` each)."""
