@@ -5,10 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import anyio
-from openel_sim import SimMotor, SimTemperature
 
 from openel_async import Actuator, EventTimer, Request, Sensor, VirtualClock
 from openel_async.recording import Recorder
+from openel_sim import SimMotor, SimTemperature
 
 TARGETS = ((0.0, 0.8, -0.3), (0.1, -0.5, 0.6))
 """Per motor: three targets, sent 0.6 s apart (the last is the final position)."""

@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
-from openel_sim import SimMotor
 
 from openel_async import Actuator, BadParameterError, VirtualClock
 from openel_async.cli import main as cli_main
 from openel_async.recording import Recorder, info_lines, read_recording
+from openel_sim import SimMotor
 
 from .conftest import TARGETS, scenario
 

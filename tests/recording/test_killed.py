@@ -1,0 +1,67 @@
+"""A recording whose process is killed (SIGKILL) is readable up to its last complete chunk."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from openel_async.recording import info_lines, read_recording
+
+SCRIPT = """
+import sys
+import anyio
+from openel_sim import SimMotor
+from openel_async import Actuator, EventTimer, VirtualClock
+from openel_async.recording import Recorder
+
+async def main(path):
+    clock = VirtualClock()
+    async with clock.autojump(), Recorder(path, chunk_size=16 * 1024) as rec:
+        axis = Actuator(SimMotor(), device_name="AXIS", clock=clock)
+        timer = EventTimer(1, clock=clock, name="loop")
+        rec.observe(axis)
+        rec.observe_timer(timer)
+        async with axis, timer:
+            timer.start_timer()
+            k = 0
+            while True:  # runs until killed
+                k += 1
+                axis.set_value_nowait((k % 100) / 100.0)
+                await clock.sleep_until(clock.now_ns() + 1_000_000)
+                if k % 200 == 0:
+                    await anyio.sleep(0.005)  # real time for the writer thread
+
+anyio.run(main, sys.argv[1])
+"""
+
+
+def test_killed_recording_is_readable(tmp_path: Path) -> None:
+    path = tmp_path / "killed.mcap"
+    proc = subprocess.Popen([sys.executable, "-c", SCRIPT, str(path)], stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        # Several complete chunks on disk (16 KiB each, compressed), then kill it mid-write.
+        while not (path.exists() and path.stat().st_size > 40_000):
+            assert proc.poll() is None, "the recording process ended on its own"
+            assert time.monotonic() < deadline, "the recording did not grow"
+            time.sleep(0.05)
+        os.kill(proc.pid, signal.SIGKILL)
+        assert proc.wait(timeout=30) == -signal.SIGKILL
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    recording = read_recording(path)
+    assert not recording.complete  # no footer: cut short
+    commands = [m for m in recording.topic("/hal/AXIS") if m["kind"] == "command"]
+    ticks = recording.topic("/timer/loop")
+    assert len(commands) > 200 and len(ticks) > 200
+    # In order and whole up to the cut: consecutive commands, 1 ms apart on the clock.
+    values = [round(m["value"] * 100) for m in commands]
+    assert values == [(k % 100) for k in range(1, len(values) + 1)]
+    assert [m["index"] for m in ticks] == list(range(1, len(ticks) + 1))
+    assert any(line.startswith("complete    no: cut short") for line in info_lines(recording))

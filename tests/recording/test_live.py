@@ -1,0 +1,77 @@
+"""The live view: a Foxglove WebSocket client connects to the server on 127.0.0.1, subscribes
+to /joint_states and receives joint states.
+
+The installed foxglove-sdk's server speaks the Foxglove WebSocket protocol under the
+subprotocol ``foxglove.sdk.v1`` (the successor of ``foxglove.websocket.v1``, with the same
+advertise -> subscribe -> message data exchange); it refuses the old name with HTTP 400."""
+
+from __future__ import annotations
+
+import json
+import struct
+from typing import Any
+
+import anyio
+import websockets
+
+from openel_async import Actuator, EventTimer, MonotonicClock
+from openel_async.recording import LiveView
+from openel_sim import SimMotor
+
+SUBPROTOCOL = "foxglove.sdk.v1"
+
+
+async def _until_op(ws: Any, op: str) -> dict[str, Any]:
+    while True:
+        frame = await ws.recv()
+        if isinstance(frame, str):
+            message: dict[str, Any] = json.loads(frame)
+            if message.get("op") == op:
+                return message
+
+
+async def test_client_receives_joint_states() -> None:
+    clock = MonotonicClock()
+    live = LiveView(port=0)
+    assert live.sink.host == "127.0.0.1" and live.sink.port > 0
+    received: list[dict[str, Any]] = []
+    async with live:
+        axis = Actuator(SimMotor(max_velocity=3.0), device_name="AXIS", clock=clock)
+        timer = EventTimer(5, clock=clock, name="loop")
+        live.observe(axis)
+        live.observe_timer(timer)
+        async with axis, timer, anyio.create_task_group() as tg:
+            timer.start_timer()
+            await axis.set_value(1.0)
+
+            async def client() -> None:
+                async with websockets.connect(live.url, subprotocols=[SUBPROTOCOL]) as ws:
+                    assert ws.subprotocol == SUBPROTOCOL
+                    info = await _until_op(ws, "serverInfo")
+                    assert info["name"] == "openel-async"
+                    channels: dict[str, dict[str, Any]] = {}
+                    while "/joint_states" not in channels:
+                        advertise = await _until_op(ws, "advertise")
+                        channels.update({c["topic"]: c for c in advertise["channels"]})
+                    channel = channels["/joint_states"]
+                    assert channel["encoding"] == "json"
+                    assert channel["schemaName"] == "openel_async.JointStates"
+                    assert "/hal/AXIS" in channels and "/timer/loop" in channels
+                    subscribe = {"id": 7, "channelId": channel["id"]}
+                    await ws.send(json.dumps({"op": "subscribe", "subscriptions": [subscribe]}))
+                    while len(received) < 3:
+                        frame = await ws.recv()
+                        if isinstance(frame, bytes) and frame[0] == 0x01:  # message data
+                            (sub_id,) = struct.unpack_from("<I", frame, 1)
+                            assert sub_id == 7
+                            received.append(json.loads(frame[13:]))
+
+            with anyio.fail_after(20):
+                await client()
+            tg.cancel_scope.cancel()
+    assert all(m["joints"][0]["name"] == "AXIS" for m in received)
+    assert all(m["joints"][0]["commanded"] == 1.0 for m in received)
+    positions = [m["joints"][0]["position"] for m in received]
+    assert positions == sorted(positions) and 0.0 <= positions[0] <= 1.0  # moving towards 1
+    times = [m["time_ns"] for m in received]
+    assert times == sorted(times) and len(set(times)) == len(times)
