@@ -115,6 +115,10 @@ class AppHook:
     def timer_added(self, ctx: AppContext, timer: EventTimer) -> None:
         """The app registered ``timer``, before starting it."""
 
+    def scene_added(self, ctx: AppContext, source: object) -> None:
+        """The app handed over a 3D scene (an ``openel_async.recording.SceneSource``, e.g.
+        ``openel_mujoco.foxglove_scene.MujocoScene``: its bodies' poses and geometry)."""
+
 
 class AppContext:
     """What an app's ``main`` receives: its command line, the name to print its messages
@@ -155,6 +159,11 @@ class AppContext:
         for hook in self.hooks:
             hook.timer_added(self, timer)
         return timer
+
+    def add_scene(self, source: object) -> None:
+        """Hand a 3D scene of the rig over to the hooks (the live view draws it)."""
+        for hook in self.hooks:
+            hook.scene_added(self, source)
 
 
 @dataclass(frozen=True)

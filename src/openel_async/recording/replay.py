@@ -36,6 +36,7 @@ __all__ = [
     "ReplayResult",
     "ReplayRig",
     "RigFactory",
+    "actuator_channels",
     "recorded_commands",
     "recorded_final_positions",
     "replay",

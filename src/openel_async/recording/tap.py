@@ -17,7 +17,7 @@ import contextlib
 import time
 from collections.abc import Sequence
 from types import TracebackType
-from typing import Any
+from typing import Any, cast
 
 import anyio
 import structlog
@@ -150,8 +150,8 @@ class Tap(AppHook):
     def timer_added(self, ctx: AppContext, timer: EventTimer) -> None:
         self.observe_timer(timer)
 
-    def scene_added(self, ctx: AppContext, source: SceneSource) -> None:
-        self.add_scene(source)
+    def scene_added(self, ctx: AppContext, source: object) -> None:
+        self.add_scene(cast(SceneSource, source))
 
     # -- what to observe -------------------------------------------------------------
     def observe(self, component: HALComponent) -> None:
