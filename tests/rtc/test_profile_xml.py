@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import xml.etree.ElementTree as ET
 from datetime import datetime
 from pathlib import Path
@@ -292,7 +293,7 @@ def test_unknown_attributes_and_elements_survive() -> None:
     assert p.basic_info.extra == {
         "rtcExt::vendorUrl": "https://example.org",
         "future": "1",
-        "rtcExt::Custom": {"a": "1", "Inner": [{"#text": "text"}, {}]},
+        "rtcExt::Custom": {"a": "1", "Inner": ["text", {}]},
     }
     assert p.extra == {
         "{http://www.w3.org/2001/XMLSchema-instance}schemaLocation": (
@@ -379,3 +380,25 @@ def test_damaged_sample_only_raises_profile_errors(data: st.DataObject) -> None:
         elif len(elem):
             elem.remove(data.draw(st.sampled_from(list(elem))))
     assert_loads_or_profile_error(ET.tostring(root))
+
+
+def test_extras_lists_of_plain_values_round_trip_through_xml() -> None:
+    """A YAML extra holding a list that mixes plain values and mappings used to come back
+    from XML as [{'#text': ...}, ...] (found by the profile fuzzer)."""
+    p = loads_xml(MINIMAL)
+    extra = {"rtcExt::Transports": ["CORBA", {"kind": "zenoh"}, "shm"]}
+    p = dataclasses.replace(p, basic_info=dataclasses.replace(p.basic_info, extra=extra))
+    assert loads_xml(dumps_xml(p)).basic_info.extra == extra
+    assert loads_yaml(dumps_yaml(p)) == p
+
+
+@pytest.mark.parametrize(
+    "value",
+    [["one"], [{"a": "1"}], [{"#text": "t"}, "u"], ["a", ["b", "c"]], ["a", "  "]],
+)
+def test_extras_that_xml_cannot_tell_apart_are_refused_naming_the_field(value: object) -> None:
+    p = loads_xml(MINIMAL)
+    extra = {"rtcExt::Odd": value}
+    p = dataclasses.replace(p, basic_info=dataclasses.replace(p.basic_info, extra=extra))
+    with pytest.raises(ProfileError, match="Odd"):
+        dumps_xml(p)

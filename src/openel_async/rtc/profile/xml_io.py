@@ -125,18 +125,28 @@ def _element_extra(elem: ET.Element, path: str, depth: int) -> dict[str, ExtraVa
 def _add_children(
     out: dict[str, ExtraValue], children: list[ET.Element], ns: str, path: str, depth: int
 ) -> None:
+    elements: set[str] = set()  # keys that came from elements (not attributes)
+    groups: dict[str, list[ExtraValue]] = {}  # keys of repeated elements
     for child in children:
         key = _key(child.tag, ns)
-        value = _element_extra(child, f"{path}.{key}", depth + 1)
-        existing = out.get(key)
-        if existing is None:
+        value = _element_value(child, f"{path}.{key}", depth + 1)
+        if key not in out:
             out[key] = value
-        elif isinstance(existing, list):
-            existing.append(value)
-        elif isinstance(existing, dict):
-            out[key] = [existing, value]
-        else:
+            elements.add(key)
+        elif key not in elements:
             raise ProfileError(f"{path}.{key}", "name used by both an attribute and an element")
+        elif key in groups:
+            groups[key].append(value)
+        else:
+            groups[key] = out[key] = [out[key], value]
+
+
+def _element_value(elem: ET.Element, path: str, depth: int) -> ExtraValue:
+    """A text-only element (no attributes, no children) reads as its text, so that plain
+    values written as repeated elements read back as the same list."""
+    if not elem.attrib and not len(elem) and (elem.text or "").strip():
+        return elem.text
+    return _element_extra(elem, path, depth)
 
 
 class _XmlSource(Source):
@@ -242,6 +252,25 @@ def _clip(text: str) -> str:
     return text if len(text) <= 80 else text[:80] + "..."
 
 
+def _check_writable(items: Sequence[ExtraValue], value: ExtraValue, path: str) -> None:
+    """Refuse extras that XML cannot tell apart from another value when read back."""
+    if not isinstance(value, Mapping) and len(items) < 2:
+        raise ProfileError(
+            path, "a list of fewer than 2 items cannot be told from one value in XML"
+        )
+    for item in items:
+        if isinstance(item, Mapping):
+            if set(item) == {"#text"}:
+                raise ProfileError(
+                    path, "a mapping of only '#text' reads back as plain text in XML"
+                )
+        elif isinstance(item, str):
+            if not item.strip():
+                raise ProfileError(path, "an empty text item cannot be written as an XML element")
+        elif item is None or isinstance(item, Sequence):
+            raise ProfileError(path, "an empty item or a list inside a list has no XML form")
+
+
 def _write_extra(elem: ET.Element, extra: Extra, ns: str, path: str) -> None:
     for key, value in extra.items():
         if value is None:
@@ -260,6 +289,7 @@ def _write_extra(elem: ET.Element, extra: Extra, ns: str, path: str) -> None:
             isinstance(value, Sequence) and not isinstance(value, str)
         ):
             items = [value] if isinstance(value, Mapping) else value
+            _check_writable(items, value, f"{path}.{_clip(key)}")
             for item in items:
                 child = ET.SubElement(elem, name)
                 if isinstance(item, Mapping):
