@@ -1,9 +1,9 @@
 """AxisGroup: time-synchronized, jerk-limited motion of N actuators on an EventTimer.
 
 The group plans each motion with ruckig when it is requested and streams POSITION
-setpoints to every axis at every tick of its timer, through the public Actuator API
-only (``set_value``/``get_value``), so it drives any actuator: simulated, MuJoCo, CAN or
-serial. See docs/motion.md.
+setpoints to every axis at every tick of its timer as one validated batch through an
+:class:`~openel_async.ActuatorBank` (``get_value`` for the actual positions), so it
+drives any actuator: simulated, MuJoCo, CAN or serial. See docs/motion.md.
 """
 
 from __future__ import annotations
@@ -23,8 +23,10 @@ import anyio.lowlevel
 import structlog
 
 from ..actuator import Actuator
+from ..banks import ActuatorBank
 from ..clock import NS_PER_S
 from ..component import ComponentState
+from ..device import has_nowait
 from ..errors import BadParameterError, HALError, StateError
 from ..observers import TimerTick
 from ..requests import Request
@@ -105,6 +107,10 @@ class AxisGroup:
         n = len(axes)
         self.name = name
         self.axes: tuple[Actuator, ...] = axes
+        self._bank = ActuatorBank(axes)
+        # Devices that accept a command without I/O (simulations): the batch is streamed
+        # without suspending and builds no Motion per axis (ActuatorBank.set_values_nowait).
+        self._nowait = all(has_nowait(a.device, "command_nowait", "command") for a in axes)
         self.timer = timer
         self._limits: tuple[AxisLimits, ...] = per_axis(limits, n, "limits", AxisLimits)
         self._tolerances: tuple[Tolerances, ...] = per_axis(
@@ -117,7 +123,12 @@ class AxisGroup:
         self._active: GroupMotion | None = None
         zeros = [0.0] * n
         self._last_t = 0
-        self._last_state = KinematicState(list(zeros), list(zeros), list(zeros))
+        self._last_state: KinematicState | None = KinematicState(
+            list(zeros), list(zeros), list(zeros)
+        )
+        """The commanded state at ``_last_t``; None: ``_last_plan`` sampled at ``_last_t``
+        (a tick streams positions only; the full state is computed when needed)."""
+        self._last_plan: Plan | None = None
         self._commanded: list[float] = list(zeros)
         self._pending: TimerTick | None = None
         self._wakeup: anyio.Event | None = None  # created on entry, in the event loop
@@ -301,7 +312,7 @@ class AxisGroup:
             brake = motion
         else:
             self._refresh_device_limits()
-            state = self._last_state
+            state = self._commanded_state()
             plan = self._planner.brake(self._last_t, state, self._limits)
             brake = self._install(
                 "stop", plan, state, tuple(Tolerances() for _ in self.axes), 0, stopping=True
@@ -357,11 +368,57 @@ class AxisGroup:
         if motion is None:
             return
         t = tick.deadline_ns
+        settling = motion._settling
+        actual: list[float] | None = None
+        if settling or motion._checks_path or self._log_actual:
+            if self._axis_left_active(motion, t):
+                return
+            actual = []
+            append = actual.append
+            try:
+                for axis in self.axes:
+                    append(await axis.get_value(POSITION_ACTUAL))
+            except Exception as exc:
+                self._axis_failed(len(actual), exc, t)
+                return
+            if self._active is not motion:  # preempted or held during the reads
+                return
+            if not settling and motion._checks_path and self._path_violated(motion, actual, t):
+                return
+        if settling:
+            assert actual is not None
+            self._settle(motion, actual, t)
+            return
+        plan = motion._plan
+        position = plan.positions(t)
+        self._last_t = t
+        self._last_state = None
+        self._last_plan = plan
+        self.log.append_plan(t, motion.id, plan, actual)
+        # One validated batch: every axis Active and every setpoint within its limits
+        # before any is sent (else nothing is sent and the motion aborts).
+        try:
+            if self._nowait:
+                self._bank.set_values_nowait(position, POSITION)
+            else:
+                await self._bank.set_values(position, POSITION)
+        except Exception as exc:
+            self._stream_failed(motion, position, exc, t)
+            return
+        self._commanded = position
+        if t >= plan.end_ns and self._active is motion:
+            if motion.kind == "stop":
+                self._succeed(motion, t)
+            else:
+                motion._settling = True
+                motion._goal_deadline_ns = plan.end_ns + motion._goal_time_ns
+
+    def _axis_left_active(self, motion: GroupMotion, t: int) -> bool:
+        """Abort ``motion`` with AxisFaultError if an axis is no longer Active."""
         axes = self.axes
         active = S.ACTIVE
-        for axis in axes:
+        for i, axis in enumerate(axes):
             if axis.state is not active:
-                i = axes.index(axis)
                 cause = axis.last_fault
                 self._abort(
                     motion,
@@ -375,46 +432,30 @@ class AxisGroup:
                     ),
                     t,
                 )
-                return
-        settling = motion._settling
-        actual: list[float] | None = None
-        if settling or motion._checks_path or self._log_actual:
-            actual = []
-            append = actual.append
-            try:
-                for axis in axes:
-                    append(await axis.get_value(POSITION_ACTUAL))
-            except Exception as exc:
-                self._axis_failed(len(actual), exc, t)
-                return
-            if self._active is not motion:  # preempted or held during the reads
-                return
-            if not settling and motion._checks_path and self._path_violated(motion, actual, t):
-                return
-        if settling:
-            assert actual is not None
-            self._settle(motion, actual, t)
+                return True
+        return False
+
+    def _stream_failed(
+        self, motion: GroupMotion, position: list[float], exc: Exception, t: int
+    ) -> None:
+        """The batch of setpoints raised: abort, naming the axis it failed at.
+
+        An axis that left Active (refused before anything was sent, or faulted by its
+        device during the send) is named with its fault; else the first axis whose
+        commanded position is not the setpoint of this tick (the batch sends in axis
+        order, so that is where it stopped).
+        """
+        if self._axis_left_active(motion, t):
             return
-        state = motion._plan.sample(t)
-        position = state.position
-        self._last_t = t
-        self._last_state = state
-        self.log.append(t, motion.id, position, state.velocity, state.acceleration, actual)
-        sent = 0
-        try:
-            for axis, value in zip(axes, position, strict=True):
-                await axis.set_value(value, POSITION)
-                sent += 1
-        except Exception as exc:
-            self._axis_failed(sent, exc, t)
-            return
-        self._commanded = position
-        if t >= motion._plan.end_ns and self._active is motion:
-            if motion.kind == "stop":
-                self._succeed(motion, t)
-            else:
-                motion._settling = True
-                motion._goal_deadline_ns = motion._plan.end_ns + motion._goal_time_ns
+        index = 0
+        if isinstance(exc, BadParameterError) and exc.parameter.startswith("values["):
+            index = int(exc.parameter[len("values[") : -1])
+        else:
+            for i, (axis, value) in enumerate(zip(self.axes, position, strict=True)):
+                if axis.get_value_nowait(POSITION) != value:
+                    index = i
+                    break
+        self._axis_failed(index, exc, t)
 
     # -- tolerances and outcomes --------------------------------------------------------------
     def _path_violated(self, motion: GroupMotion, actual: list[float], t: int) -> bool:
@@ -450,8 +491,9 @@ class AxisGroup:
     def _settle(self, motion: GroupMotion, actual: list[float], t: int) -> None:
         targets = motion.targets
         self._last_t = t
-        final = motion._plan.sample(t)
-        self.log.append(t, motion.id, final.position, final.velocity, final.acceleration, actual)
+        self._last_state = None
+        self._last_plan = motion._plan
+        self.log.append_plan(t, motion.id, motion._plan, actual)
         worst: tuple[float, int, float, float] | None = None
         for i, tol in enumerate(motion._goal_tolerance):
             deviation = actual[i] - targets[i]
@@ -537,11 +579,19 @@ class AxisGroup:
         self._check_axes_active()  # an axis may have faulted meanwhile
         return positions
 
+    def _commanded_state(self) -> KinematicState:
+        """Position, velocity and acceleration commanded at ``_last_t``."""
+        state = self._last_state
+        if state is None:
+            assert self._last_plan is not None
+            state = self._last_state = self._last_plan.sample(self._last_t)
+        return state
+
     def _root(self, idle_positions: list[float] | None) -> tuple[int, KinematicState]:
         """Where and when the next trajectory starts. No await from here to _install."""
         motion = self._active
         if motion is not None and not motion._settling:
-            return self._last_t, self._last_state
+            return self._last_t, self._commanded_state()
         tick = self.timer.last_tick
         root = tick.deadline_ns if tick is not None else self.timer.clock.now_ns()
         zeros = [0.0] * len(self.axes)

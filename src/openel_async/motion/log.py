@@ -3,6 +3,11 @@
 A fixed-size ring of numpy rows, written once per tick while a motion runs; a
 :meth:`TrajectoryLog.snapshot` copies it out oldest first, e.g. to plot commanded
 against actual positions.
+
+The group logs a tick as (time, motion, plan) with :meth:`TrajectoryLog.append_plan`:
+what it commanded is the plan sampled at that time, so the row's positions, velocities
+and accelerations are computed from the plan (the same floats) when a snapshot is
+taken, not converted into numpy on every tick.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import numpy.typing as npt
 
 from ..clock import NS_PER_S
 from ..errors import BadParameterError
+from .planner import Plan
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -76,6 +82,8 @@ class TrajectoryLog:
         self._v = np.zeros((capacity, axes))
         self._a = np.zeros((capacity, axes))
         self._actual = np.full((capacity, axes), np.nan) if actual else None
+        self._planned: list[tuple[int, int, Plan] | None] = [None] * capacity
+        """Rows logged by :meth:`append_plan` and not yet sampled into the arrays."""
         self._count = 0
         """Rows ever written (the next row is ``_count % capacity``)."""
 
@@ -106,10 +114,39 @@ class TrajectoryLog:
         self._p[row] = position
         self._v[row] = velocity
         self._a[row] = acceleration
+        self._planned[row] = None
         if self._actual is not None:
             self._actual[row] = np.nan if actual is None else actual
 
+    def append_plan(
+        self, time_ns: int, motion_id: int, plan: Plan, actual: Sequence[float] | None = None
+    ) -> None:
+        """A row whose commanded state is ``plan.sample(time_ns)``, sampled at snapshot time."""
+        capacity = self.capacity
+        if capacity == 0:
+            return
+        row = self._count % capacity
+        self._count += 1
+        self._planned[row] = (time_ns, motion_id, plan)
+        if self._actual is not None:
+            self._actual[row] = np.nan if actual is None else actual
+
+    def _sample_planned(self) -> None:
+        planned = self._planned
+        for row, entry in enumerate(planned):
+            if entry is None:
+                continue
+            time_ns, motion_id, plan = entry
+            state = plan.sample(time_ns)
+            self._time[row] = time_ns
+            self._motion[row] = motion_id
+            self._p[row] = state.position
+            self._v[row] = state.velocity
+            self._a[row] = state.acceleration
+            planned[row] = None
+
     def snapshot(self) -> TrajectorySamples:
+        self._sample_planned()
         n = len(self)
         start = self._count % self.capacity if self._count > self.capacity else 0
         order = (np.arange(n) + start) % self.capacity if n else np.zeros(0, dtype=np.int64)
@@ -124,3 +161,4 @@ class TrajectoryLog:
 
     def clear(self) -> None:
         self._count = 0
+        self._planned = [None] * self.capacity

@@ -18,6 +18,8 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import repeat
+from operator import add, mul
 from typing import NamedTuple
 
 from ruckig import (
@@ -103,6 +105,20 @@ class Plan:
     def final_position(self) -> list[float]:
         return self._final.position
 
+    def _locate(self, t_ns: int) -> tuple[_Piece, float]:
+        """The segment that holds clock time ``t_ns`` (before the end) and the offset in it."""
+        elapsed = max(0.0, (t_ns - self.start_ns) / NS_PER_S)
+        pieces = self._pieces
+        i = self._cursor
+        if elapsed < pieces[i].start_s:
+            i = 0
+        last = len(pieces) - 1
+        while i < last and elapsed >= pieces[i].end_s:
+            i += 1
+        self._cursor = i
+        piece = pieces[i]
+        return piece, elapsed - piece.start_s
+
     def sample(self, t_ns: int) -> KinematicState:
         """The commanded state at clock time ``t_ns`` (the final state from the end on).
 
@@ -111,16 +127,7 @@ class Plan:
         """
         if t_ns >= self.end_ns:
             return self._final
-        elapsed = max(0.0, (t_ns - self.start_ns) / NS_PER_S)
-        pieces = self._pieces
-        i = self._cursor
-        if elapsed < pieces[i].start_s:
-            i = 0
-        while i < len(pieces) - 1 and elapsed >= pieces[i].end_s:
-            i += 1
-        self._cursor = i
-        piece = pieces[i]
-        local = elapsed - piece.start_s
+        piece, local = self._locate(t_ns)
         p, v, a = piece.trajectory.at_time(local)
         correction = piece.correction
         if correction is not None:
@@ -130,10 +137,24 @@ class Plan:
             s0 = x2 * x * (10.0 + x * (-15.0 + 6.0 * x))
             s1 = 30.0 * x2 * (1.0 - x) * (1.0 - x) / span
             s2 = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x) / (span * span)
-            p = [pi + e * s0 for pi, e in zip(p, correction, strict=True)]
-            v = [vi + e * s1 for vi, e in zip(v, correction, strict=True)]
-            a = [ai + e * s2 for ai, e in zip(a, correction, strict=True)]
+            p = list(map(add, p, map(mul, correction, repeat(s0))))
+            v = list(map(add, v, map(mul, correction, repeat(s1))))
+            a = list(map(add, a, map(mul, correction, repeat(s2))))
         return KinematicState(p, v, a)
+
+    def positions(self, t_ns: int) -> list[float]:
+        """``sample(t_ns).position`` (the same floats) without the velocity and
+        acceleration corrections: what a tick streams."""
+        if t_ns >= self.end_ns:
+            return self._final.position
+        piece, local = self._locate(t_ns)
+        p: list[float] = piece.trajectory.at_time(local)[0]
+        correction = piece.correction
+        if correction is not None:
+            x = min(1.0, local / (piece.end_s - piece.start_s))
+            s0 = x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
+            p = list(map(add, p, map(mul, correction, repeat(s0))))
+        return p
 
 
 class Planner:
