@@ -45,11 +45,11 @@ from .harness import BenchResult, Row, ratio_of
 
 NAME = "can_canopen"
 NODE = 5
-SDO_COUNT = 3_000
+SDO_COUNT = 1_500
 QUICK_SDO_COUNT = 500
-SETPOINTS = 1_000
+SETPOINTS = 500
 QUICK_SETPOINTS = 200
-ROUNDS = 5
+ROUNDS = 9
 QUICK_ROUNDS = 1
 WARMUP = 50
 TARGET_SDO = 1.2
