@@ -177,8 +177,8 @@ class BusStats:
     overflow_frames: int = 0
     """Frames dropped because a port's queue was full (summed over ports)."""
     rx_overflow: int = 0
-    """Frames the reader thread dropped because ``rx_buffer`` frames were already waiting
-    for the event loop (the loop fell that far behind the bus)."""
+    """Frames the reader dropped because ``rx_buffer`` frames were already waiting for
+    the event loop (the loop fell that far behind the bus)."""
     bus_errors: int = 0
     """Transitions to DOWN."""
     recoveries: int = 0
