@@ -26,7 +26,7 @@ from contextlib import AsyncExitStack
 from dataclasses import dataclass
 
 import anyio
-import dynamixel_sdk as sdk
+import dynamixel_sdk as sdk  # type: ignore[import-untyped]
 
 from openel_async import Actuator
 from openel_serial import DynamixelPort, DynamixelServo
@@ -78,12 +78,22 @@ class Round:
     p99_us: float
     cpu_us: float
     """Process CPU time per transaction (this process only: the bus runs in another)."""
+    failures: int
+    """Transactions that timed out (the SDK's) or were retried (ours): a stalled peer."""
 
 
-def _round(samples_ns: list[int], cpu_ns: int) -> Round:
+MAX_FAILURE_SHARE = 0.01
+"""More failed transactions than this share of a round end the benchmark."""
+
+
+def _round(samples_ns: list[int], cpu_ns: int, failures: int, who: str) -> Round:
+    if failures > MAX_FAILURE_SHARE * len(samples_ns):
+        raise AssertionError(f"{who}: {failures} of {len(samples_ns)} transactions failed")
     samples_ns.sort()
     p99 = samples_ns[min(len(samples_ns) - 1, round(0.99 * (len(samples_ns) - 1)))]
-    return Round(statistics.median(samples_ns) / 1e3, p99 / 1e3, cpu_ns / len(samples_ns) / 1e3)
+    return Round(
+        statistics.median(samples_ns) / 1e3, p99 / 1e3, cpu_ns / len(samples_ns) / 1e3, failures
+    )
 
 
 # -- the peer: dynamixel-sdk -------------------------------------------------------------
@@ -104,9 +114,9 @@ def sdk_round(path: str, servos: int, cycles: int) -> Round:
                 raise RuntimeError(f"GroupSyncRead refused id {dxl_id}")
         success = sdk.COMM_SUCCESS
         for _ in range(WARMUP):
-            if (result := group.txRxPacket()) != success:
-                raise AssertionError(handler.getTxRxResult(result))
+            group.txRxPacket()
         samples: list[int] = []
+        failures = 0
         clock, cpu = time.perf_counter_ns, time.process_time_ns
         cpu0 = cpu()
         for _ in range(cycles):
@@ -114,11 +124,11 @@ def sdk_round(path: str, servos: int, cycles: int) -> Round:
             result = group.txRxPacket()
             samples.append(clock() - t0)
             if result != success:
-                raise AssertionError(handler.getTxRxResult(result))
+                failures += 1
         cpu_ns = cpu() - cpu0
     finally:
         port.closePort()
-    return _round(samples, cpu_ns)
+    return _round(samples, cpu_ns, failures, "dynamixel-sdk")
 
 
 # -- ours ----------------------------------------------------------------------------------
@@ -133,6 +143,7 @@ async def driver_round(path: str, servos: int, cycles: int) -> Round:
         for _ in range(WARMUP):
             await port.sync_read(ids, POLL_ADDRESS, POLL_LENGTH)
         samples: list[int] = []
+        retries = port.stats.retries
         clock, cpu = time.perf_counter_ns, time.process_time_ns
         cpu0 = cpu()
         for _ in range(cycles):
@@ -142,9 +153,9 @@ async def driver_round(path: str, servos: int, cycles: int) -> Round:
             if len(data) != servos:
                 raise AssertionError(f"sync read returned {len(data)} of {servos} servos")
         cpu_ns = cpu() - cpu0
-        if port.stats.retries or port.stats.timeouts or port.parser.dropped_bytes:
-            raise AssertionError(f"unexpected retries/timeouts/drops: {port.stats}")
-    return _round(samples, cpu_ns)
+        if port.stats.timeouts or port.parser.dropped_bytes:
+            raise AssertionError(f"unexpected timeouts/drops: {port.stats}, {port.parser}")
+    return _round(samples, cpu_ns, port.stats.retries - retries, "ours")
 
 
 async def poller_rate(path: str, servos: int, duration_s: float) -> float:
@@ -167,12 +178,12 @@ async def poller_rate(path: str, servos: int, duration_s: float) -> float:
         cycles, elapsed = port.stats.poll_cycles - before, time.perf_counter() - start
         if port.stats.poll_misses:
             raise AssertionError(f"poll misses: {port.stats}")
-    return cycles / elapsed
+    return float(cycles / elapsed)
 
 
 def profile_ours(path: str, servos: int, cycles: int, top: int = PROFILE_TOP) -> list[str]:
-    """Our transactions under cProfile: the functions with the most own time."""
-    profiler = cProfile.Profile()
+    """Our transactions under cProfile: the functions with the most own CPU time."""
+    profiler = cProfile.Profile(time.process_time_ns, 1e-9)  # CPU time, not waits
     profiler.enable()
     anyio.run(driver_round, path, servos, cycles, backend="asyncio")
     profiler.disable()
@@ -279,7 +290,9 @@ def run(quick: bool) -> BenchResult:
             f"N = {n}: per-round ours/sdk median ratios {per_round}; p99 ours "
             f"{size.ours_median('p99_us'):.0f} µs, sdk {size.peer_median('p99_us'):.0f} µs; "
             f"wire limit at 1 Mbaud {wire_rate(n):,.0f} transactions/s "
-            f"({1e6 / wire_rate(n):.0f} µs each)."
+            f"({1e6 / wire_rate(n):.0f} µs each); failed transactions (peer stalled past "
+            f"the timeout: retried by ours, timed out in the SDK): ours "
+            f"{sum(r.failures for r in size.ours)}, sdk {sum(r.failures for r in size.peer)}."
         )
     rows.append(
         Row(

@@ -94,7 +94,32 @@ _CRC_LEN: Final = 2
 _HEADER_LEN: Final = 4
 _STATUS_OVERHEAD: Final = 11  # header 4, id, length 2, instruction, error, CRC 2
 _STATUS_LAYOUT_CACHE: Final = 32
-_STATUS_LAYOUTS: dict[int, struct.Struct] = {}
+_BULK_MIN: Final = 3
+"""From this many statuses on, PacketParser.feed_statuses checks them with extended slices."""
+_StatusLayouts: TypeAlias = tuple[
+    struct.Struct, struct.Struct, struct.Struct, tuple[tuple[int, bytes], ...]
+]
+_STATUS_LAYOUTS: dict[int, _StatusLayouts] = {}
+
+
+def _status_layouts(param_length: int) -> _StatusLayouts:
+    """Layouts of a status with ``param_length`` params and no stuffing: the whole
+    packet; what its CRC covers and the CRC; the params; the fixed bytes by offset."""
+    wire_length = param_length + 4  # instruction, error, params, CRC
+    fixed = (
+        *((offset, HEADER[offset : offset + 1]) for offset in range(4)),
+        (5, bytes((wire_length & 0xFF,))),
+        (6, bytes((wire_length >> 8,))),
+        (7, bytes((_STATUS,))),
+    )
+    return (
+        struct.Struct(f"<4sBHBB{param_length}sH"),
+        struct.Struct(f"<{_PREFIX_LEN + 2 + param_length}sH"),
+        struct.Struct(f"<9x{param_length}s2x"),
+        fixed,
+    )
+
+
 _STUFF_PATTERN: Final = b"\xff\xff\xfd"
 _STATUS: Final = 0x55  # Instruction.STATUS as a plain int (fast comparison)
 
@@ -647,50 +672,85 @@ class PacketParser:
         """The packets completed by ``data``, in stream order."""
         return self._parse(data, False)  # type: ignore[return-value]  # no CorruptPacket
 
-    def feed_statuses(self, data: bytes, param_length: int) -> list[DynamixelMessage]:
+    def feed_statuses(
+        self, data: bytes, param_length: int
+    ) -> tuple[list[Status], list[DynamixelMessage]]:
         """:meth:`feed` for a stream expected to hold statuses of ``param_length`` params.
 
-        The same packets and counters as :meth:`feed`; faster when ``data`` starts
-        (with nothing buffered) with such statuses back to back, as the replies to a
-        SYNC READ do: those are checked and decoded in bulk, without byte stuffing
-        (a stuffed packet, or anything else, goes through :meth:`feed`).
+        Returns ``(statuses, others)``: ``statuses + others`` is what :meth:`feed`
+        returns (the same packets in the same order, the same counters). When ``data``
+        starts, with nothing buffered, with such statuses back to back (the replies to a
+        SYNC READ), those are checked and decoded in bulk and returned in ``statuses``:
+        each a :class:`Status` with exactly ``param_length`` params. Whatever follows
+        them, or anything else (a byte-stuffed packet, another packet, noise), goes
+        through :meth:`feed` into ``others``.
         """
         size = _STATUS_OVERHEAD + param_length
         count = len(data) // size
         if self._buf or not count or param_length + 4 > self.max_length:
-            return self._parse(data, False)  # type: ignore[return-value]  # no CorruptPacket
+            return [], self.feed(data)
         whole = count * size
         chunk = data[:whole] if type(data) is bytes else bytes(data[:whole])
         # Exactly one FF FF FD per packet (its header): no stuffing, no inner header.
         if chunk.count(_STUFF_PATTERN) != count:
-            return self._parse(data, False)  # type: ignore[return-value]
-        layout = _STATUS_LAYOUTS.get(param_length)
-        if layout is None:
-            layout = struct.Struct(f"<4sBHBB{param_length}sH")
+            return [], self.feed(data)
+        layouts = _STATUS_LAYOUTS.get(param_length)
+        if layouts is None:
+            layouts = _status_layouts(param_length)
             if len(_STATUS_LAYOUTS) < _STATUS_LAYOUT_CACHE:
-                _STATUS_LAYOUTS[param_length] = layout
-        wire_length = param_length + 4  # instruction, error, params, CRC
-        body = size - _CRC_LEN
+                _STATUS_LAYOUTS[param_length] = layouts
+        packet_layout, crc_layout, params_layout, fixed = layouts
         new = object.__new__
-        out: list[DynamixelMessage] = []
-        j = 0
-        for header, dxl_id, length, instruction, error, params, crc in layout.iter_unpack(chunk):
-            if (
-                header != HEADER
-                or length != wire_length
-                or instruction != _STATUS
-                or (dxl_id > MAX_ID and dxl_id != BROADCAST_ID)
-                or _umts(chunk[j : j + body]) != crc
+        out: list[Status] = []
+        if count < _BULK_MIN:  # a few statuses: one unpack each
+            wire_length = param_length + 4  # instruction, error, params, CRC
+            body = size - _CRC_LEN
+            j = 0
+            for (
+                header,
+                dxl_id,
+                length,
+                instruction,
+                error,
+                params,
+                crc,
+            ) in packet_layout.iter_unpack(chunk):
+                if (
+                    header != HEADER
+                    or length != wire_length
+                    or instruction != _STATUS
+                    or dxl_id > MAX_ID
+                    or _umts(chunk[j : j + body]) != crc
+                ):
+                    return [], self.feed(data)  # nothing counted yet: parse it all again
+                msg = new(Status)  # as _wire_status does, inline
+                fields = msg.__dict__
+                fields["id"] = dxl_id
+                fields["error"] = error
+                fields["params"] = params
+                out.append(msg)
+                j += size
+        else:  # many: every fixed byte of every packet checked at once (extended slices)
+            for offset, byte in fixed:
+                if chunk[offset::size] != byte * count:
+                    return [], self.feed(data)
+            ids = chunk[4::size]
+            if max(ids) > MAX_ID:
+                return [], self.feed(data)
+            for covered, crc in crc_layout.iter_unpack(chunk):
+                if _umts(covered) != crc:
+                    return [], self.feed(data)
+            for dxl_id, error, (params,) in zip(
+                ids, chunk[8::size], params_layout.iter_unpack(chunk), strict=True
             ):
-                return self._parse(data, False)  # type: ignore[return-value]
-            msg = new(Status)
-            msg.__dict__.update(id=dxl_id, error=error, params=params)
-            out.append(msg)
-            j += size
+                msg = new(Status)
+                fields = msg.__dict__
+                fields["id"] = dxl_id
+                fields["error"] = error
+                fields["params"] = params
+                out.append(msg)
         self.packets += count
-        if whole < len(data):
-            out += self._parse(data[whole:], False)  # type: ignore[arg-type]
-        return out
+        return out, self.feed(data[whole:]) if whole < len(data) else []
 
     def feed_all(self, data: bytes) -> list[DynamixelMessage | CorruptPacket]:
         """Like :meth:`feed`, with a :class:`CorruptPacket` where a CRC did not match."""
@@ -798,7 +858,10 @@ def _wire_status(dxl_id: int, error: int, params: bytes) -> Status:
     validation, which cost more than the rest of the parse of a status.
     """
     msg = object.__new__(Status)
-    msg.__dict__.update(id=dxl_id, error=error, params=params)
+    fields = msg.__dict__
+    fields["id"] = dxl_id
+    fields["error"] = error
+    fields["params"] = params
     return msg
 
 

@@ -244,7 +244,10 @@ class DynamixelPort:
         self._garbled = 0
         self._param_length = 0
         self._waiter: asyncio.Future[None] | None = None
+        self._deadline = 0.0
+        self._watchdog: asyncio.TimerHandle | None = None
         self._sync_read_packets: dict[tuple[int, int, tuple[int, ...]], bytes] = {}
+        self._last_sync_read: tuple[object, int, int, bytes] = ((), -1, -1, b"")
         self._poll_wake: anyio.Event | None = None
         self._stack: AsyncExitStack | None = None
         self._entered = False
@@ -277,6 +280,9 @@ class DynamixelPort:
     ) -> None:
         stack, self._stack = self._stack, None
         self._entered = False
+        if self._watchdog is not None:
+            self._watchdog.cancel()
+            self._watchdog = None
         if stack is not None:
             await stack.aclose()
 
@@ -399,7 +405,7 @@ class DynamixelPort:
     ) -> dict[int, bytes]:
         """SYNC READ: ``{id: data}`` for every id, or raise (timeout, status error)."""
         ids = tuple(ids)
-        statuses = await self.sync_read_statuses(ids, address, length)
+        statuses = await self._sync_read(ids, address, length)
         if len(statuses) != len(ids):  # statuses holds only ids asked for
             missing = [i for i in ids if i not in statuses]
             timeout = self.response_timeout(SYNC_READ_OVERHEAD + len(ids), len(ids), length)
@@ -419,7 +425,10 @@ class DynamixelPort:
         :class:`ValueError` for an address, length or id out of range (nothing is cached
         then). At most ``SYNC_READ_CACHE`` packets are kept (the oldest are forgotten).
         """
-        key = (address, length, tuple(ids))
+        last = self._last_sync_read
+        if ids is last[0] and address == last[1] and length == last[2]:
+            return last[3]  # the same id tuple as last time (the usual polling loop)
+        key = (address, length, ids if type(ids) is tuple else tuple(ids))
         packet = self._sync_read_packets.get(key)
         if packet is None:
             ids = key[2]
@@ -430,13 +439,19 @@ class DynamixelPort:
             if len(cache) >= SYNC_READ_CACHE:
                 del cache[next(iter(cache))]
             cache[key] = packet
+        if type(ids) is tuple:
+            self._last_sync_read = (ids, address, length, packet)
         return packet
 
     async def sync_read_statuses(
         self, ids: Sequence[int], address: int, length: int
     ) -> dict[int, dx.Status]:
         """SYNC READ returning the statuses that arrived (missing ones retried, not raised)."""
-        ids = tuple(ids)
+        return await self._sync_read(tuple(ids), address, length)
+
+    async def _sync_read(
+        self, ids: tuple[int, ...], address: int, length: int
+    ) -> dict[int, dx.Status]:
         packet = self.sync_read_packet(ids, address, length)  # validates
 
         def make(remaining: Sequence[int]) -> bytes:
@@ -556,8 +571,9 @@ class DynamixelPort:
         """One attempt: write ``packet`` and wait for a status from each id or the timeout.
 
         The wait is one future, completed by the reception callback when the last status
-        arrived, by a loop timer at the timeout, or by a loss of the port; a cancellation
-        of the caller ends it too. No cancel scope and no extra event-loop pass.
+        arrived, by the port's watchdog timer at the deadline, or by a loss of the port;
+        a cancellation of the caller ends it too. No cancel scope, no extra event-loop
+        pass, and no timer per exchange (see :meth:`_arm_watchdog`).
         """
         self.check_connected()
         loop = asyncio.get_running_loop()
@@ -570,47 +586,87 @@ class DynamixelPort:
         self._waiter = waiter
         self._transaction += 1
         self.stats.transactions += 1
-        timeout = self.response_timeout(len(packet), len(ids), param_length)
-        timer = loop.call_later(timeout, _complete, waiter)
         try:
             self._link.write(packet)
+            # Armed after the write: this overlaps with the servos' processing.
+            timeout = self.response_timeout(len(packet), len(ids), param_length)
+            self._arm_watchdog(loop, loop.time() + timeout)
             await waiter
         finally:
-            timer.cancel()
             self._expect = None
             self._waiter = None
         self.check_connected()  # lost while waiting: raise, not a timeout
         return replies
 
+    def _arm_watchdog(self, loop: asyncio.AbstractEventLoop, deadline: float) -> None:
+        """Make the exchange in flight time out at ``deadline`` (loop time).
+
+        One timer serves every exchange: it is re-armed only when it would fire after
+        ``deadline`` (then it is replaced) or when it fires before it (then it is set
+        again for ``deadline``); so back-to-back exchanges with similar timeouts cost
+        no timer each, and the wait still ends at its own deadline.
+        """
+        self._deadline = deadline
+        watchdog = self._watchdog
+        if watchdog is not None:
+            if watchdog.when() <= deadline:
+                return
+            watchdog.cancel()
+        self._watchdog = loop.call_at(deadline, self._watchdog_fired, loop)
+
+    def _watchdog_fired(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._watchdog = None
+        waiter = self._waiter
+        if waiter is None:
+            return  # no exchange in flight: the timer is not needed any more
+        if loop.time() >= self._deadline:
+            _complete(waiter)  # timed out: the exchange returns what arrived
+        else:
+            self._watchdog = loop.call_at(self._deadline, self._watchdog_fired, loop)
+
     # -- reception (transport callback) ----------------------------------------------
     def _on_data(self, data: bytes) -> None:
         expect = self._expect
-        if expect is None:
-            msgs = self.parser.feed(data)
-        else:  # the statuses we wait for, decoded in bulk when they come back to back
-            msgs = self.parser.feed_statuses(data, self._param_length)
+        if expect is None:  # nobody waits: every status is stray
+            for msg in self.parser.feed(data):
+                if isinstance(msg, dx.Status):
+                    self._stray(msg.id)
+            return
+        # The statuses we wait for, decoded in bulk when they come back to back: each a
+        # Status with the expected param length, so only its id and error are checked.
+        statuses, others = self.parser.feed_statuses(data, self._param_length)
         replies = self._replies
-        length = self._param_length
-        status_type = dx.Status
-        for msg in msgs:
-            if not isinstance(msg, status_type):
-                continue  # an echo of an instruction (some half-duplex adapters)
+        for msg in statuses:
             dxl_id = msg.id
-            if expect is None or dxl_id not in expect or dxl_id in replies:
-                self.stats.stray += 1
-                self._log.debug("dxl_stray_status", id=dxl_id)
+            if dxl_id in expect and dxl_id not in replies:
+                replies[dxl_id] = msg
+                if msg.error & _ERROR_NUMBER == _CRC_ERROR:
+                    self._garbled += 1
+            else:
+                self._stray(dxl_id)
+        length = self._param_length
+        for other in others:
+            if not isinstance(other, dx.Status):
+                continue  # an echo of an instruction (some half-duplex adapters)
+            dxl_id = other.id
+            if dxl_id not in expect or dxl_id in replies:
+                self._stray(dxl_id)
                 continue
-            error_number = msg.error & _ERROR_NUMBER
+            error_number = other.error & _ERROR_NUMBER
             if error_number:
                 if error_number == _CRC_ERROR:
                     self._garbled += 1
-            elif len(msg.params) != length:
+            elif len(other.params) != length:
                 self.stats.stray += 1  # an answer to another request
                 continue
-            replies[dxl_id] = msg
+            replies[dxl_id] = other
         waiter = self._waiter
-        if expect is not None and waiter is not None and len(replies) == len(expect):
+        if waiter is not None and len(replies) == len(expect):
             _complete(waiter)
+
+    def _stray(self, dxl_id: int) -> None:
+        self.stats.stray += 1
+        self._log.debug("dxl_stray_status", id=dxl_id)
 
     def _on_lost(self, reason: str) -> None:
         self.stats.losses += 1
