@@ -3,6 +3,7 @@
 from openel_async.registry import DriverInfo
 
 from .motor import SimMotor
+from .pan_tilt import SimPanTiltHead
 from .sensors import (
     SimAccelerometer,
     SimEncoder,
@@ -17,10 +18,11 @@ from .sensors import (
 
 DRIVER = DriverInfo(
     name="sim",
-    description="Simulated devices in pure Python: motor, encoder, IMU, gyro, accelerometer, "
+    description="Simulated devices in pure Python: motor, pan-tilt camera head, encoder, IMU, gyro, accelerometer, "
     "force, torque, temperature, humidity, magnetometer",
     devices={
         "motor": SimMotor,
+        "pan_tilt_head": SimPanTiltHead,
         "encoder": SimEncoder,
         "imu": SimIMU,
         "gyro": SimGyro,
@@ -43,6 +45,7 @@ __all__ = [
     "SimIMU",
     "SimMagnetometer",
     "SimMotor",
+    "SimPanTiltHead",
     "SimTemperature",
     "SimTorqueSensor",
 ]

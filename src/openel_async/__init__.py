@@ -50,6 +50,7 @@ from .observers import (
 )
 from .registry import DriverInfo
 from .requests import EventId, Request
+from .sensing import SensingActuatorDevice, SensingMotor
 from .sensor import Sensor, TimedValue
 from .sensor_kinds import (
     AccelerationSensor,
@@ -110,6 +111,8 @@ __all__ = [
     "Reading",
     "Request",
     "ReturnCode",
+    "SensingActuatorDevice",
+    "SensingMotor",
     "Sensor",
     "SensorBank",
     "SensorDevice",

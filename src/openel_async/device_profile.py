@@ -178,6 +178,25 @@ SENSOR_COMMANDS = (
     ),
 )
 
+_RENAMED_FOR_MOTOR = {
+    "SetScaleFactor": ("SensorSetScaleFactor", "set_measurement_scale_factor"),
+    "GetScaleFactor": ("SensorGetScaleFactor", "get_measurement_scale_factor"),
+    "SetOrigin": ("SensorSetOrigin", "set_measurement_origin"),
+    "GetValue": ("", ""),  # the actuator's GetValue: the Sensor's is GetValueOfMeasurement
+}
+
+
+def sensing_commands() -> tuple[Command, ...]:
+    """The Sensor commands of a component that is also a Motor (``SensingMotor``): the ones
+    whose names clash with the Motor's are renamed (``SensorSetOrigin``...)."""
+    out = []
+    for command in SENSOR_COMMANDS:
+        name, method = _RENAMED_FOR_MOTOR.get(command.name, (command.name, command.method))
+        if name:
+            out.append(Command(name, command.id, command.parameters, method, command.synchronous))
+    return tuple(out)
+
+
 KIND_COMMANDS: dict[int, tuple[Command, ...]] = {}
 """Kind-specific commands (GPS, Direction), added to every device of that kind."""
 
@@ -270,6 +289,11 @@ def profile_of(device: Device | type[Device], hal_id: HALId | None = None) -> De
             },
             scale_factor_default=1.0 if linear else 2 * math.pi,
         )
+        sensor_units = getattr(device, "sensor_units", None)
+        if sensor_units is not None:  # also a sensor (SensingActuatorDevice)
+            commands += sensing_commands()
+            attributes["sensor_kind"] = int(getattr(device, "sensor_kind", 0))
+            attributes["sensor_units"] = list(sensor_units)
     elif issubclass(cls, SensorDevice):
         role = "sensor"
         commands += SENSOR_COMMANDS

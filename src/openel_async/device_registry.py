@@ -24,6 +24,7 @@ from .errors import BadParameterError, NotImplementedHALError
 from .ids import DeviceKind, HALId, check_product_id, check_u32, check_vendor_name
 from .motor import Motor
 from .registry import DriverEntry, discover_drivers
+from .sensing import SensingActuatorDevice, SensingMotor
 from .sensor_kinds import sensor_class
 
 log = structlog.get_logger(__name__)
@@ -132,6 +133,8 @@ class DeviceRegistry:
 def component_class(device: Device) -> Callable[..., HALComponent]:
     """The component class for a device: Motor, a HAL4RT sensor class, Actuator or Sensor."""
     kind = int(device.info.kind)
+    if isinstance(device, SensingActuatorDevice):
+        return SensingMotor
     if isinstance(device, ActuatorDevice):
         return Motor if kind == DeviceKind.MOTOR else Actuator
     if isinstance(device, SensorDevice):

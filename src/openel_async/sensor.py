@@ -88,7 +88,7 @@ def _affine_map(
     return lambda v: tuple([g * x + o for (g, o), x in zip(pairs, v, strict=True)])
 
 
-def _reals(
+def check_reals(
     parameter: str, values: object, count: int, *, nonzero: bool = False
 ) -> tuple[float, ...]:
     """``count`` finite reals (non-zero if asked) as floats, else BadParameterError."""
@@ -204,7 +204,7 @@ class Sensor(HALComponent):
     def set_scale_factor(self, values: Sequence[float]) -> None:
         """SetScaleFactor: one finite, non-zero factor per value."""
         si_units = self._si_units("set_scale_factor")
-        scale = _reals("values", values, len(si_units), nonzero=True)
+        scale = check_reals("values", values, len(si_units), nonzero=True)
         current = self._current(si_units)
         self._apply(si_units, current.units, scale, current.origin)
 
@@ -217,7 +217,7 @@ class Sensor(HALComponent):
         """SetOrigin: the raw SI value of each value that reads as 0 (before the unit's
         own offset: an origin of 273.15 K reads 0 K, i.e. -273.15 degC)."""
         si_units = self._si_units("set_origin")
-        origin = _reals("values", values, len(si_units))
+        origin = check_reals("values", values, len(si_units))
         current = self._current(si_units)
         self._apply(si_units, current.units, current.scale, origin)
 

@@ -24,6 +24,7 @@ from openel_async.device_profile import profile_of
 from openel_async.device_registry import DeviceRegistry
 from openel_async.ids import EXTENSION_KIND_IDS, check_product_id, component_name
 from openel_async.registry import discover_drivers
+from openel_async.sensing import SensingActuatorDevice, SensingMotor
 from openel_async.testing import ComponentStack
 from openel_sim import SimEncoder, SimMotor
 
@@ -130,13 +131,19 @@ def test_unsupported_modes_are_marked_in_the_profile() -> None:
     assert profile.command("SetSpeed").supported
 
 
+def component_class_of(device_class: type) -> type:
+    if issubclass(device_class, SensingActuatorDevice):
+        return SensingMotor
+    return Motor if issubclass(device_class, ActuatorDevice) else Encoder
+
+
 def test_every_profile_command_names_a_method_of_its_component() -> None:
     registry = DeviceRegistry.from_drivers()
     assert len(registry) >= 5
     for entry in registry:
         if not issubclass(entry.device_class, ActuatorDevice) and entry.kind_id == DeviceKind.GPS:
             continue  # GPS: its own helper's class
-        cls = Motor if issubclass(entry.device_class, ActuatorDevice) else Encoder
+        cls = component_class_of(entry.device_class)
         for command in entry.profile.commands:
             if command.id < 0x300:
                 assert hasattr(cls, command.method), (entry.key, command.name)
