@@ -1,24 +1,26 @@
-"""Fan-out throughput: one component's events to 10 ObserverQueues drained by 10 tasks.
+"""Event fan-out against asyncio.Queue and anyio memory streams, and its scaling.
 
-The publisher is an Actuator over a tiny driver that keeps its DeviceContext and posts
-device events with ``ctx.post_event(2)`` (LIMIT_REACHED), the public path a driver uses;
-the component's fan-out calls ``notify_event`` on each registered ObserverQueue. The
-baseline does the same job by hand with 10 anyio memory object streams.
+Throughput (10 observers): one component's events to 10 ``ObserverQueue``s drained by
+10 tasks, against the same job done with 10 ``asyncio.Queue``s and with 10 anyio memory
+object streams (``send_nowait`` to each, one consumer task each). Scaling: 10, 100 and
+1000 plain (sync) and async observers, one event per tick, the tick ending when every
+observer got it; the async peer is N asyncio tasks woken through N ``asyncio.Queue``s.
+Registration: adding N observers to one component, N = 100 ... 10,000.
 
-Batching: the publisher posts BATCH events, then yields once to the event loop. The
-consumers woken by the batch run before the publisher resumes, and each drains its
-whole queue without yielding (an ObserverQueue's iterator only waits when it is empty;
-the stream consumer drains with ``receive_nowait``), so a queue never holds more than
-BATCH notices and queues of QUEUE_SIZE >= BATCH lose nothing. That is checked, not
-assumed: every queue's ``missed_total`` must be 0 and every consumer must count every
-event.
+Batching for throughput (every case): the publisher posts BATCH events, then yields
+once; the consumers woken by the batch run before the publisher resumes and each drains
+its whole queue without yielding, so a queue never holds more than BATCH items and
+nothing is lost. That is checked, not assumed: every ``missed_total`` must be 0 and
+every consumer must count every event.
 """
 
 from __future__ import annotations
 
+import asyncio
 import gc
 import statistics
 import time
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 
 import anyio
@@ -44,9 +46,16 @@ EVENTS = 200_000
 QUICK_EVENTS = 40_000
 BATCH = 100
 QUEUE_SIZE = 1024
-ROUNDS = 3
-QUICK_ROUNDS = 1
-TARGET_RATE = 200_000.0
+ROUNDS = 5
+QUICK_ROUNDS = 2
+THROUGHPUT_TARGET = 0.8
+"""ours / asyncio.Queue deliveries per second, at least."""
+SCALE = (10, 100, 1000)
+SCALE_DELIVERIES = 200_000
+QUICK_SCALE_DELIVERIES = 50_000
+LINEAR_LIMIT = 1.5
+"""Cost per delivery at 1000 observers / at 10 observers, at most (linear cost)."""
+REGISTER = (100, 1000, 10_000)
 EVENT = int(EventId.LIMIT_REACHED)
 
 
@@ -79,6 +88,13 @@ class Run:
     def rate(self) -> float:
         return self.deliveries / self.seconds
 
+    @property
+    def ns_per_delivery(self) -> float:
+        return self.seconds * 1e9 / self.deliveries
+
+
+# -- throughput at 10 observers --------------------------------------------------------
+
 
 async def _drain_queue(queue: ObserverQueue, counts: list[int], i: int) -> None:
     n = 0
@@ -89,7 +105,7 @@ async def _drain_queue(queue: ObserverQueue, counts: list[int], i: int) -> None:
     counts[i] = n - lost  # a notice that reports missed ones stands for a loss
 
 
-async def framework_round(events: int) -> Run:
+async def ours_round(events: int) -> Run:
     source = EventSource()
     queues = [ObserverQueue(QUEUE_SIZE, name=f"bench-fanout-{i}") for i in range(OBSERVERS)]
     counts = [0] * OBSERVERS
@@ -113,6 +129,47 @@ async def framework_round(events: int) -> Run:
     return Run(deliveries=sum(counts), seconds=seconds, lost=lost)
 
 
+async def _drain_asyncio(queue: asyncio.Queue[int | None], counts: list[int], i: int) -> None:
+    n = 0
+    while True:
+        item = await queue.get()
+        while item is not None:
+            n += 1
+            try:  # take what is queued without yielding, like ObserverQueue
+                item = queue.get_nowait()
+            except asyncio.QueueEmpty:
+                break
+        if item is None:
+            break
+    counts[i] = n
+
+
+async def asyncio_queue_round(events: int) -> Run:
+    counts = [0] * OBSERVERS
+    lost = 0
+    queues: list[asyncio.Queue[int | None]] = [
+        asyncio.Queue(QUEUE_SIZE + 1) for _ in range(OBSERVERS)
+    ]
+    tasks = [asyncio.ensure_future(_drain_asyncio(q, counts, i)) for i, q in enumerate(queues)]
+    await asyncio.sleep(0)
+    t0 = time.perf_counter()
+    for _ in range(events // BATCH):
+        for _ in range(BATCH):
+            for queue in queues:
+                try:
+                    queue.put_nowait(EVENT)
+                except asyncio.QueueFull:
+                    lost += 1
+        await asyncio.sleep(0)
+    for queue in queues:
+        queue.put_nowait(None)
+    await asyncio.gather(*tasks)
+    seconds = time.perf_counter() - t0
+    sent = events // BATCH * BATCH
+    lost += sum(sent - c for c in counts)
+    return Run(deliveries=sum(counts), seconds=seconds, lost=lost)
+
+
 async def _drain_stream(stream: MemoryObjectReceiveStream[int], counts: list[int], i: int) -> None:
     n = 0
     async with stream:
@@ -131,7 +188,7 @@ async def _drain_stream(stream: MemoryObjectReceiveStream[int], counts: list[int
     counts[i] = n
 
 
-async def baseline_round(events: int) -> Run:
+async def streams_round(events: int) -> Run:
     counts = [0] * OBSERVERS
     lost = 0
     async with anyio.create_task_group() as tg:
@@ -158,94 +215,287 @@ async def baseline_round(events: int) -> Run:
     return Run(deliveries=sum(counts), seconds=seconds, lost=lost)
 
 
+# -- scaling: one event per tick to N observers ------------------------------------------
+
+
+class Counter:
+    """A plain HALObserver that counts its events."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def notify_event(self, source: object, event_id: int) -> None:
+        self.count += 1
+
+    def notify_error(self, source: object, error_id: int) -> None:
+        pass
+
+
+class AsyncCounter:
+    """An async HALObserver that counts its events (a mailbox and a task each)."""
+
+    def __init__(self, total: list[int]) -> None:
+        self.total = total
+
+    async def notify_event(self, source: object, event_id: int) -> None:
+        self.total[0] += 1
+
+    async def notify_error(self, source: object, error_id: int) -> None:
+        pass
+
+
+async def ours_scale_round(observers: int, ticks: int, asynchronous: bool) -> Run:
+    source = EventSource()
+    total = [0]
+    async with Actuator(source) as actuator:
+        counters: list[Counter] = []
+        for _ in range(observers):
+            if asynchronous:
+                actuator.add_observer(AsyncCounter(total))
+            else:
+                counter = Counter()
+                counters.append(counter)
+                actuator.add_observer(counter)
+        assert source.ctx is not None
+        post = source.ctx.post_event
+        await anyio.lowlevel.checkpoint()
+        t0 = time.perf_counter()
+        for k in range(1, ticks + 1):
+            post(EVENT)
+            if asynchronous:
+                while total[0] < k * observers:  # the tick ends when every observer ran
+                    await anyio.lowlevel.checkpoint()
+        seconds = time.perf_counter() - t0
+        delivered = total[0] if asynchronous else sum(c.count for c in counters)
+        stats = actuator.observer_stats
+    lost = ticks * observers - delivered + stats.overflowed + stats.failures
+    return Run(deliveries=delivered, seconds=seconds, lost=lost)
+
+
+async def _wake(queue: asyncio.Queue[int | None], total: list[int]) -> None:
+    while await queue.get() is not None:
+        total[0] += 1
+
+
+async def peer_scale_round(observers: int, ticks: int, asynchronous: bool) -> Run:
+    """Sync: a list of callbacks called in a loop. Async: N tasks woken by N asyncio.Queues."""
+    total = [0]
+    if not asynchronous:
+        counters = [Counter() for _ in range(observers)]
+        callbacks = [c.notify_event for c in counters]
+        t0 = time.perf_counter()
+        for _ in range(ticks):
+            for callback in callbacks:
+                try:
+                    callback(None, EVENT)
+                except Exception:  # isolated like an observer
+                    pass
+        seconds = time.perf_counter() - t0
+        delivered = sum(c.count for c in counters)
+        return Run(deliveries=delivered, seconds=seconds, lost=ticks * observers - delivered)
+    queues: list[asyncio.Queue[int | None]] = [asyncio.Queue(QUEUE_SIZE) for _ in range(observers)]
+    tasks = [asyncio.ensure_future(_wake(q, total)) for q in queues]
+    await asyncio.sleep(0)
+    t0 = time.perf_counter()
+    for k in range(1, ticks + 1):
+        for queue in queues:
+            queue.put_nowait(EVENT)
+        while total[0] < k * observers:
+            await asyncio.sleep(0)
+    seconds = time.perf_counter() - t0
+    for queue in queues:
+        queue.put_nowait(None)
+    await asyncio.gather(*tasks)
+    return Run(deliveries=total[0], seconds=seconds, lost=ticks * observers - total[0])
+
+
+# -- registration ------------------------------------------------------------------------
+
+
+async def register_round(observers: int) -> float:
+    """Seconds to add ``observers`` plain observers to one component."""
+    source = EventSource()
+    items = [Counter() for _ in range(observers)]
+    async with Actuator(source) as actuator:
+        add = actuator.add_observer
+        t0 = time.perf_counter()
+        for item in items:
+            add(item)
+        return time.perf_counter() - t0
+
+
+# -- the benchmark -----------------------------------------------------------------------
+
+
+def _interleaved(
+    rounds: int, cases: dict[str, Callable[[], Awaitable[Run]]]
+) -> dict[str, list[Run]]:
+    out: dict[str, list[Run]] = {name: [] for name in cases}
+    for _ in range(rounds):  # alternate, so load changes hit every case alike
+        for name, case in cases.items():
+            gc.collect()
+            out[name].append(anyio.run(case, backend="asyncio"))
+    return out
+
+
 def run(quick: bool) -> BenchResult:
     events = QUICK_EVENTS if quick else EVENTS
     rounds = QUICK_ROUNDS if quick else ROUNDS
-    ours: list[Run] = []
-    base: list[Run] = []
-    for _ in range(rounds):  # alternate, so load changes hit both alike
-        gc.collect()
-        ours.append(anyio.run(framework_round, events, backend="asyncio"))
-        gc.collect()
-        base.append(anyio.run(baseline_round, events, backend="asyncio"))
+    per_scale = QUICK_SCALE_DELIVERIES if quick else SCALE_DELIVERIES
+    rows: list[Row] = []
+    notes: list[str] = []
 
-    rate = statistics.median(r.rate for r in ours)
-    base_rate = statistics.median(r.rate for r in base)
-    lost = sum(r.lost for r in ours)
-    base_lost = sum(r.lost for r in base)
-    per_delivery = 1e9 / rate
-    base_per_delivery = 1e9 / base_rate
-    rows = (
-        Row(
-            "deliveries per second",
-            rate,
-            "/s",
-            baseline=base_rate,
-            baseline_label="memory streams",
-            ratio=ratio_of(rate, base_rate),
-            ratio_label="ours/streams",
-            target=f">= {TARGET_RATE:,.0f}/s",
-            passed=rate >= TARGET_RATE,
-            digits=0,
-        ),
-        Row(
-            "time per delivery",
-            per_delivery,
-            "ns",
-            baseline=base_per_delivery,
-            baseline_label="memory streams",
-            ratio=ratio_of(base_per_delivery, per_delivery),
-            ratio_label="streams/ours",
-            digits=0,
-        ),
-        Row(
-            "notifications lost",
-            lost,
-            baseline=base_lost,
-            baseline_label="memory streams",
-            target="0",
-            passed=lost == 0,
-            digits=0,
-        ),
+    tp = _interleaved(
+        rounds,
+        {
+            "ours": lambda: ours_round(events),
+            "asyncio.Queue": lambda: asyncio_queue_round(events),
+            "streams": lambda: streams_round(events),
+        },
     )
-    spread = ", ".join(f"{r.rate:,.0f}" for r in ours)
-    base_spread = ", ".join(f"{r.rate:,.0f}" for r in base)
-    notes = (
-        f"Median of {rounds} alternating round(s) of {events:,} events x {OBSERVERS} "
-        f"observers = {events * OBSERVERS:,} deliveries each; per-round rates: ours "
-        f"{spread}; streams {base_spread}.",
-        f"Publisher yields once every {BATCH} events; queues hold {QUEUE_SIZE}; every "
-        "queue's `missed_total` and every consumer's count were checked.",
+    rate = {name: statistics.median(r.rate for r in runs) for name, runs in tp.items()}
+    lost = {name: sum(r.lost for r in runs) for name, runs in tp.items()}
+    ratio_q = ratio_of(rate["ours"], rate["asyncio.Queue"])
+    rows.append(
+        Row(
+            f"deliveries/s, {OBSERVERS} observers",
+            rate["ours"],
+            "/s",
+            baseline=rate["asyncio.Queue"],
+            baseline_label="asyncio.Queue",
+            ratio=ratio_q,
+            ratio_label="ours/asyncio.Queue",
+            target=f">= {THROUGHPUT_TARGET}x asyncio.Queue",
+            passed=ratio_q >= THROUGHPUT_TARGET and lost["ours"] == 0,
+            digits=0,
+        )
+    )
+    rows.append(
+        Row(
+            f"deliveries/s, {OBSERVERS} observers",
+            rate["ours"],
+            "/s",
+            baseline=rate["streams"],
+            baseline_label="anyio memory streams",
+            ratio=ratio_of(rate["ours"], rate["streams"]),
+            ratio_label="ours/streams",
+            digits=0,
+        )
+    )
+    notes.append(
+        f"Throughput: median of {rounds} alternating rounds of {events:,} events x "
+        f"{OBSERVERS} observers; lost: ours {lost['ours']}, asyncio.Queue "
+        f"{lost['asyncio.Queue']}, streams {lost['streams']}. Per-round rates (/s): "
+        + "; ".join(
+            f"{name} " + ", ".join(f"{r.rate:,.0f}" for r in runs) for name, runs in tp.items()
+        )
+        + "."
+    )
+
+    per_delivery: dict[tuple[bool, int], float] = {}
+    for asynchronous in (False, True):
+        kind = "async" if asynchronous else "sync"
+        for n in SCALE:
+            ticks = max(10, per_scale // n)
+            sc = _interleaved(
+                rounds,
+                {
+                    "ours": lambda n=n, t=ticks, a=asynchronous: ours_scale_round(n, t, a),
+                    "peer": lambda n=n, t=ticks, a=asynchronous: peer_scale_round(n, t, a),
+                },
+            )
+            ours_ns = statistics.median(r.ns_per_delivery for r in sc["ours"])
+            peer_ns = statistics.median(r.ns_per_delivery for r in sc["peer"])
+            ours_lost = sum(r.lost for r in sc["ours"])
+            per_delivery[(asynchronous, n)] = ours_ns
+            peer = "N tasks woken by asyncio.Queue" if asynchronous else "loop over callbacks"
+            rows.append(
+                Row(
+                    f"{kind} observers: {n}, cost per delivery",
+                    ours_ns,
+                    "ns",
+                    baseline=peer_ns,
+                    baseline_label=peer,
+                    ratio=ratio_of(ours_ns, peer_ns),
+                    ratio_label="ours/peer",
+                    target="0 lost" if ours_lost else "",
+                    passed=False if ours_lost else None,
+                    digits=0,
+                )
+            )
+        growth = ratio_of(
+            per_delivery[(asynchronous, SCALE[-1])], per_delivery[(asynchronous, SCALE[0])]
+        )
+        rows.append(
+            Row(
+                f"{kind} observers: cost per delivery, {SCALE[-1]} / {SCALE[0]} observers",
+                growth,
+                "x",
+                target=f"<= {LINEAR_LIMIT}x (linear)",
+                passed=growth <= LINEAR_LIMIT,
+                digits=2,
+            )
+        )
+
+    reg: dict[int, list[float]] = {n: [] for n in REGISTER}
+    for _ in range(rounds):
+        for n in REGISTER:
+            gc.collect()
+            reg[n].append(anyio.run(register_round, n, backend="asyncio"))
+    per_add = {n: statistics.median(v) / n * 1e9 for n, v in reg.items()}
+    for n in REGISTER:
+        rows.append(Row(f"registering {n:,} observers, per observer", per_add[n], "ns", digits=0))
+    reg_growth = ratio_of(per_add[REGISTER[-1]], per_add[REGISTER[0]])
+    rows.append(
+        Row(
+            f"registration cost per observer, {REGISTER[-1]:,} / {REGISTER[0]} observers",
+            reg_growth,
+            "x",
+            target=f"<= {LINEAR_LIMIT}x (O(N) in all)",
+            passed=reg_growth <= LINEAR_LIMIT,
+            digits=2,
+        )
+    )
+    notes.append(
+        f"Scaling: {per_scale:,} deliveries per round at every N (one event per tick), "
+        f"median of {rounds} alternating rounds; lost notices and failures are counted "
+        "(from the component's observer stats) and must be 0."
     )
     return BenchResult(
         name=NAME,
-        title=f"event fan-out to {OBSERVERS} ObserverQueues vs anyio memory streams",
-        rows=rows,
+        title="event fan-out vs asyncio.Queue and anyio memory streams; scaling to 1000 observers",
+        rows=tuple(rows),
         description=DESCRIPTION,
-        notes=notes,
+        notes=tuple(notes),
         params={
             "observers": str(OBSERVERS),
             "events per round": f"{events:,}",
             "batch": str(BATCH),
             "queue size": str(QUEUE_SIZE),
+            "scaling": ", ".join(str(n) for n in SCALE),
             "rounds": str(rounds),
         },
     )
 
 
 DESCRIPTION = f"""\
-One publisher component (an `Actuator` over a tiny driver that keeps its
-`DeviceContext` and calls `ctx.post_event(2)`, the public path a driver posts events
-on) with {OBSERVERS} `ObserverQueue`s registered by `add_observer`, each drained by its own
-consumer task (`async for notice in queue`). Figure: deliveries per second = events x
-{OBSERVERS} / wall time from the first event until every consumer finished. Baseline,
-in the same run: {OBSERVERS} anyio memory object streams, `send_nowait` to each and one
-consumer task per stream.
+**Throughput, {OBSERVERS} observers.** Ours: one publisher component (an `Actuator` over a
+tiny driver that keeps its `DeviceContext` and calls `ctx.post_event(2)`, the public path
+a driver posts events on) with {OBSERVERS} `ObserverQueue`s registered by `add_observer`,
+each drained by its own task (`async for notice in queue`). Peers in the same run, same
+batching: {OBSERVERS} `asyncio.Queue`s (`put_nowait` to each; each consumer awaits `get()`
+then drains with `get_nowait()`), and {OBSERVERS} anyio memory object streams
+(`send_nowait`; `receive()` then `receive_nowait()`). Figure: deliveries per second =
+events x {OBSERVERS} / wall time from the first event until every consumer finished.
+The publisher posts {BATCH} events, then yields once; queues hold {QUEUE_SIZE}, so nothing
+is lost, which is checked.
 
-Batching (both cases): the publisher posts {BATCH} events, then yields once
-(`anyio.lowlevel.checkpoint()`); the consumers woken by the batch run before it resumes
-and each drains its whole queue without yielding (the ObserverQueue iterator waits only
-when the queue is empty; the stream consumer awaits `receive()` then drains with
-`receive_nowait()`). A queue thus never holds more than {BATCH} notices, and with
-{QUEUE_SIZE}-slot queues nothing is lost, which is checked: `missed_total == 0` for every
-queue and every consumer counted every event."""
+**Scaling, 10 to 1000 observers.** One event per tick. Sync: N plain observers
+(`notify_event` counts) called inline by `post_event`; peer: a loop calling N callbacks,
+each in a try/except. Async: N observers with `async def notify_event` (a mailbox and a
+task each); the tick ends when all N ran (the publisher yields until then); peer: N
+asyncio tasks each woken by its own `asyncio.Queue`. Figure: wall time per delivery;
+linear cost means that figure stays flat from 10 to 1000.
+
+**Registration.** Wall time of `add_observer` for N plain observers on one component
+(duplicate check, signature inspection, copy-on-write observer list)."""

@@ -3,8 +3,11 @@
 Plain observer methods run inline, isolated by try/except. An observer with any async
 method gets a bounded mailbox and a task of its own, so a slow or raising observer
 never delays the publisher (a control loop) or the other observers. Order is kept per
-observer; the observer list is copied on write so adding or removing observers while
-a notification is being delivered is safe.
+observer. Observers are kept in a dict (registration and removal O(1), so N observers
+cost O(N)); ``publish`` delivers from a per-kind tuple built on the first notification
+after a change, so adding or removing observers while one is being delivered is safe.
+Mailbox tasks that wait for work wait on one shared event per publisher, set once per
+notification, rather than each on an event of its own.
 
 Nothing is lost untold: a notice a mailbox drops (overflow, :meth:`Fanout.discard_pending`,
 :meth:`Fanout.abandon` at exit) is counted in :meth:`Fanout.stats`, logged, and reported
@@ -16,7 +19,10 @@ from __future__ import annotations
 
 import inspect
 from collections import deque
+from collections.abc import Callable
 from dataclasses import replace
+from inspect import isawaitable
+from types import MethodType
 from typing import TYPE_CHECKING, Any
 
 import anyio
@@ -35,6 +41,8 @@ log = structlog.get_logger(__name__)
 # What a mailbox holds per notification: (kind, spec arguments, notice or None). One
 # tuple per publish, shared by every mailbox that receives it.
 _Entry = tuple[str, tuple[Any, ...], Notice | None]
+# What publish calls per observer of a kind: (method, takes the notice, mailbox, observer).
+_Target = tuple[Callable[..., Any], bool, "_Mailbox | None", object]
 
 
 class _Mailbox:
@@ -49,7 +57,6 @@ class _Mailbox:
         self.routes = routes
         self.size = size
         self.items: deque[_Entry] = deque()
-        self.wakeup = anyio.Event()
         self.queued = 0
         self.delivered = 0
         self.overflowed = 0
@@ -59,8 +66,9 @@ class _Mailbox:
         """Dropped since the last delivery: reported with the next notice delivered."""
         self.busy = False
         self.closed = False
-        self.idle = anyio.Event()
-        self.idle.set()
+        self.idle: anyio.Event | None = None
+        """Set when the mailbox is empty and nothing is being delivered; created only for
+        :meth:`wait_idle` (not on every notice)."""
 
     def put(self, entry: _Entry) -> None:
         self.queued += 1
@@ -78,9 +86,6 @@ class _Mailbox:
                 )
             self.missed += 1
         self.items.append(entry)
-        if self.idle.is_set():
-            self.idle = anyio.Event()
-        self.wakeup.set()
 
     def drop_all(self) -> int:
         """Empty the mailbox; the dropped notices count as missed for the next one."""
@@ -100,11 +105,26 @@ class _Mailbox:
             abandoned=self.abandoned,
         )
 
+    async def wait_idle(self) -> None:
+        """Until what the mailbox holds now was delivered (its task must be running)."""
+        while self.items or self.busy:
+            if self.idle is None:
+                self.idle = anyio.Event()
+            await self.idle.wait()
+
+    def _set_idle(self) -> None:
+        idle = self.idle
+        if idle is not None:
+            self.idle = None
+            idle.set()
+
     async def run(self) -> None:
         self.busy = False  # (re)started by bind: nothing is being delivered yet
+        fanout = self.fanout
+        items = self.items
         while True:
-            while self.items:
-                kind, args, notice = self.items.popleft()
+            while items:
+                kind, args, notice = items.popleft()
                 method, with_notice = self.routes[kind]
                 missed = self.missed
                 if missed:
@@ -120,21 +140,18 @@ class _Mailbox:
                 self.busy = True
                 try:
                     result = method(*args, notice) if with_notice else method(*args)
-                    if inspect.isawaitable(result):
+                    if result is not None and isawaitable(result):
                         await result
                 except Exception:
-                    self.fanout.failures += 1
+                    fanout.failures += 1
                     log.exception("observer_failed", owner=self.owner, observer=repr(self.observer))
                 self.busy = False
                 self.delivered += 1
-            self.idle.set()
+            self._set_idle()
             if self.closed:
-                self.fanout.leaving.discard(self)
+                fanout.leaving.discard(self)
                 return
-            self.wakeup = anyio.Event()
-            if self.items:
-                continue
-            await self.wakeup.wait()
+            await fanout.work()
 
 
 class _Subscriber:
@@ -146,10 +163,12 @@ class _Subscriber:
         self.mailbox = mailbox
 
 
-def _same(a: object, b: object) -> bool:
-    if inspect.ismethod(a) and inspect.ismethod(b):
-        return a.__self__ is b.__self__ and a.__func__ is b.__func__
-    return a is b
+def _key(observer: object) -> object:
+    """Identity of an observer: a bound method is the same observer each time it is taken
+    from its object (``obj.method`` builds a new method object)."""
+    if isinstance(observer, MethodType):
+        return (id(observer.__self__), id(observer.__func__))
+    return id(observer)
 
 
 def _is_async(func: object) -> bool:
@@ -165,7 +184,17 @@ class Fanout:
         self.owner = owner
         self.kinds = kinds
         self.mailbox_size = mailbox_size
-        self._subscribers: tuple[_Subscriber, ...] = ()
+        self._by_key: dict[object, _Subscriber] = {}
+        """Registered observers in registration order, by :func:`_key`."""
+        self._snapshot: tuple[_Subscriber, ...] | None = ()
+        """The registered observers as a tuple (None: rebuilt when next needed)."""
+        self._targets: dict[str, tuple[_Target, ...]] = {}
+        """Per kind: (method, takes the notice, mailbox) of each observer, for ``publish``;
+        emptied by every change and rebuilt by the next notification."""
+        self._notice_kinds: dict[str, int] = {}
+        """Per kind, how many observers take the notice."""
+        self._work: anyio.Event | None = None
+        """Set by the next notification for mailbox tasks waiting for work."""
         self._task_group: anyio.abc.TaskGroup | None = None
         self.published = 0
         """Notifications published (each to every observer registered for its kind)."""
@@ -182,21 +211,27 @@ class Fanout:
         """The owner's :class:`~openel_async.listeners.ComponentListener` (components only):
         kept here so that a component needs no instance attribute of its own for it."""
 
+    def _subscribers(self) -> tuple[_Subscriber, ...]:
+        snapshot = self._snapshot
+        if snapshot is None:
+            snapshot = self._snapshot = tuple(self._by_key.values())
+        return snapshot
+
     def __len__(self) -> int:
-        return len(self._subscribers)
+        return len(self._by_key)
 
     def __contains__(self, observer: object) -> bool:
-        return any(_same(s.observer, observer) for s in self._subscribers)
+        return _key(observer) in self._by_key
 
     @property
     def observers(self) -> tuple[object, ...]:
-        return tuple(s.observer for s in self._subscribers)
+        return tuple(s.observer for s in self._subscribers())
 
     def bind(self, task_group: anyio.abc.TaskGroup | None) -> None:
         """Give the task group that hosts mailbox tasks (None when the owner closes)."""
         self._task_group = task_group
         if task_group is not None:
-            for sub in self._subscribers:
+            for sub in self._subscribers():
                 if sub.mailbox is not None:
                     sub.mailbox.closed = False  # reopened by a new owner context
                     task_group.start_soon(sub.mailbox.run)
@@ -204,41 +239,69 @@ class Fanout:
     def add(self, observer: object) -> None:
         if observer is None:
             raise BadParameterError("observer", observer, "an observer, not None")
-        if observer in self:
+        key = _key(observer)
+        if key in self._by_key:
             raise BadParameterError("observer", observer, "an observer not yet registered")
         routes = observer_routes(observer, self.kinds)
         is_async = any(_is_async(method) for method, _ in routes.values())
         mailbox = _Mailbox(self, observer, routes, self.mailbox_size) if is_async else None
-        self._subscribers = (*self._subscribers, _Subscriber(observer, routes, mailbox))
-        self._update_wants_notice()
+        self._by_key[key] = _Subscriber(observer, routes, mailbox)
+        self._changed(routes, 1)
         if mailbox is not None and self._task_group is not None:
             self._task_group.start_soon(mailbox.run)
 
     def remove(self, observer: object) -> None:
-        for sub in self._subscribers:
-            if _same(sub.observer, observer):
-                self._subscribers = tuple(s for s in self._subscribers if s is not sub)
-                self._update_wants_notice()
-                if sub.mailbox is not None:
-                    # Let what was queued before removal arrive, then end the task.
-                    sub.mailbox.closed = True
-                    sub.mailbox.wakeup.set()
-                    if self._task_group is not None:
-                        self.leaving.add(sub.mailbox)
-                return
-        raise BadParameterError("observer", observer, "an observer registered with this publisher")
+        sub = self._by_key.pop(_key(observer), None)
+        if sub is None:
+            raise BadParameterError(
+                "observer", observer, "an observer registered with this publisher"
+            )
+        self._changed(sub.routes, -1)
+        if sub.mailbox is not None:
+            # Let what was queued before removal arrive, then end the task.
+            sub.mailbox.closed = True
+            self._wake()
+            if self._task_group is not None:
+                self.leaving.add(sub.mailbox)
 
-    def _update_wants_notice(self) -> None:
-        self.wants_notice = frozenset(
-            kind for sub in self._subscribers for kind, (_, wants) in sub.routes.items() if wants
+    def _changed(self, routes: dict[str, Route], sign: int) -> None:
+        """An observer with ``routes`` was added (+1) or removed (-1): O(kinds)."""
+        self._snapshot = None
+        self._targets = {}
+        counts = self._notice_kinds
+        for kind, (_, wants) in routes.items():
+            if wants:
+                counts[kind] = counts.get(kind, 0) + sign
+        self.wants_notice = frozenset(kind for kind, count in counts.items() if count > 0)
+
+    def _build_targets(self, kind: str) -> tuple[_Target, ...]:
+        targets = tuple(
+            (route[0], route[1], sub.mailbox, sub.observer)
+            for sub in self._subscribers()
+            if (route := sub.routes.get(kind)) is not None
         )
+        self._targets[kind] = targets
+        return targets
+
+    async def work(self) -> None:
+        """Wait (a mailbox task) until the next notification or change."""
+        work = self._work
+        if work is None:
+            work = self._work = anyio.Event()
+        await work.wait()
+
+    def _wake(self) -> None:
+        work = self._work
+        if work is not None:
+            self._work = None
+            work.set()
 
     def close(self) -> None:
         """End every mailbox task after it delivered what it holds."""
-        for sub in self._subscribers:
+        for sub in self._subscribers():
             if sub.mailbox is not None:
                 sub.mailbox.closed = True
-                sub.mailbox.wakeup.set()
+        self._wake()
 
     def publish(self, kind: str, *args: Any, notice: Notice | None = None) -> None:
         """Deliver ``observer.<kind>(*args)`` to every observer registered for ``kind``.
@@ -248,18 +311,16 @@ class Fanout:
         a mailbox reports missed notices with it.
         """
         self.published += 1
+        targets = self._targets.get(kind)
+        if targets is None:
+            targets = self._build_targets(kind)
         entry: _Entry | None = None
-        for sub in self._subscribers:
-            route = sub.routes.get(kind)
-            if route is None:
-                continue
-            mailbox = sub.mailbox
+        for method, with_notice, mailbox, observer in targets:
             if mailbox is not None:
                 if entry is None:
                     entry = (kind, args, notice)
                 mailbox.put(entry)
                 continue
-            method, with_notice = route
             try:
                 if with_notice:
                     method(*args, notice)
@@ -267,7 +328,9 @@ class Fanout:
                     method(*args)
             except Exception:
                 self.failures += 1
-                log.exception("observer_failed", owner=self.owner, observer=repr(sub.observer))
+                log.exception("observer_failed", owner=self.owner, observer=repr(observer))
+        if entry is not None:
+            self._wake()
 
     def discard_pending(self) -> int:
         """Drop what async observers have not received yet (StopTimer); returns how many.
@@ -275,7 +338,7 @@ class Fanout:
         Counted as ``discarded`` and reported as ``missed`` with the next notice.
         """
         total = 0
-        for sub in self._subscribers:
+        for sub in self._subscribers():
             mailbox = sub.mailbox
             if mailbox is not None and mailbox.items:
                 count = mailbox.drop_all()
@@ -286,8 +349,9 @@ class Fanout:
 
     def _mailboxes(self) -> list[_Mailbox]:
         """Every mailbox with a task: registered observers', then removed ones' (leaving)."""
-        mailboxes = [s.mailbox for s in self._subscribers if s.mailbox is not None]
-        return mailboxes + [m for m in self.leaving if m not in mailboxes]
+        mailboxes = [s.mailbox for s in self._subscribers() if s.mailbox is not None]
+        registered = set(mailboxes)
+        return mailboxes + [m for m in self.leaving if m not in registered]
 
     def abandon(self) -> int:
         """What async observers still hold when the owner stops waiting for them at exit:
@@ -321,7 +385,7 @@ class Fanout:
         """Wait until every async observer (and every removed one still delivering) has
         processed what was published so far."""
         for mailbox in self._mailboxes():
-            await mailbox.idle.wait()
+            await mailbox.wait_idle()
 
     async def drain(self, timeout_s: float) -> int:
         """Close the mailboxes and give async observers ``timeout_s`` seconds (shielded
@@ -341,5 +405,5 @@ class Fanout:
             overflowed=self.overflowed,
             discarded=self.discarded,
             abandoned=self.abandoned,
-            mailboxes=tuple(s.mailbox.snapshot() for s in self._subscribers if s.mailbox),
+            mailboxes=tuple(s.mailbox.snapshot() for s in self._subscribers() if s.mailbox),
         )
