@@ -211,10 +211,15 @@ class SensingMotor(Motor):
             values.append(number)
         settings = self._sensing.settings
         if settings is None:
-            return tuple(values)
-        if len(values) != len(settings.gain):
+            result = tuple(values)
+        elif len(values) == len(settings.gain):
+            result = settings.apply(tuple(values))
+        else:
             raise self._fault(
                 ErrorId.DEVICE_ERROR,
                 f"read_sensor() returned {len(values)} values for {len(settings.gain)} units",
             )
-        return settings.apply(tuple(values))
+        listener = self._observers.listener
+        if listener is not None:  # a recorder hears the sensor side as a Sensor's reading
+            listener.on_reading(self, None, result)
+        return result
