@@ -1,4 +1,6 @@
-"""A recording whose process is killed (SIGKILL) is readable up to its last complete chunk."""
+"""A recording whose process is killed (SIGKILL) is readable: up to its last complete chunk
+when the writer process dies with it, whole when only the application dies (the writer
+process sees its input end and closes the file)."""
 
 from __future__ import annotations
 
@@ -39,9 +41,13 @@ anyio.run(main, sys.argv[1])
 """
 
 
-def test_killed_recording_is_readable(tmp_path: Path) -> None:
-    path = tmp_path / "killed.mcap"
-    proc = subprocess.Popen([sys.executable, "-c", SCRIPT, str(path)], stderr=subprocess.DEVNULL)
+def _record_and_kill(path: Path, *, group: bool) -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SCRIPT, str(path)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
     try:
         deadline = time.monotonic() + 60
         # Several complete chunks on disk (16 KiB each, compressed), then kill it mid-write.
@@ -49,12 +55,20 @@ def test_killed_recording_is_readable(tmp_path: Path) -> None:
             assert proc.poll() is None, "the recording process ended on its own"
             assert time.monotonic() < deadline, "the recording did not grow"
             time.sleep(0.05)
-        os.kill(proc.pid, signal.SIGKILL)
+        if group:  # the application and its writer process
+            os.killpg(proc.pid, signal.SIGKILL)
+        else:
+            os.kill(proc.pid, signal.SIGKILL)
         assert proc.wait(timeout=30) == -signal.SIGKILL
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_killed_recording_is_readable_to_the_last_chunk(tmp_path: Path) -> None:
+    path = tmp_path / "killed.mcap"
+    _record_and_kill(path, group=True)
     recording = read_recording(path)
     assert not recording.complete  # no footer: cut short
     commands = [m for m in recording.topic("/hal/AXIS") if m["kind"] == "command"]
@@ -65,3 +79,21 @@ def test_killed_recording_is_readable(tmp_path: Path) -> None:
     assert values == [(k % 100) for k in range(1, len(values) + 1)]
     assert [m["index"] for m in ticks] == list(range(1, len(ticks) + 1))
     assert any(line.startswith("complete    no: cut short") for line in info_lines(recording))
+
+
+def test_killed_application_leaves_a_complete_recording(tmp_path: Path) -> None:
+    path = tmp_path / "app-killed.mcap"
+    _record_and_kill(path, group=False)
+    deadline = time.monotonic() + 60
+    while True:  # the writer process finishes the file once its input ends
+        recording = read_recording(path)
+        if recording.complete:
+            break
+        assert time.monotonic() < deadline, recording.problem
+        time.sleep(0.1)
+    commands = [m for m in recording.topic("/hal/AXIS") if m["kind"] == "command"]
+    values = [round(m["value"] * 100) for m in commands]
+    assert len(values) > 200 and values == [(k % 100) for k in range(1, len(values) + 1)]
+    assert (
+        recording.dropped is not None
+    )  # its statistics record (the parent could not send its own)

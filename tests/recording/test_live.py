@@ -33,9 +33,9 @@ async def _until_op(ws: Any, op: str) -> dict[str, Any]:
 async def test_client_receives_joint_states() -> None:
     clock = MonotonicClock()
     live = LiveView(port=0)
-    assert live.sink.host == "127.0.0.1" and live.sink.port > 0
     received: list[dict[str, Any]] = []
     async with live:
+        assert live.url.startswith("ws://127.0.0.1:") and live.pipeline.port
         axis = Actuator(SimMotor(max_velocity=3.0), device_name="AXIS", clock=clock)
         timer = EventTimer(5, clock=clock, name="loop")
         live.observe(axis)

@@ -127,4 +127,4 @@ def test_unwritable_record_path_is_refused(
     target = tmp_path / "missing-dir" / "x.mcap"
     code = cli_main(["demo", "--bus", "sim", "--virtual", "--no-live", "--record", str(target)])
     assert code == 2
-    assert "--record: cannot write" in capsys.readouterr().err
+    assert "--record: cannot start" in capsys.readouterr().err

@@ -34,31 +34,29 @@ def add_tap_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def taps_from_args(args: argparse.Namespace, prog: str) -> list[AppHook] | None:
-    """The hooks ``--record``/``--foxglove`` ask for; None (after printing why) when one
-    cannot start (an unwritable file, a port in use)."""
+    """The hook ``--record``/``--foxglove`` ask for, its writer process started; None (after
+    printing why) when it cannot start (an unwritable file, a port in use)."""
     record, foxglove = getattr(args, "record", None), getattr(args, "foxglove", False)
     if record is None and not foxglove:
         return []
-    from ..recording import FoxgloveSink, LiveView, Recorder
+    from ..recording import Tap
+    from ..recording.pipeline import SinkStartError
 
+    server = (args.foxglove_host, args.foxglove_port) if foxglove else None
+    tap = Tap(record=record, foxglove=server)
     try:
-        live = [FoxgloveSink(host=args.foxglove_host, port=args.foxglove_port)] if foxglove else []
-    except Exception as exc:  # the SDK's error: address in use, bad host
-        print(f"{prog}: --foxglove: cannot start the server: {exc}", file=sys.stderr)
+        tap.start()
+    except SinkStartError as exc:
+        what = (
+            "--record/--foxglove"
+            if record is not None and foxglove
+            else ("--record" if record is not None else "--foxglove")
+        )
+        print(f"{prog}: {what}: cannot start: {exc}", file=sys.stderr)
         return None
-    try:
-        if record is not None:
-            if live:
-                print(f"{prog}: Foxglove live view on ws://{args.foxglove_host}:{live[0].port}")
-            return [Recorder(record, also=live)]
-    except OSError as exc:
-        print(f"{prog}: --record: cannot write {record}: {exc}", file=sys.stderr)
-        for sink in live:
-            sink.server.stop()
-        return None
-    view = LiveView(sink=live[0])
-    print(f"{prog}: Foxglove live view on ws://{args.foxglove_host}:{live[0].port}")
-    return [view]
+    if foxglove:
+        print(f"{prog}: Foxglove live view on ws://{args.foxglove_host}:{tap.pipeline.port}")
+    return [tap]
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:

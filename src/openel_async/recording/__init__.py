@@ -14,7 +14,7 @@ FILE.mcap --foxglove`` attaches them to any app. docs/recording.md has the detai
 """
 
 from .live import LAYOUT_PATH, FoxgloveSink, LiveView
-from .pipeline import Pipeline, PipelineStats, Sink
+from .pipeline import Pipeline, PipelineStats, Sink, SinkStartError
 from .reader import Recording, info_lines, read_recording
 from .recorder import McapSink, Recorder
 from .scene import Primitive, SceneSource, Transform
@@ -32,6 +32,7 @@ __all__ = [
     "Recording",
     "SceneSource",
     "Sink",
+    "SinkStartError",
     "Tap",
     "Transform",
     "info_lines",

@@ -9,14 +9,14 @@ Open https://app.foxglove.dev (or Foxglove desktop), "Open connection", Foxglove
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import os
 from pathlib import Path
 from typing import Any
 
 import foxglove
 import structlog
 
-from .pipeline import PipelineStats, Sink
+from .pipeline import PipelineStats
 from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, ChannelSpec
 from .tap import Tap
 
@@ -69,24 +69,30 @@ class FoxgloveSink:
 
 
 class LiveView(Tap):
-    """A :class:`~.tap.Tap` publishing live through a :class:`FoxgloveSink` (and to
-    ``also``, e.g. a recorder's MCAP sink)."""
+    """A :class:`~.tap.Tap` publishing live on a Foxglove WebSocket server on ``host``:
+    ``port`` (0: any free port; :attr:`url` once entered), and recording to the MCAP file
+    ``record`` too if given."""
 
     def __init__(
         self,
         *,
         host: str = DEFAULT_HOST,
         port: int = DEFAULT_PORT,
-        also: Sequence[Sink] = (),
+        record: str | os.PathLike[str] | None = None,
         joint_period_ms: float = 20.0,
         capacity: int = 100_000,
         logs: bool = True,
     ) -> None:
-        self.sink = FoxgloveSink(host=host, port=port)
+        self.host = host
         super().__init__(
-            [self.sink, *also], joint_period_ms=joint_period_ms, capacity=capacity, logs=logs
+            record=record,
+            foxglove=(host, port),
+            joint_period_ms=joint_period_ms,
+            capacity=capacity,
+            logs=logs,
         )
 
     @property
     def url(self) -> str:
-        return f"ws://{self.sink.host}:{self.sink.port}"
+        """``ws://host:port`` (the port the server got, once entered)."""
+        return f"ws://{self.host}:{self.pipeline.port}"

@@ -1,32 +1,40 @@
-"""The recorder's and live view's pipeline: a bounded queue filled by the control loop without
-blocking, emptied by a thread of its own that encodes the messages (JSON) and hands them to
-the sinks (an MCAP file, the Foxglove server).
+"""The recorder's and live view's pipeline: a bounded queue filled by the control loop
+without blocking, a thread that ships it in batches to the writer process
+(:mod:`.sink_process`), which encodes the messages (JSON) and writes them to the sinks (an
+MCAP file, the Foxglove server).
 
-The control loop only appends to a deque (one C call); a full queue drops the message and
-counts it (:attr:`PipelineStats.dropped`). The thread wakes every ``flush_interval`` seconds,
-writes what is queued and flushes the sinks.
+The control loop only appends a tuple to a deque (one C call); a full queue drops the record
+and counts it (:attr:`PipelineStats.dropped`). The thread wakes every ``flush_interval``
+seconds and writes what is queued to the process's stdin as one msgpack frame (C code, and
+the pipe write releases the interpreter lock); the encoding and the MCAP writing happen in
+the other process, so they do not compete with the control loop for the interpreter lock.
 """
 
 from __future__ import annotations
 
+import contextlib
+import json
+import os
+import subprocess
+import sys
 import threading
 from collections import deque
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 import msgspec
 import structlog
 
-from .schemas import ChannelSpec
+from .schemas import ChannelSpec, Schema
 
-__all__ = ["Pipeline", "PipelineStats", "Sink"]
+__all__ = ["Pipeline", "PipelineStats", "Sink", "SinkStartError"]
 
 log = structlog.get_logger(__name__)
 
 
 class Sink(Protocol):
-    """Where the pipeline's thread writes. Every method runs in that thread."""
+    """Where the writer process writes (:class:`~.recorder.McapSink`,
+    :class:`~.live.FoxgloveSink`)."""
 
     def add_channel(self, channel: ChannelSpec) -> None: ...
 
@@ -40,104 +48,159 @@ class Sink(Protocol):
 @dataclass(frozen=True, slots=True)
 class PipelineStats:
     queued: int
-    """Messages the control loop handed over."""
+    """Records the control loop handed over."""
     written: int
     """Messages written to the sinks."""
     dropped: int
-    """Messages not written: the queue was full (the thread fell behind)."""
+    """Records not written: the queue was full (the writer fell behind)."""
     capacity: int
 
 
+class SinkStartError(RuntimeError):
+    """The writer process could not open its sinks (an unwritable file, a port in use)."""
+
+
 class Pipeline:
-    """See the module docstring. ``start()`` then ``put()`` from the loop, ``stop()`` at the
-    end (blocking: call it from a worker thread in async code)."""
+    """See the module docstring. ``start()`` (blocking: from a worker thread in async code)
+    before ``put()``, ``stop()`` at the end (blocking too)."""
 
     def __init__(
-        self, sinks: Sequence[Sink], *, capacity: int = 100_000, flush_interval: float = 0.05
+        self,
+        *,
+        mcap: str | os.PathLike[str] | None = None,
+        foxglove: tuple[str, int] | None = None,
+        capacity: int = 100_000,
+        flush_interval: float = 0.02,
+        chunk_size: int = 64 * 1024,
     ) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
-        self.sinks = list(sinks)
+        if mcap is None and foxglove is None:
+            raise ValueError("a pipeline needs an MCAP file, a Foxglove server or both")
+        self.mcap = None if mcap is None else os.fspath(mcap)
+        self.foxglove = foxglove
         self.capacity = capacity
         self.flush_interval = flush_interval
+        self.chunk_size = chunk_size
+        self.port: int | None = None
+        """The Foxglove server's port once started."""
+        self.offset_ns = 0
+        """Added to every record's clock time to make its log time (wall clock)."""
         self.channels: list[ChannelSpec] = []
-        self._queue: deque[tuple[int, int, Any]] = deque()
+        self._queue: deque[tuple[Any, ...]] = deque()
         self._queued = 0
-        self._written = 0
+        self._sent = 0
         self.dropped = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._encode = msgspec.json.Encoder().encode
+        self._process: subprocess.Popen[bytes] | None = None
+        self._encode = msgspec.msgpack.Encoder().encode
         self.error: BaseException | None = None
+        self.written: int | None = None
 
-    def add_channel(self, topic: str, schema: Any, metadata: dict[str, str] | None = None) -> int:
+    def add_channel(
+        self, topic: str, schema: Schema, metadata: dict[str, str] | None = None
+    ) -> int:
         """A new channel; returns its id (registered with the sinks before its messages)."""
         spec = ChannelSpec(len(self.channels), topic, schema, dict(metadata or {}))
         self.channels.append(spec)
-        self._queue.append((-1, 0, spec))
+        self._queue.append((-1, self.offset_ns, 0, spec.id, topic, schema.name, spec.metadata))
         return spec.id
 
-    def put(self, channel: int, log_time_ns: int, message: Any) -> None:
-        """Queue ``message`` (a dict, encoded as JSON by the thread); never blocks."""
+    def put(self, entry: tuple[Any, ...]) -> None:
+        """Queue a record ``(channel, time_ns, kind, *fields)`` (:mod:`.sink_process`); never
+        blocks."""
         queue = self._queue
         if len(queue) >= self.capacity:
             self.dropped += 1
             return
-        queue.append((channel, log_time_ns, message))
+        queue.append(entry)
         self._queued += 1
 
     @property
     def stats(self) -> PipelineStats:
-        return PipelineStats(self._queued, self._written, self.dropped, self.capacity)
+        written = self._sent if self.written is None else self.written
+        return PipelineStats(self._queued, written, self.dropped, self.capacity)
 
     def start(self) -> None:
+        """Start the writer process (it opens the sinks) and the feeding thread; raises
+        :class:`SinkStartError` when the sinks cannot open."""
+        command = [sys.executable, "-m", "openel_async.recording.sink_process"]
+        if self.mcap is not None:
+            command += ["--mcap", self.mcap, "--chunk-size", str(self.chunk_size)]
+        if self.foxglove is not None:
+            command += ["--foxglove", f"{self.foxglove[0]}:{self.foxglove[1]}"]
+        process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        assert process.stdout is not None
+        line = process.stdout.readline()
+        try:
+            info = json.loads(line) if line else {"error": "the writer process did not start"}
+        except ValueError:
+            info = {"error": f"the writer process said {line!r}"}
+        if "error" in info:
+            with contextlib.suppress(Exception):
+                process.kill()
+                process.wait(timeout=10)
+            raise SinkStartError(info["error"])
+        port = info.get("port")
+        self.port = None if port is None else int(port)
+        self._process = process
         self._thread = threading.Thread(target=self._run, name="openel-recorder", daemon=True)
         self._thread.start()
 
-    def stop(self) -> PipelineStats:
-        """Write what is queued, close the sinks; returns the final statistics."""
+    def stop(self, timeout: float = 60.0) -> PipelineStats:
+        """Send what is queued, let the process close its sinks; the final statistics."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join()
             self._thread = None
+        process = self._process
+        if process is not None:
+            self._process = None
+            assert process.stdout is not None
+            if process.stdin is not None:  # closed by the thread: communicate would flush it
+                with contextlib.suppress(OSError):
+                    process.stdin.close()
+                process.stdin = None
+            try:
+                out, _ = process.communicate(timeout=timeout)
+                for line in out.splitlines():
+                    with contextlib.suppress(ValueError):
+                        self.written = int(json.loads(line)["written"])
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+                log.error("recording_writer_timeout", timeout_s=timeout)
         return self.stats
 
     def _run(self) -> None:
+        process = self._process
+        assert process is not None and process.stdin is not None
+        fd = process.stdin.fileno()
         try:
             while not self._stop.wait(self.flush_interval):
-                if self._drain():
-                    for sink in self.sinks:
-                        sink.flush()
-            self._drain()
-        except BaseException as exc:  # a broken sink: reported, the loop is never blocked
+                self._send(fd)
+            self._send(fd, final=True)
+        except BaseException as exc:  # the process died: what is left is dropped, and told
             self.error = exc
             log.error("recording_failed", error=repr(exc))
+            self.dropped += len(self._queue)
             self._queue.clear()
         finally:
-            stats = self.stats
-            for sink in self.sinks:
-                try:
-                    sink.close(stats)
-                except Exception as exc:
-                    log.error("recording_close_failed", sink=repr(sink), error=repr(exc))
+            with contextlib.suppress(OSError):
+                process.stdin.close()
 
-    def _drain(self) -> int:
+    def _send(self, fd: int, final: bool = False) -> None:
         queue = self._queue
         popleft = queue.popleft
-        encode = self._encode
-        channels = self.channels
-        sinks = self.sinks
-        count = 0
-        while queue:
-            channel, log_time, message = popleft()
-            if channel < 0:
-                for sink in sinks:
-                    sink.add_channel(message)
-                continue
-            data = encode(message)
-            spec = channels[channel]
-            for sink in sinks:
-                sink.write(spec, log_time, data)
-            count += 1
-        self._written += count
-        return count
+        batch = [popleft() for _ in range(len(queue))]
+        if final:
+            batch.append((-2, self._queued, self.dropped, self.capacity))
+        if not batch:
+            return
+        self._sent += sum(1 for e in batch if e[0] >= 0)
+        payload = self._encode(batch)
+        data = memoryview(len(payload).to_bytes(4, "little") + payload)
+        while data:
+            n = os.write(fd, data)
+            data = data[n:]

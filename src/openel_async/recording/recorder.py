@@ -11,13 +11,12 @@ written and dropped) are written.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
 
 from mcap.writer import CompressionType, Writer
 
-from .pipeline import PipelineStats, Sink
+from .pipeline import PipelineStats
 from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, ChannelSpec
 from .tap import Tap
 
@@ -84,22 +83,25 @@ class McapSink:
 
 
 class Recorder(Tap):
-    """A :class:`~.tap.Tap` writing to the MCAP file ``path`` (and to ``also``, e.g. a live
-    view's sink). See :mod:`openel_async.recording`."""
+    """A :class:`~.tap.Tap` writing to the MCAP file ``path`` (and publishing to a Foxglove
+    server too with ``foxglove=(host, port)``). See :mod:`openel_async.recording`."""
 
     def __init__(
         self,
         path: str | os.PathLike[str],
         *,
-        also: Sequence[Sink] = (),
+        foxglove: tuple[str, int] | None = None,
         joint_period_ms: float = 10.0,
         capacity: int = 100_000,
         logs: bool = True,
-        metadata: dict[str, str] | None = None,
         chunk_size: int = 64 * 1024,
     ) -> None:
-        self.sink = McapSink(path, chunk_size=chunk_size, metadata=metadata)
-        self.path = self.sink.path
+        self.path = Path(path)
         super().__init__(
-            [self.sink, *also], joint_period_ms=joint_period_ms, capacity=capacity, logs=logs
+            record=self.path,
+            foxglove=foxglove,
+            joint_period_ms=joint_period_ms,
+            capacity=capacity,
+            logs=logs,
+            chunk_size=chunk_size,
         )

@@ -1,7 +1,8 @@
 """The tap: what the recorder and the live view attach to an application's components and
 timers. It turns every command, reading, event, completion, error, state change and timer
-tick into a message of :mod:`.schemas` and queues it on a :class:`~.pipeline.Pipeline`, whose
-thread hands it to the sinks. Nothing here blocks or raises into the control loop.
+tick into a record for a :class:`~.pipeline.Pipeline` (a tuple appended to a deque: the only
+work done in the control loop); the writer process makes them the messages of
+:mod:`.schemas`. Nothing here blocks or raises into the control loop.
 
 A :class:`Tap` is an :class:`~openel_async.cli.app.AppHook` (``--record``/``--foxglove``
 attach it to any app) and can be used directly::
@@ -14,8 +15,8 @@ attach it to any app) and can be used directly::
 from __future__ import annotations
 
 import contextlib
+import os
 import time
-from collections.abc import Sequence
 from types import TracebackType
 from typing import Any, cast
 
@@ -30,7 +31,7 @@ from ..errors import HALError
 from ..observers import TimerTick
 from ..requests import EventId, Request
 from ..timer import EventTimer
-from .pipeline import Pipeline, PipelineStats, Sink
+from .pipeline import Pipeline, PipelineStats
 from .scene import SceneSource, scene_message, transforms_message
 from .schemas import (
     FRAME_TRANSFORMS,
@@ -44,8 +45,19 @@ from .schemas import (
     TF_TOPIC,
     TIMER_TICK,
     hal_topic,
-    stamp,
     timer_topic,
+)
+from .sink_process import (
+    COMMAND,
+    COMPLETION,
+    ERROR,
+    EVENT,
+    JOINTS,
+    LOG_LINE,
+    MESSAGE,
+    READING,
+    STATE,
+    TICK,
 )
 
 __all__ = ["Tap"]
@@ -54,28 +66,36 @@ log = structlog.get_logger(__name__)
 
 _ACTIVE = ComponentState.ACTIVE
 _COMPLETED = int(EventId.COMPLETED)
+_POSITION = Request.POSITION
+_POSITION_ACTUAL = Request.POSITION_ACTUAL
 _LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "critical": 5}
 
 
 class Tap(AppHook):
-    """Observe components and timers into ``sinks`` (see the module docstring).
+    """Observe components and timers into an MCAP file (``record``) and/or a Foxglove server
+    (``foxglove``: (host, port); port 0: any free port).
 
     ``joint_period_ms``: the period of ``/joint_states`` (and ``/tf``) samples, taken at the
-    observed timers' ticks, on the app's clock. ``capacity``: messages the queue holds before
+    observed timers' ticks, on the app's clock. ``capacity``: records the queue holds before
     it drops (counted in :attr:`stats`). ``logs``: forward log lines (info and above) to
-    ``/log``."""
+    ``/log``. ``chunk_size``: bytes per MCAP chunk (a killed run loses at most one)."""
 
     def __init__(
         self,
-        sinks: Sequence[Sink],
         *,
+        record: str | os.PathLike[str] | None = None,
+        foxglove: tuple[str, int] | None = None,
         joint_period_ms: float = 10.0,
         capacity: int = 100_000,
         logs: bool = True,
+        chunk_size: int = 64 * 1024,
     ) -> None:
         if not joint_period_ms > 0:
             raise ValueError(f"joint_period_ms must be > 0, got {joint_period_ms}")
-        self.pipeline = Pipeline(sinks, capacity=capacity)
+        self.pipeline = Pipeline(
+            mcap=record, foxglove=foxglove, capacity=capacity, chunk_size=chunk_size
+        )
+        self._put = self.pipeline.put
         self.joint_period_ns = round(joint_period_ms * 1e6)
         self._logs = logs
         self._offset: int | None = None
@@ -94,15 +114,26 @@ class Tap(AppHook):
         self._scene_channel = -1
         self._processors: list[Any] | None = None
         self._entered = False
+        self._started = False
         self.final_stats: PipelineStats | None = None
 
     # -- lifetime --------------------------------------------------------------------
+    def start(self) -> None:
+        """Start the writer process now (blocking; ``async with`` does it otherwise): raises
+        :class:`~.pipeline.SinkStartError` when the file or the server cannot open."""
+        if not self._started:
+            self.pipeline.start()
+            self._started = True
+
     async def __aenter__(self) -> Tap:
         if self._entered:
             raise RuntimeError("a Tap is entered once")
         self._entered = True
-        self.pipeline.start()
-        self._log_channel = self.pipeline.add_channel(LOG_TOPIC, LOG)
+        if not self._started:
+            await anyio.to_thread.run_sync(self.start)
+        offset, self.pipeline.offset_ns = self.pipeline.offset_ns, 0
+        self._log_channel = self.pipeline.add_channel(LOG_TOPIC, LOG)  # wall-clock times
+        self.pipeline.offset_ns = offset
         if self._logs:
             self._install_log_forwarder()
         return self
@@ -128,7 +159,7 @@ class Tap(AppHook):
 
     @property
     def stats(self) -> PipelineStats:
-        """Messages queued, written and dropped so far."""
+        """Records queued, written and dropped so far."""
         return self.pipeline.stats
 
     # -- time ------------------------------------------------------------------------
@@ -136,9 +167,7 @@ class Tap(AppHook):
         if self._offset is None:
             self._clock = clock
             self._offset = time.time_ns() - clock.now_ns()
-
-    def _log_time(self, time_ns: int) -> int:
-        return time_ns + (self._offset or 0)
+            self.pipeline.offset_ns = self._offset
 
     # -- AppHook ---------------------------------------------------------------------
     def clock_set(self, ctx: AppContext, clock: Clock) -> None:
@@ -173,6 +202,7 @@ class Tap(AppHook):
             metadata.update(
                 position_min=repr(low), position_max=repr(high), velocity_max=repr(limits.velocity)
             )
+        component.set_listener(self)  # refused (nothing registered) if it has another
         self._channels[id(component)] = self.pipeline.add_channel(
             hal_topic(component.device_name), HAL_RECORD, metadata
         )
@@ -181,7 +211,6 @@ class Tap(AppHook):
             self._actuators.append(component)
             if self._joint_channel < 0:
                 self._joint_channel = self.pipeline.add_channel(JOINT_STATES_TOPIC, JOINT_STATES)
-        component.set_listener(self)
         if component.state is _ACTIVE:
             self._observe_events(component)
 
@@ -210,88 +239,55 @@ class Tap(AppHook):
             self._scene_channel = self.pipeline.add_channel(SCENE_TOPIC, SCENE_UPDATE)
         self._scenes.append(source)
         now = self._clock.now_ns() if self._clock is not None else 0
-        log_time = self._log_time(now)
-        self.pipeline.put(self._scene_channel, log_time, scene_message(source.primitives(), now))
-        self.pipeline.put(self._tf_channel, log_time, transforms_message(source.transforms(), now))
+        log_time = now + (self._offset or 0)
+        scene = scene_message(source.primitives(), log_time)
+        self._put((self._scene_channel, now, MESSAGE, scene))
+        tf = transforms_message(source.transforms(), log_time)
+        self._put((self._tf_channel, now, MESSAGE, tf))
 
     # -- ComponentListener -------------------------------------------------------------
     def on_command(
         self, component: HALComponent, request: Request, value: float, time_ns: int
     ) -> None:
-        self.pipeline.put(
-            self._channels[id(component)],
-            time_ns + (self._offset or 0),
-            {"kind": "command", "time_ns": time_ns, "request": request.name, "value": value},
-        )
+        self._put((self._channels[id(component)], time_ns, COMMAND, request, value))
 
     def on_reading(
         self, component: HALComponent, request: Request | None, values: tuple[float, ...]
     ) -> None:
         if self._sampling:  # the tap's own joint-state reads
             return
-        now = component.clock.now_ns()
-        self.pipeline.put(
-            self._channels[id(component)],
-            now + (self._offset or 0),
-            {
-                "kind": "reading",
-                "time_ns": now,
-                "request": "VALUE" if request is None else request.name,
-                "value": values[0] if values else None,
-                "values": values,
-            },
+        self._put(
+            (self._channels[id(component)], component.clock.now_ns(), READING, request, values)
         )
 
     def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
         now = component.clock.now_ns()
-        self.pipeline.put(
-            self._channels[id(component)],
-            self._log_time(now),
-            {"kind": "state", "time_ns": now, "state": str(new), "old_state": str(old)},
-        )
+        self._put((self._channels[id(component)], now, STATE, str(old), str(new)))
         if new is _ACTIVE:
             self._observe_events(component)
 
     # -- observers ---------------------------------------------------------------------
     def notify_event(self, source: HALComponent, event_id: int) -> None:
-        now = source.clock.now_ns()
-        kind = "completion" if event_id == _COMPLETED else "event"
-        self.pipeline.put(
-            self._channels[id(source)],
-            self._log_time(now),
-            {"kind": kind, "time_ns": now, "id": event_id},
-        )
+        kind = COMPLETION if event_id == _COMPLETED else EVENT
+        self._put((self._channels[id(source)], source.clock.now_ns(), kind, event_id))
 
     def notify_error(self, source: HALComponent, error_id: int) -> None:
-        now = source.clock.now_ns()
-        self.pipeline.put(
-            self._channels[id(source)],
-            self._log_time(now),
-            {"kind": "error", "time_ns": now, "id": error_id},
-        )
+        self._put((self._channels[id(source)], source.clock.now_ns(), ERROR, error_id))
 
     def notify_timer(self, timer: EventTimer, tick: TimerTick | None = None) -> None:
         if tick is None:  # (the timer always passes it: the tap takes the notice)
             return
         now = tick.time_ns
-        offset = self._offset or 0
-        self.pipeline.put(
-            self._channels[id(timer)],
-            now + offset,
-            {
-                "time_ns": now,
-                "index": tick.index,
-                "deadline_ns": tick.deadline_ns,
-                "lateness_ns": now - tick.deadline_ns,
-                "missed_ticks": tick.missed_ticks,
-            },
+        self._put(
+            (self._channels[id(timer)], now, TICK, tick.index, tick.deadline_ns, tick.missed_ticks)
         )
         if now >= self._next_joint_ns:
             self._next_joint_ns = now + self.joint_period_ns
-            self._sample(now, now + offset)
+            self._sample(now)
 
-    def _sample(self, now: int, log_time: int) -> None:
+    def _sample(self, now: int) -> None:
         """``/joint_states`` (and ``/tf``) at ``now``."""
+        log_time = now + (self._offset or 0)
         if self._actuators:
             joints = []
             self._sampling = True
@@ -299,25 +295,18 @@ class Tap(AppHook):
                 for actuator in self._actuators:
                     if actuator.state is not _ACTIVE:
                         continue
-                    commanded = actuator.get_value_nowait(Request.POSITION)
+                    commanded = actuator.get_value_nowait(_POSITION)
                     try:
-                        actual: float | None = actuator.get_value_nowait(Request.POSITION_ACTUAL)
+                        actual: float | None = actuator.get_value_nowait(_POSITION_ACTUAL)
                     except HALError:  # no synchronous read path, or a fault
                         actual = None
-                    joints.append(
-                        {"name": actuator.device_name, "commanded": commanded, "position": actual}
-                    )
+                    joints.append((actuator.device_name, commanded, actual))
             finally:
                 self._sampling = False
-            self.pipeline.put(
-                self._joint_channel,
-                log_time,
-                {"timestamp": stamp(log_time), "time_ns": now, "joints": joints},
-            )
+            self._put((self._joint_channel, now, JOINTS, log_time, joints))
         for source in self._scenes:
-            self.pipeline.put(
-                self._tf_channel, log_time, transforms_message(source.transforms(), now)
-            )
+            tf = transforms_message(source.transforms(), log_time)
+            self._put((self._tf_channel, now, MESSAGE, tf))
 
     # -- log lines -------------------------------------------------------------------
     def _install_log_forwarder(self) -> None:
@@ -337,23 +326,13 @@ class Tap(AppHook):
     def _forward(self, logger: Any, method_name: str, event_dict: Any) -> Any:
         level = _LOG_LEVELS.get(method_name, 2)
         if level >= 2:
-            now = self._clock.now_ns() if self._clock is not None else time.monotonic_ns()
-            log_time = self._log_time(now)
+            wall = time.time_ns()  # the /log channel's offset is 0: wall-clock times
             fields = " ".join(
                 f"{k}={v}"
                 for k, v in event_dict.items()
                 if k not in ("event", "timestamp", "level")
             )
-            self.pipeline.put(
-                self._log_channel,
-                log_time,
-                {
-                    "timestamp": stamp(log_time),
-                    "level": level,
-                    "message": f"{event_dict.get('event', '')} {fields}".strip(),
-                    "name": str(event_dict.get("logger", event_dict.get("component", ""))),
-                    "file": "",
-                    "line": 0,
-                },
-            )
+            name = str(event_dict.get("logger", event_dict.get("component", "")))
+            message = f"{event_dict.get('event', '')} {fields}".strip()
+            self._put((self._log_channel, wall, LOG_LINE, wall, level, message, name))
         return event_dict
