@@ -2,12 +2,15 @@
 
 One :class:`SdoClient` per node and bus (``SdoClient.for_node(bus, node_id)``), shared by
 every device of that node: an SDO server serves one transfer at a time, so the client
-serializes them (one request slot per node: a lock that costs nothing when free). Uploads take whatever the server answers: an expedited
-reply (1..4 bytes) or a segmented one (any size up to ``max_size``, 7 bytes per
-segment, toggle bit checked). Downloads of 1..4 bytes are expedited with the size
-indicated; any other length (0, or more than 4 bytes: 64-bit objects, strings) is
-segmented with the size indicated. Block transfer is not implemented. Every exchange
-(the initiate and each segment) is bounded by ``timeout``:
+serializes them (one request slot per node: a lock that costs nothing when free).
+Uploads take whatever the server answers: an expedited reply (1..4 bytes) or a
+segmented one (any size up to ``max_size``, 7 bytes per segment, toggle bit checked).
+Downloads of 1..4 bytes are expedited with the size indicated; any other length (0, or
+more than 4 bytes: 64-bit objects, strings) is segmented with the size indicated. Block
+transfer is not implemented. Answers reach the client through a port handler (no
+queue); each exchange waits on a future that the handler resolves, bounded by a timer
+started once the request is sent. Every exchange (the initiate and each segment) is
+bounded by ``timeout``:
 
 * no answer in time -> the client sends an abort (0x05040000, SDO protocol timed out)
   and raises :class:`SdoTimeoutError`, a ``TimeoutError``: for a component, a link
@@ -290,12 +293,14 @@ class _Transfer:
         loop = asyncio.get_running_loop()
         answer: asyncio.Future[co.CanOpenMessage | SdoAbortError | None] = loop.create_future()
         client._waiting, client._replies, client._answer = self, replies, answer
-        timer = loop.call_later(self.limit, _expire, answer)
         try:
-            await port.send(cob_id, data)
-            outcome = await answer
+            await port.send(cob_id, data)  # may wait for room (send_timeout), not counted
+            timer = loop.call_later(self.limit, _expire, answer)
+            try:
+                outcome = await answer
+            finally:
+                timer.cancel()
         finally:
-            timer.cancel()
             client._waiting = client._answer = None
         if isinstance(outcome, SdoAbortError):
             client.aborts += 1
