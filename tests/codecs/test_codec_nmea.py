@@ -76,7 +76,9 @@ def test_any_talker_and_other_sentences() -> None:
     gga = nmea.decode_sentence(sentence)
     assert isinstance(gga, nmea.GGA) and gga.talker == "GN"
     gsv = nmea.decode_sentence(nmea.format_sentence("GLGSV", ["1", "1", "00"]))
-    assert gsv == nmea.RawSentence("GL", "GSV", ("1", "1", "00"))
+    assert isinstance(gsv, nmea.GSV) and gsv.talker == "GL" and gsv.in_view == 0
+    zda = nmea.decode_sentence(nmea.format_sentence("GNZDA", ["120000.00", "01", "01", "2026"]))
+    assert zda == nmea.RawSentence("GN", "ZDA", ("120000.00", "01", "01", "2026"))
     pubx = nmea.decode_sentence(nmea.format_sentence("PUBX", ["00", "x"]))
     assert pubx == nmea.RawSentence("P", "UBX", ("00", "x"))
 
