@@ -453,14 +453,16 @@ class DynamixelPort:
         self, ids: tuple[int, ...], address: int, length: int
     ) -> dict[int, dx.Status]:
         packet = self.sync_read_packet(ids, address, length)  # validates
-
-        def make(remaining: Sequence[int]) -> bytes:
-            if len(remaining) == len(ids):
-                return packet
-            return self.sync_read_packet(remaining, address, length)
-
         async with self._lock:
-            return await self._transact(make, ids, f"SYNC READ {address}+{length}", length)
+            got = await self._exchange(packet, ids, length)
+            if len(got) == len(ids) and not self._garbled:
+                return got  # the usual case, without the retry machinery
+
+            def make(remaining: Sequence[int]) -> bytes:
+                return self.sync_read_packet(remaining, address, length)
+
+            what = f"SYNC READ {address}+{length}"
+            return await self._retry(got, make, ids, what, length)
 
     async def sync_write(self, address: int, length: int, data: Mapping[int, bytes]) -> None:
         """SYNC WRITE ``{id: data}`` (no status packets: it is a broadcast)."""
@@ -537,6 +539,17 @@ class DynamixelPort:
         got = await self._exchange(make_packet(ids), ids, param_length)
         if len(got) == len(ids) and not self._garbled:
             return got  # every status arrived, none says the instruction was damaged
+        return await self._retry(got, make_packet, ids, what, param_length)
+
+    async def _retry(
+        self,
+        got: dict[int, dx.Status],
+        make_packet: Callable[[Sequence[int]], bytes],
+        ids: Sequence[int],
+        what: str,
+        param_length: int,
+    ) -> dict[int, dx.Status]:
+        """The rest of a transaction whose first attempt ``got`` these statuses."""
         result = got
         remaining = list(ids)
         for attempt in range(self.retries + 1):
