@@ -32,6 +32,18 @@ from ..observers import TimerTick
 from ..requests import EventId, Request
 from ..timer import EventTimer
 from .pipeline import Pipeline, PipelineStats
+from .records import (
+    COMMAND,
+    COMPLETION,
+    ERROR,
+    EVENT,
+    JOINTS,
+    LOG_LINE,
+    MESSAGE,
+    READING,
+    STATE,
+    TICK,
+)
 from .scene import SceneSource, scene_message, transforms_message
 from .schemas import (
     FRAME_TRANSFORMS,
@@ -46,18 +58,6 @@ from .schemas import (
     TIMER_TICK,
     hal_topic,
     timer_topic,
-)
-from .sink_process import (
-    COMMAND,
-    COMPLETION,
-    ERROR,
-    EVENT,
-    JOINTS,
-    LOG_LINE,
-    MESSAGE,
-    READING,
-    STATE,
-    TICK,
 )
 
 __all__ = ["Tap"]
