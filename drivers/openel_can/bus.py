@@ -410,6 +410,7 @@ class CanBus:
         self.reads_in_loop = 0
         """Bus objects read in the event loop without a thread (python-can ``virtual``)."""
         self._virtual_rx: WakingQueue | None = None
+        self._virtual_wake_pending = False
         self._virtual_failed: anyio.Event | None = None
         self._virtual_failure = ""
         self._inline_streak = 0
@@ -788,9 +789,9 @@ class CanBus:
 
     def _wake_virtual(self) -> None:
         """Any thread (a frame was put on the bus's queue): schedule one drain."""
-        if self._rx_wake_pending:
+        if self._virtual_wake_pending:
             return
-        self._rx_wake_pending = True
+        self._virtual_wake_pending = True
         loop = self._loop
         assert loop is not None
         with contextlib.suppress(RuntimeError):  # the loop is closed
@@ -804,7 +805,7 @@ class CanBus:
         one ``recv(0)`` first even if nothing is queued (it raises on a closed bus).
         """
         if not probe:
-            self._rx_wake_pending = False  # before reading: a frame put later wakes again
+            self._virtual_wake_pending = False  # before reading: a frame put later wakes again
         rx, bus, failed = self._virtual_rx, self._bus, self._virtual_failed
         if rx is None or bus is None or failed is None or failed.is_set():
             return  # the bus went down or was closed meanwhile
@@ -828,9 +829,9 @@ class CanBus:
                     msg = recv(0.0)  # None: a frame the filters rejected
                     if msg is not None:
                         frames.append(msg)
-            if queued and len(frames) >= limit and not self._rx_wake_pending:
+            if queued and len(frames) >= limit and not self._virtual_wake_pending:
                 # Let other tasks run; the rest in the next drain.
-                self._rx_wake_pending = True
+                self._virtual_wake_pending = True
                 assert self._loop is not None
                 self._loop.call_soon(self._drain_virtual)
         except Exception as exc:
@@ -920,9 +921,9 @@ class CanBus:
         queue = self._rx_queue
         if not queue:
             return
-        frames = queue.popleft()
+        frames = queue.popleft()  # ours now: the reader thread never touches a posted batch
         while queue:
-            frames = frames + queue.popleft()
+            frames.extend(queue.popleft())
         self._rx_taken += len(frames)
         self._dispatch(frames)
 
