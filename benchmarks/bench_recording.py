@@ -1,0 +1,218 @@
+"""The flight recorder and the live view on the arm2 lockstep control loop.
+
+The loop: the MuJoCo arm2 model in lockstep (1 ms physics step), its two joints as Actuators
+in an ActuatorBank and the ``tip_pos`` sensor as a Sensor, on a 2 ms EventTimer whose plain
+observer streams both joints' setpoints (a sine) and reads the tip at every tick -- the
+per-tick work of the arm2 demo. Three variants run in the same process, interleaved round by
+round: without any tap (the baseline), with a ``Recorder`` writing MCAP, and with a
+``LiveView`` that one Foxglove WebSocket client (on 127.0.0.1) subscribes to on every
+channel. Figure: real time per control tick (best of the rounds: the machine is shared, and
+the writer process needs a core of its own); ratio = variant /
+baseline. The recorder's queue must drop nothing.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import anyio
+
+from .harness import BenchResult, Row, ratio_of
+
+PERIOD_MS = 2
+LOOP_CPU: list[float] = []
+"""CPU time of the loop's thread per tick, of each _loop call (the last one's is LOOP_CPU[-1])."""
+
+
+class _Control:
+    def __init__(self, bank: Any, tip: Any, ticks: int, done: anyio.Event) -> None:
+        self.bank, self.tip, self.ticks, self.done, self.k = bank, tip, ticks, done, 0
+
+    def notify_timer(self, timer: Any) -> None:
+        self.k += 1
+        phase = self.k * 0.002
+        self.bank.set_values_nowait([0.4 * math.sin(phase), -0.8 + 0.3 * math.cos(phase)])
+        self.tip.get_value_nowait()
+        if self.k >= self.ticks:
+            timer.stop_timer()
+            self.done.set()
+
+
+async def _loop(ticks: int, tap: Any | None) -> float:
+    """Real seconds per tick of ``ticks`` control ticks (``tap``: observing everything)."""
+    from openel_async import Actuator, ActuatorBank, EventTimer, Sensor
+    from openel_mujoco import MujocoSim
+
+    sim = MujocoSim("arm2", pacing="lockstep")
+    async with sim:
+        axes = [Actuator(sim.actuator(j), clock=sim.clock) for j in ("shoulder", "elbow")]
+        tip = Sensor(sim.sensor("tip_pos"), clock=sim.clock)
+        timer = EventTimer(PERIOD_MS, clock=sim.clock, name="arm2-sync")
+        if tap is not None:
+            for component in (*axes, tip):
+                tap.observe(component)
+            tap.observe_timer(timer)
+        async with axes[0], axes[1], tip, timer:
+            done = anyio.Event()
+            timer.add_observer(_Control(ActuatorBank(axes), tip, ticks, done))
+            started, cpu = time.perf_counter(), time.thread_time()
+            timer.start_timer()
+            await done.wait()
+            LOOP_CPU.append((time.thread_time() - cpu) / ticks)
+            return (time.perf_counter() - started) / ticks
+
+
+async def _baseline(ticks: int) -> float:
+    return await _loop(ticks, None)
+
+
+async def _recorded(ticks: int, path: Path) -> tuple[float, int]:
+    from openel_async.recording import Recorder
+
+    recorder = Recorder(path)
+    async with recorder:
+        per_tick = await _loop(ticks, recorder)
+    assert recorder.final_stats is not None
+    return per_tick, recorder.final_stats.dropped
+
+
+CLIENT = """
+import json, sys
+from websockets.sync.client import connect
+count = 0
+with connect(sys.argv[1], subprotocols=["foxglove.sdk.v1"]) as ws:
+    print("ready", flush=True)
+    next_id = 1
+    try:
+        while True:
+            frame = ws.recv(timeout=float(sys.argv[2]))
+            if isinstance(frame, str):
+                message = json.loads(frame)
+                if message.get("op") == "advertise":
+                    subs = [{"id": next_id + i, "channelId": c["id"]}
+                            for i, c in enumerate(message["channels"])]
+                    next_id += len(subs)
+                    ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+            elif frame[:1] == b"\\x01":
+                count += 1
+    except Exception:
+        pass
+print(count, flush=True)
+"""
+
+
+async def _live(ticks: int) -> tuple[float, int]:
+    """The loop with a LiveView and one Foxglove client (a process of its own, subscribed
+    to every channel); returns (seconds per tick, messages the client received)."""
+    from openel_async.recording import LiveView
+
+    live = LiveView(port=0, joint_period_ms=10.0)
+    async with live:
+        client = subprocess.Popen(  # noqa: ASYNC220 (started once, before the loop)
+            [sys.executable, "-c", CLIENT, live.url, "1.0"],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        assert client.stdout is not None
+        try:
+            with anyio.fail_after(20):
+                line = await anyio.to_thread.run_sync(client.stdout.readline)
+            assert line.strip() == "ready", line
+            await anyio.sleep(0.2)  # advertised and subscribed
+            per_tick = await _loop(ticks, live)
+        except BaseException:
+            client.kill()
+            raise
+    out, _ = await anyio.to_thread.run_sync(lambda: client.communicate(timeout=30))
+    return per_tick, int(out.split()[-1])
+
+
+def run(quick: bool) -> BenchResult:
+    ticks = 2_000 if quick else 10_000
+    rounds = 3 if quick else 7
+    base: list[float] = []
+    rec: list[float] = []
+    live: list[float] = []
+    cpu_base: list[float] = []
+    cpu_rec: list[float] = []
+    dropped = received = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        anyio.run(_baseline, 500, backend="asyncio")  # warm-up: imports, model load
+        for r in range(rounds):
+            base.append(anyio.run(_baseline, ticks, backend="asyncio"))
+            cpu_base.append(LOOP_CPU[-1])
+            per_tick, lost = anyio.run(
+                _recorded, ticks, Path(tmp) / f"r{r}.mcap", backend="asyncio"
+            )
+            rec.append(per_tick)
+            cpu_rec.append(LOOP_CPU[-1])
+            dropped += lost
+            per_tick, got = anyio.run(_live, ticks, backend="asyncio")
+            live.append(per_tick)
+            received += got
+    b, rc, lv = (min(x) * 1e6 for x in (base, rec, live))
+    rec_ratio, live_ratio = ratio_of(rc, b), ratio_of(lv, b)
+    rows = (
+        Row("arm2 lockstep tick, no tap (baseline)", b, "us", digits=1),
+        Row(
+            "arm2 lockstep tick, Recorder (MCAP)",
+            rc,
+            "us",
+            baseline=b,
+            baseline_label="no tap",
+            ratio=rec_ratio,
+            ratio_label="recorder/baseline",
+            target="<= 1.1x",
+            passed=rec_ratio <= 1.1,
+            digits=1,
+        ),
+        Row(
+            "arm2 lockstep tick, LiveView + 1 client",
+            lv,
+            "us",
+            baseline=b,
+            baseline_label="no tap",
+            ratio=live_ratio,
+            ratio_label="live/baseline",
+            target="<= 1.2x",
+            passed=live_ratio <= 1.2,
+            digits=1,
+        ),
+        Row(
+            "loop thread CPU per tick, Recorder",
+            min(cpu_rec) * 1e6,
+            "us",
+            baseline=min(cpu_base) * 1e6,
+            baseline_label="no tap",
+            ratio=ratio_of(min(cpu_rec), min(cpu_base)),
+            ratio_label="recorder/baseline",
+            digits=1,
+        ),
+        Row(
+            "recorder messages dropped",
+            float(dropped),
+            "",
+            target="0",
+            passed=dropped == 0,
+            digits=0,
+        ),
+        Row("live messages received by the client", float(received), "", digits=0),
+    )
+    return BenchResult(
+        name="recording",
+        title="Flight recorder (MCAP) and live view (Foxglove) on the arm2 lockstep loop",
+        rows=rows,
+        description=__doc__ or "",
+        params={
+            "ticks per round": str(ticks),
+            "rounds": str(rounds),
+            "period": f"{PERIOD_MS} ms",
+            "joint-state period": "10 ms",
+        },
+    )
