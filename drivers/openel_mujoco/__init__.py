@@ -17,7 +17,19 @@ from openel_async.registry import DriverInfo
 
 from .clock import LockstepClock
 from .description import EffectorSpec, JointSpec, Pacing, SensorSpec, SimDescription
-from .devices import MujocoEventId, MujocoJoint, MujocoSensor, sensor_kind, sensor_units
+from .devices import (
+    MujocoAccelerometer,
+    MujocoEncoder,
+    MujocoEventId,
+    MujocoForceSensor,
+    MujocoGyro,
+    MujocoJoint,
+    MujocoMagnetometer,
+    MujocoSensor,
+    MujocoTorqueSensor,
+    sensor_kind,
+    sensor_units,
+)
 from .effectors import EffectorKind, MujocoEffector, effector_kind
 from .models import (
     SHIPPED_MODELS,
@@ -34,9 +46,21 @@ from .sim import MujocoSim, PacingStats
 
 DRIVER = DriverInfo(
     name="mujoco",
-    description="MuJoCo physics: model joints and other actuators (adhesion, tendon, site) as "
-    "actuators, MuJoCo sensors as sensors (lockstep or real-time pacing)",
-    devices={"joint": MujocoJoint, "effector": MujocoEffector, "sensor": MujocoSensor},
+    description="MuJoCo physics: model joints (HAL4RT Motors) and other actuators (adhesion, "
+    "tendon, site) as actuators, MuJoCo sensors as sensors: jointpos (Encoder), gyro, "
+    "accelerometer, force, torque, magnetometer (Direction) and the others (lockstep or "
+    "real-time pacing)",
+    devices={
+        "joint": MujocoJoint,
+        "effector": MujocoEffector,
+        "sensor": MujocoSensor,
+        "encoder": MujocoEncoder,
+        "gyro": MujocoGyro,
+        "accelerometer": MujocoAccelerometer,
+        "force": MujocoForceSensor,
+        "torque": MujocoTorqueSensor,
+        "magnetometer": MujocoMagnetometer,
+    },
 )
 
 __all__ = [
@@ -48,11 +72,17 @@ __all__ = [
     "JointSpec",
     "LockstepClock",
     "ModelLoadError",
+    "MujocoAccelerometer",
     "MujocoEffector",
+    "MujocoEncoder",
     "MujocoEventId",
+    "MujocoForceSensor",
+    "MujocoGyro",
     "MujocoJoint",
+    "MujocoMagnetometer",
     "MujocoSensor",
     "MujocoSim",
+    "MujocoTorqueSensor",
     "Pacing",
     "PacingStats",
     "SensorSpec",

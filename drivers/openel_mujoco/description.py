@@ -32,6 +32,8 @@ from dataclasses import dataclass, field, fields
 from typing import Any, Literal, TypeGuard, TypeVar, get_args
 
 from openel_async.errors import BadParameterError
+from openel_async.ids import DeviceKind
+from openel_async.sensor_kinds import HAL4RT_KIND_NAMES
 
 from .models import ControlMode
 
@@ -201,8 +203,11 @@ class SensorSpec:
     """Sensor name in the model."""
     name: str | None = None
     """Key in ``sim.sensors`` and base of the component's product name (default: ``sensor``)."""
-    kind: int | None = None
-    """HALId device kind (default: from the sensor type, e.g. accelerometer -> ACCEL)."""
+    kind: int | str | None = None
+    """HALId device kind (default: from the sensor type, e.g. accelerometer -> ACCEL): an id
+    in 0..0xFFFFFFFF or a name, a ``DeviceKind`` member (``gyro``, ``rotary_angle``) or a
+    HAL4RT class (``Encoder``, ``GyroSensor``, ``Direction``...), case-insensitive; stored
+    as the id."""
     units: tuple[str, ...] | None = None
     """SI unit of each value (default: from the sensor type, e.g. ('m/s^2',) * 3)."""
 
@@ -211,10 +216,8 @@ class SensorSpec:
             raise BadParameterError("sensor", self.sensor, "a non-empty sensor name")
         if self.name is not None and (not isinstance(self.name, str) or not self.name):
             raise BadParameterError("name", self.name, "a non-empty string or None")
-        if self.kind is not None and (
-            isinstance(self.kind, bool) or not isinstance(self.kind, int) or self.kind < 0
-        ):
-            raise BadParameterError("kind", self.kind, "a device kind id (int >= 0) or None")
+        if self.kind is not None:
+            object.__setattr__(self, "kind", _kind_id(self.kind))
         if self.units is not None:
             if (
                 isinstance(self.units, str | bytes)
@@ -227,6 +230,11 @@ class SensorSpec:
     @property
     def key(self) -> str:
         return self.name or self.sensor
+
+    @property
+    def kind_id(self) -> int | None:
+        """``kind`` as an id (None: from the sensor type)."""
+        return None if self.kind is None else int(self.kind)
 
     @classmethod
     def from_value(cls, value: str | Mapping[str, Any] | SensorSpec) -> SensorSpec:
@@ -464,6 +472,39 @@ def _parse_yaml(path: str, raw: bytes) -> object:
 
 def _kind(value: object) -> str:
     return "nothing" if value is None else f"a {type(value).__name__}"
+
+
+def _kind_names() -> dict[str, int]:
+    names: dict[str, int] = {}
+    for kind, hal4rt in HAL4RT_KIND_NAMES.items():
+        names[hal4rt.lower()] = int(kind)
+        names[hal4rt.lower().removesuffix("sensor")] = int(kind)
+    names.update((kind.name.lower(), int(kind)) for kind in DeviceKind)
+    return names
+
+
+_KIND_NAMES = _kind_names()
+
+
+def _kind_id(value: object) -> int:
+    """A sensor kind (an id or a name) as an id; BadParameterError naming ``kind``."""
+    if isinstance(value, str):
+        kind = _KIND_NAMES.get(value.strip().lower())
+        if kind is None:
+            raise BadParameterError(
+                "kind",
+                value,
+                "a device kind id (0..0xFFFFFFFF) or name: "
+                + ", ".join(sorted({k.name.lower() for k in DeviceKind}))
+                + "; or a HAL4RT class: "
+                + ", ".join(sorted(HAL4RT_KIND_NAMES.values())),
+            )
+        return kind
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 0xFFFFFFFF:
+        raise BadParameterError(
+            "kind", value, "a device kind id (int in 0..0xFFFFFFFF), a kind name or None"
+        )
+    return int(value)
 
 
 def _fields_of(cls: type, data: object, where: str, *, required: str) -> dict[str, Any]:

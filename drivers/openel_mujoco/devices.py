@@ -14,7 +14,7 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from enum import IntEnum
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, ClassVar, Final
 
 import mujoco
 import numpy as np
@@ -28,6 +28,7 @@ from openel_async.device import (
     ErrorId,
     Reading,
     SensorDevice,
+    VelocityRamp,
 )
 from openel_async.direction import MagneticField
 from openel_async.errors import BadParameterError, HALError
@@ -41,10 +42,21 @@ if TYPE_CHECKING:
     from .sim import MujocoSim
 
 __all__ = [
+    "EFFECTOR_PRODUCT_ID",
+    "JOINT_PRODUCT_ID",
+    "KIND_PRODUCT_IDS",
     "OTHER_KIND",
+    "SENSOR_DEVICE_CLASSES",
+    "SENSOR_PRODUCT_ID",
+    "MujocoAccelerometer",
+    "MujocoEncoder",
     "MujocoEventId",
+    "MujocoForceSensor",
+    "MujocoGyro",
     "MujocoJoint",
+    "MujocoMagnetometer",
     "MujocoSensor",
+    "MujocoTorqueSensor",
     "geomagnetic_field_enu",
     "sensor_kind",
     "sensor_units",
@@ -55,6 +67,21 @@ log = structlog.get_logger(__name__)
 
 VENDOR_ID: Final = 0x4D4A  # "MJ"
 VENDOR_NAME: Final = "MuJoCo"
+JOINT_PRODUCT_ID: Final = 0x1
+"""Product id of every :class:`MujocoJoint` (the joint is told by the product name)."""
+EFFECTOR_PRODUCT_ID: Final = 0x2
+"""Product id of every :class:`~openel_mujoco.effectors.MujocoEffector`."""
+SENSOR_PRODUCT_ID: Final = 0x10
+"""Product id of a :class:`MujocoSensor` of a kind without a HAL4RT class (below)."""
+KIND_PRODUCT_IDS: Final[Mapping[int, int]] = {
+    DeviceKind.ROTARY_ANGLE: 0x11,
+    DeviceKind.GYRO: 0x12,
+    DeviceKind.ACCEL: 0x13,
+    DeviceKind.FORCE: 0x14,
+    DeviceKind.TORQUE: 0x15,
+    DeviceKind.COMPASS: 0x16,
+}
+"""Product id of a MuJoCo sensor of each HAL4RT sensor kind (its device class's)."""
 OTHER_KIND: Final = 0x80
 """HALId device kind of sensors outside the OpenEL kind registry (contact, user, ...)."""
 
@@ -229,8 +256,25 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
     """
 
     reports_completion = True
+    info = DeviceInfo(
+        kind=DeviceKind.MOTOR,
+        vendor_id=VENDOR_ID,
+        product_id=JOINT_PRODUCT_ID,
+        vendor_name=VENDOR_NAME,
+        product_name="Joint",
+        functions=("control_mode",),
+    )
+    velocity_ramp = True
+    """``Motor.set_speed(speed, tm_acc)`` ramps inside the simulation loop: the velocity
+    setpoint advances before every physics step (:meth:`command_velocity_ramp`); False on a
+    joint without VELOCITY."""
 
-    def __init__(self, sim: MujocoSim, spec: JointSpec) -> None:
+    def __init__(self, sim: MujocoSim, spec: JointSpec | str | Mapping[str, Any]) -> None:
+        """The joint of ``spec`` (a spec, a joint name or a dict of JointSpec fields); it
+        registers itself in ``sim.joints`` (``BadParameterError`` when its name or joint is
+        mapped already). ``sim.actuator(name)`` is the usual way."""
+        spec = JointSpec.from_value(spec)
+        sim._check_new_joint(spec)
         model = sim.model
         self.sim = sim
         self.spec = spec
@@ -245,6 +289,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
                 "map to one-degree-of-freedom actuators"
             )
         self.rotational = jtype == mujoco.mjtJoint.mjJNT_HINGE
+        self.linear = not self.rotational
         self.qadr = int(model.jnt_qposadr[jid])
         self.dof = int(model.jnt_dofadr[jid])
         acts = resolve_actuators(model, jid, spec)
@@ -274,13 +319,14 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         if self._switchable or motor_only:
             supported.add(Request.NO_EXCITE)
         self.supported_requests = frozenset(supported)
+        self.velocity_ramp = Request.VELOCITY in supported
         self.limits = self._limits(model, spec)
         self._torque_range = self._motor_torque_range(model)
         self._kp, self._kd, self._kv = self._pd_gains(sim, spec)
         self.info = DeviceInfo(
             kind=DeviceKind.MOTOR,
             vendor_id=VENDOR_ID,
-            product_id=jid,
+            product_id=JOINT_PRODUCT_ID,
             vendor_name=VENDOR_NAME,
             product_name=_camel(self.name, "Joint"),
             functions=("control_mode",),
@@ -314,6 +360,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         self._pd = False
         self._pd_target = 0.0
         self._pd_saturated = False
+        self._ramp: tuple[float, float, int, int] | None = None  # start, target, t0, t1
         self._target = 0.0
         self._request = Request.NO_EXCITE
         self._pending = False
@@ -326,6 +373,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         self._sat_hi_off = math.inf
         self.commands = 0
         self._init_mode(spec.mode)
+        sim._joints[spec.key] = self
 
     # -- construction helpers ----------------------------------------------------------
     def _limits(self, model: mujoco.MjModel, spec: JointSpec) -> ActuatorLimits:
@@ -487,6 +535,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
     def _hold(self) -> None:
         """Stop safely: hold the current position, else de-energize, else zero torque."""
         self._pending = False
+        self._stop_ramp()
         if Request.POSITION in self.supported_requests:
             self._switch(Request.POSITION, force=True)
         elif Request.NO_EXCITE in self.supported_requests:
@@ -516,6 +565,8 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         if request is self._direct:  # streaming setpoints in the current mode: one ctrl write
             sim._ctrl[self._drive_act] = value * self._drive_scale
         else:
+            if self._ramp is not None:  # a ramp makes _direct None: every command ends it
+                self._stop_ramp()
             if request is not self._mode:
                 self._switch(request)
             if request is _NO_EXCITE:
@@ -548,6 +599,86 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
             "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
         )
 
+    # -- speed ramps (HAL4RT SetSpeed with tmAcc) ----------------------------------------
+    async def command_velocity_ramp(self, ramp: VelocityRamp) -> None:
+        self.command_velocity_ramp_nowait(ramp)
+
+    def command_velocity_ramp_nowait(self, ramp: VelocityRamp) -> None:
+        """The joint's own speed ramp, advanced inside the simulation loop.
+
+        From the velocity setpoint in force (when the joint already runs in VELOCITY mode:
+        the servo's ``ctrl`` or the PD target, so the setpoint never jumps), else from
+        ``ramp.start`` (the actual velocity the framework read), to ``ramp.target`` in
+        ``ramp.duration_s`` of the simulation clock: before every physics step the setpoint
+        becomes the ramp's value at the time of the state stepped from, and the target from
+        ``t0 + duration_s`` on. Completion is judged from then on (``velocity_tolerance``
+        for ``settle_s``), never during the ramp. Any later command ends the ramp.
+        """
+        sim = self.sim
+        if sim._fault is not None:
+            raise HALError(f"{self.name}: the simulation is faulted: {sim._fault}")
+        self.commands += 1
+        if self._ramp is not None:
+            self._stop_ramp()
+        if self._mode is _VELOCITY:
+            start = self._velocity_setpoint()
+        else:
+            self._switch(_VELOCITY)
+            start = ramp.start
+        t0 = sim.clock.now_ns()
+        self._ramp = (start, ramp.target, t0, t0 + max(1, round(ramp.duration_s * 1e9)))
+        self._direct = None  # setpoints take the slow path of command_nowait: it ends the ramp
+        self._set_velocity(start)
+        self._target = ramp.target
+        self._request = _VELOCITY
+        self._within_since = -1
+        self._pending = False  # judged once the ramp has ended
+        sim._set_ramp(self, True)
+        self._log.debug("velocity_ramp", start=start, target=ramp.target, s=ramp.duration_s)
+
+    def _velocity_setpoint(self) -> float:
+        if self._pd:
+            return self._pd_target
+        act = self._drive_act
+        assert act is not None
+        return float(self.sim._ctrl.item(act)) / self._scale[_VELOCITY]
+
+    def _set_velocity(self, value: float) -> None:
+        if self._pd:
+            self._pd_target = value
+        else:
+            self.sim._ctrl[self._drive_act] = value * self._scale[_VELOCITY]
+
+    def _ramp_update(self, now_ns: int) -> None:
+        """Before a physics step from the state at ``now_ns``: the ramp's setpoint."""
+        ramp = self._ramp
+        assert ramp is not None
+        start, target, t0, t1 = ramp
+        if now_ns >= t1:
+            self._set_velocity(target)
+            self._stop_ramp()
+            self._within_since = -1
+            self._pending = True  # the final speed is commanded: completion is judged
+            return
+        if now_ns <= t0:
+            self._set_velocity(start)
+        else:
+            self._set_velocity(start + (target - start) * ((now_ns - t0) / (t1 - t0)))
+
+    def _stop_ramp(self) -> None:
+        """End the ramp (the setpoint stays where it is) and restore the command fast path."""
+        if self._ramp is None:
+            return
+        self._ramp = None
+        self.sim._set_ramp(self, False)
+        direct = self._drive_act is not None and not self._pd and self._mode is not _NO_EXCITE
+        self._direct = self._mode if direct else None
+
+    @property
+    def ramping(self) -> bool:
+        """True while a speed ramp of :meth:`command_velocity_ramp` runs."""
+        return self._ramp is not None
+
     # -- state for recorders and apps ----------------------------------------------------
     @property
     def position(self) -> float:
@@ -570,13 +701,15 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
 
     @property
     def pending(self) -> bool:
-        """True while the latest target is not reached yet (as judged by the physics)."""
-        return self._pending
+        """True while the latest target is not reached yet (as judged by the physics), a
+        speed ramp included."""
+        return self._pending or self._ramp is not None
 
     # -- called by the simulation loop ---------------------------------------------------
-    def _pd_update(self, qpos: Any, qvel: Any, ctrl: Any) -> None:
-        q = qpos.item(self.qadr)
-        v = qvel.item(self.dof)
+    def _pd_update(self, now_ns: int) -> None:
+        sim = self.sim
+        q = sim._qpos.item(self.qadr)
+        v = sim._qvel.item(self.dof)
         if self._mode is Request.POSITION:
             tau = self._kp * (self._pd_target - q) - self._kd * v
         else:
@@ -591,7 +724,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         self._pd_saturated = sat
         act = self._drive_act
         assert act is not None
-        ctrl[act] = tau * self._scale[Request.TORQUE]
+        sim._ctrl[act] = tau * self._scale[Request.TORQUE]
 
     def _limit_edge(self, q: float, ctx: DeviceContext) -> None:
         """The position left the band where the limit state cannot change (hysteresis)."""
@@ -626,6 +759,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         """The simulation was reset: adopt the model's restored control modes."""
         self._pending = False
         self._at_limit = False
+        self._stop_ramp()
         if self._pd:
             self._pd = False
             self.sim._set_pd(self, False)
@@ -839,9 +973,30 @@ class MujocoSensor(SensorDevice):
     integrating, so the values describe the state at the start of the latest physics step:
     the reading's ``time_ns`` is that state's time on the simulation's clock (one time step
     before ``now_ns()`` in lockstep), monotonic from reading to reading.
+
+    ``sim.sensor(name)`` gives a ``MujocoSensor`` of the kind of the MuJoCo sensor
+    (``info.kind``: gyro -> GYRO, accelerometer -> ACCEL, ... ``sensor_kind``), whose product
+    id is that of the kind's device class below, so that its HALId creates the same device
+    through the Device Kind ID registry. (One class for every kind keeps a ``SensorBank`` of
+    a simulation's sensors one call: the framework batches devices of one class.)
     """
 
-    def __init__(self, sim: MujocoSim, spec: SensorSpec) -> None:
+    info = DeviceInfo(
+        kind=OTHER_KIND,
+        vendor_id=VENDOR_ID,
+        product_id=SENSOR_PRODUCT_ID,
+        vendor_name=VENDOR_NAME,
+        product_name="Sensor",
+    )
+    required_kind: ClassVar[int | None] = None
+    """The kind a device class of one HAL4RT kind (MujocoGyro...) requires of its sensor."""
+
+    def __init__(self, sim: MujocoSim, spec: SensorSpec | str | Mapping[str, Any]) -> None:
+        """The sensor of ``spec`` (a spec, a sensor name or a dict of SensorSpec fields); it
+        registers itself in ``sim.sensors`` (``BadParameterError`` when its name is mapped
+        already). ``sim.sensor(name)`` is the usual way."""
+        spec = SensorSpec.from_value(spec)
+        sim._check_new_sensor(spec)
         model = sim.model
         self.sim = sim
         self.spec = spec
@@ -857,16 +1012,28 @@ class MujocoSensor(SensorDevice):
             raise BadParameterError(
                 "units", self.units, f"{self.dim} unit(s) for sensor {spec.sensor!r}"
             )
-        kind = spec.kind if spec.kind is not None else sensor_kind(model, sid)
+        kind = spec.kind_id
+        if kind is None:
+            kind = sensor_kind(model, sid)
+        required = self.required_kind
+        if required is not None and kind != required:
+            raise BadParameterError(
+                "sensor",
+                spec.sensor,
+                f"a sensor of kind {DeviceKind(required).name} for a {type(self).__name__} "
+                f"(a {self.sensor_type.name.removeprefix('mjSENS_').lower()} sensor of kind "
+                f"0x{kind:X}: use sim.sensor)",
+            )
         self.info = DeviceInfo(
             kind=kind,
             vendor_id=VENDOR_ID,
-            product_id=0x1000 + sid,
+            product_id=KIND_PRODUCT_IDS.get(kind, SENSOR_PRODUCT_ID),
             vendor_name=VENDOR_NAME,
             product_name=_camel(self.name, "Sensor"),
         )
         self._ctx: DeviceContext | None = None
         self._rejected = 0
+        sim._sensors[spec.key] = self
 
     async def open(self, ctx: DeviceContext) -> None:
         if not self.sim._attach(self, ctx):
@@ -928,3 +1095,78 @@ class MujocoSensor(SensorDevice):
     def __repr__(self) -> str:
         kind = self.sensor_type.name.removeprefix("mjSENS_").lower()
         return f"MujocoSensor({self.name!r}, {kind}, dim={self.dim}, sim={self.sim.name!r})"
+
+
+# -- one device class per HAL4RT sensor kind: the Device Kind ID registry's entries ----------
+
+
+def _kind_info(kind: DeviceKind, product_name: str) -> DeviceInfo:
+    return DeviceInfo(kind, VENDOR_ID, KIND_PRODUCT_IDS[kind], VENDOR_NAME, product_name)
+
+
+class MujocoEncoder(MujocoSensor):
+    """A ``jointpos`` (or ``actuatorpos``, ``jointvel``...) sensor of a hinge: HAL4RT Encoder
+    (``ROTARY_ANGLE``), rad."""
+
+    info = _kind_info(DeviceKind.ROTARY_ANGLE, "Encoder")
+    units = ("rad",)
+    required_kind = DeviceKind.ROTARY_ANGLE
+
+
+class MujocoGyro(MujocoSensor):
+    """A ``gyro`` (or ``frameangvel``) sensor: HAL4RT Gyro Sensor (``GYRO``), rad/s x3."""
+
+    info = _kind_info(DeviceKind.GYRO, "Gyro")
+    units = ("rad/s",) * 3
+    required_kind = DeviceKind.GYRO
+
+
+class MujocoAccelerometer(MujocoSensor):
+    """An ``accelerometer`` (or ``framelinacc``) sensor: HAL4RT Acceleration Sensor
+    (``ACCEL``), m/s^2 x3."""
+
+    info = _kind_info(DeviceKind.ACCEL, "Accelerometer")
+    units = ("m/s^2",) * 3
+    required_kind = DeviceKind.ACCEL
+
+
+class MujocoForceSensor(MujocoSensor):
+    """A ``force`` sensor (or a slide's ``jointactuatorfrc``, ``tendonactfrc``...): HAL4RT
+    Force Sensor (``FORCE``), N x3."""
+
+    info = _kind_info(DeviceKind.FORCE, "ForceSensor")
+    units = ("N",) * 3
+    required_kind = DeviceKind.FORCE
+
+
+class MujocoTorqueSensor(MujocoSensor):
+    """A ``torque`` sensor (or a hinge's ``jointactuatorfrc``...): HAL4RT Torque Sensor
+    (``TORQUE``), N m x3."""
+
+    info = _kind_info(DeviceKind.TORQUE, "TorqueSensor")
+    units = ("N m",) * 3
+    required_kind = DeviceKind.TORQUE
+
+
+class MujocoMagnetometer(MujocoSensor):
+    """A ``magnetometer`` sensor: HAL4RT Direction Sensor (``COMPASS``), the raw field
+    vector in the site's frame, T x3 (``DirectionSensor(frame="FLU")`` computes the heading;
+    :func:`set_geomagnetic_field` sets the field)."""
+
+    info = _kind_info(DeviceKind.COMPASS, "Magnetometer")
+    units = ("T",) * 3
+    required_kind = DeviceKind.COMPASS
+
+
+SENSOR_DEVICE_CLASSES: Final[Mapping[int, type[MujocoSensor]]] = {
+    cls.info.kind: cls
+    for cls in (
+        MujocoEncoder,
+        MujocoGyro,
+        MujocoAccelerometer,
+        MujocoForceSensor,
+        MujocoTorqueSensor,
+        MujocoMagnetometer,
+    )
+}
+"""The device class of each HAL4RT sensor kind MuJoCo simulates (registered by the driver)."""

@@ -61,7 +61,8 @@ for a velocity servo.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Final, Literal
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, Final, Literal
 
 import mujoco
 import numpy as np
@@ -79,6 +80,7 @@ from openel_async.requests import Request
 
 from .description import EffectorSpec
 from .devices import (
+    EFFECTOR_PRODUCT_ID,
     OTHER_KIND,
     VENDOR_ID,
     VENDOR_NAME,
@@ -166,8 +168,22 @@ class MujocoEffector(SimActuatorLifecycle, ActuatorDevice):
     """
 
     reports_completion = True
+    linear = True
+    """Lengths in m, forces in N (False for an actuator on a ball joint: rad, N m)."""
+    info = DeviceInfo(
+        kind=DeviceKind.MOTOR,
+        vendor_id=VENDOR_ID,
+        product_id=EFFECTOR_PRODUCT_ID,
+        vendor_name=VENDOR_NAME,
+        product_name="Effector",
+    )
 
-    def __init__(self, sim: MujocoSim, spec: EffectorSpec) -> None:
+    def __init__(self, sim: MujocoSim, spec: EffectorSpec | str | Mapping[str, Any]) -> None:
+        """The effector of ``spec`` (a spec, an actuator name or a dict of EffectorSpec
+        fields); it registers itself in ``sim.effectors`` (``BadParameterError`` when its
+        name or actuator is mapped already). ``sim.effector(name)`` is the usual way."""
+        spec = EffectorSpec.from_value(spec)
+        sim._check_new_effector(spec)
         model = sim.model
         self.sim = sim
         self.spec = spec
@@ -189,6 +205,8 @@ class MujocoEffector(SimActuatorLifecycle, ActuatorDevice):
                     f"joint {joint!r}: map the joint with sim.actuator({joint!r}))",
                 )
         self.transmission = _transmission(model, act)
+        if trn in (_T.mjTRN_JOINT, _T.mjTRN_JOINTINPARENT):
+            self.linear = False  # a ball joint: rad, N m
         self.kind: EffectorKind = effector_kind(model, act)
         self.request = request = _COMMAND[self.kind]
         self.has_length = trn in _LENGTH_TRANSMISSIONS or (
@@ -224,7 +242,7 @@ class MujocoEffector(SimActuatorLifecycle, ActuatorDevice):
         self.info = DeviceInfo(
             kind=OTHER_KIND if self.kind == "adhesion" else DeviceKind.MOTOR,
             vendor_id=VENDOR_ID,
-            product_id=0x2000 + act,
+            product_id=EFFECTOR_PRODUCT_ID,
             vendor_name=VENDOR_NAME,
             product_name=_camel(self.name, "Effector"),
         )
@@ -288,6 +306,7 @@ class MujocoEffector(SimActuatorLifecycle, ActuatorDevice):
         self._saturated = False
         self.commands = 0
         self._init_state()
+        sim._effectors[spec.key] = self
 
     # -- construction helpers ----------------------------------------------------------
     def _value_range(self, model: mujoco.MjModel, per_ctrl: float) -> tuple[float, float]:

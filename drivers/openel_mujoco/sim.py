@@ -216,6 +216,10 @@ class MujocoSim:
         self._effectors: dict[str, MujocoEffector] = {}
         self._monitored_effectors: list[MujocoEffector] = []
         self._pd_joints: list[MujocoJoint] = []
+        self._ramp_joints: list[MujocoJoint] = []
+        self._pre_step: list[Callable[[int], None]] = []
+        """Called before every physics step with the clock time of the state stepped from:
+        the speed ramps of the joints (first), then their built-in PD controllers."""
         self._hooks: list[Callable[[], None]] = []
         self._fault: str | None = None
         self._tg: anyio.abc.TaskGroup | None = None
@@ -299,6 +303,10 @@ class MujocoSim:
         return self._add_sensor(spec)
 
     def _add_joint(self, spec: JointSpec) -> MujocoJoint:
+        return MujocoJoint(self, spec)  # the device checks and registers itself
+
+    def _check_new_joint(self, spec: JointSpec) -> None:
+        """Before a joint device is built: its name and its joint not mapped yet."""
         if spec.key in self._joints:
             raise BadParameterError("name", spec.key, "a joint name not mapped yet")
         for other in self._joints.values():
@@ -306,9 +314,6 @@ class MujocoSim:
                 raise BadParameterError(
                     "joint", spec.joint, f"a joint not mapped yet (mapped as {other.name!r})"
                 )
-        device = MujocoJoint(self, spec)
-        self._joints[spec.key] = device
-        return device
 
     def effector(self, actuator: str, **options: Any) -> MujocoEffector:
         """The actuator device of the MuJoCo actuator ``actuator`` when it does not drive one
@@ -327,6 +332,9 @@ class MujocoSim:
         return self._add_effector(spec)
 
     def _add_effector(self, spec: EffectorSpec) -> MujocoEffector:
+        return MujocoEffector(self, spec)  # the device checks and registers itself
+
+    def _check_new_effector(self, spec: EffectorSpec) -> None:
         if spec.key in self._effectors:
             raise BadParameterError("name", spec.key, "an effector name not mapped yet")
         for other in self._effectors.values():
@@ -336,9 +344,6 @@ class MujocoSim:
                     spec.actuator,
                     f"an actuator not mapped yet (mapped as {other.name!r})",
                 )
-        device = MujocoEffector(self, spec)
-        self._effectors[spec.key] = device
-        return device
 
     @property
     def effectors(self) -> Mapping[str, MujocoEffector]:
@@ -346,11 +351,11 @@ class MujocoSim:
         return MappingProxyType(self._effectors)
 
     def _add_sensor(self, spec: SensorSpec) -> MujocoSensor:
+        return MujocoSensor(self, spec)  # the device checks and registers itself
+
+    def _check_new_sensor(self, spec: SensorSpec) -> None:
         if spec.key in self._sensors:
             raise BadParameterError("name", spec.key, "a sensor name not mapped yet")
-        device = MujocoSensor(self, spec)
-        self._sensors[spec.key] = device
-        return device
 
     @property
     def joints(self) -> Mapping[str, MujocoJoint]:
@@ -518,10 +523,9 @@ class MujocoSim:
     def _step(self, state_clock_ns: int) -> bool:
         """One physics step; ``state_clock_ns`` is the clock time of the state stepped from."""
         m, d = self.model, self.data
-        if self._pd_joints:
-            qpos, qvel, ctrl = self._qpos, self._qvel, self._ctrl
-            for joint in self._pd_joints:
-                joint._pd_update(qpos, qvel, ctrl)
+        if self._pre_step:
+            for update in self._pre_step:
+                update(state_clock_ns)
         try:
             mujoco.mj_step(m, d)
         except Exception as exc:  # MuJoCo errors (e.g. out of arena memory)
@@ -713,10 +717,17 @@ class MujocoSim:
             self._monitored_effectors.remove(device)
 
     def _set_pd(self, joint: MujocoJoint, active: bool) -> None:
-        if active and joint not in self._pd_joints:
-            self._pd_joints.append(joint)
-        elif not active and joint in self._pd_joints:
-            self._pd_joints.remove(joint)
+        self._pd_joints = _updated(self._pd_joints, joint, active)
+        self._rebuild_pre_step()
+
+    def _set_ramp(self, joint: MujocoJoint, active: bool) -> None:
+        self._ramp_joints = _updated(self._ramp_joints, joint, active)
+        self._rebuild_pre_step()
+
+    def _rebuild_pre_step(self) -> None:
+        # a new list each time: a ramp that ends inside the loop over the old one is safe
+        updates: list[Callable[[int], None]] = [j._ramp_update for j in self._ramp_joints]
+        self._pre_step = updates + [j._pd_update for j in self._pd_joints]
 
     def _joint_inertia(self, dof: int) -> float:
         """Diagonal of the joint-space inertia (with armature) at the current state."""
@@ -781,6 +792,12 @@ def _spec(cls: type[_SpecT], **values: Any) -> _SpecT:
                 key, value, f"a {cls.__name__} field ({', '.join(sorted(known))})"
             )
     return cls(**values)
+
+
+def _updated(joints: list[MujocoJoint], joint: MujocoJoint, member: bool) -> list[MujocoJoint]:
+    """``joints`` with ``joint`` added (member) or removed, as a new list."""
+    others = [j for j in joints if j is not joint]
+    return [*others, joint] if member else others
 
 
 def _model_name(model: mujoco.MjModel) -> str:
