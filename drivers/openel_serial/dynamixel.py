@@ -690,7 +690,9 @@ class PacketParser:
         if self._buf or not count or param_length + 4 > self.max_length:
             return [], self.feed(data)
         whole = count * size
-        chunk = data[:whole] if type(data) is bytes else bytes(data[:whole])
+        if type(data) is not bytes:
+            data = bytes(data)
+        chunk = data if whole == len(data) else data[:whole]
         # Exactly one FF FF FD per packet (its header): no stuffing, no inner header.
         if chunk.count(_STUFF_PATTERN) != count:
             return [], self.feed(data)

@@ -594,7 +594,7 @@ class DynamixelPort:
         replies: dict[int, dx.Status] = {}
         self._replies = replies
         self._garbled = 0
-        self._expect = set(ids)
+        expect = self._expect = set(ids)
         self._param_length = param_length
         self._waiter = waiter
         self._transaction += 1
@@ -608,7 +608,8 @@ class DynamixelPort:
         finally:
             self._expect = None
             self._waiter = None
-        self.check_connected()  # lost while waiting: raise, not a timeout
+        if len(replies) != len(expect):
+            self.check_connected()  # lost while waiting: raise, not a timeout
         return replies
 
     def _arm_watchdog(self, loop: asyncio.AbstractEventLoop, deadline: float) -> None:
