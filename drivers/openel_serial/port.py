@@ -413,10 +413,13 @@ class DynamixelPort:
                 self.url, missing, f"SYNC READ {address}+{length}", timeout, self.retries + 1
             )
         refused = 0xFF if check_alert else _ERROR_NUMBER  # the alert bit is bit 7
-        for dxl_id in [i for i in ids if statuses[i].error & refused][:1]:
-            error = statuses[dxl_id].error
-            raise DynamixelStatusError(dxl_id, error, f"SYNC READ {address}+{length}")
-        return {i: statuses[i].params for i in ids}
+        out: dict[int, bytes] = {}
+        for dxl_id in ids:
+            status = statuses[dxl_id]
+            if status.error & refused:
+                raise DynamixelStatusError(dxl_id, status.error, f"SYNC READ {address}+{length}")
+            out[dxl_id] = status.params
+        return out
 
     def sync_read_packet(self, ids: Sequence[int], address: int, length: int) -> bytes:
         """The SYNC READ instruction packet, built once per (address, length, ids).
