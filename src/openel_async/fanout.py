@@ -319,6 +319,10 @@ class Fanout:
             if mailbox is not None:
                 if entry is None:
                     entry = (kind, args, notice)
+                    # Wake the mailbox tasks now, not after the plain observers below: a
+                    # task a plain observer wakes must not run before an async observer
+                    # registered ahead of it (the registration order of delivery).
+                    self._wake()
                 mailbox.put(entry)
                 continue
             try:
@@ -329,8 +333,6 @@ class Fanout:
             except Exception:
                 self.failures += 1
                 log.exception("observer_failed", owner=self.owner, observer=repr(observer))
-        if entry is not None:
-            self._wake()
 
     def discard_pending(self) -> int:
         """Drop what async observers have not received yet (StopTimer); returns how many.

@@ -556,3 +556,46 @@ def test_equal_but_distinct_objects_are_distinct_observers() -> None:
     fan.add(second)  # identity, not ==
     fan.remove(second)
     assert fan.observers == (first,)
+
+
+async def test_async_observer_ahead_of_a_plain_one_runs_before_the_task_it_wakes() -> None:
+    """Delivery keeps registration order across mailboxes: a task that a plain observer
+    wakes must not run before an async observer registered ahead of it has started on the
+    same notice (the shared wake-up used to be set only after the plain observers ran)."""
+    fan = Fanout("pub", HAL_KINDS)
+    order: list[str] = []
+    woken = anyio.Event()
+
+    class Async:
+        async def notify_event(self, source: object, event_id: int) -> None:
+            order.append("async observer")
+
+        async def notify_error(self, source: object, error_id: int) -> None:
+            pass
+
+    class Plain:
+        def notify_event(self, source: object, event_id: int) -> None:
+            woken.set()
+
+        def notify_error(self, source: object, error_id: int) -> None:
+            pass
+
+    fan.add(Async())
+    fan.add(Plain())
+
+    async def waiter() -> None:
+        await woken.wait()
+        order.append("woken task")
+
+    async with anyio.create_task_group() as tg:
+        fan.bind(tg)
+        tg.start_soon(waiter)
+        for _ in range(3):
+            await anyio.lowlevel.checkpoint()
+        fan.publish("notify_event", SOURCE, 1)
+        await fan.wait_delivered()
+        await woken.wait()
+        for _ in range(3):
+            await anyio.lowlevel.checkpoint()
+        fan.close()
+    assert order == ["async observer", "woken task"]
