@@ -42,7 +42,7 @@ BAUD = 1_000_000
 CYCLES = {1: 2000, 8: 1500, 32: 600}
 QUICK_CYCLES = {1: 400, 8: 300, 32: 150}
 WARMUP = 100
-ROUNDS = 5
+ROUNDS = 7
 QUICK_ROUNDS = 1
 POLLER_SERVOS = 8
 POLLER_S = 1.0
@@ -299,7 +299,9 @@ def run(quick: bool) -> BenchResult:
         )
         per_round = ", ".join(f"{r:.2f}" for r in pairs)
         notes.append(
-            f"N = {n}: per-round ours/sdk median ratios {per_round}; p99 ours "
+            f"N = {n}: per-round ours/sdk median ratios {per_round}; our CPU per round "
+            + ", ".join(f"{r.cpu_us:.0f}" for r in size.ours)
+            + " µs; p99 ours "
             f"{size.ours_median('p99_us'):.0f} µs, sdk {size.peer_median('p99_us'):.0f} µs; "
             f"wire limit at 1 Mbaud {wire_rate(n):,.0f} transactions/s "
             f"({1e6 / wire_rate(n):.0f} µs each); failed transactions (peer stalled past "
