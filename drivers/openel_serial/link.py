@@ -34,6 +34,9 @@ __all__ = ["FdSerialTransport", "SerialLink"]
 
 log = structlog.get_logger(__name__)
 
+READ_SIZE = 4096
+"""Bytes asked for per read (the library's default is 1024): the replies to a SYNC READ
+of up to 160 servos (25 bytes each) in one read, decoded in one pass."""
 CLOSE_TIMEOUT_S = 2.0
 """Bound on waiting for the transport to close the port (a worker thread does it)."""
 
@@ -56,6 +59,7 @@ class FdSerialTransport(serial_asyncio_fast.SerialTransport):
     ) -> None:
         super().__init__(loop, protocol, serial_instance)
         self._fd: int = serial_instance.fileno()
+        self._max_read_size = READ_SIZE
 
     def _read_ready(self) -> None:
         try:

@@ -229,6 +229,22 @@ async def test_sync_read_of_32_servos_in_bulk_with_a_damaged_reply_retried() -> 
         assert port.stats.timeouts == 0 and port.parser.dropped_bytes == 15  # the damaged reply
 
 
+async def test_sync_read_of_more_bytes_than_one_read() -> None:
+    # 200 replies of 25 bytes: several reads, a packet cut between two of them.
+    ids = tuple(range(1, 201))
+    servos = [SimServo(i, position=i) for i in ids]
+    async with (
+        SimDynamixelBus(servos) as bus,
+        DynamixelPort(bus.path, baudrate=BAUD, return_delay=0.0, timeout_margin=0.5) as port,
+    ):
+        for _ in range(3):
+            with anyio.fail_after(WAIT_S):
+                data = await port.sync_read(ids, POLL_ADDRESS, POLL_LENGTH)
+            assert [int.from_bytes(d[10:], "little") for d in data.values()] == list(ids)
+        assert port.parser.packets == 600 and port.parser.dropped_bytes == 0
+        assert port.stats.retries == 0 and port.link.bytes_in == 600 * 25
+
+
 SLOW_BAUD = 9600
 """Long wire times: a 1000-byte READ waits ~1.07 s, a PING ~45 ms (margin 20 ms)."""
 
