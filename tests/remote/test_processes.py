@@ -1,19 +1,24 @@
 """Real processes on loopback: ``openel-async serve`` with sim devices, a commanding client
-and a subscribed client (two Zenoh sessions of their own), the server killed mid-motion
-and restarted."""
+and a subscribed client, the server killed mid-motion and restarted. In
+``test_clients_in_processes_of_their_own`` all three are OS processes (the clients are
+``client_process.py``); ``test_serve_kill_restart_mid_motion`` keeps the clients in the
+test process to check their objects directly (motion outcome, last_fault)."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import AsyncIterator, Iterator
+from contextlib import asynccontextmanager, contextmanager
 from pathlib import Path
+from typing import Any
 
 import anyio
+import anyio.abc
 import pytest
 
 from openel_async import (
@@ -144,6 +149,120 @@ async def test_serve_kill_restart_mid_motion(tmp_path: Path) -> None:
                     assert isinstance(event, EventNotification)
                     assert motion.outcome.name == "REACHED"
                     assert await axis.get_value(Request.POSITION_ACTUAL) == pytest.approx(-0.1)
+
+
+CLIENT = Path(__file__).with_name("client_process.py")
+
+
+class ClientProcess:
+    """A client_process.py in a process of its own: commands in, JSON lines out."""
+
+    def __init__(self, process: anyio.abc.Process) -> None:
+        self.process = process
+        self.buffer = b""
+        self.seen: list[dict[str, Any]] = []
+
+    async def send(self, line: str) -> None:
+        assert self.process.stdin is not None
+        await self.process.stdin.send(line.encode() + b"\n")
+
+    async def expect(self, key: str, wait_s: float = 20.0) -> dict[str, Any]:
+        """The next JSON line that has ``key`` (the lines before it are kept in ``seen``)."""
+        assert self.process.stdout is not None
+        with anyio.move_on_after(wait_s):
+            while True:
+                while b"\n" in self.buffer:
+                    line, self.buffer = self.buffer.split(b"\n", 1)
+                    try:
+                        value = json.loads(line)
+                    except ValueError:
+                        continue  # a log line
+                    if isinstance(value, dict):
+                        self.seen.append(value)
+                        if key in value:
+                            return value
+                try:
+                    self.buffer += await self.process.stdout.receive()
+                except anyio.EndOfStream:
+                    break
+        pytest.fail(f"no {key!r} from the client within {wait_s} s: {self.seen} {self.buffer!r}")
+
+
+@asynccontextmanager
+async def client_process(role: str, port: int, namespace: str) -> AsyncIterator[ClientProcess]:
+    process = await anyio.open_process(
+        [sys.executable, str(CLIENT), role, str(port), namespace],
+        env={**os.environ, "PYTHONUNBUFFERED": "1"}, stderr=subprocess.STDOUT,
+    )  # fmt: skip
+    try:
+        yield ClientProcess(process)
+    finally:
+        with anyio.move_on_after(10, shield=True):
+            if process.stdin is not None:
+                await process.stdin.aclose()  # the client ends when its stdin closes
+            await process.wait()
+        if process.returncode is None:
+            process.kill()
+            with anyio.move_on_after(5, shield=True):
+                await process.wait()
+        await process.aclose()
+
+
+@pytest.mark.timeout(120)
+async def test_clients_in_processes_of_their_own(tmp_path: Path) -> None:
+    """The server, a commanding client and a subscribed client: three OS processes."""
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(RIG.replace("namespace: proc", "namespace: procs"))
+    port = free_port()
+    with serve(rig, port) as server:
+        async with (
+            client_process("listener", port, "procs") as listener,
+            client_process("commander", port, "procs") as commander,
+        ):
+            await listener.expect("ready")
+            ready = await commander.expect("ready")
+            assert ready["units"] == ["rad"]
+            await commander.send("move 0.2")
+            moved = await commander.expect("completed")
+            assert moved["completed"] is True
+            assert moved["position"] == pytest.approx(0.2)
+            assert moved["encoder"] == pytest.approx(0.2, abs=1e-2)
+            event = await listener.expect("event")
+            assert event == {"event": "COMPLETED", "logical_id": 0, "missed": 0}
+
+            # Mid-motion (2 rad at 1 rad/s), the server dies: a link fault in the commander,
+            # and the listener hears the server leave.
+            await commander.send("start 2.0")
+            assert (await commander.expect("started"))["done"] is False
+            server.kill()
+            server.wait(10)
+            await commander.send("wait_error")
+            error = await commander.expect("error_id")
+            assert error["error_id"] == ErrorId.DISCONNECTED
+            assert error["state"] == str(ComponentState.ERROR)
+            assert error["code"] == "HAL_NO_CONNECTED"
+            assert error["motion_done"] is True and error["outcome"] != "REACHED"
+            assert (await listener.expect("server"))["server"] is False
+            await commander.send("reinit")
+            refused = await commander.expect("reinit")
+            assert "not reachable" in refused["reinit"]
+            assert refused["state"] == str(ComponentState.ERROR)
+
+            # A new server process: re_init recovers, the listener was subscribed again.
+            with serve(rig, port):
+                await commander.send("wait_server")
+                await commander.expect("server", 30)
+                assert (await listener.expect("server", 30))["server"] is True
+                await commander.send("reinit")
+                recovered = await commander.expect("reinit")
+                assert recovered["reinit"] == "ok" and recovered["encoder_state"] == "Active"
+                await commander.send("move -0.1")
+                moved = await commander.expect("completed")
+                assert moved["completed"] is True
+                assert moved["position"] == pytest.approx(-0.1)
+                assert moved["encoder"] == pytest.approx(-0.1, abs=1e-2)
+                event = await listener.expect("event")
+                assert event["event"] == "COMPLETED" and event["missed"] == 0
 
 
 SAMPLES = Path(__file__).parents[1] / "surface" / "samples"
