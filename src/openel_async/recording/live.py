@@ -11,13 +11,11 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import Any
 
 import foxglove
 import structlog
 
 from .pipeline import PipelineStats
-from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, ChannelSpec
 from .tap import Tap
 
 __all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "LAYOUT_PATH", "FoxgloveSink", "LiveView"]
@@ -31,40 +29,23 @@ LAYOUT_PATH = Path(__file__).with_name("foxglove_layout.json")
 
 
 class FoxgloveSink:
-    """Publishes to a Foxglove WebSocket server started here (``port=0``: any free port,
-    see :attr:`port`)."""
+    """A Foxglove WebSocket server publishing every channel of ``context`` (``port=0``: any
+    free port, see :attr:`port`)."""
 
     def __init__(
-        self, *, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, name: str = "openel-async"
+        self,
+        *,
+        context: foxglove.Context,
+        host: str = DEFAULT_HOST,
+        port: int = DEFAULT_PORT,
+        name: str = "openel-async",
     ) -> None:
-        self.context = foxglove.Context()
-        self.server = foxglove.start_server(name=name, host=host, port=port, context=self.context)
+        self.server = foxglove.start_server(name=name, host=host, port=port, context=context)
         self.host = host
         self.port: int = self.server.port
-        self._channels: dict[int, Any] = {}
         log.info("foxglove_server_started", url=f"ws://{host}:{self.port}")
 
-    def add_channel(self, channel: ChannelSpec) -> None:
-        schema = foxglove.Schema(
-            name=channel.schema.name, encoding=SCHEMA_ENCODING, data=channel.schema.data
-        )
-        self._channels[channel.id] = foxglove.Channel(
-            channel.topic,
-            schema=schema,
-            message_encoding=MESSAGE_ENCODING,
-            context=self.context,
-            metadata=channel.metadata,
-        )
-
-    def write(self, channel: ChannelSpec, log_time_ns: int, data: bytes) -> None:
-        self._channels[channel.id].log(data, log_time=log_time_ns)
-
-    def flush(self) -> None:
-        pass
-
     def close(self, stats: PipelineStats) -> None:
-        for channel in self._channels.values():
-            channel.close()
         self.server.stop()
 
 

@@ -33,14 +33,8 @@ log = structlog.get_logger(__name__)
 
 
 class Sink(Protocol):
-    """Where the writer process writes (:class:`~.recorder.McapSink`,
-    :class:`~.live.FoxgloveSink`)."""
-
-    def add_channel(self, channel: ChannelSpec) -> None: ...
-
-    def write(self, channel: ChannelSpec, log_time_ns: int, data: bytes) -> None: ...
-
-    def flush(self) -> None: ...
+    """What the writer process opens on its Foxglove SDK context (:class:`~.recorder.McapSink`,
+    :class:`~.live.FoxgloveSink`); closed with the final statistics."""
 
     def close(self, stats: PipelineStats) -> None: ...
 

@@ -1,11 +1,13 @@
 """The writer process of the recorder and the live view: it reads the control loop's records
-from its stdin and writes them as JSON messages to an MCAP file (:class:`~.recorder.McapSink`)
-and/or publishes them on a Foxglove WebSocket server (:class:`~.live.FoxgloveSink`).
+from its stdin, encodes them as JSON messages (msgspec) and logs each once on a channel of a
+Foxglove SDK context, whose sinks -- the SDK's MCAP writer (:class:`~.recorder.McapSink`,
+Rust, zstd chunks) and/or its WebSocket server (:class:`~.live.FoxgloveSink`) -- write and
+publish it.
 
 Running in a process of its own, encoding and writing never compete with the control loop for
-the interpreter lock: the application only appends tuples to a queue. The parent
+the interpreter lock: the application only appends tuples to a list. The parent
 (:class:`~.pipeline.Pipeline`) sends frames: a 4-byte little-endian length, then a msgpack
-list of entries (:data:`KINDS` below). When its stdin closes -- the parent finished or was
+list of entries (:mod:`.records`). When its stdin closes -- the parent finished or was
 killed -- the process writes what it received, closes the MCAP file (summary and footer) and
 exits. It prints one JSON line when ready (``{"port": N}``: the WebSocket port).
 
@@ -21,20 +23,23 @@ import sys
 from collections.abc import Callable
 from typing import Any, BinaryIO
 
+import foxglove
 import msgspec
 import structlog
 
-from .pipeline import PipelineStats
+from .pipeline import PipelineStats, Sink
 from .records import CHANNEL, HEADER, SCHEMAS, STATS, to_message
-from .schemas import ChannelSpec, Schema
+from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, Schema
+
+LogCall = Callable[[bytes, int | None, int | None], None]
 
 
-def serve(stream: BinaryIO, sinks: list[Any], schemas: dict[str, Schema]) -> PipelineStats:
-    """Write every entry of ``stream`` to ``sinks`` until it ends (or is cut)."""
+def serve(stream: BinaryIO, context: foxglove.Context, schemas: dict[str, Schema]) -> PipelineStats:
+    """Log every entry of ``stream`` on ``context``'s channels until it ends (or is cut)."""
     decode = msgspec.msgpack.Decoder().decode
     encode = msgspec.json.Encoder().encode
-    channels: dict[int, ChannelSpec] = {}
-    offsets: dict[int, int] = {}
+    keep: list[foxglove.Channel] = []
+    logs: dict[int, tuple[LogCall, int]] = {}  # channel id -> (its log call, time offset)
     written = queued = dropped = capacity = 0
     read = stream.read
     while True:
@@ -47,25 +52,28 @@ def serve(stream: BinaryIO, sinks: list[Any], schemas: dict[str, Schema]) -> Pip
             break
         for entry in decode(payload):
             channel = entry[0]
-            if channel == CHANNEL:
+            if channel >= 0:
+                log, offset = logs[channel]
+                log(encode(to_message(entry)), entry[1] + offset, None)
+                written += 1
+            elif channel == CHANNEL:
                 _, offset, _, cid, topic, schema_name, metadata = entry
-                spec = ChannelSpec(cid, topic, schemas[schema_name], metadata)
-                channels[cid] = spec
-                offsets[cid] = offset
-                for sink in sinks:
-                    sink.add_channel(spec)
-                continue
-            if channel == STATS:
+                schema = schemas[schema_name]
+                created = foxglove.Channel(
+                    topic,
+                    schema=foxglove.Schema(
+                        name=schema.name, encoding=SCHEMA_ENCODING, data=schema.data
+                    ),
+                    message_encoding=MESSAGE_ENCODING,
+                    context=context,
+                    metadata=metadata,
+                )
+                keep.append(created)
+                logs[cid] = (created.base.log, offset)
+            elif channel == STATS:
                 _, queued, dropped, capacity = entry
-                continue
-            data = encode(to_message(entry))
-            spec = channels[channel]
-            log_time = entry[1] + offsets[channel]
-            for sink in sinks:
-                sink.write(spec, log_time, data)
-            written += 1
-        for sink in sinks:
-            sink.flush()
+    for created in keep:
+        created.close()
     return PipelineStats(queued or written, written, dropped, capacity)
 
 
@@ -77,18 +85,19 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     # stdout carries the ready line: the log goes to stderr.
     structlog.configure(logger_factory=structlog.PrintLoggerFactory(sys.stderr))
-    sinks: list[Any] = []
+    context = foxglove.Context()
+    sinks: list[Sink] = []
     info: dict[str, Any] = {}
     try:
         if args.mcap is not None:
             from .recorder import McapSink
 
-            sinks.append(McapSink(args.mcap, chunk_size=args.chunk_size))
+            sinks.append(McapSink(args.mcap, context=context, chunk_size=args.chunk_size))
         if args.foxglove is not None:
             from .live import FoxgloveSink
 
             host, _, port = args.foxglove.rpartition(":")
-            live = FoxgloveSink(host=host, port=int(port))
+            live = FoxgloveSink(host=host, port=int(port), context=context)
             sinks.append(live)
             info["port"] = live.port
     except Exception as exc:
@@ -97,10 +106,9 @@ def main(argv: list[str] | None = None) -> int:
             sink.close(PipelineStats(0, 0, 0, 0))
         return 1
     print(json.dumps(info), flush=True)
-    close: list[Callable[[PipelineStats], None]] = [sink.close for sink in sinks]
-    stats = serve(sys.stdin.buffer, sinks, SCHEMAS)
-    for done in close:
-        done(stats)
+    stats = serve(sys.stdin.buffer, context, SCHEMAS)
+    for sink in sinks:
+        sink.close(stats)
     print(json.dumps({"written": stats.written}), flush=True)
     return 0
 
