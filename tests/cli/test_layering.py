@@ -56,7 +56,9 @@ def _blocked(*args: str) -> subprocess.CompletedProcess[str]:
 def test_help_without_any_driver() -> None:
     result = _blocked("--help")
     assert result.returncode == 0, result.stderr
-    assert "{demo,run,devices,profile,record,replay,hal4rt}" in result.stdout  # no serve: Zenoh's command
+    assert (
+        "{demo,run,devices,profile,record,replay,hal4rt}" in result.stdout
+    )  # no serve: Zenoh's command
     assert result.stderr == ""
     assert "DRIVER MODULES: []" in result.stdout
 

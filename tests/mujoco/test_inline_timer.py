@@ -100,7 +100,12 @@ async def test_ticks_exactly_every_period_of_simulated_time(stack: AsyncExitStac
     assert all(t.missed_ticks == 0 and t.lateness_ns == 0 for t in log.ticks)
     assert timer.state is TimerState.STOPPED
     stats = timer.stats
-    assert (stats.ticks, stats.late_ticks, stats.missed_ticks, stats.last_lateness_ns) == (50, 0, 0, 0)
+    assert (stats.ticks, stats.late_ticks, stats.missed_ticks, stats.last_lateness_ns) == (
+        50,
+        0,
+        0,
+        0,
+    )
     assert stats.lateness.max_ns == 0
     last = timer.last_tick
     assert last is not None and (last.index, last.time_ns) == (50, 100 * MS)

@@ -184,6 +184,11 @@ async def test_stats_on_the_virtual_clock(virtual_clock: VirtualClock, journal: 
         await until(virtual_clock, 1000.5)
         stats = ec.stats
         assert stats.cycles == 1000
-        assert (stats.overruns, stats.skipped, stats.timer_missed, stats.last_lateness_ns) == (0, 0, 0, 0)
+        assert (stats.overruns, stats.skipped, stats.timer_missed, stats.last_lateness_ns) == (
+            0,
+            0,
+            0,
+            0,
+        )
         assert stats.lateness.max_ns == 0
         assert len(journal.of("C9", "on_state_update")) == 1000
