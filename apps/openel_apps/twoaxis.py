@@ -1,7 +1,8 @@
 """twoaxis: the OpenEL synchronous-control demo (spec Figures 7.5-7.8) on two axes.
 
-``openel-async run twoaxis [--bus sim|can] [--duration S] [--period-ms MS] [--virtual]
-[--inject-fault] [--no-live]``, also ``openel-async demo --bus sim|can``.
+``openel-async run twoaxis [--bus sim|can|remote] [--duration S] [--period-ms MS] [--virtual]
+[--inject-fault] [--no-live]``, also ``openel-async demo --bus sim|can`` and
+``openel-async demo --remote`` (``--bus remote``).
 
 Two actuators are initialized with observers (Fig. 7.6), driven in step from an
 EventTimer's notify_timer (Fig. 7.7), and two sensors are read with their times to
@@ -11,9 +12,10 @@ that fails (a drive that stops answering: a CAN SDO timeout) is shown in the pro
 and the summary and survived: the sensor is re-initialized with bounded retries and a
 back-off on the demo's clock, and the demo goes on without it if it does not come back.
 
-The devices come from a rig: :func:`sim_rig` (``openel_sim`` motors) or
-:func:`openel_apps.can_rig.can_rig` (simulated CAN drives); the drivers are imported only
-when their rig is built.
+The devices come from a rig: :func:`sim_rig` (``openel_sim`` motors),
+:func:`openel_apps.can_rig.can_rig` (simulated CAN drives) or
+:func:`openel_apps.remote_rig.remote_rig` (the sim devices served by ``openel-async serve``
+in another process, over Zenoh); the drivers are imported only when their rig is built.
 """
 
 from __future__ import annotations
@@ -235,7 +237,11 @@ def rig_for(bus: str) -> RigFactory:
         from .can_rig import can_rig
 
         return can_rig
-    raise ValueError(f"--bus must be sim or can, not {bus!r}")
+    if bus == "remote":
+        from .remote_rig import remote_rig
+
+        return remote_rig
+    raise ValueError(f"--bus must be sim, can or remote, not {bus!r}")
 
 
 async def run_demo(
@@ -429,7 +435,12 @@ def build_parser(prog: str = NAME) -> argparse.ArgumentParser:
         description="The two-axis synchronized demo of OpenEL spec Figs. 7.5-7.8 on simulated "
         "motors (--bus sim) or simulated CAN drives (--bus can).",
     )
-    parser.add_argument("--bus", choices=("sim", "can"), default="sim", help="device layer")
+    parser.add_argument(
+        "--bus",
+        choices=("sim", "can", "remote"),
+        default="sim",
+        help="device layer (remote: the sim devices served by another process over Zenoh)",
+    )
     parser.add_argument(
         "--duration",
         type=float,
@@ -458,6 +469,11 @@ def check_options(args: argparse.Namespace) -> str | None:
     duration, period = args.duration, args.period_ms
     if args.virtual and args.bus != "sim":
         return "--virtual needs --bus sim: a bus runs in real time"
+    if args.inject_fault and args.bus == "remote":
+        return (
+            "--inject-fault is not available with --remote: the devices are in the server "
+            "process, and there is no remote fault injection"
+        )
     if not (math.isfinite(duration) and duration > 0):
         return f"--duration must be a finite number of seconds > 0, not {duration}"
     if not (math.isfinite(period) and MIN_PERIOD_MS <= period <= MAX_PERIOD_MS):

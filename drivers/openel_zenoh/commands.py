@@ -52,6 +52,12 @@ def add_serve_parser(sub: SubParsers) -> argparse.ArgumentParser:
         "--config", metavar="FILE", help="Zenoh JSON5 configuration (replaces the safe defaults)"
     )
     serve.add_argument("--namespace", help="key-expression namespace (default: the rig file's)")
+    serve.add_argument(
+        "--stop-on-eof",
+        action="store_true",
+        help="also stop when standard input reaches its end (a parent process that started "
+        "the server with a pipe on its stdin stops it by closing the pipe, or by dying)",
+    )
     return serve
 
 
@@ -92,13 +98,23 @@ async def _serve(args: argparse.Namespace) -> int:
                 f"serving {len(components)} components on {where}, namespace {namespace!r}: {names}",
                 flush=True,
             )
-            with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
-                async for signum in signals:
-                    log.info("serve_stopping", signal=signal.Signals(signum).name)
-                    break
+            async with anyio.create_task_group() as tg:
+                if getattr(args, "stop_on_eof", False):
+                    tg.start_soon(_stop_on_eof, tg.cancel_scope)
+                with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
+                    async for signum in signals:
+                        log.info("serve_stopping", signal=signal.Signals(signum).name)
+                        break
+                tg.cancel_scope.cancel()
     finally:
         await close_session(session)
     return 0
+
+
+async def _stop_on_eof(scope: anyio.CancelScope) -> None:
+    await anyio.to_thread.run_sync(sys.stdin.buffer.read, abandon_on_cancel=True)
+    log.info("serve_stopping", reason="end of standard input")
+    scope.cancel()
 
 
 SERVE = CliCommand("serve", add_serve_parser, run_serve)

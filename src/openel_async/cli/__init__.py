@@ -78,6 +78,12 @@ def _build_parser() -> argparse.ArgumentParser:
         help="device layer: mujoco (the MuJoCo arm; falls back to sim when MuJoCo cannot "
         "load), sim (openel_sim motors) or can (simulated CAN drives)",
     )
+    demo.add_argument(
+        "--remote",
+        action="store_true",
+        help="two-axis demo with its sim devices served by a second process "
+        "('openel-async serve' on a free loopback port) and driven over Zenoh",
+    )
     add_tap_arguments(demo)
 
     run = sub.add_parser(

@@ -2,7 +2,8 @@
 
 The app is ``--app NAME`` (any app of the ``openel_async.apps`` entry-point group that takes
 the demo's options: its ``AppInfo.demo_args``), else ``twoaxis`` for ``--bus sim|can`` and
-``arm2`` (the MuJoCo arm's square) otherwise. Where the default app cannot run (it raises
+``--remote`` (the sim devices served by a second process: ``--bus remote``), and ``arm2``
+(the MuJoCo arm's square) otherwise. Where the default app cannot run (it raises
 ``AppUnavailable``: MuJoCo or its model cannot load), the demo logs ``mujoco_unavailable`` and
 runs ``twoaxis`` on ``openel_sim`` motors instead; an app asked for by name does not fall back.
 ``--list`` prints the registered apps, one line each.
@@ -43,7 +44,7 @@ def list_apps() -> int:
 
 def _options(args: argparse.Namespace) -> DemoOptions:
     return DemoOptions(
-        bus=args.bus,
+        bus="remote" if getattr(args, "remote", False) else args.bus,
         duration=args.duration,
         period_ms=args.period_ms,
         virtual=args.virtual,
@@ -67,8 +68,13 @@ def _demo_argv(info: AppInfo, options: DemoOptions) -> list[str]:
 def run(args: argparse.Namespace) -> int:
     if args.list:
         return list_apps()
-    name = args.app or (BUS_APP if args.bus in ("sim", "can") else DEFAULT_APP)
+    if getattr(args, "remote", False) and args.bus not in (None, "sim"):
+        print(
+            f"{PROG}: --remote serves the sim devices; not with --bus {args.bus}", file=sys.stderr
+        )
+        return 2
     options = _options(args)
+    name = args.app or (BUS_APP if options.bus in ("sim", "can", "remote") else DEFAULT_APP)
     try:
         info = find_app(name)
         argv = _demo_argv(info, options)
