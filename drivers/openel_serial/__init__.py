@@ -1,7 +1,9 @@
 """openel_serial: serial-port devices on pyserial-asyncio-fast (the ``serial`` driver).
 
 * :class:`DynamixelPort` + :class:`DynamixelServo`: Dynamixel Protocol 2.0 X-series
-  servos sharing one half-duplex port, polled with one SYNC READ per cycle.
+  servos sharing one half-duplex port, polled with one SYNC READ per cycle; the model
+  classes :class:`DynamixelXM430W350`, :class:`DynamixelXL430W250` (product id = model
+  number) are in the Device Kind ID registry.
 * :class:`NmeaGps`: an NMEA 0183 GPS receiver (GGA, RMC).
 * :mod:`openel_serial.peers`: simulated devices on pseudo-terminals for tests and demos.
 
@@ -19,13 +21,15 @@ from .errors import (
 )
 from .gps import GpsFix, NmeaGps
 from .port import DynamixelPort, PingInfo, PortStats, PresentState
-from .servo import DynamixelServo
+from .servo import DynamixelServo, DynamixelXL430W250, DynamixelXM430W350
 
 DRIVER = DriverInfo(
     name="serial",
     description="Serial devices on pyserial-asyncio-fast: Dynamixel 2.0 servos, NMEA GPS",
     devices={
         "dynamixel": DynamixelServo,
+        "dynamixel_xm430_w350": DynamixelXM430W350,
+        "dynamixel_xl430_w250": DynamixelXL430W250,
         "nmea_gps": NmeaGps,
     },
 )
@@ -37,6 +41,8 @@ __all__ = [
     "DynamixelServo",
     "DynamixelStatusError",
     "DynamixelTimeoutError",
+    "DynamixelXL430W250",
+    "DynamixelXM430W350",
     "GpsFix",
     "NmeaGps",
     "NoFixError",

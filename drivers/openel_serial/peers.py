@@ -13,7 +13,8 @@ Peers are anyio tasks that wait on the master fd with ``anyio.wait_readable`` /
 event loop. A pty has no baud rate: bytes arrive as fast as the two ends run.
 
 * :class:`SimDynamixelBus` with :class:`SimServo` s: control table, trapezoidal
-  profile moves (Profile Velocity/Acceleration), velocity and current modes, Moving /
+  profile moves (Profile Velocity/Acceleration), velocity mode ramping at Profile
+  Acceleration, current mode, a mode change resetting the profile (as the e-manual says), Moving /
   Moving Status, Return Delay Time, read-only and EEPROM access rules, limit errors,
   REBOOT, error 3 (CRC error) for an instruction received damaged; injection of status
   errors, hardware errors (alert bit), unresponsive servos, dropped and corrupted
@@ -526,8 +527,14 @@ class SimServo:
             return error
         now = self.clock.now_ns()
         torque_before = self.torque_enabled
+        mode_before = self.mode
         end = address + len(data)
         self.table[address:end] = data
+        if address <= X.OPERATING_MODE.address < end and self.mode != mode_before:
+            # e-manual, Operating Mode (11): a mode change resets the profile generator.
+            self._set(X.PROFILE_VELOCITY, 0)
+            self._set(X.PROFILE_ACCELERATION, 0)
+            self._set(X.GOAL_PWM, self.get_raw(X.PWM_LIMIT))
         torque_item = X.TORQUE_ENABLE.address
         if address <= torque_item < end:
             if self.hardware_error:

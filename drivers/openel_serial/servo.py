@@ -9,7 +9,15 @@ servo requires):
 * ``TORQUE`` -> current mode 0; Goal Current (102) = torque / ``torque_constant``,
   2.69 mA per unit (XM430). Only with a ``torque_constant`` (Nm/A): otherwise TORQUE is
   not in ``supported_requests`` and ``set_value`` raises NOT_IMPLEMENTED.
-* ``NO_EXCITE`` -> Torque Enable (64) = 0; the next command enables it again.
+* ``NO_EXCITE`` -> Torque Enable (64) = 0 (HAL4RT's READY_TO_CONTROL); the next command
+  enables it again.
+
+A mode change resets the servo's Profile Velocity (112) and Profile Acceleration (108) to
+0 (e-manual, Operating Mode (11)): the driver writes its profile again after each one.
+
+``Motor.set_speed(speed, tm_acc)`` uses the servo's own ramp (``velocity_ramp``): velocity
+mode, Profile Acceleration = |target - start| / tm_acc (214.577 rev/min^2 per unit), then
+Goal Velocity; the next other command restores the configured Profile Acceleration.
 
 Every value crossing the API is SI (rad, rad/s, Nm). Limits come from the control
 table (Min/Max Position Limit, Velocity Limit, Current Limit) unless given.
@@ -31,12 +39,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Final
+from typing import ClassVar, Final
 
 import anyio
 import structlog
 
-from openel_async.device import ActuatorDevice, ActuatorLimits, DeviceContext, DeviceInfo, ErrorId
+from openel_async.device import (
+    ActuatorDevice,
+    ActuatorLimits,
+    DeviceContext,
+    DeviceInfo,
+    ErrorId,
+    VelocityRamp,
+)
 from openel_async.errors import (
     BadParameterError,
     HALError,
@@ -54,7 +69,14 @@ from openel_serial.errors import (
 )
 from openel_serial.port import POLL_ADDRESS, POLL_LENGTH, DynamixelPort, PresentState
 
-__all__ = ["DynamixelServo"]
+__all__ = [
+    "MAX_PROFILE_ACCELERATION",
+    "ROBOTIS_VENDOR_ID",
+    "DynamixelServo",
+    "DynamixelXL430W250",
+    "DynamixelXM430W350",
+    "profile_acceleration_for",
+]
 
 log = structlog.get_logger(__name__)
 
@@ -62,6 +84,12 @@ X = dx.XSeries
 RAD_PER_TICK: Final = 2 * math.pi / dx.TICKS_PER_REV
 TABLE_LENGTH: Final = X.HARDWARE_ERROR_STATUS.address + 1  # addresses 0..70 in one READ
 EXTENDED_RANGE_REV: Final = 256
+ROBOTIS_VENDOR_ID: Final = 0x524F
+"""This project's vendor id for ROBOTIS ("RO"): neither OpenEL nor HAL4RT registers one."""
+MAX_PROFILE_ACCELERATION: Final = 32767
+"""Largest Profile Acceleration (108) of a velocity-based profile (e-manual)."""
+TIME_BASED_PROFILE: Final = 0x04
+"""Drive Mode (10) bit 2: Profile Velocity/Acceleration are times, not rates."""
 _POSITION_MODES: Final = (
     dx.OperatingMode.POSITION,
     dx.OperatingMode.EXTENDED_POSITION,
@@ -93,6 +121,18 @@ def _si_or_none(name: str, value: float | None) -> float | None:
     return None if value is None else _si(name, value)
 
 
+def profile_acceleration_for(ramp: VelocityRamp) -> int:
+    """Profile Acceleration (108) for ``ramp``: ``ramp.rate`` in 214.577 rev/min^2 units.
+
+    At least 1 (0 would be "unlimited"); a rate above 32767 units (~12,270 rad/s^2) gives
+    0, the servo's fastest change, which is over in less than |target - start| / 12,270 s.
+    """
+    units = ramp.rate / dx.acceleration_to_rad_s2(1)
+    if units > MAX_PROFILE_ACCELERATION:
+        return 0
+    return max(1, round(units))
+
+
 class DynamixelServo(ActuatorDevice):
     """A Dynamixel Protocol 2.0 X-series servo (XM430, XL430, ...) on a shared port.
 
@@ -106,11 +146,20 @@ class DynamixelServo(ActuatorDevice):
 
     info = DeviceInfo(
         kind=DeviceKind.MOTOR,
+        vendor_id=ROBOTIS_VENDOR_ID,
         vendor_name="Robotis",
         product_name="Dynamixel",
         functions=("reboot",),
     )
+    """Product id 0: any X-series model (the model number is known after PING). The
+    model classes (:class:`DynamixelXM430W350`...) carry the model number as product id
+    and are the ones in the Device Kind ID registry."""
     reports_completion = True
+    velocity_ramp = True
+    """Profile Acceleration in velocity mode; False on an instance whose servo uses a
+    time-based profile (Drive Mode bit 2): the framework streams the ramp then."""
+    has_current: ClassVar[bool] = True
+    """Whether the model has current control (Goal/Present Current); XL430: no."""
 
     def __init__(
         self,
@@ -151,6 +200,12 @@ class DynamixelServo(ActuatorDevice):
                 raise BadParameterError(
                     "position_limits", position_limits, "a finite (low, high) pair, low < high"
                 )
+        if torque_constant is not None and not self.has_current:
+            raise BadParameterError(
+                "torque_constant",
+                torque_constant,
+                f"None: the {self.info.product_name} has no current control mode",
+            )
         self.port = port
         self._dxl_id = dxl_id
         self.position_limits = position_limits
@@ -182,6 +237,14 @@ class DynamixelServo(ActuatorDevice):
         self._state: PresentState | None = None
         self._mode: int = -1
         self._torque = False
+        self._drive_mode = 0
+        self._profile_acc: int | None = None
+        """Profile Acceleration on the servo as last written (None: unknown)."""
+        self._profile_vel: int | None = None
+        self._base_acc: int | None = None
+        """The configured Profile Acceleration (``profile_acceleration``, or the servo's at
+        the first init): restored after a mode change and after a ramp."""
+        self._base_vel: int | None = None
         self._ack_writes = True
         self._alert = False
         self._status_error_reported = False
@@ -227,6 +290,12 @@ class DynamixelServo(ActuatorDevice):
         try:
             info = await self.port.ping(self._dxl_id)
             self.model_number, self.firmware_version = info.model_number, info.firmware_version
+            expected = self.info.product_id
+            if expected and info.model_number != expected:
+                raise HALError(
+                    f"servo {self._dxl_id} is model {info.model_number}, not the "
+                    f"{self.info.product_name} (model number {expected})"
+                )
             await self._load_table()
             await self._refresh_state()
         except BaseException:
@@ -307,6 +376,31 @@ class DynamixelServo(ActuatorDevice):
             self._polled = False  # the component faults; stop polling until reset
             raise
         self._pending = _Pending(request, raw, self.port.transactions)
+
+    async def command_velocity_ramp(self, ramp: VelocityRamp) -> None:
+        """The servo's own ramp: velocity mode, Profile Acceleration from ``ramp.rate``
+        (:func:`profile_acceleration_for`), then Goal Velocity; the servo ramps from its
+        present velocity. Completion: the present velocity within tolerance of the goal."""
+        if not self.velocity_ramp:
+            raise NotImplementedHALError(
+                f"servo {self._dxl_id} uses a time-based profile: no velocity ramp of its own"
+            )
+        item, raw, mode = self._goal(Request.VELOCITY, ramp.target)
+        acceleration = profile_acceleration_for(ramp)
+        self._pending = None
+        try:
+            await self._apply(mode, item, raw, acceleration)
+        except DynamixelHardwareAlert as exc:
+            self._fault_alert(exc)
+            raise
+        except DynamixelStatusError as exc:
+            self._log.warning("dynamixel_command_refused", error=str(exc))
+            self._context().post_error(ErrorId.PROTOCOL_ERROR)
+            raise
+        except _LINK_ERRORS:
+            self._polled = False
+            raise
+        self._pending = _Pending(Request.VELOCITY, raw, self.port.transactions)
 
     async def read(self, request: Request) -> float:
         self.port.check_connected()
@@ -402,6 +496,9 @@ class DynamixelServo(ActuatorDevice):
             return it.decode(table[it.address : it.address + it.size])
 
         self._mode = item(X.OPERATING_MODE)
+        self._drive_mode = item(X.DRIVE_MODE)
+        self.velocity_ramp = not self._drive_mode & TIME_BASED_PROFILE
+        self._profile_acc = self._profile_vel = None  # RAM: read or written at init
         self._torque = bool(item(X.TORQUE_ENABLE))
         self._ack_writes = item(X.STATUS_RETURN_LEVEL) >= 2
         self._alert = item(X.HARDWARE_ERROR_STATUS) != 0
@@ -450,14 +547,18 @@ class DynamixelServo(ActuatorDevice):
             await self.reboot()
             if self._alert:
                 raise DynamixelHardwareAlert(self._dxl_id, dx.ALERT_BIT, "reboot", None)
+        if self._base_acc is None or self._base_vel is None:
+            data = await self.port.read(self._dxl_id, X.PROFILE_ACCELERATION.address, 8)
+            self._profile_acc = X.PROFILE_ACCELERATION.decode(data[:4])
+            self._profile_vel = X.PROFILE_VELOCITY.decode(data[4:])
+            self._base_acc, self._base_vel = self._profile_acc, self._profile_vel
         if self.profile_velocity is not None:
-            await self._write(X.PROFILE_VELOCITY, dx.rad_s_to_velocity(self.profile_velocity))
+            self._base_vel = dx.rad_s_to_velocity(self.profile_velocity)
         if self.profile_acceleration is not None:
-            await self._write(
-                X.PROFILE_ACCELERATION, dx.rad_s2_to_acceleration(self.profile_acceleration)
-            )
+            self._base_acc = dx.rad_s2_to_acceleration(self.profile_acceleration)
         state = await self._refresh_state()
         self._pending = None
+        # Writes the profile too (and again after a mode change, which resets it).
         await self._apply(self.position_mode, X.GOAL_POSITION, state.position)
         self._polled = True
         self.port.wake_poller()
@@ -482,15 +583,67 @@ class DynamixelServo(ActuatorDevice):
             raise BadParameterError("value", value, f"a target within the {item} range") from None
         return item, raw, mode
 
-    async def _apply(self, mode: int, item: dx.ControlItem, raw: int) -> None:
-        """Switch the operating mode if needed (torque off first), write the goal, torque on."""
+    async def _write_profile(self, acceleration: int | None, velocity: int | None) -> None:
+        """Write Profile Acceleration/Velocity where they differ from the servo's."""
+        if acceleration is not None and acceleration != self._profile_acc:
+            self._profile_acc = None  # unknown until acknowledged
+            await self._write(X.PROFILE_ACCELERATION, acceleration)
+            self._profile_acc = acceleration
+        if velocity is not None and velocity != self._profile_vel:
+            self._profile_vel = None
+            await self._write(X.PROFILE_VELOCITY, velocity)
+            self._profile_vel = velocity
+
+    async def _apply(
+        self, mode: int, item: dx.ControlItem, raw: int, acceleration: int | None = None
+    ) -> None:
+        """Switch the operating mode if needed (torque off first), write the profile
+        (``acceleration``, else the configured one), the goal, torque on."""
         if self._mode != mode:
             if self._torque:
                 await self._write(X.TORQUE_ENABLE, 0)
                 self._torque = False
             await self._write(X.OPERATING_MODE, mode)
             self._mode = mode
+            self._profile_acc = self._profile_vel = 0  # the servo reset them (e-manual)
+        position = mode in _POSITION_MODES
+        await self._write_profile(
+            self._base_acc if acceleration is None else acceleration,
+            self._base_vel if position else None,
+        )
         await self._write(item, raw)
         if not self._torque:
             await self._write(X.TORQUE_ENABLE, 1)
             self._torque = True
+
+
+class DynamixelXM430W350(DynamixelServo):
+    """An XM430-W350 (model number 1020): current control; TORQUE with a ``torque_constant``.
+
+    The e-manual's stall figures give about 1.78 Nm/A (4.1 Nm at 2.3 A, 12 V) as a guide;
+    measure it for torque control that matters.
+    """
+
+    info = DeviceInfo(
+        kind=DeviceKind.MOTOR,
+        vendor_id=ROBOTIS_VENDOR_ID,
+        product_id=1020,
+        vendor_name="Robotis",
+        product_name="XM430W350",
+        functions=("reboot",),
+    )
+
+
+class DynamixelXL430W250(DynamixelServo):
+    """An XL430-W250 (model number 1060): no current control mode, so no TORQUE
+    (a ``torque_constant`` is refused) and no TORQUE_ACTUAL."""
+
+    info = DeviceInfo(
+        kind=DeviceKind.MOTOR,
+        vendor_id=ROBOTIS_VENDOR_ID,
+        product_id=1060,
+        vendor_name="Robotis",
+        product_name="XL430W250",
+        functions=("reboot",),
+    )
+    has_current = False

@@ -165,10 +165,12 @@ async def test_velocity_mode_switches_with_torque_off(
         writes = [(m.address, m.data) for m in bus.instructions[start:] if isinstance(m, dx.Write)]
         assert writes == [
             (64, b"\x00"),  # torque off: Operating Mode is EEPROM
-            (11, b"\x01"),  # velocity mode
+            (11, b"\x01"),  # velocity mode: the servo resets its profile to 0...
+            (108, X.PROFILE_ACCELERATION.encode(400)),  # ...so the driver restores it
             (104, X.GOAL_VELOCITY.encode(dx.rad_s_to_velocity(3.0))),
             (64, b"\x01"),
         ]
+        assert bus[1].get_raw(X.PROFILE_ACCELERATION) == 400
         with anyio.fail_after(WAIT_S):
             await motion
         # Within velocity_tolerance (0.05 rad/s) of the goal quantised to 0.024 rad/s units.
@@ -178,6 +180,9 @@ async def test_velocity_mode_switches_with_torque_off(
         # Back to position control: the mode switches again and the move completes.
         back = await a1.set_value(0.0, Request.POSITION)
         assert bus[1].mode == dx.OperatingMode.POSITION
+        # Both profile items back after the second mode change.
+        assert bus[1].get_raw(X.PROFILE_ACCELERATION) == 400
+        assert bus[1].get_raw(X.PROFILE_VELOCITY) == 400
         with anyio.fail_after(WAIT_S):
             await back
         assert await a1.get_value(Request.VELOCITY_ACTUAL) == 0.0
