@@ -258,3 +258,78 @@ def test_application_queue_reports_missed_notices() -> None:
     assert queue.get_nowait() == Completed("c4", ReturnCode.HAL_OK)
     assert queue.missed_total == 3
     assert ResultList.of(a=1).value("a") == 1
+
+
+class _SuspendingReads(SimMotor):
+    """A SimMotor whose reads and commands suspend: no synchronous path."""
+
+    async def read(self, request):  # type: ignore[no-untyped-def]
+        await anyio.lowlevel.checkpoint()
+        return self.read_nowait(request)
+
+    async def command(self, request, value):  # type: ignore[no-untyped-def]
+        await anyio.lowlevel.checkpoint()
+        self.command_nowait(request, value)
+
+
+def _one(name: str, **arguments: object) -> Device:
+    return Device("Motor", (CommandMessage.call(name, "", **arguments),))
+
+
+async def test_execute_nowait_runs_synchronous_paths_and_refuses_the_rest(
+    hal_components: ComponentStack,
+) -> None:
+    from openel_async import WouldBlockError
+
+    fast = await hal_components.actuator(SimMotor(max_velocity=2.0, max_acceleration=20.0))
+    slow = await hal_components.actuator(_SuspendingReads())
+    app = ApplicationQueue()
+    async with Surface([fast, slow]) as surface:
+        reply = surface.execute_nowait(_one("GetPosition", logical_id=0))
+        assert _results(reply) == {"return_code": 0, "position": await fast.get_value()}
+        assert reply.commands[0].command_id == "c1"
+        moved = surface.execute_nowait(_one("SetPosition", logical_id=0, position=0.25), app)
+        assert _results(moved) == {"return_code": 0} and not fast.motion.done()  # type: ignore[union-attr]
+        # Refusals are answers, as in execute().
+        refused = surface.execute_nowait(_one("Fly", logical_id=0))
+        assert _results(refused)["return_code"] == ReturnCode.HAL_NOT_IMPLEMENTED
+        assert surface.refused == 1
+        # What would suspend is refused with nothing done, and numbers no command.
+        for device in (
+            _one("GetPosition", logical_id=1),  # the device needs I/O
+            _one("SetPosition", logical_id=1, position=0.1),
+            _one("Reset", logical_id=0),  # no synchronous path at all
+            Device("Motor", (*_one("GetPosition", logical_id=0).commands,) * 2),
+        ):
+            with pytest.raises(WouldBlockError):
+                surface.execute_nowait(device, app)
+        assert slow.motion is None
+        reply = await surface.execute(_one("GetPosition", logical_id=1))
+        assert reply.commands[0].command_id == "c4"  # c1-c3 above, nothing since
+        with anyio.fail_after(5):
+            assert await app.get() == Completed(moved.commands[0].command_id, ReturnCode.HAL_OK)
+
+
+async def test_completions_are_watched_by_one_task_per_component(
+    hal_components: ComponentStack,
+) -> None:
+    import asyncio
+
+    _, axes, _ = await _rig(hal_components)
+    app = ApplicationQueue(maxsize=4096)
+    async with Surface(axes) as surface:
+        before = len(asyncio.all_tasks())
+        ids: list[list[str]] = [[], []]
+        for n in range(50):  # each command supersedes the previous one of its axis
+            for axis in (0, 1):
+                reply = surface.execute_nowait(
+                    _one("SetPosition", logical_id=axis, position=0.01 * (n + 1)), app
+                )
+                ids[axis].append(reply.commands[0].command_id)
+        assert len(asyncio.all_tasks()) <= before + 2  # not one task per command
+        with anyio.fail_after(10):
+            done = [await app.get() for _ in range(100)]
+        for axis in (0, 1):
+            mine = [c for c in done if isinstance(c, Completed) and c.command_id in ids[axis]]
+            assert [c.command_id for c in mine] == ids[axis]  # in the order they were sent
+            assert [c.status for c in mine] == [ReturnCode.HAL_ERROR] * 49 + [ReturnCode.HAL_OK]
