@@ -94,6 +94,7 @@ LATENESS_TARGET_US = 1000.0
 
 VARIANTS = (
     "mj_step only",
+    "raw numpy",
     "raw",
     "sim loop",
     "+ timer",
@@ -146,6 +147,27 @@ class RawRig:
         for a, b in self.slices:
             total += sum(sd[a:b].tolist())
         return total
+
+
+def raw_numpy_loop(steps: int, table: list[list[float]]) -> tuple[float, np.ndarray]:
+    """The loop a MuJoCo user writes with numpy: one fancy-index store of the 6 position
+    targets into ``ctrl``, ``mj_step``, one fancy-index gather of the 16 sensor values."""
+    rig = RawRig.make()
+    m, d = rig.model, rig.data
+    acts = np.array(rig.acts)
+    sensor_index = np.concatenate([np.arange(a, b) for a, b in rig.slices])
+    rows = np.array(table)  # the targets as the numpy user holds them
+    ctrl, sd = d.ctrl, d.sensordata
+    step = mujoco.mj_step
+    readings = None
+    t0 = _cpu_ns()
+    for k in range(steps):
+        step(m, d)
+        ctrl[acts] = rows[k]
+        readings = sd[sensor_index]
+    elapsed = _cpu_ns() - t0
+    assert readings is not None and readings.shape == (sensor_index.size,)
+    return elapsed / steps, np.array(d.qpos)
 
 
 def raw_loop(
@@ -430,13 +452,17 @@ def _measure_lockstep(steps: int, rounds: int) -> tuple[dict[str, list[float]], 
         states: dict[str, np.ndarray] = {}
         for variant in VARIANTS:
             gc.collect()
-            if variant in ("raw", "mj_step only"):
+            if variant == "raw numpy":
+                ns, qpos = raw_numpy_loop(steps, table)
+            elif variant in ("raw", "mj_step only"):
                 ns, qpos = raw_loop(steps, table, control=variant == "raw")
             else:
                 ns, qpos = anyio.run(lockstep_loop, variant, steps, table, backend="asyncio")
             per_step[variant].append(ns)
             states[variant] = qpos
-        for variant in ("+ device calls", "full", "full, per call", "full, async"):
+        for variant in ("raw numpy", "+ device calls", "full", "full, per call", "full, async"):
+            if variant not in states:
+                continue
             if states[variant].tobytes() != states["raw"].tobytes():
                 raise AssertionError(f"{variant}: final state differs from raw MuJoCo's")
     notes.append(

@@ -23,6 +23,7 @@ import structlog
 from openel_async.device import (
     ActuatorDevice,
     ActuatorLimits,
+    BatchCommander,
     DeviceContext,
     DeviceInfo,
     ErrorId,
@@ -521,6 +522,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         direct = act is not None and not self._pd and self._mode is not _NO_EXCITE
         self._direct = self._mode if direct else None
         self._drive_scale = self._scale[self._mode] if direct else 1.0
+        _DRIVES.version += 1  # batch plans (_JointBatch) are rebuilt
         self._saturated = False
         self._sat_lo = self._sat_lo_off = -math.inf
         self._sat_hi = self._sat_hi_off = math.inf
@@ -628,6 +630,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         t0 = sim.clock.now_ns()
         self._ramp = (start, ramp.target, t0, t0 + max(1, round(ramp.duration_s * 1e9)))
         self._direct = None  # setpoints take the slow path of command_nowait: it ends the ramp
+        _DRIVES.version += 1
         self._set_velocity(start)
         self._target = ramp.target
         self._request = _VELOCITY
@@ -673,6 +676,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         self.sim._set_ramp(self, False)
         direct = self._drive_act is not None and not self._pd and self._mode is not _NO_EXCITE
         self._direct = self._mode if direct else None
+        _DRIVES.version += 1
 
     @property
     def ramping(self) -> bool:
@@ -765,8 +769,77 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
             self.sim._set_pd(self, False)
         self._init_mode(self.spec.mode)
 
+    @classmethod
+    def batch_commander(cls, devices: Sequence[ActuatorDevice]) -> BatchCommander | None:
+        """Joints of one simulation: an ActuatorBank's setpoints in one loop of ctrl writes."""
+        joints = [d for d in devices if isinstance(d, MujocoJoint)]
+        if not joints or len(joints) != len(devices):
+            return None
+        sim = joints[0].sim
+        if any(j.sim is not sim for j in joints):
+            return None
+        return _JointBatch(tuple(joints))
+
     def __repr__(self) -> str:
         return f"MujocoJoint({self.name!r}, mode={self._mode.name}, sim={self.sim.name!r})"
+
+
+class _DriveVersion:
+    """Bumped whenever any joint's command fast path (mode, drive actuator, ramp) changes."""
+
+    __slots__ = ("version",)
+
+    def __init__(self) -> None:
+        self.version = 0
+
+
+_DRIVES = _DriveVersion()
+
+
+class _JointBatch:
+    """``MujocoJoint.command_nowait(request, values[i])`` of every joint, for setpoints in
+    every joint's current direct mode (see ``BatchCommander``).  Whether every joint
+    streams ``request`` with a plain ctrl write is decided once per mode change, not per
+    call; otherwise it declines (False) and the bank commands joint by joint."""
+
+    __slots__ = ("_plan", "_request", "_version", "joints", "sim")
+
+    def __init__(self, joints: tuple[MujocoJoint, ...]) -> None:
+        self.joints = joints
+        self.sim = joints[0].sim
+        self._request: Request | None = None
+        self._version = -1
+        self._plan: tuple[tuple[MujocoJoint, int, float], ...] = ()
+
+    def __call__(self, request: Request, values: Sequence[float], /) -> bool:
+        sim = self.sim
+        if sim._fault is not None:
+            raise HALError(f"{sim.name}: the simulation is faulted: {sim._fault}")
+        stale = request is not self._request or self._version != _DRIVES.version
+        if stale and not self._replan(request):
+            return False
+        ctrl = sim._ctrl
+        for (joint, act, scale), value in zip(self._plan, values, strict=True):
+            ctrl[act] = value * scale  # the same product as command_nowait's
+            joint.commands += 1
+            joint._target = value
+            joint._request = request
+            joint._within_since = -1
+            joint._pending = True
+        return True
+
+    def _replan(self, request: Request) -> bool:
+        self._request = None
+        plan = []
+        for joint in self.joints:
+            act = joint._drive_act
+            if joint._direct is not request or act is None:
+                return False
+            plan.append((joint, act, joint._drive_scale))
+        self._plan = tuple(plan)
+        self._request = request
+        self._version = _DRIVES.version
+        return True
 
 
 # Enum members read on the per-step and per-command paths, as module constants (a class

@@ -496,3 +496,31 @@ def stream_targets(
         if actuator._reached_in_send == sequence:
             actuator._reached_in_send = 0
             actuator._on_target_reached()
+
+
+def accept_streamed(
+    actuators: Sequence[Actuator],
+    req: Request,
+    targets: Sequence[float],
+    now_ns: int | None,
+    listening: bool,
+) -> None:
+    """The bookkeeping of :func:`stream_targets` after a device batch (``BatchCommander``)
+    commanded every actuator: each one's latest command, its Motion built only when asked
+    for.  Only for Active actuators whose devices report completion (lazy Motions) and a
+    request other than NO_EXCITE; ``listening``: some component has a listener.
+    """
+    for actuator, target in zip(actuators, targets, strict=True):
+        sequence = actuator._sequence = actuator._sequence + 1
+        previous = actuator._motion
+        if previous is not None:  # built because someone asked: it is replaced
+            if previous.outcome is _PENDING:
+                previous._supersede(sequence)
+            actuator._motion = None
+        stamp = actuator._now_ns() if now_ns is None else now_ns
+        actuator._latest = (req, target, sequence, stamp)
+        actuator._commanded[req] = target
+        if listening:
+            listener = actuator._observers.listener
+            if listener is not None:
+                listener.on_command(actuator, req, target, stamp)

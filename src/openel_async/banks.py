@@ -14,10 +14,12 @@ are for synchronous code (a plain TimerObserver) over devices that need no I/O.
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Iterable, Iterator, Sequence
+from operator import le as _le
 from typing import TypeVar, cast
 
-from .actuator import COMMAND_OF, Actuator, stream_targets
+from .actuator import COMMAND_OF, Actuator, accept_streamed, stream_targets
 from .completion import Motion
 from .component import LINK_FAULTS, ComponentState, HALComponent
 from .errors import BadParameterError, HALError, StateError, WouldBlockError
@@ -31,6 +33,8 @@ __all__ = ["ActuatorBank", "SensorBank"]
 _ACTIVE = ComponentState.ACTIVE
 _POSITION = Request.POSITION
 _SETTABLE = frozenset(SET_VALUE_REQUESTS)
+_NO_EXCITE = Request.NO_EXCITE
+_MAX = sys.float_info.max
 
 
 _C = TypeVar("_C", bound=HALComponent)
@@ -81,6 +85,24 @@ class ActuatorBank:
         clocks = {id(a.clock) for a in self.actuators}
         # Streamed commands are stamped with one clock reading when the actuators share it.
         self._now_ns = self.actuators[0].clock.now_ns if len(clocks) == 1 else None
+        # Position limits and support, read once: a POSITION batch of floats is checked in
+        # three C-level passes (types, lower and upper bounds).  Infinite limits become the
+        # largest float, so the bounds reject infinities; NaN fails every comparison.
+        devices = self._devices
+        self._floats = (float,) * len(devices)
+        self._lows = tuple(max(d.limits.position[0], -_MAX) for d in devices)
+        self._highs = tuple(min(d.limits.position[1], _MAX) for d in devices)
+        self._positions = all(_POSITION in d.supported_requests for d in devices)
+        # One device call for the whole batch when the driver offers one (every device of
+        # one class); only where the Motions are lazy (devices report completion).
+        classes = {type(d) for d in devices}
+        self._batch = (
+            classes.pop().batch_commander(devices)
+            if len(classes) == 1
+            and self._nowait
+            and all(a._reports_completion for a in self.actuators)
+            else None
+        )
 
     def __len__(self) -> int:
         return len(self.actuators)
@@ -99,8 +121,7 @@ class ActuatorBank:
         """
         req, targets = self._check("set_values", values, request)
         if self._nowait:
-            now_ns = self._now_ns
-            stream_targets(self.actuators, req, targets, None if now_ns is None else now_ns())
+            self._stream(req, targets)
         else:
             for actuator, target in zip(self.actuators, targets, strict=True):
                 await actuator._send(req, target)
@@ -112,8 +133,23 @@ class ActuatorBank:
         if not self._nowait:
             _require_nowait(self.actuators, "_command_nowait", "set_values")
         req, targets = self._check("set_values_nowait", values, request)
+        self._stream(req, targets)
+
+    def _stream(self, req: Request, targets: Sequence[float]) -> None:
+        """Send validated targets: one device batch when the driver takes it, else one
+        ``command_nowait`` per device (which also tells a link fault's own actuator)."""
         now_ns = self._now_ns
-        stream_targets(self.actuators, req, targets, None if now_ns is None else now_ns())
+        stamp = None if now_ns is None else now_ns()
+        batch = self._batch
+        if batch is not None and req is not _NO_EXCITE:
+            try:
+                sent = batch(req, targets)
+            except LINK_FAULTS:
+                sent = False  # nothing was sent: the per-device path reports the fault
+            if sent:
+                accept_streamed(self.actuators, req, targets, stamp, LISTENING.count > 0)
+                return
+        stream_targets(self.actuators, req, targets, stamp)
 
     @property
     def motions(self) -> tuple[Motion | None, ...]:
@@ -144,17 +180,17 @@ class ActuatorBank:
                 f"a sequence of {len(actuators)} values, one per actuator of the bank",
             )
         if req is _POSITION:
-            for actuator, device, value in zip(actuators, self._devices, values, strict=True):
-                low, high = device.limits.position
-                if not (
-                    actuator.state is _ACTIVE
-                    and type(value) is float
-                    and low <= value <= high
-                    and value - value == 0.0  # finite (the limits may be infinite)
-                    and req in device.supported_requests
-                ):
-                    return req, self._check_each(operation, values, req)
-            return req, values
+            if (
+                self._positions
+                and tuple(map(type, values)) == self._floats
+                and all(map(_le, self._lows, values))
+                and all(map(_le, values, self._highs))
+            ):
+                for actuator in actuators:
+                    if actuator.state is not _ACTIVE:
+                        _require_active(actuators, operation)
+                return req, values
+            return req, self._check_each(operation, values, req)
         return req, self._check_each(operation, values, req)
 
     def _check_each(self, operation: str, values: Sequence[float], req: Request) -> list[float]:

@@ -234,6 +234,30 @@ class ActuatorDevice(Device):
         """``read`` without suspending; only for devices that need no I/O."""
         raise WouldBlockError(f"{type(self).__name__} has no synchronous read path")
 
+    @classmethod
+    def batch_commander(cls, devices: Sequence[ActuatorDevice]) -> BatchCommander | None:
+        """A callable commanding several devices of this class at once, or None (the default:
+        an :class:`~openel_async.ActuatorBank` then calls ``command_nowait`` one by one).
+
+        Asked once, when a bank over ``devices`` (all of this class, all with a
+        ``command_nowait``) is built.  See :class:`BatchCommander` for its contract.
+        """
+        return None
+
+
+class BatchCommander(Protocol):
+    """``command_nowait(request, values[i])`` on device i of a bank, in one call.
+
+    All or nothing: it either commands every device or none.  It returns False, having
+    commanded none, when it cannot take this batch (a device in another control mode, a
+    request it does not stream...): the bank then calls ``command_nowait`` device by
+    device.  It raises (a link fault) only before commanding any device, and never calls
+    ``ctx.target_reached()`` from inside (completion is reported later, from the device's
+    own loop).  The values are already validated (finite floats inside the limits).
+    """
+
+    def __call__(self, request: Request, values: Sequence[float], /) -> bool: ...
+
 
 class Reading(NamedTuple):
     """One measurement of a sensor device; ``time_ns`` None means 'use the clock'.

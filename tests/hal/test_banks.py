@@ -10,7 +10,7 @@ the sensor that has them.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import ClassVar
 
 import anyio
@@ -45,6 +45,7 @@ from openel_async import (
     VirtualClock,
     WouldBlockError,
 )
+from openel_async.device import BatchCommander
 from openel_async.testing import ComponentStack, EventRecorder
 from openel_sim import SimEncoder, SimIMU, SimMotor, SimTemperature
 
@@ -850,3 +851,190 @@ async def test_sensor_bank_over_mujoco_sensors(hal_components: ComponentStack) -
     )
     assert still.sensors["shoulder_pos_sensor"].values == (0.0,)
     assert await mixed.get_values() == mixed.get_values_nowait()
+
+
+# -- a driver's batch command (ActuatorDevice.batch_commander) ------------------------------
+
+
+class BatchServo(ActuatorDevice):
+    """Reports completion; its driver commands a whole bank in one call when ``accept``."""
+
+    limits = ActuatorLimits((-1.0, math.inf), 1.0, 1.0)  # one infinite limit
+    supported_requests = frozenset({Request.POSITION, Request.VELOCITY})
+    reports_completion = True
+    batches: ClassVar[list[tuple[Request, tuple[float, ...]]]] = []
+    accept: ClassVar[bool] = True
+    connected: ClassVar[bool] = True
+
+    def __init__(self) -> None:
+        self.position = 0.0
+        self.commands = 0
+        self.ctx: DeviceContext | None = None
+
+    async def open(self, ctx: DeviceContext) -> None:
+        self.ctx = ctx
+
+    async def command(self, request: Request, value: float) -> None:
+        self.command_nowait(request, value)
+
+    def command_nowait(self, request: Request, value: float) -> None:
+        if not BatchServo.connected:
+            raise NotConnectedError("bus down")
+        self.commands += 1
+        self.position = value
+
+    async def read(self, request: Request) -> float:
+        return self.read_nowait(request)
+
+    def read_nowait(self, request: Request) -> float:
+        return self.position
+
+    @classmethod
+    def batch_commander(cls, devices: Sequence[ActuatorDevice]) -> BatchCommander | None:
+        servos = [d for d in devices if isinstance(d, BatchServo)]
+
+        def command(request: Request, values: Sequence[float], /) -> bool:
+            if not BatchServo.connected:
+                raise NotConnectedError("bus down")
+            if not BatchServo.accept:
+                return False
+            cls.batches.append((request, tuple(values)))
+            for servo, value in zip(servos, values, strict=True):
+                servo.position = value
+            return True
+
+        return command
+
+
+@pytest.fixture
+def _batch_servos() -> Iterator[None]:
+    BatchServo.batches.clear()
+    BatchServo.accept = BatchServo.connected = True
+    yield
+    BatchServo.accept = BatchServo.connected = True
+
+
+@pytest.mark.usefixtures("_batch_servos")
+async def test_a_driver_batch_streams_the_whole_bank_with_the_same_semantics(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    events = EventRecorder(virtual_clock)
+    servos = [BatchServo() for _ in range(3)]
+    actuators = [
+        await hal_components.actuator(s, device_name=f"Servo{i}") for i, s in enumerate(servos)
+    ]
+    heard: list[tuple[str, Request, float]] = []
+
+    class Listener:
+        def on_command(self, component: object, request: Request, value: float, t: int) -> None:
+            heard.append((getattr(component, "device_name", ""), request, value))
+
+        def on_reading(self, *args: object) -> None: ...
+
+        def on_state(self, *args: object) -> None: ...
+
+    for actuator in actuators:
+        actuator.add_observer(events)
+    actuators[2].set_listener(Listener())  # type: ignore[arg-type]
+    bank = ActuatorBank(actuators)
+    bank.set_values_nowait([0.1, 0.2, 0.3])
+    first = bank.motions
+    await bank.set_values([0.4, 0.5, 1e300])  # an infinite limit takes any finite float
+    assert BatchServo.batches == [
+        (Request.POSITION, (0.1, 0.2, 0.3)),
+        (Request.POSITION, (0.4, 0.5, 1e300)),
+    ]
+    assert [s.commands for s in servos] == [0, 0, 0]  # no command_nowait one by one
+    assert [s.position for s in servos] == [0.4, 0.5, 1e300]
+    assert heard == [("Servo2", Request.POSITION, 0.3), ("Servo2", Request.POSITION, 1e300)]
+    assert all(m is not None and m.outcome is Outcome.SUPERSEDED for m in first)
+    final = bank.motions
+    assert [m.target for m in final if m is not None] == [0.4, 0.5, 1e300]
+    assert bank.get_values_nowait(Request.POSITION) == (0.4, 0.5, 1e300)
+    for servo in servos:
+        assert servo.ctx is not None
+        servo.ctx.target_reached()
+    for motion in final:
+        assert motion is not None
+        await motion
+    assert events.count("event", COMPLETED) == 3 and not events.errors
+
+
+@pytest.mark.usefixtures("_batch_servos")
+@pytest.mark.parametrize("bad", [math.inf, -math.inf, math.nan, -1.5, "0.1", None, True])
+async def test_a_bad_value_reaches_no_batch(hal_components: ComponentStack, bad: object) -> None:
+    servos = [BatchServo() for _ in range(3)]
+    actuators = [await hal_components.actuator(s) for s in servos]
+    bank = ActuatorBank(actuators)
+    with pytest.raises(BadParameterError) as info:
+        bank.set_values_nowait([0.1, bad, 0.3])  # type: ignore[list-item]
+    assert info.value.parameter == "values[1]"
+    assert BatchServo.batches == [] and [s.commands for s in servos] == [0, 0, 0]
+    assert bank.motions == (None, None, None)
+
+
+@pytest.mark.usefixtures("_batch_servos")
+async def test_batch_gets_floats_and_declines_to_the_per_device_path(
+    hal_components: ComponentStack,
+) -> None:
+    servos = [BatchServo() for _ in range(2)]
+    bank = ActuatorBank([await hal_components.actuator(s) for s in servos])
+    bank.set_values_nowait([1, np.float64(0.5)])  # type: ignore[list-item]
+    ((_, values),) = BatchServo.batches
+    assert values == (1.0, 0.5) and [type(v) for v in values] == [float, float]
+    BatchServo.accept = False  # e.g. a device in another control mode
+    bank.set_values_nowait([0.25, 0.75])
+    assert [s.commands for s in servos] == [1, 1] and len(BatchServo.batches) == 1
+    assert [s.position for s in servos] == [0.25, 0.75]
+    assert [m.target for m in bank.motions if m is not None] == [0.25, 0.75]
+
+
+@pytest.mark.usefixtures("_batch_servos")
+async def test_a_link_fault_in_a_batch_lands_on_the_first_actuator_the_device_path_tries(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    events = EventRecorder(virtual_clock)
+    servos = [BatchServo() for _ in range(2)]
+    actuators = [
+        await hal_components.actuator(s, device_name=f"S{i}") for i, s in enumerate(servos)
+    ]
+    for actuator in actuators:
+        actuator.add_observer(events)
+    bank = ActuatorBank(actuators)
+    BatchServo.connected = False
+    with pytest.raises(DeviceFaultError) as info:
+        bank.set_values_nowait([0.1, 0.2])
+    assert "S0" in str(info.value) and isinstance(info.value.__cause__, NotConnectedError)
+    assert [a.state for a in actuators] == [ComponentState.ERROR, ComponentState.ACTIVE]
+    assert [r.source for r in events.errors] == [actuators[0]]
+    assert BatchServo.batches == [] and [s.commands for s in servos] == [0, 0]
+
+
+async def test_mujoco_joints_stream_in_one_batch_until_a_mode_changes(
+    hal_components: ComponentStack,
+) -> None:
+    pytest.importorskip("mujoco")
+    from openel_mujoco import MujocoSim
+
+    sim = MujocoSim("arm2")
+    joints = [sim.actuator(name) for name in ("shoulder", "elbow")]
+    actuators = [await hal_components.actuator(j, clock=sim.clock) for j in joints]
+    bank = ActuatorBank(actuators)
+    assert bank._batch is not None
+    pos_acts = [j._drive_act for j in joints]
+    bank.set_values_nowait([0.3, -0.2])
+    assert [j.commands for j in joints] == [1, 1]
+    assert [float(sim.data.ctrl[a]) for a in pos_acts] == [
+        0.3 * j._drive_scale for j in [joints[0]]
+    ] + [-0.2 * joints[1]._drive_scale]
+    assert [j._target for j in joints] == [0.3, -0.2] and all(j._pending for j in joints)
+    actuators[1].set_value_nowait(0.5, Request.VELOCITY)  # the elbow leaves POSITION
+    assert joints[1]._direct is Request.VELOCITY
+    bank.set_values_nowait([0.1, 0.2])  # the batch declines: per joint, the elbow switches back
+    assert joints[1]._direct is Request.POSITION
+    bank.set_values_nowait([0.15, 0.25])  # one batch again, planned for the new mode
+    assert [j._target for j in joints] == [0.15, 0.25] and [j.commands for j in joints] == [3, 4]
+    assert [float(sim.data.ctrl[j._drive_act]) for j in joints] == [
+        0.15 * joints[0]._drive_scale,
+        0.25 * joints[1]._drive_scale,
+    ]
