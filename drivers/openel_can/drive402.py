@@ -34,6 +34,12 @@ nothing there, so the driver reads the statusword by SDO after the RPDO (the dri
 processes both in order). Completion (``reports_completion``): statusword bit 10
 (target reached) seen after that acknowledgement.
 
+Speed ramps (``Motor.set_speed(speed, tm_acc)``, :meth:`Cia402Drive.command_velocity_ramp`):
+profile velocity mode with profile acceleration 0x6083 and deceleration 0x6084 both set by
+SDO to |target - start| / tmAcc in increments/s², then the target velocity 0x60FF. The
+values in force before the first ramp (read once by SDO) are written back by the next
+plain velocity command, so ``tm_acc = 0`` keeps the drive's own acceleration.
+
 Faults: EMCY -> ``post_error(DEVICE_ERROR)`` (code 0x0000, "error reset", is only
 logged); a statusword in Fault or Fault reaction active, a heartbeat in another NMT state
 than Operational, a boot-up message -> ``fault(DEVICE_ERROR)``; no heartbeat for
@@ -64,6 +70,7 @@ from openel_async.device import (
     ErrorId,
     Reading,
     SensorDevice,
+    VelocityRamp,
 )
 from openel_async.errors import BadParameterError, HALError, ReturnCode
 from openel_async.ids import DeviceKind
@@ -159,6 +166,9 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         functions=("quick_stop",),
     )
     reports_completion = True
+    velocity_ramp = True
+    """``Motor.set_speed(speed, tm_acc)``: profile velocity with 0x6083/0x6084 (see
+    :meth:`command_velocity_ramp`)."""
 
     def __init__(
         self,
@@ -237,6 +247,9 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         self._engaged = False
         self._latched = False
         self._needs_config = True
+        self._saved_profile_accel: tuple[int, int] | None = None
+        """(0x6083, 0x6084) before the first tm_acc ramp overwrote them."""
+        self._ramp_accel_written = False
         self.last_emcy: co.Emergency | None = None
         self.emcy_count = 0
         self.log = log.bind(node=node_id)
@@ -525,7 +538,32 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
             # Actuator fails the new Motion with that fault.
             self.log.debug("cia402_command_interrupted_by_fault")
 
-    async def _command(self, request: Request, value: float) -> None:
+    async def command_velocity_ramp(self, ramp: VelocityRamp) -> None:
+        """tmAcc with the drive's own profile: profile velocity mode, 0x6083 = 0x6084 =
+        |target - start| / tmAcc (increments/s², by SDO), then target velocity 0x60FF by
+        RPDO2. Completion: statusword bit 10 (target reached), at the end of the ramp.
+
+        An acceleration that does not fit UNSIGNED32 is refused (BadParameterError naming
+        ``tm_acc``) before anything is sent; a zero rate (start = target) writes none.
+        """
+        accel = round(ramp.rate * self._cpr() / math.tau)
+        if accel > 0xFFFF_FFFF:
+            raise BadParameterError(
+                "tm_acc",
+                ramp.duration_s,
+                f"a ramp time giving a profile acceleration <= 4294967295 increments/s^2 "
+                f"(got {accel})",
+            )
+        try:
+            await self._command(Request.VELOCITY, ramp.target, accel if accel > 0 else None)
+        except _FaultedError:
+            self.log.debug("cia402_command_interrupted_by_fault")
+
+    async def _write_profile_accel(self, accel: int, decel: int) -> None:
+        await self.sdo.write(ds.PROFILE_ACCELERATION, accel, timeout=self.sdo_timeout)
+        await self.sdo.write(ds.PROFILE_DECELERATION, decel, timeout=self.sdo_timeout)
+
+    async def _command(self, request: Request, value: float, ramp_accel: int | None = None) -> None:
         async with self._lock:
             self._pending = None  # reports of the previous set-point stop here
             if request is Request.NO_EXCITE:
@@ -543,6 +581,19 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
             if request is Request.POSITION:
                 await self._position_setpoint(self.rad_to_counts(value))
             else:
+                if ramp_accel is not None:
+                    if self._saved_profile_accel is None:
+                        timeout = self.sdo_timeout
+                        self._saved_profile_accel = (
+                            await self.sdo.read(ds.PROFILE_ACCELERATION, timeout=timeout),
+                            await self.sdo.read(ds.PROFILE_DECELERATION, timeout=timeout),
+                        )
+                    await self._write_profile_accel(ramp_accel, ramp_accel)
+                    self._ramp_accel_written = True
+                elif request is Request.VELOCITY and self._ramp_accel_written:
+                    if self._saved_profile_accel is not None:
+                        await self._write_profile_accel(*self._saved_profile_accel)
+                    self._ramp_accel_written = False
                 raw = (
                     self.rad_to_counts(value)
                     if request is Request.VELOCITY

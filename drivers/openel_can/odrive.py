@@ -32,6 +32,7 @@ torques are Nm on both sides; temperatures are converted from °C to K.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import IntFlag
@@ -48,6 +49,7 @@ from openel_async.device import (
     ErrorId,
     Reading,
     SensorDevice,
+    VelocityRamp,
 )
 from openel_async.errors import BadParameterError, HALError, NotConnectedError, ReturnCode
 from openel_async.ids import DeviceKind
@@ -73,6 +75,12 @@ log = structlog.get_logger(__name__)
 TAU: Final = math.tau
 KELVIN_OFFSET: Final = 273.15
 ODRIVE_VENDOR_ID: Final = 0x0D21
+VEL_RAMP_RATE_ENDPOINT: Final = 390
+"""Endpoint id of ``axis0.controller.config.vel_ramp_rate`` (float, turns/s²) in the
+``flat_endpoints.json`` of ODrive firmware 0.6.10/0.6.11 (ODrive Pro / S1): the default of
+``ODriveAxis(vel_ramp_rate_endpoint=...)``. Endpoint ids change between firmware builds:
+look the id up in the ``flat_endpoints.json`` of the firmware you run."""
+_FLOAT32_MAX: Final = 3.4028234663852886e38
 _M = TypeVar("_M", bound=cs.CanSimpleMessage)
 
 
@@ -255,6 +263,7 @@ _TO_HOST: Final = (
     cs.CmdId.GET_TEMPERATURE,
     cs.CmdId.GET_BUS_VOLTAGE_CURRENT,
     cs.CmdId.GET_TORQUES,
+    cs.CmdId.TX_SDO,
 )
 
 
@@ -272,6 +281,9 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         functions=("estop", "clear_errors"),
     )
     reports_completion = True
+    velocity_ramp = True
+    """``Motor.set_speed(speed, tm_acc)``: input mode VEL_RAMP with ``vel_ramp_rate`` written
+    by RxSdo (see :meth:`command_velocity_ramp`)."""
 
     def __init__(
         self,
@@ -296,10 +308,21 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         velocity_tolerance: float = 0.05,
         torque_tolerance: float = 0.01,
         settle_samples: int = 2,
+        vel_ramp_rate_endpoint: int = VEL_RAMP_RATE_ENDPOINT,
     ) -> None:
         if not isinstance(bus, CanBus):
             raise BadParameterError("bus", bus, "an openel_can.CanBus")
         _check_node(node_id)
+        if (
+            isinstance(vel_ramp_rate_endpoint, bool)
+            or not isinstance(vel_ramp_rate_endpoint, int)
+            or not 0 < vel_ramp_rate_endpoint <= 0xFFFF
+        ):
+            raise BadParameterError(
+                "vel_ramp_rate_endpoint",
+                vel_ramp_rate_endpoint,
+                "an endpoint id in 1..65535 (flat_endpoints.json of the firmware)",
+            )
         for name, seconds in (
             ("heartbeat_period", heartbeat_period),
             ("encoder_period", encoder_period),
@@ -369,6 +392,11 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
             Request.TORQUE: torque_tolerance,
         }
         self.settle_samples = settle_samples
+        self.vel_ramp_rate_endpoint = vel_ramp_rate_endpoint
+        self._saved_ramp_rate: bytes | None = None
+        """The ODrive's own vel_ramp_rate (raw float32), read before the first tm_acc ramp
+        overwrote it; written back by the next plain velocity command."""
+        self._ramp_rate_written = False
         self._link = _Link(bus, node_id, _TO_HOST, request_timeout=request_timeout)
         self._link.on_message = self._on_message
         self._ctx: DeviceContext | None = None
@@ -525,7 +553,10 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
             Request.VELOCITY: cs.ControlMode.VELOCITY,
             Request.TORQUE: cs.ControlMode.TORQUE,
         }[request]
-        wanted = (control, self.input_modes[request])
+        await self._set_controller_mode(control, self.input_modes[request])
+
+    async def _set_controller_mode(self, control: cs.ControlMode, inputs: cs.InputMode) -> None:
+        wanted = (control, inputs)
         if wanted != self._controller_mode:
             self._controller_mode = None
             await self._link.send(cs.SetControllerMode(self.node_id, *wanted))
@@ -566,6 +597,8 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
                     )
                 )
             elif request is Request.VELOCITY:
+                if self._ramp_rate_written:
+                    await self._restore_ramp_rate()
                 await self._link.send(
                     cs.SetInputVel(node, rad_to_turns(value), self.torque_feedforward)
                 )
@@ -592,6 +625,70 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         raise BadParameterError(
             "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
         )
+
+    async def command_velocity_ramp(self, ramp: VelocityRamp) -> None:
+        """tmAcc with the ODrive's own ramp: ``vel_ramp_rate`` = |target - start| / tmAcc
+        (turns/s², written by RxSdo to :attr:`vel_ramp_rate_endpoint`), Set_Controller_Mode
+        VELOCITY / VEL_RAMP, then Set_Input_Vel of the target. Completion as for a velocity
+        command: the encoder velocity within tolerance of the target (the end of the ramp).
+
+        The ODrive's own ``vel_ramp_rate`` is read once (RxSdo read, TxSdo reply) before the
+        first ramp overwrites it, and written back by the next plain velocity command. A
+        rate that does not fit the float32 endpoint is refused (BadParameterError naming
+        ``tm_acc``) before anything is sent; a zero rate (start = target) writes no rate.
+        """
+        rate = rad_to_turns(ramp.rate)
+        if not (math.isfinite(rate) and rate <= _FLOAT32_MAX):
+            raise BadParameterError(
+                "tm_acc",
+                ramp.duration_s,
+                f"a ramp time giving a vel_ramp_rate that fits a float32 (got {rate} turn/s^2)",
+            )
+        target = rad_to_turns(ramp.target)
+        async with self._lock:
+            node = self.node_id
+            if not self._closed_loop_wanted:
+                await self._engage()
+            if rate > 0.0 and self._saved_ramp_rate is None:
+                try:
+                    self._saved_ramp_rate = await self.read_endpoint(self.vel_ramp_rate_endpoint)
+                except TimeoutError:
+                    raise HALError(
+                        f"ODrive node {node}: no TxSdo reply for endpoint "
+                        f"{self.vel_ramp_rate_endpoint}; is vel_ramp_rate_endpoint the id of "
+                        "axis0.controller.config.vel_ramp_rate in this firmware's "
+                        "flat_endpoints.json?"
+                    ) from None
+            await self._set_controller_mode(cs.ControlMode.VELOCITY, cs.InputMode.VEL_RAMP)
+            if rate > 0.0:
+                await self._write_endpoint(self.vel_ramp_rate_endpoint, struct.pack("<f", rate))
+                self._ramp_rate_written = True
+            await self._link.send(cs.SetInputVel(node, target, self.torque_feedforward))
+            setpoint = _Setpoint(Request.VELOCITY, ramp.target, self._heartbeats, False)
+            self._pending = setpoint
+
+    async def _restore_ramp_rate(self) -> None:
+        saved = self._saved_ramp_rate
+        if saved is not None:
+            await self._write_endpoint(self.vel_ramp_rate_endpoint, saved)
+        self._ramp_rate_written = False
+
+    async def _write_endpoint(self, endpoint: int, value: bytes) -> None:
+        await self._link.send(cs.RxSdo(self.node_id, cs.SdoOpcode.WRITE, endpoint, value))
+
+    async def read_endpoint(self, endpoint: int) -> bytes:
+        """The raw 4-byte value of an endpoint (RxSdo read, bounded wait for its TxSdo)."""
+        link = self._link
+        asked = link.now()
+        await link.send(cs.RxSdo(self.node_id, cs.SdoOpcode.READ, endpoint))
+        _, reply = await link.wait_for(
+            cs.CmdId.TX_SDO,
+            cs.TxSdo,
+            after_ns=asked,
+            timeout=link.request_timeout,
+            predicate=lambda msg: msg.endpoint_id == endpoint,
+        )
+        return reply.value
 
     async def _torque(self, max_age_ns: int) -> float:
         if self.torque_constant is not None:

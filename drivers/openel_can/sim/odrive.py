@@ -18,6 +18,12 @@ Fault injection: :meth:`inject_error` (an axis error that disarms, or not),
 Estop from the host (ESTOP_REQUESTED). ``axis_state`` may be set to any int (newer
 firmware reports states this codec does not name, e.g. 15 and 16 in 0.6.11).
 
+Endpoint access (RxSdo/TxSdo): the endpoint ``vel_ramp_rate_endpoint`` (default
+:data:`~openel_can.odrive.VEL_RAMP_RATE_ENDPOINT`, ``axis0.controller.config.vel_ramp_rate``
+as a float32 in turns/s²) is read and written; a read is answered with TxSdo, a write is
+not answered. Other endpoint ids are recorded and otherwise ignored (no reply), as is a
+non-finite or negative rate.
+
 Set_Limits overwrites both limits with the values received, as the firmware does
 (``vel_limit`` turn/s, ``current_limit`` A); an infinite velocity limit is stored but the
 motion model keeps the last finite one. ``commands`` keeps the newest
@@ -29,6 +35,7 @@ recorded and otherwise ignored.
 from __future__ import annotations
 
 import math
+import struct
 from typing import Final
 
 import anyio
@@ -42,7 +49,7 @@ from openel_sim import profile as prof
 from .. import cansimple as cs
 from ..bus import CanBus, NodePort
 from ..errors import DecodeError
-from ..odrive import ODriveError
+from ..odrive import VEL_RAMP_RATE_ENDPOINT, ODriveError
 from .history import DEFAULT_HISTORY, History
 
 __all__ = ["SimODrive"]
@@ -52,6 +59,7 @@ log = structlog.get_logger(__name__)
 NS: Final = 1e-9
 _HOST_CMDS: Final = (
     cs.CmdId.ESTOP,
+    cs.CmdId.RX_SDO,
     cs.CmdId.SET_AXIS_STATE,
     cs.CmdId.SET_CONTROLLER_MODE,
     cs.CmdId.SET_INPUT_POS,
@@ -105,6 +113,7 @@ class SimODrive:
         initial_position: float = 0.0,
         history: int = DEFAULT_HISTORY,
         clock: Clock | None = None,
+        vel_ramp_rate_endpoint: int = VEL_RAMP_RATE_ENDPOINT,
     ) -> None:
         if not 0 <= node_id < cs.MAX_NODE_ID:
             raise ValueError(f"node_id {node_id} outside 0..{cs.MAX_NODE_ID - 1}")
@@ -117,6 +126,8 @@ class SimODrive:
         self.traj_vel_limit = traj_vel_limit
         self.traj_accel_limit = traj_accel_limit
         self.vel_ramp_rate = vel_ramp_rate
+        """turns/s²: VEL_RAMP's rate (written by RxSdo to ``vel_ramp_rate_endpoint``)."""
+        self.vel_ramp_rate_endpoint = vel_ramp_rate_endpoint
         self.inertia = inertia  # kg m^2
         self.torque_constant = torque_constant  # Nm/A
         self.phase_resistance = phase_resistance
@@ -310,6 +321,12 @@ class SimODrive:
             return cs.Version(node, 2, 4, 4, 58, 0, 6, 10, 0)
         return None
 
+    def _sdo_read(self, endpoint: int) -> cs.TxSdo | None:
+        """The TxSdo answering a read of ``endpoint`` (None: an endpoint not simulated)."""
+        if endpoint != self.vel_ramp_rate_endpoint:
+            return None
+        return cs.TxSdo(self.node_id, endpoint, struct.pack("<f", self.vel_ramp_rate))
+
     async def _send(self, msg: cs.CanSimpleMessage | None) -> None:
         if msg is None or self.silent or self._port is None:
             return
@@ -337,6 +354,11 @@ class SimODrive:
                 self._set_state(cs.AxisState.CLOSED_LOOP_CONTROL)  # new mode: hold here
         elif isinstance(msg, cs.SetInputPos | cs.SetInputVel | cs.SetInputTorque):
             self._plan(msg)
+        elif isinstance(msg, cs.RxSdo):
+            if msg.opcode is cs.SdoOpcode.WRITE and msg.endpoint_id == self.vel_ramp_rate_endpoint:
+                (rate,) = struct.unpack("<f", msg.value)
+                if math.isfinite(rate) and rate >= 0.0:
+                    self.vel_ramp_rate = rate
         elif isinstance(msg, cs.Estop):
             self.inject_error(ODriveError.ESTOP_REQUESTED)
         elif isinstance(msg, cs.ClearErrors):
@@ -376,6 +398,9 @@ class SimODrive:
                     continue
                 if isinstance(msg, cs.Request):
                     await self._send(self.reply(msg.cmd_id))
+                elif isinstance(msg, cs.RxSdo) and msg.opcode is cs.SdoOpcode.READ:
+                    self.commands.append(msg)
+                    await self._send(self._sdo_read(msg.endpoint_id))
                 else:
                     self._apply(msg)
 
