@@ -19,6 +19,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from statistics import median
 from typing import Any
 
 import anyio
@@ -26,8 +27,9 @@ import anyio
 from .harness import BenchResult, Row, ratio_of
 
 PERIOD_MS = 2
-LOOP_CPU: list[float] = []
-"""CPU time of the loop's thread per tick, of each _loop call (the last one's is LOOP_CPU[-1])."""
+LOOP_CPU: list[tuple[float, float]] = []
+"""Per tick of each _loop call: (CPU time of the loop's thread, CPU time of the whole process:
+the loop and the recorder's feeding thread); the last call's is LOOP_CPU[-1]."""
 
 
 class _Control:
@@ -61,10 +63,12 @@ async def _loop(ticks: int, tap: Any | None) -> float:
         async with axes[0], axes[1], tip, timer:
             done = anyio.Event()
             timer.add_observer(_Control(ActuatorBank(axes), tip, ticks, done))
-            started, cpu = time.perf_counter(), time.thread_time()
+            started, cpu, process = time.perf_counter(), time.thread_time(), time.process_time()
             timer.start_timer()
             await done.wait()
-            LOOP_CPU.append((time.thread_time() - cpu) / ticks)
+            LOOP_CPU.append(
+                ((time.thread_time() - cpu) / ticks, (time.process_time() - process) / ticks)
+            )
             return (time.perf_counter() - started) / ticks
 
 
@@ -72,14 +76,16 @@ async def _baseline(ticks: int) -> float:
     return await _loop(ticks, None)
 
 
-async def _recorded(ticks: int, path: Path) -> tuple[float, int]:
+async def _recorded(ticks: int, path: Path) -> tuple[float, int, float]:
+    """(seconds per tick, records dropped, writer-process CPU seconds per tick)."""
     from openel_async.recording import Recorder
 
     recorder = Recorder(path)
     async with recorder:
         per_tick = await _loop(ticks, recorder)
     assert recorder.final_stats is not None
-    return per_tick, recorder.final_stats.dropped
+    writer_cpu = recorder.pipeline.writer_cpu_s or 0.0
+    return per_tick, recorder.final_stats.dropped, writer_cpu / ticks
 
 
 CLIENT = """
@@ -107,9 +113,10 @@ print(count, flush=True)
 """
 
 
-async def _live(ticks: int) -> tuple[float, int]:
+async def _live(ticks: int) -> tuple[float, int, float]:
     """The loop with a LiveView and one Foxglove client (a process of its own, subscribed
-    to every channel); returns (seconds per tick, messages the client received)."""
+    to every channel); returns (seconds per tick, messages the client received, writer-process
+    CPU seconds per tick)."""
     from openel_async.recording import LiveView
 
     live = LiveView(port=0, joint_period_ms=10.0)
@@ -130,33 +137,56 @@ async def _live(ticks: int) -> tuple[float, int]:
             client.kill()
             raise
     out, _ = await anyio.to_thread.run_sync(lambda: client.communicate(timeout=30))
-    return per_tick, int(out.split()[-1])
+    writer_cpu = live.pipeline.writer_cpu_s or 0.0
+    return per_tick, int(out.split()[-1]), writer_cpu / ticks
+
+
+def _cpu_row(name: str, value: float, base: float, label: str) -> Row:
+    return Row(
+        name,
+        value * 1e6,
+        "us",
+        baseline=base * 1e6,
+        baseline_label="no tap",
+        ratio=ratio_of(value, base),
+        ratio_label=label,
+        digits=1,
+    )
 
 
 def run(quick: bool) -> BenchResult:
     ticks = 2_000 if quick else 10_000
     rounds = 3 if quick else 7
-    base: list[float] = []
-    rec: list[float] = []
-    live: list[float] = []
-    cpu_base: list[float] = []
-    cpu_rec: list[float] = []
+    wall: dict[str, list[float]] = {"base": [], "rec": [], "live": []}
+    thread: dict[str, list[float]] = {"base": [], "rec": [], "live": []}
+    process: dict[str, list[float]] = {"base": [], "rec": [], "live": []}
+    writer: dict[str, list[float]] = {"rec": [], "live": []}
     dropped = received = 0
     with tempfile.TemporaryDirectory() as tmp:
         anyio.run(_baseline, 500, backend="asyncio")  # warm-up: imports, model load
         for r in range(rounds):
-            base.append(anyio.run(_baseline, ticks, backend="asyncio"))
-            cpu_base.append(LOOP_CPU[-1])
-            per_tick, lost = anyio.run(
+            wall["base"].append(anyio.run(_baseline, ticks, backend="asyncio"))
+            thread["base"].append(LOOP_CPU[-1][0])
+            process["base"].append(LOOP_CPU[-1][1])
+            per_tick, lost, cpu = anyio.run(
                 _recorded, ticks, Path(tmp) / f"r{r}.mcap", backend="asyncio"
             )
-            rec.append(per_tick)
-            cpu_rec.append(LOOP_CPU[-1])
+            wall["rec"].append(per_tick)
+            thread["rec"].append(LOOP_CPU[-1][0])
+            process["rec"].append(LOOP_CPU[-1][1])
+            writer["rec"].append(cpu)
             dropped += lost
-            per_tick, got = anyio.run(_live, ticks, backend="asyncio")
-            live.append(per_tick)
+            per_tick, got, cpu = anyio.run(_live, ticks, backend="asyncio")
+            wall["live"].append(per_tick)
+            thread["live"].append(LOOP_CPU[-1][0])
+            process["live"].append(LOOP_CPU[-1][1])
+            writer["live"].append(cpu)
             received += got
-    b, rc, lv = (min(x) * 1e6 for x in (base, rec, live))
+    w = {k: median(v) for k, v in wall.items()}
+    t = {k: median(v) for k, v in thread.items()}
+    p = {k: median(v) for k, v in process.items()}
+    wr = {k: median(v) for k, v in writer.items()}
+    b, rc, lv = w["base"] * 1e6, w["rec"] * 1e6, w["live"] * 1e6
     rec_ratio, live_ratio = ratio_of(rc, b), ratio_of(lv, b)
     rows = (
         Row("arm2 lockstep tick, no tap (baseline)", b, "us", digits=1),
@@ -184,15 +214,31 @@ def run(quick: bool) -> BenchResult:
             passed=live_ratio <= 1.2,
             digits=1,
         ),
-        Row(
-            "loop thread CPU per tick, Recorder",
-            min(cpu_rec) * 1e6,
-            "us",
-            baseline=min(cpu_base) * 1e6,
-            baseline_label="no tap",
-            ratio=ratio_of(min(cpu_rec), min(cpu_base)),
-            ratio_label="recorder/baseline",
-            digits=1,
+        _cpu_row("loop thread CPU per tick, Recorder", t["rec"], t["base"], "recorder/baseline"),
+        _cpu_row("loop thread CPU per tick, LiveView", t["live"], t["base"], "live/baseline"),
+        _cpu_row(
+            "app process CPU per tick (loop + feeding thread), Recorder",
+            p["rec"],
+            p["base"],
+            "recorder/baseline",
+        ),
+        _cpu_row(
+            "app process CPU per tick (loop + feeding thread), LiveView",
+            p["live"],
+            p["base"],
+            "live/baseline",
+        ),
+        _cpu_row(
+            "all CPU per tick (app + writer process), Recorder",
+            p["rec"] + wr["rec"],
+            p["base"],
+            "recorder/baseline",
+        ),
+        _cpu_row(
+            "all CPU per tick (app + writer process), LiveView",
+            p["live"] + wr["live"],
+            p["base"],
+            "live/baseline",
         ),
         Row(
             "recorder messages dropped",

@@ -3,8 +3,8 @@ without blocking, a thread that ships it in batches to the writer process
 (:mod:`.sink_process`), which encodes the messages (JSON) and writes them to the sinks (an
 MCAP file, the Foxglove server).
 
-The control loop only appends a tuple to a deque (one C call); a full queue drops the record
-and counts it (:attr:`PipelineStats.dropped`). The thread wakes every ``flush_interval``
+The control loop only appends a tuple to a deque (the listeners of :mod:`.tap` do it
+directly); a full queue drops the record and counts it (:attr:`PipelineStats.dropped`). The thread wakes every ``flush_interval``
 seconds and writes what is queued to the process's stdin as one msgpack frame (C code, and
 the pipe write releases the interpreter lock); the encoding and the MCAP writing happen in
 the other process, so they do not compete with the control loop for the interpreter lock.
@@ -20,6 +20,7 @@ import sys
 import threading
 from collections import deque
 from dataclasses import dataclass
+from itertools import repeat, starmap
 from typing import Any, Protocol
 
 import msgspec
@@ -81,9 +82,12 @@ class Pipeline:
         self.offset_ns = 0
         """Added to every record's clock time to make its log time (wall clock)."""
         self.channels: list[ChannelSpec] = []
-        self._queue: deque[tuple[Any, ...]] = deque()
-        self._queued = 0
-        self._sent = 0
+        self.queue: deque[tuple[Any, ...]] = deque()
+        """The records waiting for the thread. A listener on a per-command path appends to it
+        directly when ``len(queue) < capacity`` and counts :attr:`dropped` otherwise (what
+        :meth:`put` does, one call fewer)."""
+        self._taken = 0  # entries the thread took from the queue
+        self._controls = 0  # channel entries queued (not records)
         self.dropped = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -91,6 +95,8 @@ class Pipeline:
         self._encode = msgspec.msgpack.Encoder().encode
         self.error: BaseException | None = None
         self.written: int | None = None
+        self.writer_cpu_s: float | None = None
+        """CPU time the writer process spent encoding and writing (known after stop())."""
 
     def add_channel(
         self, topic: str, schema: Schema, metadata: dict[str, str] | None = None
@@ -98,23 +104,29 @@ class Pipeline:
         """A new channel; returns its id (registered with the sinks before its messages)."""
         spec = ChannelSpec(len(self.channels), topic, schema, dict(metadata or {}))
         self.channels.append(spec)
-        self._queue.append((-1, self.offset_ns, 0, spec.id, topic, schema.name, spec.metadata))
+        self._controls += 1
+        self.queue.append((-1, self.offset_ns, 0, spec.id, topic, schema.name, spec.metadata))
         return spec.id
 
     def put(self, entry: tuple[Any, ...]) -> None:
         """Queue a record ``(channel, time_ns, kind, *fields)`` (:mod:`.sink_process`); never
         blocks."""
-        queue = self._queue
-        if len(queue) >= self.capacity:
+        queue = self.queue
+        if len(queue) < self.capacity:
+            queue.append(entry)
+        else:
             self.dropped += 1
-            return
-        queue.append(entry)
-        self._queued += 1
+
+    @property
+    def queued(self) -> int:
+        """Records handed over so far (taken by the thread or waiting)."""
+        return self._taken + len(self.queue) - self._controls
 
     @property
     def stats(self) -> PipelineStats:
-        written = self._sent if self.written is None else self.written
-        return PipelineStats(self._queued, written, self.dropped, self.capacity)
+        queued = self.queued
+        written = min(self._taken, queued) if self.written is None else self.written
+        return PipelineStats(queued, written, self.dropped, self.capacity)
 
     def start(self) -> None:
         """Start the writer process (it opens the sinks) and the feeding thread; raises
@@ -159,8 +171,10 @@ class Pipeline:
             try:
                 out, _ = process.communicate(timeout=timeout)
                 for line in out.splitlines():
-                    with contextlib.suppress(ValueError):
-                        self.written = int(json.loads(line)["written"])
+                    with contextlib.suppress(ValueError, KeyError, TypeError):
+                        done = json.loads(line)
+                        self.written = int(done["written"])
+                        self.writer_cpu_s = float(done["cpu_s"])
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
@@ -178,21 +192,21 @@ class Pipeline:
         except BaseException as exc:  # the process died: what is left is dropped, and told
             self.error = exc
             log.error("recording_failed", error=repr(exc))
-            self.dropped += len(self._queue)
-            self._queue.clear()
+            self.dropped += len(self.queue)
+            self.queue.clear()
         finally:
             with contextlib.suppress(OSError):
                 process.stdin.close()
 
     def _send(self, fd: int, final: bool = False) -> None:
-        queue = self._queue
-        popleft = queue.popleft
-        batch = [popleft() for _ in range(len(queue))]
+        queue = self.queue
+        n = len(queue)  # the loop appends meanwhile: take n, each popleft atomic (C loop)
+        batch = list(starmap(queue.popleft, repeat((), n)))
+        self._taken += n
         if final:
-            batch.append((-2, self._queued, self.dropped, self.capacity))
+            batch.append((-2, self.queued, self.dropped, self.capacity))
         if not batch:
             return
-        self._sent += sum(1 for e in batch if e[0] >= 0)
         payload = self._encode(batch)
         data = memoryview(len(payload).to_bytes(4, "little") + payload)
         while data:

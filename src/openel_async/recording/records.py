@@ -33,37 +33,48 @@ SCHEMAS: dict[str, Schema] = {
 HEADER = struct.Struct("<I")
 
 
+REQUEST_NAMES: dict[int | None, str] = {int(r): r.name for r in Request}
+"""Request code -> its name (None: a Sensor's value, ``VALUE``)."""
+REQUEST_NAMES[None] = "VALUE"
+_EVENT_NAMES = {EVENT: "event", COMPLETION: "completion", ERROR: "error"}
+
+
 def _request_name(code: int | None) -> str:
-    return "VALUE" if code is None else Request(code).name
+    name = REQUEST_NAMES.get(code)
+    if name is None:
+        raise ValueError(f"unknown request code {code!r}")
+    return name
 
 
 def to_message(entry: list[Any]) -> dict[str, Any]:
-    """The JSON message of an entry (see :mod:`.schemas`)."""
-    _, t, kind, *f = entry
+    """The JSON message of an entry (see :mod:`.schemas`); the frequent kinds first."""
+    kind = entry[2]
     if kind == COMMAND:
-        return {"kind": "command", "time_ns": t, "request": _request_name(f[0]), "value": f[1]}
+        _, t, _, request, value = entry
+        return {"kind": "command", "time_ns": t, "request": _request_name(request), "value": value}
+    if kind == TICK:
+        _, t, _, index, deadline, missed = entry
+        return {
+            "time_ns": t,
+            "index": index,
+            "deadline_ns": deadline,
+            "lateness_ns": t - deadline,
+            "missed_ticks": missed,
+        }
     if kind == READING:
-        values = f[1]
+        _, t, _, request, values = entry
         return {
             "kind": "reading",
             "time_ns": t,
-            "request": _request_name(f[0]),
+            "request": _request_name(request),
             "value": values[0] if values else None,
             "values": values,
         }
+    _, t, _, *f = entry
     if kind == STATE:
         return {"kind": "state", "time_ns": t, "state": f[1], "old_state": f[0]}
-    if kind in (EVENT, COMPLETION, ERROR):
-        name = {EVENT: "event", COMPLETION: "completion", ERROR: "error"}[kind]
-        return {"kind": name, "time_ns": t, "id": f[0]}
-    if kind == TICK:
-        return {
-            "time_ns": t,
-            "index": f[0],
-            "deadline_ns": f[1],
-            "lateness_ns": t - f[1],
-            "missed_ticks": f[2],
-        }
+    if kind in _EVENT_NAMES:
+        return {"kind": _EVENT_NAMES[kind], "time_ns": t, "id": f[0]}
     if kind == JOINTS:
         return {
             "timestamp": stamp(f[0]),

@@ -9,7 +9,8 @@ the interpreter lock: the application only appends tuples to a list. The parent
 (:class:`~.pipeline.Pipeline`) sends frames: a 4-byte little-endian length, then a msgpack
 list of entries (:mod:`.records`). When its stdin closes -- the parent finished or was
 killed -- the process writes what it received, closes the MCAP file (summary and footer) and
-exits. It prints one JSON line when ready (``{"port": N}``: the WebSocket port).
+exits. It prints one JSON line when ready (``{"port": N}``: the WebSocket port) and one when
+done (``{"written": N, "cpu_s": S}``: the CPU time it spent writing).
 
 ``python -m openel_async.recording.sink_process [--mcap PATH] [--foxglove HOST:PORT]
 [--chunk-size BYTES]``
@@ -20,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from collections.abc import Callable
 from typing import Any, BinaryIO
 
@@ -106,10 +108,12 @@ def main(argv: list[str] | None = None) -> int:
             sink.close(PipelineStats(0, 0, 0, 0))
         return 1
     print(json.dumps(info), flush=True)
+    cpu = time.process_time()
     stats = serve(sys.stdin.buffer, context, SCHEMAS)
     for sink in sinks:
         sink.close(stats)
-    print(json.dumps({"written": stats.written}), flush=True)
+    cpu = time.process_time() - cpu
+    print(json.dumps({"written": stats.written, "cpu_s": cpu}), flush=True)
     return 0
 
 

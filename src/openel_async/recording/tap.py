@@ -1,7 +1,8 @@
 """The tap: what the recorder and the live view attach to an application's components and
 timers. It turns every command, reading, event, completion, error, state change and timer
-tick into a record for a :class:`~.pipeline.Pipeline` (a tuple appended to a deque: the only
-work done in the control loop); the writer process makes them the messages of
+tick into a record for a :class:`~.pipeline.Pipeline` (a tuple appended to its queue by a
+listener object per component and an observer per timer: the only work done in the control
+loop); the writer process makes them the messages of
 :mod:`.schemas`. Nothing here blocks or raises into the control loop.
 
 A :class:`Tap` is an :class:`~openel_async.cli.app.AppHook` (``--record``/``--foxglove``
@@ -71,6 +72,73 @@ _POSITION_ACTUAL = Request.POSITION_ACTUAL
 _LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "critical": 5}
 
 
+class _ComponentTap:
+    """The listener the tap sets on one component: its records go straight into the
+    pipeline's queue (one call from the component; no lookup of the channel)."""
+
+    __slots__ = ("capacity", "channel", "now", "pipeline", "queue", "tap")
+
+    def __init__(self, tap: Tap, component: HALComponent, channel: int) -> None:
+        self.tap = tap
+        self.channel = channel
+        self.now = component.clock.now_ns
+        self.pipeline = tap.pipeline
+        self.queue = tap.pipeline.queue
+        self.capacity = tap.pipeline.capacity
+
+    def on_command(
+        self, component: HALComponent, request: Request, value: float, time_ns: int
+    ) -> None:
+        queue = self.queue
+        if len(queue) < self.capacity:
+            queue.append((self.channel, time_ns, COMMAND, request, value))
+        else:
+            self.pipeline.dropped += 1
+
+    def on_reading(
+        self, component: HALComponent, request: Request | None, values: tuple[float, ...]
+    ) -> None:
+        if self.tap.sampling:  # the tap's own joint-state reads
+            return
+        queue = self.queue
+        if len(queue) < self.capacity:
+            queue.append((self.channel, self.now(), READING, request, values))
+        else:
+            self.pipeline.dropped += 1
+
+    def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
+        self.pipeline.put((self.channel, self.now(), STATE, str(old), str(new)))
+        if new is _ACTIVE:
+            self.tap.observe_events(component)
+
+
+class _TimerTap:
+    """The tap's observer of one timer: its tick records, and the joint-state samples."""
+
+    __slots__ = ("capacity", "channel", "pipeline", "queue", "tap")
+
+    def __init__(self, tap: Tap, channel: int) -> None:
+        self.tap = tap
+        self.channel = channel
+        self.pipeline = tap.pipeline
+        self.queue = tap.pipeline.queue
+        self.capacity = tap.pipeline.capacity
+
+    def notify_timer(self, timer: EventTimer, tick: TimerTick | None = None) -> None:
+        if tick is None:  # (the timer always passes it: the tap takes the notice)
+            return
+        now = tick.time_ns
+        queue = self.queue
+        if len(queue) < self.capacity:
+            queue.append((self.channel, now, TICK, tick.index, tick.deadline_ns, tick.missed_ticks))
+        else:
+            self.pipeline.dropped += 1
+        tap = self.tap
+        if now >= tap.next_joint_ns:
+            tap.next_joint_ns = now + tap.joint_period_ns
+            tap.sample(now)
+
+
 class Tap(AppHook):
     """Observe components and timers into an MCAP file (``record``) and/or a Foxglove server
     (``foxglove``: (host, port); port 0: any free port).
@@ -101,13 +169,17 @@ class Tap(AppHook):
         self._offset: int | None = None
         self._clock: Clock | None = None
         self._channels: dict[int, int] = {}  # id(component or timer) -> channel
+        self._listeners: dict[int, _ComponentTap] = {}  # id(component) -> its listener
+        self._timer_taps: dict[int, _TimerTap] = {}  # id(timer) -> its observer
         self._components: list[HALComponent] = []
         self._observing: set[int] = set()
         self._timers: list[EventTimer] = []
         self._actuators: list[Actuator] = []
         self._scenes: list[SceneSource] = []
-        self._next_joint_ns = 0
-        self._sampling = False
+        self.next_joint_ns = 0
+        """When the next joint-state sample is due (clock ns)."""
+        self.sampling = False
+        """True while the tap reads the joint states itself (those reads are not recorded)."""
         self._joint_channel = -1
         self._log_channel = -1
         self._tf_channel = -1
@@ -146,11 +218,11 @@ class Tap(AppHook):
     ) -> None:
         self._remove_log_forwarder()
         for component in self._components:
-            if component.listener is self:
+            if component.listener is self._listeners[id(component)]:
                 component.set_listener(None)
         for timer in self._timers:
             with contextlib.suppress(Exception):  # already gone
-                timer.remove_observer(self)
+                timer.remove_observer(self._timer_taps[id(timer)])
         with anyio.CancelScope(shield=True):
             stats = await anyio.to_thread.run_sync(self.pipeline.stop)
         self.final_stats = stats
@@ -202,19 +274,23 @@ class Tap(AppHook):
             metadata.update(
                 position_min=repr(low), position_max=repr(high), velocity_max=repr(limits.velocity)
             )
-        component.set_listener(self)  # refused (nothing registered) if it has another
+        channel = len(self.pipeline.channels)  # the id add_channel gives it
+        listener = _ComponentTap(self, component, channel)
+        component.set_listener(listener)  # refused (nothing registered) if it has another
         self._channels[id(component)] = self.pipeline.add_channel(
             hal_topic(component.device_name), HAL_RECORD, metadata
         )
+        self._listeners[id(component)] = listener
         self._components.append(component)
         if isinstance(component, Actuator):
             self._actuators.append(component)
             if self._joint_channel < 0:
                 self._joint_channel = self.pipeline.add_channel(JOINT_STATES_TOPIC, JOINT_STATES)
         if component.state is _ACTIVE:
-            self._observe_events(component)
+            self.observe_events(component)
 
-    def _observe_events(self, component: HALComponent) -> None:
+    def observe_events(self, component: HALComponent) -> None:
+        """Record ``component``'s events and errors (from when it is Active)."""
         if id(component) not in self._observing:
             self._observing.add(id(component))
             component.add_observer(self)
@@ -225,11 +301,13 @@ class Tap(AppHook):
         if id(timer) in self._channels:
             return
         self._use_clock(timer.clock)
-        self._channels[id(timer)] = self.pipeline.add_channel(
+        channel = self.pipeline.add_channel(
             timer_topic(timer.name), TIMER_TICK, {"period_ms": repr(timer.period_ms)}
         )
+        self._channels[id(timer)] = channel
+        observer = self._timer_taps[id(timer)] = _TimerTap(self, channel)
         self._timers.append(timer)
-        timer.add_observer(self)
+        timer.add_observer(observer)
 
     def add_scene(self, source: SceneSource) -> None:
         """Publish ``source``'s geometry on ``/scene`` now and its body poses on ``/tf`` at
@@ -245,27 +323,6 @@ class Tap(AppHook):
         tf = transforms_message(source.transforms(), log_time)
         self._put((self._tf_channel, now, MESSAGE, tf))
 
-    # -- ComponentListener -------------------------------------------------------------
-    def on_command(
-        self, component: HALComponent, request: Request, value: float, time_ns: int
-    ) -> None:
-        self._put((self._channels[id(component)], time_ns, COMMAND, request, value))
-
-    def on_reading(
-        self, component: HALComponent, request: Request | None, values: tuple[float, ...]
-    ) -> None:
-        if self._sampling:  # the tap's own joint-state reads
-            return
-        self._put(
-            (self._channels[id(component)], component.clock.now_ns(), READING, request, values)
-        )
-
-    def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
-        now = component.clock.now_ns()
-        self._put((self._channels[id(component)], now, STATE, str(old), str(new)))
-        if new is _ACTIVE:
-            self._observe_events(component)
-
     # -- observers ---------------------------------------------------------------------
     def notify_event(self, source: HALComponent, event_id: int) -> None:
         kind = COMPLETION if event_id == _COMPLETED else EVENT
@@ -274,23 +331,12 @@ class Tap(AppHook):
     def notify_error(self, source: HALComponent, error_id: int) -> None:
         self._put((self._channels[id(source)], source.clock.now_ns(), ERROR, error_id))
 
-    def notify_timer(self, timer: EventTimer, tick: TimerTick | None = None) -> None:
-        if tick is None:  # (the timer always passes it: the tap takes the notice)
-            return
-        now = tick.time_ns
-        self._put(
-            (self._channels[id(timer)], now, TICK, tick.index, tick.deadline_ns, tick.missed_ticks)
-        )
-        if now >= self._next_joint_ns:
-            self._next_joint_ns = now + self.joint_period_ns
-            self._sample(now)
-
-    def _sample(self, now: int) -> None:
+    def sample(self, now: int) -> None:
         """``/joint_states`` (and ``/tf``) at ``now``."""
         log_time = now + (self._offset or 0)
         if self._actuators:
             joints = []
-            self._sampling = True
+            self.sampling = True
             try:
                 for actuator in self._actuators:
                     if actuator.state is not _ACTIVE:
@@ -302,7 +348,7 @@ class Tap(AppHook):
                         actual = None
                     joints.append((actuator.device_name, commanded, actual))
             finally:
-                self._sampling = False
+                self.sampling = False
             self._put((self._joint_channel, now, JOINTS, log_time, joints))
         for source in self._scenes:
             tf = transforms_message(source.transforms(), log_time)
