@@ -257,7 +257,7 @@ GOOD: dict[str, st.SearchStrategy[object]] = {
     "mode": st.sampled_from(["position", "velocity", "torque", None]),
     "actuators": st.dictionaries(st.sampled_from(["position", "velocity", "torque"]), NAME),
     "position_limits": st.tuples(st.floats(-3, -0.1), st.floats(0.1, 3)).map(list),
-    "kind": st.integers(0, 2**16),
+    "kind": st.integers(0, 2**16) | st.sampled_from(["gyro", "Encoder", "direction", "ACCEL"]),
     "units": st.lists(st.sampled_from(["m", "rad", "N", "m/s^2"]), max_size=3),
     "touch_sensor": NAME,
     "settle_s": st.floats(0.0, 1.0),

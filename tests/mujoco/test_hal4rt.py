@@ -16,6 +16,7 @@ import pytest
 
 from openel_async import (
     AccelerationSensor,
+    ActuatorBank,
     DeviceKind,
     DirectionSensor,
     Encoder,
@@ -299,6 +300,13 @@ async def test_a_command_ends_the_ramp(stack: AsyncExitStack) -> None:
     assert sim.data.ctrl[act] == pytest.approx(0.2 * float(sim.model.actuator_gear[act, 0]))
     motor.set_value_nowait(0.1, Request.VELOCITY)  # one ctrl write
     assert sim.data.ctrl[act] == pytest.approx(0.1 * float(sim.model.actuator_gear[act, 0]))
+    # a bank's velocity setpoints end it (the batch path declines while a ramp runs)
+    await motor.set_speed(0.6, 0.5)
+    await sim.sleep(0.05)
+    ActuatorBank([motor]).set_values_nowait([0.3], Request.VELOCITY)
+    assert not joint.ramping
+    await sim.sleep(0.05)
+    assert sim.data.ctrl[act] == pytest.approx(0.3 * float(sim.model.actuator_gear[act, 0]))
     # re_init-like stops end it too: finalize leaves the joint holding its position
     await motor.set_speed(0.5, 0.5)
     await motor.finalize()
