@@ -295,3 +295,28 @@ def test_hal4rt_exec_sends_a_message_to_a_running_server(tmp_path: Path) -> None
         )  # fmt: skip
         assert done.returncode == 3
         assert "<value>5</value>" in done.stdout and "no function" in done.stdout
+
+
+@pytest.mark.timeout(60)
+def test_serve_stops_at_the_end_of_its_input_with_stop_on_eof(tmp_path: Path) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(RIG.replace("namespace: proc", "namespace: eof"))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "openel_async.cli", "--log-level", "info", "serve", str(rig),
+         "--listen", f"tcp/127.0.0.1:{free_port()}", "--stop-on-eof"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )  # fmt: skip
+    try:
+        assert proc.stdout is not None and proc.stdin is not None
+        deadline = time.monotonic() + 30
+        while not proc.stdout.readline().startswith("serving"):
+            assert proc.poll() is None and time.monotonic() < deadline
+        proc.stdin.close()
+        assert proc.wait(15) == 0  # no signal: the end of its input stops it
+        output = proc.stdout.read()
+        assert "end of standard input" in output
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(5)
