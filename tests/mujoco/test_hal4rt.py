@@ -28,6 +28,7 @@ from openel_async import (
     Request,
     Sensor,
     TorqueSensor,
+    VirtualClock,
 )
 from openel_async.cli.devices_cmd import profiles_document
 from openel_async.completion import Motion, Outcome
@@ -564,3 +565,24 @@ def test_a_device_cannot_be_mapped_twice() -> None:
     with pytest.raises(BadParameterError) as info:
         MujocoGyro(sim, "imu_gyro")
     assert info.value.parameter == "name"
+
+
+async def test_speed_ramp_in_realtime_pacing_follows_the_clock(stack: AsyncExitStack) -> None:
+    clock = VirtualClock()
+    await stack.enter_async_context(clock.autojump())
+    sim = MujocoSim("arm2", pacing="realtime", clock=clock)
+    motor = await _motor(stack, sim, "shoulder")
+    joint = sim.joints["shoulder"]
+    act = joint.actuators["velocity"]
+    gear = float(sim.model.actuator_gear[act, 0])
+    await clock.sleep(0.0105)  # between two physics steps
+    seen: list[tuple[int, float]] = []
+    # one step per wake-up at its deadline: the state stepped from is one period earlier
+    sim.add_step_hook(lambda: seen.append((clock.now_ns() - MS, float(sim.data.ctrl[act]) / gear)))
+    t0 = clock.now_ns()
+    start = joint.velocity
+    await _done(await motor.set_speed(0.7, 0.3))
+    assert t0 % MS == 500_000 and seen[0][0] == t0 - 500_000
+    for t, value in seen:
+        assert value == pytest.approx(_ramp_value(start, 0.7, t0, t0 + 300 * MS, t), abs=1e-12)
+    assert seen[-1][1] == 0.7 and sim.stats.dropped_steps == 0
