@@ -77,9 +77,11 @@ KELVIN_OFFSET: Final = 273.15
 ODRIVE_VENDOR_ID: Final = 0x0D21
 VEL_RAMP_RATE_ENDPOINT: Final = 390
 """Endpoint id of ``axis0.controller.config.vel_ramp_rate`` (float, turns/s²) in the
-``flat_endpoints.json`` of ODrive firmware 0.6.10/0.6.11 (ODrive Pro / S1): the default of
-``ODriveAxis(vel_ramp_rate_endpoint=...)``. Endpoint ids change between firmware builds:
-look the id up in the ``flat_endpoints.json`` of the firmware you run."""
+``flat_endpoints.json`` of ODrive 0.6.x firmware (ODrive Pro / S1) as published in a
+third-party CANSimple library's copy of that file, not checked against a 0.6.10/0.6.11
+build or hardware: the default of ``ODriveAxis(vel_ramp_rate_endpoint=...)``. Endpoint
+ids change between firmware builds: look the id up in the ``flat_endpoints.json`` of the
+firmware you run."""
 _FLOAT32_MAX: Final = 3.4028234663852886e38
 _M = TypeVar("_M", bound=cs.CanSimpleMessage)
 
