@@ -74,7 +74,11 @@ _LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "crit
 
 class _ComponentTap:
     """The listener the tap sets on one component: its records go straight into the
-    pipeline's queue (one call from the component; no lookup of the channel)."""
+    pipeline's queue (one call from the component; no lookup of the channel).
+
+    A record holds only ints, floats, None and strings (a Request as its int): the garbage
+    collector then untracks it at its first pass, so thousands of queued records do not
+    make every full collection longer (a Request member would keep it tracked)."""
 
     __slots__ = ("capacity", "channel", "now", "pipeline", "queue", "tap")
 
@@ -91,7 +95,7 @@ class _ComponentTap:
     ) -> None:
         queue = self.queue
         if len(queue) < self.capacity:
-            queue.append((self.channel, time_ns, COMMAND, request, value))
+            queue.append((self.channel, time_ns, COMMAND, int(request), value))
         else:
             self.pipeline.dropped += 1
 
@@ -102,7 +106,8 @@ class _ComponentTap:
             return
         queue = self.queue
         if len(queue) < self.capacity:
-            queue.append((self.channel, self.now(), READING, request, values))
+            code = None if request is None else int(request)
+            queue.append((self.channel, self.now(), READING, code, values))
         else:
             self.pipeline.dropped += 1
 
