@@ -1,13 +1,16 @@
 """The recorder's and live view's pipeline: a bounded queue filled by the control loop
 without blocking, a thread that ships it in batches to the writer process
-(:mod:`.sink_process`), which encodes the messages (JSON) and writes them to the sinks (an
-MCAP file, the Foxglove server).
+(:mod:`.sink_process`), which encodes the messages (JSON) and logs them on a Foxglove SDK
+context whose sinks write them (an MCAP file, the Foxglove server).
 
 The control loop only appends a tuple to a deque (the listeners of :mod:`.tap` do it
-directly); a full queue drops the record and counts it (:attr:`PipelineStats.dropped`). The thread wakes every ``flush_interval``
-seconds and writes what is queued to the process's stdin as one msgpack frame (C code, and
-the pipe write releases the interpreter lock); the encoding and the MCAP writing happen in
-the other process, so they do not compete with the control loop for the interpreter lock.
+directly); a full queue drops the record and counts it (:attr:`PipelineStats.dropped`). The
+thread wakes every ``flush_interval`` seconds and writes what is queued to the process's
+stdin as one msgpack frame (C code, and the pipe write releases the interpreter lock); the
+encoding and the MCAP writing happen in the other process, so they do not compete with the
+control loop for the interpreter lock, and that process runs at a lower priority
+(``writer_nice``), so it does not compete with the loop for the CPU either: on a busy machine
+it falls behind (the queue and the pipe hold the backlog) and catches up when there is time.
 """
 
 from __future__ import annotations
@@ -67,9 +70,12 @@ class Pipeline:
         capacity: int = 100_000,
         flush_interval: float = 0.02,
         chunk_size: int = 64 * 1024,
+        writer_nice: int = 10,
     ) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
+        if not 0 <= writer_nice <= 19:
+            raise ValueError(f"writer_nice must be 0..19, got {writer_nice}")
         if mcap is None and foxglove is None:
             raise ValueError("a pipeline needs an MCAP file, a Foxglove server or both")
         self.mcap = None if mcap is None else os.fspath(mcap)
@@ -77,6 +83,9 @@ class Pipeline:
         self.capacity = capacity
         self.flush_interval = flush_interval
         self.chunk_size = chunk_size
+        self.writer_nice = writer_nice
+        """The writer process's niceness (Unix): on a busy machine it yields the CPU to the
+        control loop and catches up when there is time (its backlog bounded by ``capacity``)."""
         self.port: int | None = None
         """The Foxglove server's port once started."""
         self.offset_ns = 0
@@ -132,6 +141,7 @@ class Pipeline:
         """Start the writer process (it opens the sinks) and the feeding thread; raises
         :class:`SinkStartError` when the sinks cannot open."""
         command = [sys.executable, "-m", "openel_async.recording.sink_process"]
+        command += ["--nice", str(self.writer_nice)]
         if self.mcap is not None:
             command += ["--mcap", self.mcap, "--chunk-size", str(self.chunk_size)]
         if self.foxglove is not None:

@@ -13,13 +13,14 @@ exits. It prints one JSON line when ready (``{"port": N}``: the WebSocket port) 
 done (``{"written": N, "cpu_s": S}``: the CPU time it spent writing).
 
 ``python -m openel_async.recording.sink_process [--mcap PATH] [--foxglove HOST:PORT]
-[--chunk-size BYTES]``
+[--chunk-size BYTES] [--nice N]``
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -84,7 +85,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mcap", default=None)
     parser.add_argument("--foxglove", default=None, metavar="HOST:PORT")
     parser.add_argument("--chunk-size", type=int, default=64 * 1024)
+    parser.add_argument("--nice", type=int, default=0, help="niceness to add (before any thread)")
     args = parser.parse_args(argv)
+    if args.nice and hasattr(os, "nice"):
+        os.nice(args.nice)  # the control loop comes first; this process catches up
     # stdout carries the ready line: the log goes to stderr.
     structlog.configure(logger_factory=structlog.PrintLoggerFactory(sys.stderr))
     context = foxglove.Context()
