@@ -127,6 +127,11 @@ class Pipeline:
             self.dropped += 1
 
     @property
+    def writer_pid(self) -> int | None:
+        """The writer process's id while it runs."""
+        return None if self._process is None else self._process.pid
+
+    @property
     def queued(self) -> int:
         """Records handed over so far (taken by the thread or waiting)."""
         return self._taken + len(self.queue) - self._controls

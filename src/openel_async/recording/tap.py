@@ -77,7 +77,7 @@ class _ComponentTap:
     pipeline's queue (one call from the component; no lookup of the channel).
 
     A record holds only ints, floats, None and strings (a Request as its int): the garbage
-    collector then untracks it at its first pass, so thousands of queued records do not
+    collector then untracks it at its first passes, so thousands of queued records do not
     make every full collection longer (a Request member would keep it tracked)."""
 
     __slots__ = ("capacity", "channel", "now", "pipeline", "queue", "tap")
