@@ -6,11 +6,12 @@ observer streams both joints' setpoints (a sine) and reads the tip at every tick
 per-tick work of the arm2 demo. Three variants run in the same process, interleaved round by
 round: without any tap (the baseline), with a ``Recorder`` writing MCAP, and with a
 ``LiveView`` that one Foxglove WebSocket client (on 127.0.0.1, a process of its own, niced
-as a viewer elsewhere would not take the loop's CPU) subscribes to on every channel. Figures: medians over the rounds of the real time per control
-tick, of the CPU time of the loop's thread, of the app process (the loop and the recorder's
-feeding thread) and of the writer process (reported by it); ratio = variant / baseline. In
-lockstep the loop runs as fast as it can (about 180x real time), so this is the recorder at
-saturation: 4.2 messages per 12 us tick. The recorder's queue must drop nothing.
+as a viewer running elsewhere would not take the loop's CPU) subscribes to on every channel.
+Figures: medians over the rounds of the real time per control tick, of the CPU time of the
+loop's thread, of the app process (the loop and the recorder's feeding thread) and of the
+writer process (reported by it); ratio = variant / baseline. In lockstep the loop runs as
+fast as it can (about 180x real time), so this is the recorder at saturation: 4.2 messages
+per 12 us tick. The recorder's queue must drop nothing.
 
 Where the cost is (cProfile and variants of the loop, loop-thread CPU per tick; see
 docs/recording.md, "Cost"): the tap's own work is one Python call per record from the
@@ -18,9 +19,10 @@ component (about 150 ns each in isolation, 0.35-0.5 us in the loop) plus, per ti
 timer's ``TimerTick`` notice (a frozen dataclass: 0.44 us to build; the tap needs its index,
 deadline and missed ticks) and a joint-state sample every 5 ticks. The writer process costs
 about 1.5 us CPU per message (msgpack decode 0.1, the JSON message 0.5, the SDK's Rust MCAP
-writer 0.5, the call into it 0.3); the pure-Python ``mcap`` writer used before took 4.5
-us per message for the MCAP write alone. It runs
-at a lower priority, so on a busy machine the loop keeps the CPU and the writer catches up.
+writer 0.5, the call into it 0.3; the pure-Python ``mcap`` writer used before took 4.5 us
+per message for the MCAP write alone). It runs at a lower priority: on a busy machine the
+loop keeps the CPU and the writer catches up; on two cores shared with other work it still
+takes CPU from the loop.
 """
 
 from __future__ import annotations
@@ -171,8 +173,8 @@ def _cpu_row(name: str, value: float, base: float, label: str) -> Row:
 
 
 def run(quick: bool) -> BenchResult:
-    ticks = 2_000 if quick else 10_000
-    rounds = 3 if quick else 7
+    ticks = 2_000 if quick else 20_000
+    rounds = 3 if quick else 9
     wall: dict[str, list[float]] = {"base": [], "rec": [], "live": []}
     thread: dict[str, list[float]] = {"base": [], "rec": [], "live": []}
     process: dict[str, list[float]] = {"base": [], "rec": [], "live": []}
