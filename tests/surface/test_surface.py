@@ -132,9 +132,15 @@ async def test_superseded_command_completes_with_an_error(hal_components: Compon
         ),
         (
             "Encoder",
-            CommandMessage.call("SetScaleFactor", "", values=[1.0]),
+            CommandMessage.call("SetScaleFactor", "", values=[0.0]),
+            ReturnCode.HAL_BAD_PARAMETER,
+            "values[0]=0.0",
+        ),
+        (
+            "Motor",
+            CommandMessage.call("SetOrigin", "", logical_id=0),
             ReturnCode.HAL_NOT_IMPLEMENTED,
-            "SI units",
+            "plain Actuator (no origin)",
         ),
     ],
 )

@@ -12,16 +12,20 @@ covers the plain components (``Actuator`` as Motor, ``Sensor`` by its device kin
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Awaitable, Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from ..actuator import Actuator
 from ..completion import Motion
 from ..component import HALComponent
-from ..errors import BadParameterError, NotImplementedHALError, NullParameterError
+from ..device_profile import COMMON_COMMANDS, SENSOR_COMMANDS, motor_commands
+from ..device_profile import Command as ProfileCommand
+from ..errors import BadParameterError, NotImplementedHALError, NullParameterError, WouldBlockError
 from ..ids import DeviceKind
+from ..motor import TWO_PI, Motor
 from ..requests import Request
 from ..sensor import Sensor
 from .messages import CommandMessage, DataType, ResultList
@@ -44,6 +48,8 @@ class Operation:
     run_nowait: NowRun | None = None
     """The same without suspending; WouldBlockError (nothing done) when the component
     needs I/O for it. None: the operation always suspends (Reset)."""
+    command_id: int | None = None
+    """The command id of the device characteristics profile (device_profile), if it has one."""
 
 
 def now_and_async(now: NowRun) -> tuple[SyncRun, NowRun]:
@@ -112,69 +118,245 @@ def argument(command: CommandMessage, name: str, data_type: DataType, *, require
     return parameter.value
 
 
-# -- Motor (an Actuator) ---------------------------------------------------------------
-# Each Set* reads and checks its arguments first (refusals have no effect), then sends
-# the command through set_value or, without suspending, set_value_nowait.
-def _setpoint(request: Request, name: str) -> Callable[[CommandMessage], tuple[float, Request]]:
-    def parse(command: CommandMessage) -> tuple[float, Request]:
-        return argument(command, name, DataType.FLOAT), request
+# -- Names, ids and argument types from the device characteristics profile ---------------
+_DATA_TYPE_OF: dict[str, DataType] = {
+    "float": DataType.FLOAT,
+    "int": DataType.INT,
+    "str": DataType.STRING,
+    "bool": DataType.BOOL,
+    "list[float]": DataType.FLOAT_LIST,
+    "list[str]": DataType.STRING_LIST,
+    "MotorControlMode": DataType.INT,
+}
+"""The message data type of each parameter type of device_profile."""
 
-    return parse
-
-
-def _speed(command: CommandMessage) -> tuple[float, Request]:
-    speed = argument(command, "speed", DataType.FLOAT)
-    if argument(command, "tmAcc", DataType.FLOAT, required=False) is not None:
-        raise NotImplementedHALError(
-            "SetSpeed: tmAcc is not supported (the device ramps at its own acceleration limit)"
-        )
-    return speed, Request.VELOCITY
+_MOTOR_COMMANDS = {c.name: c for c in motor_commands()}
+_SENSOR_COMMANDS = {c.name: c for c in SENSOR_COMMANDS}
 
 
-def _control_mode(command: CommandMessage) -> tuple[float, Request]:
-    mode = argument(command, "mode", DataType.INT)
-    if mode != 0:
-        raise NotImplementedHALError(
-            f"SetControlMode: mode {mode} is entered by SetPosition (1), SetSpeed (2) or "
-            "SetTorque (3); only 0 (HALMOTOR_READY_TO_CONTROL) is set directly"
-        )
-    return 0.0, Request.NO_EXCITE
+def _declared(command: ProfileCommand) -> tuple[tuple[str, DataType], ...]:
+    return tuple((p.name, _DATA_TYPE_OF[p.type]) for p in command.parameters if p.direction == "in")
 
 
-def _set_op(
-    name: str,
-    parse: Callable[[CommandMessage], tuple[float, Request]],
-    arguments: tuple[tuple[str, DataType], ...],
+def _profiled(
+    command: ProfileCommand, run: SyncRun | AsyncRun, run_nowait: NowRun | None
 ) -> Operation:
+    """The operation of a profile command: its name, id, synchronous flag and arguments."""
+    return Operation(
+        command.name,
+        run,
+        command.synchronous,
+        _declared(command),
+        command.description or command.method,
+        run_nowait,
+        command.id,
+    )
+
+
+def _arguments(
+    command: CommandMessage, declared: tuple[tuple[str, DataType], ...], *optional: str
+) -> dict[str, Any]:
+    """Every declared argument, each checked against its data type (None: optional, left out)."""
+    return {
+        name: argument(command, name, data_type, required=name not in optional)
+        for name, data_type in declared
+    }
+
+
+# -- Motor (an Actuator; a Motor adds its HAL4RT operations) -----------------------------
+# A Motor's Set*/Get* go through its own names (scale factor and origin); a plain Actuator's
+# through set_value/get_value in SI units. The run_nowait twins convert with the Motor's
+# public scale factor and origin, exactly as Motor does; a Motor refusing the converted
+# target gets WouldBlockError (nothing done) so that execute() answers with the Motor's
+# own message, in its units.
+def _per_si(motor: Motor) -> float:
+    """Motor position units per rad (rotary) or per metre (linear)."""
+    scale = motor.scale_factor
+    return scale if motor.device.linear else scale / TWO_PI
+
+
+def _motor_nowait(motor: Motor, request: Request, target: float) -> Motion:
+    try:
+        return motor.set_value_nowait(target, request)
+    except BadParameterError as exc:
+        raise WouldBlockError(
+            f"{motor.device_name}: refused in SI units ({exc}); execute() tells it in the "
+            "Motor's units"
+        ) from None
+
+
+def _tm_acc(value: float | None) -> float:
+    if value is None:
+        return 0.0
+    if not (math.isfinite(value) and value >= 0.0):
+        raise BadParameterError("tmAcc", value, "a finite number of seconds >= 0")
+    return value
+
+
+def _set_position() -> Operation:
+    declared = _declared(_MOTOR_COMMANDS["SetPosition"])
+
     async def run(component: HALComponent, command: CommandMessage) -> Motion:
+        position = _arguments(command, declared)["position"]
+        if isinstance(component, Motor):
+            return await component.set_position(position)
         assert isinstance(component, Actuator)
-        value, request = parse(command)
-        return await component.set_value(value, request)
+        return await component.set_value(position, Request.POSITION)
 
     def nowait(component: HALComponent, command: CommandMessage) -> Motion:
+        position = _arguments(command, declared)["position"]
+        if isinstance(component, Motor):
+            target = position / _per_si(component) + component.origin
+            return _motor_nowait(component, Request.POSITION, target)
         assert isinstance(component, Actuator)
-        value, request = parse(command)
-        return component.set_value_nowait(value, request)
+        return component.set_value_nowait(position, Request.POSITION)
 
-    return Operation(name, run, False, arguments, run_nowait=nowait)
+    return _profiled(_MOTOR_COMMANDS["SetPosition"], run, nowait)
+
+
+def _set_speed() -> Operation:
+    declared = _declared(_MOTOR_COMMANDS["SetSpeed"])
+
+    def parse(component: HALComponent, command: CommandMessage) -> tuple[float, float]:
+        values = _arguments(command, declared, "tmAcc")
+        tm_acc = _tm_acc(values["tmAcc"])
+        if tm_acc > 0.0 and not isinstance(component, Motor):
+            raise NotImplementedHALError(
+                f"SetSpeed: tmAcc > 0 needs a Motor; {component.device_name} is a plain "
+                "Actuator (tmAcc 0 or left out: the device's own acceleration)"
+            )
+        return values["speed"], tm_acc
+
+    async def run(component: HALComponent, command: CommandMessage) -> Motion:
+        speed, tm_acc = parse(component, command)
+        if isinstance(component, Motor):
+            return await component.set_speed(speed, tm_acc)
+        assert isinstance(component, Actuator)
+        return await component.set_value(speed, Request.VELOCITY)
+
+    def nowait(component: HALComponent, command: CommandMessage) -> Motion:
+        speed, tm_acc = parse(component, command)
+        if isinstance(component, Motor):
+            if tm_acc > 0.0:
+                raise WouldBlockError("SetSpeed with tmAcc > 0 reads the actual speed first")
+            return _motor_nowait(component, Request.VELOCITY, speed / _per_si(component))
+        assert isinstance(component, Actuator)
+        return component.set_value_nowait(speed, Request.VELOCITY)
+
+    return _profiled(_MOTOR_COMMANDS["SetSpeed"], run, nowait)
+
+
+def _set_torque() -> Operation:
+    declared = _declared(_MOTOR_COMMANDS["SetTorque"])
+
+    async def run(component: HALComponent, command: CommandMessage) -> Motion:
+        torque = _arguments(command, declared)["torque"]
+        if isinstance(component, Motor):
+            return await component.set_torque(torque)
+        assert isinstance(component, Actuator)
+        return await component.set_value(torque, Request.TORQUE)
+
+    def nowait(component: HALComponent, command: CommandMessage) -> Motion:
+        torque = _arguments(command, declared)["torque"]
+        if isinstance(component, Motor):
+            return _motor_nowait(component, Request.TORQUE, torque)
+        assert isinstance(component, Actuator)
+        return component.set_value_nowait(torque, Request.TORQUE)
+
+    return _profiled(_MOTOR_COMMANDS["SetTorque"], run, nowait)
+
+
+_MODES = "0 (READY_TO_CONTROL), 1 (POSITION), 2 (SPEED) or 3 (TORQUE)"
+
+
+def _set_control_mode() -> Operation:
+    declared = _declared(_MOTOR_COMMANDS["SetControlMode"])
+
+    def plain(component: HALComponent, command: CommandMessage) -> int:
+        """The mode for a plain Actuator: only 0 is set directly."""
+        mode: int = _arguments(command, declared)["mode"]
+        if mode not in (0, 1, 2, 3):
+            raise BadParameterError("mode", mode, _MODES)
+        if mode != 0:
+            raise NotImplementedHALError(
+                f"SetControlMode: {component.device_name} is a plain Actuator: mode {mode} is "
+                "entered by SetPosition (1), SetSpeed (2) or SetTorque (3); only 0 "
+                "(HALMOTOR_READY_TO_CONTROL) is set directly"
+            )
+        return mode
+
+    async def run(component: HALComponent, command: CommandMessage) -> Motion:
+        if isinstance(component, Motor):
+            return await component.set_control_mode(_arguments(command, declared)["mode"])
+        assert isinstance(component, Actuator)
+        plain(component, command)
+        return await component.set_value(0.0, Request.NO_EXCITE)
+
+    def nowait(component: HALComponent, command: CommandMessage) -> Motion:
+        if isinstance(component, Motor):
+            raise WouldBlockError("a Motor's SetControlMode reads the actual value first")
+        assert isinstance(component, Actuator)
+        plain(component, command)
+        return component.set_value_nowait(0.0, Request.NO_EXCITE)
+
+    return _profiled(_MOTOR_COMMANDS["SetControlMode"], run, nowait)
 
 
 def _get_control_mode(component: HALComponent, command: CommandMessage) -> ResultList:
+    if isinstance(component, Motor):
+        return ResultList.of(mode=int(component.get_control_mode()))
     assert isinstance(component, Actuator)
     motion = component.motion
     return ResultList.of(mode=0 if motion is None else int(motion.request))
 
 
 def _get_op(name: str, request: Request, result: str) -> Operation:
+    """GetPosition / GetSpeed / GetTorque: a Motor's in its units, else SI."""
+    position = request is Request.POSITION_ACTUAL
+    scaled = position or request is Request.VELOCITY_ACTUAL
+
+    def motor_value(motor: Motor, raw: float) -> float:
+        if position:
+            return (raw - motor.origin) * _per_si(motor)
+        return raw * _per_si(motor) if scaled else raw
+
     async def run(component: HALComponent, command: CommandMessage) -> ResultList:
         assert isinstance(component, Actuator)
-        return ResultList.of(**{result: await component.get_value(request)})
+        value = await component.get_value(request)
+        if isinstance(component, Motor):
+            value = motor_value(component, value)
+        return ResultList.of(**{result: value})
 
     def nowait(component: HALComponent, command: CommandMessage) -> ResultList:
         assert isinstance(component, Actuator)
-        return ResultList.of(**{result: component.get_value_nowait(request)})
+        value = component.get_value_nowait(request)
+        if isinstance(component, Motor):
+            value = motor_value(component, value)
+        return ResultList.of(**{result: value})
 
-    return Operation(name, run, run_nowait=nowait)
+    return _profiled(_MOTOR_COMMANDS[name], run, nowait)
+
+
+def _set_motor_origin() -> Operation:
+    declared = _declared(_MOTOR_COMMANDS["SetOrigin"])
+
+    def motor(component: HALComponent, command: CommandMessage) -> tuple[Motor, float]:
+        position = _arguments(command, declared, "position")["position"]
+        if not isinstance(component, Motor):
+            raise NotImplementedHALError(
+                f"SetOrigin: {component.device_name} is a plain Actuator (no origin); a Motor has one"
+            )
+        return component, 0.0 if position is None else position
+
+    async def run(component: HALComponent, command: CommandMessage) -> None:
+        target, position = motor(component, command)
+        await target.set_origin(position)
+
+    def nowait(component: HALComponent, command: CommandMessage) -> None:
+        motor(component, command)
+        raise WouldBlockError("SetOrigin reads the actual position first")
+
+    return _profiled(_MOTOR_COMMANDS["SetOrigin"], run, nowait)
 
 
 # -- Sensors -----------------------------------------------------------------------------
@@ -183,7 +365,7 @@ async def _get_values(component: HALComponent, command: CommandMessage) -> Resul
     if component.device.has_time:
         timed = await component.get_timed_value()
         return ResultList.of(values=list(timed.values), time_ns=timed.time_ns)
-    return ResultList.of(values=list(await component.get_value()))
+    return ResultList.of(values=list(await component.get_value_of_measurement()))
 
 
 def _get_values_nowait(component: HALComponent, command: CommandMessage) -> ResultList:
@@ -194,20 +376,33 @@ def _get_values_nowait(component: HALComponent, command: CommandMessage) -> Resu
     return ResultList.of(values=list(component.get_value_nowait()))
 
 
-def _get_units(component: HALComponent, command: CommandMessage) -> ResultList:
-    assert isinstance(component, Sensor)
-    return ResultList.of(units=list(component.units) or [""])
+def _sensor_op(name: str, now: Callable[[Sensor, dict[str, Any]], ResultList | None]) -> Operation:
+    """A Sensor operation that never suspends, its arguments read from the profile's."""
+    profile_command = _SENSOR_COMMANDS[name]
+    declared = _declared(profile_command)
+
+    def run_now(component: HALComponent, command: CommandMessage) -> ResultList | None:
+        assert isinstance(component, Sensor)
+        return now(component, _arguments(command, declared))
+
+    run, nowait = now_and_async(run_now)
+    return _profiled(profile_command, run, nowait)
 
 
-def _get_kind(component: HALComponent, command: CommandMessage) -> ResultList:
-    return ResultList.of(sensor_kind=component.hal_id.device_kind_id)
+def _units(units: tuple[str, ...]) -> ResultList:
+    return ResultList.of(units=list(units) or [""])
 
 
-def _not_implemented(name: str, what: str) -> Operation:
-    def now(component: HALComponent, command: CommandMessage) -> ResultList:
-        raise NotImplementedHALError(f"{command.function_name}: {what}")
-
-    return _op(name, now)
+SENSOR_SPECIFIC = (
+    _sensor_op("GetSensorKind", lambda s, a: ResultList.of(sensor_kind=s.get_sensor_kind())),
+    _profiled(_SENSOR_COMMANDS["GetValueOfMeasurement"], _get_values, _get_values_nowait),
+    _sensor_op("SetUnitOfMeasurement", lambda s, a: s.set_unit_of_measurement(a["units"])),
+    _sensor_op("GetUnitOfMeasurement", lambda s, a: _units(s.get_unit_of_measurement())),
+    _sensor_op("SetScaleFactor", lambda s, a: s.set_scale_factor(a["values"])),
+    _sensor_op("GetScaleFactor", lambda s, a: ResultList.of(values=list(s.get_scale_factor()))),
+    _sensor_op("SetOrigin", lambda s, a: s.set_origin(a["values"])),
+)
+"""The HAL4RT Sensor operations (§7.4.5.5) of every Sensor."""
 
 
 # -- Every component ---------------------------------------------------------------------
@@ -240,6 +435,9 @@ def _get_profile(component: HALComponent, command: CommandMessage) -> ResultList
         values["velocity_limit"] = float(limits.velocity)
         values["torque_limit"] = float(limits.torque)
         values["supported_requests"] = sorted(int(r) for r in component.device.supported_requests)
+    if isinstance(component, Motor):
+        values["scale_factor"] = component.scale_factor
+        values["origin"] = component.origin
     if isinstance(component, Sensor):
         values["units"] = list(component.units) or [""]
     return ResultList.of(**values)
@@ -249,38 +447,40 @@ def _get_time(component: HALComponent, command: CommandMessage) -> ResultList:
     return ResultList.of(time_ns=component.get_time())
 
 
+_COMMON_IDS = {c.name: c.id for c in COMMON_COMMANDS}
+
 COMMON = (
-    Operation("Reset", _reset, description="ReInit: leave Error and return to Active"),
+    Operation(
+        "Reset",
+        _reset,
+        description="ReInit: leave Error and return to Active",
+        command_id=_COMMON_IDS["ReInit"],
+    ),
     _op("GetState", _get_state, description="state, error_id and message of the last fault"),
-    _op("GetProfile", _get_profile, description="identity, limits, units"),
-    _op("GetTime", _get_time, description="the component's clock, ns"),
+    replace(
+        _op("GetProfile", _get_profile, description="identity, limits, units"),
+        command_id=_COMMON_IDS["GetProfile"],
+    ),
+    replace(
+        _op("GetTime", _get_time, description="the component's clock, ns"),
+        command_id=_COMMON_IDS["GetTime"],
+    ),
 )
 
 MOTOR_OPERATIONS = (
-    _set_op(
-        "SetPosition", _setpoint(Request.POSITION, "position"), (("position", DataType.FLOAT),)
-    ),
-    _set_op("SetSpeed", _speed, (("speed", DataType.FLOAT), ("tmAcc", DataType.FLOAT))),
-    _set_op("SetTorque", _setpoint(Request.TORQUE, "torque"), (("torque", DataType.FLOAT),)),
-    _set_op("SetControlMode", _control_mode, (("mode", DataType.INT),)),
-    _op("GetControlMode", _get_control_mode),
+    _set_position(),
+    _set_speed(),
+    _set_torque(),
+    _set_control_mode(),
+    _profiled(_MOTOR_COMMANDS["GetControlMode"], *now_and_async(_get_control_mode)),
     _get_op("GetPosition", Request.POSITION_ACTUAL, "position"),
     _get_op("GetSpeed", Request.VELOCITY_ACTUAL, "speed"),
     _get_op("GetTorque", Request.TORQUE_ACTUAL, "torque"),
-    _not_implemented("SetOrigin", "the Actuator API has no origin"),
+    _set_motor_origin(),
     *COMMON,
 )
 
-SENSOR_OPERATIONS = (
-    _op("GetSensorKind", _get_kind),
-    Operation("GetValueOfMeasurement", _get_values, run_nowait=_get_values_nowait),
-    _op("GetUnitOfMeasurement", _get_units),
-    _not_implemented("SetUnitOfMeasurement", "units are fixed SI units"),
-    _not_implemented("SetScaleFactor", "values are in SI units"),
-    _not_implemented("GetScaleFactor", "values are in SI units"),
-    _not_implemented("SetOrigin", "the Sensor API has no origin"),
-    *COMMON,
-)
+SENSOR_OPERATIONS = (*SENSOR_SPECIFIC, *COMMON)
 
 SENSOR_KIND_NAMES: dict[int, str] = {
     DeviceKind.ROTARY_ANGLE: "Encoder",
