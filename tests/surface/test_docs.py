@@ -46,3 +46,14 @@ def test_key_table_matches_the_code() -> None:
         documented = key.replace("openel/ns/", "openel/<ns>/").replace("/c/", "/<client>/")
         documented = re.sub(r"/c$", "/<client>", documented)
         assert f"`{documented}`" in text
+
+
+def test_rig_builds_the_hal4rt_class_of_each_device_kind() -> None:
+    """A served motor is a Motor and a sensor its kind's class, so the surface offers their
+    HAL4RT operations (SetSpeed with tmAcc, SetOrigin, units) over Zenoh too."""
+    from openel_async import Encoder, Motor
+
+    (block,) = _blocks("remote.md", "yaml")
+    motor, encoder = build_components(parse_rig(yaml.safe_load(block)))
+    assert isinstance(motor, Motor)
+    assert isinstance(encoder, Encoder)

@@ -34,9 +34,10 @@ from ..clock import Clock
 from ..component import HALComponent
 from ..device import ActuatorDevice, SensorDevice
 from ..errors import BadParameterError
-from ..ids import HALId
+from ..ids import DeviceKind, HALId
+from ..motor import Motor
 from ..registry import discover_drivers
-from ..sensor import Sensor
+from ..sensor_kinds import sensor_class
 
 
 @dataclass(frozen=True)
@@ -135,11 +136,16 @@ def build_components(spec: RigSpec, clock: Clock | None = None) -> list[HALCompo
                 int(c.hal_id.get("product_id", info.product_id)),
                 int(c.hal_id.get("instance_id", len(built) + 1)),
             )
+        # The HAL4RT class of the device's kind: a Motor for motor devices, the kind's
+        # Sensor class (Encoder, GyroSensor, GPSSensor...) for sensors, so that the surface
+        # serves their HAL4RT operations (SetSpeed with tmAcc, SetOrigin, units...).
         component: HALComponent
         if isinstance(device, ActuatorDevice):
-            component = Actuator(device, hal_id=hal_id, device_name=c.name, clock=clock)
+            actuator_class = Motor if int(device.info.kind) == DeviceKind.MOTOR else Actuator
+            component = actuator_class(device, hal_id=hal_id, device_name=c.name, clock=clock)
         elif isinstance(device, SensorDevice):
-            component = Sensor(device, hal_id=hal_id, device_name=c.name, clock=clock)
+            kind_class = sensor_class(int(device.info.kind))
+            component = kind_class(device, hal_id=hal_id, device_name=c.name, clock=clock)
         else:
             raise BadParameterError(
                 f"{c.name}.device", c.device, "an actuator or sensor device class"
