@@ -367,6 +367,7 @@ class HALComponent:
             else:
                 observers.publish("notify_event", self, event_id)
         else:
+            self._observers.unpublished += 1
             self.log.debug("event_dropped", event_id=event_id, state=str(self.state))
 
     def _publish_error(self, error_id: int) -> None:
@@ -378,6 +379,7 @@ class HALComponent:
             else:
                 observers.publish("notify_error", self, error_id)
         else:
+            self._observers.unpublished += 1
             self.log.debug("error_dropped", error_id=error_id, state=str(self.state))
 
     def _fault(

@@ -203,6 +203,8 @@ class Fanout:
         self.overflowed = 0
         self.discarded = 0
         self.abandoned = 0
+        self.unpublished = 0
+        """Notifications the owner did not publish because of its state (components)."""
         self.wants_notice: frozenset[str] = frozenset()
         """Kinds for which some observer takes the notice: publishers build it only then."""
         self.leaving: set[_Mailbox] = set()
@@ -408,4 +410,5 @@ class Fanout:
             discarded=self.discarded,
             abandoned=self.abandoned,
             mailboxes=tuple(s.mailbox.snapshot() for s in self._subscribers() if s.mailbox),
+            unpublished=self.unpublished,
         )

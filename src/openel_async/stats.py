@@ -120,6 +120,10 @@ class ObserverStats:
     """Notices left in mailboxes, or cut short, when the owner exited."""
     mailboxes: tuple[MailboxStats, ...]
     """The async observers registered now, in registration order."""
+    unpublished: int = 0
+    """Events and errors a driver posted while the component was neither Active nor in
+    Error: the state machine notifies no observer then, so they reached nobody (counted,
+    and logged at debug level). Not part of :attr:`lost`, which counts delivery losses."""
 
     @property
     def lost(self) -> int:

@@ -508,3 +508,29 @@ async def test_longest_period_runs_on_the_real_clock_without_overflow() -> None:
         await anyio.wait_all_tasks_blocked()  # the ticking task armed its deadline
         assert timer.stats.ticks == 0
         timer.stop_timer()
+
+
+async def test_events_posted_outside_active_and_error_are_counted_not_lost_untold() -> None:
+    """A driver posting after finalize (or before init) reaches no observer by the state
+    machine; the notices used to vanish with a debug log only (issue 10 #1/#16)."""
+    source = EventSource()
+    got: list[int] = []
+
+    class Plain:
+        def notify_event(self, source: object, event_id: int) -> None:
+            got.append(event_id)
+
+        def notify_error(self, source: object, error_id: int) -> None:
+            got.append(-error_id)
+
+    async with Actuator(source) as actuator:
+        actuator.add_observer(Plain())
+        assert source.ctx is not None
+        source.ctx.post_event(7)
+        await actuator.finalize()
+        source.ctx.post_event(8)
+        source.ctx.post_error(9)
+        stats = actuator.observer_stats
+    assert got == [7]
+    assert stats.unpublished == 2
+    assert stats.lost == 0
