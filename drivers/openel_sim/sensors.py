@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import random
+from abc import abstractmethod
 
 from openel_async.device import DeviceContext, DeviceInfo, Reading, SensorDevice
 from openel_async.errors import BadParameterError, NotConnectedError
@@ -18,6 +19,22 @@ from .motor import SimMotor
 STANDARD_GRAVITY = 9.80665
 THERMAL_STEP_NS = 10_000_000
 MAX_THERMAL_STEPS = 10_000
+
+
+def _motion(motor: SimMotor | None, t_ns: int) -> tuple[float, float, float]:
+    """(position, velocity, acceleration) of ``motor`` at a clock time; zeros without one."""
+    return motor.state_at(t_ns) if motor is not None else (0.0, 0.0, 0.0)
+
+
+def _torque(motor: SimMotor | None, t_ns: int) -> float:
+    """``motor``'s torque at a clock time; zero without one."""
+    return motor.torque_at(t_ns) if motor is not None else 0.0
+
+
+def _link_acceleration(omega: float, alpha: float, radius: float) -> tuple[float, float, float]:
+    """Acceleration (m/s^2, gravity included) of a point at ``radius`` on a link rotating
+    about z at ``omega`` (rad/s) and ``alpha`` (rad/s^2): centripetal and tangential terms."""
+    return (-omega * omega * radius, alpha * radius, STANDARD_GRAVITY)
 
 
 class _SimSensor(SensorDevice):
@@ -45,6 +62,15 @@ class _SimSensor(SensorDevice):
     async def read(self) -> Reading:
         return self.read_nowait()
 
+    def read_nowait(self) -> Reading:
+        self._check()
+        now = self._now()
+        return Reading(self._sample(now), now)
+
+    @abstractmethod
+    def _sample(self, now: int) -> tuple[float, ...]:
+        """The values at clock time ``now`` (noise included); the sensor is connected."""
+
     def _check(self) -> None:
         if not self.connected:
             raise NotConnectedError("simulated sensor is disconnected")
@@ -71,12 +97,10 @@ class SimEncoder(_SimSensor):
         self.motor = motor
         self.counts_per_rev = counts_per_rev
 
-    def read_nowait(self) -> Reading:
-        self._check()
-        now = self._now()
+    def _sample(self, now: int) -> tuple[float, ...]:
         position, _, _ = self.motor.state_at(now)
         step = 2 * math.pi / self.counts_per_rev
-        return Reading((round(self._noisy(position) / step) * step,), now)
+        return (round(self._noisy(position) / step) * step,)
 
 
 class SimIMU(_SimSensor):
@@ -103,18 +127,10 @@ class SimIMU(_SimSensor):
         self.radius = radius
         self.gyro_bias = gyro_bias
 
-    def read_nowait(self) -> Reading:
-        self._check()
-        now = self._now()
-        omega = alpha = 0.0
-        if self.motor is not None:
-            _, omega, alpha = self.motor.state_at(now)
-        # A point at ``radius`` on the rotating link: centripetal and tangential terms.
-        ax = -omega * omega * self.radius
-        ay = alpha * self.radius
-        az = STANDARD_GRAVITY
-        values = (ax, ay, az, 0.0, 0.0, omega + self.gyro_bias)
-        return Reading(tuple(self._noisy(v) for v in values), now)
+    def _sample(self, now: int) -> tuple[float, ...]:
+        _, omega, alpha = _motion(self.motor, now)
+        values = (*_link_acceleration(omega, alpha, self.radius), 0.0, 0.0, omega + self.gyro_bias)
+        return tuple(self._noisy(v) for v in values)
 
 
 class SimTemperature(_SimSensor):
@@ -143,22 +159,20 @@ class SimTemperature(_SimSensor):
         self._temperature = ambient
         self._last_ns: int | None = None
 
-    def read_nowait(self) -> Reading:
-        self._check()
-        now = self._now()
+    def _sample(self, now: int) -> tuple[float, ...]:
         t = self._last_ns if self._last_ns is not None else now
         # Exact first-order steps over sub-intervals short against the thermal time
         # constant, each heated by the torque at its start.
         step = max(THERMAL_STEP_NS, (now - t) // MAX_THERMAL_STEPS)
         while t < now:
             dt = min(step, now - t)
-            torque = self.motor.torque_at(t) if self.motor is not None else 0.0
+            torque = _torque(self.motor, t)
             steady = self.ambient + self.heating * torque * torque
             decay = math.exp(-dt * 1e-9 / self.time_constant)
             self._temperature = steady + (self._temperature - steady) * decay
             t += dt
         self._last_ns = now
-        return Reading((self._noisy(self._temperature),), now)
+        return (self._noisy(self._temperature),)
 
 
 class SimGyro(_SimSensor):
@@ -174,11 +188,9 @@ class SimGyro(_SimSensor):
         self.motor = motor
         self.bias = bias
 
-    def read_nowait(self) -> Reading:
-        self._check()
-        now = self._now()
-        omega = self.motor.state_at(now)[1] if self.motor is not None else 0.0
-        return Reading((self._noisy(0.0), self._noisy(0.0), self._noisy(omega + self.bias)), now)
+    def _sample(self, now: int) -> tuple[float, ...]:
+        omega = _motion(self.motor, now)[1]
+        return (self._noisy(0.0), self._noisy(0.0), self._noisy(omega + self.bias))
 
 
 class SimAccelerometer(_SimSensor):
@@ -199,14 +211,9 @@ class SimAccelerometer(_SimSensor):
         self.motor = motor
         self.radius = radius
 
-    def read_nowait(self) -> Reading:
-        self._check()
-        now = self._now()
-        omega = alpha = 0.0
-        if self.motor is not None:
-            _, omega, alpha = self.motor.state_at(now)
-        values = (-omega * omega * self.radius, alpha * self.radius, STANDARD_GRAVITY)
-        return Reading(tuple(self._noisy(v) for v in values), now)
+    def _sample(self, now: int) -> tuple[float, ...]:
+        _, omega, alpha = _motion(self.motor, now)
+        return tuple(self._noisy(v) for v in _link_acceleration(omega, alpha, self.radius))
 
 
 class SimTorqueSensor(_SimSensor):
@@ -219,10 +226,8 @@ class SimTorqueSensor(_SimSensor):
         super().__init__(noise=noise, seed=seed)
         self.motor = motor
 
-    def read_nowait(self) -> Reading:
-        self._check()
-        now = self._now()
-        return Reading((self._noisy(self.motor.torque_at(now)),), now)
+    def _sample(self, now: int) -> tuple[float, ...]:
+        return (self._noisy(self.motor.torque_at(now)),)
 
 
 class SimForceSensor(_SimSensor):
@@ -248,11 +253,8 @@ class SimForceSensor(_SimSensor):
         self.lever_arm = lever_arm
         self.load = load
 
-    def read_nowait(self) -> Reading:
-        self._check()
-        now = self._now()
-        torque = self.motor.torque_at(now) if self.motor is not None else 0.0
-        return Reading((self._noisy(torque / self.lever_arm + self.load),), now)
+    def _sample(self, now: int) -> tuple[float, ...]:
+        return (self._noisy(_torque(self.motor, now) / self.lever_arm + self.load),)
 
 
 class SimHumidity(_SimSensor):
@@ -284,14 +286,12 @@ class SimHumidity(_SimSensor):
         celsius = kelvin - 273.15
         return 6.112 * math.exp(17.62 * celsius / (243.12 + celsius))  # hPa (Magnus)
 
-    def read_nowait(self) -> Reading:
-        self._check()
-        now = self._now()
+    def _sample(self, now: int) -> tuple[float, ...]:
         rh = self.humidity
         if self.thermometer is not None:
             temperature = self.thermometer.read_nowait().values[0]
             rh *= self._saturation(self.ambient) / self._saturation(temperature)
-        return Reading((min(100.0, max(0.0, self._noisy(rh))),), now)
+        return (min(100.0, max(0.0, self._noisy(rh))),)
 
 
 DEFAULT_FIELD_NED_NT = (30_500.0, -3_900.0, 35_600.0)
@@ -335,16 +335,11 @@ class SimMagnetometer(_SimSensor):
 
     def yaw_at(self, t_ns: int) -> float:
         """The sensor's yaw (rad) at a clock time."""
-        position = self.motor.state_at(t_ns)[0] if self.motor is not None else 0.0
-        return position + self.mount_yaw
+        return _motion(self.motor, t_ns)[0] + self.mount_yaw
 
-    def read_nowait(self) -> Reading:
-        self._check()
-        now = self._now()
+    def _sample(self, now: int) -> tuple[float, ...]:
         psi = self.yaw_at(now)
         north, east, down = (v * 1e-9 for v in self.field_ned_nt)
         c, s = math.cos(psi), math.sin(psi)
         field = (north * c + east * s, -north * s + east * c, down)
-        return Reading(
-            tuple(self._noisy(f + o) for f, o in zip(field, self.offset, strict=True)), now
-        )
+        return tuple(self._noisy(f + o) for f, o in zip(field, self.offset, strict=True))
