@@ -41,11 +41,15 @@ def ports(clock: VirtualClock) -> tuple[OutPort[TimedLong], InPort[TimedLong]]:
     return OutPort("out", TimedLong, clock=clock), InPort("in", TimedLong, clock=clock)
 
 
-@pytest.mark.parametrize(("flow", "full", "empty"), list(itertools.product(FLOWS, FULL, EMPTY)))
+@pytest.mark.parametrize(
+    ("flow", "full", "empty", "listened"),
+    list(itertools.product(FLOWS, FULL, EMPTY, (True, False))),
+)
 async def test_policy_combination(
-    virtual_clock: VirtualClock, flow: str, full: str, empty: str
+    virtual_clock: VirtualClock, flow: str, full: str, empty: str, listened: bool
 ) -> None:
-    """Buffer of 2, three values written, then three reads."""
+    """Buffer of 2, three values written, then three reads; with listeners on every
+    event, and without (the ports' fast path, which must count and answer the same)."""
     clock = virtual_clock
     out, inp = ports(clock)
     props = {
@@ -58,7 +62,7 @@ async def test_policy_combination(
     }
     queued = flow in ("push/new", "push/periodic")
     events: list[PortEvent] = []
-    for kind in ListenerType:
+    for kind in ListenerType if listened else ():
         out.add_listener(kind, events.append)
         inp.add_listener(kind, events.append)
     async with Connector(out, inp, props) as conn:
@@ -127,6 +131,11 @@ async def test_policy_combination(
             assert last is None and inp.status is PortStatus.BUFFER_TIMEOUT
             assert clock.now_ns() - t2 == round(READ_TIMEOUT_S * 1e9)
         assert inp.value is not None and inp.value.data == kept[-1]
+        stats = conn.stats
+        stored = 3 if full == "overwrite" and flow != "pull" else 2
+        assert (stats.read, stats.received) == (2, stored)
+    if not listened:
+        return
     kinds = [e.kind for e in events]
     assert kinds[:2] == [ListenerType.ON_CONNECT] * 2
     assert kinds[-2:] == [ListenerType.ON_DISCONNECT] * 2

@@ -189,6 +189,47 @@ async def test_one_outport_two_inports_fan_out(virtual_clock: VirtualClock) -> N
         assert x.readable() == 2 and y.readable() == 1
 
 
+@pytest.mark.parametrize("flow", ["push", "pull"])
+async def test_listeners_added_and_removed_between_writes(
+    virtual_clock: VirtualClock, flow: str
+) -> None:
+    """A listener added after fast-path writes hears the next ones; removed, it hears
+    nothing more (writes and reads without listeners skip the event dispatch)."""
+    out = OutPort("o", TimedLong, clock=virtual_clock)
+    inp = InPort("i", TimedLong, clock=virtual_clock)
+    heard: list[tuple[ListenerType, int]] = []
+
+    def listen(event: PortEvent) -> None:
+        assert event.data is not None
+        heard.append((event.kind, event.data.data))  # type: ignore[attr-defined]
+
+    async with Connector(out, inp, {"dataport.dataflow_type": flow}) as conn:
+        assert await out.write(1)
+        assert (await inp.read()).data == 1  # type: ignore[union-attr]
+        assert heard == []
+        out.add_listener(ListenerType.ON_BUFFER_WRITE, listen)
+        inp.add_listener(ListenerType.ON_BUFFER_READ, listen)
+        assert await out.write(2)
+        assert (await inp.read()).data == 2  # type: ignore[union-attr]
+        if flow == "push":  # the InPort side holds the buffer: its port hears the write
+            assert heard == [(ListenerType.ON_BUFFER_READ, 2)]
+        else:
+            assert heard == [(ListenerType.ON_BUFFER_WRITE, 2), (ListenerType.ON_BUFFER_READ, 2)]
+        inp.add_listener(ListenerType.ON_BUFFER_WRITE, listen)
+        heard.clear()
+        assert await out.write(3)
+        expected = [(ListenerType.ON_BUFFER_WRITE, 3)]
+        assert heard == expected
+        out.remove_listener(ListenerType.ON_BUFFER_WRITE, listen)
+        inp.remove_listener(ListenerType.ON_BUFFER_WRITE, listen)
+        inp.remove_listener(ListenerType.ON_BUFFER_READ, listen)
+        assert await out.write(4)
+        assert [(await inp.read()).data for _ in range(2)] == [3, 4]  # type: ignore[union-attr]
+        assert heard == expected
+        stats = conn.stats
+        assert (stats.written, stats.read) == (4, 4)
+
+
 class RecordingTransport:
     """A transport that serializes every value, as a network transport would."""
 

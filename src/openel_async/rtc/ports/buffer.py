@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
 from typing import Generic, TypeVar
@@ -62,7 +63,9 @@ class BufferOptions:
         return self.full_policy is FullPolicy.BLOCK or self.empty_policy is EmptyPolicy.BLOCK
 
 
-_OK_NONE: tuple[PortStatus, None] = (PortStatus.PORT_OK, None)
+_OK = PortStatus.PORT_OK
+_FULL = PortStatus.BUFFER_FULL
+_OK_NONE: tuple[PortStatus, None] = (_OK, None)
 
 
 class RingBuffer(Generic[T]):
@@ -74,11 +77,14 @@ class RingBuffer(Generic[T]):
         "_length",
         "_not_empty",
         "_not_full",
+        "_overwrite",
+        "_refuse",
         "clock",
         "options",
         "overwritten",
         "read_count",
         "read_timeouts",
+        "readable",
         "refused",
         "write_timeouts",
         "written",
@@ -89,6 +95,10 @@ class RingBuffer(Generic[T]):
         self.clock = clock
         self._length = options.length
         self._items: deque[T] = deque()
+        self._overwrite = options.full_policy is FullPolicy.OVERWRITE
+        self._refuse = options.full_policy is FullPolicy.DO_NOTHING
+        self.readable: Callable[[], int] = self._items.__len__
+        """Unread values (the deque's own ``len``, the cheapest call for ``is_new``)."""
         self._last: T | None = None
         self._not_empty: anyio.Event | None = None
         self._not_full: anyio.Event | None = None
@@ -102,14 +112,33 @@ class RingBuffer(Generic[T]):
     def __len__(self) -> int:
         return len(self._items)
 
-    def readable(self) -> int:
-        return len(self._items)
-
     def full(self) -> bool:
         return len(self._items) >= self._length
 
     def empty(self) -> bool:
         return not self._items
+
+    def offer(self, value: T) -> PortStatus | None:
+        """Store ``value`` without waiting: PORT_OK (the oldest unread value dropped and
+        counted when full with ``overwrite``), BUFFER_FULL (counted) when full with
+        ``do_nothing``, None when full with ``block`` (nothing done: use :meth:`write`).
+        For callers without listeners: it does not return the dropped value."""
+        items = self._items
+        if len(items) >= self._length:
+            if self._overwrite:
+                items.popleft()
+                self.overwritten += 1
+            elif self._refuse:
+                self.refused += 1
+                return _FULL
+            else:
+                return None
+        items.append(value)
+        self.written += 1
+        if self._not_empty is not None:
+            self._not_empty.set()
+            self._not_empty = None
+        return _OK
 
     async def write(self, value: T) -> tuple[PortStatus, T | None]:
         """Store ``value``: (PORT_OK, dropped value or None), (BUFFER_FULL, None) or
@@ -156,8 +185,18 @@ class RingBuffer(Generic[T]):
         return value
 
     def take(self) -> T | None:
-        """The oldest unread value, or None (publishers)."""
-        return self._take() if self._items else None
+        """The oldest unread value, or None (no empty policy: publishers and the read
+        fast path)."""
+        items = self._items
+        if not items:
+            return None
+        value = items.popleft()
+        self._last = value
+        self.read_count += 1
+        if self._not_full is not None:
+            self._not_full.set()
+            self._not_full = None
+        return value
 
     def take_all(self) -> list[T]:
         """Every unread value, oldest first (publishers)."""

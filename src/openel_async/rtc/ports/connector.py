@@ -25,7 +25,7 @@ unseen: every overwritten, refused, timed-out or skipped value is counted in
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from contextlib import AsyncExitStack
 from dataclasses import dataclass
 from types import TracebackType
@@ -92,17 +92,29 @@ class ConnectorStats:
 class OutHalf(Protocol):
     info: ConnectorInfo
 
+    def offer(self, data: TimedValue) -> PortStatus | None:
+        """The write without a wait (the fast path): its status, or None when it has
+        to wait or call listeners, having done nothing (then :meth:`write`)."""
+        ...
+
     async def write(self, data: TimedValue) -> PortStatus: ...
 
 
 class InHalf(Protocol):
     info: ConnectorInfo
+    readable: Callable[[], int]
+    """Unread values waiting (0 when unknown)."""
 
-    def readable(self) -> int: ...
+    def poll(self) -> TimedValue | None:
+        """The next unread value when one is there and no listener has to hear of it
+        (the fast path), else None having done nothing (then :meth:`read`)."""
+        ...
 
     async def read(self) -> tuple[PortStatus, ReadOutcome, TimedValue | None]: ...
 
 
+_OK = PortStatus.PORT_OK
+_SEND_FULL = PortStatus.SEND_FULL
 _SEND_STATUS = {
     PortStatus.BUFFER_FULL: PortStatus.SEND_FULL,
     PortStatus.BUFFER_TIMEOUT: PortStatus.SEND_TIMEOUT,
@@ -154,6 +166,15 @@ class PushReceiver:
         self.port = port
         self.info = info
         self.buffer: RingBuffer[TimedValue] = RingBuffer(options, port.clock)
+        self.readable: Callable[[], int] = self.buffer.readable
+        self.offer_direct = self.buffer.offer
+        """What a publisher in this process calls when neither port has listeners (the
+        buffer's :meth:`RingBuffer.offer`: BUFFER_FULL, not SEND_FULL)."""
+
+    def poll(self) -> TimedValue | None:
+        if self.port.has_listeners:
+            return None
+        return self.buffer.take()
 
     async def put(self, data: TimedValue) -> PortStatus:
         status, dropped = await self.buffer.write(data)
@@ -171,9 +192,6 @@ class PushReceiver:
         )
         return _SEND_STATUS.get(status, status)
 
-    def readable(self) -> int:
-        return len(self.buffer)
-
     async def read(self) -> tuple[PortStatus, ReadOutcome, TimedValue | None]:
         status, outcome, value = await self.buffer.read()
         _after_read(self.port, self.info, status, outcome, value)
@@ -189,6 +207,19 @@ class FlushPublisher:
         self.link = link
         self.written = 0
         self.sent = 0
+        # in process the link is the receiver itself: the fast path skips its put
+        self._receiver = link if isinstance(link, PushReceiver) else None
+
+    def offer(self, data: TimedValue) -> PortStatus | None:
+        receiver = self._receiver
+        if receiver is None or self.port.has_listeners or receiver.port.has_listeners:
+            return None
+        status = receiver.offer_direct(data)
+        if status is None:  # full with the block policy
+            return None
+        self.written += 1
+        self.sent += 1
+        return _OK if status is _OK else _SEND_FULL
 
     async def write(self, data: TimedValue) -> PortStatus:
         self.written += 1
@@ -228,6 +259,17 @@ class QueuedPublisher:
         self.sent = 0
         self.skipped = 0
         self.failed = 0
+
+    def offer(self, data: TimedValue) -> PortStatus | None:
+        if self.port.has_listeners:
+            return None
+        status = self.buffer.offer(data)
+        if status is None:
+            return None
+        self.written += 1
+        if status is _OK and not self.periodic:
+            self._wake.set()
+        return status
 
     async def write(self, data: TimedValue) -> PortStatus:
         self.written += 1
@@ -297,15 +339,21 @@ class PullProvider:
         self.info = info
         self.buffer: RingBuffer[TimedValue] = RingBuffer(options, port.clock)
         self.written = 0
+        self.readable: Callable[[], int] = self.buffer.readable
+
+    def offer(self, data: TimedValue) -> PortStatus | None:
+        if self.port.has_listeners:
+            return None
+        status = self.buffer.offer(data)
+        if status is not None:
+            self.written += 1
+        return status
 
     async def write(self, data: TimedValue) -> PortStatus:
         self.written += 1
         status, dropped = await self.buffer.write(data)
         _after_write(self.port, self.info, status, data, dropped)
         return status
-
-    def readable(self) -> int:
-        return len(self.buffer)
 
     async def get(self) -> tuple[PortStatus, TimedValue | None, bool]:
         status, outcome, value = await self.buffer.read()
@@ -322,9 +370,18 @@ class PullConsumer:
         self.info = info
         self.link = link
         self.read_count = 0
+        self.readable: Callable[[], int] = link.readable
+        # in process the link is the provider itself: the fast path takes from its buffer
+        self._provider = link if isinstance(link, PullProvider) else None
 
-    def readable(self) -> int:
-        return self.link.readable()
+    def poll(self) -> TimedValue | None:
+        provider = self._provider
+        if provider is None or self.port.has_listeners:
+            return None
+        value = provider.buffer.take()
+        if value is not None:
+            self.read_count += 1
+        return value
 
     async def read(self) -> tuple[PortStatus, ReadOutcome, TimedValue | None]:
         status, value, new = await self.link.get()

@@ -32,6 +32,8 @@ __all__ = ["DataPort", "InPort", "OutPort"]
 
 T = TypeVar("T", bound=TimedValue)
 
+_OK = PortStatus.PORT_OK
+
 
 class DataPort(PortBase, Generic[T]):
     """Common part of InPort and OutPort: the data type and the connectors."""
@@ -69,20 +71,20 @@ class OutPort(DataPort[T]):
             if value.tm is None:
                 return stamp(value, self.clock.now_ns())  # type: ignore[return-value]
             return value
-        if isinstance(value, TimedValue):
-            raise RTCBadParameterError(
-                f"{self.full_name}.write", value, f"a {self.type_name} or its payload"
-            )
-        payload = self._fast(value)
+        payload = self._fast(value)  # None for anything but plain numbers and sequences
         if payload is None:
+            if isinstance(value, TimedValue):
+                raise RTCBadParameterError(
+                    f"{self.full_name}.write", value, f"a {self.type_name} or its payload"
+                )
             try:
                 payload = msgspec.convert(value, self._payload_type)
             except msgspec.ValidationError as exc:
                 raise RTCBadParameterError(
                     f"{self.full_name}.write", value, f"a {self.type_name} payload ({exc})"
                 ) from None
-        now = self.clock.now_ns()
-        return data_type(RTCTime(now // NS_PER_S, now % NS_PER_S), payload)  # type: ignore[call-arg]
+        sec, nsec = divmod(self.clock.now_ns(), NS_PER_S)
+        return data_type(RTCTime(sec, nsec), payload)  # type: ignore[call-arg]
 
     async def write(self, value: T | object) -> bool:
         """Send ``value`` on every connector; True when all took it."""
@@ -93,13 +95,15 @@ class OutPort(DataPort[T]):
         if not connectors:
             self.status = PortStatus.PRECONDITION_NOT_MET
             return False
-        status = PortStatus.PORT_OK
+        status = _OK
         for half in connectors:
-            result = await half.write(data)
-            if result is not PortStatus.PORT_OK and status is PortStatus.PORT_OK:
+            result = half.offer(data)
+            if result is None:  # it has to wait or call listeners
+                result = await half.write(data)
+            if result is not _OK and status is _OK:
                 status = result
         self.status = status
-        return status is PortStatus.PORT_OK
+        return status is _OK
 
 
 def _is_number(x: object) -> bool:
@@ -171,6 +175,11 @@ class InPort(DataPort[T]):
                 if half.readable() > 0:
                     chosen = half
                     break
+        value = chosen.poll()
+        if value is not None:  # an unread value and no listener: no policy to apply
+            self.status = _OK
+            self.value = value  # type: ignore[assignment]
+            return value  # type: ignore[return-value]
         status, outcome, value = await chosen.read()
         self.status = status
         if outcome is ReadOutcome.NONE:
