@@ -53,10 +53,10 @@ from .context import (
     PeriodicExecutionContext,
     SporadicExecutionContext,
 )
-from .errors import RTCError
 from .modes import MultiModeObject
 from .profile import ProfileError, RtcProfile, load_profile
 from .rtobject import RTObject
+from .run_cli import PROG, duration_problem, finish_run, read_problem
 
 __all__ = [
     "DEFAULT_RATE_HZ",
@@ -522,13 +522,6 @@ def _settings(pairs: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def _single(exc: BaseException) -> BaseException:
-    """The one exception inside (nested) single-exception groups of task groups."""
-    while isinstance(exc, BaseExceptionGroup) and len(exc.exceptions) == 1:
-        exc = exc.exceptions[0]
-    return exc
-
-
 def _check_cli_rate(spec: ExecutionSpec, args: argparse.Namespace) -> str | None:
     """The work a command-line run may ask for (the context itself bounds the rate): the
     problem, or None."""
@@ -562,12 +555,10 @@ def run_profile_cli(path: Path, argv: list[str]) -> int:
         args = _parse_args(argv)
     except SystemExit as exc:  # argparse printed the problem
         return int(exc.code or 0) if exc.code in (0, None) else 2
-    prog = "openel-async run"
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        print(f"{prog}: --duration must be a number of seconds > 0", file=sys.stderr)
-        return 2
-    if args.virtual and args.duration is None:
-        print(f"{prog}: --virtual needs --duration (simulated time never ends)", file=sys.stderr)
+    prog = PROG
+    problem = duration_problem(args.duration, args.virtual)
+    if problem is not None:
+        print(f"{prog}: {problem}", file=sys.stderr)
         return 2
     try:
         settings = _settings(args.set)
@@ -577,11 +568,8 @@ def run_profile_cli(path: Path, argv: list[str]) -> int:
 
     try:
         prepared = prepare_profile(path, rate_hz=args.rate, settings=settings)
-    except FileNotFoundError as exc:
-        print(f"{prog}: {path}: no such file ({exc.strerror})", file=sys.stderr)
-        return 2
     except OSError as exc:
-        print(f"{prog}: {path}: cannot read: {exc}", file=sys.stderr)
+        print(f"{prog}: {path}: {read_problem(exc)}", file=sys.stderr)
         return 2
     except ProfileError as exc:
         print(f"{prog}: {path}: {exc}", file=sys.stderr)
@@ -602,22 +590,4 @@ def run_profile_cli(path: Path, argv: list[str]) -> int:
         async with clock.autojump():
             return await run(clock=clock)
 
-    try:
-        summary = anyio.run(main, backend="asyncio")
-    except KeyboardInterrupt:
-        return 130
-    except BaseException as exc:
-        error = _single(exc)
-        if not isinstance(error, RTCError):
-            raise
-        print(
-            f"{prog}: {path}: {type(error).__name__} ({error.code.name}): {error}",
-            file=sys.stderr,
-        )
-        return 1
-    print("summary")
-    for line in summary.lines():
-        print("  " + line)
-    if summary.stopped_by is not None:
-        return 128 + int(signal.Signals[summary.stopped_by])
-    return 0
+    return finish_run(path, main)

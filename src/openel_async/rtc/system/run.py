@@ -28,6 +28,7 @@ from ..context import ExecutionContext, ExecutionKind, LifeCycleState
 from ..errors import RTCError
 from ..modes import MultiModeObject
 from ..ports import ConnectorStats
+from ..run_cli import PROG, duration_problem, finish_run, read_problem
 from ..runner import make_context
 from .build import PreparedSystem, prepare_system
 from .loader import load_system
@@ -260,18 +261,12 @@ async def run_system_file(
     )
 
 
-def _single(exc: BaseException) -> BaseException:
-    while isinstance(exc, BaseExceptionGroup) and len(exc.exceptions) == 1:
-        exc = exc.exceptions[0]
-    return exc
-
-
 def run_system_cli(path: Path, argv: Sequence[str]) -> int:
     """``openel-async run SYSTEM.yaml [--duration S] [--virtual] [--live S]``.
 
     Exit status: 0 after a clean run, 1 when a lifecycle step failed, 2 for a bad
     system file or command line, 130 / 143 after SIGINT / SIGTERM."""
-    prog = "openel-async run"
+    prog = PROG
     parser = argparse.ArgumentParser(
         prog=f"{prog} SYSTEM",
         description="Run a system of RT components (a system YAML or an RTSystemEditor rtsys "
@@ -287,11 +282,9 @@ def run_system_cli(path: Path, argv: Sequence[str]) -> int:
         args = parser.parse_args(list(argv))
     except SystemExit as exc:
         return 0 if exc.code in (0, None) else 2
-    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
-        print(f"{prog}: --duration must be a number of seconds > 0", file=sys.stderr)
-        return 2
-    if args.virtual and args.duration is None:
-        print(f"{prog}: --virtual needs --duration (simulated time never ends)", file=sys.stderr)
+    problem = duration_problem(args.duration, args.virtual)
+    if problem is not None:
+        print(f"{prog}: {problem}", file=sys.stderr)
         return 2
     if not (math.isfinite(args.live) and args.live >= 0):
         print(f"{prog}: --live must be a number of seconds >= 0", file=sys.stderr)
@@ -299,11 +292,8 @@ def run_system_cli(path: Path, argv: Sequence[str]) -> int:
     clock: Clock = VirtualClock() if args.virtual else MonotonicClock()
     try:
         prepared = prepare_system(load_system(path), clock=clock)
-    except FileNotFoundError as exc:
-        print(f"{prog}: {path}: no such file ({exc.strerror})", file=sys.stderr)
-        return 2
     except OSError as exc:
-        print(f"{prog}: {path}: cannot read: {exc}", file=sys.stderr)
+        print(f"{prog}: {path}: {read_problem(exc)}", file=sys.stderr)
         return 2
     except SystemFileError as exc:
         print(f"{prog}: {path}: {exc}", file=sys.stderr)
@@ -339,21 +329,4 @@ def run_system_cli(path: Path, argv: Sequence[str]) -> int:
                 return await run()
         return await run()
 
-    try:
-        summary = anyio.run(main, backend="asyncio")
-    except KeyboardInterrupt:
-        return 130
-    except BaseException as exc:
-        error = _single(exc)
-        if not isinstance(error, RTCError):
-            raise
-        print(
-            f"{prog}: {path}: {type(error).__name__} ({error.code.name}): {error}", file=sys.stderr
-        )
-        return 1
-    print("summary")
-    for line in summary.lines():
-        print("  " + line)
-    if summary.stopped_by is not None:
-        return 128 + int(signal.Signals[summary.stopped_by])
-    return 0
+    return finish_run(path, main)
