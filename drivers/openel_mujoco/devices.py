@@ -522,7 +522,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         direct = act is not None and not self._pd and self._mode is not _NO_EXCITE
         self._direct = self._mode if direct else None
         self._drive_scale = self._scale[self._mode] if direct else 1.0
-        _DRIVES.version += 1  # batch plans (_JointBatch) are rebuilt
+        DRIVE_PLANS.version += 1  # batch plans (_JointBatch) are rebuilt
         self._saturated = False
         self._sat_lo = self._sat_lo_off = -math.inf
         self._sat_hi = self._sat_hi_off = math.inf
@@ -551,6 +551,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
             self._rejected += 1  # the failed component's close() must not detach the owner
             raise HALError(f"{self.name}: device already belongs to a component")
         self._ctx = ctx
+        DRIVE_PLANS.version += 1  # monitored from now on
 
     def _safe_stop(self) -> None:
         self._hold()
@@ -630,7 +631,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         t0 = sim.clock.now_ns()
         self._ramp = (start, ramp.target, t0, t0 + max(1, round(ramp.duration_s * 1e9)))
         self._direct = None  # setpoints take the slow path of command_nowait: it ends the ramp
-        _DRIVES.version += 1
+        DRIVE_PLANS.version += 1
         self._set_velocity(start)
         self._target = ramp.target
         self._request = _VELOCITY
@@ -676,7 +677,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         self.sim._set_ramp(self, False)
         direct = self._drive_act is not None and not self._pd and self._mode is not _NO_EXCITE
         self._direct = self._mode if direct else None
-        _DRIVES.version += 1
+        DRIVE_PLANS.version += 1
 
     @property
     def ramping(self) -> bool:
@@ -735,8 +736,10 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         if self._at_limit:
             if self._lim_lo_off < q < self._lim_hi_off:
                 self._at_limit = False
+                DRIVE_PLANS.version += 1
         else:
             self._at_limit = True
+            DRIVE_PLANS.version += 1
             ctx.post_event(_LIMIT_REACHED)
 
     def _force_edge(self, force: float, ctx: DeviceContext) -> None:
@@ -744,8 +747,10 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         if self._saturated:
             if self._sat_lo_off < force < self._sat_hi_off:
                 self._saturated = False
+                DRIVE_PLANS.version += 1
         else:
             self._saturated = True
+            DRIVE_PLANS.version += 1
             ctx.post_event(_SATURATED)
 
     def _pd_saturation_edge(self, ctx: DeviceContext) -> None:
@@ -763,6 +768,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         """The simulation was reset: adopt the model's restored control modes."""
         self._pending = False
         self._at_limit = False
+        DRIVE_PLANS.version += 1
         self._stop_ramp()
         if self._pd:
             self._pd = False
@@ -785,7 +791,9 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
 
 
 class _DriveVersion:
-    """Bumped whenever any joint's command fast path (mode, drive actuator, ramp) changes."""
+    """Bumped whenever any joint's command fast path (mode, drive actuator, ramp), its limit
+    or saturation state or its attachment changes: batch plans (``_JointBatch``) and the
+    simulations' monitor plans (:func:`monitor_plan`) are then rebuilt."""
 
     __slots__ = ("version",)
 
@@ -793,7 +801,7 @@ class _DriveVersion:
         self.version = 0
 
 
-_DRIVES = _DriveVersion()
+DRIVE_PLANS: Final = _DriveVersion()
 
 
 class _JointBatch:
@@ -815,7 +823,7 @@ class _JointBatch:
         sim = self.sim
         if sim._fault is not None:
             raise HALError(f"{sim.name}: the simulation is faulted: {sim._fault}")
-        stale = request is not self._request or self._version != _DRIVES.version
+        stale = request is not self._request or self._version != DRIVE_PLANS.version
         if stale and not self._replan(request):
             return False
         ctrl = sim._ctrl
@@ -838,7 +846,7 @@ class _JointBatch:
             plan.append((joint, act, joint._drive_scale))
         self._plan = tuple(plan)
         self._request = request
-        self._version = _DRIVES.version
+        self._version = DRIVE_PLANS.version
         return True
 
 
@@ -853,49 +861,91 @@ _SATURATED: Final = MujocoEventId.SATURATED
 _REQUEST_MODE: Final[Mapping[Request, ControlMode]] = {v: k for k, v in _MODE_REQUEST.items()}
 
 
+_MonitorEntry = tuple[
+    "MujocoJoint", DeviceContext, int, int, float, float, bool, int, float, float, float, float
+]
+_NO_BAND: Final = (math.inf, -math.inf)  # no value is inside: the edge is evaluated
+_ANY: Final = (-math.inf, math.inf)  # every value is inside: nothing to evaluate
+
+
+def monitor_plan(joints: Sequence[MujocoJoint]) -> tuple[_MonitorEntry, ...]:
+    """What :func:`monitor_joints` needs of each attached joint, read once per change (mode,
+    drive, limit or saturation state, attach/detach: ``DRIVE_PLANS.version``) rather than
+    attribute by attribute after every physics step.
+
+    Per joint: the joint, its context, ``qpos``/``qvel`` addresses, the position band inside
+    which its limit state cannot change (none while at a limit: the release is evaluated),
+    whether it runs the built-in PD, the actuator whose force is watched and the force band
+    inside which its saturation state cannot change, the position tolerance and settle
+    velocity.
+    """
+    plan: list[_MonitorEntry] = []
+    for joint in joints:
+        ctx = joint._ctx
+        if ctx is None:
+            continue
+        lo, hi = _NO_BAND if joint._at_limit else (joint._lim_lo_on, joint._lim_hi_on)
+        act = joint._drive_act
+        if joint._pd or act is None:
+            act, (slo, shi) = 0, _ANY
+        else:
+            slo, shi = _NO_BAND if joint._saturated else (joint._sat_lo, joint._sat_hi)
+        plan.append(
+            (
+                joint,
+                ctx,
+                joint.qadr,
+                joint.dof,
+                lo,
+                hi,
+                joint._pd,
+                act,
+                slo,
+                shi,
+                joint._pos_tol,
+                joint._settle_vel,
+            )
+        )
+    return tuple(plan)
+
+
 def monitor_joints(
-    joints: Sequence[MujocoJoint],
+    plan: tuple[_MonitorEntry, ...],
     qpos: list[float],
     qvel: list[float],
     force: list[float],
     step: int,
 ) -> None:
-    """After physics step ``step``: limit and saturation events and completion of the joints.
+    """After physics step ``step``: limit and saturation events and completion of the joints
+    of ``plan`` (:func:`monitor_plan`).
 
     One loop for all joints rather than a method call each: it runs after every physics step,
-    and a joint whose state cannot change costs a few comparisons (unlimited joints and
-    unlimited forces have infinite bands).
+    and a joint whose state cannot change costs a few comparisons of values read from the
+    plan (unlimited joints and unlimited forces have infinite bands).
     """
-    for joint in joints:
-        ctx = joint._ctx
-        if ctx is None:
-            continue
-        q = qpos[joint.qadr]
-        if joint._at_limit or not joint._lim_lo_on < q < joint._lim_hi_on:
+    for joint, ctx, qadr, dof, lo, hi, pd, act, slo, shi, ptol, svel in plan:
+        q = qpos[qadr]
+        if not lo < q < hi:
             joint._limit_edge(q, ctx)
-        if joint._pd:
+        if pd:
             if joint._pd_saturated is not joint._saturated:
                 joint._pd_saturation_edge(ctx)
         else:
-            act = joint._drive_act
-            if act is not None:
-                f = force[act]
-                if joint._saturated or not joint._sat_lo < f < joint._sat_hi:
-                    joint._force_edge(f, ctx)
+            f = force[act]
+            if not slo < f < shi:
+                joint._force_edge(f, ctx)
         if not joint._pending:
             continue
         # chained comparisons rather than abs(): no builtin call per joint and step
         request = joint._request
         if request is _POSITION:
-            tol = joint._pos_tol
-            vel = joint._settle_vel
-            ok = -tol <= q - joint._target <= tol and -vel <= qvel[joint.dof] <= vel
+            ok = -ptol <= q - joint._target <= ptol and -svel <= qvel[dof] <= svel
         elif request is _VELOCITY:
             tol = joint._vel_tol
-            ok = -tol <= qvel[joint.dof] - joint._target <= tol
+            ok = -tol <= qvel[dof] - joint._target <= tol
         else:
             tol = joint._torque_tol
-            ok = -tol <= joint.sim._qfrc_actuator.item(joint.dof) - joint._target <= tol
+            ok = -tol <= joint.sim._qfrc_actuator.item(dof) - joint._target <= tol
         if not ok:
             joint._within_since = -1
             continue

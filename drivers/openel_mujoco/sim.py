@@ -67,7 +67,7 @@ from openel_async.stats import LatenessRecorder, LatenessSummary
 from . import render
 from .clock import LockstepClock, settle
 from .description import EffectorSpec, JointSpec, Pacing, SensorSpec, SimDescription
-from .devices import MujocoJoint, MujocoSensor, monitor_joints
+from .devices import DRIVE_PLANS, MujocoJoint, MujocoSensor, monitor_joints, monitor_plan
 from .effectors import MujocoEffector
 from .models import find_id, load_model
 
@@ -213,6 +213,8 @@ class MujocoSim:
         self._sensors: dict[str, MujocoSensor] = {}
         self._attached: dict[int, tuple[_Device, DeviceContext]] = {}
         self._monitored: list[MujocoJoint] = []
+        self._monitor_plan = monitor_plan(())
+        self._monitor_version = -1  # DRIVE_PLANS.version the plan was built at
         self._effectors: dict[str, MujocoEffector] = {}
         self._monitored_effectors: list[MujocoEffector] = []
         self._pd_joints: list[MujocoJoint] = []
@@ -542,10 +544,13 @@ class MujocoSim:
             self._on_unstable(self._instability_reason())
             return False
         if self._monitored:
+            if self._monitor_version != DRIVE_PLANS.version:
+                self._monitor_version = DRIVE_PLANS.version
+                self._monitor_plan = monitor_plan(self._monitored)
             qpos_l = self._qpos.tolist()
             qvel_l = self._qvel.tolist()
             force_l = self._actuator_force.tolist()
-            monitor_joints(self._monitored, qpos_l, qvel_l, force_l, self.steps)
+            monitor_joints(self._monitor_plan, qpos_l, qvel_l, force_l, self.steps)
         if self._monitored_effectors:
             n = self.steps
             for effector in self._monitored_effectors:
@@ -703,6 +708,7 @@ class MujocoSim:
         if id(device) in self._attached:
             return False
         self._attached[id(device)] = (device, ctx)
+        DRIVE_PLANS.version += 1
         if isinstance(device, MujocoJoint) and device not in self._monitored:
             self._monitored.append(device)
         if isinstance(device, MujocoEffector) and device not in self._monitored_effectors:
@@ -711,6 +717,7 @@ class MujocoSim:
 
     def _detach(self, device: _Device) -> None:
         self._attached.pop(id(device), None)
+        DRIVE_PLANS.version += 1
         if isinstance(device, MujocoJoint) and device in self._monitored:
             self._monitored.remove(device)
         if isinstance(device, MujocoEffector) and device in self._monitored_effectors:

@@ -354,6 +354,23 @@ async def test_saturation_event_on_a_large_position_step(stack: AsyncExitStack) 
     assert kinds.index(MujocoEventId.SATURATED) < kinds.index(EventId.COMPLETED)
 
 
+async def test_monitors_follow_a_mode_switch_made_while_stepping(stack: AsyncExitStack) -> None:
+    """The per-step monitors read their bands from a plan rebuilt on every change: after a
+    switch to VELOCITY the force of the velocity servo is watched (the position servo's,
+    disabled now, stays 0)."""
+    sim = MujocoSim("arm6", keyframe="home")
+    rig = await start_rig(stack, sim, ("base_yaw",))
+    base = rig.actuators["base_yaw"]
+    with anyio.fail_after(10):
+        await (await base.set_value(0.0))  # POSITION: settles where it is, no saturation
+        assert rig.events.count("event", MujocoEventId.SATURATED) == 0
+        await base.set_value(2.0, Request.VELOCITY)  # kv 60 x 2 rad/s >> 60 N m
+        await rig.events.wait_for("event", MujocoEventId.SATURATED)
+    joint = sim.joints["base_yaw"]
+    assert sim.data.actuator_force[joint.actuators["velocity"]] == pytest.approx(60.0)
+    assert sim.data.actuator_force[joint.actuators["position"]] == 0.0
+
+
 # --------------------------------------------------------------------------- sensors and clock
 
 
