@@ -88,20 +88,31 @@ class OutPort(DataPort[T]):
 
     async def write(self, value: T | object) -> bool:
         """Send ``value`` on every connector; True when all took it."""
-        data = self.convert(value)
+        payload = self._fast(value)  # the common payloads, checked without a call more
+        if payload is None:
+            data = self.convert(value)
+        else:
+            sec, nsec = divmod(self.clock.now_ns(), NS_PER_S)
+            data = self.data_type(RTCTime(sec, nsec), payload)  # type: ignore[call-arg]
         self.value = data
         self.writes += 1
         connectors = self.connectors
-        if not connectors:
+        if len(connectors) == 1:
+            half = connectors[0]
+            status = half.offer(data)
+            if status is None:  # it has to wait or call listeners
+                status = await half.write(data)
+        elif not connectors:
             self.status = PortStatus.PRECONDITION_NOT_MET
             return False
-        status = _OK
-        for half in connectors:
-            result = half.offer(data)
-            if result is None:  # it has to wait or call listeners
-                result = await half.write(data)
-            if result is not _OK and status is _OK:
-                status = result
+        else:
+            status = _OK
+            for half in connectors:
+                result = half.offer(data)
+                if result is None:
+                    result = await half.write(data)
+                if result is not _OK and status is _OK:
+                    status = result
         self.status = status
         return status is _OK
 
