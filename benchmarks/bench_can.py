@@ -20,7 +20,6 @@ frame's cost down (measured in the same run): python-can's deep copy in the virt
 from __future__ import annotations
 
 import copy
-import gc
 import math
 import statistics
 import struct
@@ -38,7 +37,7 @@ from openel_can import cansimple as cs
 from openel_can.sim.cia402 import SimCia402Drive
 from openel_can.sim.odrive import SimODrive
 
-from .harness import BenchResult, Row, ratio_of
+from .harness import BenchResult, Row, interleaved, ratio_of
 
 NAME = "can"
 FRAMES = 50_000
@@ -216,19 +215,18 @@ def run(quick: bool) -> BenchResult:
     frames = QUICK_FRAMES if quick else FRAMES
     cycles = QUICK_CYCLES if quick else CYCLES
     rounds = QUICK_ROUNDS if quick else ROUNDS
-    ours_tp: list[float] = []
-    raw_tp: list[float] = []
-    ours_cycles: list[float] = []
-    raw_rt: list[float] = []
-    for _ in range(rounds):  # interleaved: ours, raw, ours, raw ...
-        gc.collect()
-        ours_tp.append(anyio.run(driver_throughput, frames, backend="asyncio"))
-        gc.collect()
-        raw_tp.append(raw_throughput(frames))
-        gc.collect()
-        ours_cycles.append(anyio.run(two_axis_cycles, cycles, backend="asyncio"))
-        gc.collect()
-        raw_rt.append(raw_round_trips(ROUND_TRIPS if not quick else ROUND_TRIPS // 4))
+    round_trips = ROUND_TRIPS if not quick else ROUND_TRIPS // 4
+    measured = interleaved(  # ours, raw, ours, raw ...
+        rounds,
+        {
+            "ours_tp": lambda: anyio.run(driver_throughput, frames, backend="asyncio"),
+            "raw_tp": lambda: raw_throughput(frames),
+            "ours_cycles": lambda: anyio.run(two_axis_cycles, cycles, backend="asyncio"),
+            "raw_rt": lambda: raw_round_trips(round_trips),
+        },
+    )
+    ours_tp, raw_tp = measured["ours_tp"], measured["raw_tp"]
+    ours_cycles, raw_rt = measured["ours_cycles"], measured["raw_rt"]
     costs = per_frame_costs()
     rate, base_rate = statistics.median(ours_tp), statistics.median(raw_tp)
     cycle_rate, rt_rate = statistics.median(ours_cycles), statistics.median(raw_rt)

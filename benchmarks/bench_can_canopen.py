@@ -21,7 +21,6 @@ ratio is ours/canopen-py time (< 1: ours is faster).
 
 from __future__ import annotations
 
-import gc
 import math
 import statistics
 import struct
@@ -41,7 +40,7 @@ from openel_async import Actuator, ComponentState, Request
 from openel_can import CanBus, Cia402Drive, SdoClient
 from openel_can.sim.cia402 import SimCia402Drive
 
-from .harness import BenchResult, Row, ratio_of
+from .harness import BenchResult, Row, interleaved, ratio_of
 
 NAME = "can_canopen"
 NODE = 5
@@ -318,19 +317,17 @@ def run(quick: bool) -> BenchResult:
     sdo_count = QUICK_SDO_COUNT if quick else SDO_COUNT
     setpoints = QUICK_SETPOINTS if quick else SETPOINTS
     rounds = QUICK_ROUNDS if quick else ROUNDS
-    ours_s: list[Op] = []
-    peer_s: list[Op] = []
-    ours_h: list[Op] = []
-    peer_h: list[Op] = []
-    for _ in range(rounds):  # interleaved: ours, peer, ours, peer ...
-        gc.collect()
-        ours_s.append(anyio.run(ours_sdo, sdo_count, backend="asyncio"))
-        gc.collect()
-        peer_s.append(canopen_sdo(sdo_count))
-        gc.collect()
-        ours_h.append(ours_402(setpoints))
-        gc.collect()
-        peer_h.append(canopen_402(setpoints))
+    measured = interleaved(  # ours, peer, ours, peer ...
+        rounds,
+        {
+            "ours_s": lambda: anyio.run(ours_sdo, sdo_count, backend="asyncio"),
+            "peer_s": lambda: canopen_sdo(sdo_count),
+            "ours_h": lambda: ours_402(setpoints),
+            "peer_h": lambda: canopen_402(setpoints),
+        },
+    )
+    ours_s, peer_s = measured["ours_s"], measured["peer_s"]
+    ours_h, peer_h = measured["ours_h"], measured["peer_h"]
 
     def median(ops: list[Op], field: str = "seconds") -> float:
         return statistics.median(getattr(op, field) for op in ops)

@@ -19,19 +19,37 @@ modules (MuJoCo, CAN, serial, RTC) keep their figures until they are run again.
 from __future__ import annotations
 
 import datetime as dt
+import gc
 import os
 import platform
 import re
 import subprocess
 import sys
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
+from typing import TypeVar
+
+T = TypeVar("T")
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 DOC_PATH = REPO_ROOT / "docs" / "benchmarks.md"
 COMMAND = "uv run python -m benchmarks"
+
+
+# -- measuring -------------------------------------------------------------------------
+
+
+def interleaved(rounds: int, cases: Mapping[str, Callable[[], T]]) -> dict[str, list[T]]:
+    """Each case's results over ``rounds`` rounds; every round runs the cases in order,
+    each after a ``gc.collect()``, so load changes on the machine hit every case alike."""
+    out: dict[str, list[T]] = {name: [] for name in cases}
+    for _ in range(rounds):
+        for name, case in cases.items():
+            gc.collect()
+            out[name].append(case())
+    return out
 
 
 # -- results ---------------------------------------------------------------------------
