@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from enum import IntEnum
-from typing import TYPE_CHECKING, Any, ClassVar, Final
+from operator import itemgetter
+from typing import TYPE_CHECKING, Any, ClassVar, Final, cast
 
 import mujoco
 import numpy as np
@@ -1028,6 +1029,10 @@ _KINDS: Final[Mapping[int, int]] = {
 }
 
 
+ReadPlan = tuple[list[SensorDevice], Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]]]
+"""The devices a simulation's sensors were last read together as, and how to cut them out of
+``sensordata`` (see ``MujocoSensor.read_values_many_nowait``)."""
+
 # Reading's generated __new__ is Python code (~225 ns); tuple.__new__ builds the same
 # named tuple in half the time, on the per-read path.
 _new_reading: Final = tuple.__new__
@@ -1189,21 +1194,45 @@ class MujocoSensor(SensorDevice):
 
     @classmethod
     def read_values_many_nowait(cls, devices: Sequence[SensorDevice]) -> list[Sequence[float]]:
-        """Sensors of one simulation: slices of one conversion of ``sensordata``."""
+        """Sensors of one simulation: slices of one conversion of ``sensordata``, cut by one
+        ``itemgetter`` planned once per list of devices (a bank reads the same list at every
+        step)."""
         first = devices[0] if devices else None
         if type(first) is not cls or not isinstance(first, MujocoSensor):
             return super().read_values_many_nowait(devices)
         sim = first.sim
         if sim._fault is not None:
             raise HALError(f"{sim.name}: the simulation is faulted: {sim._fault}")
-        values = sim._sensordata_tuple()
-        out: list[Sequence[float]] = []
+        plan = sim._read_plan
+        if plan is None or plan[0] != devices:
+            plan = cls._read_plan_of(sim, devices)
+            if plan is None:
+                return super().read_values_many_nowait(devices)  # mixed devices or simulations
+        return list(plan[1](sim._sensordata_tuple()))
+
+    @classmethod
+    def _read_plan_of(cls, sim: MujocoSim, devices: Sequence[SensorDevice]) -> ReadPlan | None:
+        slices = []
         for device in devices:
             # type() rather than isinstance(): ABC instance checks cost ~150 ns
-            if type(device) is not cls or device.sim is not sim:
-                return super().read_values_many_nowait(devices)  # mixed devices or simulations
-            out.append(values[device._slice])
-        return out
+            if type(device) is not cls or not isinstance(device, MujocoSensor):
+                return None
+            if device.sim is not sim:
+                return None
+            slices.append(device._slice)
+        cut: Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]]
+        if len(slices) == 1:
+            one = slices[0]
+
+            def cut(values: tuple[float, ...]) -> tuple[tuple[float, ...], ...]:
+                return (values[one],)
+
+        else:
+            cut = cast(
+                Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]], itemgetter(*slices)
+            )
+        plan = sim._read_plan = (list(devices), cut)
+        return plan
 
     @property
     def values(self) -> tuple[float, ...]:

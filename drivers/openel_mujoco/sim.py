@@ -67,7 +67,7 @@ from openel_async.stats import LatenessRecorder, LatenessSummary
 from . import render
 from .clock import LockstepClock, settle
 from .description import EffectorSpec, JointSpec, Pacing, SensorSpec, SimDescription
-from .devices import DRIVE_PLANS, MujocoJoint, MujocoSensor, monitor_joints, monitor_plan
+from .devices import DRIVE_PLANS, MujocoJoint, MujocoSensor, ReadPlan, monitor_joints, monitor_plan
 from .effectors import MujocoEffector
 from .models import find_id, load_model
 
@@ -187,6 +187,7 @@ class MujocoSim:
         self._key_id = find_id(m, "key", keyframe) if keyframe is not None else None
         self.data = mujoco.MjData(m)
         self._sensor_values: tuple[float, ...] | None = None
+        self._read_plan: ReadPlan | None = None  # the sensors last read together
         self._initial_disableactuator = int(m.opt.disableactuator)
         self._reset_data()
         self.log = log.bind(sim=self.name)

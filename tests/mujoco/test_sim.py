@@ -20,6 +20,7 @@ from openel_async import (
     NotImplementedHALError,
     Request,
     Sensor,
+    SensorBank,
 )
 from openel_async.errors import BadParameterError, StateError
 from openel_async.registry import discover_drivers
@@ -372,6 +373,26 @@ async def test_monitors_follow_a_mode_switch_made_while_stepping(stack: AsyncExi
 
 
 # --------------------------------------------------------------------------- sensors and clock
+
+
+async def test_banks_over_different_sensor_lists_read_their_own_slices(
+    stack: AsyncExitStack,
+) -> None:
+    """The simulation plans how to cut ``sensordata`` for the list of sensors read together;
+    banks over other lists (another order, a subset, one sensor) alternating with it each
+    get their own sensors' values."""
+    sim = MujocoSim("arm6", keyframe="home")
+    names = ("imu_acc", "imu_gyro", "wrist_force", "tool_pos", "pad_touch")
+    rig = await start_rig(stack, sim, (), names)
+    orders = [names, names[::-1], ("tool_pos", "imu_acc"), ("pad_touch",)]
+    banks = [SensorBank(rig.sensors[n] for n in order) for order in orders]
+    await sim.sleep(0.01)
+    async with sim.paused():
+        for _ in range(2):
+            for order, bank in zip(orders, banks, strict=True):
+                expected = tuple(sim.sensors[n].values for n in order)
+                assert bank.get_values_nowait() == expected
+                assert all(type(v) is tuple for v in expected)
 
 
 async def test_sensors_read_si_values_with_monotonic_sim_timestamps(
