@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import random
+from collections.abc import Sequence
 
 import anyio
 import structlog
@@ -18,6 +19,7 @@ import structlog
 from openel_async.device import (
     ActuatorDevice,
     ActuatorLimits,
+    BatchCommander,
     DeviceContext,
     DeviceInfo,
     ErrorId,
@@ -141,6 +143,25 @@ class SimMotor(ActuatorDevice):
         else:  # NO_EXCITE: the rotor coasts to rest under friction
             segments = prof.ramp(now, p, v, 0.0, amax / 4)
         self._set_profile(segments, request, arrival=not self.stuck)
+
+    @classmethod
+    def batch_commander(cls, devices: Sequence[ActuatorDevice]) -> BatchCommander | None:
+        """Every motor of a bank commanded in one call (an ``ActuatorBank`` streaming
+        setpoints): all or nothing, so a disconnected motor declines the whole batch and
+        the bank's per-device path reports it on its own component."""
+        motors = tuple(d for d in devices if isinstance(d, SimMotor))
+        if len(motors) != len(devices) or cls.command_nowait is not SimMotor.command_nowait:
+            return None  # a subclass with its own command path is commanded one by one
+
+        def command_all(request: Request, values: Sequence[float], /) -> bool:
+            for motor in motors:
+                if not motor.connected:
+                    return False
+            for motor, value in zip(motors, values, strict=True):
+                motor.command_nowait(request, value)
+            return True
+
+        return command_all
 
     async def command_velocity_ramp(self, ramp: VelocityRamp) -> None:
         """The drive's own ramp: from its velocity to ``ramp.target`` at the constant

@@ -142,6 +142,9 @@ class Actuator(HALComponent):
         self._motion: Motion | None = None
         self._latest: tuple[Request, float, int, int] | None = None
         """The latest command when no Motion was built for it yet (see ``stream_targets``)."""
+        self._stream: tuple[StreamBatch, int, int, int] | None = None
+        """Attached to a bank's batch stream: (batch, index in it, the batch's count and this
+        actuator's sequence when last settled); see :class:`StreamBatch`."""
         self._commanded: dict[Request, float] = {
             Request.POSITION: 0.0,
             Request.VELOCITY: 0.0,
@@ -151,7 +154,6 @@ class Actuator(HALComponent):
         self.completed_count = 0
         self._detector_started = False
         self._reports_completion = device.reports_completion
-        self._now_ns = self.clock.now_ns
         self._command_nowait = has_nowait(device, "command_nowait", "command")
         self._read_nowait = has_nowait(device, "read_nowait", "read")
 
@@ -163,11 +165,40 @@ class Actuator(HALComponent):
     @property
     def motion(self) -> Motion | None:
         """The latest command's Motion."""
+        link = self._stream
+        if link is not None:
+            self._settle()
         latest = self._latest
         if latest is not None:  # streamed by an ActuatorBank: built when asked for
             self._latest = None
             self._motion = Motion(*latest)
+            if link is not None:  # the bank's next batch supersedes it
+                link[0].built.append(self)
         return self._motion
+
+    def _settle(self) -> None:
+        """Bring the batches a bank streamed since the last settle into this actuator's own
+        state (sequence, commanded value, latest command): see :class:`StreamBatch`."""
+        link = self._stream
+        if link is None:
+            return
+        batch, index, count, sequence = link
+        behind = batch.count - count
+        if behind:
+            sequence += behind
+            req, target = batch.request, batch.targets[index]
+            self._sequence = sequence
+            self._latest = (req, target, sequence, batch.stamp)
+            self._commanded[req] = target
+            self._stream = (batch, index, batch.count, sequence)
+
+    def _detach(self) -> None:
+        """Leave the bank's batch stream (a command by another path follows)."""
+        link = self._stream
+        if link is not None:
+            self._settle()
+            self._stream = None
+            link[0].intact = False
 
     # -- SetValue ------------------------------------------------------------------
     async def set_value(self, value: float, request: Request | int = Request.POSITION) -> Motion:
@@ -218,8 +249,7 @@ class Actuator(HALComponent):
         """Send a validated command and make its Motion the current one."""
         # Commands reach the device in call order; the sequence number taken before the
         # device call decides which target is final if calls overlap (a bus send).
-        self._sequence += 1
-        sequence = self._sequence
+        sequence = self._next_sequence()
         try:
             await self.device.command(req, target)
         except _LINK_FAULTS as exc:
@@ -228,8 +258,7 @@ class Actuator(HALComponent):
 
     def _send_now(self, req: Request, target: float) -> Motion:
         """:meth:`_send` through the device's synchronous path."""
-        self._sequence += 1
-        sequence = self._sync_send = self._sequence
+        sequence = self._sync_send = self._next_sequence()
         try:
             self.device.command_nowait(req, target)
         except _LINK_FAULTS as exc:
@@ -242,9 +271,17 @@ class Actuator(HALComponent):
             self._on_target_reached()
         return motion
 
+    def _next_sequence(self) -> int:
+        """The sequence number of a command about to be sent by this actuator itself (it
+        leaves a bank's batch stream first)."""
+        if self._stream is not None:
+            self._detach()
+        self._sequence += 1
+        return self._sequence
+
     def _accept(self, req: Request, target: float, sequence: int) -> Motion:
         """The device accepted the command: make its Motion the current one."""
-        motion = Motion(req, target, sequence, self._now_ns())
+        motion = Motion(req, target, sequence, self.clock.now_ns())
         listener = self._observers.listener
         if listener is not None:
             listener.on_command(self, req, target, motion.issued_ns)
@@ -282,7 +319,7 @@ class Actuator(HALComponent):
             raise StateError("get_value", self.state, (_ACTIVE,))
         req = coerce_request(request, GET_VALUE_REQUESTS)
         if req not in self._read_codes:
-            return self._commanded[COMMAND_OF[req]]
+            return self._commanded_value(req)
         try:
             if self._read_nowait:  # a device that needs no I/O: the same, without suspending
                 value = self.device.read_nowait(req)
@@ -303,7 +340,7 @@ class Actuator(HALComponent):
             raise StateError("get_value_nowait", self.state, (_ACTIVE,))
         req = coerce_request(request, GET_VALUE_REQUESTS)
         if req not in self._read_codes:
-            return self._commanded[COMMAND_OF[req]]
+            return self._commanded_value(req)
         if not self._read_nowait:
             raise WouldBlockError(
                 f"{self.device_name}: the device has no synchronous read path; "
@@ -319,6 +356,13 @@ class Actuator(HALComponent):
         if listener is not None:
             listener.on_reading(self, req, (value,))
         return value
+
+    def _commanded_value(self, req: Request) -> float:
+        """The commanded value that ``get_value(req)`` answers (codes 1-3, or an actual
+        quantity the device does not read)."""
+        if self._stream is not None:
+            self._settle()
+        return self._commanded[COMMAND_OF[req]]
 
     def value_source(self, request: Request | int = Request.POSITION_ACTUAL) -> ValueSource:
         """Where ``get_value(request)`` comes from: MEASURED, ESTIMATED or COMMANDED.
@@ -351,7 +395,7 @@ class Actuator(HALComponent):
     async def _read_actual(self, req: Request) -> float:
         """``get_value(req)`` of an *_ACTUAL code, whatever the state (the watcher's read)."""
         if req not in self._read_codes:
-            return self._commanded[COMMAND_OF[req]]
+            return self._commanded_value(req)
         try:
             value = await self.device.read(req)
         except _LINK_FAULTS as exc:
@@ -375,6 +419,7 @@ class Actuator(HALComponent):
             self._complete(motion)
 
     async def _on_active(self) -> None:
+        self._detach()  # a reset or a new start: the bank attaches it again
         position = self._commanded[Request.POSITION]  # kept if the device cannot read it
         if _POSITION_ACTUAL in self._read_codes:
             try:
@@ -472,6 +517,8 @@ def stream_targets(
     """
     lazy = req is not _NO_EXCITE  # NO_EXCITE completes at once: its Motion is needed now
     for actuator, target in zip(actuators, targets, strict=True):
+        if actuator._stream is not None:
+            actuator._detach()
         sequence = actuator._sequence = actuator._sync_send = actuator._sequence + 1
         try:
             actuator.device.command_nowait(req, target)
@@ -487,7 +534,7 @@ def stream_targets(
                 if previous.outcome is _PENDING:
                     previous._supersede(sequence)
                 actuator._motion = None
-            stamp = actuator._now_ns() if now_ns is None else now_ns
+            stamp = actuator.clock.now_ns() if now_ns is None else now_ns
             actuator._latest = (req, target, sequence, stamp)
             actuator._commanded[req] = target
             listener = actuator._observers.listener
@@ -511,16 +558,94 @@ def accept_streamed(
     request other than NO_EXCITE; ``listening``: some component has a listener.
     """
     for actuator, target in zip(actuators, targets, strict=True):
+        if actuator._stream is not None:
+            actuator._detach()
         sequence = actuator._sequence = actuator._sequence + 1
         previous = actuator._motion
         if previous is not None:  # built because someone asked: it is replaced
             if previous.outcome is _PENDING:
                 previous._supersede(sequence)
             actuator._motion = None
-        stamp = actuator._now_ns() if now_ns is None else now_ns
+        stamp = actuator.clock.now_ns() if now_ns is None else now_ns
         actuator._latest = (req, target, sequence, stamp)
         actuator._commanded[req] = target
         if listening:
             listener = actuator._observers.listener
             if listener is not None:
                 listener.on_command(actuator, req, target, stamp)
+
+
+class StreamBatch:
+    """A bank's batch stream: the latest batch of targets its device batch commanded.
+
+    Streaming N setpoints per tick, the per-actuator bookkeeping (sequence, commanded value,
+    latest command) is what costs; a bank whose driver commands the whole batch at once
+    (``ActuatorDevice.batch_commander``) keeps the latest batch here instead, and each
+    attached actuator settles its own state from it only when something reads that state
+    (``motion``, a commanded value, its next command by another path).  An attached
+    actuator's sequence is its sequence at its last settle plus the batches since.
+
+    ``intact``: every member is attached (a member that leaves, e.g. for a ``set_value``,
+    clears it: the next batch attaches them all again).  ``built``: members whose Motion
+    was built while attached (someone asked for it): the next batch supersedes it.
+    """
+
+    __slots__ = ("built", "count", "intact", "request", "stamp", "targets")
+
+    def __init__(self, size: int) -> None:
+        self.targets: list[float] = [0.0] * size
+        self.request = Request.POSITION
+        self.stamp = 0
+        self.count = 0
+        self.intact = False
+        self.built: list[Actuator] = []
+
+    def attach(self, actuators: Sequence[Actuator]) -> None:
+        """Attach every member at the current batch (each settled and detached first)."""
+        count = self.count
+        built = self.built
+        built.clear()
+        for index, actuator in enumerate(actuators):
+            actuator._detach()
+            actuator._stream = (self, index, count, actuator._sequence)
+            if actuator._motion is not None:  # its latest command's: the next batch replaces it
+                built.append(actuator)
+        self.intact = True
+
+    def accept(
+        self,
+        actuators: Sequence[Actuator],
+        req: Request,
+        targets: Sequence[float],
+        stamp: int,
+        listening: bool,
+    ) -> None:
+        """Record a batch the device batch commanded (the bookkeeping of
+        :func:`stream_targets`, per batch): each member's Motion is built when asked for.
+
+        Only for Active members whose devices report completion, a request other than
+        NO_EXCITE, and the members in the order they were attached; ``listening``: some
+        component has a listener (each member's hears its command).
+        """
+        if not self.intact or req is not self.request:
+            self.attach(actuators)  # each settled with the previous request first
+            self.request = req
+        self.targets[:] = targets
+        self.stamp = stamp
+        count = self.count = self.count + 1
+        built = self.built
+        if built:  # Motions built since the last batch: superseded by this one
+            for actuator in built:
+                link = actuator._stream
+                motion = actuator._motion
+                if link is None or link[0] is not self or motion is None:
+                    continue  # it left the stream: its own command handled its Motion
+                if motion.outcome is _PENDING:
+                    motion._supersede(link[3] + count - link[2])
+                actuator._motion = None
+            built.clear()
+        if listening:
+            for actuator, target in zip(actuators, targets, strict=True):
+                listener = actuator._observers.listener
+                if listener is not None:
+                    listener.on_command(actuator, req, target, stamp)

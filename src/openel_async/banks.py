@@ -19,7 +19,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from operator import le as _le
 from typing import TypeVar, cast
 
-from .actuator import COMMAND_OF, Actuator, accept_streamed, stream_targets
+from .actuator import Actuator, StreamBatch, accept_streamed, stream_targets
 from .completion import Motion
 from .component import LINK_FAULTS, ComponentState, HALComponent
 from .errors import BadParameterError, HALError, StateError, WouldBlockError
@@ -92,6 +92,12 @@ class ActuatorBank:
         self._floats = (float,) * len(devices)
         self._lows = tuple(max(d.limits.position[0], -_MAX) for d in devices)
         self._highs = tuple(min(d.limits.position[1], _MAX) for d in devices)
+        # One range for every device (the usual case): min() and max() of the batch.
+        self._range = (
+            (self._lows[0], self._highs[0])
+            if len(set(self._lows)) == 1 and len(set(self._highs)) == 1
+            else None
+        )
         self._positions = all(_POSITION in d.supported_requests for d in devices)
         # One device call for the whole batch when the driver offers one (every device of
         # one class); only where the Motions are lazy (devices report completion).
@@ -101,6 +107,13 @@ class ActuatorBank:
             if len(classes) == 1
             and self._nowait
             and all(a._reports_completion for a in self.actuators)
+            else None
+        )
+        # The latest batch the device batch commanded, which the actuators settle from
+        # lazily (one stamp per batch: only when they share a clock).
+        self._streamed = (
+            StreamBatch(len(devices))
+            if self._now_ns is not None and self._batch is not None
             else None
         )
 
@@ -130,6 +143,28 @@ class ActuatorBank:
         self, values: Sequence[float], request: Request | int = Request.POSITION
     ) -> None:
         """:meth:`set_values` without suspending (devices that need no I/O)."""
+        streamed = self._streamed
+        if (
+            request is _POSITION
+            and streamed is not None
+            and (type(values) is list or type(values) is tuple)
+            and self._in_limits(values)
+        ):  # the streaming tick, inline: a batch of floats within the limits, one device call
+            actuators = self.actuators
+            for actuator in actuators:
+                if actuator.state is not _ACTIVE:
+                    _require_active(actuators, "set_values_nowait")
+            assert self._now_ns is not None and self._batch is not None
+            stamp = self._now_ns()
+            try:
+                sent = self._batch(_POSITION, values)
+            except LINK_FAULTS:
+                sent = False  # nothing was sent: the per-device path reports the fault
+            if sent:
+                streamed.accept(actuators, _POSITION, values, stamp, LISTENING.count > 0)
+            else:
+                stream_targets(actuators, _POSITION, values, stamp)
+            return
         if not self._nowait:
             _require_nowait(self.actuators, "_command_nowait", "set_values")
         req, targets = self._check("set_values_nowait", values, request)
@@ -147,7 +182,11 @@ class ActuatorBank:
             except LINK_FAULTS:
                 sent = False  # nothing was sent: the per-device path reports the fault
             if sent:
-                accept_streamed(self.actuators, req, targets, stamp, LISTENING.count > 0)
+                streamed = self._streamed
+                if streamed is not None and stamp is not None:
+                    streamed.accept(self.actuators, req, targets, stamp, LISTENING.count > 0)
+                else:
+                    accept_streamed(self.actuators, req, targets, stamp, LISTENING.count > 0)
                 return
         stream_targets(self.actuators, req, targets, stamp)
 
@@ -180,18 +219,26 @@ class ActuatorBank:
                 f"a sequence of {len(actuators)} values, one per actuator of the bank",
             )
         if req is _POSITION:
-            if (
-                self._positions
-                and tuple(map(type, values)) == self._floats
-                and all(map(_le, self._lows, values))
-                and all(map(_le, values, self._highs))
-            ):
+            if self._in_limits(values):
                 for actuator in actuators:
                     if actuator.state is not _ACTIVE:
                         _require_active(actuators, operation)
                 return req, values
             return req, self._check_each(operation, values, req)
         return req, self._check_each(operation, values, req)
+
+    def _in_limits(self, values: Sequence[float]) -> bool:
+        """Whether ``values`` (a sequence) are POSITION targets the bank takes as they are:
+        one float per actuator, each finite and within its device's limits (C-level passes;
+        False sends the caller through each actuator's own checks for the exact error)."""
+        if not self._positions or tuple(map(type, values)) != self._floats:
+            return False
+        bounds = self._range
+        if bounds is not None:
+            # NaN may hide from min() and max(): a finite sum rules it (and infinities) out.
+            total = sum(values)
+            return total - total == 0.0 and bounds[0] <= min(values) and max(values) <= bounds[1]
+        return all(map(_le, self._lows, values)) and all(map(_le, values, self._highs))
 
     def _check_each(self, operation: str, values: Sequence[float], req: Request) -> list[float]:
         _require_active(self.actuators, operation)
@@ -254,14 +301,14 @@ class ActuatorBank:
                 return tuple(out)
             return tuple([a._checked_actual(req, v) for a, v in zip(actuators, out, strict=True)])
         if req.is_command:
-            return tuple([a._commanded[req] for a in actuators])
+            return tuple([a._commanded_value(req) for a in actuators])
         if not self._read_nowait:
             _require_nowait(actuators, "_read_nowait", "get_values")
         out = []
         append = out.append
         for actuator in actuators:
             if req not in actuator._read_codes:  # neither measured nor estimated
-                append(actuator._commanded[COMMAND_OF[req]])
+                append(actuator._commanded_value(req))
                 continue
             try:
                 value = actuator.device.read_nowait(req)

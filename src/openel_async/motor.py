@@ -253,8 +253,7 @@ class Motor(Actuator):
         return await self._start_ramp(start, target, duration)
 
     async def _send_native_ramp(self, ramp: VelocityRamp) -> Motion:
-        self._sequence += 1
-        sequence = self._sequence
+        sequence = self._next_sequence()  # (leaves a bank's batch stream first)
         try:
             await self.device.command_velocity_ramp(ramp)
         except LINK_FAULTS as exc:
@@ -263,8 +262,7 @@ class Motor(Actuator):
 
     async def _start_ramp(self, start: float, target: float, duration: float) -> Motion:
         """The framework ramp: command ``start`` now (velocity mode), then stream."""
-        self._sequence += 1
-        sequence = self._sequence
+        sequence = self._next_sequence()  # (leaves a bank's batch stream first)
         device = self.device
         try:
             if self._command_nowait:

@@ -1038,3 +1038,105 @@ async def test_mujoco_joints_stream_in_one_batch_until_a_mode_changes(
         0.15 * joints[0]._drive_scale,
         0.25 * joints[1]._drive_scale,
     ]
+
+
+# -- the batch stream: each actuator settles its own state lazily (StreamBatch) ------------
+
+
+@pytest.mark.usefixtures("_batch_servos")
+async def test_a_streamed_actuator_settles_when_read_and_completes_only_its_latest_target(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    events = EventRecorder(virtual_clock)
+    servos = [BatchServo() for _ in range(2)]
+    actuators = [await hal_components.actuator(s) for s in servos]
+    for actuator in actuators:
+        actuator.add_observer(events)
+    before = actuators[0].set_value_nowait(0.05)  # pending when the bank starts streaming
+    bank = ActuatorBank(actuators)
+    for k in range(1, 6):
+        bank.set_values_nowait([0.1 * k, -0.1 * k])
+    assert before.outcome is Outcome.SUPERSEDED  # replaced by the bank's first batch
+    assert bank.get_values_nowait(Request.POSITION) == (0.5, -0.5)  # nobody asked for Motions
+    assert await actuators[1].get_value(Request.POSITION) == -0.5
+    built = actuators[0].motion  # asked for: built from the latest batch
+    assert built is not None and built.target == 0.5
+    assert built.sequence == before.sequence + 5  # one sequence number per batch
+    bank.set_values_nowait([0.6, -0.6])  # supersedes the Motion built in between
+    assert built.outcome is Outcome.SUPERSEDED
+    with pytest.raises(SupersededError):
+        await built
+    for servo in servos:
+        assert servo.ctx is not None
+        servo.ctx.target_reached()
+    final = bank.motions
+    assert [m.target for m in final if m is not None] == [0.6, -0.6]
+    assert all(m is not None and m.outcome is Outcome.REACHED for m in final)
+    assert events.count("event", COMPLETED) == 2 and not events.errors
+
+
+@pytest.mark.usefixtures("_batch_servos")
+async def test_a_command_by_another_path_leaves_the_batch_stream_in_order(
+    hal_components: ComponentStack,
+) -> None:
+    servos = [BatchServo() for _ in range(2)]
+    actuators = [await hal_components.actuator(s) for s in servos]
+    bank = ActuatorBank(actuators)
+    bank.set_values_nowait([0.1, 0.2])
+    bank.set_values_nowait([0.3, 0.4])
+    own = await actuators[1].set_value(0.9)  # after two batches: a later sequence number
+    assert own.outcome is Outcome.PENDING and own.sequence == 3
+    assert bank.get_values_nowait(Request.POSITION) == (0.3, 0.9)
+    bank.set_values_nowait([0.5, 0.6])  # every member attached again; the batch replaces it
+    assert own.outcome is Outcome.SUPERSEDED
+    motions = bank.motions
+    assert [(m.target, m.sequence) for m in motions if m is not None] == [(0.5, 3), (0.6, 4)]
+    bank.set_values_nowait([0.1, 0.2], Request.VELOCITY)  # another request: re-attached
+    assert bank.get_values_nowait(Request.VELOCITY) == (0.1, 0.2)
+    assert bank.get_values_nowait(Request.POSITION) == (0.5, 0.6)
+    assert [m.request for m in bank.motions if m is not None] == [Request.VELOCITY] * 2
+    assert all(m.outcome is Outcome.SUPERSEDED for m in motions if m is not None)
+
+
+@pytest.mark.usefixtures("_batch_servos")
+async def test_a_fault_reaches_the_latest_streamed_target_and_the_observers(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    events = EventRecorder(virtual_clock)
+    servos = [BatchServo() for _ in range(2)]
+    actuators = [await hal_components.actuator(s) for s in servos]
+    for actuator in actuators:
+        actuator.add_observer(events)
+    bank = ActuatorBank(actuators)
+    for k in range(3):
+        bank.set_values_nowait([0.1 * k, 0.2 * k])
+    assert servos[1].ctx is not None
+    servos[1].ctx.fault(ErrorId.DEVICE_ERROR, "overcurrent")
+    motion = actuators[1].motion
+    assert motion is not None and motion.target == 0.4
+    assert motion.outcome is Outcome.FAULTED
+    assert [r.source for r in events.errors] == [actuators[1]]
+    with pytest.raises(StateError):
+        bank.set_values_nowait([0.0, 0.0])
+    assert BatchServo.batches[-1] == (Request.POSITION, (0.2, 0.4))
+
+
+async def test_sim_motors_stream_through_their_batch_and_decline_when_one_is_disconnected(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    motors = [SimMotor() for _ in range(3)]
+    actuators = [
+        await hal_components.actuator(m, device_name=f"M{i}") for i, m in enumerate(motors)
+    ]
+    bank = ActuatorBank(actuators)
+    assert bank._batch is not None
+    bank.set_values_nowait([0.01, 0.02, 0.03])
+    final = bank.motions
+    await virtual_clock.sleep(1.0)
+    assert all(m is not None and m.outcome is Outcome.REACHED for m in final)
+    assert [round(m.read_nowait(Request.POSITION_ACTUAL), 9) for m in motors] == [0.01, 0.02, 0.03]
+    motors[2].connected = False  # the batch declines: the per-device path names M2
+    with pytest.raises(DeviceFaultError) as info:
+        bank.set_values_nowait([0.0, 0.0, 0.0])
+    assert "M2" in str(info.value)
+    assert [m.commands for m in motors] == [2, 2, 1]  # in axis order up to the fault

@@ -356,7 +356,15 @@ class AxisGroup:
                 continue
             self._pending = None
             started = perf()
-            await self._step(tick)
+            motion = self._active
+            if (
+                motion is not None
+                and self._nowait
+                and not (motion._settling or motion._checks_path or self._log_actual)
+            ):  # the common tick: sample and stream, nothing to await
+                self._advance_now(motion, tick.deadline_ns, None)
+            else:
+                await self._step(tick)
             cost = perf() - started
             record(cost)
             keep(cost)
@@ -389,6 +397,9 @@ class AxisGroup:
             assert actual is not None
             self._settle(motion, actual, t)
             return
+        if self._nowait:
+            self._advance_now(motion, t, actual)
+            return
         plan = motion._plan
         position = plan.positions(t)
         self._last_t = t
@@ -398,13 +409,30 @@ class AxisGroup:
         # One validated batch: every axis Active and every setpoint within its limits
         # before any is sent (else nothing is sent and the motion aborts).
         try:
-            if self._nowait:
-                self._bank.set_values_nowait(position, POSITION)
-            else:
-                await self._bank.set_values(position, POSITION)
+            await self._bank.set_values(position, POSITION)
         except Exception as exc:
             self._stream_failed(motion, position, exc, t)
             return
+        self._sent(motion, plan, position, t)
+
+    def _advance_now(self, motion: GroupMotion, t: int, actual: list[float] | None) -> None:
+        """The setpoints of tick ``t``, streamed without suspending (devices with a
+        synchronous path): the same as the end of :meth:`_step`, with no coroutine."""
+        plan = motion._plan
+        position = plan.positions(t)
+        self._last_t = t
+        self._last_state = None
+        self._last_plan = plan
+        self.log.append_plan(t, motion.id, plan, actual)
+        try:
+            self._bank.set_values_nowait(position, POSITION)
+        except Exception as exc:
+            self._stream_failed(motion, position, exc, t)
+            return
+        self._sent(motion, plan, position, t)
+
+    def _sent(self, motion: GroupMotion, plan: Plan, position: list[float], t: int) -> None:
+        """Every axis took the setpoints of tick ``t``; the motion settles after its last."""
         self._commanded = position
         if t >= plan.end_ns and self._active is motion:
             if motion.kind == "stop":

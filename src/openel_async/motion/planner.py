@@ -53,6 +53,8 @@ class KinematicState(NamedTuple):
 
 END_CORRECTION_MIN = 1e-12
 """End errors below this are left alone (their effect is below float noise)."""
+END_CORRECTION_WINDOW_S = 0.25
+"""The end error is blended in over at most this last part of a segment (seconds)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,6 +65,8 @@ class _Piece:
     trajectory: Trajectory
     correction: list[float] | None = None
     """Per axis, exact target minus ruckig's end position (None: none needed)."""
+    blend_s: float = 0.0
+    """Offset in the segment from which the correction is blended in (to its end)."""
 
 
 def _piece(start_s: float, trajectory: Trajectory, target: list[float] | None) -> _Piece:
@@ -70,9 +74,10 @@ def _piece(start_s: float, trajectory: Trajectory, target: list[float] | None) -
 
     The community ruckig reaches its target position to about 1e-8. Jumping to the
     exact target at the end would be a step that finite differences at 1 kHz see as a
-    jerk of ~10 units; instead the error is added along the segment with a quintic
-    smoothstep (zero velocity and acceleration at both ends), which keeps the start
-    state exact and adds a jerk of 60 x error / duration³ (~1e-5 for 1e-8 over 0.4 s).
+    jerk of ~10 units; instead the error is added over the last ``w`` = up to 0.25 s of
+    the segment with a quintic smoothstep (zero velocity and acceleration at both ends),
+    which keeps the start state exact and adds a jerk of 60 x error / w³ (~4e-5 for 1e-8
+    over 0.25 s); before that window a tick samples ruckig's positions as they are.
     """
     duration = trajectory.duration
     correction: list[float] | None = None
@@ -81,13 +86,23 @@ def _piece(start_s: float, trajectory: Trajectory, target: list[float] | None) -
         errors = [goal - reached for goal, reached in zip(target, end, strict=True)]
         if max(abs(e) for e in errors) >= END_CORRECTION_MIN:
             correction = errors
-    return _Piece(start_s, start_s + duration, trajectory, correction)
+    blend_s = max(0.0, duration - END_CORRECTION_WINDOW_S)
+    return _Piece(start_s, start_s + duration, trajectory, correction, blend_s)
 
 
 class Plan:
     """A chain of ruckig trajectories that starts at ``start_ns`` on the group's clock."""
 
-    __slots__ = ("_cursor", "_final", "_pieces", "duration", "end_ns", "start_ns", "waypoint_times")
+    __slots__ = (
+        "_cursor",
+        "_final",
+        "_only",
+        "_pieces",
+        "duration",
+        "end_ns",
+        "start_ns",
+        "waypoint_times",
+    )
 
     def __init__(self, start_ns: int, pieces: list[_Piece], final_position: list[float]) -> None:
         self.start_ns = start_ns
@@ -100,6 +115,8 @@ class Plan:
         zeros = [0.0] * len(final_position)
         self._final = KinematicState(list(final_position), zeros, list(zeros))
         self._cursor = 0
+        self._only = pieces[0] if len(pieces) == 1 else None
+        """The segment of a one-segment plan (a move, a stop): no search per sample."""
 
     @property
     def final_position(self) -> list[float]:
@@ -130,9 +147,9 @@ class Plan:
         piece, local = self._locate(t_ns)
         p, v, a = piece.trajectory.at_time(local)
         correction = piece.correction
-        if correction is not None:
-            span = piece.end_s - piece.start_s
-            x = min(1.0, local / span)
+        if correction is not None and local > piece.blend_s:
+            span = piece.end_s - piece.start_s - piece.blend_s
+            x = min(1.0, (local - piece.blend_s) / span)
             x2 = x * x
             s0 = x2 * x * (10.0 + x * (-15.0 + 6.0 * x))
             s1 = 30.0 * x2 * (1.0 - x) * (1.0 - x) / span
@@ -147,11 +164,17 @@ class Plan:
         acceleration corrections: what a tick streams."""
         if t_ns >= self.end_ns:
             return self._final.position
-        piece, local = self._locate(t_ns)
+        piece = self._only
+        if piece is not None:
+            local = (t_ns - self.start_ns) / NS_PER_S
+            if local < 0.0:
+                local = 0.0
+        else:
+            piece, local = self._locate(t_ns)
         p: list[float] = piece.trajectory.at_time(local)[0]
         correction = piece.correction
-        if correction is not None:
-            x = min(1.0, local / (piece.end_s - piece.start_s))
+        if correction is not None and local > piece.blend_s:
+            x = min(1.0, (local - piece.blend_s) / (piece.end_s - piece.start_s - piece.blend_s))
             s0 = x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
             p = list(map(add, p, map(mul, correction, repeat(s0))))
         return p
