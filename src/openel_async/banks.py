@@ -21,7 +21,7 @@ from typing import TypeVar, cast
 
 from .actuator import Actuator, StreamBatch, accept_streamed, stream_targets
 from .completion import Motion
-from .component import LINK_FAULTS, ComponentState, HALComponent
+from .component import LINK_FAULTS, STATE_CHANGES, ComponentState, HALComponent
 from .errors import BadParameterError, HALError, StateError, WouldBlockError
 from .listeners import LISTENING, tell_readings
 from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, Request, coerce_request
@@ -58,6 +58,16 @@ def _require_active(members: Sequence[HALComponent], operation: str) -> None:
             raise StateError(f"{operation} ({member.device_name})", member.state, (_ACTIVE,))
 
 
+def _require_all_active(members: Sequence[HALComponent], operation: str, checked_at: int) -> int:
+    """Every member Active (else StateError); returns the state-change count at which that
+    held.  Skipped while no component changed state since ``checked_at`` (the caller's
+    last successful check): a bank's members cannot have left Active meanwhile."""
+    changes = STATE_CHANGES.value
+    if checked_at != changes:
+        _require_active(members, operation)
+    return changes
+
+
 def _require_nowait(members: Sequence[HALComponent], flag: str, operation: str) -> None:
     for member in members:
         if not getattr(member, flag):
@@ -73,6 +83,8 @@ class ActuatorBank:
     def __init__(self, actuators: Iterable[Actuator]) -> None:
         self.actuators = _members(actuators, Actuator, "actuators")
         self._devices = tuple(a.device for a in self.actuators)
+        # STATE_CHANGES.value when every actuator was last seen Active (-1: never).
+        self._active_at = -1
         self._nowait = all(a._command_nowait for a in self.actuators)
         self._read_nowait = all(a._read_nowait for a in self.actuators)
         # The *_ACTUAL codes every actuator reads from its device (the others answer some
@@ -151,9 +163,8 @@ class ActuatorBank:
             and self._in_limits(values)
         ):  # the streaming tick, inline: a batch of floats within the limits, one device call
             actuators = self.actuators
-            for actuator in actuators:
-                if actuator.state is not _ACTIVE:
-                    _require_active(actuators, "set_values_nowait")
+            if self._active_at != STATE_CHANGES.value:
+                self._active_at = _require_all_active(actuators, "set_values_nowait", -1)
             assert self._now_ns is not None and self._batch is not None
             stamp = self._now_ns()
             try:
@@ -220,9 +231,7 @@ class ActuatorBank:
             )
         if req is _POSITION:
             if self._in_limits(values):
-                for actuator in actuators:
-                    if actuator.state is not _ACTIVE:
-                        _require_active(actuators, operation)
+                self._active_at = _require_all_active(actuators, operation, self._active_at)
                 return req, values
             return req, self._check_each(operation, values, req)
         return req, self._check_each(operation, values, req)
@@ -277,9 +286,7 @@ class ActuatorBank:
 
     def _values_now(self, operation: str, request: Request | int) -> tuple[float, ...]:
         actuators = self.actuators
-        for actuator in actuators:
-            if actuator.state is not _ACTIVE:
-                _require_active(actuators, operation)
+        self._active_at = _require_all_active(actuators, operation, self._active_at)
         req = coerce_request(request, GET_VALUE_REQUESTS)
         if req in self._read_codes:  # every device reads it: one loop, one try
             if not self._read_nowait:
@@ -329,6 +336,7 @@ class SensorBank:
     def __init__(self, sensors: Iterable[Sensor]) -> None:
         self.sensors = _members(sensors, Sensor, "sensors")
         self._nowait = all(s._nowait for s in self.sensors)
+        self._active_at = -1  # STATE_CHANGES.value when every sensor was last seen Active
         devices = [s.device for s in self.sensors]
         classes = {type(d) for d in devices}
         # One device call for the whole bank when every device is of one class.
@@ -352,6 +360,19 @@ class SensorBank:
 
     def get_values_nowait(self) -> tuple[tuple[float, ...], ...]:
         """:meth:`get_values` without suspending (devices that need no I/O)."""
+        read_many = self._read_many
+        if (
+            read_many is not None
+            and self._active_at == STATE_CHANGES.value
+            and self._settings_version == MEASUREMENT_SETTINGS_VERSION.value
+            and self._measurements is None
+            and not LISTENING.count
+        ):  # the control-step read, inline: every sensor Active, no conversion, no listener
+            try:
+                batch = read_many(self._devices)
+            except LINK_FAULTS:
+                return self._read_each()
+            return self._checked_batch(batch)
         return self._get_now("get_values_nowait")
 
     def _get_now(self, operation: str) -> tuple[tuple[float, ...], ...]:
@@ -377,34 +398,44 @@ class SensorBank:
 
     def _read_now(self, operation: str) -> tuple[tuple[float, ...], ...]:
         sensors = self.sensors
-        for sensor in sensors:
-            if sensor.state is not _ACTIVE:
-                _require_active(sensors, operation)
+        active_at = _require_all_active(sensors, operation, self._active_at)
         if not self._nowait:
             _require_nowait(sensors, "_nowait", "get_values")
+        self._active_at = active_at  # (only for a synchronous bank: get_values_nowait's test)
         if self._read_many is not None:
             try:
                 batch = self._read_many(self._devices)
             except LINK_FAULTS:
                 pass  # read them one by one below: the fault lands on its own sensor
             else:
-                out = tuple(batch)
-                if len(out) != len(sensors):
-                    raise HALError(
-                        f"{type(self._devices[0]).__name__}.read_values_many_nowait returned "
-                        f"{len(out)} values for {len(sensors)} devices"
-                    )
-                # The common case in two C calls: concatenation succeeds only for tuples, and
-                # one sum is finite only if every value is (x - x is 0.0 for finite x).  The
-                # per-sensor checks find what is wrong otherwise.
-                try:
-                    flat: object = sum(out, ())  # type: ignore[type-var]
-                    total = sum(flat) if type(flat) is tuple else math.nan
-                except Exception:  # a driver returned something else than tuples of floats
-                    total = math.nan
-                if type(total) is float and total - total == 0.0:
-                    return cast(tuple[tuple[float, ...], ...], out)
-                return tuple([s._checked_values(v) for s, v in zip(sensors, out, strict=True)])
+                return self._checked_batch(batch)
+        return self._read_each()
+
+    def _checked_batch(self, batch: Sequence[Sequence[float]]) -> tuple[tuple[float, ...], ...]:
+        """The values of one ``read_values_many_nowait``, checked: one tuple of finite floats
+        per sensor (anything else is its sensor's device fault)."""
+        sensors = self.sensors
+        out = tuple(batch)
+        if len(out) != len(sensors):
+            raise HALError(
+                f"{type(self._devices[0]).__name__}.read_values_many_nowait returned "
+                f"{len(out)} values for {len(sensors)} devices"
+            )
+        # The common case in two C calls: concatenation succeeds only for tuples, and one
+        # sum is finite only if every value is (x - x is 0.0 for finite x).  The per-sensor
+        # checks find what is wrong otherwise.
+        try:
+            flat: object = sum(out, ())  # type: ignore[type-var]
+            total = sum(flat) if type(flat) is tuple else math.nan
+        except Exception:  # a driver returned something else than tuples of floats
+            total = math.nan
+        if type(total) is float and total - total == 0.0:
+            return cast(tuple[tuple[float, ...], ...], out)
+        return tuple([s._checked_values(v) for s, v in zip(sensors, out, strict=True)])
+
+    def _read_each(self) -> tuple[tuple[float, ...], ...]:
+        """Every sensor's ``read_nowait``, checked (a link fault lands on its own sensor)."""
+        sensors = self.sensors
         values_out = []
         for sensor in sensors:
             try:

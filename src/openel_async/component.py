@@ -64,6 +64,19 @@ LINK_FAULTS: tuple[type[BaseException], ...] = (
 )
 _instances = itertools.count(1)
 
+
+class StateChanges:
+    """Counts state changes of every component (a bank skips its members' per-call Active
+    checks while it has not moved since they were all Active)."""
+
+    __slots__ = ("value",)
+
+    def __init__(self) -> None:
+        self.value = 0
+
+
+STATE_CHANGES = StateChanges()
+
 EXIT_DRAIN_S = 1.0
 """How long leaving ``async with component`` waits for async observers (real seconds)."""
 
@@ -250,6 +263,7 @@ class HALComponent:
             old = self.state
             self.log.info("state_changed", old=str(old), new=str(state))
             self.state = state
+            STATE_CHANGES.value += 1
             listener = self._observers.listener
             if listener is not None:
                 listener.on_state(self, old, state)

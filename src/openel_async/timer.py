@@ -119,6 +119,10 @@ class EventTimer:
         self._last_tick: TimerTick | None = None
         self._tick_fields: tuple[int, int, int, int] | None = None
         self._lateness = LatenessRecorder()
+        # Ticks delivered exactly at their deadline on the inline path (a lockstep clock),
+        # not yet written into ``_lateness``: recorded as zeros when the statistics are read
+        # or before the next late tick, so every tick is still counted, in order.
+        self._on_time = 0
         self._ticks = 0
         self._late = 0
         self._missed = 0
@@ -271,6 +275,8 @@ class EventTimer:
         period = self._period_ns
         now = self.clock.now_ns()
         lateness = now - deadline
+        if self._on_time:
+            self._record_on_time()
         self._lateness.record(lateness)
         missed = lateness // period if lateness >= period else 0
         if missed:
@@ -297,12 +303,38 @@ class EventTimer:
             observers.publish("notify_timer", self)
         return deadline + self._period_ns
 
+    def _tick_on_time(self, deadline: int) -> int:
+        """:meth:`_tick` for the inline path (an :class:`InlineScheduler` calls it at its
+        deadline): a tick delivered exactly on time skips the lateness arithmetic (no miss,
+        not late, zero drift) and its zero lateness is recorded in bulk later."""
+        if self.clock.now_ns() != deadline or "notify_timer" in self._observers.wants_notice:
+            return self._tick(deadline)
+        self._on_time += 1
+        self._index += 1
+        self._ticks += 1
+        self._drift = 0
+        self._tick_fields = (self._index, deadline, deadline, 0)
+        self._observers.publish("notify_timer", self)
+        return deadline + self._period_ns
+
+    def _record_on_time(self) -> None:
+        """Write the on-time ticks counted by :meth:`_tick_on_time` into the lateness
+        recorder as zeros (only the last ``window`` of them can stay in its ring)."""
+        count, self._on_time = self._on_time, 0
+        recorder = self._lateness
+        kept = min(count, recorder.window)
+        for _ in range(kept):
+            recorder.record(0)
+        recorder.count += count - kept
+
     # -- iteration and statistics ----------------------------------------------------
     def __aiter__(self) -> AsyncIterator[TimerTick]:
         return _TickIterator(self)
 
     @property
     def stats(self) -> TimerStats:
+        if self._on_time:
+            self._record_on_time()
         return TimerStats(
             ticks=self._ticks,
             late_ticks=self._late,
@@ -313,6 +345,7 @@ class EventTimer:
 
     def reset_stats(self) -> None:
         self._lateness.reset()
+        self._on_time = 0
         self._ticks = self._late = self._missed = 0
 
     def __repr__(self) -> str:
@@ -332,7 +365,7 @@ class _InlineTicks:
 
     def _fire(self) -> int | None:
         timer = self._timer
-        self._deadline = deadline = timer._tick(self._deadline)
+        self._deadline = deadline = timer._tick_on_time(self._deadline)
         # Re-armed by returning the next deadline, unless an observer stopped (and maybe
         # restarted) the timer during the tick.
         return deadline if timer._inline is self else None

@@ -824,6 +824,35 @@ async def test_sensor_bank_outside_active_names_the_sensor(
     assert BatchSensor.batches == [] and [d.single_reads for d in devices] == [0, 0]
 
 
+async def test_banks_see_a_member_leave_active_after_calls_that_skipped_the_check(
+    hal_components: ComponentStack,
+) -> None:
+    """Banks skip their per-member Active checks while no component changed state; a member
+    that leaves Active afterwards (a fault, finalize) still stops the next call."""
+    devices = [BatchSensor(1.0), BatchSensor(2.0)]
+    sensors = [await hal_components.sensor(d) for d in devices]
+    sensor_bank = SensorBank(sensors)
+    motors = [SimMotor(), SimMotor()]
+    actuators = [await hal_components.actuator(m) for m in motors]
+    actuator_bank = ActuatorBank(actuators)
+    for _ in range(3):
+        assert sensor_bank.get_values_nowait() == ((1.0,), (2.0,))
+        assert actuator_bank.get_values_nowait(Request.POSITION_ACTUAL) == (0.0, 0.0)
+    assert devices[1].ctx is not None
+    devices[1].ctx.fault(ErrorId.DEVICE_ERROR, "brown-out")
+    with pytest.raises(StateError) as info:
+        sensor_bank.get_values_nowait()
+    assert info.value.operation == f"get_values_nowait ({sensors[1].device_name})"
+    assert info.value.state is ComponentState.ERROR
+    await actuators[0].finalize()
+    with pytest.raises(StateError) as read_info:
+        actuator_bank.get_values_nowait(Request.POSITION_ACTUAL)
+    assert actuators[0].device_name in read_info.value.operation
+    with pytest.raises(StateError):
+        actuator_bank.set_values_nowait([0.1, 0.2])
+    assert [m.commands for m in motors] == [0, 0]
+
+
 async def test_sensor_bank_over_mujoco_sensors(hal_components: ComponentStack) -> None:
     pytest.importorskip("mujoco")
     from openel_mujoco import MujocoSim

@@ -715,3 +715,74 @@ async def test_inline_timer_and_sleepers_go_on_while_the_simulation_is_faulted(
     with anyio.fail_after(2):
         await sim.clock.sleep_until(faulted_at + 10 * MS)
     assert log.times[-1] == faulted_at + 10 * MS
+
+
+class _HandDriven:
+    """An InlineScheduler whose single callback the test fires, on time or late."""
+
+    def __init__(self) -> None:
+        self.now = 0
+        self.deadline: int | None = None
+        self.callback: Callable[[], int | None] | None = None
+
+    def now_ns(self) -> int:
+        return self.now
+
+    async def sleep_until(self, deadline_ns: int) -> None:
+        raise AssertionError("an inline timer does not sleep")
+
+    def sleeper(self) -> object:
+        raise AssertionError("an inline timer does not sleep")
+
+    def call_at(self, deadline_ns: int, callback: Callable[[], int | None]) -> ScheduledCall:
+        self.deadline, self.callback = deadline_ns, callback
+        clock = self
+
+        class _Handle:
+            def cancel(self) -> None:
+                clock.callback = None
+
+        return _Handle()
+
+    def fire(self, late_ns: int = 0) -> None:
+        assert self.deadline is not None and self.callback is not None
+        self.now = self.deadline + late_ns
+        self.deadline = self.callback()
+
+
+async def test_on_time_and_late_inline_ticks_are_all_in_the_statistics() -> None:
+    """On-time inline ticks skip the lateness arithmetic and are recorded in bulk: the
+    statistics still count every tick, with each late tick's lateness among them."""
+    clock = _HandDriven()
+    assert isinstance(clock, InlineScheduler)
+    async with EventTimer(1.0, clock=clock, name="hand") as timer:  # type: ignore[arg-type]
+        indexes: list[int] = []
+
+        class Plain:
+            def notify_timer(self, t: EventTimer) -> None:
+                tick = t.last_tick
+                assert tick is not None
+                indexes.append(tick.index)
+
+        timer.add_observer(Plain())
+        timer.start_timer()
+        for _ in range(7):
+            clock.fire()
+        clock.fire(300_000)  # late (> period / 5) but within the period
+        for _ in range(4):
+            clock.fire()
+        stats = timer.stats
+        assert (stats.ticks, stats.late_ticks, stats.missed_ticks) == (12, 1, 0)
+        assert stats.lateness.count == 12
+        assert stats.lateness.max_ns == 300_000
+        assert stats.lateness.mean_ns == pytest.approx(300_000 / 12)
+        assert stats.last_lateness_ns == 0
+        assert indexes == list(range(1, 13))
+        clock.fire(2_500_000)  # two periods missed
+        assert timer.stats.missed_ticks == 2 and timer.stats.lateness.count == 13
+        timer.reset_stats()
+        for _ in range(3):
+            clock.fire()
+        stats = timer.stats
+        assert (stats.ticks, stats.lateness.count, stats.lateness.max_ns) == (3, 3, 0)
+        timer.stop_timer()
