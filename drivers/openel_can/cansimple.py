@@ -386,6 +386,8 @@ class Address(CanSimpleMessage):
     _FMT = "<B6s"
 
     def payload(self) -> bytes:
+        if not isinstance(self.serial_number, int):
+            raise TypeError(f"serial_number must be an int, got {self.serial_number!r}")
         if not 0 <= self.serial_number < 1 << 48:
             raise ValueError("serial_number must fit 48 bits")
         return _pack(

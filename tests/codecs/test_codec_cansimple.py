@@ -276,3 +276,9 @@ def test_constructors_and_encoders_raise_only_value_or_type_error(
         except CanSimpleDecodeError:
             continue  # not a frame of that direction
         assert cs.encode(again) == (arb_id, data)
+
+
+def test_address_refuses_a_float_serial_number_with_a_type_error() -> None:
+    """Found by the constructor fuzzer: a float serial number leaked an AttributeError."""
+    with pytest.raises(TypeError, match="serial_number must be an int"):
+        cs.encode(cs.Address(0, 0, 0.0))  # type: ignore[arg-type]
