@@ -61,6 +61,7 @@ class LiveView(Tap):
         port: int = DEFAULT_PORT,
         record: str | os.PathLike[str] | None = None,
         joint_period_ms: float = 20.0,
+        timer_stats_ms: float | None = None,
         capacity: int = 100_000,
         logs: bool = True,
     ) -> None:
@@ -69,6 +70,7 @@ class LiveView(Tap):
             record=record,
             foxglove=(host, port),
             joint_period_ms=joint_period_ms,
+            timer_stats_ms=timer_stats_ms,
             capacity=capacity,
             logs=logs,
         )

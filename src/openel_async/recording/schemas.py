@@ -8,7 +8,7 @@ Topic                      Schema                      One message per
 =========================  ==========================  =================================================
 ``/hal/<component>``       ``openel_async.HalRecord``  command, reading, event, completion, error, state
                                                        change of that component (``kind`` tells which)
-``/timer/<timer>``         ``openel_async.TimerTick``  tick of that EventTimer (lateness, missed ticks)
+``/timer/<timer>``         ``openel_async.TimerTick``  that EventTimer's tick statistics (ticks, lateness, missed)
 ``/joint_states``          ``openel_async.JointStates`` sample of every actuator (commanded and actual)
 ``/log``                   ``foxglove.Log``            log line (info and above)
 ``/tf``                    ``foxglove.FrameTransforms`` sample of a scene's body poses (MuJoCo rigs)
@@ -129,16 +129,17 @@ TIMER_TICK = Schema(
     "openel_async.TimerTick",
     {
         "title": "openel_async.TimerTick",
-        "description": "One tick of an EventTimer and its statistics",
+        "description": "The statistics of an EventTimer's ticks since its previous message "
+        "(one message per statistics period, at its last tick)",
         "type": "object",
         "properties": {
-            "time_ns": _INT,
-            "index": _INT,
-            "deadline_ns": _INT,
-            "lateness_ns": _INT,
-            "missed_ticks": {**_INT, "description": "periods skipped before this tick"},
-            "ticks": {**_INT, "description": "ticks so far"},
-            "missed_total": {**_INT, "description": "periods skipped so far"},
+            "time_ns": {**_INT, "description": "the last tick's delivery time"},
+            "index": {**_INT, "description": "the last tick's index"},
+            "deadline_ns": {**_INT, "description": "the last tick's deadline"},
+            "lateness_ns": {**_INT, "description": "the last tick's lateness"},
+            "missed_ticks": {**_INT, "description": "periods skipped since the previous message"},
+            "ticks": {**_INT, "description": "ticks delivered since the previous message"},
+            "max_lateness_ns": {**_INT, "description": "the largest lateness of those ticks"},
         },
         "required": ["time_ns", "index", "deadline_ns", "lateness_ns"],
     },

@@ -118,30 +118,60 @@ class _ComponentTap:
 
 
 class _TimerTap:
-    """The tap's observer of one timer: its tick records, and the joint-state samples."""
+    """The tap's observer of one timer: its tick statistics (one record per statistics
+    period: the ticks since the previous one, their largest lateness, the periods skipped;
+    not a record per tick) and the joint-state samples."""
 
-    __slots__ = ("capacity", "channel", "pipeline", "queue", "tap")
+    __slots__ = ("channel", "max_late", "missed", "next_ns", "period_ns", "tap", "ticks")
 
     def __init__(self, tap: Tap, channel: int) -> None:
         self.tap = tap
         self.channel = channel
-        self.pipeline = tap.pipeline
-        self.queue = tap.pipeline.queue
-        self.capacity = tap.pipeline.capacity
+        self.period_ns = tap.timer_stats_period_ns
+        self.next_ns = 0
+        self.ticks = 0
+        self.max_late = 0
+        self.missed = 0
 
     def notify_timer(self, timer: EventTimer, tick: TimerTick | None = None) -> None:
         if tick is None:  # (the timer always passes it: the tap takes the notice)
             return
         now = tick.time_ns
-        queue = self.queue
-        if len(queue) < self.capacity:
-            queue.append((self.channel, now, TICK, tick.index, tick.deadline_ns, tick.missed_ticks))
+        late = now - tick.deadline_ns
+        if self.ticks:
+            self.ticks += 1
+            if late > self.max_late:
+                self.max_late = late
         else:
-            self.pipeline.dropped += 1
+            self.ticks = 1
+            self.max_late = late
+        if tick.missed_ticks:
+            self.missed += tick.missed_ticks
+        if now >= self.next_ns:
+            self.next_ns = now + self.period_ns
+            self.flush(tick)
         tap = self.tap
         if now >= tap.next_joint_ns:
             tap.next_joint_ns = now + tap.joint_period_ns
             tap.sample(now)
+
+    def flush(self, tick: TimerTick | None) -> None:
+        """The statistics record of the ticks since the previous one (``tick``: the last)."""
+        if tick is None or not self.ticks:
+            return
+        self.tap.pipeline.put(
+            (
+                self.channel,
+                tick.time_ns,
+                TICK,
+                tick.index,
+                tick.deadline_ns,
+                self.missed,
+                self.ticks,
+                self.max_late,
+            )
+        )
+        self.ticks = self.missed = 0
 
 
 class Tap(AppHook):
@@ -149,7 +179,8 @@ class Tap(AppHook):
     (``foxglove``: (host, port); port 0: any free port).
 
     ``joint_period_ms``: the period of ``/joint_states`` (and ``/tf``) samples, taken at the
-    observed timers' ticks, on the app's clock. ``capacity``: records the queue holds before
+    observed timers' ticks, on the app's clock; ``timer_stats_ms``: the period of each
+    timer's statistics messages (``/timer/<name>``; default: ``joint_period_ms``). ``capacity``: records the queue holds before
     it drops (counted in :attr:`stats`). ``logs``: forward log lines (info and above) to
     ``/log``. ``chunk_size``: bytes per MCAP chunk (a killed run loses at most one)."""
 
@@ -159,17 +190,23 @@ class Tap(AppHook):
         record: str | os.PathLike[str] | None = None,
         foxglove: tuple[str, int] | None = None,
         joint_period_ms: float = 10.0,
+        timer_stats_ms: float | None = None,
         capacity: int = 100_000,
         logs: bool = True,
         chunk_size: int = 64 * 1024,
     ) -> None:
         if not joint_period_ms > 0:
             raise ValueError(f"joint_period_ms must be > 0, got {joint_period_ms}")
+        if timer_stats_ms is None:
+            timer_stats_ms = joint_period_ms
+        if not timer_stats_ms > 0:
+            raise ValueError(f"timer_stats_ms must be > 0, got {timer_stats_ms}")
         self.pipeline = Pipeline(
             mcap=record, foxglove=foxglove, capacity=capacity, chunk_size=chunk_size
         )
         self._put = self.pipeline.put
         self.joint_period_ns = round(joint_period_ms * 1e6)
+        self.timer_stats_period_ns = round(timer_stats_ms * 1e6)
         self._logs = logs
         self._offset: int | None = None
         self._clock: Clock | None = None
@@ -226,8 +263,10 @@ class Tap(AppHook):
             if component.listener is self._listeners[id(component)]:
                 component.set_listener(None)
         for timer in self._timers:
+            timer_tap = self._timer_taps[id(timer)]
+            timer_tap.flush(timer.last_tick)  # the ticks since its last statistics record
             with contextlib.suppress(Exception):  # already gone
-                timer.remove_observer(self._timer_taps[id(timer)])
+                timer.remove_observer(timer_tap)
         with anyio.CancelScope(shield=True):
             stats = await anyio.to_thread.run_sync(self.pipeline.stop)
         self.final_stats = stats
