@@ -53,7 +53,7 @@ def to_message(entry: list[Any]) -> dict[str, Any]:
         _, t, _, request, value = entry
         return {"kind": "command", "time_ns": t, "request": _request_name(request), "value": value}
     if kind == TICK:
-        _, t, _, index, deadline, missed, ticks, max_late = entry
+        _, t, _, index, deadline, missed, ticks = entry
         return {
             "time_ns": t,
             "index": index,
@@ -61,7 +61,6 @@ def to_message(entry: list[Any]) -> dict[str, Any]:
             "lateness_ns": t - deadline,
             "missed_ticks": missed,
             "ticks": ticks,
-            "max_lateness_ns": max_late,
         }
     if kind == READING:
         _, t, _, request, values = entry

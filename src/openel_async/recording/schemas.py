@@ -139,7 +139,6 @@ TIMER_TICK = Schema(
             "lateness_ns": {**_INT, "description": "the last tick's lateness"},
             "missed_ticks": {**_INT, "description": "periods skipped since the previous message"},
             "ticks": {**_INT, "description": "ticks delivered since the previous message"},
-            "max_lateness_ns": {**_INT, "description": "the largest lateness of those ticks"},
         },
         "required": ["time_ns", "index", "deadline_ns", "lateness_ns"],
     },
