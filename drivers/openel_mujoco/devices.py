@@ -373,7 +373,8 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         self._sat_hi = math.inf
         self._sat_lo_off = -math.inf
         self._sat_hi_off = math.inf
-        self.commands = 0
+        self._commands = 0  # by command_nowait and ramps; batches count their own
+        self._batches: list[_JointBatch] = []  # every batch commander made for this joint
         self._init_mode(spec.mode)
         sim._joints[spec.key] = self
 
@@ -565,7 +566,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         sim = self.sim
         if sim._fault is not None:
             raise HALError(f"{self.name}: the simulation is faulted: {sim._fault}")
-        self.commands += 1
+        self._commands += 1
         if request is self._direct:  # streaming setpoints in the current mode: one ctrl write
             sim._ctrl[self._drive_act] = value * self._drive_scale
         else:
@@ -621,7 +622,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         sim = self.sim
         if sim._fault is not None:
             raise HALError(f"{self.name}: the simulation is faulted: {sim._fault}")
-        self.commands += 1
+        self._commands += 1
         if self._ramp is not None:
             self._stop_ramp()
         if self._mode is _VELOCITY:
@@ -776,6 +777,11 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
             self.sim._set_pd(self, False)
         self._init_mode(self.spec.mode)
 
+    @property
+    def commands(self) -> int:
+        """Commands this joint took (``command_nowait``, ramps and batches)."""
+        return self._commands + sum([batch.calls for batch in self._batches])
+
     @classmethod
     def batch_commander(cls, devices: Sequence[ActuatorDevice]) -> BatchCommander | None:
         """Joints of one simulation: an ActuatorBank's setpoints in one loop of ctrl writes."""
@@ -809,32 +815,49 @@ class _JointBatch:
     """``MujocoJoint.command_nowait(request, values[i])`` of every joint, for setpoints in
     every joint's current direct mode (see ``BatchCommander``).  Whether every joint
     streams ``request`` with a plain ctrl write is decided once per mode change, not per
-    call; otherwise it declines (False) and the bank commands joint by joint."""
+    call; otherwise it declines (False) and the bank commands joint by joint.  The batch
+    counts its calls once (``calls``: part of each joint's ``commands``) rather than per
+    joint."""
 
-    __slots__ = ("_plan", "_request", "_version", "joints", "sim")
+    __slots__ = ("_plan", "_request", "_scaled", "_version", "calls", "joints", "sim")
 
     def __init__(self, joints: tuple[MujocoJoint, ...]) -> None:
         self.joints = joints
         self.sim = joints[0].sim
+        self.calls = 0
         self._request: Request | None = None
         self._version = -1
         self._plan: tuple[tuple[MujocoJoint, int, float], ...] = ()
+        self._scaled = True  # some joint's ctrl is not its value as it is (scale != 1)
+        for joint in joints:
+            joint._batches.append(self)
 
     def __call__(self, request: Request, values: Sequence[float], /) -> bool:
         sim = self.sim
         if sim._fault is not None:
             raise HALError(f"{sim.name}: the simulation is faulted: {sim._fault}")
-        stale = request is not self._request or self._version != DRIVE_PLANS.version
-        if stale and not self._replan(request):
+        if (request is not self._request or self._version != DRIVE_PLANS.version) and (
+            not self._replan(request)
+        ):
             return False
+        if len(values) != len(self.joints):
+            raise ValueError(f"{len(values)} values for {len(self.joints)} joints")
         ctrl = sim._ctrl
-        for (joint, act, scale), value in zip(self._plan, values, strict=True):
-            ctrl[act] = value * scale  # the same product as command_nowait's
-            joint.commands += 1
-            joint._target = value
-            joint._request = request
-            joint._within_since = -1
-            joint._pending = True
+        self.calls += 1
+        if self._scaled:
+            for (joint, act, scale), value in zip(self._plan, values, strict=False):
+                ctrl[act] = value * scale  # the same product as command_nowait's
+                joint._target = value
+                joint._request = request
+                joint._within_since = -1
+                joint._pending = True
+        else:  # value * 1.0 is value: the same ctrl as command_nowait's
+            for (joint, act, _), value in zip(self._plan, values, strict=False):
+                ctrl[act] = value
+                joint._target = value
+                joint._request = request
+                joint._within_since = -1
+                joint._pending = True
         return True
 
     def _replan(self, request: Request) -> bool:
@@ -846,6 +869,7 @@ class _JointBatch:
                 return False
             plan.append((joint, act, joint._drive_scale))
         self._plan = tuple(plan)
+        self._scaled = any(scale != 1.0 for _, _, scale in plan)
         self._request = request
         self._version = DRIVE_PLANS.version
         return True

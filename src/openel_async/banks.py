@@ -128,6 +128,9 @@ class ActuatorBank:
             if self._now_ns is not None and self._batch is not None
             else None
         )
+        # The streaming tick checked inline by set_values_nowait: POSITION batches streamed
+        # through the device batch, every device supporting POSITION with one shared range.
+        self._stream_range = self._range if self._streamed is not None and self._positions else None
 
     def __len__(self) -> int:
         return len(self.actuators)
@@ -155,27 +158,33 @@ class ActuatorBank:
         self, values: Sequence[float], request: Request | int = Request.POSITION
     ) -> None:
         """:meth:`set_values` without suspending (devices that need no I/O)."""
-        streamed = self._streamed
+        bounds = self._stream_range
         if (
-            request is _POSITION
-            and streamed is not None
+            bounds is not None
+            and request is _POSITION
             and (type(values) is list or type(values) is tuple)
-            and self._in_limits(values)
+            and tuple(map(type, values)) == self._floats
         ):  # the streaming tick, inline: a batch of floats within the limits, one device call
-            actuators = self.actuators
-            if self._active_at != STATE_CHANGES.value:
-                self._active_at = _require_all_active(actuators, "set_values_nowait", -1)
-            assert self._now_ns is not None and self._batch is not None
-            stamp = self._now_ns()
-            try:
-                sent = self._batch(_POSITION, values)
-            except LINK_FAULTS:
-                sent = False  # nothing was sent: the per-device path reports the fault
-            if sent:
-                streamed.accept(actuators, _POSITION, values, stamp, LISTENING.count > 0)
-            else:
-                stream_targets(actuators, _POSITION, values, stamp)
-            return
+            # (NaN may hide from min() and max(): a finite sum rules it and infinities out)
+            total = sum(values)
+            if total - total == 0.0 and bounds[0] <= min(values) and max(values) <= bounds[1]:
+                actuators = self.actuators
+                if self._active_at != STATE_CHANGES.value:
+                    self._active_at = _require_all_active(actuators, "set_values_nowait", -1)
+                streamed = self._streamed
+                now_ns = self._now_ns
+                batch = self._batch
+                assert streamed is not None and now_ns is not None and batch is not None
+                stamp = now_ns()
+                try:
+                    sent = batch(_POSITION, values)
+                except LINK_FAULTS:
+                    sent = False  # nothing was sent: the per-device path reports the fault
+                if sent:
+                    streamed.accept(actuators, _POSITION, values, stamp, LISTENING.count > 0)
+                else:
+                    stream_targets(actuators, _POSITION, values, stamp)
+                return
         if not self._nowait:
             _require_nowait(self.actuators, "_command_nowait", "set_values")
         req, targets = self._check("set_values_nowait", values, request)

@@ -13,6 +13,7 @@ import pytest
 
 from openel_async import (
     Actuator,
+    ActuatorBank,
     ComponentState,
     DeviceKind,
     EventId,
@@ -554,3 +555,40 @@ async def test_keyframe_start_holds_the_initial_pose(stack: AsyncExitStack) -> N
     assert await rig.actuators["elbow"].get_value(Request.POSITION) == pytest.approx(-0.7)
     sim.reset()  # back to the keyframe, still holding
     assert sim.joints["elbow"].commanded_position == pytest.approx(-0.7)
+
+
+async def test_a_joint_batch_writes_the_ctrl_of_command_nowait_and_counts_per_batch(
+    stack: AsyncExitStack,
+) -> None:
+    """A bank's joint batch writes each joint's ctrl as ``command_nowait`` would, scaled
+    (a geared motor's TORQUE: ctrl = value / gear) or not (POSITION servos: value as it
+    is), and counts once per call: every joint's ``commands`` includes every batch of every
+    bank it belongs to."""
+    geared = MujocoSim(mujoco.MjModel.from_xml_string(MOTOR_ONLY_XML))
+    rig = await start_rig(stack, geared, joints=("hinge",))
+    hinge = rig.actuators["hinge"]
+    hinge.set_value_nowait(0.0, Request.TORQUE)  # TORQUE is the motor's direct mode
+    joint = geared.joints["hinge"]
+    act = joint._drive_act
+    assert act is not None
+    torque_bank = ActuatorBank([hinge])
+    assert torque_bank._batch is not None
+    torque_bank.set_values_nowait([0.3], Request.TORQUE)
+    batched = float(geared.data.ctrl[act])
+    joint.command_nowait(Request.TORQUE, 0.3)
+    assert batched == float(geared.data.ctrl[act]) == 0.3 * 0.5
+    assert joint.commands == 3
+
+    arm = MujocoSim("arm2")
+    rig2 = await start_rig(stack, arm, joints=("shoulder", "elbow"))
+    actuators = [rig2.actuators["shoulder"], rig2.actuators["elbow"]]
+    banks = [ActuatorBank(actuators), ActuatorBank(actuators[::-1])]
+    joints = [arm.joints["shoulder"], arm.joints["elbow"]]
+    assert [j._drive_scale for j in joints] == [1.0, 1.0]  # position servos: ctrl = value
+    banks[0].set_values_nowait([0.125, -0.25])
+    assert [float(arm.data.ctrl[j._drive_act]) for j in joints] == [0.125, -0.25]
+    banks[1].set_values_nowait([0.5, 0.75])
+    banks[0].set_values_nowait([0.0, 0.1])
+    actuators[0].set_value_nowait(0.2)
+    assert [j.commands for j in joints] == [4, 3]
+    assert [j._target for j in joints] == [0.2, 0.1]
