@@ -346,6 +346,7 @@ class SensorBank:
         self.sensors = _members(sensors, Sensor, "sensors")
         self._nowait = all(s._nowait for s in self.sensors)
         self._active_at = -1  # STATE_CHANGES.value when every sensor was last seen Active
+        self._count = len(self.sensors)
         devices = [s.device for s in self.sensors]
         classes = {type(d) for d in devices}
         # One device call for the whole bank when every device is of one class.
@@ -378,10 +379,19 @@ class SensorBank:
             and not LISTENING.count
         ):  # the control-step read, inline: every sensor Active, no conversion, no listener
             try:
-                batch = read_many(self._devices)
+                out = tuple(read_many(self._devices))
             except LINK_FAULTS:
                 return self._read_each()
-            return self._checked_batch(batch)
+            if len(out) == self._count:  # (else _checked_batch raises)
+                # One finiteness check over the flat tuple, as in _checked_batch.
+                try:
+                    flat: object = sum(out, ())  # type: ignore[type-var]
+                    total = sum(flat) if type(flat) is tuple else math.nan
+                except Exception:  # a driver returned something else than tuples of floats
+                    total = math.nan
+                if type(total) is float and total - total == 0.0:
+                    return cast(tuple[tuple[float, ...], ...], out)
+            return self._checked_batch(out)
         return self._get_now("get_values_nowait")
 
     def _get_now(self, operation: str) -> tuple[tuple[float, ...], ...]:
