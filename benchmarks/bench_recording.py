@@ -10,19 +10,19 @@ as a viewer running elsewhere would not take the loop's CPU) subscribes to on ev
 Figures: medians over the rounds of the real time per control tick, of the CPU time of the
 loop's thread, of the app process (the loop and the recorder's feeding thread) and of the
 writer process (reported by it); ratio = variant / baseline. In lockstep the loop runs as
-fast as it can (about 180x real time), so this is the recorder at saturation: 4.2 messages
-per 12 us tick. The recorder's queue must drop nothing.
+fast as it can (about 180x real time), so this is the recorder at saturation: 3.4 messages
+per 11 us tick. The recorder's queue must drop nothing.
 
-Where the cost is (cProfile and variants of the loop, loop-thread CPU per tick; see
-docs/recording.md, "Cost"): the tap's own work is one Python call per record from the
-component (about 150 ns each in isolation, 0.35-0.5 us in the loop) plus, per tick, the
-timer's ``TimerTick`` notice (a frozen dataclass: 0.44 us to build; the tap needs its index,
-deadline and missed ticks) and a joint-state sample every 5 ticks. The writer process costs
-about 1.5 us CPU per message (msgpack decode 0.1, the JSON message 0.5, the SDK's Rust MCAP
-writer 0.5, the call into it 0.3; the pure-Python ``mcap`` writer used before took 4.5 us
-per message for the MCAP write alone). It runs at a lower priority: on a busy machine the
-loop keeps the CPU and the writer catches up; on two cores shared with other work it still
-takes CPU from the loop.
+Where the cost is (variants of the loop, loop-thread CPU per tick; see docs/recording.md,
+"Cost"): the tap's dispatch (a Python call per command and per reading from the component,
+a counter per tick in its timer observer) about 0.8 us per tick; building and queueing the
+records (2 commands and 1 reading per tick, a timer-statistics record every 5 ticks) about
+0.6 us; and the joint-state sample every 10 ms (5 ticks), about 1.5 us per tick at this
+speed: two reads per actuator through the framework, a list and its record. The writer
+process costs about 1.8 us CPU per message (msgpack decode, the JSON message, the SDK's Rust
+MCAP writer and the call into it). It runs at a lower priority: on a busy machine the loop
+keeps the CPU and the writer catches up; on two cores shared with other work it still takes
+CPU from the loop.
 """
 
 from __future__ import annotations
@@ -274,8 +274,8 @@ def run(quick: bool) -> BenchResult:
     loop_extra = (t["rec"] - t["base"]) * 1e6
     notes = (
         f"Recorder: {per_tick:.1f} messages per tick. Loop thread: +{loop_extra:.2f} us per "
-        f"tick ({loop_extra / per_tick * 1000:.0f} ns per message, the timer's TimerTick notice "
-        "included); writer process: "
+        f"tick ({loop_extra / per_tick * 1000:.0f} ns per message, dispatch and the joint-state "
+        "sample included); writer process: "
         f"{wr['rec'] * 1e6:.2f} us CPU per tick ({wr['rec'] * 1e6 / per_tick:.2f} us per "
         "message: msgpack decode, the JSON message, the Rust MCAP writer).",
         f"At the loop's full speed the writer process needs {wr['rec'] / w['rec']:.0%} of a "
