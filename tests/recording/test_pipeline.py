@@ -3,14 +3,20 @@ the writer process's priority."""
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import os
+import signal
+import threading
+import time
 from pathlib import Path
 
 import pytest
 
 from openel_async import Actuator, Request, VirtualClock
-from openel_async.recording import Pipeline, Recorder
+from openel_async.recording import Pipeline, PipelineStats, Recorder
+from openel_async.recording.records import COMMAND
+from openel_async.recording.schemas import HAL_RECORD
 from openel_sim import SimMotor
 
 
@@ -50,3 +56,36 @@ def test_writer_process_runs_niced(tmp_path: Path) -> None:
     assert stats.dropped == 0 and pipeline.writer_pid is None
     with pytest.raises(ValueError, match="writer_nice"):
         Pipeline(mcap=tmp_path / "x.mcap", writer_nice=20)
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="Unix signals")
+def test_stop_is_bounded_when_the_writer_stops_reading(tmp_path: Path) -> None:
+    """A writer process that no longer reads its stdin (hung, or stopped: SIGSTOP here)
+    leaves the feeding thread blocked on the full pipe: ``stop(timeout)`` still returns
+    after about ``timeout`` (it kills the writer), and the frame that could not be handed
+    over is counted as dropped, not as queued and written."""
+    pipeline = Pipeline(mcap=tmp_path / "h.mcap")
+    pipeline.start()
+    pid = pipeline.writer_pid
+    assert pid is not None
+    os.kill(pid, signal.SIGSTOP)
+    produced = 50_000  # about 0.7 MB of msgpack: far more than a pipe holds
+    result: list[PipelineStats] = []
+    try:
+        channel = pipeline.add_channel("/hal/X", HAL_RECORD)
+        for i in range(produced):
+            pipeline.put((channel, i, COMMAND, int(Request.POSITION), float(i)))
+        stopper = threading.Thread(target=lambda: result.append(pipeline.stop(timeout=1.0)))
+        started = time.monotonic()
+        stopper.start()
+        stopper.join(20)
+        elapsed = time.monotonic() - started
+        assert not stopper.is_alive(), "stop() waits forever for a writer that does not read"
+    finally:  # unblock a stop() that hangs (before the fix), so the test run can end
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    assert elapsed < 10
+    (stats,) = result
+    assert stats.dropped > 0 and stats.queued + stats.dropped == produced
+    assert stats.written <= stats.queued
+    assert pipeline.error is not None and pipeline.writer_pid is None

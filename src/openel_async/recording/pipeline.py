@@ -21,6 +21,7 @@ import os
 import subprocess
 import sys
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass
 from itertools import repeat, starmap
@@ -29,6 +30,7 @@ from typing import Any, Protocol
 import msgspec
 import structlog
 
+from .records import CHANNEL, STATS
 from .schemas import ChannelSpec, Schema
 
 __all__ = ["Pipeline", "PipelineStats", "Sink", "SinkStartError"]
@@ -97,6 +99,7 @@ class Pipeline:
         :meth:`put` does, one call fewer)."""
         self._taken = 0  # entries the thread took from the queue
         self._controls = 0  # channel entries queued (not records)
+        self._sending: list[tuple[Any, ...]] = []  # the batch being written to the pipe
         self.dropped = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -114,7 +117,7 @@ class Pipeline:
         spec = ChannelSpec(len(self.channels), topic, schema, dict(metadata or {}))
         self.channels.append(spec)
         self._controls += 1
-        self.queue.append((-1, self.offset_ns, 0, spec.id, topic, schema.name, spec.metadata))
+        self.queue.append((CHANNEL, self.offset_ns, 0, spec.id, topic, schema.name, spec.metadata))
         return spec.id
 
     def put(self, entry: tuple[Any, ...]) -> None:
@@ -170,12 +173,23 @@ class Pipeline:
         self._thread.start()
 
     def stop(self, timeout: float = 60.0) -> PipelineStats:
-        """Send what is queued, let the process close its sinks; the final statistics."""
+        """Send what is queued, let the process close its sinks; the final statistics.
+
+        Bounded by ``timeout`` seconds: a writer that has not finished by then (hung, or
+        no longer reading its stdin, which leaves the thread blocked on the full pipe) is
+        killed; what the thread could not hand over is counted as dropped and
+        :attr:`error` says why (the file keeps what was written up to its last complete
+        chunk)."""
+        deadline = time.monotonic() + timeout
         self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
-            self._thread = None
         process = self._process
+        thread = self._thread
+        if thread is not None:
+            thread.join(timeout)
+            if thread.is_alive() and process is not None:
+                self._kill(process, timeout)  # its stdin breaks: the blocked write fails
+                thread.join(10.0)
+            self._thread = None
         if process is not None:
             self._process = None
             assert process.stdout is not None
@@ -184,17 +198,25 @@ class Pipeline:
                     process.stdin.close()
                 process.stdin = None
             try:
-                out, _ = process.communicate(timeout=timeout)
+                out, _ = process.communicate(timeout=max(0.0, deadline - time.monotonic()))
                 for line in out.splitlines():
                     with contextlib.suppress(ValueError, KeyError, TypeError):
                         done = json.loads(line)
                         self.written = int(done["written"])
                         self.writer_cpu_s = float(done["cpu_s"])
             except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
-                log.error("recording_writer_timeout", timeout_s=timeout)
+                self._kill(process, timeout)
         return self.stats
+
+    def _kill(self, process: subprocess.Popen[bytes], timeout: float) -> None:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+            log.error("recording_writer_timeout", timeout_s=timeout)
+            if self.error is None:
+                self.error = TimeoutError(
+                    f"the writer process did not finish within {timeout} s: killed"
+                )
 
     def _run(self) -> None:
         process = self._process
@@ -205,10 +227,16 @@ class Pipeline:
                 self._send(fd)
             self._send(fd, final=True)
         except BaseException as exc:  # the process died: what is left is dropped, and told
-            self.error = exc
+            if self.error is None:
+                self.error = exc
             log.error("recording_failed", error=repr(exc))
-            self.dropped += len(self.queue)
-            self.queue.clear()
+            # The frame being written is lost whole (the writer drops a partial frame):
+            # its records leave the queued count for the dropped one, like the queue's.
+            lost, self._sending = self._sending, []
+            self._taken -= sum(1 for entry in lost if entry[0] != STATS)
+            self._discard(lost)
+            queue = self.queue
+            self._discard(list(starmap(queue.popleft, repeat((), len(queue)))))
         finally:
             with contextlib.suppress(OSError):
                 process.stdin.close()
@@ -219,11 +247,19 @@ class Pipeline:
         batch = list(starmap(queue.popleft, repeat((), n)))
         self._taken += n
         if final:
-            batch.append((-2, self.queued, self.dropped, self.capacity))
+            batch.append((STATS, self.queued, self.dropped, self.capacity))
         if not batch:
             return
+        self._sending = batch
         payload = self._encode(batch)
         data = memoryview(len(payload).to_bytes(4, "little") + payload)
         while data:
             n = os.write(fd, data)
             data = data[n:]
+        self._sending = []
+
+    def _discard(self, entries: list[tuple[Any, ...]]) -> None:
+        """Count ``entries`` (taken out of the count of queued ones) as dropped."""
+        records = sum(1 for entry in entries if entry[0] >= 0)
+        self._controls -= sum(1 for entry in entries if entry[0] == CHANNEL)
+        self.dropped += records
