@@ -17,7 +17,16 @@ import inspect
 from collections import deque
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any, Protocol, TypeAlias, runtime_checkable
+from typing import (
+    TYPE_CHECKING,
+    Any,
+    ClassVar,
+    Generic,
+    Protocol,
+    TypeAlias,
+    TypeVar,
+    runtime_checkable,
+)
 
 import anyio
 import structlog
@@ -106,22 +115,137 @@ class TimerTick:
 Notice: TypeAlias = EventNotice | ErrorNotice | TimerTick
 
 
-class ObserverQueue:
-    """A bounded, async-iterable queue that is both a HALObserver and a TimerObserver."""
+class _Counted(Protocol):
+    @property
+    def missed(self) -> int: ...
+
+
+N = TypeVar("N", bound=_Counted)
+
+
+class NoticeQueue(Generic[N]):
+    """A bounded, async-iterable queue of notices that never blocks its producer and never
+    loses a notice untold: when full it drops the oldest, and the next notice the consumer
+    gets carries in ``missed`` how many it lost (a dataclass with a ``missed`` field).
+
+    The base of :class:`ObserverQueue` and of the surface layer's ``ApplicationQueue``.
+    """
+
+    log_prefix: ClassVar[str] = "notice_queue"
+    """Prefix of the log events (``<prefix>_overflow``, ``<prefix>_missed``)."""
 
     def __init__(self, maxsize: int = 1024, *, name: str = "queue") -> None:
         if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
             raise BadParameterError("maxsize", maxsize, "an int >= 1")
         self.maxsize = maxsize
         self.name = name
-        self._items: deque[Notice] = deque()
+        self._items: deque[N] = deque()
         self._wakeup: anyio.Event | None = None
         self._missed = 0
         self.missed_total = 0
         self.delivered = 0
         self._closed = False
 
-    # -- observer side (never blocks) ---------------------------------------------
+    # -- producer side (never blocks) -----------------------------------------------
+    def put_nowait(self, notice: N) -> None:
+        if self._closed:
+            return
+        items = self._items
+        if len(items) >= self.maxsize:
+            dropped = items.popleft()
+            if self._missed == 0:
+                log.warning(f"{self.log_prefix}_overflow", queue=self.name, maxsize=self.maxsize)
+            # A dropped notice that itself reported missed ones passes them on.
+            self._missed += 1 + dropped.missed
+            self.missed_total += 1
+        items.append(notice)
+        wakeup = self._wakeup
+        if wakeup is not None:
+            self._wakeup = None
+            wakeup.set()
+
+    def report_missed(self, count: int) -> None:
+        """Count notices lost before they reached this queue (e.g. on a network link):
+        the next notice reports them in ``missed``."""
+        if count > 0:
+            self._missed += count
+            self.missed_total += count
+
+    def close(self) -> None:
+        """End iteration once the queued notices are consumed."""
+        self._closed = True
+        if self._wakeup is not None:
+            self._wakeup.set()
+            self._wakeup = None
+
+    # -- consumer side ----------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def _take(self) -> N:
+        notice = self._items.popleft()
+        self.delivered += 1
+        if self._missed:
+            missed, self._missed = self._missed, 0
+            log.warning(f"{self.log_prefix}_missed", queue=self.name, missed=missed)
+            notice = replace(notice, missed=notice.missed + missed)  # type: ignore[type-var]
+        return notice
+
+    def get_nowait(self) -> N:
+        if not self._items:
+            raise anyio.WouldBlock
+        return self._take()
+
+    async def get(self) -> N:
+        """The oldest notice; waits (cancellably) while the queue is empty."""
+        while not self._items:
+            if self._closed:
+                raise anyio.EndOfStream
+            if self._wakeup is None:
+                self._wakeup = anyio.Event()
+            await self._wakeup.wait()
+        return self._take()
+
+    def drain(self) -> list[N]:
+        """Everything queued now, oldest first."""
+        out: list[N] = []
+        while self._items:
+            out.append(self._take())
+        return out
+
+    def __aiter__(self) -> NoticeQueue[N]:
+        return self
+
+    async def __anext__(self) -> N:
+        # get() inlined: one coroutine per notice instead of two.
+        items = self._items
+        while not items:
+            if self._closed:
+                raise StopAsyncIteration
+            if self._wakeup is None:
+                self._wakeup = anyio.Event()
+            await self._wakeup.wait()
+        # _take() inlined too: this is the consumer's hot path.
+        notice = items.popleft()
+        self.delivered += 1
+        if self._missed:
+            missed, self._missed = self._missed, 0
+            log.warning(f"{self.log_prefix}_missed", queue=self.name, missed=missed)
+            notice = replace(notice, missed=notice.missed + missed)  # type: ignore[type-var]
+        return notice
+
+    def __repr__(self) -> str:
+        return (
+            f"{type(self).__name__}(name={self.name!r}, pending={len(self._items)}, "
+            f"missed_total={self.missed_total})"
+        )
+
+
+class ObserverQueue(NoticeQueue[Notice]):
+    """A bounded, async-iterable queue that is both a HALObserver and a TimerObserver."""
+
+    log_prefix = "observer_queue"
+
     # Publishers pass the notice they built once for all their observers; called with
     # the spec's arguments only, the queue builds it.
     def notify_event(
@@ -150,84 +274,8 @@ class ObserverQueue:
         if tick is not None:
             self.put_nowait(tick)
 
-    def put_nowait(self, notice: Notice) -> None:
-        if self._closed:
-            return
-        items = self._items
-        if len(items) >= self.maxsize:
-            dropped = items.popleft()
-            if self._missed == 0:
-                log.warning("observer_queue_overflow", queue=self.name, maxsize=self.maxsize)
-            # A dropped notice that itself reported missed ones passes them on.
-            self._missed += 1 + dropped.missed
-            self.missed_total += 1
-        items.append(notice)
-        wakeup = self._wakeup
-        if wakeup is not None:
-            self._wakeup = None
-            wakeup.set()
-
-    def close(self) -> None:
-        """End iteration once the queued notices are consumed."""
-        self._closed = True
-        if self._wakeup is not None:
-            self._wakeup.set()
-            self._wakeup = None
-
-    # -- consumer side ------------------------------------------------------------
-    def __len__(self) -> int:
-        return len(self._items)
-
-    def get_nowait(self) -> Notice:
-        if not self._items:
-            raise anyio.WouldBlock
-        notice = self._items.popleft()
-        self.delivered += 1
-        if self._missed:
-            missed, self._missed = self._missed, 0
-            log.warning("observer_queue_missed", queue=self.name, missed=missed)
-            notice = replace(notice, missed=notice.missed + missed)
-        return notice
-
-    async def get(self) -> Notice:
-        """The oldest notice; waits (cancellably) while the queue is empty."""
-        while not self._items:
-            if self._closed:
-                raise anyio.EndOfStream
-            if self._wakeup is None:
-                self._wakeup = anyio.Event()
-            await self._wakeup.wait()
-        return self.get_nowait()
-
-    def drain(self) -> list[Notice]:
-        """Everything queued now, oldest first."""
-        out: list[Notice] = []
-        while self._items:
-            out.append(self.get_nowait())
-        return out
-
     def __aiter__(self) -> ObserverQueue:
         return self
-
-    async def __anext__(self) -> Notice:
-        # get() inlined: one coroutine per notice instead of two.
-        items = self._items
-        while not items:
-            if self._closed:
-                raise StopAsyncIteration
-            if self._wakeup is None:
-                self._wakeup = anyio.Event()
-            await self._wakeup.wait()
-        notice = items.popleft()
-        self.delivered += 1
-        if self._missed:
-            missed, self._missed = self._missed, 0
-            log.warning("observer_queue_missed", queue=self.name, missed=missed)
-            notice = replace(notice, missed=notice.missed + missed)
-        return notice
-
-    def __repr__(self) -> str:
-        return f"ObserverQueue(name={self.name!r}, pending={len(self._items)}, missed_total={self.missed_total})"
 
 
 Route: TypeAlias = tuple[Callable[..., Any], bool]

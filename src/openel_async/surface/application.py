@@ -11,7 +11,7 @@ from __future__ import annotations
 import inspect
 from collections import deque
 from collections.abc import Awaitable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any, Protocol, TypeAlias, runtime_checkable
 
 import anyio
@@ -19,6 +19,7 @@ import anyio.abc
 import structlog
 
 from ..errors import BadParameterError, ReturnCode
+from ..observers import NoticeQueue
 
 log = structlog.get_logger(__name__)
 
@@ -70,19 +71,14 @@ class ErrorNotification:
 SurfaceNotice: TypeAlias = Completed | EventNotification | ErrorNotification
 
 
-class ApplicationQueue:
-    """A bounded, async-iterable ApplicationBase: never blocks, never loses a notice untold."""
+class ApplicationQueue(NoticeQueue[SurfaceNotice]):
+    """A bounded, async-iterable ApplicationBase: never blocks, never loses a notice untold
+    (a :class:`~openel_async.observers.NoticeQueue`, as ObserverQueue is)."""
+
+    log_prefix = "application_queue"
 
     def __init__(self, maxsize: int = 1024, *, name: str = "application") -> None:
-        if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
-            raise BadParameterError("maxsize", maxsize, "an int >= 1")
-        self.maxsize = maxsize
-        self.name = name
-        self._items: deque[SurfaceNotice] = deque()
-        self._wakeup: anyio.Event | None = None
-        self._missed = 0
-        self.missed_total = 0
-        self._closed = False
+        super().__init__(maxsize, name=name)
 
     def completed(self, command_id: str, status: ReturnCode) -> None:
         self.put_nowait(Completed(command_id, ReturnCode(status)))
@@ -93,68 +89,8 @@ class ApplicationQueue:
     def notify_error(self, error_id: str, error_type: str) -> None:
         self.put_nowait(ErrorNotification(error_id, error_type))
 
-    def put_nowait(self, notice: SurfaceNotice) -> None:
-        if self._closed:
-            return
-        if len(self._items) >= self.maxsize:
-            self._items.popleft()
-            if self._missed == 0:
-                log.warning("application_queue_overflow", queue=self.name, maxsize=self.maxsize)
-            self._missed += 1
-            self.missed_total += 1
-        self._items.append(notice)
-        if self._wakeup is not None:
-            self._wakeup.set()
-            self._wakeup = None
-
-    def report_missed(self, count: int) -> None:
-        """Count notices lost before reaching this queue (e.g. on a network link)."""
-        if count > 0:
-            self._missed += count
-            self.missed_total += count
-
-    def close(self) -> None:
-        self._closed = True
-        if self._wakeup is not None:
-            self._wakeup.set()
-            self._wakeup = None
-
-    def __len__(self) -> int:
-        return len(self._items)
-
-    def get_nowait(self) -> SurfaceNotice:
-        if not self._items:
-            raise anyio.WouldBlock
-        notice = self._items.popleft()
-        if self._missed:
-            missed, self._missed = self._missed, 0
-            log.warning("application_queue_missed", queue=self.name, missed=missed)
-            notice = replace(notice, missed=missed)
-        return notice
-
-    async def get(self) -> SurfaceNotice:
-        while not self._items:
-            if self._closed:
-                raise anyio.EndOfStream
-            if self._wakeup is None:
-                self._wakeup = anyio.Event()
-            await self._wakeup.wait()
-        return self.get_nowait()
-
-    def drain(self) -> list[SurfaceNotice]:
-        out: list[SurfaceNotice] = []
-        while self._items:
-            out.append(self.get_nowait())
-        return out
-
     def __aiter__(self) -> ApplicationQueue:
         return self
-
-    async def __anext__(self) -> SurfaceNotice:
-        try:
-            return await self.get()
-        except anyio.EndOfStream:
-            raise StopAsyncIteration from None
 
 
 class Delivery:
