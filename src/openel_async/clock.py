@@ -9,6 +9,13 @@ waiting, so ten simulated seconds of a 1 kHz timer take a fraction of a wall sec
 loop shared by every clock on it: idle moments are handed to the waiting clocks one
 at a time, in the order they asked, so several virtual clocks (or concurrent
 ``advance`` calls) in one loop take turns instead of keeping each other busy.
+
+Work that runs outside the loop (a worker thread, a subprocess the loop waits for) leaves
+the loop with nothing runnable although something is still happening: :func:`external_work`
+(and :func:`run_in_thread`, which wraps ``anyio.to_thread.run_sync`` in it) tells the
+detector so, and no idle moment is handed out while such work is in flight, so simulated
+time does not pass during it. It is for bounded work only: a thread that waits for
+external input (a bus reader, standard input) must not hold it, or time would stop.
 """
 
 from __future__ import annotations
@@ -18,19 +25,31 @@ import heapq
 import itertools
 import time
 import weakref
-from collections import deque
+from collections import Counter, deque
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
-from typing import Protocol, runtime_checkable
+from types import TracebackType
+from typing import Protocol, TypeVar, TypeVarTuple, runtime_checkable
 
 import anyio
 import anyio.abc
+import anyio.to_thread
+import structlog
 
 from . import timerfd
 from .errors import BadParameterError, StateError
 
 NS_PER_S = 1_000_000_000
 NS_PER_MS = 1_000_000
+
+EXTERNAL_WORK_WARNING_S = 10.0
+"""Real seconds an idle waiter waits for external work before a warning names what is in
+flight (once per wait: a clock held that long usually means work that never ends)."""
+
+log = structlog.get_logger(__name__)
+
+T = TypeVar("T")
+PosArgsT = TypeVarTuple("PosArgsT")
 
 
 @runtime_checkable
@@ -326,6 +345,10 @@ class _IdleDetector:
     runnable: a busy loop that never ends). When the head's idle moment comes it leaves
     the queue and hands the polling turn to the next waiter, which sees the loop idle
     only once everything the head woke has run.
+
+    An empty ready queue is not idle while external work is in flight
+    (:func:`external_work`): the head then waits for the last of it to end, outside the
+    ready queue, and polls again.
     """
 
     def __init__(self) -> None:
@@ -333,6 +356,48 @@ class _IdleDetector:
         # The head of the queue is whatever token its waiter appended; every waiter behind
         # it appended a future, resolved when its turn comes.
         self._queue: deque[object] = deque()
+        self.external: Counter[str] = Counter()  # what is in flight outside the loop
+        self.external_count = 0
+        self._released: asyncio.Future[None] | None = None
+
+    def hold(self, what: str) -> None:
+        self.external[what] += 1
+        self.external_count += 1
+
+    def release(self, what: str) -> None:
+        external = self.external
+        left = external[what] - 1
+        if left > 0:
+            external[what] = left
+        else:
+            del external[what]
+        self.external_count -= 1
+        if not self.external_count:
+            released = self._released
+            if released is not None and not released.done():
+                released.set_result(None)
+
+    async def _wait_external(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Wait until no external work is in flight (warn if it takes long)."""
+        started = time.monotonic()
+
+        def warn() -> None:
+            log.warning(
+                "clock_waits_for_external_work",
+                waited_s=round(time.monotonic() - started, 1),
+                in_flight=dict(self.external),
+            )
+
+        warning = loop.call_later(EXTERNAL_WORK_WARNING_S, warn)
+        try:
+            while self.external_count:
+                released = self._released = loop.create_future()
+                try:
+                    await released
+                finally:
+                    self._released = None
+        finally:
+            warning.cancel()
 
     async def wait(self, loop: asyncio.AbstractEventLoop) -> None:
         """Wait for an idle moment of ``loop``, the running loop."""
@@ -346,13 +411,17 @@ class _IdleDetector:
             if future is not None:
                 await future
             ready = getattr(loop, "_ready", None)
-            if ready is None:  # a loop that does not expose its ready queue: bounded yields
-                for _ in range(64):
+            while True:
+                if ready is None:  # a loop that does not expose its ready queue: bounded yields
+                    for _ in range(64):
+                        await asyncio.sleep(0)
+                else:
                     await asyncio.sleep(0)
-                return
-            await asyncio.sleep(0)
-            while ready:  # noqa: ASYNC110 - polling the ready queue is the point
-                await asyncio.sleep(0)
+                    while ready:  # noqa: ASYNC110 - polling the ready queue is the point
+                        await asyncio.sleep(0)
+                if not self.external_count:
+                    return
+                await self._wait_external(loop)
         finally:
             head = queue[0] is turn
             queue.remove(turn)
@@ -371,8 +440,9 @@ _IDLE_DETECTORS: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, _IdleDetec
 async def wait_idle() -> None:
     """Return at a moment when no other task of the event loop is runnable.
 
-    "Not runnable" means waiting on time, I/O, an event or a lock. All callers on one
-    loop share one detector: each idle moment goes to one caller, in the order they
+    "Not runnable" means waiting on time, I/O, an event or a lock, with no
+    :func:`external_work` in flight (while some is, this waits for its end). All callers
+    on one loop share one detector: each idle moment goes to one caller, in the order they
     called, and the next caller's moment comes only after every task that the previous
     one woke has run. Needs asyncio (it reads the loop's ready queue; a loop that does
     not expose it gets a bounded number of yields instead).
@@ -386,3 +456,96 @@ def _idle_detector(loop: asyncio.AbstractEventLoop) -> _IdleDetector:
     if detector is None:
         detector = _IDLE_DETECTORS[loop] = _IdleDetector()
     return detector
+
+
+class ExternalWork:
+    """Marks work in flight outside the event loop; made by :func:`external_work`.
+
+    A context manager, both plain (``with``) and asynchronous (``async with``). While it is
+    entered, the running loop is never reported idle (:func:`wait_idle`), so no virtual or
+    lockstep clock of that loop moves. Holds are counted per loop: they nest, the same
+    object may be entered again (each exit ends the latest entry), and each ends on exit,
+    whether by return, exception or cancellation. Enter and exit it in the loop's thread.
+    """
+
+    __slots__ = ("_held", "what")
+
+    def __init__(self, what: str) -> None:
+        if not isinstance(what, str) or not what:
+            raise BadParameterError("what", what, "a non-empty str naming the work")
+        self.what = what
+        """What is in flight (named by the warning of a clock that waits long for it)."""
+        self._held: list[_IdleDetector] = []
+
+    def __enter__(self) -> ExternalWork:
+        detector = _idle_detector(asyncio.get_running_loop())
+        detector.hold(self.what)
+        self._held.append(detector)
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if not self._held:
+            raise StateError("__exit__", "not entered", ["entered"])
+        self._held.pop().release(self.what)
+
+    async def __aenter__(self) -> ExternalWork:
+        return self.__enter__()
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.__exit__(exc_type, exc, tb)
+
+
+def external_work(what: str = "external work") -> ExternalWork:
+    """Tell the running loop's idle detector that work is in flight outside the loop.
+
+    ``with external_work("reading the config"): await ...`` (or ``async with``): while
+    the block runs, :func:`wait_idle` does not report the loop idle, so a VirtualClock
+    in auto-jump does not jump and a lockstep simulation does not step: simulated time
+    does not pass for work that should take none. Tasks keep running meanwhile; only
+    time stands still.
+
+    Only for **bounded** work that does not itself wait for simulated time: a call on a
+    worker thread (:func:`run_in_thread`), opening or closing a device, a subprocess
+    that finishes on its own. Never around a wait for external input (a bus reader
+    thread, standard input, a peer's answer that may need simulated time to come): time
+    would stop until it arrives. A clock that waits longer than
+    :data:`EXTERNAL_WORK_WARNING_S` real seconds logs ``clock_waits_for_external_work``
+    with what is in flight.
+    """
+    return ExternalWork(what)
+
+
+def external_work_in_flight() -> int:
+    """How many :func:`external_work` holds the running loop has open (0: none)."""
+    detector = _IDLE_DETECTORS.get(asyncio.get_running_loop())
+    return 0 if detector is None else detector.external_count
+
+
+async def run_in_thread(
+    func: Callable[[*PosArgsT], T],
+    *args: *PosArgsT,
+    abandon_on_cancel: bool = False,
+    limiter: anyio.CapacityLimiter | None = None,
+) -> T:
+    """``anyio.to_thread.run_sync(func, *args)`` under :func:`external_work`: the loop is
+    not idle (simulated time does not pass) until the call returns.
+
+    With ``abandon_on_cancel=True`` a cancelled call returns at once and the hold ends
+    with it (the abandoned thread runs on, unseen by the clocks); otherwise cancellation
+    waits for the thread, as in anyio. For bounded work only (see :func:`external_work`).
+    """
+    name = getattr(func, "__qualname__", None) or repr(func)
+    with ExternalWork(f"thread: {name}"):
+        return await anyio.to_thread.run_sync(
+            func, *args, abandon_on_cancel=abandon_on_cancel, limiter=limiter
+        )
