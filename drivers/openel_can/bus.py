@@ -76,6 +76,7 @@ import can
 import structlog
 from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
+from openel_async.clock import run_in_thread
 from openel_async.errors import BadParameterError, NotConnectedError
 
 from .virtual_rx import WakingQueue, hook_virtual_bus
@@ -481,7 +482,7 @@ class CanBus:
         if self._given_bus is not None:
             return self._given_bus
         assert self._factory is not None
-        return await anyio.to_thread.run_sync(self._factory)
+        return await run_in_thread(self._factory)
 
     async def _shutdown_bus(self) -> None:
         bus, self._bus = self._bus, None
@@ -489,7 +490,7 @@ class CanBus:
             return
         with anyio.CancelScope(shield=True):
             try:
-                await anyio.to_thread.run_sync(bus.shutdown)
+                await run_in_thread(bus.shutdown)
             except Exception as exc:
                 self.log.warning("bus_shutdown_failed", error=repr(exc))
 
@@ -710,7 +711,7 @@ class CanBus:
 
         async with self._io_lock:
             try:
-                self.stats.tx_frames += await anyio.to_thread.run_sync(send_all)
+                self.stats.tx_frames += await run_in_thread(send_all)
             except Exception as exc:
                 self.stats.tx_dropped += len(batch)
                 self._set_down(f"send failed: {exc!r}")
@@ -870,7 +871,7 @@ class CanBus:
         finally:
             stop.set()
             with anyio.CancelScope(shield=True):
-                await anyio.to_thread.run_sync(thread.join)
+                await run_in_thread(thread.join)
         return outcome[0]
 
     def _read_loop(
@@ -1006,7 +1007,7 @@ class CanBus:
                         await self._reopen()
                     bus = self._bus
                     assert bus is not None
-                    first = await anyio.to_thread.run_sync(bus.recv, 0.0)
+                    first = await run_in_thread(bus.recv, 0.0)
             except Exception as exc:
                 self.last_retry_error = f"attempt {attempt}: {exc!r}"
                 self.log.debug("bus_recover_failed", attempt=attempt, error=repr(exc))
@@ -1021,11 +1022,11 @@ class CanBus:
         old, self._bus = self._bus, None
         if old is not None:
             try:
-                await anyio.to_thread.run_sync(old.shutdown)
+                await run_in_thread(old.shutdown)
             except Exception as exc:
                 self.log.debug("bus_shutdown_failed", error=repr(exc))
         try:
-            self._bus = await anyio.to_thread.run_sync(self._factory)
+            self._bus = await run_in_thread(self._factory)
         except BaseException:
             self._bus = old  # keep an object to shut down at exit (already shut: harmless)
             raise

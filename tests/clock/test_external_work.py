@@ -17,7 +17,9 @@ import threading
 
 import anyio
 import pytest
+from structlog.testing import capture_logs
 
+import openel_async.clock as clock_module
 from openel_async import BadParameterError, StateError, VirtualClock
 from openel_async.clock import (
     ExternalWork,
@@ -177,3 +179,18 @@ def test_external_work_refuses_bad_names_and_unbalanced_exit() -> None:
 def test_external_work_needs_a_running_loop() -> None:
     with pytest.raises(RuntimeError), external_work("outside a loop"):
         pass
+
+
+async def test_a_long_hold_is_named_in_a_warning(
+    virtual_clock: VirtualClock, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(clock_module, "EXTERNAL_WORK_WARNING_S", HOLD_S / 4)
+    ticked = threading.Event()
+    with anyio.fail_after(10), capture_logs() as logs:
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(_ticker, virtual_clock, ticked, [])
+            await anyio.lowlevel.checkpoint()
+            assert not await run_in_thread(ticked.wait, HOLD_S)
+    warnings = [e for e in logs if e["event"] == "clock_waits_for_external_work"]
+    assert len(warnings) == 1  # once per wait
+    assert warnings[0]["in_flight"] == {"thread: Event.wait": 1}
