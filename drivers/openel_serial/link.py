@@ -1,10 +1,11 @@
 """One serial port on pyserial-asyncio-fast: open without blocking, bytes to a callback.
 
 :class:`SerialLink` opens the port with ``serial.serial_for_url`` in a worker thread
-(``anyio.to_thread``: the event loop never waits on ``open()``/``tcsetattr``) and hands
-the open ``serial.Serial`` to ``serial_asyncio_fast.connection_for_serial``, whose
-transport reads whenever the fd is readable and passes the bytes to ``on_data`` in the
-event loop's thread, with no task of ours in between. A read error or EOF (an
+(``clock.run_in_thread``: the event loop never waits on ``open()``/``tcsetattr``, and
+simulated time does not pass meanwhile) and hands the open ``serial.Serial`` to
+``serial_asyncio_fast.connection_for_serial``, whose transport reads whenever the fd is
+readable and passes the bytes to ``on_data`` in the event loop's thread, with no task of
+ours in between. A read error or EOF (an
 unplugged USB adapter, a closed pty master) ends the transport; ``on_lost`` is then
 called once with the reason. Writes are buffered by the transport and never block.
 
@@ -23,11 +24,11 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import anyio
-import anyio.to_thread
 import serial
 import serial_asyncio_fast
 import structlog
 
+from openel_async.clock import run_in_thread
 from openel_serial.errors import PortDisconnectedError
 
 __all__ = ["FdSerialTransport", "SerialLink"]
@@ -164,9 +165,7 @@ class SerialLink:
         options = {"baudrate": self.baudrate, **self.serial_options}
         try:
             # Not cancellable: a port opened by the thread after a cancel would leak.
-            port = await anyio.to_thread.run_sync(
-                lambda: serial.serial_for_url(self.url, **options)
-            )
+            port = await run_in_thread(lambda: serial.serial_for_url(self.url, **options))
         except (OSError, ValueError) as exc:  # SerialException is an OSError
             raise PortDisconnectedError(self.url, f"cannot open: {exc}") from exc
         self._generation += 1
