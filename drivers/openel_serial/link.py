@@ -5,9 +5,8 @@
 simulated time does not pass meanwhile) and hands the open ``serial.Serial`` to
 ``serial_asyncio_fast.connection_for_serial``, whose transport reads whenever the fd is
 readable and passes the bytes to ``on_data`` in the event loop's thread, with no task of
-ours in between. A read error or EOF (an
-unplugged USB adapter, a closed pty master) ends the transport; ``on_lost`` is then
-called once with the reason. Writes are buffered by the transport and never block.
+ours in between. A read error or EOF (an unplugged USB adapter, a closed pty master) ends
+the transport; ``on_lost`` is then called once with the reason. Writes are buffered by the transport and never block.
 
 Hot path: for a port with a file descriptor (every POSIX tty), the transport reads and
 writes that descriptor with ``os.read``/``os.write`` itself (:class:`FdSerialTransport`)
