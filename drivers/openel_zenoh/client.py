@@ -29,6 +29,7 @@ import msgspec
 import structlog
 import zenoh
 
+from openel_async.clock import run_in_thread
 from openel_async.errors import BadParameterError, NotConnectedError, ReturnCode, check_code
 from openel_async.surface import compact, xml_psm
 from openel_async.surface.application import Delivery
@@ -464,8 +465,8 @@ class RemoteSurface:
 
 async def open_session(config: zenoh.Config) -> zenoh.Session:
     """``zenoh.open`` off the event loop (it connects and may wait)."""
-    return await anyio.to_thread.run_sync(zenoh.open, config)
+    return await run_in_thread(zenoh.open, config)
 
 
 async def close_session(session: zenoh.Session) -> None:
-    await anyio.to_thread.run_sync(session.close)
+    await run_in_thread(session.close)
