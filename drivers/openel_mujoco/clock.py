@@ -4,7 +4,9 @@ The clock itself never moves: :class:`openel_mujoco.MujocoSim` advances it by on
 step after each ``mj_step`` and wakes the sleepers whose deadline has come, in deadline order
 (ties in arrival order).  The simulation steps only when no task of the event loop is runnable,
 so every task sees the physics advance exactly between its waits and a run gives the same
-result every time, as fast as the CPU allows.
+result every time, as fast as the CPU allows.  Work held outside the loop
+(``openel_async.clock.external_work``: a worker-thread call through ``run_in_thread``) keeps
+it from stepping until the work ends, so no simulated time passes for it.
 
 A deadline between two physics steps is served at the first step at or after it: with a 1 ms
 time step a 1.5 ms deadline wakes at 2 ms (lateness reported by an EventTimer: 0.5 ms).  Choose
@@ -194,7 +196,8 @@ class _InlineCall:
 
 
 async def settle() -> None:
-    """Yield until no other task is runnable (every task waits on time, I/O or an event).
+    """Yield until no other task is runnable (every task waits on time, I/O or an event) and
+    no work is held outside the loop (:func:`openel_async.clock.external_work`).
 
     Asks the idle detector of the event loop that every VirtualClock of the loop shares
     (:func:`openel_async.clock.wait_idle`), so a lockstep simulation and an auto-jumping
