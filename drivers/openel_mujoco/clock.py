@@ -141,9 +141,17 @@ class LockstepClock:
             if type(entry) is _InlineCall:
                 if entry._done:
                     continue
-                again = entry.run()
-                if again is not None:  # periodic: re-armed under the same handle
-                    heapq.heappush(heap, (again if again > now else now + 1, next(seq), entry))
+                # the callback, inline (a control step's timer tick comes this way)
+                try:
+                    again = entry._callback()
+                except Exception:  # a broken callback must not stop the physics
+                    log.exception("clock_callback_failed", callback=repr(entry._callback))
+                    again = None
+                if entry._done or type(again) is not int:  # cancelled meanwhile, or not re-armed
+                    entry._done = True
+                    continue
+                # periodic: re-armed under the same handle
+                heapq.heappush(heap, (again if again > now else now + 1, next(seq), entry))
             elif not entry.done():
                 entry.set_result(None)  # type: ignore[union-attr]  # a sleeper's future
                 self.wakeups += 1
@@ -181,18 +189,6 @@ class _InlineCall:
 
     def cancel(self) -> None:
         self._done = True
-
-    def run(self) -> int | None:
-        """Call the callback; returns the deadline to call it again at, or None (done)."""
-        try:
-            again = self._callback()
-        except Exception:  # a broken callback must not stop the physics
-            log.exception("clock_callback_failed", callback=repr(self._callback))
-            again = None
-        if self._done or type(again) is not int:  # cancelled meanwhile, or not re-armed
-            self._done = True
-            return None
-        return again
 
 
 async def settle() -> None:

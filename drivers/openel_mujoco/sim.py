@@ -67,7 +67,7 @@ from openel_async.stats import LatenessRecorder, LatenessSummary
 from . import render
 from .clock import LockstepClock, settle
 from .description import EffectorSpec, JointSpec, Pacing, SensorSpec, SimDescription
-from .devices import DRIVE_PLANS, MujocoJoint, MujocoSensor, ReadPlan, monitor_joints, monitor_plan
+from .devices import DRIVE_PLANS, MujocoJoint, MujocoSensor, ReadPlan, monitor_plan
 from .effectors import MujocoEffector
 from .models import find_id, load_model
 
@@ -80,6 +80,7 @@ _UNSTABLE: Final = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADQACC,
 )
+_BADQPOS, _BADQVEL, _BADQACC = (int(w) for w in _UNSTABLE)
 _AUTORESET: Final = int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
 LOCKSTEP_BATCH: Final = 256
 """Physics steps the lockstep loop runs back to back before yielding to the event loop."""
@@ -201,6 +202,12 @@ class MujocoSim:
         self._actuator_force = d.actuator_force
         self._qfrc_actuator = d.qfrc_actuator
         self._warnings = tuple(d.warning[int(w)] for w in _UNSTABLE)
+        # Item views of the arrays read after every physics step: one item is a float (or
+        # an int), with no conversion of the whole array and no numpy scalar.
+        self._warning_counts = memoryview(d.warning.number)
+        self._qpos_items = memoryview(d.qpos)
+        self._qvel_items = memoryview(d.qvel)
+        self._force_items = memoryview(d.actuator_force)
 
         self._lockstep: LockstepClock | None = None
         if pacing == "lockstep":
@@ -214,7 +221,7 @@ class MujocoSim:
         self._sensors: dict[str, MujocoSensor] = {}
         self._attached: dict[int, tuple[_Device, DeviceContext]] = {}
         self._monitored: list[MujocoJoint] = []
-        self._monitor_plan = monitor_plan(())
+        self._monitor = monitor_plan((), (), (), ())
         self._monitor_version = -1  # DRIVE_PLANS.version the plan was built at
         self._effectors: dict[str, MujocoEffector] = {}
         self._monitored_effectors: list[MujocoEffector] = []
@@ -452,7 +459,6 @@ class MujocoSim:
         loop_ready = getattr(asyncio.get_running_loop(), "_ready", None)
         dt = self.timestep_ns
         step = self._step
-        advance = clock._advance
         try:
             while True:
                 await settle()
@@ -463,9 +469,12 @@ class MujocoSim:
                     continue
                 self._start_run_clock()
                 n = 0
+                heap = clock._heap
                 while True:
                     ok = step(clock._now)
-                    woke = advance(dt)
+                    # LockstepClock._advance, inline: the common step wakes nobody
+                    now = clock._now = clock._now + dt
+                    woke = heap[0][0] <= now and clock._wake_due(now) if heap else False
                     n += 1
                     self._run_steps += 1
                     if not ok or woke or loop_ready or loop_ready is None or n >= LOCKSTEP_BATCH:
@@ -540,18 +549,17 @@ class MujocoSim:
         self._physics_steps += 1
         self._sensor_clock_ns = state_clock_ns
         self._sensor_values = None
-        w = self._warnings
-        if w[0].number or w[1].number or w[2].number:
+        w = self._warning_counts
+        if w[_BADQPOS] or w[_BADQVEL] or w[_BADQACC]:
             self._on_unstable(self._instability_reason())
             return False
         if self._monitored:
             if self._monitor_version != DRIVE_PLANS.version:
                 self._monitor_version = DRIVE_PLANS.version
-                self._monitor_plan = monitor_plan(self._monitored)
-            qpos_l = self._qpos.tolist()
-            qvel_l = self._qvel.tolist()
-            force_l = self._actuator_force.tolist()
-            monitor_joints(self._monitor_plan, qpos_l, qvel_l, force_l, self.steps)
+                self._monitor = monitor_plan(
+                    self._monitored, self._qpos_items, self._qvel_items, self._force_items
+                )
+            self._monitor(self.steps)
         if self._monitored_effectors:
             n = self.steps
             for effector in self._monitored_effectors:

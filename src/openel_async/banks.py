@@ -129,8 +129,8 @@ class ActuatorBank:
             else None
         )
         # The streaming tick checked inline by set_values_nowait: POSITION batches streamed
-        # through the device batch, every device supporting POSITION with one shared range.
-        self._stream_range = self._range if self._streamed is not None and self._positions else None
+        # through the device batch, every device supporting POSITION.
+        self._stream_inline = self._streamed is not None and self._positions
 
     def __len__(self) -> int:
         return len(self.actuators)
@@ -158,16 +158,19 @@ class ActuatorBank:
         self, values: Sequence[float], request: Request | int = Request.POSITION
     ) -> None:
         """:meth:`set_values` without suspending (devices that need no I/O)."""
-        bounds = self._stream_range
         if (
-            bounds is not None
+            self._stream_inline
             and request is _POSITION
             and (type(values) is list or type(values) is tuple)
             and tuple(map(type, values)) == self._floats
         ):  # the streaming tick, inline: a batch of floats within the limits, one device call
-            # (NaN may hide from min() and max(): a finite sum rules it and infinities out)
-            total = sum(values)
-            if total - total == 0.0 and bounds[0] <= min(values) and max(values) <= bounds[1]:
+            bounds = self._range
+            if bounds is not None:  # one range: NaN may hide from min() and max(), but a
+                total = sum(values)  # finite sum rules it and infinities out
+                ok = total - total == 0.0 and bounds[0] <= min(values) and max(values) <= bounds[1]
+            else:  # each device's range (finite): NaN and infinities fail a comparison
+                ok = all(map(_le, self._lows, values)) and all(map(_le, values, self._highs))
+            if ok:
                 actuators = self.actuators
                 if self._active_at != STATE_CHANGES.value:
                     self._active_at = _require_all_active(actuators, "set_values_nowait", -1)
@@ -349,9 +352,13 @@ class SensorBank:
         self._count = len(self.sensors)
         devices = [s.device for s in self.sensors]
         classes = {type(d) for d in devices}
-        # One device call for the whole bank when every device is of one class.
+        # One device call for the whole bank when every device is of one class: the driver's
+        # batch reader if it offers one (values and one flat sequence to check), else
+        # read_values_many_nowait.
         self._devices = devices
-        self._read_many = classes.pop().read_values_many_nowait if len(classes) == 1 else None
+        cls = classes.pop() if len(classes) == 1 else None
+        self._read_many = None if cls is None else cls.read_values_many_nowait
+        self._reader = None if cls is None or not self._nowait else cls.batch_reader(devices)
         # The members' unit/scale/origin settings, re-read when any sensor's changed.
         self._settings_version = -1
         self._measurements: tuple[Measurement | None, ...] | None = None
@@ -370,14 +377,28 @@ class SensorBank:
 
     def get_values_nowait(self) -> tuple[tuple[float, ...], ...]:
         """:meth:`get_values` without suspending (devices that need no I/O)."""
-        read_many = self._read_many
         if (
-            read_many is not None
-            and self._active_at == STATE_CHANGES.value
+            self._active_at == STATE_CHANGES.value
             and self._settings_version == MEASUREMENT_SETTINGS_VERSION.value
             and self._measurements is None
             and not LISTENING.count
         ):  # the control-step read, inline: every sensor Active, no conversion, no listener
+            reader = self._reader
+            if reader is not None:  # one driver call; one finiteness check of the batch
+                try:
+                    batch, values = reader()
+                except LINK_FAULTS:
+                    return self._read_each()
+                try:
+                    total = sum(batch)
+                except TypeError:
+                    total = math.nan
+                if type(total) is float and total - total == 0.0 and len(values) == self._count:
+                    return values
+                return self._checked_batch(values)
+            read_many = self._read_many
+            if read_many is None:
+                return self._get_now("get_values_nowait")
             try:
                 out = tuple(read_many(self._devices))
             except LINK_FAULTS:
@@ -421,7 +442,15 @@ class SensorBank:
         if not self._nowait:
             _require_nowait(sensors, "_nowait", "get_values")
         self._active_at = active_at  # (only for a synchronous bank: get_values_nowait's test)
-        if self._read_many is not None:
+        reader = self._reader
+        if reader is not None:
+            try:
+                values = reader()[1]
+            except LINK_FAULTS:
+                pass  # read them one by one below: the fault lands on its own sensor
+            else:
+                return self._checked_batch(values)
+        elif self._read_many is not None:
             try:
                 batch = self._read_many(self._devices)
             except LINK_FAULTS:

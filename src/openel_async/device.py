@@ -294,6 +294,29 @@ class SensorDevice(Device):
         """
         return [device.read_nowait().values for device in devices]
 
+    @classmethod
+    def batch_reader(cls, devices: Sequence[SensorDevice]) -> BatchReader | None:
+        """A callable reading several devices of this class at once, or None (the default:
+        a :class:`~openel_async.SensorBank` then calls :meth:`read_values_many_nowait`).
+
+        Asked once, when a bank over ``devices`` (all of this class, all with a
+        ``read_nowait``) is built.  See :class:`BatchReader` for its contract.
+        """
+        return None
+
+
+class BatchReader(Protocol):
+    """``read_nowait().values`` of device i of a bank, for every device, in one call.
+
+    Returns ``(flat, values)``: ``values[i]`` is device i's values, a tuple of floats, and
+    ``flat`` a sequence holding every value of them (it may hold more: the bank checks the
+    whole batch for finiteness with one ``sum(flat)``, and checks sensor by sensor only when
+    that sum is not a finite float).  It raises a link fault only before reading any device
+    (the bank then reads them one by one, so the fault reaches the right component).
+    """
+
+    def __call__(self) -> tuple[Sequence[float], tuple[tuple[float, ...], ...]]: ...
+
 
 def has_nowait(device: Device, nowait: str, blocking: str) -> bool:
     """Whether ``device`` offers a usable synchronous ``nowait`` twin of ``blocking``.
