@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from operator import le as _le
 from typing import TypeVar, cast
 
@@ -212,6 +212,58 @@ class ActuatorBank:
                     accept_streamed(self.actuators, req, targets, stamp, LISTENING.count > 0)
                 return
         stream_targets(self.actuators, req, targets, stamp)
+
+    def position_stream(
+        self, lows: Sequence[float], highs: Sequence[float]
+    ) -> Callable[[list[float]], None] | None:
+        """A sender of POSITION batches proven in advance to lie within ``[lows[i], highs[i]]``
+        for actuator i (e.g. a planned trajectory's extrema), or None if the bank cannot
+        stream that way (no device batch, a device without POSITION, a bound not finite, or
+        outside the limits the bank read when it was built or its device's limits now).
+
+        ``send(values)``, values a list of one float per actuator each within its bounds
+        (the caller's proof), is :meth:`set_values_nowait` without the per-value checks
+        that the proof made once: a batch the proof covers passes those checks (types,
+        finiteness, the limits read when the bank was built) whatever happens meanwhile.
+        Every actuator is still checked Active at every batch (``component.STATE_CHANGES``).
+        """
+        streamed = self._streamed
+        batch = self._batch
+        now_ns = self._now_ns
+        devices = self._devices
+        if streamed is None or batch is None or now_ns is None or not self._positions:
+            return None
+        if len(lows) != len(devices) or len(highs) != len(devices):
+            return None
+        for low, high, bank_low, bank_high, device in zip(
+            lows, highs, self._lows, self._highs, devices, strict=True
+        ):
+            device_low, device_high = device.limits.position
+            if not (
+                math.isfinite(low)
+                and math.isfinite(high)
+                and bank_low <= low
+                and high <= bank_high
+                and device_low <= low
+                and high <= device_high
+            ):
+                return None
+        actuators = self.actuators
+
+        def send(values: list[float]) -> None:
+            if self._active_at != STATE_CHANGES.value:
+                self._active_at = _require_all_active(actuators, "set_values_nowait", -1)
+            stamp = now_ns()
+            try:
+                sent = batch(_POSITION, values)
+            except LINK_FAULTS:
+                sent = False  # nothing was sent: the per-device path reports the fault
+            if sent:
+                streamed.accept(actuators, _POSITION, values, stamp, LISTENING.count > 0)
+            else:
+                stream_targets(actuators, _POSITION, values, stamp)
+
+        return send
 
     @property
     def motions(self) -> tuple[Motion | None, ...]:

@@ -12,7 +12,7 @@ import contextlib
 import itertools
 import time
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Self
@@ -131,6 +131,9 @@ class AxisGroup:
         self._last_plan: Plan | None = None
         self._commanded: list[float] = list(zeros)
         self._pending: TimerTick | None = None
+        self._fast: Callable[[int], None] | None = None
+        """The proven streaming tick of ``_fast_motion`` (see :meth:`_proven_tick`)."""
+        self._fast_motion: GroupMotion | None = None
         self._wakeup: anyio.Event | None = None  # created on entry, in the event loop
         self._ids = itertools.count(1)
         self._tg: anyio.abc.TaskGroup | None = None
@@ -357,11 +360,14 @@ class AxisGroup:
             self._pending = None
             started = perf()
             motion = self._active
-            if (
+            fast = self._fast
+            if fast is not None and motion is self._fast_motion:  # the common tick
+                fast(tick.deadline_ns)
+            elif (
                 motion is not None
                 and self._nowait
                 and not (motion._settling or motion._checks_path or self._log_actual)
-            ):  # the common tick: sample and stream, nothing to await
+            ):  # sample and stream, nothing to await
                 self._advance_now(motion, tick.deadline_ns, None)
             else:
                 await self._step(tick)
@@ -430,6 +436,48 @@ class AxisGroup:
             self._stream_failed(motion, position, exc, t)
             return
         self._sent(motion, plan, position, t)
+
+    def _proven_tick(self, motion: GroupMotion, plan: Plan) -> Callable[[int], None] | None:
+        """The tick of ``motion`` when its whole path is proven within every device's
+        limits (None otherwise: each tick's batch is then checked value by value).
+
+        The proof: ruckig's position extrema of the plan (:meth:`Plan.position_bounds`)
+        lie within each device's position limits, and the planner's samples are floats
+        (finite, inside those extrema). The bank's sender still checks per batch what can
+        change during the motion: every axis Active, every device's limits unchanged
+        (:meth:`ActuatorBank.position_stream`). The tick samples the plan, logs the row
+        and sends the batch; the final setpoints (at or after the plan's end) take the
+        general path, which also starts the goal check.
+        """
+        if not self._nowait or motion._checks_path or self._log_actual:
+            return None
+        lows, highs = plan.position_bounds()
+        send = self._bank.position_stream(lows, highs)
+        if send is None:
+            return None
+        positions = plan.sampler()
+        row = self.log.plan_rows(motion.id, plan)
+        end_ns = plan.end_ns
+        failed = self._stream_failed
+
+        def tick(t: int) -> None:
+            if t >= end_ns:
+                self._fast = self._fast_motion = None
+                self._advance_now(motion, t, None)
+                return
+            position = positions(t)
+            self._last_t = t
+            self._last_state = None
+            self._last_plan = plan
+            row(t)
+            try:
+                send(position)
+            except Exception as exc:
+                failed(motion, position, exc, t)
+                return
+            self._commanded = position
+
+        return tick
 
     def _sent(self, motion: GroupMotion, plan: Plan, position: list[float], t: int) -> None:
         """Every axis took the setpoints of tick ``t``; the motion settles after its last."""
@@ -572,6 +620,7 @@ class AxisGroup:
     def _succeed(self, motion: GroupMotion, t: int) -> None:
         if self._active is motion:
             self._active = None
+            self._fast = self._fast_motion = None
         if motion._finish(GroupOutcome.SUCCEEDED, t):
             self._log.info("motion_succeeded", motion=motion.id, kind=motion.kind)
 
@@ -579,6 +628,7 @@ class AxisGroup:
         """End the motion and stop streaming: the other axes hold their last setpoint."""
         if self._active is motion:
             self._active = None
+            self._fast = self._fast_motion = None
         if motion._finish(GroupOutcome.ABORTED, t, error):
             self._log.warning(
                 "motion_aborted", motion=motion.id, error=str(error), kind=type(error).__name__
@@ -589,6 +639,7 @@ class AxisGroup:
         if motion is None:
             return
         self._active = None
+        self._fast = self._fast_motion = None
         now = self.timer.clock.now_ns()
         if motion._finish(GroupOutcome.STOPPED, now, MotionStoppedError(f"{self.name}: {reason}")):
             self._log.info("motion_stopped", motion=motion.id, reason=reason)
@@ -646,8 +697,11 @@ class AxisGroup:
             tuple(t.path for t in tolerances),
             goal_time_ns,
         )
+        fast = self._proven_tick(motion, plan)
         previous = self._active
         self._active = motion
+        self._fast_motion = motion
+        self._fast = fast
         self._last_t = plan.start_ns
         self._last_state = state
         if previous is None:

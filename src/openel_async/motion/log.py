@@ -12,7 +12,7 @@ taken, not converted into numpy on every tick.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,6 +131,25 @@ class TrajectoryLog:
         if self._actual is not None:
             self._actual[row] = np.nan if actual is None else actual
 
+    def plan_rows(self, motion_id: int, plan: Plan) -> Callable[[int], None]:
+        """``append_plan(t, motion_id, plan)`` as a call of one argument ``t`` (what a
+        streaming tick logs through: no actual positions)."""
+        capacity = self.capacity
+        if capacity == 0:
+            return _no_row
+        planned = self._planned
+        actual = self._actual
+
+        def row(time_ns: int) -> None:
+            count = self._count
+            self._count = count + 1
+            index = count % capacity
+            planned[index] = (time_ns, motion_id, plan)
+            if actual is not None:
+                actual[index] = np.nan
+
+        return row
+
     def _sample_planned(self) -> None:
         planned = self._planned
         for row, entry in enumerate(planned):
@@ -161,4 +180,8 @@ class TrajectoryLog:
 
     def clear(self) -> None:
         self._count = 0
-        self._planned = [None] * self.capacity
+        self._planned[:] = [None] * self.capacity
+
+
+def _no_row(time_ns: int) -> None:
+    """The row writer of a disabled log."""

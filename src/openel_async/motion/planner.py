@@ -16,7 +16,7 @@ chosen by a heuristic so that velocity and acceleration stay continuous.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from itertools import repeat
 from operator import add, mul
@@ -41,6 +41,9 @@ TIME_EPS = 1e-9
 """Seconds: slack when comparing a planned duration with a requested one."""
 POSITION_EPS = 1e-9
 """Slack of the position-limit check of planned trajectories."""
+BOUNDS_MARGIN = 1e-9
+"""Relative widening (times 1 + |position|) of :meth:`Plan.position_bounds`: far more than
+the rounding between ruckig's extrema and the positions ``at_time`` evaluates (a few ulp)."""
 
 
 class KinematicState(NamedTuple):
@@ -55,6 +58,68 @@ END_CORRECTION_MIN = 1e-12
 """End errors below this are left alone (their effect is below float noise)."""
 END_CORRECTION_WINDOW_S = 0.25
 """The end error is blended in over at most this last part of a segment (seconds)."""
+
+
+def _phase_range(
+    duration: float, p: float, v: float, a: float, j: float, low: float, high: float
+) -> tuple[float, float]:
+    """``(low, high)`` widened by the positions of one constant-jerk phase over
+    ``[0, duration]``: its ends and wherever its velocity crosses zero."""
+    times = [0.0, duration]
+    if j != 0.0:
+        times.append(-a / j)  # where the velocity is extremal (a double root)
+        disc = a * a - 2.0 * j * v
+        if disc > 0.0:
+            root = math.sqrt(disc)
+            times += [(-a - root) / j, (-a + root) / j]
+    elif a != 0.0:
+        times.append(-v / a)
+    for t in times:
+        if 0.0 <= t <= duration:
+            x = p + t * (v + t * (a / 2 + t * j / 6))  # ruckig's integrate()
+            if x < low:
+                low = x
+            if x > high:
+                high = x
+    return low, high
+
+
+def trajectory_range(trajectory: Trajectory) -> tuple[list[float], list[float]]:
+    """Per axis, the smallest and largest position of ``trajectory`` over its duration.
+
+    Computed from ruckig's profiles (each axis' brake pre-phases and seven constant-jerk
+    phases, then its final state held to the end) with the formula ``at_time`` evaluates,
+    checking every phase's ends and every zero of its velocity. Not
+    ``Trajectory.position_extrema``: the community edition skips the velocity zeros of
+    constant-acceleration phases and can miss an overshoot entirely (ruckig issue #215).
+    """
+    duration = trajectory.duration
+    lows: list[float] = []
+    highs: list[float] = []
+    sections = trajectory.profiles
+    if len(sections) != 1:
+        raise TrajectoryError(f"a trajectory of {len(sections)} sections (expected one)")
+    for profile in sections[0]:
+        p, v, a, j, t = profile.p, profile.v, profile.a, profile.j, profile.t
+        low = high = p[0]
+        brake = profile.brake
+        elapsed = 0.0
+        if brake.duration > 0.0:
+            for k in (0, 1):
+                if brake.t[k] > 0.0:
+                    low, high = _phase_range(
+                        brake.t[k], brake.p[k], brake.v[k], brake.a[k], brake.j[k], low, high
+                    )
+            elapsed = brake.duration
+        for k in range(7):
+            low, high = _phase_range(t[k], p[k], v[k], a[k], j[k], low, high)
+            elapsed += t[k]
+        # After its profile an axis keeps its final velocity and acceleration.
+        tail = max(0.0, duration - elapsed) + TIME_EPS
+        low, high = _phase_range(tail, p[7], v[7], a[7], 0.0, low, high)
+        lows.append(low)
+        highs.append(high)
+    return lows, highs
 
 
 @dataclass(frozen=True, slots=True)
@@ -121,6 +186,56 @@ class Plan:
     @property
     def final_position(self) -> list[float]:
         return self._final.position
+
+    def sampler(self) -> Callable[[int], list[float]]:
+        """:meth:`positions` as a call of one argument, for times before ``end_ns`` (what a
+        streaming tick calls: a one-segment plan is evaluated with no lookup)."""
+        piece = self._only
+        if piece is None:
+            return self.positions
+        start_ns = self.start_ns
+        at_time = piece.trajectory.at_time
+        correction = piece.correction
+        blend_s = piece.blend_s
+        span = piece.end_s - piece.start_s - blend_s
+
+        def positions(t_ns: int) -> list[float]:
+            local = (t_ns - start_ns) / NS_PER_S
+            if local < 0.0:
+                local = 0.0
+            p: list[float] = at_time(local)[0]
+            if correction is not None and local > blend_s:
+                x = min(1.0, (local - blend_s) / span)
+                s0 = x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
+                p = list(map(add, p, map(mul, correction, repeat(s0))))
+            return p
+
+        return positions
+
+    def position_bounds(self) -> tuple[list[float], list[float]]:
+        """Per axis, a lower and an upper bound of every position :meth:`positions` returns.
+
+        From each segment's exact position range (:func:`trajectory_range`), widened by the magnitude of the segment's end correction (blended in
+        with a factor in [0, 1]) and by :data:`BOUNDS_MARGIN` for rounding; the final
+        position included. What lies within a device's limits for the whole plan need not
+        be checked sample by sample.
+        """
+        lows = list(self._final.position)
+        highs = list(lows)
+        for piece in self._pieces:
+            correction = piece.correction
+            piece_lows, piece_highs = trajectory_range(piece.trajectory)
+            for axis, (low, high) in enumerate(zip(piece_lows, piece_highs, strict=True)):
+                slack = 0.0 if correction is None else abs(correction[axis])
+                low -= slack
+                high += slack
+                if low < lows[axis]:
+                    lows[axis] = low
+                if high > highs[axis]:
+                    highs[axis] = high
+        lows = [x - BOUNDS_MARGIN * (1.0 + abs(x)) for x in lows]
+        highs = [x + BOUNDS_MARGIN * (1.0 + abs(x)) for x in highs]
+        return lows, highs
 
     def _locate(self, t_ns: int) -> tuple[_Piece, float]:
         """The segment that holds clock time ``t_ns`` (before the end) and the offset in it."""
@@ -232,16 +347,17 @@ class Planner:
         return trajectory
 
     def _check_bounds(self, trajectory: Trajectory, parameter: str, value: object) -> None:
-        for axis, (extrema, (low, high)) in enumerate(
-            zip(trajectory.position_extrema, self.bounds, strict=True)
+        lows, highs = trajectory_range(trajectory)
+        for axis, (reach_low, reach_high, (low, high)) in enumerate(
+            zip(lows, highs, self.bounds, strict=True)
         ):
-            if extrema.min < low - POSITION_EPS or extrema.max > high + POSITION_EPS:
+            if reach_low < low - POSITION_EPS or reach_high > high + POSITION_EPS:
                 raise BadParameterError(
                     parameter,
                     value,
                     f"a motion that keeps axis {axis} within its position limits "
                     f"[{low}, {high}] (from the current state the trajectory would reach "
-                    f"[{extrema.min:.6g}, {extrema.max:.6g}])",
+                    f"[{reach_low:.6g}, {reach_high:.6g}])",
                 )
 
     # -- motions -------------------------------------------------------------------------
