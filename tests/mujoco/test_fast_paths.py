@@ -1,0 +1,155 @@
+"""The lockstep control step's fast paths keep every check: the SensorBank's batch reader
+(``MujocoSensor.batch_reader``), the ActuatorBank's inline tick over joints with different
+ranges, and the per-step joint monitor generated per plan (``monitor_plan``)."""
+
+from __future__ import annotations
+
+import math
+from contextlib import AsyncExitStack
+
+import numpy as np
+import pytest
+
+from openel_async import ActuatorBank, ComponentState, DeviceFaultError, Request, SensorBank
+from openel_async.errors import BadParameterError, HALError, StateError
+from openel_mujoco import MujocoSim
+from openel_mujoco import devices as mujoco_devices
+from openel_mujoco.devices import MujocoSensor, monitor_plan
+
+from .conftest import ARM6_JOINTS, start_rig
+
+# sensordata of arm6: imu_acc 28-31, imu_gyro 31-34, wrist_force 18-21, wrist_torque 21-24,
+# tool_pos 24-27, pad_touch 27-28
+GATHERED = ("imu_acc", "imu_gyro", "wrist_force", "wrist_torque", "tool_pos", "pad_touch")
+CONTIGUOUS = ("wrist_force", "wrist_torque", "tool_pos", "pad_touch")
+
+
+# -- SensorBank through MujocoSensor.batch_reader --------------------------------------------
+
+
+@pytest.mark.parametrize("order", [GATHERED, CONTIGUOUS, ("imu_gyro",)])
+async def test_batch_reader_reads_what_each_sensor_reads(
+    stack: AsyncExitStack, order: tuple[str, ...]
+) -> None:
+    sim = MujocoSim("arm6", keyframe="home")
+    rig = await start_rig(stack, sim, ARM6_JOINTS[:2], order)
+    await rig.actuators["shoulder_pitch"].set_value(0.4)
+    await sim.sleep(0.05)
+    devices = [sim.sensors[name] for name in order]
+    reader = MujocoSensor.batch_reader(devices)
+    assert reader is not None
+    flat, values = reader()
+    assert values == tuple(device.values for device in devices)
+    assert all(type(v) is tuple and all(type(x) is float for x in v) for v in values)
+    assert tuple(flat) == sum(values, ())
+    bank = SensorBank(rig.sensors[name] for name in order)
+    assert bank.get_values_nowait() == values  # no step between: the same state
+    assert bank.get_values_nowait() == tuple(rig.sensors[n].get_value_nowait() for n in order)
+
+
+def test_batch_reader_only_for_sensors_of_one_simulation() -> None:
+    one, two = MujocoSim("arm6"), MujocoSim("arm6")
+    assert MujocoSensor.batch_reader([one.sensor("imu_acc"), two.sensor("imu_gyro")]) is None
+    assert MujocoSensor.batch_reader([one.sensor("imu_acc"), one.sensor("imu_gyro")]) is not None
+
+
+async def test_a_non_finite_value_in_the_batch_faults_only_its_own_sensor(
+    stack: AsyncExitStack,
+) -> None:
+    sim = MujocoSim("arm6", keyframe="home")
+    rig = await start_rig(stack, sim, (), GATHERED)
+    bank = SensorBank(rig.sensors[name] for name in GATHERED)
+    first = bank.get_values_nowait()  # the fast path is armed (every member seen Active)
+    assert len(first) == len(GATHERED)
+    # a NaN outside the bank changes nothing; one inside faults its own sensor only
+    outside = SensorBank([rig.sensors["imu_acc"]])
+    sim.data.sensordata[int(sim.model.sensor_adr[sim.sensors["wrist_torque"].sensor_id]) + 1] = (
+        math.nan
+    )
+    assert outside.get_values_nowait() == (sim.sensors["imu_acc"].values,)
+    with pytest.raises(DeviceFaultError, match="non-finite") as info:
+        bank.get_values_nowait()
+    assert rig.sensors["wrist_torque"].device_name in str(info.value)
+    assert [rig.sensors[n].state for n in GATHERED] == [
+        ComponentState.ERROR if n == "wrist_torque" else ComponentState.ACTIVE for n in GATHERED
+    ]
+    with pytest.raises(StateError):
+        bank.get_values_nowait()
+    assert rig.events.count("error") == 1
+
+
+async def test_a_faulted_simulation_reaches_the_bank_through_the_batch_reader(
+    stack: AsyncExitStack,
+) -> None:
+    sim = MujocoSim("arm6", keyframe="home")
+    rig = await start_rig(stack, sim, ("base_yaw",), GATHERED)
+    bank = SensorBank(rig.sensors[name] for name in GATHERED)
+    bank.get_values_nowait()
+    reader = MujocoSensor.batch_reader([sim.sensors[name] for name in GATHERED])
+    assert reader is not None
+    sim.data.qvel[0] = np.nan
+    await sim.sleep(0.01)  # the next step finds the bad state
+    assert sim.fault is not None
+    with pytest.raises(HALError, match="faulted"):
+        reader()
+    with pytest.raises(StateError):  # every component went to Error: the bank sees it
+        bank.get_values_nowait()
+    assert {rig.sensors[n].state for n in GATHERED} == {ComponentState.ERROR}
+
+
+# -- ActuatorBank inline tick over joints with different ranges ------------------------------
+
+
+async def test_inline_tick_checks_each_joint_against_its_own_range(
+    stack: AsyncExitStack, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    sim = MujocoSim("arm6", keyframe="home")
+    rig = await start_rig(stack, sim, ARM6_JOINTS)
+    bank = ActuatorBank(rig.actuators[j] for j in ARM6_JOINTS)
+    ranges = [rig.actuators[j].device.limits.position for j in ARM6_JOINTS]
+    assert len(set(ranges)) > 1  # arm6's joints do not share one range
+    acts = [sim.joints[j]._drive_act for j in ARM6_JOINTS]
+
+    def no_slow_path(*args: object) -> object:
+        raise AssertionError("the streaming tick left the inline path")
+
+    targets = [0.1, -0.2, 0.3, -0.1, 0.2, 0.05]
+    with monkeypatch.context() as patch:
+        patch.setattr(bank, "_check", no_slow_path)
+        bank.set_values_nowait(targets, Request.POSITION)
+    assert [sim.data.ctrl[a] for a in acts] == targets
+    assert all(sim.joints[j].pending for j in ARM6_JOINTS)
+
+    # the joint with the lowest upper limit, just above it: inside another joint's range
+    k = min(range(len(ranges)), key=lambda i: ranges[i][1])
+    above = ranges[k][1] + 0.01
+    assert any(low <= above <= high for low, high in ranges)
+    before = sim.data.ctrl.copy()
+    for bad in (math.nan, math.inf, -math.inf, above):
+        values = [0.0] * len(ARM6_JOINTS)
+        values[k] = bad
+        with pytest.raises(BadParameterError, match=rf"values\[{k}\]"):
+            bank.set_values_nowait(values, Request.POSITION)
+        assert sim.data.ctrl.tobytes() == before.tobytes()  # nothing sent
+    with pytest.raises(BadParameterError, match=r"values\[0\]"):
+        bank.set_values_nowait([math.nan, *targets[1:]], Request.POSITION)
+    assert sim.data.ctrl.tobytes() == before.tobytes()
+
+
+# -- the generated joint monitor ------------------------------------------------------------
+
+
+async def test_monitor_code_is_compiled_once_per_shape(stack: AsyncExitStack) -> None:
+    sim = MujocoSim("arm6", keyframe="home")
+    await start_rig(stack, sim, ARM6_JOINTS)
+    joints = [sim.joints[j] for j in ARM6_JOINTS]
+    views = (sim._qpos_items, sim._qvel_items, sim._force_items)
+    first = monitor_plan(joints, *views)
+    joints[1]._saturated = True  # an edge rebuilds the plan: other bands, the same code
+    joints[2]._at_limit = True
+    compiled = len(mujoco_devices._MONITOR_CODE)
+    second = monitor_plan(joints, *views)
+    assert second is not first and second.__code__ is first.__code__
+    assert len(mujoco_devices._MONITOR_CODE) == compiled
+    fewer = monitor_plan(joints[:3], *views)
+    assert fewer.__code__ is not first.__code__
