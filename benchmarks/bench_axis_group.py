@@ -405,12 +405,17 @@ path (`command_nowait` stores the value, as a simulation does; the driver report
 completion, so no detection task runs) runs the same move on an `EventTimer(1 ms)` over
 a `VirtualClock`; the group times each tick itself (`AxisGroup.tick_costs_ns()`):
 sampling the plan (ruckig `at_time` plus the end-error blend), the trajectory-log row,
-and one validated batch of N setpoints through `ActuatorBank.set_values_nowait` (every
-axis Active and every value a finite float within its limits before any is sent). The
-drive offers a batch command (`MemoryDrive.batch_commander`: one call storing every
-drive's value, as `SimMotor`'s and `MujocoJoint`'s do), so the bank records the tick's
-targets once (`StreamBatch`) and each actuator settles its sequence, commanded value and
-`Motion` from them only when something reads them; no `Motion` per axis and tick.
+and one validated batch of N setpoints. The batch is validated by proof: when the move
+is planned, the exact position range of the whole trajectory (every phase's ends and
+velocity zeros, `planner.trajectory_range`) is checked once against every device's limits
+(those the bank read when it was built and the current ones); the tick then sends through
+`ActuatorBank.position_stream`, which still checks every axis Active before each batch
+(`component.STATE_CHANGES`); a path that cannot be proven (e.g. one ending on a limit) is
+checked value by value through `set_values_nowait` as before. The drive offers a batch
+command (`MemoryDrive.batch_commander`: one call storing every drive's value, as
+`SimMotor`'s and `MujocoJoint`'s do), so the bank records the tick's targets once
+(`StreamBatch`) and each actuator settles its sequence, commanded value and `Motion` from
+them only when something reads them; no `Motion` per axis and tick.
 Neither side includes the timer waking the task.
 
 Rounds alternate ours and the peer; figures are medians over every tick of every round.
@@ -425,28 +430,34 @@ time): 15x / 26x the peer at 6 / 64 axes; 3.7 M calls, 4.6 s; `Actuator._accept`
 `_send_now` 0.49, `_check_target` 0.31, `set_value` 0.31, `_validate` 0.30. One bank
 batch per tick, device by device (`stream_targets`): 7.07x / 5.75x, `stream_targets`
 (sequence, `_sync_send`, `command_nowait`, the lazy-Motion tuple, the commanded value,
-the listener, per axis) 0.091 s of 0.27 s profiled. Now (the drive's batch command, the
-bookkeeping per batch): `stream_targets` is gone from the profile; what is left per tick
-is the limit check (`ActuatorBank._in_limits`), the drive's batch (64 stores),
-`Plan.positions` (ruckig `at_time`) and the event loop around the tick.
+the listener, per axis) 0.091 s of 0.27 s profiled. Then (the drive's batch command, the
+bookkeeping per batch): `stream_targets` gone from the profile; left per tick were the
+limit check (`ActuatorBank._in_limits`), the drive's batch (64 stores), `Plan.positions`
+(ruckig `at_time`) and the event loop around the tick; the limit check is now made once
+per motion (below).
 
-**Where the remaining time goes (6 axes, interleaved micro-timing of the parts, warm,
-each with ~60 ns of timing overhead).** Peer 0.54 µs; our tick 1.88 µs before this last
-pass: `Plan.positions` 0.39 (ruckig `at_time` 0.33), the log row 0.14,
-`set_values_nowait` 1.19, of which the limit check 0.52 (the type tuple 0.16, `sum` for
-finiteness 0.06, `min`/`max` against the shared range 0.21), the Active check 0.08, the
-clock stamp 0.03, the drive's batch 0.18 (six stores), `StreamBatch.accept` 0.09, and the
-Python calls between them. Since: the bank checks its members' state only when some
-component changed state since its last check (`component.STATE_CHANGES`, bumped by every
-state change: a member that leaves Active still stops the next batch) and checks the
-batch inline (no helper call); `set_values_nowait` on this drive is about 1.1-1.2 µs warm,
-of which the C-level checks (type tuple, sum, min/max) are ~0.42, the drive's batch 0.30,
-`StreamBatch.accept` 0.09. 64 axes meet the target (per axis ~0.11 µs against the peer's
-0.04: the checks are C-level passes). At 6 axes the tick is a fixed cost of about a dozen
-Python calls, about what the peer's whole tick costs; in the benchmark it runs between
-event-loop passes (colder caches) while the peer runs 2,000 ticks back to back, which
-adds ~0.5 µs. What would remove the rest: the validation and the batch in compiled code
-(one call checking types, finiteness and limits and writing the drive), the group's own
-sampling and log row folded into that call, or a group-level trust of its own planner's
-bounds (it checks the whole trajectory when planning) instead of a check per tick, which
-this project keeps on purpose (every batch validated before any value is sent)."""
+**Where the time goes (6 axes, warm micro-timing of the parts with `timeit`).** Before
+this pass (tick 2.06 µs against the peer's 0.52 in the last full run, 3.96x):
+`Plan.positions` 0.39 (ruckig `at_time` 0.33), the log row 0.14, `set_values_nowait`
+~1.1-1.2 µs (per-value checks: the type tuple, `sum` for finiteness, `min`/`max` against
+the range ~0.42; the drive's batch 0.30; `StreamBatch.accept` 0.09; the Active check),
+plus the calls between them. Now one closure per motion (`AxisGroup._proven_tick`) runs
+the tick: the plan's sampler 0.31 (ruckig `at_time` 0.26), the log row 0.07, the proven
+send 0.51 (the Active check against `STATE_CHANGES`, the clock stamp, the drive's batch,
+`StreamBatch.accept`) where `set_values_nowait` on the same batch takes 1.17; the whole
+closure ~1.1 µs warm. What is left is ruckig's `at_time` (it builds three lists: position,
+velocity, acceleration), the drive's own batch and `accept` (pure Python, per batch), and
+about five Python calls; in the benchmark the tick runs between event-loop passes (colder
+caches) while the peer runs 2,000 ticks back to back. What would remove more: a
+position-only `at_time` in ruckig's Python binding, the drive's batch and the stream
+bookkeeping in compiled code. Not done on purpose: a per-tick check that no device's
+`limits` object was replaced (0.3 µs at 6 axes, 1.4 µs at 64, measured): a bank reads its
+devices' limits when it is built (docs/psm.md), and the proof covers those limits, so a
+proven batch is exactly one the per-value check would have passed.
+
+The proof does not use ruckig's `Trajectory.position_extrema`: the community edition
+skips velocity zeros in constant-acceleration phases and can miss an overshoot entirely
+(ruckig issue #215; e.g. from 1 rad/s back to the start under a 1, j 10 it reports a
+maximum of 0.343 where the axis turns at 0.550). `Planner` now checks overshoots with the
+exact range too, so such a motion is refused when planned instead of aborting mid-move.
+"""
