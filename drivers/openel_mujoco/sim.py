@@ -51,7 +51,7 @@ from collections.abc import AsyncIterator, Callable, Iterable, Mapping
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from types import MappingProxyType, TracebackType
-from typing import Any, Final, Self, TypeVar
+from typing import Any, Final, Self, TypeVar, cast
 
 import anyio
 import anyio.abc
@@ -67,7 +67,7 @@ from openel_async.stats import LatenessRecorder, LatenessSummary
 from . import render
 from .clock import LockstepClock, settle
 from .description import EffectorSpec, JointSpec, Pacing, SensorSpec, SimDescription
-from .devices import DRIVE_PLANS, MujocoJoint, MujocoSensor, ReadPlan, monitor_plan
+from .devices import DRIVE_PLANS, FloatItems, MujocoJoint, MujocoSensor, ReadPlan, monitor_plan
 from .effectors import MujocoEffector
 from .models import find_id, load_model
 
@@ -208,6 +208,7 @@ class MujocoSim:
         self._qpos_items = memoryview(d.qpos)
         self._qvel_items = memoryview(d.qvel)
         self._force_items = memoryview(d.actuator_force)
+        self._ctrl_items = cast(FloatItems, memoryview(d.ctrl))  # streamed setpoints
 
         self._lockstep: LockstepClock | None = None
         if pacing == "lockstep":

@@ -110,6 +110,10 @@ class ActuatorBank:
             if len(set(self._lows)) == 1 and len(set(self._highs)) == 1
             else None
         )
+        # The range inside every device's (the shared one, if any): a batch inside it needs
+        # no per-device comparison.
+        low, high = max(self._lows), min(self._highs)
+        self._inner = (low, high) if low <= high else None
         self._positions = all(_POSITION in d.supported_requests for d in devices)
         # One device call for the whole batch when the driver offers one (every device of
         # one class); only where the Motions are lazy (devices report completion).
@@ -164,13 +168,21 @@ class ActuatorBank:
             and (type(values) is list or type(values) is tuple)
             and tuple(map(type, values)) == self._floats
         ):  # the streaming tick, inline: a batch of floats within the limits, one device call
-            bounds = self._range
-            if bounds is not None:  # one range: NaN may hide from min() and max(), but a
-                total = sum(values)  # finite sum rules it and infinities out
-                ok = total - total == 0.0 and bounds[0] <= min(values) and max(values) <= bounds[1]
-            else:  # each device's range (finite): NaN and infinities fail a comparison
-                ok = all(map(_le, self._lows, values)) and all(map(_le, values, self._highs))
-            if ok:
+            # Inside the range every device takes: NaN may hide from min() and max(), but a
+            # finite sum rules it and infinities out.  Else each device's own (finite) range,
+            # where NaN and infinities fail a comparison.
+            inner = self._inner
+            total = sum(values)
+            if (
+                inner is not None
+                and total - total == 0.0
+                and inner[0] <= min(values)
+                and max(values) <= inner[1]
+            ) or (
+                self._range is None
+                and all(map(_le, self._lows, values))
+                and all(map(_le, values, self._highs))
+            ):
                 actuators = self.actuators
                 if self._active_at != STATE_CHANGES.value:
                     self._active_at = _require_all_active(actuators, "set_values_nowait", -1)

@@ -303,22 +303,8 @@ class EventTimer:
             observers.publish("notify_timer", self)
         return deadline + self._period_ns
 
-    def _tick_on_time(self, deadline: int) -> int:
-        """:meth:`_tick` for the inline path (an :class:`InlineScheduler` calls it at its
-        deadline): a tick delivered exactly on time skips the lateness arithmetic (no miss,
-        not late, zero drift) and its zero lateness is recorded in bulk later."""
-        if self.clock.now_ns() != deadline or "notify_timer" in self._observers.wants_notice:
-            return self._tick(deadline)
-        self._on_time += 1
-        self._index += 1
-        self._ticks += 1
-        self._drift = 0
-        self._tick_fields = (self._index, deadline, deadline, 0)
-        self._observers.publish("notify_timer", self)
-        return deadline + self._period_ns
-
     def _record_on_time(self) -> None:
-        """Write the on-time ticks counted by :meth:`_tick_on_time` into the lateness
+        """Write the on-time ticks counted by ``_InlineTicks._fire`` into the lateness
         recorder as zeros (only the last ``window`` of them can stay in its ring)."""
         count, self._on_time = self._on_time, 0
         recorder = self._lateness
@@ -356,16 +342,32 @@ class _InlineTicks:
     """Ticks driven by an :class:`InlineScheduler` clock: one periodic callback delivers
     each tick and re-arms itself for the next, with no task of its own."""
 
-    __slots__ = ("_call", "_deadline", "_timer")
+    __slots__ = ("_call", "_deadline", "_now_ns", "_timer")
 
     def __init__(self, timer: EventTimer, clock: InlineScheduler) -> None:
         self._timer = timer
+        self._now_ns = clock.now_ns
         self._deadline = clock.now_ns() + timer._period_ns
         self._call: ScheduledCall | None = clock.call_at(self._deadline, self._fire)
 
     def _fire(self) -> int | None:
+        """Deliver the tick due at its deadline (the clock calls it then).  A tick exactly on
+        time skips the lateness arithmetic of :meth:`EventTimer._tick` (no miss, not late,
+        zero drift) and its zero lateness is recorded in bulk later."""
         timer = self._timer
-        self._deadline = deadline = timer._tick_on_time(self._deadline)
+        deadline = self._deadline
+        observers = timer._observers
+        if self._now_ns() != deadline or "notify_timer" in observers.wants_notice:
+            deadline = timer._tick(deadline)
+        else:
+            timer._on_time += 1
+            index = timer._index = timer._index + 1
+            timer._ticks += 1
+            timer._drift = 0
+            timer._tick_fields = (index, deadline, deadline, 0)
+            observers.publish("notify_timer", timer)
+            deadline += timer._period_ns
+        self._deadline = deadline
         # Re-armed by returning the next deadline, unless an observer stopped (and maybe
         # restarted) the timer during the tick.
         return deadline if timer._inline is self else None
