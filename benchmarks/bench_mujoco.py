@@ -26,6 +26,11 @@ the other ways to write the step:
 - *full, async*: an async observer (mailbox, task switch per tick) awaiting ``set_value`` and
   ``get_value`` per component.
 
+Before the pass that added the SensorBank batch reader, the ActuatorBank's inline tick for
+per-joint ranges, the generated joint monitor over memoryviews and the inline clock advance
+(docs/mujoco.md, section 9), the recorded run gave per control step: full 13.0 µs against
+raw numpy 6.7 µs (1.94x); sim loop 7.7, + timer 8.5, + device calls 12.1 µs.
+
 Each variant runs ROUNDS times, interleaved; the median time per step is reported (many short
 rounds rather than a few long ones, so that a burst of load on a shared machine spoils a
 minority of the rounds of every variant alike).  Times are CPU time of the thread running
@@ -644,7 +649,10 @@ def run(quick: bool) -> BenchResult:
             "section 9 (joint monitors from a plan and sensor reads cut by one itemgetter "
             "took it from 2.21x to 2.03x; banks skipping per-member Active checks while no "
             "component changed state, the joint batch counting its calls once, inline bank "
-            "checks and an inline timer tick without lateness arithmetic to about 1.9x)."
+            "checks and an inline timer tick without lateness arithmetic to about 1.9x; a "
+            "SensorBank batch reader, the ActuatorBank's inline tick for per-joint ranges, a "
+            "joint monitor generated per plan over memoryviews, memoryview ctrl writes and the "
+            "clock advanced inline by the stepping loop to about 1.7x)."
         )
     return BenchResult(
         name=NAME,
