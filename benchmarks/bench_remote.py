@@ -134,7 +134,9 @@ def _serve(port: int) -> None:
             print("ready", flush=True)
             await anyio.to_thread.run_sync(sys.stdin.read)  # until the parent closes stdin
 
-    anyio.run(main)
+    from openel_zenoh.gate import GatedEventLoop
+
+    anyio.run(main, backend="asyncio", backend_options={"loop_factory": GatedEventLoop})
 
 
 def _raw(port: int) -> None:
@@ -277,6 +279,7 @@ async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, li
     raw = await open_session(client_config([endpoint(raw_port)]))
     session = await open_session(client_config([endpoint(our_port)]))
     samples: dict[str, list[float]] = {"ours": [], "raw": [], "raw_async": []}
+    cpu = {"ours": 0.0, "raw": 0.0, "raw_async": 0.0}
     try:
         async with RemoteSurface(session, NAMESPACE, timeout=5.0) as remote:
             await remote.wait_server(10)
@@ -285,24 +288,34 @@ async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, li
                 per_round = max(1, calls // ROUNDS)
                 for round_ in range(ROUNDS + 1):  # round 0 warms up
                     ours = []
+                    c0 = time.thread_time()
                     for _ in range(per_round):
                         t0 = time.perf_counter()
                         await axis.get_value(Request.POSITION_ACTUAL)
                         ours.append(time.perf_counter() - t0)
+                    c1 = time.thread_time()
                     blocking = []
                     for _ in range(per_round):  # blocks this loop: nothing else runs here
                         t0 = time.perf_counter()
                         replies = list(raw.get("raw/q", payload=b"x", timeout=2.0))
                         blocking.append(time.perf_counter() - t0)
                         assert replies and replies[0].ok is not None
+                    c2 = time.thread_time()
                     awaited = await _raw_async_round_trips(raw, per_round)
+                    c3 = time.thread_time()
                     if round_:
                         samples["ours"] += ours
                         samples["raw"] += blocking
                         samples["raw_async"] += awaited
+                        cpu["ours"] += c1 - c0
+                        cpu["raw"] += c2 - c1
+                        cpu["raw_async"] += c3 - c2
+                samples["busy"] = [float(remote.busy_hits), float(remote.busy_misses)]
     finally:
         await close_session(session)
         await anyio.to_thread.run_sync(raw.close)
+    calls_made = max(1, len(samples["ours"]))
+    samples["cpu"] = [cpu[k] / calls_made for k in ("ours", "raw", "raw_async")]
     return samples
 
 
@@ -395,6 +408,10 @@ def run(quick: bool) -> BenchResult:
             ratio_of(ours["rtt_p99"], raw["rtt_p99"]), "ours/raw"),
         Row("get_value round trip p50 (vs asyncio)", ours["rtt_p50"] * us, "us", raw["async_p50"] * us,
             "raw Zenoh query awaited from asyncio p50", ratio_of(ours["rtt_p50"], raw["async_p50"]), "ours/raw"),
+        Row("get_value client CPU (calling thread)", rtt["cpu"][0] * us, "us/call", rtt["cpu"][1] * us,
+            "raw blocking query", ratio_of(rtt["cpu"][0], rtt["cpu"][1]), "ours/raw"),
+        Row("get_value client CPU (vs asyncio)", rtt["cpu"][0] * us, "us/call", rtt["cpu"][2] * us,
+            "raw query awaited from asyncio", ratio_of(rtt["cpu"][0], rtt["cpu"][2]), "ours/raw"),
         Row("set_value -> COMPLETED p50", ours["completion_p50"] * us, "us", raw["completion_p50"] * us,
             "raw query + published reply p50", ratio_of(ours["completion_p50"], raw["completion_p50"]), "ours/raw"),
         Row("set_value -> COMPLETED p99", ours["completion_p99"] * us, "us"),
@@ -410,7 +427,12 @@ def run(quick: bool) -> BenchResult:
         title="Remote devices over Zenoh (loopback, server in another process)",
         rows=rows,
         description=(__doc__ or "").split("\n\n", 1)[1].strip(),
-        params={"calls": str(calls), "events": str(events), "raw lost": f"{raw['lost']:.0f}"},
+        params={
+            "calls": str(calls),
+            "events": str(events),
+            "raw lost": f"{raw['lost']:.0f}",
+            "busy-wait hits/misses": f"{rtt['busy'][0]:.0f}/{rtt['busy'][1]:.0f}",
+        },  # fmt: skip
         quick=quick,
     )
 

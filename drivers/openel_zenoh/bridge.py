@@ -62,6 +62,10 @@ class ThreadInbox(Generic[T]):
             with contextlib.suppress(RuntimeError):  # a closed loop: the owner is gone
                 self._loop.call_soon_threadsafe(self._wake)
 
+    def __len__(self) -> int:
+        """Items waiting (from any thread; a snapshot)."""
+        return len(self._items)
+
     def _wake(self) -> None:
         drain = self._drain
         if drain is None:

@@ -8,6 +8,16 @@ command, ``notify_event`` to the subscriber, ``notify_error`` to every attached 
 in the numbering (notices dropped on the way) is logged, counted in ``missed_total`` and
 reported to applications that have ``report_missed`` (as :class:`ApplicationQueue`).
 
+A query waits for its reply in one of two ways (see "Waiting for a reply" in
+docs/remote.md): a bounded busy-wait, in which the event loop polls the reply channel
+between zero-timeout passes for at most ``busy_wait`` seconds (no thread hand-off, so a
+fast reply is seen within microseconds, at the price of the loop thread's CPU for that
+time), or a Zenoh callback that hands the reply to the sleeping loop with one
+``call_soon_threadsafe``. A busy-wait that runs out (a slow server, a LAN) finishes by
+polling every millisecond and makes the next queries sleep instead, 1, 2, 4... up to
+256 of them after consecutive misses, so replies slower than the budget cost almost no
+spinning.
+
 The server's presence is followed through its liveliness token: ``on_server`` listeners
 hear of it leaving and coming back; when it comes back, subscriptions are made again
 (their local ids stay the same) and commands still awaiting completion end with
@@ -18,6 +28,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
+import time
 import uuid
 from collections.abc import Callable, Collection
 from types import TracebackType
@@ -43,6 +55,12 @@ from .keys import Keys
 log = structlog.get_logger(__name__)
 
 DEFAULT_TIMEOUT_S = 2.0
+DEFAULT_BUSY_WAIT_S = 0.0005
+"""How long a query's reply is polled for before the loop sleeps (see the module doc)."""
+MAX_SLEEPING_QUERIES = 256
+"""After consecutive busy-wait misses, at most this many queries sleep before one polls."""
+QUERY_THREADS = 32
+"""Worker threads one RemoteSurface may have blocked on replies (the sleeping path)."""
 _NO_CONSOLIDATION = zenoh.ConsolidationMode.NONE
 DETAILS_SIZE = 4096
 Encoding = Literal["compact", "xml"]
@@ -67,9 +85,16 @@ class RemoteSurface:
         client_id: str | None = None,
         encoding: Encoding = "compact",
         asynchronous: Collection[str] = ASYNCHRONOUS_FUNCTIONS,
+        busy_wait: float = DEFAULT_BUSY_WAIT_S,
     ) -> None:
         if not timeout > 0:
             raise BadParameterError("timeout", timeout, "a number of seconds > 0")
+        if (
+            isinstance(busy_wait, bool)
+            or not isinstance(busy_wait, (int, float))
+            or not 0.0 <= busy_wait <= 0.01
+        ):
+            raise BadParameterError("busy_wait", busy_wait, "seconds in [0, 0.01] (0: never)")
         if encoding not in ("compact", "xml"):
             raise BadParameterError("encoding", encoding, "'compact' or 'xml'")
         self.session = session
@@ -78,6 +103,14 @@ class RemoteSurface:
         self.client_id = client_id or uuid.uuid4().hex
         self.keys.client_alive(self.client_id)  # checks the id
         self.encoding: Encoding = encoding
+        self.busy_wait = float(busy_wait)
+        """Seconds a query's reply is polled for on the loop before it sleeps (0: never)."""
+        self.busy_hits = 0
+        """Replies seen while busy-waiting."""
+        self.busy_misses = 0
+        """Busy-waits that ran out before the reply."""
+        self._sleepers_left = 0
+        self._sleepers_next = 1
         self.asynchronous = frozenset(asynchronous)
         """The function names whose ``completed`` follows later (the server's asynchronous
         operations); a reply to any other command expects none."""
@@ -103,7 +136,7 @@ class RemoteSurface:
 
     # -- lifecycle -----------------------------------------------------------------------
     async def __aenter__(self) -> Self:
-        self._loop = asyncio.get_running_loop()
+        self._limiter = anyio.CapacityLimiter(QUERY_THREADS)
         # Notices are handled in the loop callback that receives them (no task switch).
         self._notices: ThreadInbox[bytes] = ThreadInbox(65536, drain=self._on_notice_batches)
         self._presence: ThreadInbox[bool] = ThreadInbox(64)
@@ -178,62 +211,61 @@ class RemoteSurface:
     async def query(self, key: str, payload: bytes) -> bytes:
         """One Zenoh query, its first reply's payload; TimeoutError/NotConnectedError.
 
-        The reply (or, without one, the end of the query) is handed to the event loop with
-        one ``call_soon_threadsafe``; Zenoh's own timeout ends the query, and a timer of
-        the loop ``timeout + 1`` s later bounds the wait even if Zenoh never calls back.
+        The reply comes through a Zenoh channel (no Python callback on Zenoh's threads):
+        polled from the loop for at most ``busy_wait`` s unless recent misses say the
+        replies are slower than that, else awaited by a worker thread blocked in the
+        channel's ``recv`` (which releases the GIL). Zenoh's own timeout ends the query;
+        ``timeout + 1`` s bounds the wait even if it never does.
         """
-        loop = self._loop
-        future: asyncio.Future[bytes | BaseException] = loop.create_future()
-        replied = False
-
-        def settle(value: bytes | BaseException) -> None:
-            if not future.done():
-                future.set_result(value)
-
-        def on_reply(reply: zenoh.Reply) -> None:
-            nonlocal replied
-            if replied:
-                return
-            replied = True
-            ok = reply.ok
-            value: bytes | BaseException
-            if ok is not None:
-                value = ok.payload.to_bytes()
-            else:
-                err = reply.err
-                text = err.payload.to_string() if err is not None else "error reply"
-                value = NotConnectedError(f"{key}: {text}")
-            with contextlib.suppress(RuntimeError):  # a closed loop: nobody waits
-                loop.call_soon_threadsafe(settle, value)
-
-        def on_done() -> None:
-            if replied:  # the reply is on its way to the loop
-                return
-            with contextlib.suppress(RuntimeError):
-                loop.call_soon_threadsafe(
-                    settle, TimeoutError(f"{key}: no reply within {self.timeout} s")
-                )
-
-        self.session.get(
+        replies = self.session.get(
             key,
-            zenoh.handlers.Callback(on_reply, on_done, indirect=False),
             payload=payload,
             attachment=self._attachment,
             timeout=self.timeout,
             consolidation=_NO_CONSOLIDATION,
         )
-        guard = loop.call_later(
-            self.timeout + 1.0,
-            settle,
-            TimeoutError(f"{key}: no reply and no end of query within {self.timeout + 1.0} s"),
-        )
+        reply: zenoh.Reply | None = None
         try:
-            result = await future
-        finally:
-            guard.cancel()
-        if isinstance(result, BaseException):
-            raise result
-        return result
+            if self.busy_wait > 0.0:
+                if self._sleepers_left == 0:
+                    reply = await self._poll(replies)
+                else:
+                    self._sleepers_left -= 1
+            if reply is None:
+                with anyio.move_on_after(self.timeout + 1.0):
+                    reply = await anyio.to_thread.run_sync(
+                        replies.recv, abandon_on_cancel=True, limiter=self._limiter
+                    )
+        except zenoh.ZError:  # the channel is empty and closed: the query ended unanswered
+            raise TimeoutError(f"{key}: no reply within {self.timeout} s") from None
+        if reply is None:
+            raise TimeoutError(f"{key}: no reply and no end of query within {self.timeout + 1.0} s")
+        ok = reply.ok
+        if ok is not None:
+            return ok.payload.to_bytes()
+        err = reply.err
+        text = err.payload.to_string() if err is not None else "error reply"
+        raise NotConnectedError(f"{key}: {text}")
+
+    async def _poll(self, replies: zenoh.handlers.Handler[zenoh.Reply]) -> zenoh.Reply | None:
+        """The reply if it comes within ``busy_wait`` s, polled between zero-timeout passes
+        of the loop (other tasks and I/O run between them); None: a miss, after which the
+        next 1, 2, 4... (at most MAX_SLEEPING_QUERIES) queries sleep instead."""
+        clock = time.perf_counter
+        spin_until = clock() + self.busy_wait
+        try_recv = replies.try_recv
+        # Polling is the point: the reply channel has no loop-side wake-up.
+        while (reply := try_recv()) is None and clock() < spin_until:
+            os.sched_yield()  # a thread ready on this core (Zenoh's, with the reply) goes first
+            await asyncio.sleep(0)
+        if reply is not None:
+            self.busy_hits += 1
+            self._sleepers_next = 1
+            return reply
+        self.busy_misses += 1
+        self._sleepers_left = self._sleepers_next
+        self._sleepers_next = min(2 * self._sleepers_next, MAX_SLEEPING_QUERIES)
+        return None
 
     def _delivery(self, application: object) -> Delivery:
         found = self._deliveries.get(id(application))

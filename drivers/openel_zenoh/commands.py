@@ -62,8 +62,13 @@ def add_serve_parser(sub: SubParsers) -> argparse.ArgumentParser:
 
 
 def run_serve(args: argparse.Namespace) -> int:
+    from .gate import GatedEventLoop
+
     try:
-        return anyio.run(_serve, args, backend="asyncio")
+        # A gated loop: plain reads are answered on Zenoh's thread while the loop is idle.
+        return anyio.run(
+            _serve, args, backend="asyncio", backend_options={"loop_factory": GatedEventLoop}
+        )
     except BadParameterError as exc:
         print(f"openel-async serve: {exc}", file=sys.stderr)
         return 2

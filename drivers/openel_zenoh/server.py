@@ -39,6 +39,7 @@ from openel_async.surface.messages import CommandMessage, DataType, Device, Para
 
 from . import wire
 from .bridge import ThreadInbox
+from .gate import LoopGate, enter_as_loop, exit_loop, gate_of, needs_wake, work_marker
 from .keys import Keys
 
 log = structlog.get_logger(__name__)
@@ -50,6 +51,14 @@ OUTBOX_SIZE = 65536
 """Notices one client may have waiting to be published; older ones are dropped (counted)."""
 WORKERS = 4
 ANONYMOUS = "anonymous"
+THREAD_READS = frozenset(
+    {"GetPosition", "GetSpeed", "GetTorque", "GetValueOfMeasurement", "GetState"}
+)
+"""The execute functions a GatedEventLoop's server may answer on Zenoh's thread."""
+
+
+def _nothing() -> None:
+    """A loop callback that only wakes the loop (it runs what a gated section scheduled)."""
 
 
 @dataclass
@@ -159,6 +168,9 @@ class SurfaceServer:
         self.refused_busy = 0
         self.refused_bad = 0
         self.served = 0
+        self.served_on_zenoh_thread = 0
+        """Reads answered on Zenoh's thread through the loop's gate (a GatedEventLoop)."""
+        self._gate: LoopGate | None = None
         self._ready: deque[_Client] = deque()
         self._work = anyio.Event()
         self._declared: list[Any] = []
@@ -170,6 +182,7 @@ class SurfaceServer:
 
     async def __aenter__(self) -> Self:
         self._loop = asyncio.get_running_loop()
+        self._gate = gate_of(self._loop)
         self._inbox = ThreadInbox(INBOX_SIZE, on_drop=self._refuse_dropped, drain=self._on_requests)
         self._alive = ThreadInbox(1024)
         tg = anyio.create_task_group()
@@ -245,14 +258,71 @@ class SurfaceServer:
     def _on_query(self, kind: str) -> Any:
         inbox = self._inbox
         assert inbox is not None
+        here = self._answer_here if kind == "execute" and self._gate is not None else None
 
         def on_query(query: zenoh.Query) -> None:
             payload = query.payload
             attachment = query.attachment
             client = attachment.to_bytes().decode("utf-8", "replace") if attachment else ANONYMOUS
-            inbox.put(_Request(kind, client, payload.to_bytes() if payload else b"", query))
+            request = _Request(kind, client, payload.to_bytes() if payload else b"", query)
+            if here is None or not here(request):
+                inbox.put(request)
 
         return on_query
+
+    def _answer_here(self, request: _Request) -> bool:
+        """Answer a plain read on this (Zenoh's) thread if the loop is parked in ``select``
+        (its gate taken: no loop code runs meanwhile, see gate.py); False: nothing done."""
+        gate = self._gate
+        loop = self._loop
+        assert gate is not None and loop is not None
+        if not gate.try_enter():
+            return False
+        wake = True
+        try:
+            before = work_marker(loop)
+            payload = self._read_in_gate(request, loop)
+            wake = needs_wake(loop, before)
+        finally:
+            gate.leave()
+        if payload is not None:
+            self._reply(request, payload)
+        if wake:  # the read scheduled work on the loop (an observer...): run it now
+            with contextlib.suppress(RuntimeError):  # a closed loop
+                loop.call_soon_threadsafe(_nothing)
+        return payload is not None
+
+    def _read_in_gate(self, request: _Request, loop: asyncio.AbstractEventLoop) -> bytes | None:
+        """The reply to an execute of one THREAD_READS command, run as a loop callback
+        would run it (the loop set as this thread's running loop); None: not such a
+        read, or the client has earlier requests pending (they are answered first)."""
+        inbox = self._inbox
+        if self._tg is None or inbox is None or len(inbox):
+            return None
+        client = self.clients.get(request.client)
+        if client is None or client.busy or client.queue:
+            return None
+        try:
+            device = self._decoded(request)
+        except Exception:  # the loop path answers and logs it
+            return None
+        if len(device.commands) != 1 or device.commands[0].function_name not in THREAD_READS:
+            return None
+        enter_as_loop(loop)
+        try:
+            done = self.surface.execute_nowait(device, client.link)
+        except WouldBlockError:
+            return None
+        except Exception as exc:  # execute_nowait answers refusals itself: a bug
+            log.exception("request_failed", kind=request.kind, client=request.client)
+            code, message = _result_code(exc)
+            self.served += 1
+            return self._execute_failure(request.payload, ReturnCode(code), message)
+        finally:
+            exit_loop()
+        self.served += 1
+        self.served_on_zenoh_thread += 1
+        return self._encoded(request, done)
 
     def _on_client_alive(self, sample: zenoh.Sample) -> None:
         assert self._alive is not None
