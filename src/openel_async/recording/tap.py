@@ -16,8 +16,10 @@ attach it to any app) and can be used directly::
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import time
+from collections.abc import Callable
 from types import TracebackType
 from typing import Any, cast
 
@@ -28,7 +30,8 @@ from ..actuator import Actuator
 from ..cli.app import AppContext, AppHook
 from ..clock import Clock
 from ..component import ComponentState, HALComponent
-from ..errors import HALError
+from ..device import ValueSource
+from ..errors import HALError, WouldBlockError
 from ..observers import TimerTick
 from ..requests import EventId, Request
 from ..timer import EventTimer
@@ -69,6 +72,7 @@ _ACTIVE = ComponentState.ACTIVE
 _COMPLETED = int(EventId.COMPLETED)
 _POSITION = Request.POSITION
 _POSITION_ACTUAL = Request.POSITION_ACTUAL
+_POSITION_CODE = int(Request.POSITION)
 _LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "critical": 5}
 
 
@@ -80,15 +84,18 @@ class _ComponentTap:
     collector then untracks it at its first passes, so thousands of queued records do not
     make every full collection longer (a Request member would keep it tracked)."""
 
-    __slots__ = ("capacity", "channel", "now", "pipeline", "queue", "tap")
+    __slots__ = ("capacity", "channel", "component", "muted", "now", "pipeline", "queue", "tap")
 
     def __init__(self, tap: Tap, component: HALComponent, channel: int) -> None:
         self.tap = tap
+        self.component = component
         self.channel = channel
         self.now = component.clock.now_ns
         self.pipeline = tap.pipeline
         self.queue = tap.pipeline.queue
         self.capacity = tap.pipeline.capacity
+        self.muted = False
+        """True while the tap reads the component itself (that read is not recorded)."""
 
     def on_command(
         self, component: HALComponent, request: Request, value: float, time_ns: int
@@ -102,7 +109,7 @@ class _ComponentTap:
     def on_reading(
         self, component: HALComponent, request: Request | None, values: tuple[float, ...]
     ) -> None:
-        if self.tap.sampling:  # the tap's own joint-state reads
+        if self.muted:  # the tap's own read
             return
         queue = self.queue
         if len(queue) < self.capacity:
@@ -117,6 +124,62 @@ class _ComponentTap:
             self.tap.observe_events(component)
 
 
+class _ActuatorTap(_ComponentTap):
+    """An actuator's listener; it also keeps what the joint-state sample needs without
+    reading through the framework: the commanded position (the last POSITION command it
+    heard, read once through the framework after each activation, which resets it) and the
+    device's own actual-position read (``None``: the framework answers the commanded value
+    for it, or the device has no synchronous read)."""
+
+    __slots__ = ("actuator", "commanded", "name", "read")
+
+    def __init__(self, tap: Tap, component: Actuator, channel: int) -> None:
+        super().__init__(tap, component, channel)
+        self.actuator = component
+        self.name = component.device_name
+        self.commanded: float | None = None
+        """The last POSITION command heard since the last state change (None: unknown)."""
+        measured = component.value_source(_POSITION_ACTUAL) is not ValueSource.COMMANDED
+        self.read: Callable[[Request], float] | None = (
+            component.device.read_nowait if measured else None
+        )
+
+    def on_command(
+        self, component: HALComponent, request: Request, value: float, time_ns: int
+    ) -> None:
+        if request is _POSITION:  # the usual one: its code without an int() call
+            self.commanded = value
+            code = _POSITION_CODE
+        else:
+            code = int(request)
+        queue = self.queue
+        if len(queue) < self.capacity:
+            queue.append((self.channel, time_ns, COMMAND, code, value))
+        else:
+            self.pipeline.dropped += 1
+
+    def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
+        self.commanded = None  # an activation sets it to the actual position
+        super().on_state(component, old, new)
+
+    def read_commanded(self) -> float | None:
+        """The commanded position read through the framework (after an activation; that
+        read is not recorded)."""
+        self.muted = True
+        try:
+            self.commanded = self.actuator.get_value_nowait(_POSITION)
+        except HALError:
+            return None
+        finally:
+            self.muted = False
+        return self.commanded
+
+
+def _unreadable(request: Request) -> float:
+    """The read of a device without a synchronous read path: nothing (NaN: None)."""
+    return math.nan
+
+
 class _TimerTap:
     """The tap's observer of one timer: its tick statistics (one record per statistics
     period: the ticks since the previous one and the periods skipped; not a record per
@@ -124,17 +187,31 @@ class _TimerTap:
 
     It does not take the tick notice: per tick it only counts, so the timer keeps its cheap
     path (no :class:`TimerTick` built, an on-time tick's lateness recorded in bulk); every
-    few ticks (the shorter of the two periods, in ticks) it reads ``timer.last_tick``."""
+    few ticks (the shorter of the two periods, in ticks) it looks at the clock, and reads
+    ``timer.last_tick`` only for a statistics record."""
 
-    __slots__ = ("channel", "due", "last_index", "next_ns", "period_ns", "tap", "ticks")
+    __slots__ = (
+        "channel",
+        "due",
+        "last_index",
+        "next_ns",
+        "now",
+        "period_ns",
+        "step",
+        "tap",
+        "ticks",
+    )
 
-    def __init__(self, tap: Tap, channel: int) -> None:
+    def __init__(self, tap: Tap, timer: EventTimer, channel: int) -> None:
         self.tap = tap
         self.channel = channel
+        self.now = timer.clock.now_ns
         self.period_ns = tap.timer_stats_period_ns
         self.next_ns = 0
         self.ticks = 0  # since the last statistics record
-        self.due = 0  # self.ticks at which to look at the timer again
+        self.due = 0  # self.ticks at which to look at the clock again
+        self.step = 1
+        self.update_step(timer)
         self.last_index = 0
 
     def notify_timer(self, timer: EventTimer) -> None:
@@ -144,16 +221,20 @@ class _TimerTap:
 
     def check(self, timer: EventTimer) -> None:
         tap = self.tap
-        tick = timer.last_tick
-        if tick is not None:
-            now = tick.time_ns
-            if now >= self.next_ns:
-                self.next_ns = now + self.period_ns
-                self.flush(tick)
-            if now >= tap.next_joint_ns:
-                tap.next_joint_ns = now + tap.joint_period_ns
-                tap.sample(now)
-        self.due = self.ticks + max(1, min(self.period_ns, tap.joint_period_ns) // timer.period_ns)
+        now = self.now()
+        if now >= self.next_ns:
+            self.next_ns = now + self.period_ns
+            self.flush(timer.last_tick)
+            self.update_step(timer)
+        if now >= tap.next_joint_ns:
+            tap.next_joint_ns = now + tap.joint_period_ns
+            tap.sample(now)
+        self.due = self.ticks + self.step
+
+    def update_step(self, timer: EventTimer) -> None:
+        """Ticks between two looks at the clock (the shorter period, in the timer's ticks;
+        re-read at every statistics record, should the timer's period change)."""
+        self.step = max(1, min(self.period_ns, self.tap.joint_period_ns) // timer.period_ns)
 
     def flush(self, tick: TimerTick | None) -> None:
         """The statistics record of the ticks since the previous one (``tick``: the last)."""
@@ -209,12 +290,10 @@ class Tap(AppHook):
         self._components: list[HALComponent] = []
         self._observing: set[int] = set()
         self._timers: list[EventTimer] = []
-        self._actuators: list[Actuator] = []
+        self._actuators: list[_ActuatorTap] = []  # their listeners
         self._scenes: list[SceneSource] = []
         self.next_joint_ns = 0
         """When the next joint-state sample is due (clock ns)."""
-        self.sampling = False
-        """True while the tap reads the joint states itself (those reads are not recorded)."""
         self._joint_channel = -1
         self._log_channel = -1
         self._tf_channel = -1
@@ -312,15 +391,19 @@ class Tap(AppHook):
                 position_min=repr(low), position_max=repr(high), velocity_max=repr(limits.velocity)
             )
         channel = len(self.pipeline.channels)  # the id add_channel gives it
-        listener = _ComponentTap(self, component, channel)
+        listener = (
+            _ActuatorTap(self, component, channel)
+            if isinstance(component, Actuator)
+            else _ComponentTap(self, component, channel)
+        )
         component.set_listener(listener)  # refused (nothing registered) if it has another
         self._channels[id(component)] = self.pipeline.add_channel(
             hal_topic(component.device_name), HAL_RECORD, metadata
         )
         self._listeners[id(component)] = listener
         self._components.append(component)
-        if isinstance(component, Actuator):
-            self._actuators.append(component)
+        if isinstance(listener, _ActuatorTap):
+            self._actuators.append(listener)
             if self._joint_channel < 0:
                 self._joint_channel = self.pipeline.add_channel(JOINT_STATES_TOPIC, JOINT_STATES)
         if component.state is _ACTIVE:
@@ -342,7 +425,7 @@ class Tap(AppHook):
             timer_topic(timer.name), TIMER_TICK, {"period_ms": repr(timer.period_ms)}
         )
         self._channels[id(timer)] = channel
-        observer = self._timer_taps[id(timer)] = _TimerTap(self, channel)
+        observer = self._timer_taps[id(timer)] = _TimerTap(self, timer, channel)
         self._timers.append(timer)
         timer.add_observer(observer)
 
@@ -369,23 +452,34 @@ class Tap(AppHook):
         self._put((self._channels[id(source)], source.clock.now_ns(), ERROR, error_id))
 
     def sample(self, now: int) -> None:
-        """``/joint_states`` (and ``/tf``) at ``now``."""
+        """``/joint_states`` (and ``/tf``) at ``now``: each Active actuator's commanded
+        position (the last one its listener heard) and actual position (its device's
+        synchronous read, as ``get_value_nowait`` reads it but without its side effects: a
+        non-finite value is recorded as None, not made a fault of the actuator; None when
+        the device cannot read now), with no read through the framework."""
         log_time = now + (self._offset or 0)
         if self._actuators:
             joints = []
-            self.sampling = True
-            try:
-                for actuator in self._actuators:
-                    if actuator.state is not _ACTIVE:
-                        continue
-                    commanded = actuator.get_value_nowait(_POSITION)
-                    try:
-                        actual: float | None = actuator.get_value_nowait(_POSITION_ACTUAL)
-                    except HALError:  # no synchronous read path, or a fault
-                        actual = None
-                    joints.append((actuator.device_name, commanded, actual))
-            finally:
-                self.sampling = False
+            for tap in self._actuators:
+                if tap.actuator.state is not _ACTIVE:
+                    continue
+                commanded = tap.commanded
+                if commanded is None:
+                    commanded = tap.read_commanded()
+                read = tap.read
+                if read is None:  # the framework answers the commanded value for it
+                    joints.append((tap.name, commanded, commanded))
+                    continue
+                try:
+                    actual: float | None = read(_POSITION_ACTUAL)
+                except WouldBlockError:  # a bus device: no synchronous read, now or later
+                    tap.read = _unreadable
+                    actual = None
+                except Exception:  # a fault: the component reports it on its own path
+                    actual = None
+                if type(actual) is not float or actual - actual != 0.0:
+                    actual = None  # recorded as unknown, not made a fault of the actuator
+                joints.append((tap.name, commanded, actual))
             self._put((self._joint_channel, now, JOINTS, log_time, joints))
         for source in self._scenes:
             tf = transforms_message(source.transforms(), log_time)

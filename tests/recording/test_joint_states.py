@@ -1,0 +1,94 @@
+"""The joint-state sample: the commanded position the actuator's listener heard and the
+device's own actual-position read, taken without reading through the framework (so no
+reading records of its own, and no side effect on the actuators)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import anyio
+
+from openel_async import Actuator, ActuatorBank, ComponentState, EventTimer, Request, VirtualClock
+from openel_async.recording import Recorder, read_recording
+from openel_sim import SimMotor
+
+
+class _GlitchyMotor(SimMotor):
+    """A sim motor whose position read returns NaN while ``glitch`` is set."""
+
+    glitch = False
+
+    def read_nowait(self, request: Request) -> float:
+        value = super().read_nowait(request)
+        return math.nan if self.glitch and request is Request.POSITION_ACTUAL else value
+
+
+async def _run(path: Path) -> tuple[list[Actuator], list[_GlitchyMotor]]:
+    """Two axes streamed by a bank at every 10 ms tick for 0.3 s; the first axis's
+    device reads NaN from 0.1 s to 0.2 s."""
+    clock = VirtualClock()
+    motors = [_GlitchyMotor(max_velocity=3.0, max_acceleration=40.0) for _ in range(2)]
+    recorder = Recorder(path, joint_period_ms=10)
+    async with clock.autojump(), recorder:
+        axes = [Actuator(m, device_name=f"AXIS_{i}", clock=clock) for i, m in enumerate(motors)]
+        timer = EventTimer(10, clock=clock, name="loop")
+        for axis in axes:
+            recorder.observe(axis)
+        recorder.observe_timer(timer)
+        async with axes[0], axes[1], timer:
+            bank = ActuatorBank(axes)
+            ticks = 0
+            done = anyio.Event()
+
+            def on_tick(t: EventTimer) -> None:
+                nonlocal ticks
+                ticks += 1
+                motors[0].glitch = 10 <= ticks < 20
+                bank.set_values_nowait([0.01 * ticks, -0.02 * ticks])
+                if ticks == 30:
+                    t.stop_timer()
+                    done.set()
+
+            timer.add_observer(on_tick)
+            timer.start_timer()
+            await done.wait()
+            states = [axis.state for axis in axes]
+    assert states == [ComponentState.ACTIVE, ComponentState.ACTIVE]
+    return axes, motors
+
+
+async def test_joint_states_from_the_listener_and_the_device(tmp_path: Path) -> None:
+    path = tmp_path / "joints.mcap"
+    await _run(path)
+    rec = read_recording(path)
+    samples = rec.topic("/joint_states")
+    assert len(samples) >= 25
+    commanded = {
+        name: {
+            m["time_ns"]: m["value"] for m in rec.topic(f"/hal/{name}") if m["kind"] == "command"
+        }
+        for name in ("AXIS_0", "AXIS_1")
+    }
+    glitched = 0
+    for sample in samples:
+        t = sample["time_ns"]
+        for joint in sample["joints"]:
+            sent = commanded[joint["name"]]
+            before = [v for when, v in sent.items() if when < t]
+            # The latest setpoint streamed (0.0 before any): the tap's timer observer was
+            # added first, so the sample precedes the setpoint of its own tick.
+            assert joint["commanded"] == (before[-1] if before else 0.0)
+            if joint["position"] is None:
+                glitched += 1
+                assert joint["name"] == "AXIS_0"
+            else:
+                assert math.isfinite(joint["position"])
+    assert 5 <= glitched <= 10  # the NaN reads: recorded as unknown, no fault of the axis
+    for name in ("AXIS_0", "AXIS_1"):  # the sample's reads are not the application's
+        assert not [m for m in rec.topic(f"/hal/{name}") if m["kind"] == "reading"]
+        assert [m["state"] for m in rec.topic(f"/hal/{name}") if m["kind"] == "state"] == [
+            "Initialized",
+            "Active",
+            "Finalized",
+        ]
