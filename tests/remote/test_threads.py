@@ -1,0 +1,320 @@
+"""Threads of the remote path: the server's loop gate (reads answered on Zenoh's thread
+while the loop is parked in select) and the client's bounded busy-wait for replies."""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+import time
+from collections.abc import Awaitable, Callable
+from typing import Any
+
+import anyio
+import pytest
+
+from openel_async import (
+    Actuator,
+    ActuatorDevice,
+    BadParameterError,
+    DeviceContext,
+    DeviceInfo,
+    DeviceKind,
+    Request,
+)
+from openel_async.errors import ReturnCode
+from openel_async.surface import CommandMessage, Device, Surface, compact
+from openel_sim import SimMotor
+from openel_zenoh import RemoteActuator, RemoteSurface, SurfaceServer
+from openel_zenoh.config import endpoint, server_config
+from openel_zenoh.gate import GatedEventLoop, LoopGate, gate_of, needs_wake, work_marker
+from openel_zenoh.keys import Keys
+from openel_zenoh.server import THREAD_READS
+
+from .conftest import client_cfg, free_port, session
+
+
+def run_gated(main: Callable[[], Awaitable[None]]) -> None:
+    anyio.run(main, backend="asyncio", backend_options={"loop_factory": GatedEventLoop})
+
+
+def get_position(logical_id: int = 0) -> Device:
+    return Device("Motor", (CommandMessage.call("GetPosition", "", logical_id=logical_id),))
+
+
+# -- the gate ----------------------------------------------------------------------------------
+def test_the_gate_opens_only_while_the_loop_waits_in_select() -> None:
+    async def main() -> None:
+        loop = asyncio.get_running_loop()
+        gate = gate_of(loop)
+        assert isinstance(gate, LoopGate)
+
+        def enter_and_leave() -> bool:
+            entered = gate.try_enter()
+            if entered:
+                gate.leave()
+            return entered
+
+        # The loop waits in select for the worker thread: granted.
+        assert await anyio.to_thread.run_sync(enter_and_leave) is True
+        # While the loop runs Python code (this coroutine), another thread is refused.
+        result: list[bool] = []
+        thread = threading.Thread(target=lambda: result.append(enter_and_leave()))
+        thread.start()
+        thread.join()  # this coroutine never yielded: the loop never parked
+        assert result == [False]
+
+        # A section keeps the loop from resuming: a callback scheduled inside it runs
+        # only once the section is left.
+        inside = threading.Event()
+        ran_inside: list[bool] = []
+        done = anyio.Event()
+
+        def callback() -> None:
+            ran_inside.append(inside.is_set())
+            done.set()
+
+        def section() -> None:
+            while not gate.try_enter():  # the loop parks as soon as it awaits
+                time.sleep(0.0001)
+            inside.set()
+            loop.call_soon_threadsafe(callback)
+            time.sleep(0.05)  # ample time for the loop to run it if it could
+            inside.clear()
+            gate.leave()
+
+        worker = threading.Thread(target=section)
+        worker.start()
+        with anyio.fail_after(5):
+            await done.wait()
+        worker.join()
+        assert ran_inside == [False]
+        assert gate.entered >= 2
+
+    run_gated(main)
+
+
+def test_a_plain_or_debug_loop_has_no_gate() -> None:
+    async def main() -> None:
+        assert gate_of(asyncio.get_running_loop()) is None
+
+    anyio.run(main, backend="asyncio")
+
+    async def debug() -> None:
+        loop = asyncio.get_running_loop()
+        loop.set_debug(True)
+        try:
+            assert gate_of(loop) is None
+        finally:
+            loop.set_debug(False)
+
+    run_gated(debug)
+
+
+def test_needs_wake_tells_whether_a_section_scheduled_loop_work() -> None:
+    async def main() -> None:
+        loop = asyncio.get_running_loop()
+        before = work_marker(loop)
+        assert not needs_wake(loop, before)
+        handle = loop.call_soon(lambda: None)
+        assert needs_wake(loop, before)
+        handle.cancel()
+        assert needs_wake(loop, None)  # a loop it cannot inspect: always
+
+    run_gated(main)
+
+
+# -- the server's reads on Zenoh's thread ------------------------------------------------------
+def test_reads_are_answered_on_zenohs_thread_never_older_than_a_loop_read() -> None:
+    async def main() -> None:
+        port = free_port()
+        motor = SimMotor(max_velocity=0.5, max_acceleration=50.0, position_limits=(-10, 10))
+        async with (
+            session(server_config([endpoint(port)])) as zs,
+            Actuator(motor) as served,
+            Surface([served]) as surface,
+            SurfaceServer(surface, zs, "gate") as server,
+            session(client_cfg(port)) as zc,
+            # busy_wait=0: the client sleeps, so this process's loop parks in select
+            RemoteSurface(zc, "gate", busy_wait=0) as remote,
+        ):
+            await remote.wait_server(5)
+            async with Actuator(RemoteActuator(remote, 0)) as axis:
+                await served.set_value(5.0, Request.POSITION)  # moving in + for seconds
+                await anyio.sleep(0.01)
+                before_thread = server.served_on_zenoh_thread
+                for _ in range(30):
+                    earlier = served.get_value_nowait(Request.POSITION_ACTUAL)
+                    remote_value = await axis.get_value(Request.POSITION_ACTUAL)
+                    later = served.get_value_nowait(Request.POSITION_ACTUAL)
+                    # the remote read happened between the two loop-side reads
+                    assert earlier <= remote_value <= later
+                    assert earlier < later
+                # (when the loop happens to be busy, the loop path answers: same values)
+                assert server.served_on_zenoh_thread > before_thread
+                # A command is never run on Zenoh's thread.
+                before_thread = server.served_on_zenoh_thread
+                await axis.set_value(0.0)
+                assert server.served_on_zenoh_thread == before_thread
+
+    run_gated(main)
+
+
+def test_an_error_state_is_still_reported_as_an_error_by_the_thread_path() -> None:
+    async def main() -> None:
+        port = free_port()
+        motor = SimMotor()
+        async with (
+            session(server_config([endpoint(port)])) as zs,
+            Actuator(motor) as served,
+            Surface([served]) as surface,
+            SurfaceServer(surface, zs, "gate") as server,
+            session(client_cfg(port)) as zc,
+        ):
+            payload = compact.encode(get_position())
+            key = Keys("gate").execute
+
+            def query() -> CommandMessage:
+                # a blocking raw query from a worker thread: this loop waits in select
+                replies = list(zc.get(key, payload=payload, timeout=2.0))
+                assert replies and replies[0].ok is not None
+                return compact.device_from_compact(replies[0].ok.payload.to_bytes()).commands[0]
+
+            async def thread_path_reply() -> CommandMessage:
+                for _ in range(50):  # the loop may be busy at a query's arrival: retry
+                    before = server.served_on_zenoh_thread
+                    reply = await anyio.to_thread.run_sync(query)
+                    if server.served_on_zenoh_thread == before + 1:
+                        return reply
+                raise AssertionError("no read was answered on Zenoh's thread")
+
+            await anyio.sleep(0.2)  # the client's session connects
+            ok = await thread_path_reply()
+            assert ok.results is not None and ok.results.value("return_code") == 0
+            motor.inject_fault()
+            assert str(served.state) == "Error"
+            failed = await thread_path_reply()
+            assert failed.results is not None
+            assert failed.results.value("return_code") == int(ReturnCode.HAL_ERROR)
+            assert "state Error" in failed.results.value("message")
+
+    run_gated(main)
+
+
+class SlowReads(ActuatorDevice):
+    """GetPosition suspends (a worker serves it); GetState has a synchronous path."""
+
+    info = DeviceInfo(kind=DeviceKind.MOTOR)
+    reports_completion = True
+
+    async def open(self, ctx: DeviceContext) -> None:
+        self.ctx = ctx
+
+    async def command(self, request: Request, value: float) -> None:
+        self.ctx.target_reached()
+
+    async def read(self, request: Request) -> float:
+        await anyio.sleep(0.005)
+        return 0.0
+
+
+def test_a_clients_earlier_requests_are_answered_before_a_read_on_zenohs_thread() -> None:
+    async def main() -> None:
+        port = free_port()
+        async with (
+            session(server_config([endpoint(port)])) as zs,
+            Actuator(SlowReads()) as served,
+            Surface([served]) as surface,
+            SurfaceServer(surface, zs, "order") as server,
+            session(client_cfg(port)) as zc,
+        ):
+            key = Keys("order").execute
+            slow = compact.encode(get_position())  # 5 ms, served by a worker task
+            state = compact.encode(
+                Device("Motor", (CommandMessage.call("GetState", "", logical_id=0),))
+            )
+
+            def send(payload: bytes) -> Any:
+                return zc.get(key, payload=payload, attachment=b"client-1", timeout=2.0)
+
+            def slow_then_state() -> bool:
+                first = send(slow)
+                second = send(state)  # while the first one is being served
+                assert second.recv().ok is not None
+                # replies travel in order on the link: the slow one came first
+                return first.try_recv() is not None
+
+            await anyio.sleep(0.2)  # the client's session connects
+            met = await anyio.to_thread.run_sync(lambda: send(state).recv())
+            assert met.ok is not None  # the server meets client-1
+            for _ in range(5):
+                assert await anyio.to_thread.run_sync(slow_then_state)
+            # A read of an idle client: on Zenoh's thread (the loop may be busy at a
+            # query's arrival: a few tries)
+            for _ in range(50):
+                before = server.served_on_zenoh_thread
+                assert (await anyio.to_thread.run_sync(lambda: send(state).recv())).ok
+                if server.served_on_zenoh_thread == before + 1:
+                    break
+            else:
+                raise AssertionError("no read was answered on Zenoh's thread")
+
+    run_gated(main)
+
+
+def test_thread_reads_are_reads() -> None:
+    assert not any(name.startswith("Set") for name in THREAD_READS)
+
+
+# -- the client's busy-wait -------------------------------------------------------------------
+@pytest.mark.parametrize("bad", [-0.001, 0.5, True, "0.001", float("nan")])
+async def test_busy_wait_is_checked(bad: object) -> None:
+    async with session(client_cfg(free_port())) as zc:
+        with pytest.raises(BadParameterError, match="busy_wait"):
+            RemoteSurface(zc, "x", busy_wait=bad)  # type: ignore[arg-type]
+
+
+async def test_replies_slower_than_the_busy_wait_back_off_to_sleeping_queries() -> None:
+    port = free_port()
+    async with (
+        session(server_config([endpoint(port)])) as zs,
+        Actuator(SlowReads()) as served,  # every read takes 5 ms: longer than the budget
+        Surface([served]) as surface,
+        SurfaceServer(surface, zs, "slow"),
+        session(client_cfg(port)) as zc,
+        RemoteSurface(zc, "slow", busy_wait=0.0005) as remote,
+    ):
+        await remote.wait_server(5)
+        # probe (miss), 1 sleeping, probe (miss), 2 sleeping, probe (miss), 4 sleeping, probe
+        for _ in range(1 + 1 + 1 + 2 + 1 + 4 + 1):
+            reply = (await remote.execute(get_position())).commands[0]
+            assert reply.results is not None and reply.results.value("return_code") == 0
+        assert (remote.busy_hits, remote.busy_misses) == (0, 4)
+
+
+async def test_every_query_is_polled_then_answered_whichever_path() -> None:
+    port = free_port()
+    async with (
+        session(server_config([endpoint(port)])) as zs,
+        Actuator(SimMotor()) as served,
+        Surface([served]) as surface,
+        SurfaceServer(surface, zs, "fast"),
+        session(client_cfg(port)) as zc,
+        RemoteSurface(zc, "fast", busy_wait=0.002) as remote,
+    ):
+        await remote.wait_server(5)
+        async with Actuator(RemoteActuator(remote, 0)) as axis:
+            start = remote.busy_hits + remote.busy_misses
+            for _ in range(20):
+                assert await axis.get_value(Request.POSITION_ACTUAL) == 0.0
+            polled = remote.busy_hits + remote.busy_misses - start
+            assert 1 <= polled <= 20  # misses make later queries sleep, never fail
+
+
+@pytest.mark.parametrize("busy_wait", [0.0, 0.0005])
+async def test_a_query_nobody_answers_ends_with_timeout_error(busy_wait: float) -> None:
+    async with (
+        session(client_cfg(free_port())) as zc,
+        RemoteSurface(zc, "nobody", timeout=0.2, busy_wait=busy_wait) as remote,
+    ):
+        with anyio.fail_after(5), pytest.raises(TimeoutError, match="no reply"):
+            await remote.execute(get_position())
