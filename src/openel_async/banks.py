@@ -22,6 +22,7 @@ from typing import TypeVar, cast
 from .actuator import Actuator, StreamBatch, accept_streamed, stream_targets
 from .completion import Motion
 from .component import LINK_FAULTS, STATE_CHANGES, ComponentState, HALComponent
+from .device import LIMITS_CHANGES
 from .errors import BadParameterError, HALError, StateError, WouldBlockError
 from .listeners import LISTENING, tell_readings
 from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, Request, coerce_request
@@ -97,23 +98,17 @@ class ActuatorBank:
         clocks = {id(a.clock) for a in self.actuators}
         # Streamed commands are stamped with one clock reading when the actuators share it.
         self._now_ns = self.actuators[0].clock.now_ns if len(clocks) == 1 else None
-        # Position limits and support, read once: a POSITION batch of floats is checked in
-        # three C-level passes (types, lower and upper bounds).  Infinite limits become the
-        # largest float, so the bounds reject infinities; NaN fails every comparison.
+        # Position limits and support: a POSITION batch of floats is checked in three C-level
+        # passes (types, lower and upper bounds).  The limits are re-read whenever any
+        # device's were set since (device.LIMITS_CHANGES: one comparison per batch).
         devices = self._devices
         self._floats = (float,) * len(devices)
-        self._lows = tuple(max(d.limits.position[0], -_MAX) for d in devices)
-        self._highs = tuple(min(d.limits.position[1], _MAX) for d in devices)
-        # One range for every device (the usual case): min() and max() of the batch.
-        self._range = (
-            (self._lows[0], self._highs[0])
-            if len(set(self._lows)) == 1 and len(set(self._highs)) == 1
-            else None
-        )
-        # The range inside every device's (the shared one, if any): a batch inside it needs
-        # no per-device comparison.
-        low, high = max(self._lows), min(self._highs)
-        self._inner = (low, high) if low <= high else None
+        self._limits_at = -1
+        self._lows: tuple[float, ...] = ()
+        self._highs: tuple[float, ...] = ()
+        self._range: tuple[float, float] | None = None
+        self._inner: tuple[float, float] | None = None
+        self._read_limits()
         self._positions = all(_POSITION in d.supported_requests for d in devices)
         # One device call for the whole batch when the driver offers one (every device of
         # one class); only where the Motions are lazy (devices report completion).
@@ -142,6 +137,23 @@ class ActuatorBank:
     def __iter__(self) -> Iterator[Actuator]:
         return iter(self.actuators)
 
+    def _read_limits(self) -> None:
+        """Read every device's position limits (as they are at LIMITS_CHANGES now).
+
+        Infinite limits become the largest float, so the bounds reject infinities; NaN
+        fails every comparison.
+        """
+        self._limits_at = LIMITS_CHANGES.value
+        positions = [d.limits.position for d in self._devices]
+        lows = self._lows = tuple([max(p[0], -_MAX) for p in positions])
+        highs = self._highs = tuple([min(p[1], _MAX) for p in positions])
+        # One range for every device (the usual case): min() and max() of the batch.
+        self._range = (lows[0], highs[0]) if len(set(lows)) == 1 and len(set(highs)) == 1 else None
+        # The range inside every device's (the shared one, if any): a batch inside it needs
+        # no per-device comparison.
+        low, high = max(lows), min(highs)
+        self._inner = (low, high) if low <= high else None
+
     # -- SetValue on every actuator ---------------------------------------------------
     async def set_values(
         self, values: Sequence[float], request: Request | int = Request.POSITION
@@ -168,6 +180,8 @@ class ActuatorBank:
             and (type(values) is list or type(values) is tuple)
             and tuple(map(type, values)) == self._floats
         ):  # the streaming tick, inline: a batch of floats within the limits, one device call
+            if self._limits_at != LIMITS_CHANGES.value:  # a device's limits were set
+                self._read_limits()
             # Inside the range every device takes: NaN may hide from min() and max(), but a
             # finite sum rules it and infinities out.  Else each device's own (finite) range,
             # where NaN and infinities fail a comparison.
@@ -231,38 +245,38 @@ class ActuatorBank:
         """A sender of POSITION batches proven in advance to lie within ``[lows[i], highs[i]]``
         for actuator i (e.g. a planned trajectory's extrema), or None if the bank cannot
         stream that way (no device batch, a device without POSITION, a bound not finite, or
-        outside the limits the bank read when it was built or its device's limits now).
+        outside its device's limits).
 
         ``send(values)``, values a list of one float per actuator each within its bounds
         (the caller's proof), is :meth:`set_values_nowait` without the per-value checks
         that the proof made once: a batch the proof covers passes those checks (types,
-        finiteness, the limits read when the bank was built) whatever happens meanwhile.
-        Every actuator is still checked Active at every batch (``component.STATE_CHANGES``).
+        finiteness, limits) as long as no device's limits are set.  Every actuator is still
+        checked Active at every batch (``component.STATE_CHANGES``), and the proof is made
+        again when a device's limits were set (``device.LIMITS_CHANGES``): while it fails,
+        each batch goes through :meth:`set_values_nowait` (a value outside the new limits
+        raises its BadParameterError, nothing sent).
         """
         streamed = self._streamed
         batch = self._batch
         now_ns = self._now_ns
-        devices = self._devices
         if streamed is None or batch is None or now_ns is None or not self._positions:
             return None
-        if len(lows) != len(devices) or len(highs) != len(devices):
+        if len(lows) != len(self._devices) or len(highs) != len(self._devices):
             return None
-        for low, high, bank_low, bank_high, device in zip(
-            lows, highs, self._lows, self._highs, devices, strict=True
-        ):
-            device_low, device_high = device.limits.position
-            if not (
-                math.isfinite(low)
-                and math.isfinite(high)
-                and bank_low <= low
-                and high <= bank_high
-                and device_low <= low
-                and high <= device_high
-            ):
-                return None
+        lows, highs = tuple(lows), tuple(highs)
+        if not self._proves(lows, highs):
+            return None
         actuators = self.actuators
+        changes = LIMITS_CHANGES
+        proven_at = self._limits_at  # LIMITS_CHANGES.value when the proof last held
 
         def send(values: list[float]) -> None:
+            nonlocal proven_at
+            if proven_at != changes.value:  # a device's limits were set: prove it again
+                if not self._proves(lows, highs):
+                    self.set_values_nowait(values, _POSITION)
+                    return
+                proven_at = self._limits_at
             if self._active_at != STATE_CHANGES.value:
                 self._active_at = _require_all_active(actuators, "set_values_nowait", -1)
             stamp = now_ns()
@@ -276,6 +290,20 @@ class ActuatorBank:
                 stream_targets(actuators, _POSITION, values, stamp)
 
         return send
+
+    def _proves(self, lows: Sequence[float], highs: Sequence[float]) -> bool:
+        """Whether every ``[lows[i], highs[i]]`` is finite and within device i's position
+        limits (as they are now: re-read if any device's were set)."""
+        if self._limits_at != LIMITS_CHANGES.value:
+            self._read_limits()
+        for low, high, bank_low, bank_high in zip(
+            lows, highs, self._lows, self._highs, strict=True
+        ):
+            if not (
+                math.isfinite(low) and math.isfinite(high) and bank_low <= low and high <= bank_high
+            ):
+                return False
+        return True
 
     @property
     def motions(self) -> tuple[Motion | None, ...]:
@@ -318,6 +346,8 @@ class ActuatorBank:
         False sends the caller through each actuator's own checks for the exact error)."""
         if not self._positions or tuple(map(type, values)) != self._floats:
             return False
+        if self._limits_at != LIMITS_CHANGES.value:  # a device's limits were set
+            self._read_limits()
         bounds = self._range
         if bounds is not None:
             # NaN may hide from min() and max(): a finite sum rules it (and infinities) out.

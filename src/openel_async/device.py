@@ -177,10 +177,31 @@ class VelocityRamp:
         return abs(self.target - self.start) / self.duration_s
 
 
-class ActuatorDevice(Device):
-    """A one-degree-of-freedom actuator."""
+class LimitsChanges:
+    """Counts assignments of every actuator device's :attr:`ActuatorDevice.limits` (a bank
+    re-reads its devices' limits when it moved since it last read them: one integer
+    comparison per batch instead of one read per device)."""
 
-    limits: ActuatorLimits = ActuatorLimits()
+    __slots__ = ("value",)
+
+    def __init__(self) -> None:
+        self.value = 0
+
+
+LIMITS_CHANGES = LimitsChanges()
+
+
+class ActuatorDevice(Device):
+    """A one-degree-of-freedom actuator.
+
+    ``limits`` may be set at any time (``self.limits = ActuatorLimits(...)`` in ``__init__``,
+    ``open`` or ``init``, or later): every assignment counts in :data:`LIMITS_CHANGES`, so
+    that a bank over the device checks the next batch against the new limits.  A subclass
+    may declare its default as a class attribute (``limits = ActuatorLimits(...)``); it
+    becomes the default the property returns until an instance sets its own.
+    """
+
+    _actuator_limits: ActuatorLimits = ActuatorLimits()
     linear: bool = False
     """True for a linear axis (m, m/s, N), False for a rotary one (rad, rad/s, Nm). A
     ``Motor``'s scale factor defaults to 2 pi per revolution (rotary) or 1.0 per metre."""
@@ -202,6 +223,29 @@ class ActuatorDevice(Device):
     estimate. For a code in neither set, ``read()`` is never called and ``get_value``
     returns the last commanded value (OpenEL §7.4.1.7). Both are read when the Actuator
     is constructed."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # A class attribute ``limits = ActuatorLimits(...)`` would shadow the property (and
+        # hide later assignments from LIMITS_CHANGES): it becomes the class's default.
+        default = vars(cls).get("limits")
+        if default is not None and not isinstance(default, property):
+            if not isinstance(default, ActuatorLimits):
+                raise BadParameterError(f"{cls.__name__}.limits", default, "an ActuatorLimits")
+            cls._actuator_limits = default
+            del cls.limits
+
+    @property
+    def limits(self) -> ActuatorLimits:
+        """Limits of commanded values; see the class docstring."""
+        return self._actuator_limits
+
+    @limits.setter
+    def limits(self, value: ActuatorLimits) -> None:
+        if not isinstance(value, ActuatorLimits):
+            raise BadParameterError("limits", value, "an ActuatorLimits")
+        self._actuator_limits = value
+        LIMITS_CHANGES.value += 1
 
     @abstractmethod
     async def command(self, request: Request, value: float) -> None:

@@ -210,29 +210,62 @@ async def test_a_path_touching_a_limit_is_checked_value_by_value(
         assert motors[0].batches[-1][1] == 1.0
 
 
-async def test_limits_changed_after_the_group_was_built_are_checked_as_before(
+async def test_limits_widened_after_the_group_was_built_are_used_for_the_proof(
     hal_components: ComponentStack, virtual_clock: VirtualClock
 ) -> None:
-    """The bank checks batches against the limits it read when it was built (and, for a
-    value outside them, against the device's current ones): a path outside the former is
-    not proven, so narrowing the device's limits mid-move still stops the next batch."""
+    """The bank re-reads its devices' limits when any were set: a path beyond those it was
+    built with, within the devices' current ones, is proven."""
     motors = [BatchMotor(position_limits=(-1.0, 1.0)) for _ in range(2)]
     group, _, timer = await _group(hal_components, virtual_clock, motors)
     async with timer, group:
-        wide = ActuatorLimits((-3.0, 3.0), 20.0, 2.0)
-        narrow = ActuatorLimits((-1.0, 1.0), 20.0, 2.0)
         for motor in motors:
-            motor.limits = wide
+            motor.limits = ActuatorLimits((-3.0, 3.0), 20.0, 2.0)
         motion = await group.move_to([2.0, 0.5])
-        assert not _proven(group)
-        while group.commanded[0] < 1.2:
+        assert _proven(group)
+        await motion
+        assert motion.outcome is GroupOutcome.SUCCEEDED
+        assert motors[0].batches[-1][1] == 2.0
+
+
+async def test_limits_narrowed_mid_proven_move_stop_the_next_batch(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    """The proof is made again when a device's limits are set mid-move: the first batch
+    outside the new limits is refused as on the general path (AxisFaultError naming the
+    axis, caused by the bank's BadParameterError), nothing sent; within them it streams."""
+    motors = [BatchMotor(position_limits=(-3.0, 3.0)) for _ in range(2)]
+    group, actuators, timer = await _group(hal_components, virtual_clock, motors)
+    async with timer, group:
+        motion = await group.move_to([2.0, 0.5])
+        assert _proven(group)
+        while group.commanded[0] < 0.5:
             await virtual_clock.sleep(0.01)
-        sent = [len(m.batches) for m in motors]
-        motors[0].limits = narrow
+        # Narrowed but still around the path: the move goes on, proven again.
+        for motor in motors:
+            motor.limits = ActuatorLimits((-2.5, 2.5), 20.0, 2.0)
+        while group.commanded[0] < 0.8:
+            await virtual_clock.sleep(0.01)
+        assert not motion.done()
+        # Narrowed across the path: the next batch outside is refused.
+        motors[0].limits = ActuatorLimits((-1.0, 1.0), 20.0, 2.0)
         with pytest.raises(AxisFaultError) as info:
             await motion
-        assert info.value.axis == 0 and isinstance(info.value.cause, BadParameterError)
-        assert [len(m.batches) for m in motors] == sent
+        cause = info.value.cause
+        assert info.value.axis == 0 and isinstance(cause, BadParameterError)
+        assert cause.parameter == "values[0]" and "[-1.0, 1.0]" in cause.allowed
+        last = [m.batches[-1][1] for m in motors]
+        assert 0.9 < last[0] <= 1.0 and list(group.commanded) == last
+        assert [a.get_value_nowait(Request.POSITION) for a in actuators] == last
+        sent = [(len(m.batches), m.commands) for m in motors]
+        await virtual_clock.sleep(0.05)
+        assert [(len(m.batches), m.commands) for m in motors] == sent
+        # Widened again: the same target is reached, proven.
+        motors[0].limits = ActuatorLimits((-3.0, 3.0), 20.0, 2.0)
+        again = await group.move_to([2.0, 0.5])
+        assert _proven(group)
+        await again
+        assert again.outcome is GroupOutcome.SUCCEEDED
+        assert [m.batches[-1][1] for m in motors] == [2.0, 0.5]
 
 
 async def test_the_bank_refuses_bounds_it_cannot_prove(

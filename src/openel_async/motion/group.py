@@ -444,7 +444,10 @@ class AxisGroup:
         The proof: ruckig's position extrema of the plan (:meth:`Plan.position_bounds`)
         lie within each device's position limits, and the planner's samples are floats
         (finite, inside those extrema). The bank's sender still checks per batch what can
-        change during the motion: every axis Active, every device's limits unchanged
+        change during the motion: every axis Active, and no device's limits set since the
+        proof (else it proves the extrema again against the new limits, and while that
+        fails checks the batch value by value: a value outside them raises the same
+        BadParameterError as on the general path, nothing sent, and the motion aborts)
         (:meth:`ActuatorBank.position_stream`). The tick samples the plan, logs the row
         and sends the batch; the final setpoints (at or after the plan's end) take the
         general path, which also starts the goal check.
