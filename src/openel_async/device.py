@@ -9,7 +9,7 @@ Finalize) and reaches the driver through :class:`DeviceContext` callbacks.
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
+from abc import ABC, ABCMeta, abstractmethod
 from collections.abc import Callable, Coroutine, Sequence
 from dataclasses import dataclass
 from enum import Enum, IntEnum
@@ -191,7 +191,41 @@ class LimitsChanges:
 LIMITS_CHANGES = LimitsChanges()
 
 
-class ActuatorDevice(Device):
+def _checked_limits(value: object, name: str) -> ActuatorLimits:
+    if not isinstance(value, ActuatorLimits):
+        raise BadParameterError(name, value, "an ActuatorLimits")
+    return value
+
+
+class ActuatorDeviceType(ABCMeta):
+    """The metaclass of :class:`ActuatorDevice`: ``limits`` declared in a class body
+    (``limits = ActuatorLimits(...)``) becomes the class's default instead of shadowing the
+    instances' ``limits`` property, and ``SomeDevice.limits`` reads (or sets) that default."""
+
+    def __new__(
+        mcls, name: str, bases: tuple[type, ...], namespace: dict[str, Any], **kwargs: Any
+    ) -> ActuatorDeviceType:
+        default = namespace.get("limits")
+        if default is not None and not isinstance(default, property):
+            namespace = dict(namespace)
+            namespace["_actuator_limits"] = _checked_limits(
+                namespace.pop("limits"), f"{name}.limits"
+            )
+        return super().__new__(mcls, name, bases, namespace, **kwargs)
+
+    @property
+    def limits(cls) -> ActuatorLimits:
+        """The limits of the class's instances that set none of their own."""
+        limits: ActuatorLimits = cls._actuator_limits
+        return limits
+
+    @limits.setter
+    def limits(cls, value: ActuatorLimits) -> None:
+        cls._actuator_limits = _checked_limits(value, f"{cls.__name__}.limits")
+        LIMITS_CHANGES.value += 1
+
+
+class ActuatorDevice(Device, metaclass=ActuatorDeviceType):
     """A one-degree-of-freedom actuator.
 
     ``limits`` may be set at any time (``self.limits = ActuatorLimits(...)`` in ``__init__``,
@@ -224,17 +258,6 @@ class ActuatorDevice(Device):
     returns the last commanded value (OpenEL §7.4.1.7). Both are read when the Actuator
     is constructed."""
 
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        # A class attribute ``limits = ActuatorLimits(...)`` would shadow the property (and
-        # hide later assignments from LIMITS_CHANGES): it becomes the class's default.
-        default = vars(cls).get("limits")
-        if default is not None and not isinstance(default, property):
-            if not isinstance(default, ActuatorLimits):
-                raise BadParameterError(f"{cls.__name__}.limits", default, "an ActuatorLimits")
-            cls._actuator_limits = default
-            del cls.limits
-
     @property
     def limits(self) -> ActuatorLimits:
         """Limits of commanded values; see the class docstring."""
@@ -242,9 +265,7 @@ class ActuatorDevice(Device):
 
     @limits.setter
     def limits(self, value: ActuatorLimits) -> None:
-        if not isinstance(value, ActuatorLimits):
-            raise BadParameterError("limits", value, "an ActuatorLimits")
-        self._actuator_limits = value
+        self._actuator_limits = _checked_limits(value, "limits")
         LIMITS_CHANGES.value += 1
 
     @abstractmethod

@@ -122,11 +122,19 @@ def test_a_class_attribute_default_does_not_shadow_the_property() -> None:
     assert isinstance(vars(ActuatorDevice)["limits"], property)
     assert "limits" not in vars(Declared)
     assert Declared().limits is NARROW and Inherited().limits is NARROW
+    assert Declared.limits is NARROW and Inherited.limits is NARROW  # read on the class too
     device = Inherited()
     before = LIMITS_CHANGES.value
     device.limits = WIDE
     assert device.limits is WIDE and Declared().limits is NARROW
     assert LIMITS_CHANGES.value == before + 1
+    # Set on the class: the default of its instances that set none (also counted).
+    plain = Inherited()
+    Inherited.limits = WIDE
+    assert plain.limits is WIDE and Declared().limits is NARROW
+    assert LIMITS_CHANGES.value == before + 2
+    with pytest.raises(BadParameterError, match=r"Inherited\.limits"):
+        Inherited.limits = None  # type: ignore[assignment]
 
     with pytest.raises(BadParameterError, match=r"Broken\.limits"):
 
