@@ -9,7 +9,9 @@ request) run beside this process, which is the client; everything on loopback.
   vs a blocking ``session.get`` on the raw queryable (its server answers on Zenoh's
   thread); target p50 <= 1.5x raw. Also vs the same raw query awaited from asyncio (Zenoh
   calls back on its thread, ``call_soon_threadsafe`` hands the reply to the loop), which
-  is what any asyncio client of Zenoh pays. The three alternate in 10 rounds.
+  is what any asyncio client of Zenoh pays, and ours again with ``busy_wait=0`` (the
+  client never polls). The four alternate in 10 rounds; the client process's CPU time
+  per call (every thread: loop, Zenoh's, workers) of each is reported beside.
 - set_value -> COMPLETED: from ``set_value`` to the COMPLETED event at the local observer
   (the motor reaches a 1 mrad target within microseconds) vs a raw query whose server
   then publishes a sample the client receives.
@@ -18,23 +20,53 @@ request) run beside this process, which is the client; everything on loopback.
   counted by a raw subscriber callback; target >= 20 000 events/s with none lost untold.
 - execute through XML vs the compact encoding: the round trip of one GetPosition message.
 
-Profile of the round trip (cProfile of 3000 ``get_value`` calls in the client and of the
-server process, outside the benchmark run), before -> after the changes
-of issue 12's follow-up (before them this benchmark measured 464 us p50, 2.49x the
-blocking raw query; after them, the table below):
+Where the time of a round trip goes (this 2-core VM, idle apart from the benchmark;
+p50 of interleaved runs, each figure measured alone):
 
-- server: 3 event-loop iterations per query (Zenoh thread -> inbox task -> worker task)
-  -> 1 (the query is answered in the ``call_soon_threadsafe`` callback that receives it,
-  through ``Surface.execute_nowait`` when the command needs no I/O); the Python work of
-  decode + execute + encode is about 7 us (micro-benchmark); the rest of the server's
-  time is ``Query.reply`` + ``Query.drop`` (Zenoh) and the thread-to-loop wake-up.
-- client: 287 -> 161 Python function calls per ``get_value``; 2.5 -> 2 loop iterations
-  (one ``call_soon_threadsafe`` per query instead of two, a loop timer instead of an anyio
-  cancel scope, the GetPosition message encoded once); what remains is ``Session.get``
-  (Zenoh) and the wake-up of the loop by Zenoh's thread.
-- what separates the result from the blocking raw query: two thread-to-loop handoffs
-  (server and client, about 30-40 us each here, measured alone), which a design that
-  touches the components only from their event loop cannot avoid.
+- a ``call_soon_threadsafe`` from another thread to an idle loop: 6.5 us; setting a
+  ``threading.Event`` for a thread blocked on it: 5.3 us. The wake-up itself is cheap.
+- server hop: the raw queryable answering in a loop callback instead of in Zenoh's
+  callback adds 20-24 us to a blocking query.
+- client hop: the same raw query awaited from asyncio instead of blocking adds 35-65
+  us, of which the wake-up is 6.5: the rest is the handover around it, Zenoh's thread
+  running the reply callback and then the callback's drop under the GIL while the
+  woken loop waits for it (a zenoh Callback handler with ``call_soon_threadsafe`` and
+  a worker thread blocked in ``recv`` cost about the same; a poll started right after
+  a callback query waited up to 5 ms, the GIL's switch interval, p90 3.8 ms). A busy-waiting loop polling a Zenoh channel (no Python on Zenoh's
+  thread) sees the reply 20-40 us *sooner* than a blocking ``recv``, which pays the
+  wake-up of a sleeping thread: polling beats both peers, at the price of CPU. Without
+  ``os.sched_yield`` in each polling pass, 13-50 % of the polls missed (no reply
+  within 500 us) on this 2-core machine: the client's Zenoh thread, ready with the
+  reply, waited for the core or the GIL that the polling loop held; with it, 0-3
+  misses in 1300 polls.
+- our server: on the loop path, a raw queryable declared in the server process answers
+  75-80 us sooner than our execute of GetPosition (a blocking raw query of each);
+  decode, ``Surface.execute_nowait`` and encode take 7 us in a hot loop but 22-30 us
+  in situ (a core woken from idle), ``Query.reply`` 12-18 us. On a ``GatedEventLoop``
+  (below) the read no longer waits for the loop: 40-50 us less per query than the
+  loop path (gated vs ungated server, interleaved, two runs), 40-45 us less server
+  process CPU per query (the loop is not woken at all), 40-50 us left over the raw
+  queryable.
+
+What changed in this pass (issue 12, the last missed target; before it: 320 us p50,
+2.07x the blocking raw query, 1.36x the awaited one):
+
+- client: the reply comes through a Zenoh channel (``session.get`` without a Python
+  callback), polled from the loop for at most ``RemoteSurface.busy_wait`` (0.5 ms) with
+  ``os.sched_yield`` and a zero-timeout loop pass between polls; a miss is awaited by
+  a worker thread blocked in ``recv``, and after consecutive misses 1, 2, 4... 256
+  queries sleep that way from the start. The cost is CPU: the client's process CPU
+  per call is in the table, with and without busy-waiting.
+- server: ``openel-async serve`` (and this benchmark's server) runs on a
+  ``GatedEventLoop``: plain reads (GetPosition...) are answered on Zenoh's thread
+  while the loop is parked in ``select``, the loop's gate taken (no loop code runs
+  meanwhile: the read is exactly a loop callback's), see docs/remote.md "Threads".
+- what remains between us and the blocking raw query: the server's Python work per
+  read (40-50 us in situ, above), the client's (``Actuator.get_value``, encode
+  once, decode the reply: about 15 us) and, with ``busy_wait=0``, the client hop.
+  Removing more would mean less Python per request (a compiled codec and dispatch)
+  rather than fewer hand-offs: there is no thread hand-off left on the path of a
+  polled read.
 """
 
 from __future__ import annotations
@@ -269,8 +301,10 @@ def _raw_figures(port: int, calls: int, events: int) -> dict[str, float]:
 
 # -- round trips, interleaved -------------------------------------------------------------
 async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, list[float]]:
-    """get_value of a remote actuator, a blocking raw query and a raw query awaited from
-    asyncio, in alternating rounds (a load change on the machine hits all three)."""
+    """get_value of a remote actuator (with the client's default busy-wait, and with
+    ``busy_wait=0``), a blocking raw query and a raw query awaited from asyncio, in
+    alternating rounds (a load change on the machine hits all four); the calling thread's
+    process CPU time (every thread: the loop, Zenoh's, workers) of each."""
 
     from openel_async import Actuator, Request
     from openel_zenoh import RemoteActuator, RemoteSurface, close_session, open_session
@@ -278,44 +312,61 @@ async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, li
 
     raw = await open_session(client_config([endpoint(raw_port)]))
     session = await open_session(client_config([endpoint(our_port)]))
-    samples: dict[str, list[float]] = {"ours": [], "raw": [], "raw_async": []}
-    cpu = {"ours": 0.0, "raw": 0.0, "raw_async": 0.0}
+    kinds = ("ours", "ours_sleeping", "raw", "raw_async")
+    samples: dict[str, list[float]] = {kind: [] for kind in kinds}
+    cpu = dict.fromkeys(kinds, 0.0)
+
+    def blocking_round_trips(count: int) -> list[float]:
+        out = []
+        for _ in range(count):  # blocks this loop: nothing else runs here
+            t0 = time.perf_counter()
+            replies = list(raw.get("raw/q", payload=b"x", timeout=2.0))
+            out.append(time.perf_counter() - t0)
+            assert replies and replies[0].ok is not None
+        return out
+
     try:
-        async with RemoteSurface(session, NAMESPACE, timeout=5.0) as remote:
+        async with (
+            RemoteSurface(session, NAMESPACE, timeout=5.0) as remote,
+            RemoteSurface(session, NAMESPACE, timeout=5.0, busy_wait=0.0) as sleeping,
+        ):
             await remote.wait_server(10)
-            async with Actuator(RemoteActuator(remote, 0)) as axis:
+            await sleeping.wait_server(10)
+            async with (
+                Actuator(RemoteActuator(remote, 0)) as axis,
+                Actuator(RemoteActuator(sleeping, 0)) as sleeping_axis,
+            ):
+
+                async def get_values(target: Actuator, count: int) -> list[float]:
+                    out = []
+                    for _ in range(count):
+                        t0 = time.perf_counter()
+                        await target.get_value(Request.POSITION_ACTUAL)
+                        out.append(time.perf_counter() - t0)
+                    return out
+
                 await anyio.sleep(0.3)
                 per_round = max(1, calls // ROUNDS)
                 for round_ in range(ROUNDS + 1):  # round 0 warms up
-                    ours = []
-                    c0 = time.thread_time()
-                    for _ in range(per_round):
-                        t0 = time.perf_counter()
-                        await axis.get_value(Request.POSITION_ACTUAL)
-                        ours.append(time.perf_counter() - t0)
-                    c1 = time.thread_time()
-                    blocking = []
-                    for _ in range(per_round):  # blocks this loop: nothing else runs here
-                        t0 = time.perf_counter()
-                        replies = list(raw.get("raw/q", payload=b"x", timeout=2.0))
-                        blocking.append(time.perf_counter() - t0)
-                        assert replies and replies[0].ok is not None
-                    c2 = time.thread_time()
-                    awaited = await _raw_async_round_trips(raw, per_round)
-                    c3 = time.thread_time()
-                    if round_:
-                        samples["ours"] += ours
-                        samples["raw"] += blocking
-                        samples["raw_async"] += awaited
-                        cpu["ours"] += c1 - c0
-                        cpu["raw"] += c2 - c1
-                        cpu["raw_async"] += c3 - c2
+                    for kind in kinds:
+                        c0 = time.process_time()
+                        if kind == "ours":
+                            got = await get_values(axis, per_round)
+                        elif kind == "ours_sleeping":
+                            got = await get_values(sleeping_axis, per_round)
+                        elif kind == "raw":
+                            got = blocking_round_trips(per_round)
+                        else:
+                            got = await _raw_async_round_trips(raw, per_round)
+                        if round_:
+                            samples[kind] += got
+                            cpu[kind] += time.process_time() - c0
                 samples["busy"] = [float(remote.busy_hits), float(remote.busy_misses)]
     finally:
         await close_session(session)
         await anyio.to_thread.run_sync(raw.close)
     calls_made = max(1, len(samples["ours"]))
-    samples["cpu"] = [cpu[k] / calls_made for k in ("ours", "raw", "raw_async")]
+    samples["cpu"] = [cpu[kind] / calls_made for kind in kinds]
     return samples
 
 
@@ -393,7 +444,10 @@ def run(quick: bool) -> BenchResult:
         raw = _raw_figures(raw_port, calls, events)
     finally:
         _stop(raw_proc)
-    ours.update(rtt_p50=_pct(rtt["ours"], 0.5), rtt_p99=_pct(rtt["ours"], 0.99))
+    ours.update(
+        rtt_p50=_pct(rtt["ours"], 0.5), rtt_p99=_pct(rtt["ours"], 0.99),
+        sleeping_p50=_pct(rtt["ours_sleeping"], 0.5),
+    )  # fmt: skip
     raw.update(
         rtt_p50=_pct(rtt["raw"], 0.5), rtt_p99=_pct(rtt["raw"], 0.99),
         async_p50=_pct(rtt["raw_async"], 0.5),
@@ -408,10 +462,14 @@ def run(quick: bool) -> BenchResult:
             ratio_of(ours["rtt_p99"], raw["rtt_p99"]), "ours/raw"),
         Row("get_value round trip p50 (vs asyncio)", ours["rtt_p50"] * us, "us", raw["async_p50"] * us,
             "raw Zenoh query awaited from asyncio p50", ratio_of(ours["rtt_p50"], raw["async_p50"]), "ours/raw"),
-        Row("get_value client CPU (calling thread)", rtt["cpu"][0] * us, "us/call", rtt["cpu"][1] * us,
-            "raw blocking query", ratio_of(rtt["cpu"][0], rtt["cpu"][1]), "ours/raw"),
-        Row("get_value client CPU (vs asyncio)", rtt["cpu"][0] * us, "us/call", rtt["cpu"][2] * us,
-            "raw query awaited from asyncio", ratio_of(rtt["cpu"][0], rtt["cpu"][2]), "ours/raw"),
+        Row("get_value p50, client busy_wait=0", ours["sleeping_p50"] * us, "us", raw["async_p50"] * us,
+            "raw Zenoh query awaited from asyncio p50", ratio_of(ours["sleeping_p50"], raw["async_p50"]), "ours/raw"),
+        Row("get_value client process CPU", rtt["cpu"][0] * us, "us/call", rtt["cpu"][2] * us,
+            "raw blocking query", ratio_of(rtt["cpu"][0], rtt["cpu"][2]), "ours/raw"),
+        Row("get_value client process CPU (vs asyncio)", rtt["cpu"][0] * us, "us/call", rtt["cpu"][3] * us,
+            "raw query awaited from asyncio", ratio_of(rtt["cpu"][0], rtt["cpu"][3]), "ours/raw"),
+        Row("get_value client process CPU, busy_wait=0", rtt["cpu"][1] * us, "us/call", rtt["cpu"][3] * us,
+            "raw query awaited from asyncio", ratio_of(rtt["cpu"][1], rtt["cpu"][3]), "ours/raw"),
         Row("set_value -> COMPLETED p50", ours["completion_p50"] * us, "us", raw["completion_p50"] * us,
             "raw query + published reply p50", ratio_of(ours["completion_p50"], raw["completion_p50"]), "ours/raw"),
         Row("set_value -> COMPLETED p99", ours["completion_p99"] * us, "us"),
@@ -432,7 +490,7 @@ def run(quick: bool) -> BenchResult:
             "events": str(events),
             "raw lost": f"{raw['lost']:.0f}",
             "busy-wait hits/misses": f"{rtt['busy'][0]:.0f}/{rtt['busy'][1]:.0f}",
-        },  # fmt: skip
+        },
         quick=quick,
     )
 

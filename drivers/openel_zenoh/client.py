@@ -8,15 +8,17 @@ command, ``notify_event`` to the subscriber, ``notify_error`` to every attached 
 in the numbering (notices dropped on the way) is logged, counted in ``missed_total`` and
 reported to applications that have ``report_missed`` (as :class:`ApplicationQueue`).
 
-A query waits for its reply in one of two ways (see "Waiting for a reply" in
-docs/remote.md): a bounded busy-wait, in which the event loop polls the reply channel
-between zero-timeout passes for at most ``busy_wait`` seconds (no thread hand-off, so a
-fast reply is seen within microseconds, at the price of the loop thread's CPU for that
-time), or a Zenoh callback that hands the reply to the sleeping loop with one
-``call_soon_threadsafe``. A busy-wait that runs out (a slow server, a LAN) finishes by
-polling every millisecond and makes the next queries sleep instead, 1, 2, 4... up to
-256 of them after consecutive misses, so replies slower than the budget cost almost no
-spinning.
+A query's reply comes through a Zenoh channel, so no Python callback runs on Zenoh's
+threads per query (such a callback needs the GIL, and handing it over between Zenoh's
+thread and the event loop's is most of what an awaited query costs more than a blocking
+one). The loop polls the channel between zero-timeout passes (other tasks and I/O run
+between them, and each pass yields the core and the GIL to a ready thread) for at most
+``busy_wait`` seconds: a fast reply is seen within microseconds of its arrival, at the
+price of the loop thread's CPU for that time. A reply slower than that (a busy-wait
+miss) is awaited by a worker thread blocked in the channel's ``recv``, and the next 1,
+2, 4... up to 256 queries after consecutive misses sleep that way from the start, so
+replies slower than the budget (a LAN, a device that needs I/O) cost almost no spinning.
+``busy_wait=0`` never polls. See "Threads" in docs/remote.md.
 
 The server's presence is followed through its liveliness token: ``on_server`` listeners
 hear of it leaving and coming back; when it comes back, subscriptions are made again
@@ -59,6 +61,8 @@ DEFAULT_BUSY_WAIT_S = 0.0005
 """How long a query's reply is polled for before the loop sleeps (see the module doc)."""
 MAX_SLEEPING_QUERIES = 256
 """After consecutive busy-wait misses, at most this many queries sleep before one polls."""
+_yield_cpu: Callable[[], None] = getattr(os, "sched_yield", lambda: None)
+"""Gives this core (and the GIL) to a ready thread, if any (Unix; elsewhere nothing)."""
 QUERY_THREADS = 32
 """Worker threads one RemoteSurface may have blocked on replies (the sleeping path)."""
 _NO_CONSOLIDATION = zenoh.ConsolidationMode.NONE
@@ -254,9 +258,10 @@ class RemoteSurface:
         clock = time.perf_counter
         spin_until = clock() + self.busy_wait
         try_recv = replies.try_recv
+        yield_cpu = _yield_cpu
         # Polling is the point: the reply channel has no loop-side wake-up.
         while (reply := try_recv()) is None and clock() < spin_until:
-            os.sched_yield()  # a thread ready on this core (Zenoh's, with the reply) goes first
+            yield_cpu()  # a thread ready on this core (Zenoh's, with the reply) runs first
             await asyncio.sleep(0)
         if reply is not None:
             self.busy_hits += 1
