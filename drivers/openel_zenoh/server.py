@@ -55,6 +55,8 @@ THREAD_READS = frozenset(
     {"GetPosition", "GetSpeed", "GetTorque", "GetValueOfMeasurement", "GetState"}
 )
 """The execute functions a GatedEventLoop's server may answer on Zenoh's thread."""
+THREAD_READ_MAX_BYTES = 1024
+"""Larger execute payloads are never decoded on Zenoh's thread."""
 
 
 def _nothing() -> None:
@@ -276,12 +278,20 @@ class SurfaceServer:
         gate = self._gate
         loop = self._loop
         assert gate is not None and loop is not None
+        if len(request.payload) > THREAD_READ_MAX_BYTES:
+            return False
+        try:  # outside the gate: decoding touches nothing shared
+            device = self._decoded(request)
+        except Exception:  # the loop path answers and logs it
+            return False
+        if len(device.commands) != 1 or device.commands[0].function_name not in THREAD_READS:
+            return False
         if not gate.try_enter():
             return False
         wake = True
         try:
             before = work_marker(loop)
-            payload = self._read_in_gate(request, loop)
+            payload = self._read_in_gate(request, device, loop)
             wake = needs_wake(loop, before)
         finally:
             gate.leave()
@@ -292,21 +302,17 @@ class SurfaceServer:
                 loop.call_soon_threadsafe(_nothing)
         return payload is not None
 
-    def _read_in_gate(self, request: _Request, loop: asyncio.AbstractEventLoop) -> bytes | None:
-        """The reply to an execute of one THREAD_READS command, run as a loop callback
-        would run it (the loop set as this thread's running loop); None: not such a
-        read, or the client has earlier requests pending (they are answered first)."""
+    def _read_in_gate(
+        self, request: _Request, device: Device, loop: asyncio.AbstractEventLoop
+    ) -> bytes | None:
+        """The reply to ``device`` (one THREAD_READS command), run as a loop callback
+        would run it (the loop set as this thread's running loop); None: the client has
+        earlier requests pending (they are answered first), or the read would block."""
         inbox = self._inbox
         if self._tg is None or inbox is None or len(inbox):
             return None
         client = self.clients.get(request.client)
         if client is None or client.busy or client.queue:
-            return None
-        try:
-            device = self._decoded(request)
-        except Exception:  # the loop path answers and logs it
-            return None
-        if len(device.commands) != 1 or device.commands[0].function_name not in THREAD_READS:
             return None
         enter_as_loop(loop)
         try:
