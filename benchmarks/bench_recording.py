@@ -32,6 +32,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from statistics import median
 from typing import Any
@@ -41,6 +42,9 @@ import anyio
 from .harness import BenchResult, Row, ratio_of
 
 PERIOD_MS = 2
+CHANNELS = 6
+"""The live view's channels in this loop: /log, /hal/<3 components>, /joint_states and the
+timer's."""
 LOOP_CPU: list[tuple[float, float]] = []
 """Per tick of each _loop call: (CPU time of the loop's thread, CPU time of the whole process:
 the loop and the recorder's feeding thread); the last call's is LOOP_CPU[-1]."""
@@ -60,8 +64,11 @@ class _Control:
             self.done.set()
 
 
-async def _loop(ticks: int, tap: Any | None) -> float:
-    """Real seconds per tick of ``ticks`` control ticks (``tap``: observing everything)."""
+async def _loop(
+    ticks: int, tap: Any | None, ready: Callable[[], Awaitable[None]] | None = None
+) -> float:
+    """Real seconds per tick of ``ticks`` control ticks (``tap``: observing everything;
+    ``ready``: awaited once everything is observed, before the timer starts)."""
     from openel_async import Actuator, ActuatorBank, EventTimer, Sensor
     from openel_mujoco import MujocoSim
 
@@ -75,6 +82,8 @@ async def _loop(ticks: int, tap: Any | None) -> float:
                 tap.observe(component)
             tap.observe_timer(timer)
         async with axes[0], axes[1], tip, timer:
+            if ready is not None:
+                await ready()
             done = anyio.Event()
             timer.add_observer(_Control(ActuatorBank(axes), tip, ticks, done))
             started, cpu, process = time.perf_counter(), time.thread_time(), time.process_time()
@@ -121,6 +130,7 @@ with connect(sys.argv[1], subprotocols=["foxglove.sdk.v1"]) as ws:
                             for i, c in enumerate(message["channels"])]
                     next_id += len(subs)
                     ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                    print("subscribed", next_id - 1, flush=True)
             elif frame[:1] == b"\\x01":
                 count += 1
     except Exception:
@@ -149,8 +159,20 @@ async def _live(ticks: int) -> tuple[float, int, float]:
             with anyio.fail_after(20):
                 line = await anyio.to_thread.run_sync(client.stdout.readline)
             assert line.strip() == "ready", line
-            await anyio.sleep(0.2)  # advertised and subscribed
-            per_tick = await _loop(ticks, live)
+            stdout = client.stdout
+
+            async def subscribed() -> None:
+                # every channel (/log, three components, /joint_states, the timer's)
+                # advertised and subscribed to before the loop starts
+                with anyio.fail_after(20):
+                    count = 0
+                    while count < CHANNELS:
+                        line = await anyio.to_thread.run_sync(stdout.readline)
+                        assert line.startswith("subscribed"), line
+                        count = int(line.split()[1])
+                    await anyio.sleep(0.05)  # the server has the subscriptions
+
+            per_tick = await _loop(ticks, live, subscribed)
         except BaseException:
             client.kill()
             raise

@@ -644,8 +644,8 @@ class StreamBatch:
                     motion._supersede(link[3] + count - link[2])
                 actuator._motion = None
             built.clear()
-        if listening:
-            for actuator, target in zip(actuators, targets, strict=True):
+        if listening:  # one target per member (checked): no strict=, a dict per call
+            for actuator, target in zip(actuators, targets):  # noqa: B905
                 listener = actuator._observers.listener
                 if listener is not None:
                     listener.on_command(actuator, req, target, stamp)

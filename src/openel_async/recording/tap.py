@@ -200,6 +200,7 @@ class _TimerTap:
         "step",
         "tap",
         "ticks",
+        "timer_period_ns",
     )
 
     def __init__(self, tap: Tap, timer: EventTimer, channel: int) -> None:
@@ -211,6 +212,7 @@ class _TimerTap:
         self.ticks = 0  # since the last statistics record
         self.due = 0  # self.ticks at which to look at the clock again
         self.step = 1
+        self.timer_period_ns = 0
         self.update_step(timer)
         self.last_index = 0
 
@@ -233,8 +235,11 @@ class _TimerTap:
 
     def update_step(self, timer: EventTimer) -> None:
         """Ticks between two looks at the clock (the shorter period, in the timer's ticks;
-        re-read at every statistics record, should the timer's period change)."""
-        self.step = max(1, min(self.period_ns, self.tap.joint_period_ns) // timer.period_ns)
+        the timer's period re-read at every statistics record, should it change)."""
+        period = timer.period_ns
+        if period != self.timer_period_ns:
+            self.timer_period_ns = period
+            self.step = max(1, min(self.period_ns, self.tap.joint_period_ns) // period)
 
     def flush(self, tick: TimerTick | None) -> None:
         """The statistics record of the ticks since the previous one (``tick``: the last)."""
