@@ -200,6 +200,66 @@ def test_an_error_state_is_still_reported_as_an_error_by_the_thread_path() -> No
     run_gated(main)
 
 
+class SchedulingListener:
+    """A listener whose on_reading, off the loop's thread, schedules work on the running
+    loop (as a recorder may): that work sets ``scheduled_ran``."""
+
+    def __init__(self, loop_thread: int) -> None:
+        self.loop_thread = loop_thread
+        self.scheduled_ran = asyncio.Event()
+
+    def on_command(self, component: object, request: object, value: float, t: int) -> None:
+        pass
+
+    def on_reading(self, component: object, request: object, values: object) -> None:
+        if threading.get_ident() != self.loop_thread:
+            asyncio.get_running_loop().call_soon(self.scheduled_ran.set)
+
+    def on_state(self, component: object, old: object, new: object) -> None:
+        pass
+
+
+def test_work_a_read_schedules_on_the_loop_runs_at_once() -> None:
+    async def main() -> None:
+        port = free_port()
+        async with (
+            session(server_config([endpoint(port)])) as zs,
+            Actuator(SimMotor()) as served,
+            Surface([served]) as surface,
+            SurfaceServer(surface, zs, "gate") as server,
+            session(client_cfg(port)) as zc,
+        ):
+            listener = SchedulingListener(threading.get_ident())
+            served.set_listener(listener)
+            payload = compact.encode(get_position())
+            key = Keys("gate").execute
+            await anyio.sleep(0.2)  # the client's session connects
+            stop = threading.Event()
+
+            def reads() -> None:  # a plain thread: its queries alone never wake this loop
+                while not stop.is_set():
+                    replies = list(zc.get(key, payload=payload, timeout=2.0))
+                    assert replies and replies[0].ok is not None
+                    time.sleep(0.01)
+
+            thread = threading.Thread(target=reads)
+            thread.start()
+            try:
+                # A read on Zenoh's thread scheduled work here, and the loop, asleep
+                # in select, was woken to run it.
+                start = time.monotonic()
+                with anyio.move_on_after(3):  # nothing else wakes the loop before this
+                    await listener.scheduled_ran.wait()
+                assert listener.scheduled_ran.is_set()
+                assert time.monotonic() - start < 1.5
+            finally:
+                stop.set()
+                await anyio.to_thread.run_sync(thread.join)
+            assert server.served_on_zenoh_thread >= 1
+
+    run_gated(main)
+
+
 class SlowReads(ActuatorDevice):
     """GetPosition suspends (a worker serves it); GetState has a synchronous path."""
 
