@@ -56,7 +56,7 @@ THREAD_READS = frozenset(
 )
 """The execute functions a GatedEventLoop's server may answer on Zenoh's thread."""
 THREAD_READ_MAX_BYTES = 1024
-"""Larger execute payloads are never decoded on Zenoh's thread."""
+"""Larger execute payloads (and XML ones) are never decoded on Zenoh's thread."""
 
 
 def _nothing() -> None:
@@ -278,8 +278,8 @@ class SurfaceServer:
         gate = self._gate
         loop = self._loop
         assert gate is not None and loop is not None
-        if len(request.payload) > THREAD_READ_MAX_BYTES:
-            return False
+        if len(request.payload) > THREAD_READ_MAX_BYTES or is_xml(request.payload):
+            return False  # XML is parsed on the loop only
         try:  # outside the gate: decoding touches nothing shared
             device = self._decoded(request)
         except Exception:  # the loop path answers and logs it
