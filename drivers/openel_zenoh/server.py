@@ -13,6 +13,12 @@ the client's queue, which workers take round robin, so a flooding client is refu
 malformed, oversized or invalid message gets an answer with the matching return code
 and is logged once.
 
+On a :class:`~openel_zenoh.gate.GatedEventLoop` (``openel-async serve``), a plain read
+(``THREAD_READS``: GetPosition...) of a client with nothing earlier pending is answered on
+Zenoh's thread itself while the loop is parked in ``select``, the loop's gate taken so
+that no loop code runs meanwhile: the read is exactly what a loop callback would have
+done, without waking the loop (docs/remote.md, "Threads").
+
 Notices for a client (completed, notify_event, notify_error) are numbered and published
 in batches, at most one batch per client per event-loop turn; the outbound buffer is
 bounded, and whatever it drops leaves a gap in the numbering that the client reports.
