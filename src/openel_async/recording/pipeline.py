@@ -8,9 +8,10 @@ directly); a full queue drops the record and counts it (:attr:`PipelineStats.dro
 thread wakes every ``flush_interval`` seconds and writes what is queued to the process's
 stdin as one msgpack frame (C code, and the pipe write releases the interpreter lock); the
 encoding and the MCAP writing happen in the other process, so they do not compete with the
-control loop for the interpreter lock, and that process runs at a lower priority
-(``writer_nice``), so it does not compete with the loop for the CPU either: on a busy machine
-it falls behind (the queue and the pipe hold the backlog) and catches up when there is time.
+control loop for the interpreter lock, and that process runs at the lowest priority
+(``writer_nice``, 19), so it does not compete with the loop for the CPU either: on a busy
+machine it falls behind (the queue and the pipe hold the backlog) and catches up when there
+is time.
 """
 
 from __future__ import annotations
@@ -72,7 +73,7 @@ class Pipeline:
         capacity: int = 100_000,
         flush_interval: float = 0.02,
         chunk_size: int = 64 * 1024,
-        writer_nice: int = 10,
+        writer_nice: int = 19,
     ) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
