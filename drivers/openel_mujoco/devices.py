@@ -15,7 +15,7 @@ import re
 from collections.abc import Callable, Mapping, Sequence
 from enum import IntEnum
 from operator import itemgetter
-from types import CodeType
+from types import CodeType, FunctionType
 from typing import TYPE_CHECKING, Any, ClassVar, Final, Protocol, cast
 
 import mujoco
@@ -219,9 +219,12 @@ class SimActuatorLifecycle:
     sim: MujocoSim
     _rejected: int
     _ctx: DeviceContext | None
-    _pending: bool
 
     def _safe_stop(self) -> None:
+        raise NotImplementedError
+
+    def _clear_pending(self) -> None:
+        """Forget the pending target (no completion is reported for it)."""
         raise NotImplementedError
 
     async def init(self) -> None:
@@ -232,7 +235,7 @@ class SimActuatorLifecycle:
         self.sim._recover()
         if not faulted:
             self._safe_stop()
-        self._pending = False
+        self._clear_pending()
 
     async def close(self) -> None:
         if self._rejected:
@@ -242,7 +245,7 @@ class SimActuatorLifecycle:
         self._ctx = None
         if self.sim.fault is None:
             self._safe_stop()
-        self._pending = False
+        self._clear_pending()
 
 
 class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
@@ -366,9 +369,10 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         self._pd_saturated = False
         self._ramp: tuple[float, float, int, int] | None = None  # start, target, t0, t1
         self._target = 0.0
-        self._request = Request.NO_EXCITE
-        self._pending = False
-        self._within_since = -1
+        # The latest target's state, one attribute (a batch stores one per joint): _IDLE
+        # (nothing pending), -1 (pending, not within tolerance) or the physics step since
+        # which the joint is within tolerance.  A pending target's request is the mode.
+        self._since = _IDLE
         self._at_limit = False
         self._saturated = False
         self._sat_lo = -math.inf
@@ -540,7 +544,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
 
     def _hold(self) -> None:
         """Stop safely: hold the current position, else de-energize, else zero torque."""
-        self._pending = False
+        self._since = _IDLE
         self._stop_ramp()
         if Request.POSITION in self.supported_requests:
             self._switch(Request.POSITION, force=True)
@@ -560,6 +564,9 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
     def _safe_stop(self) -> None:
         self._hold()
 
+    def _clear_pending(self) -> None:
+        self._since = _IDLE
+
     # -- commands and readings ---------------------------------------------------------
     async def command(self, request: Request, value: float) -> None:
         self.command_nowait(request, value)
@@ -577,7 +584,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
             if request is not self._mode:
                 self._switch(request)
             if request is _NO_EXCITE:
-                self._pending = False
+                self._since = _IDLE
                 return
             if self._pd:
                 self._pd_target = value
@@ -587,9 +594,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
                     raise HALError(f"{self.name}: no actuator drives {request.name}")
                 sim._ctrl[act] = value * self._scale[request]
         self._target = value
-        self._request = request
-        self._within_since = -1
-        self._pending = True
+        self._since = -1  # pending (request is now the mode)
 
     async def read(self, request: Request) -> float:
         return self.read_nowait(request)
@@ -638,9 +643,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         DRIVE_PLANS.version += 1
         self._set_velocity(start)
         self._target = ramp.target
-        self._request = _VELOCITY
-        self._within_since = -1
-        self._pending = False  # judged once the ramp has ended
+        self._since = _IDLE  # judged once the ramp has ended
         sim._set_ramp(self, True)
         self._log.debug("velocity_ramp", start=start, target=ramp.target, s=ramp.duration_s)
 
@@ -665,8 +668,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         if now_ns >= t1:
             self._set_velocity(target)
             self._stop_ramp()
-            self._within_since = -1
-            self._pending = True  # the final speed is commanded: completion is judged
+            self._since = -1  # the final speed is commanded: completion is judged
             return
         if now_ns <= t0:
             self._set_velocity(start)
@@ -712,7 +714,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
     def pending(self) -> bool:
         """True while the latest target is not reached yet (as judged by the physics), a
         speed ramp included."""
-        return self._pending or self._ramp is not None
+        return self._since != _IDLE or self._ramp is not None
 
     # -- called by the simulation loop ---------------------------------------------------
     def _pd_update(self, now_ns: int) -> None:
@@ -763,14 +765,14 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
             ctx.post_event(_SATURATED)
 
     def _fault(self, reason: str) -> None:
-        self._pending = False
+        self._since = _IDLE
         ctx = self._ctx
         if ctx is not None:
             ctx.fault(ErrorId.DEVICE_ERROR, reason)
 
     def _on_sim_reset(self) -> None:
         """The simulation was reset: adopt the model's restored control modes."""
-        self._pending = False
+        self._since = _IDLE
         self._at_limit = False
         DRIVE_PLANS.version += 1
         self._stop_ramp()
@@ -793,7 +795,7 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
         sim = joints[0].sim
         if any(j.sim is not sim for j in joints):
             return None
-        return _JointBatch(tuple(joints))
+        return cast(BatchCommander, _JointBatch(tuple(joints)).send)
 
     def __repr__(self) -> str:
         return f"MujocoJoint({self.name!r}, mode={self._mode.name}, sim={self.sim.name!r})"
@@ -828,62 +830,105 @@ class _JointBatch:
     streams ``request`` with a plain ctrl write is decided once per mode change, not per
     call; otherwise it declines (False) and the bank commands joint by joint.  The batch
     counts its calls once (``calls``: part of each joint's ``commands``) rather than per
-    joint."""
+    joint.
 
-    __slots__ = ("_plan", "_request", "_scaled", "_version", "calls", "joints", "sim")
+    ``send`` (what ``batch_commander`` returns) is generated per plan: the values unpacked
+    once, then per joint one ``ctrl`` item write and its two command-state stores, with no
+    loop; the addresses and joints are its default arguments.  A new plan rebinds the same
+    function's code and defaults (the bank keeps the function it was given).  Its first
+    test sends anything else (another request, a changed plan, a faulted simulation) to
+    :meth:`_slow`.
+    """
+
+    __slots__ = ("_failed", "calls", "joints", "send", "sim")
 
     def __init__(self, joints: tuple[MujocoJoint, ...]) -> None:
         self.joints = joints
         self.sim = joints[0].sim
         self.calls = 0
-        self._request: Request | None = None
-        self._version = -1
-        self._plan: tuple[tuple[MujocoJoint, int, float], ...] = ()
-        self._scaled = True  # some joint's ctrl is not its value as it is (scale != 1)
+        self._failed: tuple[Request, int] | None = None  # a plan found impossible
+        # a function of its own (own globals: builtins only), first with no plan: its code
+        # and defaults are replaced at each plan
+        self.send = _generated("send", _UNPLANNED, (self,), {})
         for joint in joints:
             joint._batches.append(self)
 
-    def __call__(self, request: Request, values: Sequence[float], /) -> bool:
+    def _slow(self, request: Request, values: Sequence[float]) -> bool:
+        """The first call for a request or after a change: plan, then send (or decline)."""
         sim = self.sim
         if sim._fault is not None:
             raise HALError(f"{sim.name}: the simulation is faulted: {sim._fault}")
-        if (request is not self._request or self._version != DRIVE_PLANS.version) and (
-            not self._replan(request)
-        ):
+        if self._failed == (request, DRIVE_PLANS.version) or not self._replan(request):
             return False
-        if len(values) != len(self.joints):
-            raise ValueError(f"{len(values)} values for {len(self.joints)} joints")
-        ctrl = sim._ctrl_items  # a memoryview: an item write costs less than numpy's
-        self.calls += 1
-        if self._scaled:
-            for (joint, act, scale), value in zip(self._plan, values, strict=False):
-                ctrl[act] = value * scale  # the same product as command_nowait's
-                joint._target = value
-                joint._request = request
-                joint._within_since = -1
-                joint._pending = True
-        else:  # value * 1.0 is value: the same ctrl as command_nowait's
-            for (joint, act, _), value in zip(self._plan, values, strict=False):
-                ctrl[act] = value
-                joint._target = value
-                joint._request = request
-                joint._within_since = -1
-                joint._pending = True
-        return True
+        return bool(self.send(request, values))
 
     def _replan(self, request: Request) -> bool:
-        self._request = None
-        plan = []
+        plan: list[tuple[int, float]] = []
         for joint in self.joints:
             act = joint._drive_act
             if joint._direct is not request or act is None:
+                self._failed = (request, DRIVE_PLANS.version)
                 return False
-            plan.append((joint, act, joint._drive_scale))
-        self._plan = tuple(plan)
-        self._scaled = any(scale != 1.0 for _, _, scale in plan)
-        self._request = request
-        self._version = DRIVE_PLANS.version
+            plan.append((act, joint._drive_scale))
+        self._failed = None
+        n = len(plan)
+        values = ", ".join(f"v{i}" for i in range(n))
+        lines = [
+            "def send(request, values, /, _b=None, _sim=None, _plans=None, _req=None, _version=0, "
+            + "".join(f"j{i}=None, s{i}=1.0, " for i in range(n))
+            + "ctrl=None):",
+            "    if request is not _req or _plans.version != _version or _sim._fault is not None:",
+            "        return _b._slow(request, values)",
+            "    try:",
+            f"        {values}, = values",
+            "    except ValueError:",
+            f"        raise ValueError(f'{{len(values)}} values for {n} joints') from None",
+            "    _b.calls += 1",
+        ]
+        for i, (act, scale) in enumerate(plan):
+            # value * 1.0 is value: the same ctrl as command_nowait's, without the product
+            write = f"v{i} * s{i}" if scale != 1.0 else f"v{i}"
+            lines += [
+                f"    ctrl[{act}] = {write}",
+                f"    j{i}._target = v{i}",
+                f"    j{i}._since = -1",
+            ]
+        lines.append("    return True")
+        source = "\n".join(lines)
+        if source not in _BATCH_CODE:  # compiled once per shape
+            if len(_BATCH_CODE) >= _MONITOR_CODE_MAX:
+                _BATCH_CODE.clear()
+            _BATCH_CODE[source] = _generated("send", source, (), {}).__code__
+        defaults: tuple[object, ...] = (self, self.sim, DRIVE_PLANS, request, DRIVE_PLANS.version)
+        for joint, (_, scale) in zip(self.joints, plan, strict=True):
+            defaults += (joint, scale)
+        defaults += (self.sim._ctrl_items,)  # a memoryview: an item write costs less
+        # the bank keeps ``send``: it takes the new plan's code and defaults
+        send = self.send
+        send.__code__ = _BATCH_CODE[source]
+        send.__defaults__ = defaults
         return True
+
+
+def _generated(
+    name: str, source: str, defaults: tuple[object, ...], names: dict[str, object]
+) -> FunctionType:
+    """Function ``name`` defined by ``source`` (our own code only) in a namespace of its own
+    holding ``names``, with ``defaults``."""
+    namespace = dict(names)
+    exec(source, namespace)  # our own names and numbers only: nothing from outside
+    function = cast(FunctionType, namespace[name])
+    function.__defaults__ = defaults
+    return function
+
+
+_UNPLANNED: Final = """
+def send(request, values, /, _b=None):
+    return _b._slow(request, values)
+"""
+
+_BATCH_CODE: dict[str, CodeType] = {}
+"""Joint batches' code by source (one per shape: joint count, ctrl addresses, scales)."""
 
 
 # Enum members read on the per-step and per-command paths, as module constants (a class
@@ -891,6 +936,8 @@ class _JointBatch:
 _POSITION: Final = Request.POSITION
 _VELOCITY: Final = Request.VELOCITY
 _NO_EXCITE: Final = Request.NO_EXCITE
+_IDLE: Final = -2
+"""``MujocoJoint._since`` when no target is pending."""
 _LIMIT_REACHED: Final = MujocoEventId.LIMIT_REACHED
 _SATURATED: Final = MujocoEventId.SATURATED
 
@@ -919,26 +966,42 @@ def monitor_plan(
     step: a function with one straight block per joint, the joint's addresses, bands and
     tolerances bound as names of its own namespace (no loop, no tuple unpacking, no call
     per joint).  Per joint: the position band inside which its limit state cannot change
-    (none while at a limit: the release is evaluated), its PD saturation or the force band
-    of its actuator inside which its saturation state cannot change (unlimited joints and
-    forces have infinite bands), then, while its latest target is pending, completion
-    (within tolerance, and at rest for POSITION, for ``settle_steps`` physics steps in a
-    row).
+    (none while at a limit: the release is evaluated; no test at all for an unlimited
+    joint), its PD saturation or the force band of its actuator inside which its
+    saturation state cannot change (no test for an actuator without force limits), then,
+    while its latest target is pending, completion by its mode (within tolerance, and at
+    rest for POSITION, for ``settle_steps`` physics steps in a row).
+
+    Events and completions call out (observers may command joints from there): when a
+    call out changed any plan, the rest of the step is checked by :func:`_check_joints`
+    from the joint's state as it is then, not by the plan built before.
     """
     names: dict[str, object] = {
-        "_POSITION": _POSITION,
+        "_version": DRIVE_PLANS.version,
         "_other": _complete_other,
+        "_plans": DRIVE_PLANS,
+        "_tail": _check_joints,
+        "_joints": tuple(joints),
         "qpos": qpos,
         "qvel": qvel,
         "force": force,
     }
     # the arrays as default arguments: local names, the cheapest to read
-    lines = ["def monitor(step, qpos=qpos, qvel=qvel, force=force, _POSITION=_POSITION):"]
+    lines = ["def monitor(step, qpos=qpos, qvel=qvel, force=force):"]
+
+    def changed(i: int, stage: int, indent: str) -> list[str]:
+        """After a call out: the rest by the joints' current state if a plan changed."""
+        return [
+            f"{indent}if _plans.version != _version:",
+            f"{indent}    return _tail(_joints, step, {i}, {stage})",
+        ]
+
     for i, joint in enumerate(joints):
         ctx = joint._ctx
         if ctx is None:
             continue
         lo, hi = _NO_BAND if joint._at_limit else (joint._lim_lo_on, joint._lim_hi_on)
+        position = joint._mode is _POSITION
         names.update(
             {
                 f"j{i}": joint,
@@ -952,44 +1015,54 @@ def monitor_plan(
                 f"settle{i}": joint._settle_steps,
             }
         )
-        q, v = f"q{i}", f"v{i}"
-        lines += [
-            f"    {q} = qpos[{joint.qadr}]",
-            f"    if not lo{i} < {q} < hi{i}:",
-            f"        j{i}._limit_edge({q}, c{i})",
-        ]
-        act = joint._drive_act
-        if joint._pd or act is None:
-            if joint._pd:
-                lines += [
-                    f"    if j{i}._pd_saturated is not j{i}._saturated:",
-                    f"        j{i}._pd_saturation_edge(c{i})",
-                ]
-        else:
-            slo, shi = _NO_BAND if joint._saturated else (joint._sat_lo, joint._sat_hi)
-            names[f"slo{i}"], names[f"shi{i}"] = slo, shi
+        q = f"q{i}"
+        limited = not (lo == -math.inf and hi == math.inf)
+        if limited or position:
+            lines.append(f"    {q} = qpos[{joint.qadr}]")
+        if limited:
             lines += [
-                f"    f{i} = force[{act}]",
-                f"    if not slo{i} < f{i} < shi{i}:",
-                f"        j{i}._force_edge(f{i}, c{i})",
+                f"    if not lo{i} < {q} < hi{i}:",
+                f"        j{i}._limit_edge({q}, c{i})",
+                *changed(i, 1, "        "),
             ]
-        lines += [
-            f"    if j{i}._pending:",
-            f"        if j{i}._request is _POSITION:",
-            f"            {v} = qvel[{joint.dof}]",
-            f"            if nptol{i} <= {q} - j{i}._target <= ptol{i} "
-            f"and nsvel{i} <= {v} <= svel{i}:",
-            f"                since = j{i}._within_since",
-            "                if since < 0:",
-            f"                    j{i}._within_since = since = step",
-            f"                if step - since >= settle{i}:",
-            f"                    j{i}._pending = False",
-            f"                    c{i}.target_reached()",
-            "            else:",
-            f"                j{i}._within_since = -1",
-            "        else:",
-            f"            _other(j{i}, c{i}, qvel[{joint.dof}], step)",
-        ]
+        act = joint._drive_act
+        if joint._pd:
+            lines += [
+                f"    if j{i}._pd_saturated is not j{i}._saturated:",
+                f"        j{i}._pd_saturation_edge(c{i})",
+                *changed(i, 2, "        "),
+            ]
+        elif act is not None:
+            slo, shi = _NO_BAND if joint._saturated else (joint._sat_lo, joint._sat_hi)
+            if not (slo == -math.inf and shi == math.inf):
+                names[f"slo{i}"], names[f"shi{i}"] = slo, shi
+                lines += [
+                    f"    f{i} = force[{act}]",
+                    f"    if not slo{i} < f{i} < shi{i}:",
+                    f"        j{i}._force_edge(f{i}, c{i})",
+                    *changed(i, 2, "        "),
+                ]
+        if position:
+            lines += [
+                f"    s = j{i}._since",
+                f"    if s > {_IDLE}:",
+                f"        if nptol{i} <= {q} - j{i}._target <= ptol{i} "
+                f"and nsvel{i} <= qvel[{joint.dof}] <= svel{i}:",
+                "            if s < 0:",
+                f"                j{i}._since = s = step",
+                f"            if step - s >= settle{i}:",
+                f"                j{i}._since = {_IDLE}",
+                f"                c{i}.target_reached()",
+                *changed(i, 3, "                "),
+                "        elif s >= 0:",
+                f"            j{i}._since = -1",
+            ]
+        else:
+            lines += [
+                f"    if j{i}._since > {_IDLE}:",
+                f"        _other(j{i}, c{i}, qvel[{joint.dof}], step)",
+                *changed(i, 3, "        "),
+            ]
     lines.append("    return None")
     source = "\n".join(lines)
     code = _MONITOR_CODE.get(source)
@@ -1001,6 +1074,49 @@ def monitor_plan(
     return cast(Monitor, names["monitor"])
 
 
+def _check_joints(joints: Sequence[MujocoJoint], step: int, index: int, stage: int) -> None:
+    """The monitor's checks of ``joints[index]`` from ``stage`` on (1: saturation, 2:
+    completion, 3: none) and of every later joint, by their state as it is now (what a
+    plan built from it checks): the rest of a step after a call out changed a plan."""
+    for k in range(index, len(joints)):
+        joint = joints[k]
+        ctx = joint._ctx
+        if ctx is None:
+            continue
+        sim = joint.sim
+        first = stage if k == index else 0
+        q = sim._qpos_items[joint.qadr]
+        if first <= 0:
+            lo, hi = _NO_BAND if joint._at_limit else (joint._lim_lo_on, joint._lim_hi_on)
+            if not lo < q < hi:
+                joint._limit_edge(q, ctx)
+        if first <= 1:
+            act = joint._drive_act
+            if joint._pd:
+                if joint._pd_saturated is not joint._saturated:
+                    joint._pd_saturation_edge(ctx)
+            elif act is not None:
+                slo, shi = _NO_BAND if joint._saturated else (joint._sat_lo, joint._sat_hi)
+                f = sim._force_items[act]
+                if not slo < f < shi:
+                    joint._force_edge(f, ctx)
+        if first <= 2 and joint._since > _IDLE:
+            velocity = sim._qvel_items[joint.dof]
+            if joint._mode is not _POSITION:
+                _complete_other(joint, ctx, velocity, step)
+                continue
+            tol, vel = joint._pos_tol, joint._settle_vel
+            if -tol <= q - joint._target <= tol and -vel <= velocity <= vel:
+                since = joint._since
+                if since < 0:
+                    joint._since = since = step
+                if step - since >= joint._settle_steps:
+                    joint._since = _IDLE
+                    ctx.target_reached()
+            else:
+                joint._since = -1
+
+
 _MONITOR_CODE: dict[str, CodeType] = {}
 """Compiled monitors by source: a plan is rebuilt at every limit or saturation edge, and
 compiling costs ~0.5 ms where running the cached code costs a few µs."""
@@ -1008,20 +1124,22 @@ _MONITOR_CODE_MAX: Final = 256
 
 
 def _complete_other(joint: MujocoJoint, ctx: DeviceContext, velocity: float, step: int) -> None:
-    """Completion of a pending VELOCITY or TORQUE target after physics step ``step``."""
-    if joint._request is _VELOCITY:
+    """Completion of a pending VELOCITY or TORQUE target after physics step ``step`` (the
+    pending target's request is the joint's mode)."""
+    if joint._mode is _VELOCITY:
         tol = joint._vel_tol
         ok = -tol <= velocity - joint._target <= tol
     else:
         tol = joint._torque_tol
         ok = -tol <= joint.sim._qfrc_actuator.item(joint.dof) - joint._target <= tol
     if not ok:
-        joint._within_since = -1
+        joint._since = -1
         return
-    if joint._within_since < 0:
-        joint._within_since = step
-    if step - joint._within_since >= joint._settle_steps:
-        joint._pending = False
+    since = joint._since
+    if since < 0:
+        joint._since = since = step
+    if step - since >= joint._settle_steps:
+        joint._since = _IDLE
         ctx.target_reached()
 
 

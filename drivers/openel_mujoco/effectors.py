@@ -394,6 +394,9 @@ class MujocoEffector(SimActuatorLifecycle, ActuatorDevice):
     def _safe_stop(self) -> None:
         self._stop()
 
+    def _clear_pending(self) -> None:
+        self._pending = False
+
     # -- commands and readings ---------------------------------------------------------
     async def command(self, request: Request, value: float) -> None:
         self.command_nowait(request, value)

@@ -656,7 +656,7 @@ class MujocoSim:
         self._fault = reason
         self.log.error("simulation_fault", reason=reason)
         for joint in self._monitored:
-            joint._pending = False
+            joint._clear_pending()
         for device, _ in list(self._attached.values()):
             device._fault(reason)
         self._notify_changed()

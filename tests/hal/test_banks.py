@@ -1056,7 +1056,7 @@ async def test_mujoco_joints_stream_in_one_batch_until_a_mode_changes(
     assert [float(sim.data.ctrl[a]) for a in pos_acts] == [
         0.3 * j._drive_scale for j in [joints[0]]
     ] + [-0.2 * joints[1]._drive_scale]
-    assert [j._target for j in joints] == [0.3, -0.2] and all(j._pending for j in joints)
+    assert [j._target for j in joints] == [0.3, -0.2] and all(j.pending for j in joints)
     actuators[1].set_value_nowait(0.5, Request.VELOCITY)  # the elbow leaves POSITION
     assert joints[1]._direct is Request.VELOCITY
     bank.set_values_nowait([0.1, 0.2])  # the batch declines: per joint, the elbow switches back

@@ -5,6 +5,7 @@ ranges, and the per-step joint monitor generated per plan (``monitor_plan``)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from contextlib import AsyncExitStack
 
 import numpy as np
@@ -14,7 +15,8 @@ from openel_async import ActuatorBank, ComponentState, DeviceFaultError, Request
 from openel_async.errors import BadParameterError, HALError, StateError
 from openel_mujoco import MujocoSim
 from openel_mujoco import devices as mujoco_devices
-from openel_mujoco.devices import MujocoSensor, monitor_plan
+from openel_mujoco import sim as mujoco_sim
+from openel_mujoco.devices import MujocoEventId, MujocoJoint, MujocoSensor, monitor_plan
 
 from .conftest import ARM6_JOINTS, start_rig
 
@@ -153,3 +155,120 @@ async def test_monitor_code_is_compiled_once_per_shape(stack: AsyncExitStack) ->
     assert len(mujoco_devices._MONITOR_CODE) == compiled
     fewer = monitor_plan(joints[:3], *views)
     assert fewer.__code__ is not first.__code__
+
+
+async def test_a_plan_changed_by_a_call_out_is_not_used_for_the_rest_of_the_step(
+    stack: AsyncExitStack,
+) -> None:
+    """An event observer called from the monitor commands a later joint into another mode:
+    the rest of that step checks the joint by its new mode, not by the plan built before
+    (which would take its VELOCITY target for a position reached at rest)."""
+    sim = MujocoSim("arm6", keyframe="home")
+    sim.actuator("wrist_pitch", settle_s=0.0)  # completes at the first step within tolerance
+    rig = await start_rig(stack, sim, ARM6_JOINTS)
+    joints = [sim.joints[j] for j in ARM6_JOINTS]
+    first, later = joints[0], sim.joints["wrist_pitch"]
+    commanded: list[int] = []
+
+    class Switcher:
+        def notify_event(self, source: object, event_id: int) -> None:
+            if event_id == MujocoEventId.LIMIT_REACHED:
+                commanded.append(event_id)
+                rig.actuators["wrist_pitch"].set_value_nowait(0.3, Request.VELOCITY)
+
+    rig.actuators[ARM6_JOINTS[0]].add_observer(Switcher())
+    assert later.control_mode is Request.POSITION and not later.pending
+    monitor = monitor_plan(joints, sim._qpos_items, sim._qvel_items, sim._force_items)
+    sim.data.qpos[first.qadr] = first._lim_hi_on + 1e-3  # the first joint at its limit
+    sim.data.qpos[later.qadr] = 0.3  # at rest at 0.3 rad: "reached" if 0.3 were a position
+    sim.data.qvel[:] = 0.0
+    monitor(sim.steps + 1)
+    assert commanded == [MujocoEventId.LIMIT_REACHED]
+    assert later.control_mode is Request.VELOCITY
+    assert later.pending  # |0 rad/s - 0.3 rad/s| is beyond velocity_tolerance
+    assert first._at_limit
+
+
+async def test_the_generated_monitor_and_the_state_driven_checks_agree(
+    stack: AsyncExitStack, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The same run with every step checked by ``_check_joints`` (the joints' state read
+    as it is, no plan) gives the same events at the same times and the same physics."""
+
+    async def run(generated: bool) -> tuple[list[tuple[str, int, int, str]], bytes]:
+        async with AsyncExitStack() as inner:
+            sim = MujocoSim("arm6", keyframe="home")
+            if not generated:
+
+                def plan(joints: list[MujocoJoint], *views: object) -> Callable[[int], None]:
+                    frozen = tuple(joints)
+                    return lambda step: mujoco_devices._check_joints(frozen, step, 0, 0)
+
+                monkeypatch.setattr(mujoco_sim, "monitor_plan", plan)
+            rig = await start_rig(inner, sim, ARM6_JOINTS)
+            names = {id(rig.actuators[j]): j for j in ARM6_JOINTS}
+            bank = ActuatorBank(rig.actuators[j] for j in ARM6_JOINTS)
+            high = sim.joints["elbow_pitch"].limits.position[1]
+            bank.set_values_nowait([0.2, -0.3, high, 0.1, -0.2, 0.4])  # one at its limit
+            await sim.sleep(0.3)
+            rig.actuators["wrist_roll"].set_value_nowait(0.5, Request.VELOCITY)
+            rig.actuators["flange_roll"].set_value_nowait(0.0, Request.TORQUE)
+            await sim.sleep(0.3)
+            bank.set_values_nowait([0.0] * 6, Request.POSITION)
+            await sim.sleep(0.4)
+            monkeypatch.undo()
+            events = [(r.kind, r.id, r.time_ns, names[id(r.source)]) for r in rig.events.records]
+            return events, sim.data.qpos.tobytes()
+
+    generated = await run(True)
+    by_state = await run(False)
+    assert generated == by_state
+    assert generated[0]  # events happened (completions, the limit)
+
+
+# -- the generated joint batch ---------------------------------------------------------------
+
+
+async def test_the_joint_batch_is_one_function_rebound_per_plan(stack: AsyncExitStack) -> None:
+    """The bank keeps the function ``batch_commander`` gave it; each plan (mode change,
+    other request) rebinds its code: it writes what ``command_nowait`` writes, declines
+    (nothing written) while a joint is in another mode, refuses a wrong count before
+    writing anything and raises once the simulation is faulted."""
+    sim = MujocoSim("arm6", keyframe="home")
+    rig = await start_rig(stack, sim, ARM6_JOINTS)
+    bank = ActuatorBank(rig.actuators[j] for j in ARM6_JOINTS)
+    send = bank._batch
+    assert send is not None
+    joints = [sim.joints[j] for j in ARM6_JOINTS]
+    targets = [0.1, -0.2, 0.3, -0.1, 0.2, 0.05]
+    assert send(Request.POSITION, targets) is True
+    assert [sim.data.ctrl[j._drive_act] for j in joints] == targets
+    assert [j._target for j in joints] == targets and all(j.pending for j in joints)
+    planned = send.__code__  # type: ignore[attr-defined]
+
+    before = sim.data.ctrl.copy()
+    with pytest.raises(ValueError, match="5 values for 6 joints"):
+        send(Request.POSITION, targets[:5])
+    assert sim.data.ctrl.tobytes() == before.tobytes()
+    assert send(Request.VELOCITY, [0.0] * 6) is False  # no joint streams VELOCITY now
+    assert sim.data.ctrl.tobytes() == before.tobytes()
+
+    rig.actuators["wrist_roll"].set_value_nowait(0.5, Request.VELOCITY)
+    before = sim.data.ctrl.copy()
+    assert send(Request.POSITION, [0.0] * 6) is False  # one joint in VELOCITY: declined
+    assert sim.data.ctrl.tobytes() == before.tobytes()
+    assert sim.joints["wrist_roll"]._target == 0.5
+    bank.set_values_nowait(targets, Request.POSITION)  # joint by joint: switches it back
+    assert bank._batch is send
+    calls = joints[0].commands
+    assert send(Request.POSITION, targets[::-1]) is True  # a new plan, the same function
+    assert send.__code__ is planned  # type: ignore[attr-defined]  # the same shape
+    assert [sim.data.ctrl[j._drive_act] for j in joints] == targets[::-1]
+    assert joints[0].commands == calls + 1
+
+    sim.data.qvel[0] = np.nan
+    await sim.sleep(0.01)  # the next step finds the bad state
+    assert sim.fault is not None
+    with pytest.raises(HALError, match="faulted"):
+        send(Request.POSITION, targets)
+    assert not any(j.pending for j in joints)  # the fault cleared every pending target
