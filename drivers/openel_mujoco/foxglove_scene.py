@@ -13,6 +13,7 @@ from collections.abc import AsyncIterator, Sequence
 from contextlib import AsyncExitStack, asynccontextmanager
 
 import mujoco
+import numpy as np
 
 from openel_async import Actuator
 from openel_async.recording.reader import Recording
@@ -24,6 +25,7 @@ from .sim import MujocoSim
 __all__ = ["WORLD_FRAME", "MujocoScene", "replay_rig"]
 
 WORLD_FRAME = "world"
+_XYZW = [1, 2, 3, 0]  # MuJoCo's quaternions are (w, x, y, z)
 
 
 class MujocoScene:
@@ -38,11 +40,26 @@ class MujocoScene:
             (b, mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, b) or f"body{b}")
             for b in range(1, m.nbody)
         ]
+        self._poses = np.empty((m.nbody - 1, 7))
 
     def _frame(self, body: int) -> str:
         if body == 0:
             return WORLD_FRAME
         return mujoco.mj_id2name(self.sim.model, mujoco.mjtObj.mjOBJ_BODY, body) or f"body{body}"
+
+    def frames(self) -> Sequence[tuple[str, str]]:
+        """``(world, body)`` for every body but the world, in the order of :meth:`poses`."""
+        return [(WORLD_FRAME, name) for _, name in self._bodies]
+
+    def poses(self) -> list[float]:
+        """Every body's position and orientation (x, y, z, qx, qy, qz, qw), flat: one gather
+        of ``xpos`` and ``xquat`` (the recorder's fast path; :meth:`transforms` gives the
+        same as objects)."""
+        d = self.sim.data
+        poses = self._poses
+        poses[:, :3] = d.xpos[1:]
+        poses[:, 3:] = d.xquat[1:, _XYZW]
+        return poses.ravel().tolist()
 
     def transforms(self) -> Sequence[Transform]:
         d = self.sim.data

@@ -11,7 +11,16 @@ from typing import Any, Literal, Protocol
 
 from .schemas import stamp
 
-__all__ = ["Primitive", "SceneSource", "Transform", "scene_message", "transforms_message"]
+__all__ = [
+    "PoseSource",
+    "Primitive",
+    "SceneSource",
+    "Transform",
+    "flat_poses",
+    "poses_message",
+    "scene_message",
+    "transforms_message",
+]
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -54,6 +63,30 @@ class SceneSource(Protocol):
         ...
 
 
+class PoseSource(SceneSource, Protocol):
+    """A :class:`SceneSource` that also hands its poses over as plain numbers (the fast path
+    the recorder takes when a source offers it: no :class:`Transform` per body and sample,
+    the message built in the writer process)."""
+
+    def frames(self) -> Sequence[tuple[str, str]]:
+        """``(parent, child)`` of each transform, in the order of :meth:`poses` (fixed)."""
+        ...
+
+    def poses(self) -> list[float]:
+        """``x, y, z, qx, qy, qz, qw`` of each frame of :meth:`frames`, one flat list (called
+        at the joint-state rate, in the control loop's task: it must be cheap)."""
+        ...
+
+
+def flat_poses(
+    transforms: Sequence[Transform],
+) -> tuple[tuple[tuple[str, str], ...], list[float]]:
+    """``(frames, poses)`` of ``transforms``, as :class:`PoseSource` gives them."""
+    frames = tuple((t.parent, t.child) for t in transforms)
+    poses = [v for t in transforms for v in (*t.translation, *t.rotation)]
+    return frames, poses
+
+
 def _xyz(v: Vec3) -> dict[str, float]:
     return {"x": v[0], "y": v[1], "z": v[2]}
 
@@ -75,6 +108,33 @@ def transforms_message(transforms: Sequence[Transform], time_ns: int) -> dict[st
                 "rotation": _quat(t.rotation),
             }
             for t in transforms
+        ]
+    }
+
+
+def poses_message(
+    frames: Sequence[Sequence[str]], poses: Sequence[float], time_ns: int
+) -> dict[str, Any]:
+    """The ``foxglove.FrameTransforms`` message of :meth:`PoseSource.poses` (the same as
+    :func:`transforms_message` of the same transforms)."""
+    if len(poses) != 7 * len(frames):
+        raise ValueError(f"poses: 7 numbers per frame expected, got {len(poses)} for {len(frames)}")
+    ts = stamp(time_ns)
+    return {
+        "transforms": [
+            {
+                "timestamp": ts,
+                "parent_frame_id": parent,
+                "child_frame_id": child,
+                "translation": {"x": poses[k], "y": poses[k + 1], "z": poses[k + 2]},
+                "rotation": {
+                    "x": poses[k + 3],
+                    "y": poses[k + 4],
+                    "z": poses[k + 5],
+                    "w": poses[k + 6],
+                },
+            }
+            for k, (parent, child) in zip(range(0, len(poses), 7), frames, strict=True)
         ]
     }
 

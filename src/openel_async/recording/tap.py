@@ -44,11 +44,12 @@ from .records import (
     JOINTS,
     LOG_LINE,
     MESSAGE,
+    POSES,
     READING,
     STATE,
     TICK,
 )
-from .scene import SceneSource, scene_message, transforms_message
+from .scene import SceneSource, flat_poses, scene_message
 from .schemas import (
     FRAME_TRANSFORMS,
     HAL_RECORD,
@@ -296,7 +297,7 @@ class Tap(AppHook):
         self._observing: set[int] = set()
         self._timers: list[EventTimer] = []
         self._actuators: list[_ActuatorTap] = []  # their listeners
-        self._scenes: list[SceneSource] = []
+        self._scenes: list[tuple[SceneSource, Any]] = []  # (source, its frames or None)
         self.next_joint_ns = 0
         """When the next joint-state sample is due (clock ns)."""
         self._joint_channel = -1
@@ -436,17 +437,27 @@ class Tap(AppHook):
 
     def add_scene(self, source: SceneSource) -> None:
         """Publish ``source``'s geometry on ``/scene`` now and its body poses on ``/tf`` at
-        every joint-state sample."""
+        every joint-state sample (as plain numbers, :class:`~.scene.PoseSource`, when the
+        source offers them; the messages are built in the writer process)."""
         if self._tf_channel < 0:
             self._tf_channel = self.pipeline.add_channel(TF_TOPIC, FRAME_TRANSFORMS)
             self._scene_channel = self.pipeline.add_channel(SCENE_TOPIC, SCENE_UPDATE)
-        self._scenes.append(source)
+        frames = getattr(source, "frames", None)
+        entry = (source, None if frames is None else tuple(map(tuple, frames())))
+        self._scenes.append(entry)
         now = self._clock.now_ns() if self._clock is not None else 0
         log_time = now + (self._offset or 0)
         scene = scene_message(source.primitives(), log_time)
         self._put((self._scene_channel, now, MESSAGE, scene))
-        tf = transforms_message(source.transforms(), log_time)
-        self._put((self._tf_channel, now, MESSAGE, tf))
+        self._put_poses(entry, now, log_time)
+
+    def _put_poses(self, entry: tuple[SceneSource, Any], now: int, log_time: int) -> None:
+        source, frames = entry
+        if frames is None:
+            frames, poses = flat_poses(source.transforms())
+        else:
+            poses = source.poses()  # type: ignore[attr-defined]
+        self._put((self._tf_channel, now, POSES, log_time, frames, poses))
 
     # -- observers ---------------------------------------------------------------------
     def notify_event(self, source: HALComponent, event_id: int) -> None:
@@ -486,9 +497,8 @@ class Tap(AppHook):
                     actual = None  # recorded as unknown, not made a fault of the actuator
                 joints.append((tap.name, commanded, actual))
             self._put((self._joint_channel, now, JOINTS, log_time, joints))
-        for source in self._scenes:
-            tf = transforms_message(source.transforms(), log_time)
-            self._put((self._tf_channel, now, MESSAGE, tf))
+        for entry in self._scenes:
+            self._put_poses(entry, now, log_time)
 
     # -- log lines -------------------------------------------------------------------
     def _install_log_forwarder(self) -> None:
