@@ -2,7 +2,7 @@
 
 - :class:`Recorder`: every command, reading, event, completion, error, state change and timer
   tick of the observed components and timers, one channel per component, written to an MCAP
-  file by a thread of its own (bounded queue; what it drops is counted).
+  file by a writer process of its own (bounded queue; what it drops is counted).
 - :class:`LiveView`: the same channels and schemas, published live by Foxglove's WebSocket
   server (127.0.0.1 by default).
 - :func:`read_recording`, :func:`info_lines`: a recording read back (also a cut one).
@@ -17,7 +17,7 @@ from .live import LAYOUT_PATH, FoxgloveSink, LiveView
 from .pipeline import Pipeline, PipelineStats, Sink, SinkStartError
 from .reader import Recording, info_lines, read_recording
 from .recorder import McapSink, Recorder
-from .scene import Primitive, SceneSource, Transform
+from .scene import PoseSource, Primitive, SceneSource, Transform
 from .tap import Tap
 
 __all__ = [
@@ -27,6 +27,7 @@ __all__ = [
     "McapSink",
     "Pipeline",
     "PipelineStats",
+    "PoseSource",
     "Primitive",
     "Recorder",
     "Recording",
