@@ -239,7 +239,8 @@ class MujocoSim:
 
         self.steps = 0
         """Physics steps taken since the simulation was created (never reset)."""
-        self._physics_steps = 0  # steps since the last reset: sim time = this x timestep
+        self._reset_at = 0  # ``steps`` at the last reset
+        self._plain_step = True  # see _refresh_plain_step
         self._run_steps = 0
         self._run_wall_ns = 0
         self._run_started: int | None = None
@@ -380,6 +381,11 @@ class MujocoSim:
 
     # -- time ------------------------------------------------------------------------------
     @property
+    def _physics_steps(self) -> int:
+        """Physics steps since the last reset: simulated time = this x timestep."""
+        return self.steps - self._reset_at
+
+    @property
     def time_ns(self) -> int:
         """Simulated time since the start or the last reset (steps x time step), in ns."""
         return self._physics_steps * self.timestep_ns
@@ -460,6 +466,10 @@ class MujocoSim:
         loop_ready = getattr(asyncio.get_running_loop(), "_ready", None)
         dt = self.timestep_ns
         step = self._step
+        m, d = self.model, self.data
+        mj_step = mujoco.mj_step
+        w = self._warning_counts
+        monitored = self._monitored  # the list itself (attach/detach change it in place)
         try:
             while True:
                 await settle()
@@ -472,14 +482,35 @@ class MujocoSim:
                 n = 0
                 heap = clock._heap
                 while True:
-                    ok = step(clock._now)
+                    now = clock._now
+                    if self._plain_step:
+                        # _step, inline, for a step with no pre-step update, effector or hook
+                        try:
+                            mj_step(m, d)
+                        except Exception as exc:  # MuJoCo errors (e.g. out of arena memory)
+                            ok = self._step_failed(exc)
+                        else:
+                            steps = self.steps = self.steps + 1
+                            self._sensor_clock_ns = now
+                            self._sensor_values = None
+                            if w[_BADQPOS] or w[_BADQVEL] or w[_BADQACC]:
+                                self._on_unstable(self._instability_reason())
+                                ok = False
+                            else:
+                                ok = True
+                                if monitored:
+                                    if self._monitor_version != DRIVE_PLANS.version:
+                                        self._new_monitor()
+                                    self._monitor(steps)
+                    else:
+                        ok = step(now)
                     # LockstepClock._advance, inline: the common step wakes nobody
-                    now = clock._now = clock._now + dt
+                    now = clock._now = now + dt
                     woke = heap[0][0] <= now and clock._wake_due(now) if heap else False
                     n += 1
-                    self._run_steps += 1
                     if not ok or woke or loop_ready or loop_ready is None or n >= LOCKSTEP_BATCH:
                         break
+                self._run_steps += n
                 if n > self._max_catchup:
                     self._max_catchup = n
         finally:
@@ -534,7 +565,10 @@ class MujocoSim:
             self._stop_run_clock()
 
     def _step(self, state_clock_ns: int) -> bool:
-        """One physics step; ``state_clock_ns`` is the clock time of the state stepped from."""
+        """One physics step; ``state_clock_ns`` is the clock time of the state stepped from.
+
+        The lockstep loop runs the same step inline while ``_plain_step`` (no pre-step
+        update, no effector, no hook): keep both alike."""
         m, d = self.model, self.data
         if self._pre_step:
             for update in self._pre_step:
@@ -542,12 +576,8 @@ class MujocoSim:
         try:
             mujoco.mj_step(m, d)
         except Exception as exc:  # MuJoCo errors (e.g. out of arena memory)
-            self.steps += 1
-            self._physics_steps += 1
-            self._on_unstable(f"mj_step failed at t={self.time_ns / 1e9:.4f} s: {exc}")
-            return False
+            return self._step_failed(exc)
         self.steps += 1
-        self._physics_steps += 1
         self._sensor_clock_ns = state_clock_ns
         self._sensor_values = None
         w = self._warning_counts
@@ -556,10 +586,7 @@ class MujocoSim:
             return False
         if self._monitored:
             if self._monitor_version != DRIVE_PLANS.version:
-                self._monitor_version = DRIVE_PLANS.version
-                self._monitor = monitor_plan(
-                    self._monitored, self._qpos_items, self._qvel_items, self._force_items
-                )
+                self._new_monitor()
             self._monitor(self.steps)
         if self._monitored_effectors:
             n = self.steps
@@ -572,7 +599,25 @@ class MujocoSim:
                 except Exception:  # a broken hook must not stop the physics
                     self.log.exception("step_hook_failed", hook=repr(hook))
                     self._hooks = [h for h in self._hooks if h != hook]
+                    self._refresh_plain_step()
         return True
+
+    def _step_failed(self, exc: Exception) -> bool:
+        """``mj_step`` raised: the step counts, the simulation is faulted."""
+        self.steps += 1
+        self._on_unstable(f"mj_step failed at t={self.time_ns / 1e9:.4f} s: {exc}")
+        return False
+
+    def _new_monitor(self) -> None:
+        self._monitor_version = DRIVE_PLANS.version
+        self._monitor = monitor_plan(
+            self._monitored, self._qpos_items, self._qvel_items, self._force_items
+        )
+
+    def _refresh_plain_step(self) -> None:
+        """Whether a physics step needs no more than the joints' monitor (the lockstep loop
+        then runs it inline)."""
+        self._plain_step = not (self._pre_step or self._monitored_effectors or self._hooks)
 
     def step(self, n: int = 1) -> int:
         """Step the physics ``n`` times synchronously, outside ``async with`` (offline use,
@@ -668,7 +713,7 @@ class MujocoSim:
         """
         was = self._fault
         self._reset_data()
-        self._physics_steps = 0
+        self._reset_at = self.steps
         self._sensor_clock_ns = self.clock.now_ns()
         for joint in self._joints.values():
             joint._on_sim_reset()
@@ -723,6 +768,7 @@ class MujocoSim:
             self._monitored.append(device)
         if isinstance(device, MujocoEffector) and device not in self._monitored_effectors:
             self._monitored_effectors.append(device)
+        self._refresh_plain_step()
         return True
 
     def _detach(self, device: _Device) -> None:
@@ -732,6 +778,7 @@ class MujocoSim:
             self._monitored.remove(device)
         if isinstance(device, MujocoEffector) and device in self._monitored_effectors:
             self._monitored_effectors.remove(device)
+        self._refresh_plain_step()
 
     def _set_pd(self, joint: MujocoJoint, active: bool) -> None:
         self._pd_joints = _updated(self._pd_joints, joint, active)
@@ -745,6 +792,7 @@ class MujocoSim:
         # a new list each time: a ramp that ends inside the loop over the old one is safe
         updates: list[Callable[[int], None]] = [j._ramp_update for j in self._ramp_joints]
         self._pre_step = updates + [j._pd_update for j in self._pd_joints]
+        self._refresh_plain_step()
 
     def _joint_inertia(self, dof: int) -> float:
         """Diagonal of the joint-space inertia (with armature) at the current state."""
@@ -762,9 +810,11 @@ class MujocoSim:
         if not callable(hook):
             raise BadParameterError("hook", hook, "a callable taking no arguments")
         self._hooks = [*self._hooks, hook]
+        self._refresh_plain_step()
 
     def remove_step_hook(self, hook: Callable[[], None]) -> None:
         self._hooks = [h for h in self._hooks if h != hook]
+        self._refresh_plain_step()
 
     @property
     def stats(self) -> PacingStats:

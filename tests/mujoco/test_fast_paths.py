@@ -272,3 +272,78 @@ async def test_the_joint_batch_is_one_function_rebound_per_plan(stack: AsyncExit
     with pytest.raises(HALError, match="faulted"):
         send(Request.POSITION, targets)
     assert not any(j.pending for j in joints)  # the fault cleared every pending target
+
+
+# -- the lockstep loop's inline step -----------------------------------------------------------
+
+
+async def _scripted_run(hook: bool) -> tuple[list[tuple[str, int, int]], bytes, int, int]:
+    async with AsyncExitStack() as stack:
+        sim = MujocoSim("arm6", keyframe="home")
+        rig = await start_rig(stack, sim, ARM6_JOINTS)
+        hooked: list[int] = []
+        if hook:  # a step hook: every step goes through MujocoSim._step
+            sim.add_step_hook(lambda: hooked.append(sim.steps))
+        assert sim._plain_step is not hook
+        bank = ActuatorBank(rig.actuators[j] for j in ARM6_JOINTS)
+        bank.set_values_nowait([0.2, -0.3, 0.4, 0.1, -0.2, 0.4])
+        await sim.sleep(0.2)
+        sim.reset()
+        await sim.sleep(0.05)
+        rig.actuators["wrist_roll"].set_value_nowait(0.5, Request.VELOCITY)
+        await sim.sleep(0.2)
+        assert len(hooked) == (sim.steps if hook else 0)
+        events = [(r.kind, r.id, r.time_ns) for r in rig.events.records]
+        return events, sim.data.qpos.tobytes(), sim.steps, sim.time_ns
+
+
+async def test_the_inline_step_and_the_full_step_agree() -> None:
+    """The lockstep loop's inline step (no pre-step update, effector or hook) and
+    ``MujocoSim._step`` give the same physics, events, step count and time."""
+    inline = await _scripted_run(hook=False)
+    full = await _scripted_run(hook=True)
+    assert inline == full
+    assert inline[0] and inline[2] == 450 and inline[3] == 250_000_000
+
+
+async def test_a_hook_added_and_removed_while_running_switches_the_step(
+    stack: AsyncExitStack,
+) -> None:
+    sim = MujocoSim("arm6", keyframe="home")
+    await start_rig(stack, sim, ARM6_JOINTS)
+    await sim.sleep(0.01)
+    seen: list[int] = []
+
+    def hook() -> None:
+        seen.append(sim.steps)
+
+    sim.add_step_hook(hook)
+    assert not sim._plain_step
+    await sim.sleep(0.005)
+    sim.remove_step_hook(hook)
+    assert sim._plain_step
+    await sim.sleep(0.005)
+    assert seen == [11, 12, 13, 14, 15]
+
+
+async def test_an_mj_step_error_in_the_inline_step_faults_the_simulation(
+    stack: AsyncExitStack, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    real = mujoco_sim.mujoco.mj_step
+    calls: list[int] = []
+
+    def failing(model: object, data: object) -> None:
+        calls.append(1)
+        if len(calls) == 3:
+            raise mujoco_sim.mujoco.FatalError("out of arena memory")
+        real(model, data)
+
+    monkeypatch.setattr(mujoco_sim.mujoco, "mj_step", failing)
+    sim = MujocoSim("arm6", keyframe="home")
+    rig = await start_rig(stack, sim, ARM6_JOINTS)
+    assert sim._plain_step
+    rig.actuators["base_yaw"].set_value_nowait(0.3)
+    await sim.sleep(0.01)
+    assert sim.fault is not None and "mj_step failed" in sim.fault
+    assert sim.steps == 3 and not sim.joints["base_yaw"].pending
+    assert {a.state for a in rig.actuators.values()} == {ComponentState.ERROR}
