@@ -1399,19 +1399,26 @@ class MujocoSensor(SensorDevice):
     @classmethod
     def batch_reader(cls, devices: Sequence[SensorDevice]) -> BatchReader | None:
         """Sensors of one simulation: a SensorBank's read as one copy of their ``sensordata``
-        values (one slice when they lie back to back in the array, else one gather) and one
-        ``itemgetter`` cutting it into each sensor's tuple; None for other devices."""
+        values and one ``itemgetter`` cutting it into each sensor's tuple; None for other
+        devices.  The copy is of one numpy view made here, spanning every sensor of the bank
+        (and the values between them, when they are fewer than the bank's: the bank's
+        finiteness check then covers them too, and looks sensor by sensor only if one is
+        not finite), else one gather of exactly the bank's values."""
         sensors = [d for d in devices if type(d) is cls and isinstance(d, MujocoSensor)]
         if not sensors or len(sensors) != len(devices):
             return None
         sim = sensors[0].sim
         if any(s.sim is not sim for s in sensors):
             return None
-        index = [i for s in sensors for i in range(s._start, s._end)]
+        count = sum(s.dim for s in sensors)
+        low = min(s._start for s in sensors)
+        high = max(s._end for s in sensors)
+        spanned = high - low <= 2 * count
         cuts: list[slice] = []
         at = 0
         for sensor in sensors:
-            cuts.append(slice(at, at + sensor.dim))
+            start = sensor._start - low if spanned else at
+            cuts.append(slice(start, start + sensor.dim))
             at += sensor.dim
         cut: Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]]
         if len(cuts) == 1:
@@ -1425,17 +1432,18 @@ class MujocoSensor(SensorDevice):
                 Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]], itemgetter(*cuts)
             )
         sensordata = sim._sensordata
-        if index == list(range(index[0], index[0] + len(index))):
-            first, last = index[0], index[0] + len(index)
+        if spanned:
+            # a view of MjData's own buffer (never reallocated): it reads the current values
+            span = sensordata[low:high]
 
             def read() -> tuple[Sequence[float], tuple[tuple[float, ...], ...]]:
                 if sim._fault is not None:
                     raise HALError(f"{sim.name}: the simulation is faulted: {sim._fault}")
-                flat = tuple(sensordata[first:last].tolist())
+                flat = tuple(span.tolist())
                 return flat, cut(flat)
 
         else:
-            gather = np.array(index, dtype=np.intp)
+            gather = np.array([i for s in sensors for i in range(s._start, s._end)], np.intp)
 
             def read() -> tuple[Sequence[float], tuple[tuple[float, ...], ...]]:
                 if sim._fault is not None:
