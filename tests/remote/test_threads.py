@@ -378,3 +378,30 @@ async def test_a_query_nobody_answers_ends_with_timeout_error(busy_wait: float) 
     ):
         with anyio.fail_after(5), pytest.raises(TimeoutError, match="no reply"):
             await remote.execute(get_position())
+
+
+def test_a_failing_thread_path_leaves_the_query_to_the_loop(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    def broken(self: SurfaceServer, request: object) -> bool:
+        raise RuntimeError("a bug in the thread path")
+
+    monkeypatch.setattr(SurfaceServer, "_answer_here", broken)
+
+    async def main() -> None:
+        port = free_port()
+        async with (
+            session(server_config([endpoint(port)])) as zs,
+            Actuator(SimMotor()) as served,
+            Surface([served]) as surface,
+            SurfaceServer(surface, zs, "gate") as server,
+            session(client_cfg(port)) as zc,
+            RemoteSurface(zc, "gate", busy_wait=0, timeout=1.0) as remote,
+        ):
+            await remote.wait_server(5)
+            for _ in range(5):
+                reply = (await remote.execute(get_position())).commands[0]
+                assert reply.results is not None and reply.results.value("return_code") == 0
+            assert server.served_on_zenoh_thread == 0
+
+    run_gated(main)
