@@ -43,10 +43,10 @@ p50 of interleaved runs, each figure measured alone):
   75-80 us sooner than our execute of GetPosition (a blocking raw query of each);
   decode, ``Surface.execute_nowait`` and encode take 7 us in a hot loop but 22-30 us
   in situ (a core woken from idle), ``Query.reply`` 12-18 us. On a ``GatedEventLoop``
-  (below) the read no longer waits for the loop: 40-50 us less per query than the
-  loop path (gated vs ungated server, interleaved, two runs), 40-45 us less server
+  (below) the read no longer waits for the loop: 40-60 us less per query than the
+  loop path (gated vs ungated server, interleaved, three runs), 40-45 us less server
   process CPU per query (the loop is not woken at all), 40-50 us left over the raw
-  queryable.
+  queryable (the read's whole Python on Zenoh's thread: 28-31 us in situ).
 
 What changed in this pass (issue 12, the last missed target; before it: 320 us p50,
 2.07x the blocking raw query, 1.36x the awaited one):
