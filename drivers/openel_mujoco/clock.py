@@ -43,6 +43,9 @@ __all__ = ["LockstepClock"]
 
 log = structlog.get_logger(__name__)
 
+_heappop = heapq.heappop  # module names: read once per inline tick, not as attributes
+_heappush = heapq.heappush
+
 
 class LockstepClock:
     """Simulation time in integer nanoseconds, advanced by the simulation (never by itself)."""
@@ -137,7 +140,7 @@ class LockstepClock:
         seq = self._seq
         woke = False
         while heap and heap[0][0] <= now:
-            entry = heapq.heappop(heap)[2]
+            entry = _heappop(heap)[2]
             if type(entry) is _InlineCall:
                 if entry._done:
                     continue
@@ -151,7 +154,7 @@ class LockstepClock:
                     entry._done = True
                     continue
                 # periodic: re-armed under the same handle
-                heapq.heappush(heap, (again if again > now else now + 1, next(seq), entry))
+                _heappush(heap, (again if again > now else now + 1, next(seq), entry))
             elif not entry.done():
                 entry.set_result(None)  # type: ignore[union-attr]  # a sleeper's future
                 self.wakeups += 1

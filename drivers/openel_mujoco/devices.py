@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import re
+import struct
 from collections.abc import Callable, Mapping, Sequence
 from enum import IntEnum
 from operator import itemgetter
@@ -1433,13 +1434,15 @@ class MujocoSensor(SensorDevice):
             )
         sensordata = sim._sensordata
         if spanned:
-            # a view of MjData's own buffer (never reallocated): it reads the current values
-            span = sensordata[low:high]
+            # the bytes of MjData's own buffer (never reallocated): the current values,
+            # unpacked as they are into a tuple of floats
+            span = memoryview(sensordata[low:high]).cast("B")
+            unpack = struct.Struct(f"{high - low}d").unpack
 
             def read() -> tuple[Sequence[float], tuple[tuple[float, ...], ...]]:
                 if sim._fault is not None:
                     raise HALError(f"{sim.name}: the simulation is faulted: {sim._fault}")
-                flat = tuple(span.tolist())
+                flat = unpack(span)
                 return flat, cut(flat)
 
         else:

@@ -464,6 +464,8 @@ class MujocoSim:
         clock = self._lockstep
         assert clock is not None
         loop_ready = getattr(asyncio.get_running_loop(), "_ready", None)
+        # without the loop's ready queue to look at, one step per turn of the loop
+        most = LOCKSTEP_BATCH if loop_ready is not None else 1
         dt = self.timestep_ns
         step = self._step
         m, d = self.model, self.data
@@ -508,7 +510,7 @@ class MujocoSim:
                     now = clock._now = now + dt
                     woke = heap[0][0] <= now and clock._wake_due(now) if heap else False
                     n += 1
-                    if not ok or woke or loop_ready or loop_ready is None or n >= LOCKSTEP_BATCH:
+                    if not ok or woke or loop_ready or n >= most:
                         break
                 self._run_steps += n
                 if n > self._max_catchup:
