@@ -13,6 +13,7 @@ are for synchronous code (a plain TimerObserver) over devices that need no I/O.
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -267,13 +268,13 @@ class ActuatorBank:
         if not self._proves(lows, highs):
             return None
         actuators = self.actuators
-        changes = LIMITS_CHANGES
+        proves = functools.partial(self._proves, lows, highs)
         proven_at = self._limits_at  # LIMITS_CHANGES.value when the proof last held
 
         def send(values: list[float]) -> None:
             nonlocal proven_at
-            if proven_at != changes.value:  # a device's limits were set: prove it again
-                if not self._proves(lows, highs):
+            if proven_at != LIMITS_CHANGES.value:  # a device's limits were set: prove again
+                if not proves():  # this batch, value by value (else nothing is sent)
                     self.set_values_nowait(values, _POSITION)
                     return
                 proven_at = self._limits_at
