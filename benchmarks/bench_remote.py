@@ -55,8 +55,9 @@ What changed in this pass (issue 12, the last missed target; before it: 320 us p
   callback), polled from the loop for at most ``RemoteSurface.busy_wait`` (0.5 ms) with
   ``os.sched_yield`` and a zero-timeout loop pass between polls; a miss is awaited by
   a worker thread blocked in ``recv``, and after consecutive misses 1, 2, 4... 256
-  queries sleep that way from the start. The cost is CPU: the client's process CPU
-  per call is in the table, with and without busy-waiting.
+  queries sleep (a Zenoh callback and ``call_soon_threadsafe``, as before) from the
+  start. The cost is CPU: the client's process CPU per call is in the table, with
+  polling and with ``busy_wait=0`` (always sleeping).
 - server: ``openel-async serve`` (and this benchmark's server) runs on a
   ``GatedEventLoop``: plain reads (GetPosition...) are answered on Zenoh's thread
   while the loop is parked in ``select``, the loop's gate taken (no loop code runs

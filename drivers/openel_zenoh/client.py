@@ -8,17 +8,16 @@ command, ``notify_event`` to the subscriber, ``notify_error`` to every attached 
 in the numbering (notices dropped on the way) is logged, counted in ``missed_total`` and
 reported to applications that have ``report_missed`` (as :class:`ApplicationQueue`).
 
-A query's reply comes through a Zenoh channel, so no Python callback runs on Zenoh's
-threads per query (such a callback needs the GIL, and handing it over between Zenoh's
-thread and the event loop's is most of what an awaited query costs more than a blocking
-one). The loop polls the channel between zero-timeout passes (other tasks and I/O run
-between them, and each pass yields the core and the GIL to a ready thread) for at most
-``busy_wait`` seconds: a fast reply is seen within microseconds of its arrival, at the
-price of the loop thread's CPU for that time. A reply slower than that (a busy-wait
-miss) is awaited by a worker thread blocked in the channel's ``recv``, and the next 1,
-2, 4... up to 256 queries after consecutive misses sleep that way from the start, so
-replies slower than the budget (a LAN, a device that needs I/O) cost almost no spinning.
-``busy_wait=0`` never polls. See "Threads" in docs/remote.md.
+A query waits for its reply in one of two ways (docs/remote.md, "Threads"). Polled: the
+reply comes through a Zenoh channel (no Python on Zenoh's thread) that the loop polls
+between zero-timeout passes (other tasks and I/O run between them, and each pass yields
+the core and the GIL to a ready thread) for at most ``busy_wait`` seconds, so a fast
+reply is seen within microseconds of its arrival, at the price of the loop thread's CPU
+for that time; a reply slower than that (a miss) is awaited by a worker thread blocked
+in the channel's ``recv``. Sleeping: a Zenoh callback hands the reply to the sleeping
+loop with one ``call_soon_threadsafe``. After consecutive misses the next 1, 2, 4... up
+to 256 queries sleep, so replies slower than the budget (a LAN, a device that needs I/O)
+cost almost no spinning; ``busy_wait=0`` always sleeps.
 
 The server's presence is followed through its liveliness token: ``on_server`` listeners
 hear of it leaving and coming back; when it comes back, subscriptions are made again
@@ -64,7 +63,7 @@ MAX_SLEEPING_QUERIES = 256
 _yield_cpu: Callable[[], None] = getattr(os, "sched_yield", lambda: None)
 """Gives this core (and the GIL) to a ready thread, if any (Unix; elsewhere nothing)."""
 QUERY_THREADS = 32
-"""Worker threads one RemoteSurface may have blocked on replies (the sleeping path)."""
+"""Worker threads one RemoteSurface may have blocked on replies after busy-wait misses."""
 _NO_CONSOLIDATION = zenoh.ConsolidationMode.NONE
 DETAILS_SIZE = 4096
 Encoding = Literal["compact", "xml"]
@@ -140,6 +139,7 @@ class RemoteSurface:
 
     # -- lifecycle -----------------------------------------------------------------------
     async def __aenter__(self) -> Self:
+        self._loop = asyncio.get_running_loop()
         self._limiter = anyio.CapacityLimiter(QUERY_THREADS)
         # Notices are handled in the loop callback that receives them (no task switch).
         self._notices: ThreadInbox[bytes] = ThreadInbox(65536, drain=self._on_notice_batches)
@@ -215,12 +215,28 @@ class RemoteSurface:
     async def query(self, key: str, payload: bytes) -> bytes:
         """One Zenoh query, its first reply's payload; TimeoutError/NotConnectedError.
 
-        The reply comes through a Zenoh channel (no Python callback on Zenoh's threads):
-        polled from the loop for at most ``busy_wait`` s unless recent misses say the
-        replies are slower than that, else awaited by a worker thread blocked in the
-        channel's ``recv`` (which releases the GIL). Zenoh's own timeout ends the query;
-        ``timeout + 1`` s bounds the wait even if it never does.
+        Polled (the reply through a Zenoh channel, for at most ``busy_wait`` s; a miss
+        then awaited by a worker thread blocked in the channel's ``recv``) unless
+        ``busy_wait`` is 0 or recent misses say the replies are slower than that; else
+        sleeping (a Zenoh callback hands the reply to the loop). Zenoh's own timeout ends
+        the query; ``timeout + 1`` s bounds the wait even if it never does.
         """
+        if self.busy_wait > 0.0:
+            if self._sleepers_left == 0:
+                return await self._query_polled(key, payload)
+            self._sleepers_left -= 1
+        return await self._query_sleeping(key, payload)
+
+    @staticmethod
+    def _reply_value(key: str, reply: zenoh.Reply) -> bytes | BaseException:
+        ok = reply.ok
+        if ok is not None:
+            return ok.payload.to_bytes()
+        err = reply.err
+        text = err.payload.to_string() if err is not None else "error reply"
+        return NotConnectedError(f"{key}: {text}")
+
+    async def _query_polled(self, key: str, payload: bytes) -> bytes:
         replies = self.session.get(
             key,
             payload=payload,
@@ -228,14 +244,9 @@ class RemoteSurface:
             timeout=self.timeout,
             consolidation=_NO_CONSOLIDATION,
         )
-        reply: zenoh.Reply | None = None
         try:
-            if self.busy_wait > 0.0:
-                if self._sleepers_left == 0:
-                    reply = await self._poll(replies)
-                else:
-                    self._sleepers_left -= 1
-            if reply is None:
+            reply = await self._poll(replies)
+            if reply is None:  # a miss: a worker thread waits (recv releases the GIL)
                 with anyio.move_on_after(self.timeout + 1.0):
                     reply = await anyio.to_thread.run_sync(
                         replies.recv, abandon_on_cancel=True, limiter=self._limiter
@@ -244,12 +255,60 @@ class RemoteSurface:
             raise TimeoutError(f"{key}: no reply within {self.timeout} s") from None
         if reply is None:
             raise TimeoutError(f"{key}: no reply and no end of query within {self.timeout + 1.0} s")
-        ok = reply.ok
-        if ok is not None:
-            return ok.payload.to_bytes()
-        err = reply.err
-        text = err.payload.to_string() if err is not None else "error reply"
-        raise NotConnectedError(f"{key}: {text}")
+        value = self._reply_value(key, reply)
+        if isinstance(value, BaseException):
+            raise value
+        return value
+
+    async def _query_sleeping(self, key: str, payload: bytes) -> bytes:
+        """The reply (or, without one, the end of the query) handed to the sleeping loop
+        with one ``call_soon_threadsafe`` from Zenoh's callback; a loop timer
+        ``timeout + 1`` s later bounds the wait even if Zenoh never calls back."""
+        loop = self._loop
+        future: asyncio.Future[bytes | BaseException] = loop.create_future()
+        replied = False
+
+        def settle(value: bytes | BaseException) -> None:
+            if not future.done():
+                future.set_result(value)
+
+        def on_reply(reply: zenoh.Reply) -> None:
+            nonlocal replied
+            if replied:
+                return
+            replied = True
+            value = self._reply_value(key, reply)
+            with contextlib.suppress(RuntimeError):  # a closed loop: nobody waits
+                loop.call_soon_threadsafe(settle, value)
+
+        def on_done() -> None:
+            if replied:  # the reply is on its way to the loop
+                return
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(
+                    settle, TimeoutError(f"{key}: no reply within {self.timeout} s")
+                )
+
+        self.session.get(
+            key,
+            zenoh.handlers.Callback(on_reply, on_done, indirect=False),
+            payload=payload,
+            attachment=self._attachment,
+            timeout=self.timeout,
+            consolidation=_NO_CONSOLIDATION,
+        )
+        guard = loop.call_later(
+            self.timeout + 1.0,
+            settle,
+            TimeoutError(f"{key}: no reply and no end of query within {self.timeout + 1.0} s"),
+        )
+        try:
+            result = await future
+        finally:
+            guard.cancel()
+        if isinstance(result, BaseException):
+            raise result
+        return result
 
     async def _poll(self, replies: zenoh.handlers.Handler[zenoh.Reply]) -> zenoh.Reply | None:
         """The reply if it comes within ``busy_wait`` s, polled between zero-timeout passes
