@@ -30,9 +30,10 @@ p50 of interleaved runs, each figure measured alone):
 - client hop: the same raw query awaited from asyncio instead of blocking adds 35-65
   us, of which the wake-up is 6.5: the rest is the handover around it, Zenoh's thread
   running the reply callback and then the callback's drop under the GIL while the
-  woken loop waits for it (a zenoh Callback handler with ``call_soon_threadsafe`` and
-  a worker thread blocked in ``recv`` cost about the same; a poll started right after
-  a callback query waited up to 5 ms, the GIL's switch interval, p90 3.8 ms). A busy-waiting loop polling a Zenoh channel (no Python on Zenoh's
+  woken loop waits for it (a zenoh Callback handler with ``call_soon_threadsafe``:
+  0-20 us less than an anyio worker thread blocked in ``recv``; a poll started right
+  after a callback query waited up to 5 ms, the GIL's switch interval, p90 3.8 ms,
+  until each polling pass yielded the GIL). A busy-waiting loop polling a Zenoh channel (no Python on Zenoh's
   thread) sees the reply 20-40 us *sooner* than a blocking ``recv``, which pays the
   wake-up of a sleeping thread: polling beats both peers, at the price of CPU. Without
   ``os.sched_yield`` in each polling pass, 13-50 % of the polls missed (no reply
