@@ -937,8 +937,9 @@ _BATCH_CODE: dict[str, CodeType] = {}
 _POSITION: Final = Request.POSITION
 _VELOCITY: Final = Request.VELOCITY
 _NO_EXCITE: Final = Request.NO_EXCITE
-_IDLE: Final = -2
-"""``MujocoJoint._since`` when no target is pending."""
+_IDLE: Final = 0
+"""``MujocoJoint._since`` when no target is pending (physics steps count from 1, so a
+pending target's ``_since`` is never 0: the monitor tests it for truth)."""
 _LIMIT_REACHED: Final = MujocoEventId.LIMIT_REACHED
 _SATURATED: Final = MujocoEventId.SATURATED
 
@@ -1046,7 +1047,7 @@ def monitor_plan(
         if position:
             lines += [
                 f"    s = j{i}._since",
-                f"    if s > {_IDLE}:",
+                "    if s:",
                 f"        if nptol{i} <= {q} - j{i}._target <= ptol{i} "
                 f"and nsvel{i} <= qvel[{joint.dof}] <= svel{i}:",
                 "            if s < 0:",
@@ -1055,12 +1056,12 @@ def monitor_plan(
                 f"                j{i}._since = {_IDLE}",
                 f"                c{i}.target_reached()",
                 *changed(i, 3, "                "),
-                "        elif s >= 0:",
+                "        elif s > 0:",
                 f"            j{i}._since = -1",
             ]
         else:
             lines += [
-                f"    if j{i}._since > {_IDLE}:",
+                f"    if j{i}._since:",
                 f"        _other(j{i}, c{i}, qvel[{joint.dof}], step)",
                 *changed(i, 3, "        "),
             ]
@@ -1101,7 +1102,7 @@ def _check_joints(joints: Sequence[MujocoJoint], step: int, index: int, stage: i
                 f = sim._force_items[act]
                 if not slo < f < shi:
                     joint._force_edge(f, ctx)
-        if first <= 2 and joint._since > _IDLE:
+        if first <= 2 and joint._since != _IDLE:
             velocity = sim._qvel_items[joint.dof]
             if joint._mode is not _POSITION:
                 _complete_other(joint, ctx, velocity, step)

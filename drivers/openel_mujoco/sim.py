@@ -187,7 +187,8 @@ class MujocoSim:
         self.keyframe = keyframe
         self._key_id = find_id(m, "key", keyframe) if keyframe is not None else None
         self.data = mujoco.MjData(m)
-        self._sensor_values: tuple[float, ...] | None = None
+        self._sensor_values: tuple[float, ...] | None = None  # as of step:
+        self._sensor_step = 0
         self._read_plan: ReadPlan | None = None  # the sensors last read together
         self._initial_disableactuator = int(m.opt.disableactuator)
         self._reset_data()
@@ -471,6 +472,7 @@ class MujocoSim:
         m, d = self.model, self.data
         mj_step = mujoco.mj_step
         w = self._warning_counts
+        qpos_bad, qvel_bad, qacc_bad = _BADQPOS, _BADQVEL, _BADQACC
         monitored = self._monitored  # the list itself (attach/detach change it in place)
         try:
             while True:
@@ -494,8 +496,7 @@ class MujocoSim:
                         else:
                             steps = self.steps = self.steps + 1
                             self._sensor_clock_ns = now
-                            self._sensor_values = None
-                            if w[_BADQPOS] or w[_BADQVEL] or w[_BADQACC]:
+                            if w[qpos_bad] or w[qvel_bad] or w[qacc_bad]:
                                 self._on_unstable(self._instability_reason())
                                 ok = False
                             else:
@@ -581,7 +582,6 @@ class MujocoSim:
             return self._step_failed(exc)
         self.steps += 1
         self._sensor_clock_ns = state_clock_ns
-        self._sensor_values = None
         w = self._warning_counts
         if w[_BADQPOS] or w[_BADQVEL] or w[_BADQACC]:
             self._on_unstable(self._instability_reason())
@@ -755,8 +755,9 @@ class MujocoSim:
         """``sensordata`` as a tuple, converted once per physics step for all sensor reads
         (slices of a tuple are the readings' value tuples, with no further copy)."""
         values = self._sensor_values
-        if values is None:
+        if values is None or self._sensor_step != self.steps:
             values = self._sensor_values = tuple(self._sensordata.tolist())
+            self._sensor_step = self.steps
         return values
 
     # -- bookkeeping used by the devices -----------------------------------------------------
