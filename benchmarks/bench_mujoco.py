@@ -26,10 +26,13 @@ the other ways to write the step:
 - *full, async*: an async observer (mailbox, task switch per tick) awaiting ``set_value`` and
   ``get_value`` per component.
 
-Before the pass that added the SensorBank batch reader, the ActuatorBank's inline tick for
-per-joint ranges, the generated joint monitor over memoryviews and the inline clock advance
-(docs/mujoco.md, section 9), the recorded run gave per control step: full 13.0 µs against
-raw numpy 6.7 µs (1.94x); sim loop 7.7, + timer 8.5, + device calls 12.1 µs.
+Recorded runs before the passes of docs/mujoco.md, section 9, per control step: full 13.0 µs
+against raw numpy 6.7 µs (1.94x; sim loop 7.7, + timer 8.5, + device calls 12.1 µs); after
+the SensorBank batch reader, the ActuatorBank's inline tick for per-joint ranges, the
+generated joint monitor over memoryviews and the inline clock advance, 11.6 against 7.0 µs
+(1.67x; sim loop 7.3, + timer 8.1, + device calls 11.5 µs).  The latest pass generates the
+joints' batch per plan (one command-state attribute per joint), steps the physics inline in
+the lockstep loop and reads the sensors' span of ``sensordata`` with one ``struct`` unpack.
 
 Each variant runs ROUNDS times, interleaved; the median time per step is reported (many short
 rounds rather than a few long ones, so that a burst of load on a shared machine spoils a
@@ -652,7 +655,9 @@ def run(quick: bool) -> BenchResult:
             "checks and an inline timer tick without lateness arithmetic to about 1.9x; a "
             "SensorBank batch reader, the ActuatorBank's inline tick for per-joint ranges, a "
             "joint monitor generated per plan over memoryviews, memoryview ctrl writes and the "
-            "clock advanced inline by the stepping loop to about 1.7x)."
+            "clock advanced inline by the stepping loop to about 1.7x; a joint batch generated per "
+            "plan, the physics step inline in the lockstep loop and a batch reader over one "
+            "span of sensordata to about 1.6x)."
         )
     return BenchResult(
         name=NAME,
