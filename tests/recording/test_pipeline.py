@@ -89,3 +89,55 @@ def test_stop_is_bounded_when_the_writer_stops_reading(tmp_path: Path) -> None:
     assert stats.dropped > 0 and stats.queued + stats.dropped == produced
     assert stats.written <= stats.queued
     assert pipeline.error is not None and pipeline.writer_pid is None
+
+
+def test_loop_encodes_a_batch_and_the_thread_writes_it(tmp_path: Path) -> None:
+    """``flush_due`` (the tap calls it from the control loop every few ticks) takes a whole
+    batch off the queue as one encoded frame and the thread writes it; below ``batch_size``
+    it takes nothing (the thread takes those every ``flush_interval``)."""
+    pipeline = Pipeline(mcap=tmp_path / "b.mcap", batch_size=100, flush_interval=60.0)
+    pipeline.start()
+    try:
+        channel = pipeline.add_channel("/hal/X", HAL_RECORD)
+        for i in range(98):
+            pipeline.put((channel, i, COMMAND, int(Request.POSITION), float(i)))
+        pipeline.flush_due()
+        assert len(pipeline.queue) == 99  # the channel entry and 98 records: not yet
+        pipeline.put((channel, 98, COMMAND, int(Request.POSITION), 98.0))
+        pipeline.flush_due()
+        assert len(pipeline.queue) == 0  # taken at once, in the caller
+    finally:
+        stats = pipeline.stop()
+    assert stats == PipelineStats(99, 99, 0, pipeline.capacity)
+    assert pipeline.error is None
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="Unix signals")
+def test_loop_never_waits_for_a_stuck_writer(tmp_path: Path) -> None:
+    """With the writer process stopped, ``flush_due`` still returns at once: beyond
+    ``max_frames`` frames it takes nothing more, the records stay in the bounded queue and
+    what does not fit is dropped and counted; all of it is accounted for at the end."""
+    pipeline = Pipeline(mcap=tmp_path / "s.mcap", batch_size=1000, max_frames=2, capacity=20_000)
+    pipeline.start()
+    pid = pipeline.writer_pid
+    assert pid is not None
+    os.kill(pid, signal.SIGSTOP)
+    produced = 0
+    try:
+        channel = pipeline.add_channel("/hal/X", HAL_RECORD)
+        started = time.monotonic()
+        for _ in range(100):  # 100 000 records: far more than the pipe, frames and queue
+            for _ in range(1000):
+                produced += 1
+                pipeline.put((channel, produced, COMMAND, int(Request.POSITION), 0.5))
+            pipeline.flush_due()
+        elapsed = time.monotonic() - started
+        assert len(pipeline.queue) == pipeline.capacity  # the loop stopped taking
+        assert pipeline.dropped > 0
+        stats = pipeline.stop(timeout=1.0)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
+    assert elapsed < 10  # (the writer never read: a blocking hand-over would never return)
+    assert stats.queued + stats.dropped == produced
+    assert stats.written <= stats.queued and pipeline.error is not None

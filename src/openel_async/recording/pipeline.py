@@ -1,17 +1,21 @@
 """The recorder's and live view's pipeline: a bounded queue filled by the control loop
-without blocking, a thread that ships it in batches to the writer process
-(:mod:`.sink_process`), which encodes the messages (JSON) and logs them on a Foxglove SDK
-context whose sinks write them (an MCAP file, the Foxglove server).
+without blocking, batches of it encoded (msgpack) and written by a thread to the writer
+process (:mod:`.sink_process`), which makes the messages (JSON) and logs them on a Foxglove
+SDK context whose sinks write them (an MCAP file, the Foxglove server).
 
 The control loop only appends a tuple to a deque (the listeners of :mod:`.tap` do it
-directly); a full queue drops the record and counts it (:attr:`PipelineStats.dropped`). The
-thread wakes every ``flush_interval`` seconds and writes what is queued to the process's
-stdin as one msgpack frame (C code, and the pipe write releases the interpreter lock); the
-encoding and the MCAP writing happen in the other process, so they do not compete with the
-control loop for the interpreter lock, and that process runs at the lowest priority
-(``writer_nice``, 19), so it does not compete with the loop for the CPU either: on a busy
-machine it falls behind (the queue and the pipe hold the backlog) and catches up when there
-is time.
+directly); a full queue drops the record and counts it (:attr:`PipelineStats.dropped`). When
+``batch_size`` records are queued, the loop itself takes them and encodes them as one
+msgpack frame (:meth:`Pipeline.flush_due`, called by the tap every few ticks: one C call, no
+waiting: it skips while the thread holds the lock or has ``max_frames`` frames still to
+write), and wakes the thread, which only writes frames to the process's stdin (the pipe
+write releases the interpreter lock): a thread taking and encoding thousands of records
+itself held the interpreter lock meanwhile and made the loop wait for it. Every
+``flush_interval`` seconds the thread also takes what is queued (records of a slow loop, or
+of one whose tap sees no timer). The encoding of the messages and the MCAP writing happen in
+the other process, which runs at the lowest priority (``writer_nice``, 19), so it does not
+compete with the loop for the CPU either: on a busy machine it falls behind (the queue, the
+frames and the pipe hold the backlog) and catches up when there is time.
 """
 
 from __future__ import annotations
@@ -74,6 +78,8 @@ class Pipeline:
         flush_interval: float = 0.02,
         chunk_size: int = 64 * 1024,
         writer_nice: int = 19,
+        batch_size: int = 1024,
+        max_frames: int = 8,
     ) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
@@ -81,6 +87,10 @@ class Pipeline:
             raise ValueError(f"writer_nice must be 0..19, got {writer_nice}")
         if mcap is None and foxglove is None:
             raise ValueError("a pipeline needs an MCAP file, a Foxglove server or both")
+        if batch_size < 1 or max_frames < 1:
+            raise ValueError(
+                f"batch_size and max_frames must be >= 1, got {batch_size}, {max_frames}"
+            )
         self.mcap = None if mcap is None else os.fspath(mcap)
         self.foxglove = foxglove
         self.capacity = capacity
@@ -95,12 +105,21 @@ class Pipeline:
         """Added to every record's clock time to make its log time (wall clock)."""
         self.channels: list[ChannelSpec] = []
         self.queue: deque[tuple[Any, ...]] = deque()
-        """The records waiting for the thread. A listener on a per-command path appends to it
+        """The records waiting to be encoded. A listener on a per-command path appends to it
         directly when ``len(queue) < capacity`` and counts :attr:`dropped` otherwise (what
         :meth:`put` does, one call fewer)."""
-        self._taken = 0  # entries the thread took from the queue
+        self.batch_size = batch_size
+        """Records the control loop encodes at once (:meth:`flush_due`)."""
+        self.max_frames = max_frames
+        """Encoded frames waiting for the thread beyond which the loop takes no more (the
+        records wait in the queue, bounded by ``capacity``)."""
+        self._taken = 0  # entries taken from the queue (into frames)
         self._controls = 0  # channel entries queued (not records)
-        self._sending: list[tuple[Any, ...]] = []  # the batch being written to the pipe
+        self._frames: deque[tuple[bytes, list[tuple[Any, ...]]]] = deque()
+        """Encoded frames (and their entries) the thread has still to write, in order."""
+        self._lock = threading.Lock()  # taking from the queue into _frames
+        self._wake = threading.Event()
+        self._dead = False  # the writer is gone: nothing is taken any more
         self.dropped = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -183,6 +202,7 @@ class Pipeline:
         chunk)."""
         deadline = time.monotonic() + timeout
         self._stop.set()
+        self._wake.set()
         process = self._process
         thread = self._thread
         if thread is not None:
@@ -219,45 +239,79 @@ class Pipeline:
                     f"the writer process did not finish within {timeout} s: killed"
                 )
 
-    def _run(self) -> None:
-        process = self._process
-        assert process is not None and process.stdin is not None
-        fd = process.stdin.fileno()
-        try:
-            while not self._stop.wait(self.flush_interval):
-                self._send(fd)
-            self._send(fd, final=True)
-        except BaseException as exc:  # the process died: what is left is dropped, and told
-            if self.error is None:
-                self.error = exc
-            log.error("recording_failed", error=repr(exc))
-            # The frame being written is lost whole (the writer drops a partial frame):
-            # its records leave the queued count for the dropped one, like the queue's.
-            lost, self._sending = self._sending, []
-            self._taken -= sum(1 for entry in lost if entry[0] != STATS)
-            self._discard(lost)
-            queue = self.queue
-            self._discard(list(starmap(queue.popleft, repeat((), len(queue)))))
-        finally:
-            with contextlib.suppress(OSError):
-                process.stdin.close()
+    def flush_due(self) -> None:
+        """From the control loop, every few ticks: when ``batch_size`` records are queued,
+        take them, encode them as one frame for the thread and wake it. Never blocks: skipped
+        while the thread is taking records itself, has ``max_frames`` frames still to write,
+        or the writer is gone."""
+        if (
+            len(self.queue) >= self.batch_size
+            and len(self._frames) < self.max_frames
+            and not self._dead
+            and self._lock.acquire(blocking=False)
+        ):
+            try:
+                self._take()
+            finally:
+                self._lock.release()
+            self._wake.set()
 
-    def _send(self, fd: int, final: bool = False) -> None:
+    def _take(self, final: bool = False) -> None:
+        """What is queued, as one encoded frame appended to :attr:`_frames` (the caller holds
+        the lock)."""
         queue = self.queue
         n = len(queue)  # the loop appends meanwhile: take n, each popleft atomic (C loop)
         batch = list(starmap(queue.popleft, repeat((), n)))
         self._taken += n
         if final:
             batch.append((STATS, self.queued, self.dropped, self.capacity))
-        if not batch:
-            return
-        self._sending = batch
-        payload = self._encode(batch)
-        data = memoryview(len(payload).to_bytes(4, "little") + payload)
-        while data:
-            n = os.write(fd, data)
-            data = data[n:]
-        self._sending = []
+        if batch:
+            self._frames.append((self._encode(batch), batch))
+
+    def _run(self) -> None:
+        process = self._process
+        assert process is not None and process.stdin is not None
+        fd = process.stdin.fileno()
+        try:
+            while True:
+                woken = self._wake.wait(self.flush_interval)
+                self._wake.clear()
+                stopping = self._stop.is_set()
+                if stopping or not woken:  # the loop hands over no batch: take what is queued
+                    with self._lock:
+                        self._take(final=stopping)
+                self._write_frames(fd)
+                if stopping:
+                    break
+        except BaseException as exc:  # the process died: what is left is dropped, and told
+            if self.error is None:
+                self.error = exc
+            log.error("recording_failed", error=repr(exc))
+            with self._lock:
+                self._dead = True
+                # The frame being written is lost whole (the writer drops a partial frame),
+                # and those after it: their records leave the queued count for the dropped one,
+                # like the queue's.
+                lost = [entry for _, entries in self._frames for entry in entries]
+                self._frames.clear()
+                self._taken -= sum(1 for entry in lost if entry[0] != STATS)
+                self._discard(lost)
+                queue = self.queue
+                self._discard(list(starmap(queue.popleft, repeat((), len(queue)))))
+        finally:
+            with contextlib.suppress(OSError):
+                process.stdin.close()
+
+    def _write_frames(self, fd: int) -> None:
+        """Write the frames in order (each removed once written whole)."""
+        frames = self._frames
+        while frames:
+            payload, _ = frames[0]
+            data = memoryview(len(payload).to_bytes(4, "little") + payload)
+            while data:
+                n = os.write(fd, data)
+                data = data[n:]
+            frames.popleft()
 
     def _discard(self, entries: list[tuple[Any, ...]]) -> None:
         """Count ``entries`` (taken out of the count of queued ones) as dropped."""

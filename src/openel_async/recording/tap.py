@@ -194,6 +194,7 @@ class _TimerTap:
     __slots__ = (
         "channel",
         "due",
+        "flush_due",
         "last_index",
         "next_ns",
         "now",
@@ -208,6 +209,7 @@ class _TimerTap:
         self.tap = tap
         self.channel = channel
         self.now = timer.clock.now_ns
+        self.flush_due = tap.pipeline.flush_due
         self.period_ns = tap.timer_stats_period_ns
         self.next_ns = 0
         self.ticks = 0  # since the last statistics record
@@ -233,6 +235,7 @@ class _TimerTap:
             tap.next_joint_ns = now + tap.joint_period_ns
             tap.sample(now)
         self.due = self.ticks + self.step
+        self.flush_due()  # a batch of records encoded here, written by the pipeline's thread
 
     def update_step(self, timer: EventTimer) -> None:
         """Ticks between two looks at the clock (the shorter period, in the timer's ticks;
