@@ -474,6 +474,7 @@ class MujocoSim:
         w = self._warning_counts
         qpos_bad, qvel_bad, qacc_bad = _BADQPOS, _BADQVEL, _BADQACC
         monitored = self._monitored  # the list itself (attach/detach change it in place)
+        plans = DRIVE_PLANS
         try:
             while True:
                 await settle()
@@ -485,6 +486,7 @@ class MujocoSim:
                 self._start_run_clock()
                 n = 0
                 heap = clock._heap
+                ok = True  # until a step fails (then the batch ends)
                 while True:
                     now = clock._now
                     if self._plain_step:
@@ -499,19 +501,22 @@ class MujocoSim:
                             if w[qpos_bad] or w[qvel_bad] or w[qacc_bad]:
                                 self._on_unstable(self._instability_reason())
                                 ok = False
-                            else:
-                                ok = True
-                                if monitored:
-                                    if self._monitor_version != DRIVE_PLANS.version:
-                                        self._new_monitor()
-                                    self._monitor(steps)
+                            elif monitored:
+                                if self._monitor_version != plans.version:
+                                    self._new_monitor()
+                                self._monitor(steps)
                     else:
                         ok = step(now)
-                    # LockstepClock._advance, inline: the common step wakes nobody
+                    # LockstepClock._advance, inline: the common step wakes nobody (a due
+                    # inline callback, the timer's tick, runs in _wake_due and wakes nobody)
                     now = clock._now = now + dt
-                    woke = heap[0][0] <= now and clock._wake_due(now) if heap else False
                     n += 1
-                    if not ok or woke or loop_ready or n >= most:
+                    if (
+                        (heap and heap[0][0] <= now and clock._wake_due(now))
+                        or not ok
+                        or loop_ready
+                        or n >= most
+                    ):
                         break
                 self._run_steps += n
                 if n > self._max_catchup:
