@@ -187,7 +187,8 @@ class MujocoSim:
         self.keyframe = keyframe
         self._key_id = find_id(m, "key", keyframe) if keyframe is not None else None
         self.data = mujoco.MjData(m)
-        self._sensor_values: tuple[float, ...] | None = None  # as of step:
+        # sensordata as a tuple, as of physics step _sensor_step (see _sensordata_tuple)
+        self._sensor_values: tuple[float, ...] | None = None
         self._sensor_step = 0
         self._read_plan: ReadPlan | None = None  # the sensors last read together
         self._initial_disableactuator = int(m.opt.disableactuator)
