@@ -18,11 +18,12 @@ Where the cost is (main-thread instructions per tick under callgrind, the differ
 500- and a 4 500-tick run, so setup cancels; see docs/recording.md, "Cost"): the tap's
 dispatch -- the framework's listener calls (two commands from the bank's stream, one sensor
 reading) and the tap's timer observer, each a Python call -- about 7 % of the loop; building
-and queueing the records (2 commands and 1 reading per tick, a timer-statistics record every
-5 ticks) about 3 %; the joint-state sample every 10 ms (5 ticks) about 2 %: it reads nothing
-through the framework (the commanded positions are the last commands the actuators' listeners
-heard, the actual ones each device's own read). The loop thread's CPU time shows more than
-the instruction counts (cache and the other processes on the two cores). The writer process
+and queueing the record tuples (2 commands and 1 reading per tick) about 4 %; every 5 ticks
+(10 ms) the joint-state sample, the timer-statistics record and, every 300 ticks, encoding a
+batch of 1 024 records for the writer, together about 5 %. The sample reads nothing through
+the framework (the commanded positions are the last commands the actuators' listeners heard,
+the actual ones each device's own read). The loop thread's CPU time shows a little more than
+the instruction counts (cache, the other processes on the two cores). The writer process
 costs about 1.6 us CPU per message (msgpack decode, the JSON message, the SDK's Rust MCAP
 writer or WebSocket server and the call into it). It runs at the lowest priority (nice 19):
 on a busy machine the loop keeps the CPU and the writer catches up afterwards (bounded by the
@@ -372,9 +373,10 @@ def run(quick: bool) -> BenchResult:
         f"{wr['rec'] * 1e6:.2f} us CPU per tick ({wr['rec'] * 1e6 / per_tick:.2f} us per "
         "message: msgpack decode, the JSON message, the Rust MCAP writer).",
         f"At the loop's full speed the writer process needs {wr['rec'] / w['rec']:.0%} of a "
-        f"core (LiveView: {wr['live'] / w['live']:.0%}); at nice 19 it takes little CPU from "
-        "the loop even on 2 cores shared with other work: what the wall-time ratios show "
-        "beyond the loop-thread CPU ratios.",
+        f"core (LiveView: {wr['live'] / w['live']:.0%}), at nice 19. What the wall-time "
+        "ratios show beyond the loop-thread CPU ratios is the loop waiting for a core or for "
+        "the interpreter lock (the writer process, the thread writing to it, the live "
+        "client and other work on the two shared cores).",
     )
     return BenchResult(
         name="recording",
