@@ -247,10 +247,11 @@ class Pipeline:
         if (
             len(self.queue) >= self.batch_size
             and len(self._frames) < self.max_frames
-            and not self._dead
             and self._lock.acquire(blocking=False)
         ):
             try:
+                if self._dead or self._stop.is_set():  # the thread takes no more frames
+                    return
                 self._take()
             finally:
                 self._lock.release()
