@@ -47,6 +47,8 @@ import anyio
 from .harness import BenchResult, Row, ratio_of
 
 PERIOD_MS = 2
+LOOP_TIMEOUT_S = 300.0
+"""Real seconds a loop of ticks may take before the benchmark fails (a stalled loop)."""
 CHANNELS = 6
 """The live view's channels in this loop: /log, /hal/<3 components>, /joint_states and the
 timer's."""
@@ -93,7 +95,8 @@ async def _loop(
             timer.add_observer(_Control(ActuatorBank(axes), tip, ticks, done))
             started, cpu, process = time.perf_counter(), time.thread_time(), time.process_time()
             timer.start_timer()
-            await done.wait()
+            with anyio.fail_after(LOOP_TIMEOUT_S):  # real seconds: the loop must end
+                await done.wait()
             LOOP_CPU.append(
                 ((time.thread_time() - cpu) / ticks, (time.process_time() - process) / ticks)
             )

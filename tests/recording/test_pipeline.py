@@ -7,6 +7,7 @@ import contextlib
 import gc
 import os
 import signal
+import sys
 import threading
 import time
 from pathlib import Path
@@ -14,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from openel_async import Actuator, Request, VirtualClock
-from openel_async.recording import Pipeline, PipelineStats, Recorder
+from openel_async.recording import Pipeline, PipelineStats, Recorder, SinkStartError
 from openel_async.recording.records import COMMAND
 from openel_async.recording.schemas import HAL_RECORD
 from openel_sim import SimMotor
@@ -141,3 +142,35 @@ def test_loop_never_waits_for_a_stuck_writer(tmp_path: Path) -> None:
     assert elapsed < 10  # (the writer never read: a blocking hand-over would never return)
     assert stats.queued + stats.dropped == produced
     assert stats.written <= stats.queued and pipeline.error is not None
+
+
+class _SilentWriter(Pipeline):
+    """A writer process that never says it is ready (it sleeps)."""
+
+    def writer_command(self) -> list[str]:
+        return [sys.executable, "-c", "import time; time.sleep(60)"]
+
+
+def test_start_is_bounded_when_the_writer_never_says_ready(tmp_path: Path) -> None:
+    """``start()`` waited on the writer's first stdout line without a bound; now it raises
+    SinkStartError after ``start_timeout`` seconds and kills the writer."""
+    pipeline = _SilentWriter(mcap=tmp_path / "s.mcap", start_timeout=0.3)
+    result: list[BaseException] = []
+
+    def start() -> None:
+        try:
+            pipeline.start()
+        except BaseException as exc:
+            result.append(exc)
+
+    starter = threading.Thread(target=start, daemon=True)
+    started = time.monotonic()
+    starter.start()
+    starter.join(20)
+    assert not starter.is_alive(), "start() waits forever for a writer that says nothing"
+    assert time.monotonic() - started < 10
+    (error,) = result
+    assert isinstance(error, SinkStartError) and "ready within 0.3 s" in str(error)
+    assert pipeline.writer_pid is None
+    with pytest.raises(ValueError, match="start_timeout"):
+        Pipeline(mcap=tmp_path / "x.mcap", start_timeout=0)

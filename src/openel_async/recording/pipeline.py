@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import select
 import subprocess
 import sys
 import threading
@@ -80,11 +81,14 @@ class Pipeline:
         writer_nice: int = 19,
         batch_size: int = 1024,
         max_frames: int = 8,
+        start_timeout: float = 30.0,
     ) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
         if not 0 <= writer_nice <= 19:
             raise ValueError(f"writer_nice must be 0..19, got {writer_nice}")
+        if not start_timeout > 0:
+            raise ValueError(f"start_timeout must be > 0 s, got {start_timeout}")
         if mcap is None and foxglove is None:
             raise ValueError("a pipeline needs an MCAP file, a Foxglove server or both")
         if batch_size < 1 or max_frames < 1:
@@ -96,6 +100,9 @@ class Pipeline:
         self.capacity = capacity
         self.flush_interval = flush_interval
         self.chunk_size = chunk_size
+        self.start_timeout = start_timeout
+        """Seconds :meth:`start` waits for the writer process to say it is ready."""
+        self._rest = b""  # stdout bytes read after the ready line
         self.writer_nice = writer_nice
         """The writer process's niceness (Unix): on a busy machine it yields the CPU to the
         control loop and catches up when there is time (its backlog bounded by ``capacity``)."""
@@ -165,20 +172,34 @@ class Pipeline:
         written = min(self._taken, queued) if self.written is None else self.written
         return PipelineStats(queued, written, self.dropped, self.capacity)
 
-    def start(self) -> None:
-        """Start the writer process (it opens the sinks) and the feeding thread; raises
-        :class:`SinkStartError` when the sinks cannot open."""
+    def writer_command(self) -> list[str]:
+        """The writer process's command line (:mod:`.sink_process` with this pipeline's
+        sinks)."""
         command = [sys.executable, "-m", "openel_async.recording.sink_process"]
         command += ["--nice", str(self.writer_nice)]
         if self.mcap is not None:
             command += ["--mcap", self.mcap, "--chunk-size", str(self.chunk_size)]
         if self.foxglove is not None:
             command += ["--foxglove", f"{self.foxglove[0]}:{self.foxglove[1]}"]
-        process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        return command
+
+    def start(self) -> None:
+        """Start the writer process (it opens the sinks) and the feeding thread; raises
+        :class:`SinkStartError` when the sinks cannot open, or when the process has not said
+        it is ready within :attr:`start_timeout` seconds (it is killed)."""
+        process = subprocess.Popen(
+            self.writer_command(), stdin=subprocess.PIPE, stdout=subprocess.PIPE
+        )
         assert process.stdout is not None
-        line = process.stdout.readline()
+        line = self._ready_line(process.stdout.fileno())
         try:
-            info = json.loads(line) if line else {"error": "the writer process did not start"}
+            if line is None:
+                info = {
+                    "error": f"the writer process did not say it was ready within "
+                    f"{self.start_timeout} s"
+                }
+            else:
+                info = json.loads(line) if line else {"error": "the writer process did not start"}
         except ValueError:
             info = {"error": f"the writer process said {line!r}"}
         if "error" in info:
@@ -191,6 +212,22 @@ class Pipeline:
         self._process = process
         self._thread = threading.Thread(target=self._run, name="openel-recorder", daemon=True)
         self._thread.start()
+
+    def _ready_line(self, fd: int) -> bytes | None:
+        """The writer's first stdout line (b"": it exited first), or None if it has not
+        written one within :attr:`start_timeout` seconds; what follows it is kept."""
+        deadline = time.monotonic() + self.start_timeout
+        data = b""
+        while b"\n" not in data:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                return None
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                return data
+            data += chunk
+        line, _, self._rest = data.partition(b"\n")
+        return line
 
     def stop(self, timeout: float = 60.0) -> PipelineStats:
         """Send what is queued, let the process close its sinks; the final statistics.
@@ -220,7 +257,7 @@ class Pipeline:
                 process.stdin = None
             try:
                 out, _ = process.communicate(timeout=max(0.0, deadline - time.monotonic()))
-                for line in out.splitlines():
+                for line in (self._rest + out).splitlines():
                     with contextlib.suppress(ValueError, KeyError, TypeError):
                         done = json.loads(line)
                         self.written = int(done["written"])

@@ -28,7 +28,7 @@ import structlog
 
 from ..actuator import Actuator
 from ..cli.app import AppContext, AppHook
-from ..clock import Clock
+from ..clock import Clock, run_in_thread
 from ..component import ComponentState, HALComponent
 from ..device import ValueSource
 from ..errors import HALError, WouldBlockError
@@ -325,7 +325,7 @@ class Tap(AppHook):
             raise RuntimeError("a Tap is entered once")
         self._entered = True
         if not self._started:
-            await anyio.to_thread.run_sync(self.start)
+            await run_in_thread(self.start)  # under external_work: no simulated time passes
         offset, self.pipeline.offset_ns = self.pipeline.offset_ns, 0
         self._log_channel = self.pipeline.add_channel(LOG_TOPIC, LOG)  # wall-clock times
         self.pipeline.offset_ns = offset
@@ -349,7 +349,7 @@ class Tap(AppHook):
             with contextlib.suppress(Exception):  # already gone
                 timer.remove_observer(timer_tap)
         with anyio.CancelScope(shield=True):
-            stats = await anyio.to_thread.run_sync(self.pipeline.stop)
+            stats = await run_in_thread(self.pipeline.stop)
         self.final_stats = stats
         if stats.dropped:
             log.warning("recording_dropped", dropped=stats.dropped, capacity=stats.capacity)
