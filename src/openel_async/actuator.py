@@ -29,6 +29,7 @@ from .errors import (
     WouldBlockError,
 )
 from .ids import HALId
+from .listeners import LISTENING, BatchListener, batch_listener
 from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, EventId, Request, coerce_request
 
 S = ComponentState
@@ -590,9 +591,12 @@ class StreamBatch:
     was built while attached (someone asked for it): the next batch supersedes it.
     """
 
-    __slots__ = ("built", "count", "intact", "request", "stamp", "targets")
+    __slots__ = ("built", "count", "intact", "listen_at", "on_batch", "request", "stamp", "targets")
 
     def __init__(self, size: int) -> None:
+        self.listen_at = -1  # LISTENING.changes when on_batch was asked for
+        self.on_batch: BatchListener | None = None
+        """The members' batch listener (:func:`~openel_async.listeners.batch_listener`)."""
         self.targets: list[float] = [0.0] * size
         self.request = Request.POSITION
         self.stamp = 0
@@ -625,7 +629,8 @@ class StreamBatch:
 
         Only for Active members whose devices report completion, a request other than
         NO_EXCITE, and the members in the order they were attached; ``listening``: some
-        component has a listener (each member's hears its command).
+        component has a listener (each member's hears its command, or the members' batch
+        listener hears the batch: :func:`~openel_async.listeners.batch_listener`).
         """
         if not self.intact or req is not self.request:
             self.attach(actuators)  # each settled with the previous request first
@@ -644,7 +649,15 @@ class StreamBatch:
                     motion._supersede(link[3] + count - link[2])
                 actuator._motion = None
             built.clear()
-        if listening:  # one target per member (checked): no strict=, a dict per call
+        if listening:
+            if self.listen_at != LISTENING.changes:  # a listener was set or removed
+                self.listen_at = LISTENING.changes
+                self.on_batch = batch_listener(actuators)
+            on_batch = self.on_batch
+            if on_batch is not None:  # one call for the batch
+                on_batch(req, targets, stamp)
+                return
+            # one target per member (checked): no strict=, a dict per call
             for actuator, target in zip(actuators, targets):  # noqa: B905
                 listener = actuator._observers.listener
                 if listener is not None:

@@ -284,6 +284,7 @@ class HALComponent:
                 "listener", listener, f"None: {self.device_name} already has {current!r}"
             )
         LISTENING.count += (listener is not None) - (current is not None)
+        LISTENING.changes += 1
         self._observers.listener = listener
 
     async def init(self) -> None:

@@ -9,28 +9,36 @@ command an :class:`~openel_async.Actuator` accepts (``set_value``, ``set_value_n
 state change. Its methods run inline in the caller's task, on the per-command paths: they must
 be cheap, must not block and must not raise (an exception would reach the caller). Without a
 listener each path pays one attribute test.
+
+A listener may also offer ``batch_listener(components)``: a :data:`BatchListener` for a bank's
+streamed batches to those components (one call per batch instead of one ``on_command`` per
+member), or None. An ``ActuatorBank`` asks its first member's listener for one
+(:func:`batch_listener`) whenever a listener was set or removed anywhere, and uses it for every
+batch its device batch commands; it stands for every member's ``on_command``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
     from .component import ComponentState, HALComponent
     from .requests import Request
 
-__all__ = ["LISTENING", "ComponentListener", "tell_readings"]
+__all__ = ["LISTENING", "BatchListener", "ComponentListener", "batch_listener", "tell_readings"]
 
 
 class _Listening:
     """How many components have a listener, process-wide: the banks test it once per call
-    rather than every member's listener."""
+    rather than every member's listener; ``changes`` counts every listener set or removed
+    (a bank re-asks for its batch listener when it changed)."""
 
-    __slots__ = ("count",)
+    __slots__ = ("changes", "count")
 
     def __init__(self) -> None:
         self.count = 0
+        self.changes = 0
 
 
 LISTENING = _Listening()
@@ -52,6 +60,25 @@ class ComponentListener(Protocol):
 
     def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
         """The component went from ``old`` to ``new``."""
+
+
+BatchListener = Callable[["Request", Sequence[float], int], None]
+"""``f(request, values, time_ns)``: a bank's device batch commanded ``values[i]`` to member
+``i`` (``request``, at ``time_ns`` on its clock). It must not keep ``values`` (the caller may
+reuse the sequence): copy what it needs."""
+
+
+def batch_listener(components: Sequence[HALComponent]) -> BatchListener | None:
+    """The :data:`BatchListener` for a batch to ``components`` (in order): what the first
+    one's listener's ``batch_listener(components)`` gives, or None (no listener, or it has
+    none for them: each member's listener is told with ``on_command``)."""
+    if not components:
+        return None
+    make = getattr(components[0].listener, "batch_listener", None)
+    if make is None:
+        return None
+    found: BatchListener | None = make(components)
+    return found
 
 
 def tell_readings(

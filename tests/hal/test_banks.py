@@ -1169,3 +1169,66 @@ async def test_sim_motors_stream_through_their_batch_and_decline_when_one_is_dis
         bank.set_values_nowait([0.0, 0.0, 0.0])
     assert "M2" in str(info.value)
     assert [m.commands for m in motors] == [2, 2, 1]  # in axis order up to the fault
+
+
+@pytest.mark.usefixtures("_batch_servos")
+async def test_a_batch_listener_hears_each_streamed_batch_once(
+    hal_components: ComponentStack,
+) -> None:
+    """A listener offering ``batch_listener(components)`` hears a bank's device batch in one
+    call (no ``on_command`` per member); the bank asks again whenever a listener is set or
+    removed anywhere: a member without a listener, or a listener without one, brings back
+    the per-member calls."""
+    servos = [BatchServo() for _ in range(2)]
+    actuators = [
+        await hal_components.actuator(s, device_name=f"Servo{i}") for i, s in enumerate(servos)
+    ]
+    heard: list[tuple[object, ...]] = []
+    asked: list[tuple[str, ...]] = []
+
+    class Listener:
+        def __init__(self, batches: bool) -> None:
+            self.batches = batches
+
+        def on_command(self, component: object, request: Request, value: float, t: int) -> None:
+            heard.append(("one", getattr(component, "device_name", ""), value))
+
+        def on_reading(self, *args: object) -> None: ...
+
+        def on_state(self, *args: object) -> None: ...
+
+        def batch_listener(self, components: Sequence[object]) -> object:
+            asked.append(tuple(getattr(c, "device_name", "") for c in components))
+            if not self.batches or any(
+                getattr(c, "listener", None) is not self for c in components
+            ):
+                return None  # (a tap's answer: it listens to every member, else no batch)
+
+            def on_batch(request: Request, values: Sequence[float], t: int) -> None:
+                heard.append(("batch", request, tuple(values)))
+
+            return on_batch
+
+    bank = ActuatorBank(actuators)
+    listener = Listener(batches=True)
+    actuators[0].set_listener(listener)  # type: ignore[arg-type]
+    bank.set_values_nowait([0.1, 0.2])  # Servo1 has none: per member
+    actuators[1].set_listener(listener)  # type: ignore[arg-type]
+    bank.set_values_nowait([0.3, 0.4])
+    bank.set_values_nowait([0.5, 0.6])  # asked once for both batches
+    actuators[1].set_listener(None)
+    actuators[1].set_listener(Listener(batches=False))  # type: ignore[arg-type]
+    actuators[0].set_listener(None)
+    actuators[0].set_listener(Listener(batches=False))  # type: ignore[arg-type]
+    bank.set_values_nowait([0.7, 0.8])
+    assert heard == [
+        ("one", "Servo0", 0.1),
+        ("batch", Request.POSITION, (0.3, 0.4)),
+        ("batch", Request.POSITION, (0.5, 0.6)),
+        ("one", "Servo0", 0.7),
+        ("one", "Servo1", 0.8),
+    ]
+    assert asked == [("Servo0", "Servo1")] * 3
+    assert [s.position for s in servos] == [0.7, 0.8]
+    for actuator in actuators:
+        actuator.set_listener(None)

@@ -16,7 +16,7 @@ import pytest
 
 from openel_async import Actuator, Request, VirtualClock
 from openel_async.recording import Pipeline, PipelineStats, Recorder, SinkStartError
-from openel_async.recording.records import COMMAND
+from openel_async.recording.records import BATCH, COMMAND
 from openel_async.recording.schemas import HAL_RECORD
 from openel_sim import SimMotor
 
@@ -140,6 +140,56 @@ def test_loop_never_waits_for_a_stuck_writer(tmp_path: Path) -> None:
         with contextlib.suppress(ProcessLookupError):
             os.kill(pid, signal.SIGKILL)
     assert elapsed < 10  # (the writer never read: a blocking hand-over would never return)
+    assert stats.queued + stats.dropped == produced
+    assert stats.written <= stats.queued and pipeline.error is not None
+
+
+class _Batches:
+    """What a bank's batch listener gives the pipeline: BATCH records of ``size`` messages."""
+
+    size = 2
+
+    def __init__(self, pipeline: Pipeline) -> None:
+        self.count = 0
+        self.pipeline = pipeline
+        pipeline.batches.append(self)
+
+    def put(self, entry: tuple[object, ...]) -> None:
+        if len(self.pipeline.queue) < self.pipeline.capacity:
+            self.pipeline.queue.append(entry)
+            self.count += 1
+        else:
+            self.pipeline.dropped += self.size
+
+
+def test_batch_records_lost_with_a_stuck_writer_count_their_messages(tmp_path: Path) -> None:
+    """BATCH records (two messages each) among single ones, the writer stopped and then
+    killed: every message is queued and written, or dropped and counted."""
+    pipeline = Pipeline(mcap=tmp_path / "b.mcap", batch_size=1000, max_frames=2, capacity=20_000)
+    pipeline.start()
+    pid = pipeline.writer_pid
+    assert pid is not None
+    os.kill(pid, signal.SIGSTOP)
+    batches = _Batches(pipeline)
+    produced = 0
+    try:
+        a = pipeline.add_channel("/hal/A", HAL_RECORD)
+        b = pipeline.add_channel("/hal/B", HAL_RECORD)
+        code = int(Request.POSITION)
+        for _ in range(60):
+            for i in range(1000):
+                if i % 2:
+                    batches.put((BATCH, i, COMMAND, code, (a, b), (0.5, 0.6)))
+                    produced += 2
+                else:
+                    pipeline.put((a, i, COMMAND, code, 0.5))
+                    produced += 1
+            pipeline.flush_due()
+        assert pipeline.dropped > 0
+        stats = pipeline.stop(timeout=1.0)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGKILL)
     assert stats.queued + stats.dropped == produced
     assert stats.written <= stats.queued and pipeline.error is not None
 

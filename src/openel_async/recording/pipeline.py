@@ -36,7 +36,7 @@ from typing import Any, Protocol
 import msgspec
 import structlog
 
-from .records import CHANNEL, STATS
+from .records import BATCH, CHANNEL, STATS
 from .schemas import ChannelSpec, Schema
 
 __all__ = ["Pipeline", "PipelineStats", "Sink", "SinkStartError"]
@@ -120,6 +120,11 @@ class Pipeline:
         self.max_frames = max_frames
         """Encoded frames waiting for the thread beyond which the loop takes no more (the
         records wait in the queue, bounded by ``capacity``)."""
+        self.batches: list[Any] = []
+        """The batch listeners that queue BATCH records (one record for ``size`` messages):
+        each counts the records it queued (``count``), so that :attr:`queued` counts
+        messages."""
+        self._batch_lost = 0  # messages beyond one of the BATCH records discarded
         self._taken = 0  # entries taken from the queue (into frames)
         self._controls = 0  # channel entries queued (not records)
         self._frames: deque[tuple[bytes, list[tuple[Any, ...]]]] = deque()
@@ -164,7 +169,8 @@ class Pipeline:
     @property
     def queued(self) -> int:
         """Records handed over so far (taken by the thread or waiting)."""
-        return self._taken + len(self.queue) - self._controls
+        extra: int = sum(b.count * (b.size - 1) for b in self.batches) - self._batch_lost
+        return self._taken + len(self.queue) - self._controls + extra
 
     @property
     def stats(self) -> PipelineStats:
@@ -355,4 +361,6 @@ class Pipeline:
         """Count ``entries`` (taken out of the count of queued ones) as dropped."""
         records = sum(1 for entry in entries if entry[0] >= 0)
         self._controls -= sum(1 for entry in entries if entry[0] == CHANNEL)
-        self.dropped += records
+        batched = sum(len(entry[4]) for entry in entries if entry[0] == BATCH)
+        self._batch_lost += batched - sum(1 for entry in entries if entry[0] == BATCH)
+        self.dropped += records + batched

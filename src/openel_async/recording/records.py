@@ -29,6 +29,10 @@ CHANNEL = -1
 time is their time plus ``offset_ns``."""
 STATS = -2
 """(-2, queued, dropped, capacity): the parent's final statistics."""
+BATCH = -3
+"""(-3, time_ns, COMMAND, request, channels, values): a bank's batch of commands, one record
+for ``len(channels)`` messages: ``values[i]`` to channel ``channels[i]`` (the writer process
+makes each its COMMAND message on its component's channel)."""
 
 SCHEMAS: dict[str, Schema] = {
     s.name: s for s in (HAL_RECORD, TIMER_TICK, JOINT_STATES, LOG, FRAME_TRANSFORMS, SCENE_UPDATE)

@@ -31,7 +31,7 @@ import msgspec
 import structlog
 
 from .pipeline import PipelineStats, Sink
-from .records import CHANNEL, HEADER, SCHEMAS, STATS, to_message
+from .records import BATCH, CHANNEL, COMMAND, HEADER, SCHEMAS, STATS, to_message
 from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, Schema
 
 LogCall = Callable[[bytes, int | None, int | None], None]
@@ -59,6 +59,12 @@ def serve(stream: BinaryIO, context: foxglove.Context, schemas: dict[str, Schema
                 log, offset = logs[channel]
                 log(encode(to_message(entry)), entry[1] + offset, None)
                 written += 1
+            elif channel == BATCH:  # a bank's commands: one message per component
+                _, t, _, request, channels, values = entry
+                for cid, value in zip(channels, values, strict=True):
+                    log, offset = logs[cid]
+                    log(encode(to_message([cid, t, COMMAND, request, value])), t + offset, None)
+                written += len(channels)
             elif channel == CHANNEL:
                 _, offset, _, cid, topic, schema_name, metadata = entry
                 schema = schemas[schema_name]

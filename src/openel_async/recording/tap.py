@@ -19,7 +19,7 @@ import contextlib
 import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from types import TracebackType
 from typing import Any, cast
 
@@ -37,6 +37,7 @@ from ..requests import EventId, Request
 from ..timer import EventTimer
 from .pipeline import Pipeline, PipelineStats
 from .records import (
+    BATCH,
     COMMAND,
     COMPLETION,
     ERROR,
@@ -128,11 +129,12 @@ class _ComponentTap:
 class _ActuatorTap(_ComponentTap):
     """An actuator's listener; it also keeps what the joint-state sample needs without
     reading through the framework: the commanded position (the last POSITION command it
-    heard, read once through the framework after each activation, which resets it) and the
+    heard, read once through the framework after each activation, which resets it; or the
+    latest of its banks' batches, :class:`_BankTap`, when one came after) and the
     device's own actual-position read (``None``: the framework answers the commanded value
     for it, or the device has no synchronous read)."""
 
-    __slots__ = ("actuator", "commanded", "name", "read")
+    __slots__ = ("actuator", "banks", "commanded", "name", "read", "seq")
 
     def __init__(self, tap: Tap, component: Actuator, channel: int) -> None:
         super().__init__(tap, component, channel)
@@ -140,6 +142,11 @@ class _ActuatorTap(_ComponentTap):
         self.name = component.device_name
         self.commanded: float | None = None
         """The last POSITION command heard since the last state change (None: unknown)."""
+        self.seq = 0
+        """``tap.seq`` when :attr:`commanded` was set: a bank's batch with a higher one is
+        newer."""
+        self.banks: list[tuple[_BankTap, int]] = []
+        """The batch listeners of the banks it is in, and its index in each."""
         measured = component.value_source(_POSITION_ACTUAL) is not ValueSource.COMMANDED
         self.read: Callable[[Request], float] | None = (
             component.device.read_nowait if measured else None
@@ -150,6 +157,7 @@ class _ActuatorTap(_ComponentTap):
     ) -> None:
         if request is _POSITION:  # the usual one: its code without an int() call
             self.commanded = value
+            self.seq = self.tap.seq
             code = _POSITION_CODE
         else:
             code = int(request)
@@ -161,7 +169,24 @@ class _ActuatorTap(_ComponentTap):
 
     def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
         self.commanded = None  # an activation sets it to the actual position
+        self.seq = self.tap.seq  # and the banks' earlier batches are older
         super().on_state(component, old, new)
+
+    def batch_listener(self, components: Sequence[HALComponent]) -> _BankTap | None:
+        """The batch listener of a bank of ``components`` (every one observed by this tap),
+        else None (each member's listener hears its command)."""
+        return self.tap.bank_tap(components)
+
+    def latest_commanded(self) -> float | None:
+        """The commanded position: the last POSITION command heard, its own or in a bank's
+        batch, whichever came last (read through the framework after an activation)."""
+        commanded, seq = self.commanded, self.seq
+        for bank, index in self.banks:
+            if bank.seq > seq and bank.values is not None:
+                commanded, seq = bank.values[index], bank.seq
+        if commanded is None:
+            commanded = self.read_commanded()
+        return commanded
 
     def read_commanded(self) -> float | None:
         """The commanded position read through the framework (after an activation; that
@@ -173,7 +198,59 @@ class _ActuatorTap(_ComponentTap):
             return None
         finally:
             self.muted = False
+        self.seq = self.tap.seq
         return self.commanded
+
+
+class _BankTap:
+    """The batch listener of a bank (:func:`openel_async.listeners.batch_listener`): one
+    BATCH record per batch, split into a COMMAND message per component (on each one's
+    channel) by the writer process; it keeps the latest POSITION batch for the joint-state
+    sample (:meth:`_ActuatorTap.latest_commanded`)."""
+
+    __slots__ = (
+        "capacity",
+        "channels",
+        "count",
+        "pipeline",
+        "queue",
+        "seq",
+        "size",
+        "tap",
+        "values",
+    )
+
+    def __init__(self, tap: Tap, members: Sequence[_ComponentTap]) -> None:
+        self.tap = tap
+        self.channels = tuple(m.channel for m in members)
+        self.size = len(members)
+        self.pipeline = tap.pipeline
+        self.queue = tap.pipeline.queue
+        self.capacity = tap.pipeline.capacity
+        self.count = 0
+        """BATCH records queued (the pipeline counts ``size`` messages for each)."""
+        self.seq = 0
+        """``tap.seq`` of the latest POSITION batch."""
+        self.values: tuple[float, ...] | None = None
+        """The latest POSITION batch (None: none yet)."""
+
+    def __call__(self, request: Request, values: Sequence[float], time_ns: int) -> None:
+        queue = self.queue
+        if len(queue) < self.capacity:
+            if request is _POSITION:
+                self.values = values = tuple(values)
+                tap = self.tap
+                self.seq = tap.seq = tap.seq + 1
+                queue.append((BATCH, time_ns, COMMAND, _POSITION_CODE, self.channels, values))
+            else:
+                queue.append((BATCH, time_ns, COMMAND, int(request), self.channels, tuple(values)))
+            self.count += 1
+        else:
+            self.pipeline.dropped += self.size
+            if request is _POSITION:  # not recorded, but the joints' latest command
+                self.values = tuple(values)
+                tap = self.tap
+                self.seq = tap.seq = tap.seq + 1
 
 
 def _unreadable(request: Request) -> float:
@@ -303,6 +380,9 @@ class Tap(AppHook):
         self._scenes: list[tuple[SceneSource, Any]] = []  # (source, its frames or None)
         self.next_joint_ns = 0
         """When the next joint-state sample is due (clock ns)."""
+        self.seq = 0
+        """Counts the banks' POSITION batches: orders them against single commands."""
+        self._bank_taps: dict[tuple[int, ...], _BankTap] = {}  # ids of the members -> it
         self._joint_channel = -1
         self._log_channel = -1
         self._tf_channel = -1
@@ -418,6 +498,22 @@ class Tap(AppHook):
         if component.state is _ACTIVE:
             self.observe_events(component)
 
+    def bank_tap(self, components: Sequence[HALComponent]) -> _BankTap | None:
+        """The batch listener for a bank of ``components`` when this tap listens to each of
+        them, else None (made once per set of members)."""
+        key = tuple(map(id, components))
+        members = [self._listeners.get(k) for k in key]
+        if not members or any(m is None or m.component.listener is not m for m in members):
+            return None
+        found = self._bank_taps.get(key)
+        if found is None:
+            found = self._bank_taps[key] = _BankTap(self, cast(list[_ComponentTap], members))
+            self.pipeline.batches.append(found)
+            for index, member in enumerate(members):
+                if isinstance(member, _ActuatorTap):
+                    member.banks.append((found, index))
+        return found
+
     def observe_events(self, component: HALComponent) -> None:
         """Record ``component``'s events and errors (from when it is Active)."""
         if id(component) not in self._observing:
@@ -482,9 +578,7 @@ class Tap(AppHook):
             for tap in self._actuators:
                 if tap.actuator.state is not _ACTIVE:
                     continue
-                commanded = tap.commanded
-                if commanded is None:
-                    commanded = tap.read_commanded()
+                commanded = tap.latest_commanded()
                 read = tap.read
                 if read is None:  # the framework answers the commanded value for it
                     joints.append((tap.name, commanded, commanded))

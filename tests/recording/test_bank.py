@@ -1,0 +1,98 @@
+"""A bank's streamed batches: one BATCH record per batch in the control loop (the bank's
+batch listener), one command message per component on its own channel in the file, counted
+as messages (queued, written, dropped); the joint-state sample takes the latest command
+heard, a bank's or a single one."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from openel_async import Actuator, ActuatorBank, Request, VirtualClock
+from openel_async.recording import Recorder, read_recording
+from openel_async.recording.records import BATCH, JOINTS
+from openel_sim import SimMotor
+
+
+def _axes(clock: VirtualClock) -> list[Actuator]:
+    return [Actuator(SimMotor(), device_name=f"AXIS_{i}", clock=clock) for i in range(2)]
+
+
+async def test_a_bank_batch_is_one_record_and_a_message_per_component(tmp_path: Path) -> None:
+    clock = VirtualClock()
+    path = tmp_path / "bank.mcap"
+    recorder = Recorder(path)
+    async with clock.autojump(), recorder:
+        axes = _axes(clock)
+        for axis in axes:
+            recorder.observe(axis)
+        async with axes[0], axes[1]:
+            bank = ActuatorBank(axes)
+            queue = recorder.pipeline.queue
+            before = len(queue)
+            for k in range(1, 51):
+                bank.set_values_nowait([0.01 * k, -0.01 * k])
+            batches = [e for e in list(queue)[before:] if e[0] == BATCH]
+            assert len(batches) == len(queue) - before == 50  # one record per batch
+            axes[1].set_value_nowait(0.7, Request.POSITION)
+            stats = recorder.stats
+            assert stats.queued >= 101 and stats.dropped == 0
+    final = recorder.final_stats
+    assert final is not None and final.dropped == 0 and final.queued == final.written
+    rec = read_recording(path)
+    for i, sign in enumerate((1, -1)):
+        commands = [m for m in rec.topic(f"/hal/AXIS_{i}") if m["kind"] == "command"]
+        values = [m["value"] for m in commands]
+        expected = [sign * 0.01 * k for k in range(1, 51)] + ([0.7] if i else [])
+        assert values == expected
+        assert {m["request"] for m in commands} == {"POSITION"}
+
+
+async def test_dropped_batches_count_their_messages(tmp_path: Path) -> None:
+    """A full queue drops a batch record and counts its two messages."""
+    clock = VirtualClock()
+    recorder = Recorder(tmp_path / "d.mcap", capacity=30)
+    recorder.pipeline.start = lambda: None  # type: ignore[method-assign]  # nothing taken
+    axes = _axes(clock)
+    for axis in axes:
+        recorder.observe(axis)
+    async with clock.autojump(), axes[0], axes[1]:
+        bank = ActuatorBank(axes)
+        queued = recorder.stats.queued
+        for k in range(200):  # far more than the queue holds
+            bank.set_values_nowait([0.001 * k, 0.002 * k])
+        kept = sum(1 for e in recorder.pipeline.queue if e[0] == BATCH)
+        stats = recorder.stats
+    assert 0 < kept < 200 and len(recorder.pipeline.queue) >= 30
+    assert stats.queued - queued == 2 * kept
+    assert stats.dropped == 2 * (200 - kept)
+    for axis in axes:
+        axis.set_listener(None)
+
+
+async def test_the_sample_takes_the_latest_command_bank_or_single(tmp_path: Path) -> None:
+    clock = VirtualClock()
+    recorder = Recorder(tmp_path / "s.mcap")
+    recorder.pipeline.start = lambda: None  # type: ignore[method-assign]  # no writer
+    axes = _axes(clock)
+    for axis in axes:
+        recorder.observe(axis)
+    queue = recorder.pipeline.queue
+
+    def sample() -> list[float | None]:
+        recorder.sample(clock.now_ns())
+        entry = queue.pop()
+        assert entry[2] == JOINTS
+        return [commanded for _, commanded, _ in entry[4]]
+
+    async with clock.autojump(), axes[0], axes[1]:
+        bank = ActuatorBank(axes)
+        bank.set_values_nowait([0.1, 0.2])
+        assert sample() == [0.1, 0.2]
+        axes[0].set_value_nowait(0.3, Request.POSITION)  # a single command after the batch
+        assert sample() == [0.3, 0.2]
+        bank.set_values_nowait([0.4, 0.5])  # and a batch after it
+        assert sample() == [0.4, 0.5]
+        axes[1].set_value_nowait(0.25, Request.VELOCITY)  # not a position
+        assert sample() == [0.4, 0.5]
+    for axis in axes:
+        axis.set_listener(None)
