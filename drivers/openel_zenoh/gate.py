@@ -58,11 +58,27 @@ class LoopGate:
         self._lock.release()
 
     def resume(self) -> None:
+        """Take the gate back after ``select`` (waiting for a running section to end).
+
+        An exception raised while it waits (a signal handler's, e.g. a second Ctrl-C) is
+        raised only once the gate is taken back: the loop thread never runs loop code
+        without it (a section would run beside it, and the next :meth:`park` would release
+        a lock it does not hold)."""
         self._loop_waiting = True
+        interrupted: BaseException | None = None
         try:
-            self._lock.acquire()
+            while True:
+                try:
+                    self._lock.acquire()
+                except BaseException as exc:  # interrupted: the section still runs
+                    if interrupted is None:
+                        interrupted = exc
+                    continue
+                break
         finally:
             self._loop_waiting = False
+        if interrupted is not None:
+            raise interrupted
 
 
 class GatedSelector(selectors.BaseSelector):
