@@ -205,8 +205,8 @@ class ActuatorDeviceType(ABCMeta):
     def __new__(
         mcls, name: str, bases: tuple[type, ...], namespace: dict[str, Any], **kwargs: Any
     ) -> ActuatorDeviceType:
-        default = namespace.get("limits")
-        if default is not None and not isinstance(default, property):
+        if "limits" in namespace and not isinstance(namespace["limits"], property):
+            # (None included: left in the class body it would shadow the property)
             namespace = dict(namespace)
             namespace["_actuator_limits"] = _checked_limits(
                 namespace.pop("limits"), f"{name}.limits"

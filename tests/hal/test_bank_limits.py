@@ -142,6 +142,15 @@ def test_a_class_attribute_default_does_not_shadow_the_property() -> None:
             limits = (-1.0, 1.0)  # type: ignore[assignment]
 
 
+def test_limits_none_in_a_class_body_is_refused_not_left_shadowing_the_property() -> None:
+    # None would hide the property from the instances: device.limits None, and assignments
+    # stored in the instance's dict, never counted (a bank would not see them).
+    with pytest.raises(BadParameterError, match=r"Unlimited\.limits"):
+
+        class Unlimited(PlainServo):
+            limits = None  # type: ignore[assignment]
+
+
 # -- ActuatorBank.set_values(_nowait) -----------------------------------------------------------
 
 
