@@ -124,6 +124,7 @@ class EventTimer:
         # or before the next late tick, so every tick is still counted, in order.
         self._on_time = 0
         self._ticks = 0
+        self._ticks_before_reset = 0
         self._late = 0
         self._missed = 0
         self._drift = 0
@@ -332,7 +333,15 @@ class EventTimer:
     def reset_stats(self) -> None:
         self._lateness.reset()
         self._on_time = 0
+        self._ticks_before_reset += self._ticks
         self._ticks = self._late = self._missed = 0
+
+    @property
+    def ticks_delivered(self) -> int:
+        """Ticks delivered to the observers since the timer was made (``stats.ticks`` counts
+        since the last :meth:`reset_stats`): a tool that looks at the timer now and then (a
+        recorder) reads how many came in between without observing every tick."""
+        return self._ticks_before_reset + self._ticks
 
     def __repr__(self) -> str:
         return f"EventTimer({self.name!r}, period_ms={self._period_ms}, {self.state})"

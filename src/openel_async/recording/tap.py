@@ -28,11 +28,10 @@ import structlog
 
 from ..actuator import Actuator
 from ..cli.app import AppContext, AppHook
-from ..clock import Clock, run_in_thread
+from ..clock import Clock, InlineScheduler, ScheduledCall, run_in_thread
 from ..component import ComponentState, HALComponent
 from ..device import ValueSource
 from ..errors import HALError, WouldBlockError
-from ..observers import TimerTick
 from ..requests import EventId, Request
 from ..timer import EventTimer
 from .pipeline import Pipeline, PipelineStats
@@ -259,19 +258,21 @@ def _unreadable(request: Request) -> float:
 
 
 class _TimerTap:
-    """The tap's observer of one timer: its tick statistics (one record per statistics
-    period: the ticks since the previous one and the periods skipped; not a record per
-    tick) and the joint-state samples.
+    """The tap's view of one timer: its tick statistics (one record per statistics period:
+    the ticks delivered since the previous one, read from the timer, and the periods
+    skipped; not a record per tick) and, on a clock that is not an
+    :class:`~openel_async.clock.InlineScheduler`, the pace of the joint-state samples.
 
-    It does not take the tick notice: per tick it only counts, so the timer keeps its cheap
-    path (no :class:`TimerTick` built, an on-time tick's lateness recorded in bulk); every
-    few ticks (the shorter of the two periods, in ticks) it looks at the clock, and reads
-    ``timer.last_tick`` only for a statistics record."""
+    On such a clock it observes the timer and per tick only counts (no :class:`~openel_async.observers.TimerTick`
+    built: the timer keeps its cheap path); every few ticks (the shorter of the two
+    periods, in ticks) it looks at the clock. On an InlineScheduler (a lockstep
+    simulation) it does not observe the timer at all: the tap's own callback on the clock
+    (:meth:`Tap.pace`) does that work at the period."""
 
     __slots__ = (
         "channel",
+        "delivered",
         "due",
-        "flush_due",
         "last_index",
         "next_ns",
         "now",
@@ -279,22 +280,25 @@ class _TimerTap:
         "step",
         "tap",
         "ticks",
+        "timer",
         "timer_period_ns",
     )
 
     def __init__(self, tap: Tap, timer: EventTimer, channel: int) -> None:
         self.tap = tap
+        self.timer = timer
         self.channel = channel
         self.now = timer.clock.now_ns
-        self.flush_due = tap.pipeline.flush_due
         self.period_ns = tap.timer_stats_period_ns
         self.next_ns = 0
-        self.ticks = 0  # since the last statistics record
+        self.ticks = 0  # ticks heard since the last look at the clock (observing only)
         self.due = 0  # self.ticks at which to look at the clock again
         self.step = 1
         self.timer_period_ns = 0
         self.update_step(timer)
-        self.last_index = 0
+        tick = timer.last_tick
+        self.last_index = 0 if tick is None else tick.index
+        self.delivered = timer.ticks_delivered  # at the last statistics record
 
     def notify_timer(self, timer: EventTimer) -> None:
         self.ticks += 1
@@ -304,15 +308,20 @@ class _TimerTap:
     def check(self, timer: EventTimer) -> None:
         tap = self.tap
         now = self.now()
-        if now >= self.next_ns:
-            self.next_ns = now + self.period_ns
-            self.flush(timer.last_tick)
-            self.update_step(timer)
+        self.stats_due(now)
         if now >= tap.next_joint_ns:
             tap.next_joint_ns = now + tap.joint_period_ns
             tap.sample(now)
-        self.due = self.ticks + self.step
-        self.flush_due()  # a batch of records encoded here, written by the pipeline's thread
+        self.ticks = 0
+        self.due = self.step
+        tap.flush_due()  # a batch of records encoded here, written by the pipeline's thread
+
+    def stats_due(self, now: int) -> None:
+        """The statistics record if its period has passed at ``now``."""
+        if now >= self.next_ns:
+            self.next_ns = now + self.period_ns
+            self.flush()
+            self.update_step(self.timer)
 
     def update_step(self, timer: EventTimer) -> None:
         """Ticks between two looks at the clock (the shorter period, in the timer's ticks;
@@ -322,16 +331,25 @@ class _TimerTap:
             self.timer_period_ns = period
             self.step = max(1, min(self.period_ns, self.tap.joint_period_ns) // period)
 
-    def flush(self, tick: TimerTick | None) -> None:
-        """The statistics record of the ticks since the previous one (``tick``: the last)."""
-        if tick is None or not self.ticks:
+    def flush(self) -> None:
+        """The statistics record of the ticks delivered since the previous one."""
+        timer = self.timer
+        delivered = timer.ticks_delivered
+        ticks = delivered - self.delivered
+        tick = timer.last_tick
+        if tick is None or not ticks:
             return
-        missed = tick.index - self.last_index - self.ticks
+        missed = tick.index - self.last_index - ticks
         self.last_index = tick.index
+        self.delivered = delivered
         self.tap.pipeline.put(
-            (self.channel, tick.time_ns, TICK, tick.index, tick.deadline_ns, missed, self.ticks)
+            (self.channel, tick.time_ns, TICK, tick.index, tick.deadline_ns, missed, ticks)
         )
-        self.ticks = 0
+
+
+def _never() -> int:
+    """The clock's time before the tap knows a clock."""
+    return 0
 
 
 class Tap(AppHook):
@@ -382,6 +400,11 @@ class Tap(AppHook):
         """When the next joint-state sample is due (clock ns)."""
         self.seq = 0
         """Counts the banks' POSITION batches: orders them against single commands."""
+        self.now: Callable[[], int] = _never
+        """The app's clock's ``now_ns`` (once known)."""
+        self.flush_due = self.pipeline.flush_due
+        self._paced: list[_TimerTap] = []  # the timers on an InlineScheduler clock
+        self._pace_call: ScheduledCall | None = None  # the tap's callback on that clock
         self._bank_taps: dict[tuple[int, ...], _BankTap] = {}  # ids of the members -> it
         self._joint_channel = -1
         self._log_channel = -1
@@ -423,11 +446,15 @@ class Tap(AppHook):
         for component in self._components:
             if component.listener is self._listeners[id(component)]:
                 component.set_listener(None)
+        if self._pace_call is not None:
+            self._pace_call.cancel()
+            self._pace_call = None
         for timer in self._timers:
             timer_tap = self._timer_taps[id(timer)]
-            timer_tap.flush(timer.last_tick)  # the ticks since its last statistics record
-            with contextlib.suppress(Exception):  # already gone
-                timer.remove_observer(timer_tap)
+            timer_tap.flush()  # the ticks since its last statistics record
+            if timer_tap not in self._paced:
+                with contextlib.suppress(Exception):  # already gone
+                    timer.remove_observer(timer_tap)
         with anyio.CancelScope(shield=True):
             stats = await run_in_thread(self.pipeline.stop)
         self.final_stats = stats
@@ -443,6 +470,7 @@ class Tap(AppHook):
     def _use_clock(self, clock: Clock) -> None:
         if self._offset is None:
             self._clock = clock
+            self.now = clock.now_ns
             self._offset = time.time_ns() - clock.now_ns()
             self.pipeline.offset_ns = self._offset
 
@@ -521,8 +549,11 @@ class Tap(AppHook):
             component.add_observer(self)
 
     def observe_timer(self, timer: EventTimer) -> None:
-        """Record ``timer``'s ticks (``/timer/<name>``); its ticks also pace the joint
-        states and transforms."""
+        """Record ``timer``'s tick statistics (``/timer/<name>``); its ticks also pace the
+        joint states and transforms. On a clock that calls back between simulation steps
+        (an :class:`~openel_async.clock.InlineScheduler`: a lockstep simulation) the tap
+        does not observe the timer: its own callback on that clock takes the statistics
+        and the samples at their periods."""
         if id(timer) in self._channels:
             return
         self._use_clock(timer.clock)
@@ -532,7 +563,34 @@ class Tap(AppHook):
         self._channels[id(timer)] = channel
         observer = self._timer_taps[id(timer)] = _TimerTap(self, timer, channel)
         self._timers.append(timer)
-        timer.add_observer(observer)
+        clock = timer.clock
+        if isinstance(clock, InlineScheduler) and clock is self._clock:
+            self._paced.append(observer)
+            if self._pace_call is None:
+                self._pace_call = clock.call_at(clock.now_ns() + self._pace_ns(), self.pace)
+        else:
+            timer.add_observer(observer)
+
+    def _pace_ns(self) -> int:
+        return min(self.joint_period_ns, self.timer_stats_period_ns)
+
+    def pace(self) -> int:
+        """The tap's callback on an InlineScheduler clock, every ``min(joint_period_ms,
+        timer_stats_ms)``: the timers' statistics and the joint-state sample when due, and
+        a batch of records encoded for the writer; returns its next deadline."""
+        now = self.now()
+        for timer_tap in self._paced:
+            timer_tap.stats_due(now)
+        if now >= self.next_joint_ns:
+            self.next_joint_ns = now + self.joint_period_ns
+            self.sample(now)
+        self.flush_due()
+        due = now + self._pace_ns()
+        tick = self._paced[0].timer.last_tick
+        if tick is not None:  # on one of the timer's deadlines: no extra break of the steps
+            period = tick.timer.period_ns
+            due += (tick.deadline_ns - due) % period
+        return due
 
     def add_scene(self, source: SceneSource) -> None:
         """Publish ``source``'s geometry on ``/scene`` now and its body poses on ``/tf`` at
