@@ -285,7 +285,9 @@ class SurfaceServer:
 
     def _answer_here(self, request: _Request) -> bool:
         """Answer a plain read on this (Zenoh's) thread if the loop is parked in ``select``
-        (its gate taken: no loop code runs meanwhile, see gate.py); False: nothing done."""
+        (its gate taken: no loop callback or task runs meanwhile, see gate.py); False:
+        nothing done (the loop path answers). Once the read ran this returns True whatever
+        fails afterwards: a read is run, counted and answered once."""
         gate = self._gate
         loop = self._loop
         assert gate is not None and loop is not None
@@ -299,26 +301,32 @@ class SurfaceServer:
             return False
         if not gate.try_enter():
             return False
+        outcome: Device | tuple[ReturnCode, str] | None = None
         wake = True
         try:
             before = work_marker(loop)
-            payload = self._read_in_gate(request, device, loop)
+            outcome = self._read_in_gate(request, device, loop)
             wake = needs_wake(loop, before)
+        except Exception:
+            if outcome is None:
+                raise  # nothing ran: the loop path answers
+            log.exception("read_on_zenoh_thread_failed", client=request.client)
         finally:
             gate.leave()
-        if payload is not None:
-            self._reply(request, payload)
+        if outcome is not None:
+            self._answer_read(request, outcome)
         if wake:  # the read scheduled work on the loop (an observer...): run it now
             with contextlib.suppress(RuntimeError):  # a closed loop
                 loop.call_soon_threadsafe(_nothing)
-        return payload is not None
+        return outcome is not None
 
     def _read_in_gate(
         self, request: _Request, device: Device, loop: asyncio.AbstractEventLoop
-    ) -> bytes | None:
-        """The reply to ``device`` (one THREAD_READS command), run as a loop callback
-        would run it (the loop set as this thread's running loop); None: the client has
-        earlier requests pending (they are answered first), or the read would block."""
+    ) -> Device | tuple[ReturnCode, str] | None:
+        """The result of ``device`` (one THREAD_READS command) or its failure, run as a
+        loop callback would run it (the loop set as this thread's running loop) and
+        counted; None: nothing ran, because the client has earlier requests pending (they
+        are answered first) or the read would block."""
         inbox = self._inbox
         if self._tg is None or inbox is None or len(inbox):
             return None
@@ -332,14 +340,32 @@ class SurfaceServer:
             return None
         except Exception as exc:  # execute_nowait answers refusals itself: a bug
             log.exception("request_failed", kind=request.kind, client=request.client)
-            code, message = _result_code(exc)
             self.served += 1
-            return self._execute_failure(request.payload, ReturnCode(code), message)
+            code, message = _result_code(exc)
+            return ReturnCode(code), message
         finally:
             exit_loop()
         self.served += 1
         self.served_on_zenoh_thread += 1
-        return self._encoded(request, done)
+        return done
+
+    def _answer_read(self, request: _Request, outcome: Device | tuple[ReturnCode, str]) -> None:
+        """Reply to a read that ran on Zenoh's thread (already counted); never raises: a
+        failure to encode becomes an error reply, a failure to reply is logged."""
+        try:
+            if isinstance(outcome, Device):
+                try:
+                    payload = self._encoded(request, outcome)
+                except Exception as exc:
+                    log.exception("reply_encoding_failed", kind=request.kind, client=request.client)
+                    outcome = (ReturnCode.HAL_ERROR, repr(exc))
+            if not isinstance(outcome, Device):
+                payload = self._execute_failure(request.payload, *outcome)
+            self._reply(request, payload)
+        except Exception:
+            log.exception("reply_failed", kind=request.kind, client=request.client)
+            with contextlib.suppress(Exception):
+                _drop(request.query)
 
     def _on_client_alive(self, sample: zenoh.Sample) -> None:
         assert self._alive is not None

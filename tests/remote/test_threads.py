@@ -405,3 +405,56 @@ def test_a_failing_thread_path_leaves_the_query_to_the_loop(
             assert server.served_on_zenoh_thread == 0
 
     run_gated(main)
+
+
+def _thread_path_query(zc: Any, server: SurfaceServer) -> tuple[CommandMessage, int, int]:
+    """One raw GetPosition query from this (worker) thread: the reply, and how much
+    ``served`` and ``served_on_zenoh_thread`` grew meanwhile."""
+    served, on_thread = server.served, server.served_on_zenoh_thread
+    replies = list(
+        zc.get(Keys("gate").execute, payload=compact.encode(get_position()), timeout=2.0)
+    )
+    assert replies and replies[0].ok is not None
+    reply = compact.device_from_compact(replies[0].ok.payload.to_bytes()).commands[0]
+    return reply, server.served - served, server.served_on_zenoh_thread - on_thread
+
+
+def test_a_read_that_ran_on_zenohs_thread_is_never_run_again_when_its_reply_fails(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A failure after the read (here: encoding its reply on Zenoh's thread) is answered
+    there as an error; the query is not handed to the loop to be read and counted again."""
+    loop_thread = threading.get_ident()
+    encoded = SurfaceServer._encoded
+
+    def failing_off_the_loop(request: Any, device: Device) -> bytes:
+        if threading.get_ident() != loop_thread:
+            raise RuntimeError("an encoding bug")
+        return encoded(request, device)
+
+    monkeypatch.setattr(SurfaceServer, "_encoded", staticmethod(failing_off_the_loop))
+
+    async def main() -> None:
+        port = free_port()
+        async with (
+            session(server_config([endpoint(port)])) as zs,
+            Actuator(SimMotor()) as served,
+            Surface([served]) as surface,
+            SurfaceServer(surface, zs, "gate") as server,
+            session(client_cfg(port)) as zc,
+        ):
+            await anyio.sleep(0.2)  # the client's session connects
+            for _ in range(50):  # the loop may be busy at a query's arrival: retry
+                reply, served_delta, thread_delta = await anyio.to_thread.run_sync(
+                    _thread_path_query, zc, server
+                )
+                assert reply.results is not None
+                assert served_delta == 1  # counted once, whichever path answered
+                if thread_delta == 1:
+                    assert reply.results.value("return_code") == int(ReturnCode.HAL_ERROR)
+                    assert "an encoding bug" in reply.results.value("message")
+                    return
+                assert reply.results.value("return_code") == 0  # the loop path
+            raise AssertionError("no read was answered on Zenoh's thread")
+
+    run_gated(main)
