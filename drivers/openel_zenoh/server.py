@@ -326,9 +326,10 @@ class SurfaceServer:
         """The result of ``device`` (one THREAD_READS command) or its failure, run as a
         loop callback would run it (the loop set as this thread's running loop) and
         counted; None: nothing ran, because the client has earlier requests pending (they
-        are answered first) or the read would block."""
+        are answered first), the read would block, or the loop is in debug mode now
+        (asyncio then refuses its non-thread-safe methods off the loop's thread)."""
         inbox = self._inbox
-        if self._tg is None or inbox is None or len(inbox):
+        if self._tg is None or inbox is None or len(inbox) or loop.get_debug():
             return None
         client = self.clients.get(request.client)
         if client is None or client.busy or client.queue:

@@ -458,3 +458,35 @@ def test_a_read_that_ran_on_zenohs_thread_is_never_run_again_when_its_reply_fail
             raise AssertionError("no read was answered on Zenoh's thread")
 
     run_gated(main)
+
+
+def test_a_loop_put_in_debug_mode_after_start_answers_reads_itself() -> None:
+    """asyncio's debug mode checks that loop methods run on the loop's thread: once it is
+    on, reads take the loop path (checked at each read, not only at the server's start)."""
+
+    async def main() -> None:
+        loop = asyncio.get_running_loop()
+        port = free_port()
+        async with (
+            session(server_config([endpoint(port)])) as zs,
+            Actuator(SimMotor()) as served,
+            Surface([served]) as surface,
+            SurfaceServer(surface, zs, "gate") as server,
+            session(client_cfg(port)) as zc,
+        ):
+            listener = SchedulingListener(threading.get_ident())  # call_soon off the loop
+            served.set_listener(listener)
+            await anyio.sleep(0.2)  # the client's session connects
+            loop.set_debug(True)
+            try:
+                for _ in range(10):
+                    reply, served_delta, thread_delta = await anyio.to_thread.run_sync(
+                        _thread_path_query, zc, server
+                    )
+                    assert reply.results is not None
+                    assert reply.results.value("return_code") == 0, reply.results
+                    assert (served_delta, thread_delta) == (1, 0)
+            finally:
+                loop.set_debug(False)
+
+    run_gated(main)
