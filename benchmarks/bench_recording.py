@@ -15,15 +15,20 @@ lockstep the loop runs as fast as it can (about 200x real time), so this is the 
 saturation: 3.4 messages per 10 us tick. Neither queue may drop anything.
 
 Where the cost is (main-thread instructions per tick under callgrind, the difference of a
-500- and a 4 500-tick run, so setup cancels; see docs/recording.md, "Cost"): the tap's
-dispatch -- the framework's listener calls (two commands from the bank's stream, one sensor
-reading) and the tap's timer observer, each a Python call -- about 7 % of the loop; building
-and queueing the record tuples (2 commands and 1 reading per tick) about 4 %; every 5 ticks
-(10 ms) the joint-state sample, the timer-statistics record and, every 300 ticks, encoding a
-batch of 1 024 records for the writer, together about 5 %. The sample reads nothing through
-the framework (the commanded positions are the last commands the actuators' listeners heard,
-the actual ones each device's own read). The loop thread's CPU time shows a little more than
-the instruction counts (cache, the other processes on the two cores). The writer process
+500- and a 4 500-tick run, so setup cancels; see docs/recording.md, "Cost"): no tap about
+106 600; the Recorder before this pass about 124 000 (+16 %), after it about 117 000-120 000
+(+10-12 %; callgrind of the loop thread varies by a few thousand between runs, with the
+writer thread's GIL hand-overs). What this pass removed: the bank's streamed batch reaches
+the recorder as one call and one record (a batch listener, split into a command message per
+component channel in the writer process) instead of a listener call and a record per
+joint; on the lockstep clock the recorder no longer observes the timer (its own callback on
+the clock, on the timer's deadlines, takes the statistics from the timer's tick count and
+the joint-state samples every 10 ms). What remains: the sensor reading's listener call and
+record every tick, the batch's call and record, and every 5 ticks the joint-state sample
+(the commanded positions are the last commands heard, the actual ones each device's own
+read), the statistics record and, every 400 ticks or so, encoding a batch of 1 024 records
+for the writer. The loop thread's CPU time shows a little more than the instruction counts
+(cache, the other processes on the two cores). The writer process
 costs about 1.6 us CPU per message (msgpack decode, the JSON message, the SDK's Rust MCAP
 writer or WebSocket server and the call into it). It runs at the lowest priority (nice 19):
 on a busy machine the loop keeps the CPU and the writer catches up afterwards (bounded by the
