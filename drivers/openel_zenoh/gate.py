@@ -4,9 +4,11 @@ idle event loop.
 :class:`GatedEventLoop` is an ``asyncio.SelectorEventLoop`` whose selector holds a lock
 (the loop's :class:`LoopGate`) at all times except while it waits in ``select``. Another
 thread that gets the gate with :meth:`LoopGate.try_enter` therefore knows that the loop
-thread runs no Python code (it is parked in ``select``, or blocked until the gate is
-left), so whatever the section reads or changes is seen exactly as a loop callback would
-see it, between two loop iterations; the loop cannot resume until :meth:`LoopGate.leave`.
+thread runs no loop code (no callback, no task step, no I/O handling: it is in
+``select``, or blocked until the gate is left), so whatever the section reads or changes
+is seen exactly as a loop callback would see it, between two loop iterations; the loop
+cannot resume until :meth:`LoopGate.leave`. Python-level signal handlers are the one
+exception (below).
 The gate is refused while the loop is busy (the lock is held) and while the loop thread
 waits to take it back after ``select`` (so sections cannot starve the loop).
 
@@ -16,6 +18,32 @@ still waiting in ``select`` with the timeout it computed before. :func:`work_mar
 before and :func:`needs_wake` after the section tell (an asyncio loop schedules through
 its ready queue and its timer heap; for a loop without them the answer is always yes). In debug mode (``loop.get_debug()``) asyncio checks that the loop's
 non-thread-safe methods are called from its own thread: use no sections then.
+
+Signals: CPython runs a Python-level signal handler on the main thread (the loop's, under
+``openel-async serve``) inside a blocking call (``select`` retries after EINTR, PEP 475)
+and where it checks between bytecodes (as a call returns), so also in the few bytecodes
+between :meth:`LoopGate.park` and the wait in ``select`` and after it: beside a section.
+What is guaranteed and why that is harmless:
+
+- callbacks of ``loop.add_signal_handler`` are loop callbacks (run after ``select``,
+  under the gate); ``asyncio.Runner``'s SIGINT handler (``anyio.run`` uses it), the one
+  handler that runs there, only cancels the main task: ``Task.cancel`` marks it and
+  cancels the future it waits on, whose callbacks are queued with ``call_soon`` (an
+  append to the ready queue, atomic under the GIL, as a section's own ``call_soon``),
+  and wakes the loop. No task code runs until the loop has the gate back, and a
+  section (server.THREAD_READS) reads component state, which none of this touches;
+- a handler that raises (Runner's second Ctrl-C: KeyboardInterrupt) ends ``select``:
+  :meth:`LoopGate.resume` raises it only once the gate is taken back. Park and resume
+  ask the lock whether this thread holds it, so an exception raised just as park's
+  release or resume's acquire returns neither leaves the gate open nor makes resume wait
+  for itself (tests/remote/test_gate_interrupt.py);
+- not guaranteed: an exception raised on entry to resume (before it waits) leaves
+  ``select`` with the gate open. The loop code that then runs is that exception's
+  unwinding (asyncio's run_forever cleanup, the Runner cancelling the remaining tasks,
+  which only queues callbacks), and the next ``select`` (the Runner runs the loop again
+  to let them finish) finds the gate open and takes it back. A section may overlap that
+  unwinding of a loop stopping on KeyboardInterrupt; it reads component state, which
+  the unwinding does not change.
 
 ``openel-async serve`` runs on this loop (``anyio.run(..., backend_options={"loop_factory":
 GatedEventLoop})``), so that :class:`~openel_zenoh.server.SurfaceServer` answers plain reads
@@ -27,25 +55,31 @@ from __future__ import annotations
 import asyncio
 import selectors
 import threading
-from collections.abc import Mapping
-from typing import Any
+from collections.abc import Callable, Mapping
+from typing import Any, cast
 
 from openel_async.errors import BadParameterError
 
 
 class LoopGate:
-    """The lock of one :class:`GatedEventLoop`: held by the loop thread except in ``select``."""
+    """The lock of one :class:`GatedEventLoop`: held by the loop thread except in ``select``.
+
+    An RLock only so that the loop thread can ask whether it holds it (``_is_owned``, as
+    ``threading.Condition`` does); it is never taken twice. :meth:`park` and
+    :meth:`resume` decide by that, not by where an exception left them (see the module
+    doc, "Signals")."""
 
     def __init__(self) -> None:
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()
         self._lock.acquire()  # by the thread that creates the loop, which runs it
+        self._owned: Callable[[], bool] = cast(Any, self._lock)._is_owned
         self._loop_waiting = False
         self.entered = 0
         """Sections run so far (other threads')."""
 
     def try_enter(self) -> bool:
         """From another thread: True if the loop is parked (then :meth:`leave` soon)."""
-        if self._loop_waiting or not self._lock.acquire(blocking=False):
+        if self._loop_waiting or self._owned() or not self._lock.acquire(blocking=False):
             return False
         self.entered += 1
         return True
@@ -55,26 +89,27 @@ class LoopGate:
 
     # the loop thread, around select
     def park(self) -> None:
-        self._lock.release()
+        """Open the gate (unless an interrupted ``select`` left it open)."""
+        if self._owned():
+            self._lock.release()
 
     def resume(self) -> None:
         """Take the gate back after ``select`` (waiting for a running section to end).
 
         An exception raised while it waits (a signal handler's, e.g. a second Ctrl-C) is
         raised only once the gate is taken back: the loop thread never runs loop code
-        without it (a section would run beside it, and the next :meth:`park` would release
-        a lock it does not hold)."""
+        without it (a section would run beside it). Whether the gate is held is asked of
+        the lock, so an exception raised just after ``acquire`` returned (a signal handler
+        run when the call ends) does not make it wait for itself."""
         self._loop_waiting = True
         interrupted: BaseException | None = None
         try:
-            while True:
+            while not self._owned():
                 try:
                     self._lock.acquire()
-                except BaseException as exc:  # interrupted: the section still runs
+                except BaseException as exc:  # interrupted: the section may still run
                     if interrupted is None:
                         interrupted = exc
-                    continue
-                break
         finally:
             self._loop_waiting = False
         if interrupted is not None:
@@ -98,11 +133,12 @@ class GatedSelector(selectors.BaseSelector):
         return self._inner.modify(fileobj, events, data)
 
     def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
-        self.gate.park()
-        try:
+        gate = self.gate
+        try:  # park inside the try: an exception raised as it returns still resumes
+            gate.park()
             return self._inner.select(timeout)
         finally:
-            self.gate.resume()
+            gate.resume()
 
     def get_key(self, fileobj: Any) -> selectors.SelectorKey:
         return self._inner.get_key(fileobj)
