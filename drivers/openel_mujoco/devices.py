@@ -1226,6 +1226,20 @@ ReadPlan = tuple[list[SensorDevice], Callable[[tuple[float, ...]], tuple[tuple[f
 _new_reading: Final = tuple.__new__
 
 
+def _cutter(
+    slices: Sequence[slice],
+) -> Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]]:
+    """One call cutting a flat tuple of sensor values into each sensor's values."""
+    if len(slices) == 1:
+        one = slices[0]
+
+        def cut(values: tuple[float, ...]) -> tuple[tuple[float, ...], ...]:
+            return (values[one],)
+
+        return cut
+    return cast(Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]], itemgetter(*slices))
+
+
 def _sensor_joint_type(model: mujoco.MjModel, sid: int) -> int | None:
     """Joint type behind a joint or actuator sensor (None if not joint-based)."""
     objtype = int(model.sensor_objtype[sid])
@@ -1422,17 +1436,7 @@ class MujocoSensor(SensorDevice):
             start = sensor._start - low if spanned else at
             cuts.append(slice(start, start + sensor.dim))
             at += sensor.dim
-        cut: Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]]
-        if len(cuts) == 1:
-            one = cuts[0]
-
-            def cut(values: tuple[float, ...]) -> tuple[tuple[float, ...], ...]:
-                return (values[one],)
-
-        else:
-            cut = cast(
-                Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]], itemgetter(*cuts)
-            )
+        cut = _cutter(cuts)
         sensordata = sim._sensordata
         if spanned:
             # the bytes of MjData's own buffer (never reallocated): the current values,
@@ -1467,17 +1471,7 @@ class MujocoSensor(SensorDevice):
             if device.sim is not sim:
                 return None
             slices.append(device._slice)
-        cut: Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]]
-        if len(slices) == 1:
-            one = slices[0]
-
-            def cut(values: tuple[float, ...]) -> tuple[tuple[float, ...], ...]:
-                return (values[one],)
-
-        else:
-            cut = cast(
-                Callable[[tuple[float, ...]], tuple[tuple[float, ...], ...]], itemgetter(*slices)
-            )
+        cut = _cutter(slices)
         plan = sim._read_plan = (list(devices), cut)
         return plan
 
