@@ -14,29 +14,31 @@ feeding thread) and of the writer process (reported by it); ratio = variant / ba
 lockstep the loop runs as fast as it can (about 200x real time), so this is the recorder at
 saturation: 3.4 messages per 10 us tick. Neither queue may drop anything.
 
-Where the cost is (main-thread instructions per tick under callgrind, the difference of a
-500- and a 4 500-tick run, so setup cancels; see docs/recording.md, "Cost"): no tap about
-106 600; the Recorder before this pass about 124 000 (+16 %), after it about 117 000-120 000
-(+10-12 %; callgrind of the loop thread varies by a few thousand between runs, with the
-writer thread's GIL hand-overs). What this pass removed: the bank's streamed batch reaches
-the recorder as one call and one record (a batch listener, split into a command message per
-component channel in the writer process) instead of a listener call and a record per
-joint; on the lockstep clock the recorder no longer observes the timer (its own callback on
-the clock, on the timer's deadlines, takes the statistics from the timer's tick count and
-the joint-state samples every 10 ms). What remains: the sensor reading's listener call and
-record every tick, the batch's call and record, and every 5 ticks the joint-state sample
-(the commanded positions are the last commands heard, the actual ones each device's own
-read), the statistics record and, every 400 ticks or so, encoding a batch of 1 024 records
-for the writer. The loop thread's CPU time shows a little more than the instruction counts
-(cache, the other processes on the two cores). The writer process
-costs about 1.6 us CPU per message (msgpack decode, the JSON message, the SDK's Rust MCAP
-writer or WebSocket server and the call into it). It runs at the lowest priority (nice 19):
-on a busy machine the loop keeps the CPU and the writer catches up afterwards (bounded by the
-queue's capacity, 100 000 records).
+Interference, separated: two more variants run the loop without any tap while another process
+feeds the stream that a Recorder's loop sent to its writer (captured once, before the rounds)
+to a writer process of its own at nice 19, paced over the no-tap loop's duration: an MCAP
+writer, and a live server with the same kind of client subscribed. Their ratios are what the
+writer process (and the live client) cost the loop through the shared cores and caches, with
+nothing done in the loop; the rest of a tap's ratio is the app process's own work.
+
+Where the cost is (docs/recording.md, "Cost"): main-thread instructions per tick under
+callgrind, no tap about 106 600, the Recorder about 117 000-120 000 (+10-12 %); per call,
+timed in place: the sensor reading's listener call and record about 0.3 us every tick, the
+bank batch's about 0.28 us every tick, the joint-state sample about 1 us every 5 ticks, the
+tap's clock callback 0.35 us every 5 ticks, and encoding a batch of 1 024 records every 300
+ticks or so. The loop thread's CPU time shows about twice the instruction count's share:
+the records (a few hundred bytes per tick, alive until their batch is encoded), the garbage
+collector's passes over them and the feeding thread's interpreter-lock hand-overs; the writer
+process itself costs the loop about 1 % (the interference rows). The writer process costs
+about 1.9 us CPU per message (msgpack decode, the JSON message, the SDK's Rust MCAP writer or
+WebSocket server and the call into it). It runs at the lowest priority (nice 19): on a busy
+machine the loop keeps the CPU and the writer catches up afterwards (bounded by the queue's
+capacity, 100 000 records).
 """
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -173,8 +175,10 @@ def frames(data, start):
 
 count, next_id, subscribed = 0, 1, 0
 while subscribed < channels:
-    buf += sock.recv(262144)
-    found, used = frames(buf, 0)
+    found, used = frames(buf, 0)  # what came with the handshake's reply first
+    if not found:
+        buf += sock.recv(262144)
+        continue
     buf = buf[used:]
     for opcode, payload in found:
         if opcode == 1:
@@ -250,6 +254,116 @@ async def _live(ticks: int) -> tuple[float, int, float, int, int]:
     return per_tick, int(out.split()[-1]), writer_cpu / ticks, stats.written, stats.dropped
 
 
+FEEDER = r"""
+# Feeds a captured writer stream (the frames one Recorder loop sent to its writer process) to
+# a writer process of its own, started with the command given (a Pipeline's: nice 19, its
+# CPU): the entries up to the last one that makes a channel at once (setup), then,
+# after a "go" line on stdin, the rest paced evenly by bytes over DURATION s (the no-tap
+# loop's duration); prints the writer's ready line, then its final line.
+import subprocess, sys, time
+import msgspec
+path, duration, command = sys.argv[1], float(sys.argv[2]), sys.argv[3:]
+data, frames, i = open(path, "rb").read(), [], 0
+while i < len(data):
+    n = int.from_bytes(data[i:i + 4], "little")
+    frames.append(data[i:i + 4 + n])
+    i += 4 + n
+decode, encode = msgspec.msgpack.Decoder().decode, msgspec.msgpack.Encoder().encode
+batches = [decode(f[4:]) for f in frames]
+last = max((k, j) for k, b in enumerate(batches) for j, e in enumerate(b) if e[0] == -1)
+batches = [*batches[:last[0]], batches[last[0]][:last[1] + 1], batches[last[0]][last[1] + 1:],
+           *batches[last[0] + 1:]]
+frames = [len(p).to_bytes(4, "little") + p for p in map(encode, batches) if p != b"\x90"]
+setup = last[0] + 1
+child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+print(child.stdout.readline().decode().strip(), flush=True)
+child.stdin.write(b"".join(frames[:setup]))
+child.stdin.flush()
+sys.stdin.readline()
+rest = frames[setup:]
+total, sent, start = sum(map(len, rest)) or 1, 0, time.perf_counter()
+for frame in rest:
+    sent += len(frame)
+    delay = start + duration * sent / total - time.perf_counter()
+    if delay > 0:
+        time.sleep(delay)
+    child.stdin.write(frame)
+    child.stdin.flush()
+child.stdin.close()
+print(child.stdout.read().decode().strip().splitlines()[-1], flush=True)
+child.wait()
+"""
+
+
+async def _capture(ticks: int, path: Path, stream: Path) -> None:
+    """One Recorder loop (untimed) whose writer process's input is also copied to
+    ``stream``."""
+    from openel_async.recording import Recorder
+
+    recorder = Recorder(path)
+    command = recorder.pipeline.writer_command()
+    tee = ["sh", "-c", f'tee "{stream}" | exec "$@"', "sh", *command]
+    recorder.pipeline.writer_command = lambda: tee  # type: ignore[method-assign]
+    async with recorder:
+        await _loop(ticks, recorder)
+
+
+async def _interfered(
+    ticks: int, stream: Path, duration: float, command: list[str], live: bool
+) -> tuple[float, float]:
+    """The no-tap loop while another process feeds ``stream`` to a writer process of its own
+    (``command``: a Pipeline's writer command) over ``duration`` s, with a live client subscribed when
+    ``live``: the interference of the writer (and the client) without any work in the loop.
+    Returns (seconds per tick, writer-process CPU seconds per tick)."""
+    feeder = subprocess.Popen(  # noqa: ASYNC220 (started once, before the loop)
+        [sys.executable, "-c", FEEDER, str(stream), repr(duration), *command],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert feeder.stdin is not None and feeder.stdout is not None
+    stdin, stdout = feeder.stdin, feeder.stdout
+    client: subprocess.Popen[str] | None = None
+    try:
+        with anyio.fail_after(30):
+            info = json.loads(await anyio.to_thread.run_sync(stdout.readline))
+        if live:
+            url = f"ws://127.0.0.1:{info['port']}"
+            client = subprocess.Popen(  # noqa: ASYNC220
+                ["nice", "-n", "19", sys.executable, "-c", CLIENT, url, "1.0", str(CHANNELS)],
+                stdout=subprocess.PIPE,
+                text=True,
+            )
+            assert client.stdout is not None
+            client_out = client.stdout
+            with anyio.fail_after(20):
+                count = 0
+                while count < CHANNELS:
+                    line = await anyio.to_thread.run_sync(client_out.readline)
+                    if line.startswith("subscribed"):
+                        count = int(line.split()[1])
+                    else:
+                        assert line.strip() == "ready", line
+                await anyio.sleep(0.05)
+
+        async def go() -> None:
+            stdin.write("go\n")
+            stdin.flush()
+
+        per_tick = await _loop(ticks, None, go)
+        with anyio.fail_after(60):
+            done = json.loads(await anyio.to_thread.run_sync(stdout.readline))
+        await anyio.to_thread.run_sync(lambda: feeder.wait(30))
+        if client is not None:
+            await anyio.to_thread.run_sync(lambda: client.communicate(timeout=30))
+    except BaseException:
+        feeder.kill()
+        if client is not None:
+            client.kill()
+        raise
+    return per_tick, float(done["cpu_s"]) / ticks
+
+
 def _cpu_row(name: str, value: float, base: float, label: str) -> Row:
     return Row(
         name,
@@ -266,18 +380,36 @@ def _cpu_row(name: str, value: float, base: float, label: str) -> Row:
 def run(quick: bool) -> BenchResult:
     ticks = 2_000 if quick else 20_000
     rounds = 3 if quick else 9
-    wall: dict[str, list[float]] = {"base": [], "rec": [], "live": []}
-    thread: dict[str, list[float]] = {"base": [], "rec": [], "live": []}
-    process: dict[str, list[float]] = {"base": [], "rec": [], "live": []}
-    writer: dict[str, list[float]] = {"rec": [], "live": []}
+    names = ("base", "rec", "live", "rec_io", "live_io")
+    wall: dict[str, list[float]] = {k: [] for k in names}
+    thread: dict[str, list[float]] = {k: [] for k in names}
+    process: dict[str, list[float]] = {k: [] for k in names}
+    writer: dict[str, list[float]] = {"rec": [], "live": [], "rec_io": [], "live_io": []}
     dropped = received = published = live_dropped = 0
     messages: list[float] = []
+    from openel_async.recording.pipeline import Pipeline
+
     with tempfile.TemporaryDirectory() as tmp:
         anyio.run(_baseline, 500, backend="asyncio")  # warm-up: imports, model load
+        stream = Path(tmp) / "stream.bin"  # a Recorder loop's writer input, for interference
+        anyio.run(_capture, ticks, Path(tmp) / "capture.mcap", stream, backend="asyncio")
+        sinks = {  # the writer processes a Recorder and a LiveView start
+            "rec_io": Pipeline(mcap=Path(tmp) / "fed.mcap").writer_command(),
+            "live_io": Pipeline(foxglove=("127.0.0.1", 0)).writer_command(),
+        }
         for r in range(rounds):
             wall["base"].append(anyio.run(_baseline, ticks, backend="asyncio"))
             thread["base"].append(LOOP_CPU[-1][0])
             process["base"].append(LOOP_CPU[-1][1])
+            duration = wall["base"][-1] * ticks
+            for key, sink in sinks.items():
+                per_tick, cpu = anyio.run(
+                    _interfered, ticks, stream, duration, sink, key == "live_io", backend="asyncio"
+                )
+                wall[key].append(per_tick)
+                thread[key].append(LOOP_CPU[-1][0])
+                process[key].append(LOOP_CPU[-1][1])
+                writer[key].append(cpu)
             per_tick, lost, cpu, written = anyio.run(
                 _recorded, ticks, Path(tmp) / f"r{r}.mcap", backend="asyncio"
             )
@@ -326,6 +458,30 @@ def run(quick: bool) -> BenchResult:
             target="<= 1.2x",
             passed=live_ratio <= 1.2,
             digits=1,
+        ),
+        _cpu_row(
+            "no tap, a Recorder's writer fed its stream beside the loop (interference)",
+            w["rec_io"],
+            w["base"],
+            "interfered/baseline",
+        ),
+        _cpu_row(
+            "no tap, a LiveView's writer + client fed the stream beside (interference)",
+            w["live_io"],
+            w["base"],
+            "interfered/baseline",
+        ),
+        _cpu_row(
+            "loop thread CPU per tick, no tap, Recorder's writer beside",
+            t["rec_io"],
+            t["base"],
+            "interfered/baseline",
+        ),
+        _cpu_row(
+            "loop thread CPU per tick, no tap, LiveView's writer + client beside",
+            t["live_io"],
+            t["base"],
+            "interfered/baseline",
         ),
         _cpu_row("loop thread CPU per tick, Recorder", t["rec"], t["base"], "recorder/baseline"),
         _cpu_row("loop thread CPU per tick, LiveView", t["live"], t["base"], "live/baseline"),
@@ -385,6 +541,14 @@ def run(quick: bool) -> BenchResult:
         "ratios show beyond the loop-thread CPU ratios is the loop waiting for a core or for "
         "the interpreter lock (the writer process, the thread writing to it, the live "
         "client and other work on the two shared cores).",
+        f"Interference alone (no tap; the captured stream fed to a writer process of its own "
+        f"beside the loop): MCAP writer {w['rec_io'] / w['base']:.2f}x wall, "
+        f"{t['rec_io'] / t['base']:.2f}x loop-thread CPU (writer "
+        f"{wr['rec_io'] * 1e6:.2f} us CPU per tick); live server + client "
+        f"{w['live_io'] / w['base']:.2f}x, {t['live_io'] / t['base']:.2f}x (writer "
+        f"{wr['live_io'] * 1e6:.2f} us per tick). The rest of each tap's ratio is the app "
+        "process's own work: the listener calls and records, the samples, the batch encoding, "
+        "the garbage collector and the feeding thread.",
     )
     return BenchResult(
         name="recording",

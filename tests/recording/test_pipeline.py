@@ -59,6 +59,35 @@ def test_writer_process_runs_niced(tmp_path: Path) -> None:
         Pipeline(mcap=tmp_path / "x.mcap", writer_nice=20)
 
 
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity"), reason="CPU affinity (Linux)")
+def test_writer_process_runs_on_one_cpu(tmp_path: Path) -> None:
+    """By default the writer process (with the Foxglove server's threads, one per core) runs
+    on one CPU only, the last this process may use, when it may use several: nice alone let
+    the server's threads take time on the loop's core too. ``writer_cpu=None``: not pinned."""
+    allowed = sorted(os.sched_getaffinity(0))
+    pipeline = Pipeline(foxglove=("127.0.0.1", 0))
+    expected = {allowed[-1]} if len(allowed) > 1 else set(allowed)
+    assert pipeline.writer_cpu == (allowed[-1] if len(allowed) > 1 else None)
+    pipeline.start()
+    try:
+        pid = pipeline.writer_pid
+        assert pid is not None
+        threads = os.listdir(f"/proc/{pid}/task")
+        assert len(threads) >= 2  # the server's threads started after the pinning
+        assert {frozenset(os.sched_getaffinity(int(t))) for t in threads} == {frozenset(expected)}
+    finally:
+        pipeline.stop()
+    free = Pipeline(mcap=tmp_path / "f.mcap", writer_cpu=None)
+    assert free.writer_cpu is None and "--cpu" not in free.writer_command()
+    chosen = Pipeline(mcap=tmp_path / "c.mcap", writer_cpu=allowed[0])
+    command = chosen.writer_command()
+    assert command[command.index("--cpu") + 1] == str(allowed[0])
+    with pytest.raises(ValueError, match="writer_cpu"):
+        Pipeline(mcap=tmp_path / "x.mcap", writer_cpu=max(allowed) + 1)
+    with pytest.raises(ValueError, match="writer_cpu"):
+        Pipeline(mcap=tmp_path / "x.mcap", writer_cpu=-2)
+
+
 @pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="Unix signals")
 def test_stop_is_bounded_when_the_writer_stops_reading(tmp_path: Path) -> None:
     """A writer process that no longer reads its stdin (hung, or stopped: SIGSTOP here)

@@ -66,6 +66,21 @@ class SinkStartError(RuntimeError):
     """The writer process could not open its sinks (an unwritable file, a port in use)."""
 
 
+def _writer_cpu(cpu: int | None) -> int | None:
+    """The writer's CPU for ``writer_cpu`` (see :attr:`Pipeline.writer_cpu`)."""
+    if cpu is None:
+        return None
+    allowed = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+    if cpu == -1:
+        return allowed[-1] if len(allowed) > 1 else None
+    if cpu not in allowed:
+        raise ValueError(
+            f"writer_cpu must be -1, None or one of the CPUs this process may use "
+            f"{allowed}, got {cpu}"
+        )
+    return cpu
+
+
 class Pipeline:
     """See the module docstring. ``start()`` (blocking: from a worker thread in async code)
     before ``put()``, ``stop()`` at the end (blocking too)."""
@@ -82,6 +97,7 @@ class Pipeline:
         batch_size: int = 1024,
         max_frames: int = 8,
         start_timeout: float = 30.0,
+        writer_cpu: int | None = -1,
     ) -> None:
         if capacity < 1:
             raise ValueError(f"capacity must be >= 1, got {capacity}")
@@ -95,6 +111,12 @@ class Pipeline:
             raise ValueError(
                 f"batch_size and max_frames must be >= 1, got {batch_size}, {max_frames}"
             )
+        self.writer_cpu = _writer_cpu(writer_cpu)
+        """The one CPU the writer process (and the Foxglove server's threads) runs on, or
+        None (anywhere). ``writer_cpu=-1`` (the default): the last CPU this process may run
+        on when it may run on several, so that the writer never takes more than one core
+        from the control loop (nice only lowers its share of a contended core; the SDK's
+        server runs a thread per core); None: not pinned."""
         self.mcap = None if mcap is None else os.fspath(mcap)
         self.foxglove = foxglove
         self.capacity = capacity
@@ -183,6 +205,8 @@ class Pipeline:
         sinks)."""
         command = [sys.executable, "-m", "openel_async.recording.sink_process"]
         command += ["--nice", str(self.writer_nice)]
+        if self.writer_cpu is not None:
+            command += ["--cpu", str(self.writer_cpu)]
         if self.mcap is not None:
             command += ["--mcap", self.mcap, "--chunk-size", str(self.chunk_size)]
         if self.foxglove is not None:

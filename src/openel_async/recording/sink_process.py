@@ -13,7 +13,7 @@ exits. It prints one JSON line when ready (``{"port": N}``: the WebSocket port) 
 done (``{"written": N, "cpu_s": S}``: the CPU time it spent writing).
 
 ``python -m openel_async.recording.sink_process [--mcap PATH] [--foxglove HOST:PORT]
-[--chunk-size BYTES] [--nice N]``
+[--chunk-size BYTES] [--nice N] [--cpu N]``
 """
 
 from __future__ import annotations
@@ -92,9 +92,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--foxglove", default=None, metavar="HOST:PORT")
     parser.add_argument("--chunk-size", type=int, default=64 * 1024)
     parser.add_argument("--nice", type=int, default=0, help="niceness to add (before any thread)")
+    parser.add_argument(
+        "--cpu", type=int, default=None, help="the one CPU to run on (before any thread)"
+    )
     args = parser.parse_args(argv)
     if args.nice and hasattr(os, "nice"):
         os.nice(args.nice)  # the control loop comes first; this process catches up
+    if args.cpu is not None and hasattr(os, "sched_setaffinity"):
+        # the SDK's server threads (one per core by default) inherit it: the writer never
+        # takes more than one core, whatever its niceness
+        os.sched_setaffinity(0, {args.cpu})
     # stdout carries the ready line: the log goes to stderr.
     structlog.configure(logger_factory=structlog.PrintLoggerFactory(sys.stderr))
     context = foxglove.Context()
