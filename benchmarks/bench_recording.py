@@ -28,8 +28,11 @@ bank batch's about 0.28 us every tick, the joint-state sample about 1 us every 5
 tap's clock callback 0.35 us every 5 ticks, and encoding a batch of 1 024 records every 300
 ticks or so. The loop thread's CPU time shows about twice the instruction count's share:
 the records (a few hundred bytes per tick, alive until their batch is encoded), the garbage
-collector's passes over them and the feeding thread's interpreter-lock hand-overs; the writer
-process itself costs the loop about 1 % (the interference rows). The writer process costs
+collector's passes over them and the feeding thread's interpreter-lock hand-overs. The
+interference rows show what the writer process costs the loop from outside: the MCAP writer
+next to nothing, the live server with its client some wall time (the loop waiting for a
+core), not the loop thread's CPU. The writer process runs on one CPU (its threads and the
+Foxglove server's), the last one. It costs
 about 1.9 us CPU per message (msgpack decode, the JSON message, the SDK's Rust MCAP writer or
 WebSocket server and the call into it). It runs at the lowest priority (nice 19): on a busy
 machine the loop keeps the CPU and the writer catches up afterwards (bounded by the queue's
