@@ -36,8 +36,10 @@ whose component goes to Error (``ErrorId.DISCONNECTED``, ``HAL_NO_CONNECTED``);
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import struct
+from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from contextlib import AsyncExitStack
 from dataclasses import dataclass
@@ -170,6 +172,58 @@ class PortClient(Protocol):
     def _port_lost(self, reason: str) -> None: ...
 
 
+class _BusLock:
+    """The bus's FIFO lock: ``async with lock:`` around every transaction.
+
+    What ``anyio.Lock(fast_acquire=True)`` does, with less work per transaction: a
+    caller that finds it free takes it without yielding, after the same cancellation
+    check (``checkpoint_if_cancelled``: a cancelled caller is refused before anything is
+    sent); otherwise it waits on a future, in arrival order, and a release hands the
+    lock to the first waiter still waiting. Unlike anyio's, it does not look up the
+    current task to record or check an owner (the port is its only user and always
+    releases what it took, in ``__aexit__``).
+    """
+
+    __slots__ = ("_locked", "_waiters")
+
+    def __init__(self) -> None:
+        self._locked = False
+        self._waiters: deque[asyncio.Future[None]] = deque()
+
+    def locked(self) -> bool:
+        return self._locked
+
+    async def __aenter__(self) -> None:
+        if not self._locked:  # waiters only exist while it is held
+            await anyio.lowlevel.checkpoint_if_cancelled()
+            if not self._locked:
+                self._locked = True
+                return
+        waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._waiters.append(waiter)
+        try:
+            await waiter
+        except BaseException:
+            if waiter.done() and not waiter.cancelled():
+                self._release()  # handed over, then cancelled: pass it on
+            else:
+                with contextlib.suppress(ValueError):
+                    self._waiters.remove(waiter)
+            raise
+
+    async def __aexit__(self, *exc_info: object) -> None:
+        self._release()
+
+    def _release(self) -> None:
+        waiters = self._waiters
+        while waiters:
+            waiter = waiters.popleft()
+            if not waiter.done():
+                waiter.set_result(None)  # the lock stays held: it is the waiter's now
+                return
+        self._locked = False
+
+
 def _complete(waiter: asyncio.Future[None]) -> None:
     """Wake the task waiting on ``waiter`` (once; a cancelled wait stays cancelled)."""
     if not waiter.done():
@@ -230,10 +284,10 @@ class DynamixelPort:
             on_lost=self._on_lost,
             serial_options=serial_options,
         )
-        # fast_acquire: an uncontended acquire does not yield (one event-loop pass less
-        # per transaction); a contended one still queues, and release hands the lock
-        # to the first waiter (FIFO).
-        self._lock = anyio.Lock(fast_acquire=True)
+        # An uncontended acquire does not yield (one event-loop pass less per
+        # transaction); a contended one queues, and release hands the lock to the first
+        # waiter (FIFO).
+        self._lock = _BusLock()
         self._reconnect_lock = anyio.Lock()
         self._clients: dict[int, PortClient] = {}
         self._transaction = 0
@@ -592,6 +646,11 @@ class DynamixelPort:
         pass, and no timer per exchange (see :meth:`_arm_watchdog`).
         """
         self.check_connected()
+        self._transaction += 1
+        self.stats.transactions += 1
+        # Written first: what follows overlaps with the servos' processing, and no reply
+        # can be handled before this task yields (the reception runs in this thread).
+        self._link.write(packet)
         loop = asyncio.get_running_loop()
         waiter: asyncio.Future[None] = loop.create_future()
         replies: dict[int, dx.Status] = {}
@@ -600,11 +659,7 @@ class DynamixelPort:
         expect = self._expect = set(ids)
         self._param_length = param_length
         self._waiter = waiter
-        self._transaction += 1
-        self.stats.transactions += 1
         try:
-            self._link.write(packet)
-            # Armed after the write: this overlaps with the servos' processing.
             timeout = self.response_timeout(len(packet), len(ids), param_length)
             self._arm_watchdog(loop, loop.time() + timeout)
             await waiter

@@ -304,6 +304,42 @@ async def test_a_cancelled_exchange_leaves_the_port_usable() -> None:
         assert bus.instructions[sent:] == [dx.Ping(1)]
 
 
+async def test_the_bus_lock_is_fifo_and_a_cancelled_waiter_sends_nothing() -> None:
+    # Transactions queue on the port's lock in arrival order; a caller cancelled while
+    # queued never reaches the bus, and the lock passes to the next one in line.
+    async with (
+        SimDynamixelBus([1, 2]) as bus,
+        DynamixelPort(bus.path, baudrate=SLOW_BAUD, return_delay=0.0, retries=0) as port,
+    ):
+        bus[2].responsive = False
+        done: list[str] = []
+        sent = len(bus.instructions)
+
+        async def hold() -> None:
+            with pytest.raises(DynamixelTimeoutError):
+                await port.read(2, 0, 147)  # holds the lock for its ~0.2 s timeout
+            done.append("read")
+
+        async def ping(name: str, scope: anyio.CancelScope | None = None) -> None:
+            with scope or anyio.CancelScope():
+                await port.ping(1)
+                done.append(name)
+
+        queued = anyio.CancelScope()
+        with anyio.fail_after(WAIT_S):
+            async with anyio.create_task_group() as tg:
+                tg.start_soon(hold)
+                await anyio.sleep(0.02)
+                for name, scope in (("cancelled", queued), ("second", None), ("third", None)):
+                    tg.start_soon(ping, name, scope)
+                    await anyio.sleep(0.01)
+                assert port.stats.transactions == 1  # all three wait for the lock
+                queued.cancel()
+        assert done == ["read", "second", "third"]
+        assert queued.cancelled_caught
+        assert bus.instructions[sent:] == [dx.Read(2, 0, 147), dx.Ping(1), dx.Ping(1)]
+
+
 async def test_port_lost_while_waiting_raises_at_once() -> None:
     async with (
         SimDynamixelBus([1, 2]) as bus,
