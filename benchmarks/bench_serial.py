@@ -384,4 +384,12 @@ process (the first of each pair swaps every round). Value and baseline are the m
 over the rounds of each round's median; the ratio is the median over the rounds of
 ours/sdk within each pair of adjacent rounds (both under the same machine load).
 A pty moves bytes at memory speed: a transaction's time is the two processes' CPU
-time plus two wake-ups, not a bus speed."""
+time plus two wake-ups, not a bus speed.
+
+At N = 1 the transaction is almost all waiting: timestamps in our transport (idle
+machine, 2,000 transactions) put 80-95 µs between our write and the reply becoming
+readable (the bus process waking, answering, and this process waking from `epoll`) and
+8-9 µs from the reply being readable to the next request's write (parse, CRC, the
+task's wake-up pass, the benchmark's loop). The SDK never sleeps (it polls the port),
+so it saves the last wake-up and pays with its whole wall time in CPU; a client that
+sleeps until the reply cannot be more than a few µs faster than that at N = 1."""
