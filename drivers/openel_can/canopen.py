@@ -56,6 +56,7 @@ __all__ = [
     "NmtState",
     "ObjectEntry",
     "Pdo",
+    "PdoCodec",
     "PdoMapEntry",
     "SdoAbort",
     "SdoAbortCode",
@@ -559,6 +560,56 @@ def unpack_pdo(mapping: Sequence[PdoMapEntry], data: bytes | bytearray) -> list[
             raw -= 1 << bits
         values.append(raw)
     return values
+
+
+_BYTE_FORMATS: Final = {
+    (8, False): "B",
+    (8, True): "b",
+    (16, False): "H",
+    (16, True): "h",
+    (32, False): "I",
+    (32, True): "i",
+    (64, False): "Q",
+    (64, True): "q",
+}
+
+
+class PdoCodec:
+    """:func:`pack_pdo` / :func:`unpack_pdo` for one mapping, compiled once.
+
+    A mapping of whole 8/16/32/64-bit entries packs and unpacks with one ``struct``
+    call (the per-set-point path); any other mapping uses the bit-by-bit functions.
+    Same results and the same errors as those functions.
+    """
+
+    __slots__ = ("_struct", "mapping", "size")
+
+    def __init__(self, mapping: Sequence[PdoMapEntry]) -> None:
+        self.mapping = tuple(mapping)
+        self.size = (_total_bits(self.mapping) + 7) // 8
+        formats = [_BYTE_FORMATS.get((e.bit_length, e.signed)) for e in self.mapping]
+        self._struct = (
+            struct.Struct("<" + "".join(f for f in formats if f is not None))
+            if all(f is not None for f in formats)
+            else None
+        )
+
+    def pack(self, values: Sequence[int]) -> bytes:
+        """As :func:`pack_pdo` (ValueError for a value that does not fit its entry)."""
+        packer = self._struct
+        if packer is None or len(values) != len(self.mapping):
+            return pack_pdo(self.mapping, values)
+        try:
+            return packer.pack(*values)
+        except struct.error:
+            return pack_pdo(self.mapping, values)  # raises the ValueError naming the entry
+
+    def unpack(self, data: bytes | bytearray) -> tuple[int, ...]:
+        """As :func:`unpack_pdo` (CanOpenDecodeError for a payload that is too short)."""
+        unpacker = self._struct
+        if unpacker is None or len(data) < self.size:
+            return tuple(unpack_pdo(self.mapping, data))
+        return unpacker.unpack_from(data)
 
 
 # --- Object dictionary entries -------------------------------------------------------------

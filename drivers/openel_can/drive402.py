@@ -53,6 +53,7 @@ way, torques in per mille of the rated torque (Nm at the API).
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -111,6 +112,9 @@ _MODE_OF_REQUEST: Final = {
 _TPDO1_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[0])
 _TPDO2_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[1])
 _RPDO_MAP_ENTRIES: Final = tuple(tuple(e.map_entry() for e in mapping) for mapping in RPDO_MAPS)
+_RPDO_CODECS: Final = tuple(co.PdoCodec(entries) for entries in _RPDO_MAP_ENTRIES)
+_TPDO1_CODEC: Final = co.PdoCodec(_TPDO1_MAP)
+_TPDO2_CODEC: Final = co.PdoCodec(_TPDO2_MAP)
 _ENABLE: Final = int(ds.Command.ENABLE_OPERATION)
 # Plain ints of the bits tested on every set-point (IntFlag arithmetic is Python code).
 _ACK: Final = int(SB.SETPOINT_ACKNOWLEDGE)
@@ -144,6 +148,12 @@ def _positive(name: str, value: float | None, *, optional: bool = True) -> None:
 
 class _FaultedError(Exception):
     """The component faulted while a command waited for the drive (internal)."""
+
+
+def _expire(waiter: asyncio.Future[bool]) -> None:
+    """Timer callback of a statusword wait: the wait ends unsatisfied."""
+    if not waiter.done():
+        waiter.set_result(False)
 
 
 @dataclass
@@ -229,7 +239,11 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         self._ctx: DeviceContext | None = None
         self._port: NodePort | None = None
         self._lock = anyio.Lock(fast_acquire=True)
-        self._changed = anyio.Event()
+        self._changed: anyio.Event | None = None
+        """Set (and dropped) after each received batch; created only when awaited."""
+        self._status_waiters: list[tuple[Callable[[int], bool], asyncio.Future[bool]]] = []
+        """Statusword waits: each future is resolved by the batch that satisfies its
+        predicate (True), by a fault latch (True: the waiter re-checks), or by its timer."""
         self._statusword: int | None = None
         self._position = 0
         self._torque = 0
@@ -431,7 +445,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
     async def _wait_tpdo(self, after_ns: int, timeout: float) -> None:  # noqa: ASYNC109
         with anyio.move_on_after(timeout):
             while self._tpdo1_ns is None or self._tpdo1_ns < after_ns:
-                await self._changed.wait()
+                await self._change_event().wait()
             return
         raise TimeoutError(f"CiA 402 node {self.node_id}: no TPDO1 within {timeout * 1000:.0f} ms")
 
@@ -489,7 +503,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         assert self._port is not None
         number = _RPDO_OF_MODE[mode]
         try:
-            data = co.pack_pdo(_RPDO_MAP_ENTRIES[number], (controlword, target))
+            data = _RPDO_CODECS[number].pack((controlword, target))
         except ValueError as exc:
             raise BadParameterError(
                 "value", target, f"a target that fits {RPDO_MAPS[number][1].data_type.name}"
@@ -501,16 +515,31 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         if self._latched:
             raise _FaultedError(what)
         sw = self._statusword
-        if sw is not None and predicate(sw):  # already there: no timeout scope needed
+        if sw is not None and predicate(sw):  # already there: no timer needed
             return sw
-        with anyio.move_on_after(self.state_timeout):
-            while True:
-                if self._latched:
-                    raise _FaultedError(what)
-                sw = self._statusword
-                if sw is not None and predicate(sw):
-                    return sw
-                await self._changed.wait()
+        # A future resolved by the batch that satisfies the predicate (see _on_frames) and a
+        # loop timer bounding the wait: no cancel scope, no wake-up per unrelated frame.
+        # Cancellation from outside cancels the future; the finally clause cleans up.
+        loop = asyncio.get_running_loop()
+        deadline = loop.time() + self.state_timeout
+        waiters = self._status_waiters
+        while True:
+            waiter: asyncio.Future[bool] = loop.create_future()
+            entry = (predicate, waiter)
+            timer = loop.call_at(deadline, _expire, waiter)
+            waiters.append(entry)
+            try:
+                satisfied = await waiter
+            finally:
+                timer.cancel()
+                waiters.remove(entry)
+            if self._latched:
+                raise _FaultedError(what)
+            sw = self._statusword
+            if sw is not None and predicate(sw):
+                return sw
+            if not satisfied:
+                break
         raise TimeoutError(
             f"CiA 402 node {self.node_id}: no statusword for {what} within {self.state_timeout * 1000:.0f} ms"
             + (f" (statusword {self._statusword:#06x})" if self._statusword is not None else "")
@@ -695,8 +724,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
                 if arb == tpdo1:
                     self._on_tpdo1(frame, now)
                 elif arb == tpdo2:
-                    values = co.unpack_pdo(_TPDO2_MAP, frame.data)
-                    self._velocity, self._mode_display = values
+                    self._velocity, self._mode_display = _TPDO2_CODEC.unpack(frame.data)
                     self._tpdo2_ns = now
                 elif arb == emcy:
                     self._on_emcy(frame)
@@ -704,18 +732,40 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
                     self._on_heartbeat(frame, now)
             except DecodeError:
                 port.malformed += 1
-        changed, self._changed = self._changed, anyio.Event()
-        changed.set()
+        changed = self._changed
+        if changed is not None:
+            self._changed = None
+            changed.set()
+        if self._status_waiters:
+            self._wake_status_waiters()
+
+    def _change_event(self) -> anyio.Event:
+        """The event set after the next received batch."""
+        changed = self._changed
+        if changed is None:
+            changed = self._changed = anyio.Event()
+        return changed
+
+    def _wake_status_waiters(self) -> None:
+        """Resolve the statusword waits the latest statusword (or a fault latch) ends."""
+        sw, latched = self._statusword, self._latched
+        for predicate, waiter in self._status_waiters:
+            if not waiter.done() and (latched or (sw is not None and predicate(sw))):
+                waiter.set_result(True)
 
     def _on_tpdo1(self, frame: can.Message, now: int) -> None:
-        statusword, position, torque = co.unpack_pdo(_TPDO1_MAP, frame.data)
-        ds.state_from_statusword(statusword)  # a statusword matching no state is malformed
+        statusword, position, torque = _TPDO1_CODEC.unpack(frame.data)
+        # A statusword matching no state is malformed: nothing of this TPDO is kept.
+        state = ds.state_from_statusword(statusword)
         self._position, self._torque = position, torque
         self._tpdo1_ns = now
-        self._set_statusword(statusword, now)
+        self._set_statusword(statusword, now, state)
 
-    def _set_statusword(self, statusword: int, now: int) -> None:
-        state = ds.state_from_statusword(statusword)
+    def _set_statusword(
+        self, statusword: int, now: int, state: ds.PowerState | None = None
+    ) -> None:
+        if state is None:
+            state = ds.state_from_statusword(statusword)
         self._statusword = statusword
         if not self._engaged or self._latched:
             return
@@ -773,6 +823,9 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
     def _on_latch(self) -> None:
         self._pending = None
         self._enabled_wanted = False
+        # A statusword wait ends now (it raises _FaultedError), not at its timeout.
+        if self._status_waiters:
+            self._wake_status_waiters()
 
 
 class Cia402Temperature(SensorDevice):
