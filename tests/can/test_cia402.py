@@ -402,3 +402,57 @@ def test_bad_parameters_name_the_parameter() -> None:
         Cia402Drive(bus, 1, heartbeat_ms=0)
     with pytest.raises(BadParameterError, match="sdo_timeout"):
         Cia402Drive(bus, 1, sdo_timeout=math.nan)
+
+
+async def test_a_fault_ends_a_waiting_setpoint_handshake_at_once(
+    peers: Peers, host_bus: CanBus, components: Components, recorder: EventRecorder
+) -> None:
+    # The drive acknowledges set-points 10 s late and the handshake would wait up to its
+    # 5 s state timeout: the heartbeat loss (150 ms) must end that wait, not the timeout.
+    sim = await peers.start(_sim(setpoint_ack_delay=10.0))
+    axis = await components.actuator(_drive(host_bus, state_timeout=5.0))
+    outcome: list[BaseException | None] = []
+
+    async def command() -> None:
+        try:
+            await (await axis.set_value(1.0))
+            outcome.append(None)
+        except (DeviceFaultError, HALError) as exc:
+            outcome.append(exc)
+
+    with anyio.fail_after(1.5):
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(command)
+            await wait_until(lambda: sim.setpoint_due_ns is not None)  # waiting for the ack
+            sim.set_silent()
+    assert (await recorder.wait_for("error", source=axis, timeout=1)).id == ErrorId.DISCONNECTED
+    assert len(outcome) == 1 and outcome[0] is not None
+    assert axis.state is ComponentState.ERROR
+
+
+async def test_an_unacknowledged_setpoint_times_out_after_state_timeout(
+    peers: Peers, host_bus: CanBus, components: Components, recorder: EventRecorder
+) -> None:
+    # TPDOs keep coming (event timer) but none acknowledges: the wait ends at its timer.
+    await peers.start(_sim(setpoint_ack_delay=10.0))
+    axis = await components.actuator(_drive(host_bus, state_timeout=0.1))
+    started = anyio.current_time()
+    with anyio.fail_after(1), pytest.raises(DeviceFaultError) as info:
+        await axis.set_value(1.0)
+    assert 0.1 <= anyio.current_time() - started < 0.9
+    assert info.value.error_id == ErrorId.TIMEOUT
+    assert (await recorder.wait_for("error", source=axis, timeout=1)).id == ErrorId.TIMEOUT
+
+
+async def test_a_cancelled_setpoint_leaves_the_next_one_working(
+    peers: Peers, host_bus: CanBus, components: Components
+) -> None:
+    sim = await peers.start(_sim(setpoint_ack_delay=0.2))
+    axis = await components.actuator(_drive(host_bus))
+    with anyio.move_on_after(0.05) as scope:
+        await axis.set_value(1.0)  # cancelled while waiting for the acknowledge
+    assert scope.cancelled_caught
+    sim.setpoint_ack_delay = 0.0
+    with anyio.fail_after(2):
+        await (await axis.set_value(0.5))
+    assert sim.position == pytest.approx(0.5 * CPR / math.tau, abs=0.5)
