@@ -172,6 +172,19 @@ class EventTimer:
         self._last_tick = tick
         self._tick_fields = None
 
+    @property
+    def last_tick_fields(self) -> tuple[int, int, int, int] | None:
+        """The latest tick's ``(index, deadline_ns, time_ns, missed_ticks)`` without
+        building its :class:`~openel_async.observers.TimerTick` (None before the first):
+        for a tool that looks at the timer now and then (a recorder's statistics)."""
+        fields = self._tick_fields
+        if fields is not None:
+            return fields
+        tick = self._last_tick
+        if tick is None:
+            return None
+        return (tick.index, tick.deadline_ns, tick.time_ns, tick.missed_ticks)
+
     # -- spec operations -------------------------------------------------------------
     @property
     def period_ms(self) -> float:

@@ -118,6 +118,37 @@ async def test_ticks_arrive_exactly_on_the_grid(virtual_clock: VirtualClock) -> 
     assert stats.lateness.max_ns == stats.lateness.p99_ns == stats.lateness.p50_ns == 0
 
 
+class _Peek:
+    """A plain TimerObserver that does not take the tick notice (no TimerTick is built)
+    and reads ``last_tick_fields`` at each tick."""
+
+    def __init__(self) -> None:
+        self.fields: list[tuple[int, int, int, int] | None] = []
+
+    def notify_timer(self, timer: EventTimer) -> None:
+        self.fields.append(timer.last_tick_fields)
+
+
+async def test_last_tick_fields_match_last_tick(virtual_clock: VirtualClock) -> None:
+    """``last_tick_fields`` gives the latest tick's (index, deadline, time, missed) without
+    building its TimerTick, and agrees with ``last_tick`` once that is built."""
+    async with EventTimer(5, clock=virtual_clock, name="peek") as timer:
+        assert timer.last_tick_fields is None
+        peek = _Peek()
+        timer.add_observer(peek)
+        timer.start_timer()
+        await virtual_clock.sleep(0.0201)
+        timer.stop_timer()
+    start = peek.fields[0]
+    assert start is not None
+    assert [f[0] for f in peek.fields if f is not None] == [1, 2, 3, 4]
+    assert all(f is not None and f[1] == f[2] and f[3] == 0 for f in peek.fields)
+    tick = timer.last_tick  # built now, from the same fields
+    assert tick is not None
+    fields = (tick.index, tick.deadline_ns, tick.time_ns, tick.missed_ticks)
+    assert timer.last_tick_fields == fields == peek.fields[-1]
+
+
 @pytest.mark.parametrize(
     ("period_ms", "period_ns"),
     [

@@ -1,7 +1,7 @@
-"""A bank's streamed batches: one BATCH record per batch in the control loop (the bank's
-batch listener), one command message per component on its own channel in the file, counted
-as messages (queued, written, dropped); the joint-state sample takes the latest command
-heard, a bank's or a single one."""
+"""A bank's streamed batches: a POSITION batch is one record of the bank's column buffer in the
+control loop (its time and values appended: the bank's batch listener), one command message
+per component on its own channel in the file, counted as messages (queued, written,
+dropped); the joint-state sample takes the latest command heard, a bank's or a single one."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 from openel_async import Actuator, ActuatorBank, Request, VirtualClock
 from openel_async.recording import Recorder, read_recording
-from openel_async.recording.records import BATCH, JOINTS
+from openel_async.recording.records import BATCH, COMMAND, JOINTS
 from openel_sim import SimMotor
 
 
@@ -31,24 +31,30 @@ async def test_a_bank_batch_is_one_record_and_a_message_per_component(tmp_path: 
             before = len(queue)
             for k in range(1, 51):
                 bank.set_values_nowait([0.01 * k, -0.01 * k])
-            batches = [e for e in list(queue)[before:] if e[0] == BATCH]
-            assert len(batches) == len(queue) - before == 50  # one record per batch
-            axes[1].set_value_nowait(0.7, Request.POSITION)
+            assert len(queue) == before  # nothing queued: the bank's column holds them
+            (columns,) = [c for c in recorder.pipeline.columns if len(c.channels) == 2]
+            assert columns.kind == COMMAND and len(columns.times) == 50  # a record per batch
+            assert columns.values[:4] == [0.01, -0.01, 0.02, -0.02]
+            axes[1].set_value_nowait(0.7, Request.POSITION)  # a member's own: after them
+            assert queue[-1][2] == COMMAND and queue[-1][4] == 0.7
+            axes[1].set_value_nowait(0.2, Request.VELOCITY)  # another request: queued
             stats = recorder.stats
-            assert stats.queued >= 101 and stats.dropped == 0
+            assert stats.queued >= 102 and stats.dropped == 0
     final = recorder.final_stats
     assert final is not None and final.dropped == 0 and final.queued == final.written
     rec = read_recording(path)
     for i, sign in enumerate((1, -1)):
         commands = [m for m in rec.topic(f"/hal/AXIS_{i}") if m["kind"] == "command"]
         values = [m["value"] for m in commands]
-        expected = [sign * 0.01 * k for k in range(1, 51)] + ([0.7] if i else [])
+        expected = [sign * 0.01 * k for k in range(1, 51)] + ([0.7, 0.2] if i else [])
         assert values == expected
-        assert {m["request"] for m in commands} == {"POSITION"}
+        requests = ["POSITION"] * 50 + (["POSITION", "VELOCITY"] if i else [])
+        assert [m["request"] for m in commands] == requests
 
 
 async def test_dropped_batches_count_their_messages(tmp_path: Path) -> None:
-    """A full queue drops a batch record and counts its two messages."""
+    """A full column buffer drops a batch and counts its two messages; a full queue drops a
+    BATCH record (another request than POSITION) and counts its two messages too."""
     clock = VirtualClock()
     recorder = Recorder(tmp_path / "d.mcap", capacity=30)
     recorder.pipeline.start = lambda: None  # type: ignore[method-assign]  # nothing taken
@@ -58,13 +64,19 @@ async def test_dropped_batches_count_their_messages(tmp_path: Path) -> None:
     async with clock.autojump(), axes[0], axes[1]:
         bank = ActuatorBank(axes)
         queued = recorder.stats.queued
-        for k in range(200):  # far more than the queue holds
+        for k in range(200):  # far more than the buffer holds
             bank.set_values_nowait([0.001 * k, 0.002 * k])
-        kept = sum(1 for e in recorder.pipeline.queue if e[0] == BATCH)
+        (columns,) = [c for c in recorder.pipeline.columns if len(c.channels) == 2]
         stats = recorder.stats
+        assert len(columns.times) == 30  # capacity
+        assert stats.queued - queued == 2 * 30 and stats.dropped == 2 * 170
+        for _ in range(200):  # velocity batches: BATCH records in the queue
+            bank.set_values_nowait([0.001, 0.002], Request.VELOCITY)
+        kept = sum(1 for e in recorder.pipeline.queue if e[0] == BATCH)
+        after = recorder.stats
     assert 0 < kept < 200 and len(recorder.pipeline.queue) >= 30
-    assert stats.queued - queued == 2 * kept
-    assert stats.dropped == 2 * (200 - kept)
+    assert after.queued - stats.queued == 2 * kept
+    assert after.dropped - stats.dropped == 2 * (200 - kept)
     for axis in axes:
         axis.set_listener(None)
 

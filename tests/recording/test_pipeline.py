@@ -12,33 +12,42 @@ import threading
 import time
 from pathlib import Path
 
+import anyio
 import pytest
 
 from openel_async import Actuator, Request, VirtualClock
 from openel_async.recording import Pipeline, PipelineStats, Recorder, SinkStartError
-from openel_async.recording.records import BATCH, COMMAND
+from openel_async.recording.records import BATCH, COMMAND, READING
 from openel_async.recording.schemas import HAL_RECORD
 from openel_sim import SimMotor
 
 
 async def test_records_hold_plain_numbers(tmp_path: Path) -> None:
-    """A queued command or reading holds the Request as a plain int: such a tuple is
-    untracked by the garbage collector (a Request member would keep it tracked)."""
+    """The per-tick records (position commands, readings) are numbers in column buffers;
+    a queued command holds the Request as a plain int: such a tuple is untracked by the
+    garbage collector (a Request member would keep it tracked)."""
     clock = VirtualClock()
     recorder = Recorder(tmp_path / "r.mcap")
     recorder.pipeline.start = lambda: None  # type: ignore[method-assign]  # no writer
     actuator = Actuator(SimMotor(), device_name="AXIS", clock=clock)
     recorder.observe(actuator)
     async with clock.autojump(), actuator:
+        actuator.set_value_nowait(0.5, Request.VELOCITY)  # queued (before the others)
         actuator.set_value_nowait(0.25, Request.POSITION)
         actuator.get_value_nowait(Request.POSITION_ACTUAL)
+        now = clock.now_ns()
+        columns = {(c.kind, c.request): c for c in recorder.pipeline.columns}
+        command = columns[(COMMAND, int(Request.POSITION))]
+        reading = columns[(READING, int(Request.POSITION_ACTUAL))]
+        assert (command.times, command.values) == ([now], [0.25])
+        assert reading.times == [now] and len(reading.values) == 1
+        assert all(type(v) is float for v in reading.values)
+    # the state change at the exit queued them first (a channel's records stay in order)
+    assert not command.times and not reading.times
     records = [e for e in recorder.pipeline.queue if e[0] >= 0 and e[2] in (0, 1)]
-    assert [(type(e[3]), e[3]) for e in records] == [
-        (int, int(Request.POSITION)),
-        (int, int(Request.POSITION_ACTUAL)),
-    ]
+    assert [(type(e[3]), e[3]) for e in records] == [(int, int(Request.VELOCITY))]
     gc.collect()
-    gc.collect()  # a reading's values tuple first, then the record holding it
+    gc.collect()
     assert not any(gc.is_tracked(e) for e in records)
     actuator.set_listener(None)
 
@@ -253,3 +262,23 @@ def test_start_is_bounded_when_the_writer_never_says_ready(tmp_path: Path) -> No
     assert pipeline.writer_pid is None
     with pytest.raises(ValueError, match="start_timeout"):
         Pipeline(mcap=tmp_path / "x.mcap", start_timeout=0)
+
+
+async def test_a_loop_without_a_timer_hands_its_columns_over(tmp_path: Path) -> None:
+    """No timer paces the tap: the pipeline's thread asks the loop, every flush_interval,
+    to hand its column buffers over (a live view sees a slow loop's readings)."""
+    recorder = Recorder(tmp_path / "t.mcap")
+    actuator = Actuator(SimMotor(), device_name="AXIS")  # the real clock
+    async with recorder:
+        recorder.observe(actuator)
+        async with actuator:
+            actuator.set_value_nowait(0.25, Request.POSITION)
+            actuator.get_value_nowait(Request.POSITION_ACTUAL)
+            held = [c for c in recorder.pipeline.columns if c.times]
+            assert len(held) == 2
+            with anyio.fail_after(10):  # flush_interval is 20 ms
+                while any(c.times for c in held):
+                    await anyio.sleep(0.005)
+            assert all(c.taken == 1 for c in held)
+    stats = recorder.final_stats
+    assert stats is not None and stats.dropped == 0 and stats.written == stats.queued

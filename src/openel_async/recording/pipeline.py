@@ -3,16 +3,21 @@ without blocking, batches of it encoded (msgpack) and written by a thread to the
 process (:mod:`.sink_process`), which makes the messages (JSON) and logs them on a Foxglove
 SDK context whose sinks write them (an MCAP file, the Foxglove server).
 
-The control loop only appends a tuple to a deque (the listeners of :mod:`.tap` do it
-directly); a full queue drops the record and counts it (:attr:`PipelineStats.dropped`). When
-``batch_size`` records are queued, the loop itself takes them and encodes them as one
-msgpack frame (:meth:`Pipeline.flush_due`, called by the tap every few ticks: one C call, no
-waiting: it skips while the thread holds the lock or has ``max_frames`` frames still to
-write), and wakes the thread, which only writes frames to the process's stdin (the pipe
-write releases the interpreter lock): a thread taking and encoding thousands of records
-itself held the interpreter lock meanwhile and made the loop wait for it. Every
-``flush_interval`` seconds the thread also takes what is queued (records of a slow loop, or
-of one whose tap sees no timer). The encoding of the messages and the MCAP writing happen in
+The control loop appends the per-tick records (a bank's setpoints, a sensor's reading, an
+actuator's position command) as numbers to column buffers (:mod:`.columns`: flat lists,
+no tuple per record) and the rest (state changes, events, samples) as tuples to a
+deque (the listeners of :mod:`.tap` do it directly); a full buffer or queue drops the record
+and counts it (:attr:`PipelineStats.dropped`). When ``batch_size`` records are held, the
+loop itself takes them and encodes them as one msgpack frame
+(:meth:`Pipeline.flush_due`, called by the tap every few ticks: no waiting: it skips while
+the thread holds the lock or has ``max_frames`` frames still to write), and wakes the
+thread, which only writes frames to the process's stdin (the pipe write releases the
+interpreter lock): a thread taking and encoding thousands of records itself held the
+interpreter lock meanwhile and made the loop wait for it. When the loop has handed nothing
+over for ``flush_interval`` seconds (a slow loop, or one whose tap sees no timer), the
+thread asks the loop (:attr:`Pipeline.loop_call`) to hand everything over (without one it
+takes the queue itself); only the loop's thread touches a column until the tap has
+detached, and a channel's records reach the writer in order. The encoding of the messages and the MCAP writing happen in
 the other process, which runs at the lowest priority (``writer_nice``, 19), so it does not
 compete with the loop for the CPU either: on a busy machine it falls behind (the queue, the
 frames and the pipe hold the backlog) and catches up when there is time.
@@ -29,6 +34,7 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import repeat, starmap
 from typing import Any, Protocol
@@ -36,7 +42,8 @@ from typing import Any, Protocol
 import msgspec
 import structlog
 
-from .records import BATCH, CHANNEL, STATS
+from .columns import Columns, column_messages_count
+from .records import BATCH, CHANNEL, COLUMNS, STATS
 from .schemas import ChannelSpec, Schema
 
 __all__ = ["Pipeline", "PipelineStats", "Sink", "SinkStartError"]
@@ -146,9 +153,15 @@ class Pipeline:
         """The batch listeners that queue BATCH records (one record for ``size`` messages):
         each counts the records it queued (``count``), so that :attr:`queued` counts
         messages."""
+        self.columns: list[Columns] = []
+        """The column buffers of the per-tick records (:meth:`add_columns`)."""
+        self.loop_call: Callable[[Callable[[], None]], object] | None = None
+        """Schedules a call in the control loop's thread (``loop.call_soon_threadsafe``; set
+        by the tap): the thread asks the loop to hand its columns over with it."""
+        self._columns_lost = 0  # messages of columns discarded (not written): out of queued
         self._batch_lost = 0  # messages beyond one of the BATCH records discarded
         self._taken = 0  # entries taken from the queue (into frames)
-        self._controls = 0  # channel entries queued (not records)
+        self._controls = 0  # channel and column entries queued or taken (not records)
         self._frames: deque[tuple[bytes, list[tuple[Any, ...]]]] = deque()
         """Encoded frames (and their entries) the thread has still to write, in order."""
         self._lock = threading.Lock()  # taking from the queue into _frames
@@ -174,6 +187,29 @@ class Pipeline:
         self.queue.append((CHANNEL, self.offset_ns, 0, spec.id, topic, schema.name, spec.metadata))
         return spec.id
 
+    def add_columns(
+        self, kind: int, request: int | None, channels: tuple[int, ...], width: int
+    ) -> Columns:
+        """A new column buffer for records of ``kind`` (COMMAND or READING, request code
+        ``request``) on ``channels``, ``width`` values each (:mod:`.columns`), holding at most
+        :attr:`capacity` records."""
+        if not channels or any(not 0 <= c < len(self.channels) for c in channels):
+            raise ValueError(f"channels must be ids of this pipeline's channels, got {channels}")
+        if width < 1:
+            raise ValueError(f"width must be >= 1, got {width}")
+        columns = Columns(kind, request, channels, width, self.capacity)
+        self.columns.append(columns)
+        return columns
+
+    def hand_over(self, columns: Columns) -> None:
+        """Queue what ``columns`` holds now (from the control loop's thread): before a
+        record of the same channel goes to the queue, so that the writer gets a channel's
+        records in the order they came."""
+        entry = columns.take()
+        if entry is not None:
+            self.queue.append(entry)
+            self._controls += 1
+
     def put(self, entry: tuple[Any, ...]) -> None:
         """Queue a record ``(channel, time_ns, kind, *fields)`` (:mod:`.sink_process`); never
         blocks."""
@@ -192,7 +228,8 @@ class Pipeline:
     def queued(self) -> int:
         """Records handed over so far (taken by the thread or waiting)."""
         extra: int = sum(b.count * (b.size - 1) for b in self.batches) - self._batch_lost
-        return self._taken + len(self.queue) - self._controls + extra
+        columns = sum((c.taken + len(c.times)) * c.per_record for c in self.columns)
+        return self._taken + len(self.queue) - self._controls + extra + columns - self._columns_lost
 
     @property
     def stats(self) -> PipelineStats:
@@ -266,7 +303,8 @@ class Pipeline:
         no longer reading its stdin, which leaves the thread blocked on the full pipe) is
         killed; what the thread could not hand over is counted as dropped and
         :attr:`error` says why (the file keeps what was written up to its last complete
-        chunk)."""
+        chunk). Called once nothing appends any more (the tap has detached): the thread
+        takes the columns' last records too."""
         deadline = time.monotonic() + timeout
         self._stop.set()
         self._wake.set()
@@ -278,6 +316,11 @@ class Pipeline:
                 self._kill(process, timeout)  # its stdin breaks: the blocked write fails
                 thread.join(10.0)
             self._thread = None
+        if self._dead:  # what came after the writer died: dropped, and counted
+            with self._lock:
+                queue = self.queue
+                self._discard(list(starmap(queue.popleft, repeat((), len(queue)))))
+                self.discard_columns()
         if process is not None:
             self._process = None
             assert process.stdout is not None
@@ -306,31 +349,52 @@ class Pipeline:
                     f"the writer process did not finish within {timeout} s: killed"
                 )
 
-    def flush_due(self) -> None:
-        """From the control loop, every few ticks: when ``batch_size`` records are queued,
-        take them, encode them as one frame for the thread and wake it. Never blocks: skipped
-        while the thread is taking records itself, has ``max_frames`` frames still to write,
-        or the writer is gone."""
-        if (
-            len(self.queue) >= self.batch_size
-            and len(self._frames) < self.max_frames
-            and self._lock.acquire(blocking=False)
-        ):
+    def flush_due(self, force: bool = False) -> None:
+        """From the control loop's thread, every few ticks: when ``batch_size`` records are
+        held (``force``: any), take them (the queue's and the columns'), encode them as one
+        frame for the thread and wake it. Never blocks: skipped while the thread is taking
+        records itself, has ``max_frames`` frames still to write, or the writer is gone."""
+        held = len(self.queue)
+        if held < self.batch_size:
+            for columns in self.columns:
+                held += len(columns.times)
+            if held < (1 if force else self.batch_size):
+                return
+        if len(self._frames) < self.max_frames and self._lock.acquire(blocking=False):
             try:
                 if self._dead or self._stop.is_set():  # the thread takes no more frames
                     return
-                self._take()
+                self._take(columns=True)
             finally:
                 self._lock.release()
             self._wake.set()
 
-    def _take(self, final: bool = False) -> None:
-        """What is queued, as one encoded frame appended to :attr:`_frames` (the caller holds
-        the lock)."""
+    def _flush_soon(self) -> None:
+        """From the thread: ask the control loop to hand over what it holds (its records of
+        the last ``flush_interval`` seconds)."""
+        call = self.loop_call
+        if call is not None and (self.queue or any(len(c.times) for c in self.columns)):
+            with contextlib.suppress(RuntimeError):  # the loop is closed: stop() takes them
+                call(self._forced)
+
+    def _forced(self) -> None:
+        self.flush_due(force=True)
+
+    def _take(self, final: bool = False, columns: bool = False) -> None:
+        """What is queued (and the columns' records when ``columns``: only from the control
+        loop's thread, or at the end once nothing appends to them), as one encoded frame
+        appended to :attr:`_frames` (the caller holds the lock)."""
         queue = self.queue
         n = len(queue)  # the loop appends meanwhile: take n, each popleft atomic (C loop)
         batch = list(starmap(queue.popleft, repeat((), n)))
         self._taken += n
+        if columns or final:  # after the queue's: each channel's records in order
+            for buffer in self.columns:
+                entry = buffer.take()
+                if entry is not None:
+                    batch.append(entry)
+                    self._taken += 1
+                    self._controls += 1
         if final:
             batch.append((STATS, self.queued, self.dropped, self.capacity))
         if batch:
@@ -345,9 +409,15 @@ class Pipeline:
                 woken = self._wake.wait(self.flush_interval)
                 self._wake.clear()
                 stopping = self._stop.is_set()
-                if stopping or not woken:  # the loop hands over no batch: take what is queued
+                if stopping:  # the last records: the tap has detached
                     with self._lock:
-                        self._take(final=stopping)
+                        self._take(final=True)
+                elif not woken:  # the loop handed nothing over for flush_interval
+                    if self.loop_call is not None:
+                        self._flush_soon()  # it takes all, in order
+                    else:
+                        with self._lock:
+                            self._take()
                 self._write_frames(fd)
                 if stopping:
                     break
@@ -366,6 +436,8 @@ class Pipeline:
                 self._discard(lost)
                 queue = self.queue
                 self._discard(list(starmap(queue.popleft, repeat((), len(queue)))))
+                if self._stop.is_set():  # nothing appends to the columns any more
+                    self.discard_columns()
         finally:
             with contextlib.suppress(OSError):
                 process.stdin.close()
@@ -381,10 +453,23 @@ class Pipeline:
                 data = data[n:]
             frames.popleft()
 
+    def discard_columns(self) -> None:
+        """Count the records the columns hold as dropped (the writer is gone; from the
+        control loop's thread, or once nothing appends to them)."""
+        for columns in self.columns:
+            lost = columns.discard()
+            self.dropped += lost
+            self._columns_lost += lost
+
     def _discard(self, entries: list[tuple[Any, ...]]) -> None:
         """Count ``entries`` (taken out of the count of queued ones) as dropped."""
+        for entry in entries:
+            if entry[0] == COLUMNS:  # records handed over in a frame that was lost
+                lost = column_messages_count(entry)
+                self.dropped += lost
+                self._columns_lost += lost
         records = sum(1 for entry in entries if entry[0] >= 0)
-        self._controls -= sum(1 for entry in entries if entry[0] == CHANNEL)
+        self._controls -= sum(1 for entry in entries if entry[0] in (CHANNEL, COLUMNS))
         batched = sum(len(entry[4]) for entry in entries if entry[0] == BATCH)
         self._batch_lost += batched - sum(1 for entry in entries if entry[0] == BATCH)
         self.dropped += records + batched

@@ -34,6 +34,11 @@ BATCH = -3
 for ``len(channels)`` messages: ``values[i]`` to channel ``channels[i]`` (the writer process
 makes each its COMMAND message on its component's channel)."""
 
+COLUMNS = -4
+"""(-4, kind, request, channels, width, times, values): a column's records
+(:mod:`.columns`): ``times`` the int64 and ``values`` the float64 arrays as bytes (the
+machine's byte order: the writer process runs beside the parent)."""
+
 SCHEMAS: dict[str, Schema] = {
     s.name: s for s in (HAL_RECORD, TIMER_TICK, JOINT_STATES, LOG, FRAME_TRANSFORMS, SCENE_UPDATE)
 }

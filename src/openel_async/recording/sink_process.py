@@ -30,11 +30,27 @@ import foxglove
 import msgspec
 import structlog
 
+from .columns import column_messages
 from .pipeline import PipelineStats, Sink
-from .records import BATCH, CHANNEL, COMMAND, HEADER, SCHEMAS, STATS, to_message
+from .records import BATCH, CHANNEL, COLUMNS, COMMAND, HEADER, SCHEMAS, STATS, to_message
 from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, Schema
 
 LogCall = Callable[[bytes, int | None, int | None], None]
+
+
+def flush(out: list[tuple[int, LogCall, bytes]]) -> int:
+    """Log the messages of ``out`` in log-time order (stable: in order within a time), then
+    empty it; how many."""
+    out.sort(key=_log_time)
+    for log_time, log, data in out:
+        log(data, log_time, None)
+    n = len(out)
+    out.clear()
+    return n
+
+
+def _log_time(item: tuple[int, LogCall, bytes]) -> int:
+    return item[0]
 
 
 def serve(stream: BinaryIO, context: foxglove.Context, schemas: dict[str, Schema]) -> PipelineStats:
@@ -44,6 +60,8 @@ def serve(stream: BinaryIO, context: foxglove.Context, schemas: dict[str, Schema
     keep: list[foxglove.Channel] = []
     logs: dict[int, tuple[LogCall, int]] = {}  # channel id -> (its log call, time offset)
     written = queued = dropped = capacity = 0
+    out: list[tuple[int, LogCall, bytes]] = []
+    add = out.append
     read = stream.read
     while True:
         header = read(4)
@@ -53,19 +71,24 @@ def serve(stream: BinaryIO, context: foxglove.Context, schemas: dict[str, Schema
         payload = read(size)
         if len(payload) < size:  # the parent died mid-frame
             break
+        # A frame's messages are logged in log-time order (stable): a channel's records in
+        # a column buffer and in the queue were taken at the same moment but kept apart.
         for entry in decode(payload):
             channel = entry[0]
             if channel >= 0:
                 log, offset = logs[channel]
-                log(encode(to_message(entry)), entry[1] + offset, None)
-                written += 1
+                add((entry[1] + offset, log, encode(to_message(entry))))
+            elif channel == COLUMNS:
+                for cid, t, message in column_messages(entry):
+                    log, offset = logs[cid]
+                    add((t + offset, log, encode(message)))
             elif channel == BATCH:  # a bank's commands: one message per component
                 _, t, _, request, channels, values = entry
                 for cid, value in zip(channels, values, strict=True):
                     log, offset = logs[cid]
-                    log(encode(to_message([cid, t, COMMAND, request, value])), t + offset, None)
-                written += len(channels)
+                    add((t + offset, log, encode(to_message([cid, t, COMMAND, request, value]))))
             elif channel == CHANNEL:
+                written += flush(out)  # the messages before it, then the channel
                 _, offset, _, cid, topic, schema_name, metadata = entry
                 schema = schemas[schema_name]
                 created = foxglove.Channel(
@@ -81,6 +104,7 @@ def serve(stream: BinaryIO, context: foxglove.Context, schemas: dict[str, Schema
                 logs[cid] = (created.base.log, offset)
             elif channel == STATS:
                 _, queued, dropped, capacity = entry
+        written += flush(out)
     for created in keep:
         created.close()
     return PipelineStats(queued or written, written, dropped, capacity)

@@ -15,6 +15,7 @@ attach it to any app) and can be used directly::
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import math
 import os
@@ -34,6 +35,7 @@ from ..device import ValueSource
 from ..errors import HALError, WouldBlockError
 from ..requests import EventId, Request
 from ..timer import EventTimer
+from .columns import Columns
 from .pipeline import Pipeline, PipelineStats
 from .records import (
     BATCH,
@@ -79,13 +81,29 @@ _LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "crit
 
 class _ComponentTap:
     """The listener the tap sets on one component: its records go straight into the
-    pipeline's queue (one call from the component; no lookup of the channel).
+    pipeline (one call from the component; no lookup of the channel).
 
-    A record holds only ints, floats, None and strings (a Request as its int): the garbage
-    collector then untracks it at its first passes, so thousands of queued records do not
-    make every full collection longer (a Request member would keep it tracked)."""
+    Readings go to column buffers (:mod:`.columns`): one per request code, made at the
+    first reading of that code (its width: that reading's number of values); the common one
+    -- the first code read -- is kept at hand. A reading of another width, and state
+    changes, go to the queue as tuples of ints, floats, None and strings (a Request as its
+    int: the garbage collector then untracks them at its first passes)."""
 
-    __slots__ = ("capacity", "channel", "component", "muted", "now", "pipeline", "queue", "tap")
+    __slots__ = (
+        "capacity",
+        "channel",
+        "component",
+        "muted",
+        "now",
+        "pipeline",
+        "queue",
+        "read_code",
+        "read_times",
+        "read_values",
+        "read_width",
+        "readings",
+        "tap",
+    )
 
     def __init__(self, tap: Tap, component: HALComponent, channel: int) -> None:
         self.tap = tap
@@ -97,43 +115,99 @@ class _ComponentTap:
         self.capacity = tap.pipeline.capacity
         self.muted = False
         """True while the tap reads the component itself (that read is not recorded)."""
+        self.readings: dict[Request | None, Columns | None] = {}
+        """Request -> the column buffer of its readings (None: they do not fit one)."""
+        self.read_code: Request | bool | None = False  # the request of the buffer at hand
+        self.read_times: list[int] = []
+        self.read_values: list[float] = []
+        self.read_width = 0
 
     def on_command(
         self, component: HALComponent, request: Request, value: float, time_ns: int
     ) -> None:
+        self.hand_over()
         queue = self.queue
         if len(queue) < self.capacity:
             queue.append((self.channel, time_ns, COMMAND, int(request), value))
         else:
             self.pipeline.dropped += 1
 
+    def hand_over(self) -> None:
+        """Queue what this component's column buffers hold: before a record of its channel
+        goes to the queue (the writer gets a channel's records in order)."""
+        pipeline = self.pipeline
+        for columns in self.readings.values():
+            if columns is not None and columns.times:
+                pipeline.hand_over(columns)
+
     def on_reading(
         self, component: HALComponent, request: Request | None, values: tuple[float, ...]
     ) -> None:
+        if request is self.read_code and len(values) == self.read_width and not self.muted:
+            times = self.read_times  # Columns.append, inline (the per-tick path)
+            if len(times) < self.capacity:
+                times.append(self.now())
+                self.read_values.extend(values)
+            else:
+                self.pipeline.dropped += 1
+            return
         if self.muted:  # the tap's own read
             return
-        queue = self.queue
-        if len(queue) < self.capacity:
+        self._reading(request, values)
+
+    def _reading(self, request: Request | None, values: tuple[float, ...]) -> None:
+        """A reading off the path at hand: into its request's column buffer, else queued."""
+        if request in self.readings:
+            columns = self.readings[request]
+        else:  # the first reading of this request: its buffer
             code = None if request is None else int(request)
-            queue.append((self.channel, self.now(), READING, code, values))
-        else:
-            self.pipeline.dropped += 1
+            columns = None
+            if values and all(type(v) is float for v in values):  # as readings are
+                columns = self.pipeline.add_columns(READING, code, (self.channel,), len(values))
+            self.readings[request] = columns
+            if columns is not None and self.read_code is False:
+                self.read_code = request
+                self.read_times, self.read_values = columns.times, columns.values
+                self.read_width = columns.width
+        if columns is not None and len(values) == columns.width:
+            if not columns.append(self.now(), values):
+                self.pipeline.dropped += 1
+            return
+        self.hand_over()
+        code = None if request is None else int(request)
+        self.pipeline.put((self.channel, self.now(), READING, code, values))
 
     def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
+        self.hand_over()
         self.pipeline.put((self.channel, self.now(), STATE, str(old), str(new)))
         if new is _ACTIVE:
             self.tap.observe_events(component)
 
 
 class _ActuatorTap(_ComponentTap):
-    """An actuator's listener; it also keeps what the joint-state sample needs without
-    reading through the framework: the commanded position (the last POSITION command it
-    heard, read once through the framework after each activation, which resets it; or the
-    latest of its banks' batches, :class:`_BankTap`, when one came after) and the
-    device's own actual-position read (``None``: the framework answers the commanded value
-    for it, or the device has no synchronous read)."""
+    """An actuator's listener: its position commands go to a column buffer; it also keeps
+    what the joint-state sample needs without reading through the framework: the commanded
+    position (the last POSITION command it heard, or the latest of its banks' batches
+    (:class:`_BankTap`) when one came after it: each bank's batch count is noted at each
+    of its own commands; read once through the framework after each activation, which
+    resets it) and the device's own actual-position read (``None``: the framework answers
+    the commanded value for it, or the device has no synchronous read).
 
-    __slots__ = ("actuator", "banks", "commanded", "name", "read", "seq")
+    Its POSITION commands go to a column buffer while it is in no bank; a bank member's
+    own commands (rare: the bank streams) go to the queue after the bank's earlier
+    batches, so that the file keeps their order."""
+
+    __slots__ = (
+        "actuator",
+        "banks",
+        "command_times",
+        "command_values",
+        "commanded",
+        "commands",
+        "marks",
+        "name",
+        "read",
+    )
 
     def __init__(self, tap: Tap, component: Actuator, channel: int) -> None:
         super().__init__(tap, component, channel)
@@ -141,11 +215,14 @@ class _ActuatorTap(_ComponentTap):
         self.name = component.device_name
         self.commanded: float | None = None
         """The last POSITION command heard since the last state change (None: unknown)."""
-        self.seq = 0
-        """``tap.seq`` when :attr:`commanded` was set: a bank's batch with a higher one is
-        newer."""
         self.banks: list[tuple[_BankTap, int]] = []
         """The batch listeners of the banks it is in, and its index in each."""
+        self.marks: list[int] = []
+        """Each bank's batch count at its last own command or state change (a bank
+        joined since: 0), in the order of :attr:`banks`."""
+        self.commands: Columns | None = None  # its POSITION commands (made at the first)
+        self.command_times: list[int] = []
+        self.command_values: list[float] = []
         measured = component.value_source(_POSITION_ACTUAL) is not ValueSource.COMMANDED
         self.read: Callable[[Request], float] | None = (
             component.device.read_nowait if measured else None
@@ -154,21 +231,46 @@ class _ActuatorTap(_ComponentTap):
     def on_command(
         self, component: HALComponent, request: Request, value: float, time_ns: int
     ) -> None:
-        if request is _POSITION:  # the usual one: its code without an int() call
+        if request is _POSITION:
             self.commanded = value
-            self.seq = self.tap.seq
-            code = _POSITION_CODE
-        else:
-            code = int(request)
+            if self.banks:
+                self.mark()
+        if request is _POSITION and not self.banks:
+            times = self.command_times  # Columns.append, inline
+            if len(times) < self.capacity:
+                if self.commands is None:
+                    self._command_columns()
+                    times = self.command_times
+                times.append(time_ns)
+                self.command_values.append(value)
+            else:
+                self.pipeline.dropped += 1
+            return
+        self.hand_over()
         queue = self.queue
         if len(queue) < self.capacity:
-            queue.append((self.channel, time_ns, COMMAND, code, value))
+            queue.append((self.channel, time_ns, COMMAND, int(request), value))
         else:
             self.pipeline.dropped += 1
 
+    def hand_over(self) -> None:
+        super().hand_over()
+        pipeline = self.pipeline
+        commands = self.commands
+        if commands is not None and commands.times:
+            pipeline.hand_over(commands)
+        for bank, _ in self.banks:
+            if bank.times:
+                pipeline.hand_over(bank.columns)
+
+    def _command_columns(self) -> None:
+        columns = self.pipeline.add_columns(COMMAND, _POSITION_CODE, (self.channel,), 1)
+        self.commands = columns
+        self.command_times, self.command_values = columns.times, columns.values
+
     def on_state(self, component: HALComponent, old: ComponentState, new: ComponentState) -> None:
         self.commanded = None  # an activation sets it to the actual position
-        self.seq = self.tap.seq  # and the banks' earlier batches are older
+        self.mark()  # and the banks' earlier batches are older
         super().on_state(component, old, new)
 
     def batch_listener(self, components: Sequence[HALComponent]) -> _BankTap | None:
@@ -179,13 +281,34 @@ class _ActuatorTap(_ComponentTap):
     def latest_commanded(self) -> float | None:
         """The commanded position: the last POSITION command heard, its own or in a bank's
         batch, whichever came last (read through the framework after an activation)."""
-        commanded, seq = self.commanded, self.seq
-        for bank, index in self.banks:
-            if bank.seq > seq and bank.values is not None:
-                commanded, seq = bank.values[index], bank.seq
+        commanded = self.commanded
+        banks = self.banks
+        if banks:  # _BankTap.batches and latest, inline (every sample)
+            at = -1
+            for (bank, index), mark in zip(banks, self.marks, strict=True):
+                columns = bank.columns
+                times = columns.times
+                n = len(times)
+                count = columns.taken + n + bank.drops
+                if count <= mark:  # none since its own command
+                    continue
+                if bank.lost_at == count and bank.lost is not None:  # the latest was dropped
+                    t, value = bank.lost[0], bank.lost[1][index]
+                elif n:
+                    t, value = times[n - 1], columns.values[(n - 1) * columns.width + index]
+                elif columns.last_values is not None:
+                    t, value = columns.last_time, columns.last_values[index]
+                else:
+                    continue
+                if t > at:  # the newest bank's
+                    at, commanded = t, value
         if commanded is None:
             commanded = self.read_commanded()
         return commanded
+
+    def mark(self) -> None:
+        """Note each bank's batch count (its own command or a state change came now)."""
+        self.marks = [bank.batches() for bank, _ in self.banks]
 
     def read_commanded(self) -> float | None:
         """The commanded position read through the framework (after an activation; that
@@ -197,59 +320,78 @@ class _ActuatorTap(_ComponentTap):
             return None
         finally:
             self.muted = False
-        self.seq = self.tap.seq
         return self.commanded
 
 
 class _BankTap:
-    """The batch listener of a bank (:func:`openel_async.listeners.batch_listener`): one
-    BATCH record per batch, split into a COMMAND message per component (on each one's
-    channel) by the writer process; it keeps the latest POSITION batch for the joint-state
-    sample (:meth:`_ActuatorTap.latest_commanded`)."""
+    """The batch listener of a bank (:func:`openel_async.listeners.batch_listener`): a
+    POSITION batch is a record of a column buffer (:mod:`.columns`; the writer process makes
+    a COMMAND message of each value on its component's channel), another request's a BATCH
+    record in the queue; the latest POSITION batch is what the joint-state sample takes
+    (:meth:`_ActuatorTap.latest_commanded`)."""
 
     __slots__ = (
         "capacity",
         "channels",
+        "columns",
         "count",
+        "drops",
+        "lost",
+        "lost_at",
+        "members",
         "pipeline",
         "queue",
-        "seq",
         "size",
-        "tap",
+        "times",
         "values",
     )
 
     def __init__(self, tap: Tap, members: Sequence[_ComponentTap]) -> None:
-        self.tap = tap
+        self.members = tuple(members)
         self.channels = tuple(m.channel for m in members)
         self.size = len(members)
         self.pipeline = tap.pipeline
         self.queue = tap.pipeline.queue
         self.capacity = tap.pipeline.capacity
+        self.columns = tap.pipeline.add_columns(COMMAND, _POSITION_CODE, self.channels, self.size)
+        self.times = self.columns.times
+        self.values = self.columns.values
         self.count = 0
         """BATCH records queued (the pipeline counts ``size`` messages for each)."""
-        self.seq = 0
-        """``tap.seq`` of the latest POSITION batch."""
-        self.values: tuple[float, ...] | None = None
-        """The latest POSITION batch (None: none yet)."""
+        self.lost: tuple[int, tuple[float, ...]] | None = None
+        """The latest POSITION batch that was dropped (its time and values)."""
+        self.drops = 0
+        """POSITION batches dropped so far."""
+        self.lost_at = 0
+        """:meth:`batches` when :attr:`lost` was dropped."""
 
     def __call__(self, request: Request, values: Sequence[float], time_ns: int) -> None:
+        if request is _POSITION:  # Columns.append, inline (the per-tick path)
+            times = self.times
+            if len(times) < self.capacity:
+                times.append(time_ns)
+                self.values.extend(values)
+            else:
+                self.pipeline.dropped += self.size
+                self.lost = (time_ns, tuple(values))  # not recorded, but the latest command
+                self.drops += 1
+                self.lost_at = self.batches()
+            return
+        for member in self.members:  # their channels' earlier records first
+            member.hand_over()
+        if self.times:
+            self.pipeline.hand_over(self.columns)
         queue = self.queue
         if len(queue) < self.capacity:
-            if request is _POSITION:
-                self.values = values = tuple(values)
-                tap = self.tap
-                self.seq = tap.seq = tap.seq + 1
-                queue.append((BATCH, time_ns, COMMAND, _POSITION_CODE, self.channels, values))
-            else:
-                queue.append((BATCH, time_ns, COMMAND, int(request), self.channels, tuple(values)))
+            queue.append((BATCH, time_ns, COMMAND, int(request), self.channels, tuple(values)))
             self.count += 1
         else:
             self.pipeline.dropped += self.size
-            if request is _POSITION:  # not recorded, but the joints' latest command
-                self.values = tuple(values)
-                tap = self.tap
-                self.seq = tap.seq = tap.seq + 1
+
+    def batches(self) -> int:
+        """POSITION batches heard so far (held, handed over or dropped)."""
+        columns = self.columns
+        return columns.taken + len(self.times) + self.drops
 
 
 def _unreadable(request: Request) -> float:
@@ -296,8 +438,8 @@ class _TimerTap:
         self.step = 1
         self.timer_period_ns = 0
         self.update_step(timer)
-        tick = timer.last_tick
-        self.last_index = 0 if tick is None else tick.index
+        fields = timer.last_tick_fields
+        self.last_index = 0 if fields is None else fields[0]
         self.delivered = timer.ticks_delivered  # at the last statistics record
 
     def notify_timer(self, timer: EventTimer) -> None:
@@ -336,15 +478,14 @@ class _TimerTap:
         timer = self.timer
         delivered = timer.ticks_delivered
         ticks = delivered - self.delivered
-        tick = timer.last_tick
-        if tick is None or not ticks:
+        fields = timer.last_tick_fields  # no TimerTick built
+        if fields is None or not ticks:
             return
-        missed = tick.index - self.last_index - ticks
-        self.last_index = tick.index
+        index, deadline_ns, time_ns, _ = fields
+        missed = index - self.last_index - ticks
+        self.last_index = index
         self.delivered = delivered
-        self.tap.pipeline.put(
-            (self.channel, tick.time_ns, TICK, tick.index, tick.deadline_ns, missed, ticks)
-        )
+        self.tap.pipeline.put((self.channel, time_ns, TICK, index, deadline_ns, missed, ticks))
 
 
 def _never() -> int:
@@ -398,8 +539,6 @@ class Tap(AppHook):
         self._scenes: list[tuple[SceneSource, Any]] = []  # (source, its frames or None)
         self.next_joint_ns = 0
         """When the next joint-state sample is due (clock ns)."""
-        self.seq = 0
-        """Counts the banks' POSITION batches: orders them against single commands."""
         self.now: Callable[[], int] = _never
         """The app's clock's ``now_ns`` (once known)."""
         self.flush_due = self.pipeline.flush_due
@@ -429,6 +568,8 @@ class Tap(AppHook):
         self._entered = True
         if not self._started:
             await run_in_thread(self.start)  # under external_work: no simulated time passes
+        with contextlib.suppress(RuntimeError):  # not on asyncio: the thread takes the queue
+            self.pipeline.loop_call = asyncio.get_running_loop().call_soon_threadsafe
         offset, self.pipeline.offset_ns = self.pipeline.offset_ns, 0
         self._log_channel = self.pipeline.add_channel(LOG_TOPIC, LOG)  # wall-clock times
         self.pipeline.offset_ns = offset
@@ -449,6 +590,7 @@ class Tap(AppHook):
         if self._pace_call is not None:
             self._pace_call.cancel()
             self._pace_call = None
+        self.pipeline.loop_call = None  # detached: the thread takes the columns at stop
         for timer in self._timers:
             timer_tap = self._timer_taps[id(timer)]
             timer_tap.flush()  # the ticks since its last statistics record
@@ -540,6 +682,7 @@ class Tap(AppHook):
             for index, member in enumerate(members):
                 if isinstance(member, _ActuatorTap):
                     member.banks.append((found, index))
+                    member.marks.append(0)
         return found
 
     def observe_events(self, component: HALComponent) -> None:
@@ -586,10 +729,10 @@ class Tap(AppHook):
             self.sample(now)
         self.flush_due()
         due = now + self._pace_ns()
-        tick = self._paced[0].timer.last_tick
-        if tick is not None:  # on one of the timer's deadlines: no extra break of the steps
-            period = tick.timer.period_ns
-            due += (tick.deadline_ns - due) % period
+        timer = self._paced[0].timer
+        fields = timer.last_tick_fields
+        if fields is not None:  # on one of the timer's deadlines: no extra break of the steps
+            due += (fields[1] - due) % timer.period_ns
         return due
 
     def add_scene(self, source: SceneSource) -> None:
@@ -618,10 +761,12 @@ class Tap(AppHook):
 
     # -- observers ---------------------------------------------------------------------
     def notify_event(self, source: HALComponent, event_id: int) -> None:
+        self._listeners[id(source)].hand_over()
         kind = COMPLETION if event_id == _COMPLETED else EVENT
         self._put((self._channels[id(source)], source.clock.now_ns(), kind, event_id))
 
     def notify_error(self, source: HALComponent, error_id: int) -> None:
+        self._listeners[id(source)].hand_over()
         self._put((self._channels[id(source)], source.clock.now_ns(), ERROR, error_id))
 
     def sample(self, now: int) -> None:

@@ -1,0 +1,139 @@
+"""Column buffers: the per-tick records of a tap kept as two flat lists of numbers, not as a
+tuple per record.
+
+A control loop records the same few things every tick: a bank's setpoints, a sensor's
+reading, an actuator's position command. For each such stream a tap's listener appends the
+record's time to a :class:`Columns`' ``times`` and its ``width`` values to ``values``: two
+list appends (the cheapest thing Python does; a tuple per record and an ``array`` append
+both cost more), no object per record for the collector, and the batch encodes as two
+lists of numbers. The control loop hands a buffer over whole (:meth:`Columns.take`); the
+writer process makes the messages (:func:`column_messages`). Only the control loop's
+thread appends to or takes from a buffer (the lists stay the same objects: listeners keep
+them at hand).
+
+A record: kind COMMAND, ``values[i]`` commanded to the component of ``channels[i]`` (a
+bank's batch: one message per channel; an actuator's own command: one channel); or kind
+READING, the ``width`` values read from the component of ``channels[0]`` (one message).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from typing import Any
+
+from .records import COLUMNS, COMMAND, REQUEST_NAMES
+
+__all__ = ["Columns", "column_messages", "column_messages_count"]
+
+
+class Columns:
+    """The records of one stream (see the module docstring): at most ``capacity`` records
+    held; beyond, the listener drops and counts them."""
+
+    __slots__ = (
+        "capacity",
+        "channels",
+        "kind",
+        "last_time",
+        "last_values",
+        "per_record",
+        "request",
+        "taken",
+        "times",
+        "values",
+        "width",
+    )
+
+    def __init__(
+        self, kind: int, request: int | None, channels: tuple[int, ...], width: int, capacity: int
+    ) -> None:
+        if kind == COMMAND and width != len(channels):
+            raise ValueError(f"a command column has one value per channel, got width {width}")
+        if request not in REQUEST_NAMES:
+            raise ValueError(f"unknown request code {request!r}")
+        self.kind = kind
+        self.request = request
+        self.channels = channels
+        self.width = width
+        self.capacity = capacity
+        self.per_record = len(channels) if kind == COMMAND else 1
+        """Messages one record makes."""
+        self.times: list[int] = []
+        self.values: list[float] = []
+        self.taken = 0
+        """Records handed over so far."""
+        self.last_time = 0
+        self.last_values: list[float] | None = None  # the latest record handed over
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    def append(self, time_ns: int, values: Sequence[float]) -> bool:
+        """Hold a record (``values``: ``width`` numbers); False if the buffer is full (the
+        listeners inline this)."""
+        times = self.times
+        if len(times) >= self.capacity:
+            return False
+        self.values.extend(values)
+        times.append(time_ns)
+        return True
+
+    def take(self) -> tuple[Any, ...] | None:
+        """The records held as one entry of a frame (:data:`~.records.COLUMNS`), the buffer
+        emptied; None if it holds none. From the control loop's thread only."""
+        times = self.times
+        n = len(times)
+        if not n:
+            return None
+        width = self.width
+        values = self.values
+        self.last_time = times[n - 1]
+        self.last_values = values[(n - 1) * width : n * width]
+        entry = (COLUMNS, self.kind, self.request, self.channels, width, times[:], values[:])
+        times.clear()
+        values.clear()
+        self.taken += n
+        return entry
+
+    def discard(self) -> int:
+        """Empty the buffer; the messages it held."""
+        n = len(self.times)
+        self.times.clear()
+        self.values.clear()
+        return n * self.per_record
+
+
+def column_messages_count(entry: Sequence[Any]) -> int:
+    """The messages a :data:`~.records.COLUMNS` entry makes."""
+    return len(entry[5]) * (len(entry[3]) if entry[1] == COMMAND else 1)
+
+
+def column_messages(entry: Sequence[Any]) -> Iterator[tuple[int, int, dict[str, Any]]]:
+    """``(channel, time_ns, message)`` for every message of a :data:`~.records.COLUMNS`
+    entry (the messages :func:`~.records.to_message` makes of the same records)."""
+    _, kind, request, channels, width, times, values = entry
+    name = REQUEST_NAMES[request]
+    if kind == COMMAND:
+        for row, t in enumerate(times):
+            base = row * width
+            for i, channel in enumerate(channels):
+                yield (
+                    channel,
+                    t,
+                    {"kind": "command", "time_ns": t, "request": name, "value": values[base + i]},
+                )
+    else:
+        channel = channels[0]
+        for row, t in enumerate(times):
+            read = values[row * width : (row + 1) * width]
+            yield (
+                channel,
+                t,
+                {
+                    "kind": "reading",
+                    "time_ns": t,
+                    "request": name,
+                    "value": read[0] if read else None,
+                    "values": read,
+                },
+            )
