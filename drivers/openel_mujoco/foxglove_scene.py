@@ -41,6 +41,9 @@ class MujocoScene:
             for b in range(1, m.nbody)
         ]
         self._poses = np.empty((m.nbody - 1, 7))
+        self._data = sim.data
+        self._xpos = sim.data.xpos[1:]  # views: every body but the world
+        self._xquat = sim.data.xquat[1:]
 
     def _frame(self, body: int) -> str:
         if body == 0:
@@ -60,6 +63,15 @@ class MujocoScene:
         poses[:, :3] = d.xpos[1:]
         poses[:, 3:] = d.xquat[1:, _XYZW]
         return poses.ravel().tolist()
+
+    def pose_bytes(self) -> tuple[bytes, bytes]:
+        """Every body's position (x, y, z) and orientation (w, x, y, z: MuJoCo's order) as
+        float64 bytes (``openel_async.recording.PoseBytesSource``: the recorder's cheapest
+        path, two C calls; the writer process unpacks them)."""
+        if self.sim.data is not self._data:  # a new MjData: new views
+            self._data = self.sim.data
+            self._xpos, self._xquat = self._data.xpos[1:], self._data.xquat[1:]
+        return self._xpos.tobytes(), self._xquat.tobytes()
 
     def transforms(self) -> Sequence[Transform]:
         d = self.sim.data

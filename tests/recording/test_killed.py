@@ -23,7 +23,7 @@ from openel_async.recording import Recorder
 
 async def main(path):
     clock = VirtualClock()
-    async with clock.autojump(), Recorder(path, chunk_size=16 * 1024) as rec:
+    async with clock.autojump(), Recorder(path, chunk_size=16 * 1024, timer_stats_ms=10) as rec:
         axis = Actuator(SimMotor(), device_name="AXIS", clock=clock)
         timer = EventTimer(1, clock=clock, name="loop")
         rec.observe(axis)
@@ -78,7 +78,7 @@ def test_killed_recording_is_readable_to_the_last_chunk(tmp_path: Path) -> None:
     # In order and whole up to the cut: consecutive commands, 1 ms apart on the clock.
     values = [round(m["value"] * 100) for m in commands]
     assert values == [(k % 100) for k in range(1, len(values) + 1)]
-    # Tick statistics every 10 ms (the default: the joint-state period) of the 1 ms timer:
+    # Tick statistics every 10 ms (timer_stats_ms) of the 1 ms timer:
     # each message counts the ticks since the previous one, none skipped.
     indexes = [0] + [m["index"] for m in ticks]
     assert [m["ticks"] for m in ticks] == [b - a for a, b in itertools.pairwise(indexes)]

@@ -10,6 +10,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import anyio
@@ -269,7 +270,21 @@ async def test_a_loop_without_a_timer_hands_its_columns_over(tmp_path: Path) -> 
     to hand its column buffers over (a live view sees a slow loop's readings)."""
     recorder = Recorder(tmp_path / "t.mcap")
     actuator = Actuator(SimMotor(), device_name="AXIS")  # the real clock
+    flushed = anyio.Event()
     async with recorder:
+        call = recorder.pipeline.loop_call
+        assert call is not None
+
+        def traced(callback: Callable[[], None]) -> object:
+            def run() -> None:  # in the loop's thread
+                callback()
+                columns = recorder.pipeline.columns
+                if len(columns) == 2 and all(c.taken for c in columns):
+                    flushed.set()  # the records below handed over
+
+            return call(run)
+
+        recorder.pipeline.loop_call = traced
         recorder.observe(actuator)
         async with actuator:
             actuator.set_value_nowait(0.25, Request.POSITION)
@@ -277,8 +292,7 @@ async def test_a_loop_without_a_timer_hands_its_columns_over(tmp_path: Path) -> 
             held = [c for c in recorder.pipeline.columns if c.times]
             assert len(held) == 2
             with anyio.fail_after(10):  # flush_interval is 20 ms
-                while any(c.times for c in held):
-                    await anyio.sleep(0.005)
-            assert all(c.taken == 1 for c in held)
+                await flushed.wait()
+            assert all(c.taken == 1 and not c.times for c in held)
     stats = recorder.final_stats
     assert stats is not None and stats.dropped == 0 and stats.written == stats.queued

@@ -57,8 +57,9 @@ def test_virtual_clock_demo_recording(tmp_path: Path, capsys: pytest.CaptureFixt
         "/joint_states": "openel_async.JointStates",
         "/log": "foxglove.Log",
     }
-    assert counts["/timer/sync"] == ticks == 100
-    assert counts["/joint_states"] == ticks  # the timer's period is the joint-state period
+    assert ticks == 100  # of 10 ms: statistics every 100 ms, joint states every 20 ms
+    assert counts["/timer/sync"] == ticks // 10 + 1  # from the first tick, and at the exit
+    assert counts["/joint_states"] == ticks // 2
     kinds = Counter((topic, m.get("kind")) for topic, m in decoded)
     # Every setpoint of the timer's observer, plus the two commands that bring the axes home.
     assert kinds["/hal/MOTOR_1", "command"] + kinds["/hal/MOTOR_2", "command"] == setpoints + 2
@@ -68,12 +69,14 @@ def test_virtual_clock_demo_recording(tmp_path: Path, capsys: pytest.CaptureFixt
     for name in ("MOTOR_1", "MOTOR_2", "ENCODER_1", "TEMP_2"):
         states = [m["state"] for t, m in decoded if t == f"/hal/{name}" and m["kind"] == "state"]
         assert states == ["Initialized", "Active", "Finalized"]
-    ticks_seen = [m["index"] for t, m in decoded if t == "/timer/sync"]
-    assert ticks_seen == list(range(1, ticks + 1))
+    stats = [m for t, m in decoded if t == "/timer/sync"]
+    assert [m["index"] for m in stats] == [*range(1, ticks, 10), ticks]
+    assert [m["ticks"] for m in stats] == [1] + [10] * 9 + [9]
+    assert not any(m["missed_ticks"] for m in stats)
     assert any("timer_stopped" in m["message"] for t, m in decoded if t == "/log")
     info = "\n".join(info_lines(read_recording(out)))
     assert "complete    yes, 0 message(s) dropped" in info
-    assert re.search(r"/timer/sync\s+100\s+openel_async.TimerTick", info)
+    assert re.search(r"/timer/sync\s+11\s+openel_async.TimerTick", info)
 
 
 async def test_library_recorder_records_each_kind(tmp_path: Path) -> None:
@@ -92,7 +95,7 @@ async def test_library_recorder_records_each_kind(tmp_path: Path) -> None:
         last = [m for m in msgs if m["kind"] == "reading"][-1]
         assert last["request"] == "POSITION_ACTUAL" and last["value"] == pytest.approx(targets[2])
     thermo = [m for m in rec.topic("/hal/THERMO") if m["kind"] == "reading"]
-    assert len(thermo) == len(rec.topic("/timer/loop")) >= 170
+    assert len(thermo) == sum(m["ticks"] for m in rec.topic("/timer/loop")) >= 170
     assert all(len(m["values"]) == 1 and m["value"] > 0 for m in thermo)
 
 

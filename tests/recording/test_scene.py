@@ -4,6 +4,7 @@ objects, the FrameTransforms message built in the writer process the same either
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -12,7 +13,12 @@ import pytest
 
 from openel_async import Actuator, EventTimer, Request, VirtualClock
 from openel_async.recording import Primitive, Recorder, Transform, read_recording
-from openel_async.recording.scene import flat_poses, poses_message, transforms_message
+from openel_async.recording.scene import (
+    flat_poses,
+    poses_from_bytes,
+    poses_message,
+    transforms_message,
+)
 from openel_sim import SimMotor
 
 
@@ -47,7 +53,19 @@ class _FastArm(_Arm):
         return flat_poses(self.transforms())[1]
 
 
-@pytest.mark.parametrize("source_class", [_Arm, _FastArm])
+class _BytesArm(_FastArm):
+    """The same arm, offering its poses as bytes (PoseBytesSource: w, x, y, z quaternions)."""
+
+    def pose_bytes(self) -> tuple[bytes, bytes]:
+        flat = self.poses()
+        xyz = array("d", [v for k in range(0, len(flat), 7) for v in flat[k : k + 3]])
+        wxyz = array(
+            "d", [v for k in range(0, len(flat), 7) for v in (flat[k + 6], *flat[k + 3 : k + 6])]
+        )
+        return xyz.tobytes(), wxyz.tobytes()
+
+
+@pytest.mark.parametrize("source_class", [_Arm, _FastArm, _BytesArm])
 async def test_tf_messages_match_the_transforms(tmp_path: Path, source_class: type[_Arm]) -> None:
     clock = VirtualClock()
     motor = SimMotor(max_velocity=3.0, max_acceleration=40.0)
@@ -89,6 +107,8 @@ async def test_tf_messages_match_the_transforms(tmp_path: Path, source_class: ty
 def test_poses_message_checks_its_numbers() -> None:
     with pytest.raises(ValueError, match="7 numbers per frame"):
         poses_message([("world", "a")], [0.0] * 6, 0)
+    with pytest.raises(ValueError, match="3 and 4 float64 per frame"):
+        poses_from_bytes(array("d", [0.0] * 3).tobytes(), array("d", [1.0] * 3).tobytes())
 
 
 def test_mujoco_scene_poses_are_its_transforms() -> None:
@@ -104,4 +124,5 @@ def test_mujoco_scene_poses_are_its_transforms() -> None:
     mujoco.mj_forward(sim.model, sim.data)
     transforms = scene.transforms()
     assert poses_message(scene.frames(), scene.poses(), 5) == transforms_message(transforms, 5)
+    assert poses_from_bytes(*scene.pose_bytes()) == scene.poses()
     assert any(t.rotation != (0.0, 0.0, 0.0, 1.0) for t in transforms)

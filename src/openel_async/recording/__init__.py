@@ -17,7 +17,7 @@ from .live import LAYOUT_PATH, FoxgloveSink, LiveView
 from .pipeline import Pipeline, PipelineStats, Sink, SinkStartError
 from .reader import Recording, info_lines, read_recording
 from .recorder import McapSink, Recorder
-from .scene import PoseSource, Primitive, SceneSource, Transform
+from .scene import PoseBytesSource, PoseSource, Primitive, SceneSource, Transform
 from .tap import Tap
 
 __all__ = [
@@ -27,6 +27,7 @@ __all__ = [
     "McapSink",
     "Pipeline",
     "PipelineStats",
+    "PoseBytesSource",
     "PoseSource",
     "Primitive",
     "Recorder",

@@ -68,7 +68,7 @@ class LiveView(Tap):
         port: int = DEFAULT_PORT,
         record: str | os.PathLike[str] | None = None,
         joint_period_ms: float = 20.0,
-        timer_stats_ms: float | None = None,
+        timer_stats_ms: float = 100.0,
         capacity: int = 100_000,
         logs: bool = True,
     ) -> None:

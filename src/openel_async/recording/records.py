@@ -8,7 +8,7 @@ import struct
 from typing import Any
 
 from ..requests import Request
-from .scene import poses_message
+from .scene import poses_from_bytes, poses_message
 from .schemas import (
     FRAME_TRANSFORMS,
     HAL_RECORD,
@@ -21,9 +21,20 @@ from .schemas import (
 )
 
 # Entry kinds: (channel, time_ns, kind, *fields).
-(COMMAND, READING, STATE, EVENT, COMPLETION, ERROR, TICK, JOINTS, LOG_LINE, MESSAGE, POSES) = range(
-    11
-)
+(
+    COMMAND,
+    READING,
+    STATE,
+    EVENT,
+    COMPLETION,
+    ERROR,
+    TICK,
+    JOINTS,
+    LOG_LINE,
+    MESSAGE,
+    POSES,
+    POSE_BYTES,
+) = range(12)
 CHANNEL = -1
 """(-1, offset_ns, 0, id, topic, schema_name, metadata): a new channel; its messages' log
 time is their time plus ``offset_ns``."""
@@ -105,5 +116,7 @@ def to_message(entry: list[Any]) -> dict[str, Any]:
         }
     if kind == POSES:  # (log_time, frames, flat poses): a scene's body poses
         return poses_message(f[1], f[2], f[0])
+    if kind == POSE_BYTES:  # (log_time, frames, positions, orientations): the same, as bytes
+        return poses_message(f[1], poses_from_bytes(f[2], f[3]), f[0])
     message: dict[str, Any] = f[0]  # MESSAGE: a ready dict
     return message

@@ -5,6 +5,7 @@ geometry as primitives, handed over by whoever knows the bodies (a MuJoCo rig's 
 
 from __future__ import annotations
 
+from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol
@@ -12,11 +13,13 @@ from typing import Any, Literal, Protocol
 from .schemas import stamp
 
 __all__ = [
+    "PoseBytesSource",
     "PoseSource",
     "Primitive",
     "SceneSource",
     "Transform",
     "flat_poses",
+    "poses_from_bytes",
     "poses_message",
     "scene_message",
     "transforms_message",
@@ -76,6 +79,35 @@ class PoseSource(SceneSource, Protocol):
         """``x, y, z, qx, qy, qz, qw`` of each frame of :meth:`frames`, one flat list (called
         at the joint-state rate, in the control loop's task: it must be cheap)."""
         ...
+
+
+class PoseBytesSource(PoseSource, Protocol):
+    """A :class:`PoseSource` that hands its poses over as two byte strings (the cheapest:
+    no float object per number in the control loop; the writer process unpacks them)."""
+
+    def pose_bytes(self) -> tuple[bytes, bytes]:
+        """``(positions, orientations)`` of each frame of :meth:`frames`: float64 in the
+        machine's byte order, ``x, y, z`` per frame, then ``w, x, y, z`` per frame."""
+        ...
+
+
+def poses_from_bytes(positions: bytes, orientations: bytes) -> list[float]:
+    """The flat ``x, y, z, qx, qy, qz, qw`` list (:meth:`PoseSource.poses`) of
+    :meth:`PoseBytesSource.pose_bytes`."""
+    xyz = array("d")
+    xyz.frombytes(positions)
+    wxyz = array("d")
+    wxyz.frombytes(orientations)
+    n = len(xyz) // 3
+    if len(xyz) != 3 * n or len(wxyz) != 4 * n:
+        raise ValueError(
+            f"pose_bytes: 3 and 4 float64 per frame expected, got {len(xyz)} and {len(wxyz)}"
+        )
+    out: list[float] = []
+    for k in range(n):
+        p, q = 3 * k, 4 * k
+        out += (xyz[p], xyz[p + 1], xyz[p + 2], wxyz[q + 1], wxyz[q + 2], wxyz[q + 3], wxyz[q])
+    return out
 
 
 def flat_poses(

@@ -46,6 +46,7 @@ from .records import (
     JOINTS,
     LOG_LINE,
     MESSAGE,
+    POSE_BYTES,
     POSES,
     READING,
     STATE,
@@ -498,8 +499,9 @@ class Tap(AppHook):
     (``foxglove``: (host, port); port 0: any free port).
 
     ``joint_period_ms``: the period of ``/joint_states`` (and ``/tf``) samples, taken at the
-    observed timers' ticks, on the app's clock; ``timer_stats_ms``: the period of each
-    timer's statistics messages (``/timer/<name>``; default: ``joint_period_ms``). ``capacity``: records the queue holds before
+    observed timers' ticks, on the app's clock (default 20 ms: 50 Hz, the default
+    ``publish_frequency`` of ROS 1's robot_state_publisher); ``timer_stats_ms``: the period of each timer's statistics messages
+    (``/timer/<name>``). ``capacity``: records the queue holds before
     it drops (counted in :attr:`stats`). ``logs``: forward log lines (info and above) to
     ``/log``. ``chunk_size``: bytes per MCAP chunk (a killed run loses at most one)."""
 
@@ -508,16 +510,14 @@ class Tap(AppHook):
         *,
         record: str | os.PathLike[str] | None = None,
         foxglove: tuple[str, int] | None = None,
-        joint_period_ms: float = 10.0,
-        timer_stats_ms: float | None = None,
+        joint_period_ms: float = 20.0,
+        timer_stats_ms: float = 100.0,
         capacity: int = 100_000,
         logs: bool = True,
         chunk_size: int = 64 * 1024,
     ) -> None:
         if not joint_period_ms > 0:
             raise ValueError(f"joint_period_ms must be > 0, got {joint_period_ms}")
-        if timer_stats_ms is None:
-            timer_stats_ms = joint_period_ms
         if not timer_stats_ms > 0:
             raise ValueError(f"timer_stats_ms must be > 0, got {timer_stats_ms}")
         self.pipeline = Pipeline(
@@ -536,7 +536,8 @@ class Tap(AppHook):
         self._observing: set[int] = set()
         self._timers: list[EventTimer] = []
         self._actuators: list[_ActuatorTap] = []  # their listeners
-        self._scenes: list[tuple[SceneSource, Any]] = []  # (source, its frames or None)
+        self._scenes: list[tuple[SceneSource, Any, Any]] = []
+        """(source, its frames or None, its pose_bytes or None)."""
         self.next_joint_ns = 0
         """When the next joint-state sample is due (clock ns)."""
         self.now: Callable[[], int] = _never
@@ -743,7 +744,11 @@ class Tap(AppHook):
             self._tf_channel = self.pipeline.add_channel(TF_TOPIC, FRAME_TRANSFORMS)
             self._scene_channel = self.pipeline.add_channel(SCENE_TOPIC, SCENE_UPDATE)
         frames = getattr(source, "frames", None)
-        entry = (source, None if frames is None else tuple(map(tuple, frames())))
+        entry = (
+            source,
+            None if frames is None else tuple(map(tuple, frames())),
+            getattr(source, "pose_bytes", None) if frames is not None else None,
+        )
         self._scenes.append(entry)
         now = self._clock.now_ns() if self._clock is not None else 0
         log_time = now + (self._offset or 0)
@@ -751,8 +756,14 @@ class Tap(AppHook):
         self._put((self._scene_channel, now, MESSAGE, scene))
         self._put_poses(entry, now, log_time)
 
-    def _put_poses(self, entry: tuple[SceneSource, Any], now: int, log_time: int) -> None:
-        source, frames = entry
+    def _put_poses(self, entry: tuple[SceneSource, Any, Any], now: int, log_time: int) -> None:
+        source, frames, pose_bytes = entry
+        if pose_bytes is not None:  # the cheapest: two byte strings
+            positions, orientations = pose_bytes()
+            self._put(
+                (self._tf_channel, now, POSE_BYTES, log_time, frames, positions, orientations)
+            )
+            return
         if frames is None:
             frames, poses = flat_poses(source.transforms())
         else:
