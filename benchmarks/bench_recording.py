@@ -11,35 +11,43 @@ read per tick by an async TimerObserver, a TrajectoryRecorder, four laps of the 
 12 600 ticks). Three variants run in the same process, interleaved round by round (the order
 reversed every other round): no hook (the baseline); ``--record FILE.mcap`` (a ``Tap`` writing
 MCAP, its writer process started by ``taps_from_args`` before the app starts, stopped after it
-returns, as the CLI does); ``--foxglove`` (port 0) with one Foxglove WebSocket client
-subscribed to every channel before the control loop runs (a process of its own on 127.0.0.1,
-nice 19, reading the socket raw and counting the messages). Figure: the real time per timer
-tick of the run as the app reports it (``wall_time_s / timer_ticks`` of its result: the
-simulation's running time from its start to the end of the last lap, the pauses excluded);
-medians over the rounds; ratio = variant / baseline. The writer process's start and stop are
-outside that window; the writer's work during the run, the app process's listener calls,
-samples and batch encoding are inside. To hold the loop until the client has subscribed, the
-live variant has one more hook that pauses the simulation (``sim.paused()``: no simulated time
-passes, no tick, no running time counted) once the app has registered all its channels, until
-the client says it subscribed to all of them. The app's result is taken by wrapping its summary
-printer (``arm2_square.report``, called after the run).
+returns, as the CLI does); ``--foxglove`` (port 0), both with the tap's default periods, with
+one Foxglove WebSocket client subscribed to every channel before the control loop runs (a
+process of its own on 127.0.0.1, nice 19, reading the socket raw and counting the messages).
+Figure: the real time per timer tick of the run as the app reports it (``wall_time_s /
+timer_ticks`` of its result: the simulation's running time from its start to the end of the
+last lap, the pauses excluded); medians over the rounds; ratio = variant / baseline. The writer
+process's start and stop are outside that window; the writer's work during the run, the app
+process's listener calls, samples and batch encoding are inside. To hold the loop until the
+client has subscribed, the live variant has one more hook that pauses the simulation
+(``sim.paused()``: no simulated time passes, no tick, no running time counted) once the app has
+registered all its channels, until the client says it subscribed to all of them. The app's
+result is taken by wrapping its summary printer (``arm2_square.report``, called after the run).
+Beside them, without a target: the CPU time of the app's thread (the control loop's) per tick
+from ``run_app`` to the summary (the window plus the model load and set-up before it): when a
+hook's extra real time per tick equals its extra CPU time there, the cost is work in the loop's
+thread, not the loop waiting for a core or the interpreter lock. In a separate profile
+(cProfile, two pairs of runs on commit 34218f4, not part of this benchmark) about half of the
+recorder's extra CPU time per tick was in MuJoCo's ``mj_step`` itself, which the tap never
+calls: 2.9 us per call without a hook, 5.0-5.5 us with the recorder (two physics steps per
+tick); not explained yet.
 
 **Informational rows: the recorder at saturation, a minimal 9 us control step.** Before the
 target rows measured the demo's loop they measured this stand-in, kept to show the worst case:
 the same MuJoCo arm2 model in lockstep, its two joints as Actuators in an ActuatorBank and the
 ``tip_pos`` sensor on a 2 ms EventTimer whose plain observer streams both joints' setpoints (a
 sine) and reads the tip at every tick: about a sixth of the demo loop's per-tick work (9 us
-against 50 us) and fewer messages per tick (3.4 against 5.6: no actual-position reads). It was
-our stand-in for the demo's loop; its rows have no target. The same three variants
-(``Recorder``; ``LiveView`` with the same client), with the CPU time of the loop's thread, of
-the app process (the loop and the recorder's feeding thread) and of the writer process
-(reported by it). Interference, separated: two more variants run this loop without any tap
-while another process feeds the stream that a Recorder's loop sent to its writer (captured
-once, before the rounds) to a writer process of its own at nice 19, paced over the no-tap
-loop's duration: an MCAP writer, and a live server with the same kind of client subscribed.
-Their ratios are what the writer process (and the live client) cost the loop through the shared
-cores and caches, with nothing done in the loop; the rest of a tap's ratio is the app process's
-own work.
+against 50 us) and two messages fewer per tick (no actual-position reads; the notes give both
+rates). It was our stand-in for the demo's loop; its rows have no target. The same three
+variants (``Recorder``; ``LiveView`` with the same client; the default periods), with the CPU
+time of the loop's thread, of the app process (the loop and the recorder's feeding thread) and
+of the writer process (reported by it). Interference, separated: two more variants run this
+loop without any tap while another process feeds the stream that a Recorder's loop sent to its
+writer (captured once, before the rounds) to a writer process of its own at nice 19, paced over
+the no-tap loop's duration: an MCAP writer, and a live server with the same kind of client
+subscribed. Their ratios are what the writer process (and the live client) cost the loop
+through the shared cores and caches, with nothing done in the loop; the rest of a tap's ratio
+is the app process's own work.
 
 Where the cost is, on the minimal loop (docs/recording.md, "Cost"): main-thread instructions
 per tick under callgrind, no tap about 106 600, the Recorder about 117 000-120 000 (+10-12 %);
@@ -49,11 +57,12 @@ ticks, the tap's clock callback 0.35 us every 5 ticks, and encoding a batch of 1
 every 300 ticks or so. The loop thread's CPU time shows about twice the instruction count's
 share: the records, the garbage collector's passes over them and the feeding thread's
 interpreter-lock hand-overs (these figures were taken on the tap of one tuple per record,
-before its column buffers). The writer process runs on one CPU (its threads and the Foxglove
-server's), the last one, at the lowest priority (nice 19): on a busy machine the loop keeps the
-CPU and the writer catches up afterwards (bounded by the queue's capacity, 100 000 records). It
-costs about 1.7-1.9 us CPU per message (msgpack decode, the JSON message, the SDK's Rust MCAP
-writer or WebSocket server and the call into it).
+before its column buffers, with joint states every 10 ms). The writer process runs on one CPU
+(its threads and the Foxglove server's), the last one, at the lowest priority (nice 19): on a
+busy machine the loop keeps the CPU and the writer catches up afterwards (bounded by the
+queue's capacity, 100 000 records). It costs about 1.2-1.9 us CPU per message (msgpack decode,
+the JSON message, the SDK's Rust MCAP writer or WebSocket server and the call into it; the
+notes give this run's figure).
 """
 
 from __future__ import annotations
@@ -61,6 +70,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import gc
+import inspect
 import io
 import json
 import math
@@ -197,6 +207,9 @@ class _AppRun:
     """Timer ticks of the run when the live variant's hook paused it for the client."""
     writer_start_s: float = 0.0
     """Real time of ``taps_from_args`` (the writer process's start: outside the window)."""
+    thread_cpu: float = 0.0
+    """CPU time of the app's thread (the control loop's) per tick, from ``run_app`` to the
+    summary: the window plus the model load and set-up before it."""
 
 
 class _ClientSubscribed(AppHook):
@@ -277,9 +290,11 @@ def _app_run(variant: str, tmp: Path, index: int) -> _AppRun:
     )
     argv = ["--no-live", "--laps", str(APP_LAPS), "--out", str(tmp / f"out-{variant}-{index}")]
     results: list[Any] = []
+    cpu: list[float] = []
     summary = arm2_square.report
 
     def keep(result: Any) -> None:  # the app's summary printer, wrapped: its result kept
+        cpu.append(time.thread_time())
         results.append(result)
         summary(result)
 
@@ -319,7 +334,9 @@ def _app_run(variant: str, tmp: Path, index: int) -> _AppRun:
                 hooks = [*hooks, hook]
             arm2_square.report = keep
             try:
-                status = run_app(find_app(APP), argv, prog=APP_PROG, hooks=hooks)
+                info = find_app(APP)
+                cpu.append(time.thread_time())
+                status = run_app(info, argv, prog=APP_PROG, hooks=hooks)
             finally:
                 arm2_square.report = summary
         received = 0
@@ -348,6 +365,7 @@ def _app_run(variant: str, tmp: Path, index: int) -> _AppRun:
         received=received,
         held_at=-1 if hook is None else hook.held_at,
         writer_start_s=writer_start,
+        thread_cpu=(cpu[-1] - cpu[0]) / result.timer_ticks,
     )
 
 
@@ -424,7 +442,7 @@ async def _live(ticks: int) -> tuple[float, int, float, int, int]:
     CPU seconds per tick, messages published, records dropped)."""
     from openel_async.recording import LiveView
 
-    live = LiveView(port=0, joint_period_ms=10.0)
+    live = LiveView(port=0)
     async with live:
         client = subprocess.Popen(  # noqa: ASYNC220 (started once, before the loop)
             # niced like the writer: a viewer usually runs elsewhere (a browser), not on
@@ -574,6 +592,17 @@ async def _interfered(
     return per_tick, float(done["cpu_s"]) / ticks
 
 
+def _tap_periods() -> str:
+    """The tap's default periods (the CLI's and both loops' here)."""
+    from openel_async.recording import Tap
+
+    params = inspect.signature(Tap).parameters
+    return (
+        f"joint states {params['joint_period_ms'].default:g} ms, "
+        f"timer statistics {params['timer_stats_ms'].default:g} ms"
+    )
+
+
 def _cpu_row(name: str, value: float, base: float, label: str) -> Row:
     return Row(
         name,
@@ -603,6 +632,7 @@ def _app_rows(runs: dict[str, list[_AppRun]]) -> tuple[list[Row], list[str]]:
     written = median(r.written for r in rec)
     published = median(r.written for r in live)
     received = median(r.received for r in live)
+    cpu = {k: median(r.thread_cpu for r in v) * 1e6 for k, v in runs.items()}
     rows = [
         Row("arm2 demo loop (openel-async run arm2), per tick, no hook (baseline)", b, "us"),
         Row(
@@ -626,6 +656,29 @@ def _app_rows(runs: dict[str, list[_AppRun]]) -> tuple[list[Row], list[str]]:
             ratio_label="live/baseline",
             target="<= 1.2x",
             passed=live_ratio <= 1.2,
+        ),
+        Row(
+            "arm2 demo loop: app thread CPU per tick, run_app to summary, no hook",
+            cpu["base"],
+            "us",
+        ),
+        Row(
+            "arm2 demo loop: app thread CPU per tick, run_app to summary, --record",
+            cpu["rec"],
+            "us",
+            baseline=cpu["base"],
+            baseline_label="no hook",
+            ratio=ratio_of(cpu["rec"], cpu["base"]),
+            ratio_label="recorder/baseline",
+        ),
+        Row(
+            "arm2 demo loop: app thread CPU per tick, run_app to summary, --foxglove + client",
+            cpu["live"],
+            "us",
+            baseline=cpu["base"],
+            baseline_label="no hook",
+            ratio=ratio_of(cpu["live"], cpu["base"]),
+            ratio_label="live/baseline",
         ),
         Row("arm2 demo loop: timer ticks per run", ticks, "", digits=0),
         Row("arm2 demo loop: recorder messages written per run", written, "", digits=0),
@@ -658,6 +711,10 @@ def _app_rows(runs: dict[str, list[_AppRun]]) -> tuple[list[Row], list[str]]:
         f"the client after {max(r.held_at for r in live)} timer tick(s) at most. The client "
         "received what was published after it subscribed (not the first /scene and /log "
         "messages) until the server stopped.",
+        f"arm2 demo loop: the recorder adds {rc - b:.1f} us of real time per tick and "
+        f"{cpu['rec'] - cpu['base']:.1f} us of the app thread's CPU time (live view: "
+        f"{lv - b:.1f} and {cpu['live'] - cpu['base']:.1f} us): "
+        f"{(rc - b) / (written / ticks) * 1000:.0f} ns of real time per message recorded.",
     ]
     return rows, notes
 
@@ -828,6 +885,6 @@ def run(quick: bool) -> BenchResult:
             "arm2 demo runs": f"{app_rounds} rounds x 3 variants, {APP_LAPS} laps each",
             "minimal step": f"{rounds} rounds of {ticks} ticks",
             "period": f"{PERIOD_MS} ms",
-            "joint-state period": "10 ms",
+            "tap periods (defaults)": _tap_periods(),
         },
     )
