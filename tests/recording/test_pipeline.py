@@ -10,14 +10,13 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import anyio
 import pytest
 
 from openel_async import Actuator, Request, VirtualClock
-from openel_async.recording import Pipeline, PipelineStats, Recorder, SinkStartError
+from openel_async.recording import Pipeline, PipelineStats, Recorder, SinkStartError, read_recording
 from openel_async.recording.records import BATCH, COMMAND, READING
 from openel_async.recording.schemas import HAL_RECORD
 from openel_sim import SimMotor
@@ -266,33 +265,70 @@ def test_start_is_bounded_when_the_writer_never_says_ready(tmp_path: Path) -> No
 
 
 async def test_a_loop_without_a_timer_hands_its_columns_over(tmp_path: Path) -> None:
-    """No timer paces the tap: the pipeline's thread asks the loop, every flush_interval,
-    to hand its column buffers over (a live view sees a slow loop's readings)."""
+    """No timer paces the tap: every flush_interval a callback of the loop hands its column
+    buffers over and writes them (a live view sees a slow loop's readings), with no thread
+    woken for it."""
     recorder = Recorder(tmp_path / "t.mcap")
     actuator = Actuator(SimMotor(), device_name="AXIS")  # the real clock
     flushed = anyio.Event()
     async with recorder:
-        call = recorder.pipeline.loop_call
-        assert call is not None
+        pipeline = recorder.pipeline
+        flush_due = pipeline.flush_due
 
-        def traced(callback: Callable[[], None]) -> object:
-            def run() -> None:  # in the loop's thread
-                callback()
-                columns = recorder.pipeline.columns
-                if len(columns) == 2 and all(c.taken for c in columns):
-                    flushed.set()  # the records below handed over
+        def traced(force: bool = False) -> None:  # called by the loop's periodic callback
+            flush_due(force)
+            columns = pipeline.columns
+            if len(columns) == 2 and all(c.taken for c in columns):
+                flushed.set()  # the records below handed over
 
-            return call(run)
-
-        recorder.pipeline.loop_call = traced
+        pipeline.flush_due = traced  # type: ignore[method-assign]
         recorder.observe(actuator)
         async with actuator:
             actuator.set_value_nowait(0.25, Request.POSITION)
             actuator.get_value_nowait(Request.POSITION_ACTUAL)
-            held = [c for c in recorder.pipeline.columns if c.times]
+            held = [c for c in pipeline.columns if c.times]
             assert len(held) == 2
             with anyio.fail_after(10):  # flush_interval is 20 ms
                 await flushed.wait()
             assert all(c.taken == 1 and not c.times for c in held)
     stats = recorder.final_stats
     assert stats is not None and stats.dropped == 0 and stats.written == stats.queued
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="Unix signals")
+async def test_loop_driven_writes_never_block_and_lose_nothing_untold(tmp_path: Path) -> None:
+    """Driven by the loop, the pipeline writes without blocking: with the writer process
+    stopped, the frames wait (the pipe, then ``max_frames``), the column buffer fills to its
+    capacity and the rest is dropped and counted; once the writer runs again everything
+    held is written, and the file holds exactly what was not dropped."""
+    path = tmp_path / "d.mcap"
+    recorder = Recorder(path, capacity=50_000)
+    actuator = Actuator(SimMotor(), device_name="AXIS", clock=VirtualClock())
+    produced = 0
+    async with recorder:
+        pipeline = recorder.pipeline
+        pid = pipeline.writer_pid
+        assert pid is not None
+        recorder.observe(actuator)
+        async with actuator:
+            os.kill(pid, signal.SIGSTOP)
+            try:
+                started = time.monotonic()
+                for k in range(300):  # 300 000 commands: far more than the pipe and buffers
+                    for _ in range(1000):
+                        produced += 1
+                        actuator.set_value_nowait(1e-6 * (k % 7), Request.POSITION)
+                    pipeline.flush_due()
+                elapsed = time.monotonic() - started
+                assert pipeline.dropped > 0
+            finally:
+                os.kill(pid, signal.SIGCONT)
+            assert elapsed < 20  # (a blocking write would never have returned)
+    stats = recorder.final_stats
+    assert stats is not None and stats.dropped > 0
+    assert stats.queued + stats.dropped == produced + 3  # and the 3 state changes
+    assert stats.written == stats.queued
+    rec = read_recording(path)
+    assert rec.complete and rec.dropped == stats.dropped
+    written = sum(1 for m in rec.topic("/hal/AXIS") if m["kind"] == "command")
+    assert written + stats.dropped == produced

@@ -8,16 +8,23 @@ actuator's position command) as numbers to column buffers (:mod:`.columns`: flat
 no tuple per record) and the rest (state changes, events, samples) as tuples to a
 deque (the listeners of :mod:`.tap` do it directly); a full buffer or queue drops the record
 and counts it (:attr:`PipelineStats.dropped`). When ``batch_size`` records are held, the
-loop itself takes them and encodes them as one msgpack frame
-(:meth:`Pipeline.flush_due`, called by the tap every few ticks: no waiting: it skips while
-the thread holds the lock or has ``max_frames`` frames still to write), and wakes the
-thread, which only writes frames to the process's stdin (the pipe write releases the
-interpreter lock): a thread taking and encoding thousands of records itself held the
-interpreter lock meanwhile and made the loop wait for it. When the loop has handed nothing
-over for ``flush_interval`` seconds (a slow loop, or one whose tap sees no timer), the
-thread asks the loop (:attr:`Pipeline.loop_call`) to hand everything over (without one it
-takes the queue itself); only the loop's thread touches a column until the tap has
-detached, and a channel's records reach the writer in order. The encoding of the messages and the MCAP writing happen in
+loop itself takes them and encodes them as one msgpack frame (:meth:`Pipeline.flush_due`,
+called by the tap every few ticks; it never waits: it skips while ``max_frames`` frames are
+still to be written).
+
+Driven by an asyncio loop (:meth:`Pipeline.drive_from`, what a tap does), the loop also
+writes the frames to the writer process's stdin itself, without blocking (a pipe of 1 MiB
+where Linux allows it; what does not fit waits for the next try), and every
+``flush_interval`` seconds a callback of the loop hands over what it holds (a slow loop, or
+one whose tap sees no timer) and writes what is pending: no thread wakes up during the run.
+A thread that woke every ``flush_interval`` seconds to take records or write, and the
+interpreter lock passed to it and back, cost the demo loop 3-5 % of its time (measured),
+and a thread taking and encoding thousands of records held that lock while the loop
+waited. Without a loop (:meth:`Pipeline.start` alone) the thread does that work: it takes
+the queue and writes every ``flush_interval`` seconds or when the loop hands a frame over.
+At :meth:`Pipeline.stop` the thread takes what is left, the columns too (only the loop's
+thread touches a column until then), and writes it. A channel's records reach the writer in
+order. The encoding of the messages and the MCAP writing happen in
 the other process, which runs at the lowest priority (``writer_nice``, 19), so it does not
 compete with the loop for the CPU either: on a busy machine it falls behind (the queue, the
 frames and the pipe hold the backlog) and catches up when there is time.
@@ -25,6 +32,7 @@ frames and the pipe hold the backlog) and catches up when there is time.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import json
 import os
@@ -34,7 +42,6 @@ import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import repeat, starmap
 from typing import Any, Protocol
@@ -43,10 +50,14 @@ import msgspec
 import structlog
 
 from .columns import Columns, column_messages_count
-from .records import BATCH, CHANNEL, COLUMNS, STATS
+from .records import BATCH, CHANNEL, COLUMNS, HEADER, STATS
 from .schemas import ChannelSpec, Schema
 
 __all__ = ["Pipeline", "PipelineStats", "Sink", "SinkStartError"]
+
+PIPE_SIZE = 1 << 20
+"""Bytes of the pipe to the writer process where Linux lets a process set it
+(``F_SETPIPE_SZ``, up to ``/proc/sys/fs/pipe-max-size``): frames wait there, not in the app."""
 
 log = structlog.get_logger(__name__)
 
@@ -155,15 +166,17 @@ class Pipeline:
         messages."""
         self.columns: list[Columns] = []
         """The column buffers of the per-tick records (:meth:`add_columns`)."""
-        self.loop_call: Callable[[Callable[[], None]], object] | None = None
-        """Schedules a call in the control loop's thread (``loop.call_soon_threadsafe``; set
-        by the tap): the thread asks the loop to hand its columns over with it."""
+        self._loop: asyncio.AbstractEventLoop | None = None  # drive_from's
+        self._periodic_call: asyncio.TimerHandle | None = None
+        self._last_handover = 0.0  # time.monotonic() of the loop's last frame
+        self._offset = 0  # bytes of the first frame already written
+        self._io = threading.Lock()  # writing to the pipe
         self._columns_lost = 0  # messages of columns discarded (not written): out of queued
         self._batch_lost = 0  # messages beyond one of the BATCH records discarded
         self._taken = 0  # entries taken from the queue (into frames)
         self._controls = 0  # channel and column entries queued or taken (not records)
         self._frames: deque[tuple[bytes, list[tuple[Any, ...]]]] = deque()
-        """Encoded frames (and their entries) the thread has still to write, in order."""
+        """Frames (length header and msgpack) still to write, in order, with their entries."""
         self._lock = threading.Lock()  # taking from the queue into _frames
         self._wake = threading.Event()
         self._dead = False  # the writer is gone: nothing is taken any more
@@ -367,18 +380,93 @@ class Pipeline:
                 self._take(columns=True)
             finally:
                 self._lock.release()
-            self._wake.set()
+            if self._loop is not None:
+                self._last_handover = time.monotonic()
+                self._write_available()
+            else:
+                self._wake.set()
+        elif self._loop is not None and self._frames:
+            self._write_available()
 
-    def _flush_soon(self) -> None:
-        """From the thread: ask the control loop to hand over what it holds (its records of
-        the last ``flush_interval`` seconds)."""
-        call = self.loop_call
-        if call is not None and (self.queue or any(len(c.times) for c in self.columns)):
-            with contextlib.suppress(RuntimeError):  # the loop is closed: stop() takes them
-                call(self._forced)
+    def drive_from(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Let ``loop`` (running, in this thread) write the frames and hand over what is held
+        every ``flush_interval`` seconds (see the module docstring); :meth:`release_loop`
+        before :meth:`stop`."""
+        process = self._process
+        if process is None or process.stdin is None:
+            raise RuntimeError("drive_from() needs a started pipeline")
+        if self._loop is not None:
+            raise RuntimeError("the pipeline is already driven by a loop")
+        fd = process.stdin.fileno()
+        with contextlib.suppress(ImportError, AttributeError, OSError):  # Linux only
+            import fcntl
 
-    def _forced(self) -> None:
-        self.flush_due(force=True)
+            fcntl.fcntl(fd, fcntl.F_SETPIPE_SZ, PIPE_SIZE)  # beyond pipe-max-size: as it is
+        os.set_blocking(fd, False)
+        self._loop = loop
+        self._last_handover = time.monotonic()
+        self._wake.set()  # the thread now waits for the end only
+        self._periodic_call = loop.call_later(self.flush_interval, self._periodic)
+
+    def release_loop(self) -> None:
+        """From the loop's thread: stop writing from it (what is left is the thread's, at
+        :meth:`stop`)."""
+        if self._periodic_call is not None:
+            self._periodic_call.cancel()
+            self._periodic_call = None
+        if self._loop is not None:
+            self._loop = None
+            process = self._process
+            if process is not None and process.stdin is not None:
+                with contextlib.suppress(OSError, ValueError):
+                    os.set_blocking(process.stdin.fileno(), True)
+
+    def _periodic(self) -> None:
+        """Every ``flush_interval`` seconds, in the loop: hand over what was held that long
+        and write what is pending."""
+        self._periodic_call = None
+        loop = self._loop
+        if loop is None:
+            return
+        if time.monotonic() - self._last_handover >= self.flush_interval:
+            self.flush_due(force=True)
+        elif self._frames:
+            self._write_available()
+        if self._loop is loop and not self._dead:
+            self._periodic_call = loop.call_later(self.flush_interval, self._periodic)
+
+    def _write_available(self) -> None:
+        """From the loop: write what the pipe takes now, without blocking (the rest, from
+        the same byte, at the next try)."""
+        process = self._process
+        if process is None or process.stdin is None or not self._io.acquire(blocking=False):
+            return
+        try:
+            self._write_some(process.stdin.fileno())
+        except (OSError, ValueError) as exc:  # the writer process is gone
+            failed: BaseException | None = exc
+        else:
+            failed = None
+        finally:
+            self._io.release()
+        if failed is not None:
+            self._fail(failed)
+
+    def _write_some(self, fd: int) -> None:
+        """Write frames until the pipe is full (the caller holds ``_io``)."""
+        frames = self._frames
+        while frames:
+            data = frames[0][0]
+            offset = self._offset
+            try:
+                n = os.write(fd, memoryview(data)[offset:])
+            except BlockingIOError:  # the pipe is full: the writer is behind
+                return
+            if offset + n < len(data):
+                self._offset = offset + n
+                return
+            self._offset = 0
+            frames.popleft()
 
     def _take(self, final: bool = False, columns: bool = False) -> None:
         """What is queued (and the columns' records when ``columns``: only from the control
@@ -398,7 +486,8 @@ class Pipeline:
         if final:
             batch.append((STATS, self.queued, self.dropped, self.capacity))
         if batch:
-            self._frames.append((self._encode(batch), batch))
+            payload = self._encode(batch)
+            self._frames.append((HEADER.pack(len(payload)) + payload, batch))
 
     def _run(self) -> None:
         process = self._process
@@ -406,52 +495,67 @@ class Pipeline:
         fd = process.stdin.fileno()
         try:
             while True:
+                if self._loop is not None:  # the loop writes: wait for the end only
+                    self._wake.wait()
+                    self._wake.clear()
+                    if not self._stop.is_set():
+                        continue
                 woken = self._wake.wait(self.flush_interval)
                 self._wake.clear()
                 stopping = self._stop.is_set()
                 if stopping:  # the last records: the tap has detached
+                    os.set_blocking(fd, True)
                     with self._lock:
                         self._take(final=True)
                 elif not woken:  # the loop handed nothing over for flush_interval
-                    if self.loop_call is not None:
-                        self._flush_soon()  # it takes all, in order
-                    else:
-                        with self._lock:
-                            self._take()
+                    with self._lock:
+                        self._take()
                 self._write_frames(fd)
                 if stopping:
                     break
         except BaseException as exc:  # the process died: what is left is dropped, and told
-            if self.error is None:
-                self.error = exc
-            log.error("recording_failed", error=repr(exc))
-            with self._lock:
-                self._dead = True
-                # The frame being written is lost whole (the writer drops a partial frame),
-                # and those after it: their records leave the queued count for the dropped one,
-                # like the queue's.
-                lost = [entry for _, entries in self._frames for entry in entries]
-                self._frames.clear()
-                self._taken -= sum(1 for entry in lost if entry[0] != STATS)
-                self._discard(lost)
-                queue = self.queue
-                self._discard(list(starmap(queue.popleft, repeat((), len(queue)))))
-                if self._stop.is_set():  # nothing appends to the columns any more
-                    self.discard_columns()
+            self._fail(exc)
         finally:
             with contextlib.suppress(OSError):
                 process.stdin.close()
 
+    def _fail(self, exc: BaseException) -> None:
+        """The writer process is gone: what is left is dropped, and told."""
+        if self.error is None:
+            self.error = exc
+        log.error("recording_failed", error=repr(exc))
+        with self._lock:
+            self._dead = True
+            # The frame being written is lost whole (the writer drops a partial frame), and
+            # those after it: their records leave the queued count for the dropped one, like
+            # the queue's.
+            lost = [entry for _, entries in self._frames for entry in entries]
+            self._frames.clear()
+            self._offset = 0
+            self._taken -= sum(1 for entry in lost if entry[0] != STATS)
+            self._discard(lost)
+            queue = self.queue
+            self._discard(list(starmap(queue.popleft, repeat((), len(queue)))))
+            if self._stop.is_set():  # nothing appends to the columns any more
+                self.discard_columns()
+
     def _write_frames(self, fd: int) -> None:
-        """Write the frames in order (each removed once written whole)."""
-        frames = self._frames
-        while frames:
-            payload, _ = frames[0]
-            data = memoryview(len(payload).to_bytes(4, "little") + payload)
-            while data:
-                n = os.write(fd, data)
-                data = data[n:]
-            frames.popleft()
+        """Write the frames in order, blocking (each removed once written whole; the first
+        from where the loop's last write left it)."""
+        with self._io:
+            frames = self._frames
+            while frames:
+                data = memoryview(frames[0][0])[self._offset :]
+                while data:
+                    try:
+                        n = os.write(fd, data)
+                    except BlockingIOError:  # the loop made it non-blocking meanwhile
+                        select.select([], [fd], [], 1.0)
+                        continue
+                    data = data[n:]
+                    self._offset += n
+                self._offset = 0
+                frames.popleft()
 
     def discard_columns(self) -> None:
         """Count the records the columns hold as dropped (the writer is gone; from the

@@ -569,8 +569,12 @@ class Tap(AppHook):
         self._entered = True
         if not self._started:
             await run_in_thread(self.start)  # under external_work: no simulated time passes
-        with contextlib.suppress(RuntimeError):  # not on asyncio: the thread takes the queue
-            self.pipeline.loop_call = asyncio.get_running_loop().call_soon_threadsafe
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:  # not on asyncio: the pipeline's thread writes
+            pass
+        else:
+            self.pipeline.drive_from(loop)  # the loop writes: no thread wakes up meanwhile
         offset, self.pipeline.offset_ns = self.pipeline.offset_ns, 0
         self._log_channel = self.pipeline.add_channel(LOG_TOPIC, LOG)  # wall-clock times
         self.pipeline.offset_ns = offset
@@ -591,7 +595,7 @@ class Tap(AppHook):
         if self._pace_call is not None:
             self._pace_call.cancel()
             self._pace_call = None
-        self.pipeline.loop_call = None  # detached: the thread takes the columns at stop
+        self.pipeline.release_loop()  # detached: the thread takes what is left at stop
         for timer in self._timers:
             timer_tap = self._timer_taps[id(timer)]
             timer_tap.flush()  # the ticks since its last statistics record
