@@ -92,3 +92,43 @@ async def test_joint_states_from_the_listener_and_the_device(tmp_path: Path) -> 
             "Active",
             "Finalized",
         ]
+
+
+class _CountingMotor(SimMotor):
+    """A sim motor counting its position reads."""
+
+    reads = 0
+
+    def read_nowait(self, request: Request) -> float:
+        if request is Request.POSITION_ACTUAL:
+            self.reads += 1
+        return super().read_nowait(request)
+
+
+async def test_the_sample_takes_the_apps_own_read_at_the_same_time(tmp_path: Path) -> None:
+    """When the application read the actual position at the sample's clock time, the
+    sample takes that value (no second device read); at another time it reads the device."""
+    clock = VirtualClock()
+    recorder = Recorder(tmp_path / "a.mcap")
+    recorder.pipeline.start = lambda: None  # type: ignore[method-assign]  # no writer
+    motor = _CountingMotor(max_velocity=3.0)
+    axis = Actuator(motor, device_name="AXIS", clock=clock)
+    recorder.observe(axis)
+    queue = recorder.pipeline.queue
+
+    def sample() -> float | None:
+        recorder.sample(clock.now_ns())
+        entry = queue.pop()
+        ((_, _, actual),) = entry[4]
+        return actual  # type: ignore[no-any-return]
+
+    async with clock.autojump(), axis:
+        axis.set_value_nowait(1.0, Request.POSITION)
+        await clock.sleep(0.1)
+        read = axis.get_value_nowait(Request.POSITION_ACTUAL)
+        before = motor.reads
+        assert sample() == read and motor.reads == before  # the app's read, reused
+        await clock.sleep(0.05)  # moving on: the device is read
+        actual = sample()
+        assert motor.reads == before + 1 and actual is not None and actual > read
+    axis.set_listener(None)

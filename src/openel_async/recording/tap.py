@@ -91,6 +91,7 @@ class _ComponentTap:
     int: the garbage collector then untracks them at its first passes)."""
 
     __slots__ = (
+        "actual",
         "capacity",
         "channel",
         "component",
@@ -116,6 +117,8 @@ class _ComponentTap:
         self.capacity = tap.pipeline.capacity
         self.muted = False
         """True while the tap reads the component itself (that read is not recorded)."""
+        self.actual: Columns | None = None
+        """The column buffer of its POSITION_ACTUAL readings, once it has one."""
         self.readings: dict[Request | None, Columns | None] = {}
         """Request -> the column buffer of its readings (None: they do not fit one)."""
         self.read_code: Request | bool | None = False  # the request of the buffer at hand
@@ -166,6 +169,8 @@ class _ComponentTap:
             if values and all(type(v) is float for v in values):  # as readings are
                 columns = self.pipeline.add_columns(READING, code, (self.channel,), len(values))
             self.readings[request] = columns
+            if columns is not None and request is _POSITION_ACTUAL:
+                self.actual = columns  # the joint-state sample looks at it
             if columns is not None and self.read_code is False:
                 self.read_code = request
                 self.read_times, self.read_values = columns.times, columns.values
@@ -786,10 +791,11 @@ class Tap(AppHook):
 
     def sample(self, now: int) -> None:
         """``/joint_states`` (and ``/tf``) at ``now``: each Active actuator's commanded
-        position (the last one its listener heard) and actual position (its device's
-        synchronous read, as ``get_value_nowait`` reads it but without its side effects: a
-        non-finite value is recorded as None, not made a fault of the actuator; None when
-        the device cannot read now), with no read through the framework."""
+        position (the last one its listener heard) and actual position (the application's
+        own ``POSITION_ACTUAL`` read at this very clock time, when it made one; else its
+        device's synchronous read, as ``get_value_nowait`` reads it but without its side
+        effects: a non-finite value is recorded as None, not made a fault of the actuator;
+        None when the device cannot read now), with no read through the framework."""
         log_time = now + (self._offset or 0)
         if self._actuators:
             joints = []
@@ -801,6 +807,12 @@ class Tap(AppHook):
                 if read is None:  # the framework answers the commanded value for it
                     joints.append((tap.name, commanded, commanded))
                     continue
+                readings = tap.actual
+                if readings is not None:
+                    times = readings.times
+                    if times and times[-1] == now:  # the app read it at this very time
+                        joints.append((tap.name, commanded, readings.values[-1]))
+                        continue
                 try:
                     actual: float | None = read(_POSITION_ACTUAL)
                 except WouldBlockError:  # a bus device: no synchronous read, now or later
