@@ -52,6 +52,22 @@ async def test_records_hold_plain_numbers(tmp_path: Path) -> None:
     actuator.set_listener(None)
 
 
+@pytest.mark.skipif(not hasattr(os, "SCHED_IDLE"), reason="Linux scheduling policies")
+@pytest.mark.parametrize("idle", [True, False])
+def test_writer_process_runs_under_sched_idle(tmp_path: Path, idle: bool) -> None:
+    """The writer takes only CPU time nothing else wants (SCHED_IDLE) unless told not to."""
+    pipeline = Pipeline(mcap=tmp_path / "i.mcap", writer_idle=idle)
+    pipeline.start()
+    try:
+        pid = pipeline.writer_pid
+        assert pid is not None
+        want = os.SCHED_IDLE if idle else os.SCHED_OTHER
+        assert os.sched_getscheduler(pid) == want
+    finally:
+        stats = pipeline.stop()
+    assert stats.dropped == 0
+
+
 @pytest.mark.skipif(not hasattr(os, "getpriority"), reason="Unix niceness")
 def test_writer_process_runs_niced(tmp_path: Path) -> None:
     pipeline = Pipeline(mcap=tmp_path / "n.mcap", writer_nice=7)

@@ -112,6 +112,7 @@ class Pipeline:
         flush_interval: float = 0.02,
         chunk_size: int = 64 * 1024,
         writer_nice: int = 19,
+        writer_idle: bool = True,
         batch_size: int = 1024,
         max_frames: int = 8,
         start_timeout: float = 30.0,
@@ -143,6 +144,10 @@ class Pipeline:
         self.start_timeout = start_timeout
         """Seconds :meth:`start` waits for the writer process to say it is ready."""
         self._rest = b""  # stdout bytes read after the ready line
+        self.writer_idle = writer_idle
+        """Run the writer process under the ``SCHED_IDLE`` policy during the run (Linux): it
+        takes only CPU time nothing else wants and never preempts the control loop; at
+        :meth:`stop` it is raised back to ``SCHED_OTHER`` (at ``writer_nice``) to drain."""
         self.writer_nice = writer_nice
         """The writer process's niceness (Unix): on a busy machine it yields the CPU to the
         control loop and catches up when there is time (its backlog bounded by ``capacity``)."""
@@ -255,6 +260,8 @@ class Pipeline:
         sinks)."""
         command = [sys.executable, "-m", "openel_async.recording.sink_process"]
         command += ["--nice", str(self.writer_nice)]
+        if self.writer_idle and hasattr(os, "SCHED_IDLE"):
+            command += ["--idle"]
         if self.writer_cpu is not None:
             command += ["--cpu", str(self.writer_cpu)]
         if self.mcap is not None:
@@ -319,9 +326,12 @@ class Pipeline:
         chunk). Called once nothing appends any more (the tap has detached): the thread
         takes the columns' last records too."""
         deadline = time.monotonic() + timeout
+        process = self._process
+        if process is not None and self.writer_idle and hasattr(os, "SCHED_OTHER"):
+            with contextlib.suppress(OSError):  # it drains now, at writer_nice
+                os.sched_setscheduler(process.pid, os.SCHED_OTHER, os.sched_param(0))
         self._stop.set()
         self._wake.set()
-        process = self._process
         thread = self._thread
         if thread is not None:
             thread.join(timeout)

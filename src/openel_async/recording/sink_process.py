@@ -13,12 +13,13 @@ exits. It prints one JSON line when ready (``{"port": N}``: the WebSocket port) 
 done (``{"written": N, "cpu_s": S}``: the CPU time it spent writing).
 
 ``python -m openel_async.recording.sink_process [--mcap PATH] [--foxglove HOST:PORT]
-[--chunk-size BYTES] [--nice N] [--cpu N]``
+[--chunk-size BYTES] [--nice N] [--idle] [--cpu N]``
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -117,11 +118,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--chunk-size", type=int, default=64 * 1024)
     parser.add_argument("--nice", type=int, default=0, help="niceness to add (before any thread)")
     parser.add_argument(
+        "--idle", action="store_true", help="the SCHED_IDLE policy (Linux; before any thread)"
+    )
+    parser.add_argument(
         "--cpu", type=int, default=None, help="the one CPU to run on (before any thread)"
     )
     args = parser.parse_args(argv)
     if args.nice and hasattr(os, "nice"):
         os.nice(args.nice)  # the control loop comes first; this process catches up
+    if args.idle and hasattr(os, "SCHED_IDLE"):
+        # Runs only on a CPU nothing else wants: it never preempts the control loop, and the
+        # scheduler counts its CPU as idle when it places the loop (the parent raises it back
+        # to SCHED_OTHER for the final drain).
+        with contextlib.suppress(OSError):
+            os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
     if args.cpu is not None and hasattr(os, "sched_setaffinity"):
         # the SDK's server threads (one per core by default) inherit it: the writer never
         # takes more than one core, whatever its niceness
