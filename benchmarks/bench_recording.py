@@ -26,11 +26,17 @@ result is taken by wrapping its summary printer (``arm2_square.report``, called 
 Beside them, without a target: the CPU time of the app's thread (the control loop's) per tick
 from ``run_app`` to the summary (the window plus the model load and set-up before it): when a
 hook's extra real time per tick equals its extra CPU time there, the cost is work in the loop's
-thread, not the loop waiting for a core or the interpreter lock. In a separate profile
-(cProfile, two pairs of runs on commit 34218f4, not part of this benchmark) about half of the
-recorder's extra CPU time per tick was in MuJoCo's ``mj_step`` itself, which the tap never
-calls: 2.9 us per call without a hook, 5.0-5.5 us with the recorder (two physics steps per
-tick); not explained yet.
+thread, not the loop waiting for a core or the interpreter lock. Where the extra went, found with
+interleaved in-process variants of this loop (a tap patched to do less) and cProfile: at
+first the recorder cost 1.15-1.24x here, and a recorder that observed nothing (its writer
+process and feeding thread idle) already 1.03-1.05x, with MuJoCo's ``mj_step`` 2.9 us per
+call without a hook and 5.0-5.5 us with one: the feeding thread, woken every 20 ms and
+handed the interpreter lock, cost the loop its caches. The event loop now writes the frames
+itself without blocking and a loop callback hands over what was held for 20 ms; no thread
+wakes during the run (the idle recorder: 0.99x). Also since: the per-tick records in column
+buffers (two list appends per record), joint states every 20 ms and timer statistics every
+100 ms by default, /tf poses as two byte strings, the app's own actual-position read reused
+by the joint-state sample.
 
 **Informational rows: the recorder at saturation, a minimal 9 us control step.** Before the
 target rows measured the demo's loop they measured this stand-in, kept to show the worst case:
@@ -40,7 +46,7 @@ sine) and reads the tip at every tick: about a sixth of the demo loop's per-tick
 against 50 us) and two messages fewer per tick (no actual-position reads; the notes give both
 rates). It was our stand-in for the demo's loop; its rows have no target. The same three
 variants (``Recorder``; ``LiveView`` with the same client; the default periods), with the CPU
-time of the loop's thread, of the app process (the loop and the recorder's feeding thread) and
+time of the loop's thread, of the app process (the loop and the pipeline's thread, idle until the end) and
 of the writer process (reported by it). Interference, separated: two more variants run this
 loop without any tap while another process feeds the stream that a Recorder's loop sent to its
 writer (captured once, before the rounds) to a writer process of its own at nice 19, paced over
@@ -55,8 +61,9 @@ per call, timed in place: the sensor reading's listener call and record about 0.
 tick, the bank batch's about 0.28 us every tick, the joint-state sample about 1 us every 5
 ticks, the tap's clock callback 0.35 us every 5 ticks, and encoding a batch of 1 024 records
 every 300 ticks or so. The loop thread's CPU time shows about twice the instruction count's
-share: the records, the garbage collector's passes over them and the feeding thread's
-interpreter-lock hand-overs (these figures were taken on the tap of one tuple per record,
+share: the records, the garbage collector's passes over them and a feeding thread's
+interpreter-lock hand-overs (these figures were taken on the tap of one tuple per record
+and a feeding thread,
 before its column buffers, with joint states every 10 ms). The writer process runs on one CPU
 (its threads and the Foxglove server's), the last one, at the lowest priority (nice 19): on a
 busy machine the loop keeps the CPU and the writer catches up afterwards (bounded by the
@@ -100,7 +107,7 @@ CHANNELS = 6
 the timer's."""
 LOOP_CPU: list[tuple[float, float]] = []
 """Per tick of each _loop call: (CPU time of the loop's thread, CPU time of the whole process:
-the loop and the recorder's feeding thread); the last call's is LOOP_CPU[-1]."""
+the loop and the pipeline's thread); the last call's is LOOP_CPU[-1]."""
 
 CLIENT = r"""
 # A Foxglove WebSocket client on a raw socket: it subscribes to every channel advertised
@@ -753,13 +760,13 @@ def _minimal_rows(
         _cpu_row(MINIMAL + "loop thread CPU, Recorder", t["rec"], t["base"], "recorder/baseline"),
         _cpu_row(MINIMAL + "loop thread CPU, LiveView", t["live"], t["base"], "live/baseline"),
         _cpu_row(
-            MINIMAL + "app process CPU (loop + feeding thread), Recorder",
+            MINIMAL + "app process CPU (loop + pipeline thread), Recorder",
             p["rec"],
             p["base"],
             "recorder/baseline",
         ),
         _cpu_row(
-            MINIMAL + "app process CPU (loop + feeding thread), LiveView",
+            MINIMAL + "app process CPU (loop + pipeline thread), LiveView",
             p["live"],
             p["base"],
             "live/baseline",
@@ -864,8 +871,8 @@ def run(quick: bool) -> BenchResult:
         f"Minimal step: at the loop's full speed the writer process needs "
         f"{wr['rec'] / w['rec']:.0%} of a core (LiveView: {wr['live'] / w['live']:.0%}), at "
         "nice 19. What the wall-time ratios show beyond the loop-thread CPU ratios is the loop "
-        "waiting for a core or for the interpreter lock (the writer process, the thread "
-        "writing to it, the live client and other work on the two shared cores).",
+        "waiting for a core (the writer process, the live client and other work on the two "
+        "shared cores).",
         f"Minimal step, interference alone (no tap; the captured stream fed to a writer "
         f"process of its own beside the loop): MCAP writer {w['rec_io'] / w['base']:.2f}x wall, "
         f"{t['rec_io'] / t['base']:.2f}x loop-thread CPU (writer "
@@ -873,7 +880,7 @@ def run(quick: bool) -> BenchResult:
         f"{w['live_io'] / w['base']:.2f}x, {t['live_io'] / t['base']:.2f}x (writer "
         f"{wr['live_io'] * 1e6:.2f} us per tick). The rest of each tap's ratio is the app "
         "process's own work: the listener calls and records, the samples, the batch encoding, "
-        "the garbage collector and the feeding thread.",
+        "the garbage collector and the frames' encoding and writing.",
     )
     return BenchResult(
         name="recording",
