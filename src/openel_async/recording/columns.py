@@ -78,22 +78,35 @@ class Columns:
         times.append(time_ns)
         return True
 
-    def take(self) -> tuple[Any, ...] | None:
-        """The records held as one entry of a frame (:data:`~.records.COLUMNS`), the buffer
-        emptied; None if it holds none. From the control loop's thread only."""
+    def entry(self) -> tuple[Any, ...] | None:
+        """The records held as one entry of a frame (:data:`~.records.COLUMNS`), holding the
+        buffer's lists themselves (encode it, then :meth:`taken_all`); None if it holds
+        none. From the control loop's thread only."""
+        if not self.times:
+            return None
+        return (
+            COLUMNS,
+            self.kind,
+            self.request,
+            self.channels,
+            self.width,
+            self.times,
+            self.values,
+        )
+
+    def taken_all(self) -> None:
+        """The records of :meth:`entry` are handed over: empty the buffer."""
         times = self.times
         n = len(times)
         if not n:
-            return None
+            return
         width = self.width
         values = self.values
         self.last_time = times[n - 1]
         self.last_values = values[(n - 1) * width : n * width]
-        entry = (COLUMNS, self.kind, self.request, self.channels, width, times[:], values[:])
         times.clear()
         values.clear()
         self.taken += n
-        return entry
 
     def discard(self) -> int:
         """Empty the buffer; the messages it held."""

@@ -80,6 +80,44 @@ class PipelineStats:
     capacity: int
 
 
+@dataclass(frozen=True, slots=True)
+class Tally:
+    """What a list of entries holds (:func:`tally`): what is dropped if it is lost."""
+
+    entries: int
+    """Entries but the final statistics."""
+    records: int
+    """Single records (one message each)."""
+    controls: int
+    """Channel and column entries."""
+    batches: int
+    """BATCH records ..."""
+    batched: int
+    """... and their messages."""
+    columns: int
+    """Messages of the column entries."""
+
+
+def tally(entries: list[tuple[Any, ...]]) -> Tally:
+    """The :class:`Tally` of ``entries``."""
+    records = controls = batches = batched = columns = stats = 0
+    for entry in entries:
+        kind = entry[0]
+        if kind >= 0:
+            records += 1
+        elif kind == COLUMNS:
+            controls += 1
+            columns += column_messages_count(entry)
+        elif kind == CHANNEL:
+            controls += 1
+        elif kind == BATCH:
+            batches += 1
+            batched += len(entry[4])
+        elif kind == STATS:
+            stats += 1
+    return Tally(len(entries) - stats, records, controls, batches, batched, columns)
+
+
 class SinkStartError(RuntimeError):
     """The writer process could not open its sinks (an unwritable file, a port in use)."""
 
@@ -180,8 +218,9 @@ class Pipeline:
         self._batch_lost = 0  # messages beyond one of the BATCH records discarded
         self._taken = 0  # entries taken from the queue (into frames)
         self._controls = 0  # channel and column entries queued or taken (not records)
-        self._frames: deque[tuple[bytes, list[tuple[Any, ...]]]] = deque()
-        """Frames (length header and msgpack) still to write, in order, with their entries."""
+        self._frames: deque[tuple[bytearray, Tally]] = deque()
+        """Frames (length header and msgpack) still to write, in order, with the tally of
+        their entries (what is dropped if they are lost)."""
         self._lock = threading.Lock()  # taking from the queue into _frames
         self._wake = threading.Event()
         self._dead = False  # the writer is gone: nothing is taken any more
@@ -189,7 +228,7 @@ class Pipeline:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._process: subprocess.Popen[bytes] | None = None
-        self._encode = msgspec.msgpack.Encoder().encode
+        self._encode_into = msgspec.msgpack.Encoder().encode_into
         self.error: BaseException | None = None
         self.written: int | None = None
         self.writer_cpu_s: float | None = None
@@ -223,9 +262,10 @@ class Pipeline:
         """Queue what ``columns`` holds now (from the control loop's thread): before a
         record of the same channel goes to the queue, so that the writer gets a channel's
         records in the order they came."""
-        entry = columns.take()
+        entry = columns.entry()
         if entry is not None:
-            self.queue.append(entry)
+            self.queue.append((*entry[:5], entry[5][:], entry[6][:]))  # copies: it goes on
+            columns.taken_all()
             self._controls += 1
 
     def put(self, entry: tuple[Any, ...]) -> None:
@@ -486,18 +526,24 @@ class Pipeline:
         n = len(queue)  # the loop appends meanwhile: take n, each popleft atomic (C loop)
         batch = list(starmap(queue.popleft, repeat((), n)))
         self._taken += n
+        taken: list[Columns] = []
         if columns or final:  # after the queue's: each channel's records in order
             for buffer in self.columns:
-                entry = buffer.take()
+                entry = buffer.entry()  # its lists themselves: encoded, then emptied
                 if entry is not None:
                     batch.append(entry)
+                    taken.append(buffer)
                     self._taken += 1
                     self._controls += 1
         if final:
             batch.append((STATS, self.queued, self.dropped, self.capacity))
         if batch:
-            payload = self._encode(batch)
-            self._frames.append((HEADER.pack(len(payload)) + payload, batch))
+            frame = bytearray(HEADER.size)
+            self._encode_into(batch, frame, HEADER.size)
+            HEADER.pack_into(frame, 0, len(frame) - HEADER.size)
+            self._frames.append((frame, tally(batch)))
+        for buffer in taken:
+            buffer.taken_all()
 
     def _run(self) -> None:
         process = self._process
@@ -539,11 +585,11 @@ class Pipeline:
             # The frame being written is lost whole (the writer drops a partial frame), and
             # those after it: their records leave the queued count for the dropped one, like
             # the queue's.
-            lost = [entry for _, entries in self._frames for entry in entries]
+            for _, lost in self._frames:
+                self._taken -= lost.entries
+                self._discard_tally(lost)
             self._frames.clear()
             self._offset = 0
-            self._taken -= sum(1 for entry in lost if entry[0] != STATS)
-            self._discard(lost)
             queue = self.queue
             self._discard(list(starmap(queue.popleft, repeat((), len(queue)))))
             if self._stop.is_set():  # nothing appends to the columns any more
@@ -577,13 +623,10 @@ class Pipeline:
 
     def _discard(self, entries: list[tuple[Any, ...]]) -> None:
         """Count ``entries`` (taken out of the count of queued ones) as dropped."""
-        for entry in entries:
-            if entry[0] == COLUMNS:  # records handed over in a frame that was lost
-                lost = column_messages_count(entry)
-                self.dropped += lost
-                self._columns_lost += lost
-        records = sum(1 for entry in entries if entry[0] >= 0)
-        self._controls -= sum(1 for entry in entries if entry[0] in (CHANNEL, COLUMNS))
-        batched = sum(len(entry[4]) for entry in entries if entry[0] == BATCH)
-        self._batch_lost += batched - sum(1 for entry in entries if entry[0] == BATCH)
-        self.dropped += records + batched
+        self._discard_tally(tally(entries))
+
+    def _discard_tally(self, lost: Tally) -> None:
+        self.dropped += lost.records + lost.batched + lost.columns
+        self._columns_lost += lost.columns  # records handed over in a frame that was lost
+        self._controls -= lost.controls
+        self._batch_lost += lost.batched - lost.batches
