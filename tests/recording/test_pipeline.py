@@ -348,3 +348,31 @@ async def test_loop_driven_writes_never_block_and_lose_nothing_untold(tmp_path: 
     assert rec.complete and rec.dropped == stats.dropped
     written = sum(1 for m in rec.topic("/hal/AXIS") if m["kind"] == "command")
     assert written + stats.dropped == produced
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="Unix signals")
+async def test_loop_driven_writer_killed_mid_run_is_told(tmp_path: Path) -> None:
+    """Driven by the loop, a writer process killed mid-run: the loop's next write finds the
+    pipe broken, the pipeline says why, and every record is written or counted as dropped
+    (none is waited for)."""
+    recorder = Recorder(tmp_path / "k.mcap", capacity=20_000, logs=False)  # counts exact
+    actuator = Actuator(SimMotor(), device_name="AXIS", clock=VirtualClock())
+    produced = 0
+    async with recorder:
+        pipeline = recorder.pipeline
+        pid = pipeline.writer_pid
+        assert pid is not None
+        recorder.observe(actuator)
+        async with actuator:
+            for k in range(60):
+                if k == 20:
+                    os.kill(pid, signal.SIGKILL)
+                for _ in range(1000):
+                    produced += 1
+                    actuator.set_value_nowait(1e-6 * (k % 7), Request.POSITION)
+                pipeline.flush_due()
+            assert pipeline.error is not None  # found by a write from the loop
+    stats = recorder.final_stats
+    assert stats is not None and stats.dropped > 0
+    assert stats.queued + stats.dropped == produced + 3  # and the 3 state changes
+    assert stats.written <= stats.queued

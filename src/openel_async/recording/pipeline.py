@@ -415,8 +415,9 @@ class Pipeline:
     def flush_due(self, force: bool = False) -> None:
         """From the control loop's thread, every few ticks: when ``batch_size`` records are
         held (``force``: any), take them (the queue's and the columns'), encode them as one
-        frame for the thread and wake it. Never blocks: skipped while the thread is taking
-        records itself, has ``max_frames`` frames still to write, or the writer is gone."""
+        frame and write what the pipe takes (driven by a loop) or wake the thread to write
+        it. Never blocks: skipped while the thread is taking records itself, while
+        ``max_frames`` frames are still to be written, or once the writer is gone."""
         held = len(self.queue)
         if held < self.batch_size:
             for columns in self.columns:
