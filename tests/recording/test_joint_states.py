@@ -132,3 +132,28 @@ async def test_the_sample_takes_the_apps_own_read_at_the_same_time(tmp_path: Pat
         actual = sample()
         assert motor.reads == before + 1 and actual is not None and actual > read
     axis.set_listener(None)
+
+
+async def test_samples_keep_their_period_when_ticks_do_not_divide_it(tmp_path: Path) -> None:
+    """A 3 ms timer and 20 ms joint states (and 100 ms statistics): the tap looks every 6
+    ticks (18 ms), and the samples stay on a 20 ms grid on average (not one per 36 ms)."""
+    clock = VirtualClock()
+    path = tmp_path / "grid.mcap"
+    async with clock.autojump(), Recorder(path, joint_period_ms=20) as recorder:
+        axis = Actuator(SimMotor(), device_name="AXIS", clock=clock)
+        timer = EventTimer(3, clock=clock, name="loop")
+        recorder.observe(axis)
+        recorder.observe_timer(timer)
+        async with axis, timer:
+            timer.start_timer()
+            await clock.sleep(1.2)
+            timer.stop_timer()
+            delivered = timer.ticks_delivered
+    rec = read_recording(path)
+    times = [m["time_ns"] for m in rec.topic("/joint_states")]
+    assert 59 <= len(times) <= 61  # 1.2 s / 20 ms
+    gaps = {b - a for a, b in zip(times, times[1:])}
+    assert gaps <= {18_000_000, 36_000_000} and max(times) - min(times) >= 1_150_000_000
+    stats = rec.topic("/timer/loop")
+    assert 12 <= len(stats) <= 14  # every 100 ms, and the rest at the exit
+    assert sum(m["ticks"] for m in stats) == delivered >= 399

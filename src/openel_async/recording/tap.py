@@ -457,8 +457,9 @@ class _TimerTap:
         tap = self.tap
         now = self.now()
         self.stats_due(now)
-        if now >= tap.next_joint_ns:
-            tap.next_joint_ns = now + tap.joint_period_ns
+        slack = self.timer_period_ns >> 1  # a tick's jitter: the look is on time
+        if now + slack >= tap.next_joint_ns:
+            tap.next_joint_ns = next_due(tap.next_joint_ns, tap.joint_period_ns, now, slack)
             tap.sample(now)
         self.ticks = 0
         self.due = self.step
@@ -466,8 +467,9 @@ class _TimerTap:
 
     def stats_due(self, now: int) -> None:
         """The statistics record if its period has passed at ``now``."""
-        if now >= self.next_ns:
-            self.next_ns = now + self.period_ns
+        slack = self.timer_period_ns >> 1
+        if now + slack >= self.next_ns:
+            self.next_ns = next_due(self.next_ns, self.period_ns, now, slack)
             self.flush()
             self.update_step(self.timer)
 
@@ -492,6 +494,14 @@ class _TimerTap:
         self.last_index = index
         self.delivered = delivered
         self.tap.pipeline.put((self.channel, time_ns, TICK, index, deadline_ns, missed, ticks))
+
+
+def next_due(due: int, period: int, now: int, slack: int) -> int:
+    """The deadline after ``due`` (reached at ``now``): one ``period`` later, on the same
+    grid, so that looks every few ticks keep the period on average; after a pause (that
+    one already passed) one period from now. ``slack``: how early a look may come."""
+    following = due + period
+    return following if following + slack > now else now + period
 
 
 def _never() -> int:
@@ -734,8 +744,8 @@ class Tap(AppHook):
         now = self.now()
         for timer_tap in self._paced:
             timer_tap.stats_due(now)
-        if now >= self.next_joint_ns:
-            self.next_joint_ns = now + self.joint_period_ns
+        if now >= self.next_joint_ns:  # on the timer's deadlines: exact
+            self.next_joint_ns = next_due(self.next_joint_ns, self.joint_period_ns, now, 0)
             self.sample(now)
         self.flush_due()
         due = now + self._pace_ns()
