@@ -4,6 +4,7 @@ reading records of its own, and no side effect on the actuators)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 
@@ -152,7 +153,7 @@ async def test_samples_keep_their_period_when_ticks_do_not_divide_it(tmp_path: P
     rec = read_recording(path)
     times = [m["time_ns"] for m in rec.topic("/joint_states")]
     assert 59 <= len(times) <= 61  # 1.2 s / 20 ms
-    gaps = {b - a for a, b in zip(times, times[1:])}
+    gaps = {b - a for a, b in itertools.pairwise(times)}
     assert gaps <= {18_000_000, 36_000_000} and max(times) - min(times) >= 1_150_000_000
     stats = rec.topic("/timer/loop")
     assert 12 <= len(stats) <= 14  # every 100 ms, and the rest at the exit
