@@ -65,9 +65,6 @@ class Columns:
         self.last_time = 0
         self.last_values: list[float] | None = None  # the latest record handed over
 
-    def __len__(self) -> int:
-        return len(self.times)
-
     def append(self, time_ns: int, values: Sequence[float]) -> bool:
         """Hold a record (``values``: ``width`` numbers); False if the buffer is full (the
         listeners inline this)."""
