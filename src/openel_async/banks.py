@@ -25,7 +25,7 @@ from .completion import Motion
 from .component import LINK_FAULTS, STATE_CHANGES, ComponentState, HALComponent
 from .device import LIMITS_CHANGES
 from .errors import BadParameterError, HALError, StateError, WouldBlockError
-from .listeners import LISTENING, tell_readings
+from .listeners import LISTENING, BatchListener, batch_listener, tell_readings
 from .requests import GET_VALUE_REQUESTS, SET_VALUE_REQUESTS, Request, coerce_request
 from .sensor import MEASUREMENT_SETTINGS_VERSION, Measurement, Sensor
 
@@ -36,6 +36,7 @@ _ACTIVE = ComponentState.ACTIVE
 _POSITION = Request.POSITION
 _SETTABLE = frozenset(SET_VALUE_REQUESTS)
 _NO_EXCITE = Request.NO_EXCITE
+_ACTUAL_CODES = frozenset(r for r in GET_VALUE_REQUESTS if not r.is_command)
 _MAX = sys.float_info.max
 
 
@@ -131,6 +132,9 @@ class ActuatorBank:
         # The streaming tick checked inline by set_values_nowait: POSITION batches streamed
         # through the device batch, every device supporting POSITION.
         self._stream_inline = self._streamed is not None and self._positions
+        # The members' batch listener for reads (asked again when LISTENING.changes moved).
+        self._read_listen_at = -1
+        self._on_read: BatchListener | None = None
 
     def __len__(self) -> int:
         return len(self.actuators)
@@ -384,17 +388,27 @@ class ActuatorBank:
         return self._get_now("get_values_nowait", request)
 
     def _get_now(self, operation: str, request: Request | int) -> tuple[float, ...]:
-        values = self._values_now(operation, request)
-        if LISTENING.count:
-            req = coerce_request(request, GET_VALUE_REQUESTS)
-            if not req.is_command:
+        req = coerce_request(request, GET_VALUE_REQUESTS)
+        values = self._values_now(operation, req)
+        if LISTENING.count and req in _ACTUAL_CODES:  # the members' listeners hear the read
+            if self._read_listen_at != LISTENING.changes:  # a listener was set or removed
+                self._read_listener()
+            on_read = self._on_read
+            if on_read is not None and self._now_ns is not None:  # one call for the read
+                on_read(req, values, self._now_ns())
+            else:
                 tell_readings(self.actuators, req, [(v,) for v in values])
         return values
 
-    def _values_now(self, operation: str, request: Request | int) -> tuple[float, ...]:
+    def _read_listener(self) -> None:
+        """Ask the members' listeners again for a batch listener for the reads (only when
+        the members share a clock)."""
+        self._read_listen_at = LISTENING.changes
+        self._on_read = batch_listener(self.actuators) if self._now_ns is not None else None
+
+    def _values_now(self, operation: str, req: Request) -> tuple[float, ...]:
         actuators = self.actuators
         self._active_at = _require_all_active(actuators, operation, self._active_at)
-        req = coerce_request(request, GET_VALUE_REQUESTS)
         if req in self._read_codes:  # every device reads it: one loop, one try
             if not self._read_nowait:
                 _require_nowait(actuators, "_read_nowait", "get_values")

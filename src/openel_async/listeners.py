@@ -11,10 +11,12 @@ be cheap, must not block and must not raise (an exception would reach the caller
 listener each path pays one attribute test.
 
 A listener may also offer ``batch_listener(components)``: a :data:`BatchListener` for a bank's
-streamed batches to those components (one call per batch instead of one ``on_command`` per
-member), or None. An ``ActuatorBank`` asks its first member's listener for one
-(:func:`batch_listener`) whenever a listener was set or removed anywhere, and uses it for every
-batch its device batch commands; it stands for every member's ``on_command``.
+streamed batches to those components and for its reads of them (one call per batch instead of
+one ``on_command`` or ``on_reading`` per member), or None. An ``ActuatorBank`` asks its first
+member's listener for one (:func:`batch_listener`) whenever a listener was set or removed
+anywhere, and uses it for every batch its device batch commands (it stands for every member's
+``on_command``) and for every ``get_values`` of an actual value when its members share a clock
+(it stands for every member's ``on_reading``).
 """
 
 from __future__ import annotations
@@ -63,8 +65,10 @@ class ComponentListener(Protocol):
 
 
 BatchListener = Callable[["Request", Sequence[float], int], None]
-"""``f(request, values, time_ns)``: a bank's device batch commanded ``values[i]`` to member
-``i`` (``request``, at ``time_ns`` on its clock). It must not keep ``values`` (the caller may
+"""``f(request, values, time_ns)``: with a command code (``request.is_command``), a bank's
+device batch commanded ``values[i]`` to member ``i``; with an actual-value code
+(``POSITION_ACTUAL``...), the application read ``values[i]`` from member ``i`` (a bank's
+``get_values``); at ``time_ns`` on their clock. It must not keep ``values`` (the caller may
 reuse the sequence): copy what it needs."""
 
 

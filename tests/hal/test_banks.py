@@ -1232,3 +1232,57 @@ async def test_a_batch_listener_hears_each_streamed_batch_once(
     assert [s.position for s in servos] == [0.7, 0.8]
     for actuator in actuators:
         actuator.set_listener(None)
+
+
+@pytest.mark.usefixtures("_batch_servos")
+async def test_a_batch_listener_hears_a_bank_read_in_one_call(
+    hal_components: ComponentStack,
+) -> None:
+    """``get_values`` of an actual value: the members' batch listener hears the read in one
+    call (the code, the values, the clock's time); without one each member's listener hears
+    its value; a commanded value (POSITION) is no reading."""
+    servos = [BatchServo() for _ in range(2)]
+    actuators = [
+        await hal_components.actuator(s, device_name=f"Servo{i}") for i, s in enumerate(servos)
+    ]
+    heard: list[tuple[object, ...]] = []
+
+    class Listener:
+        def __init__(self, batches: bool) -> None:
+            self.batches = batches
+
+        def on_command(self, *args: object) -> None: ...
+
+        def on_reading(self, component: object, request: Request, values: object) -> None:
+            heard.append(("one", getattr(component, "device_name", ""), request, values))
+
+        def on_state(self, *args: object) -> None: ...
+
+        def batch_listener(self, components: Sequence[object]) -> object:
+            if not self.batches:
+                return None
+
+            def on_batch(request: Request, values: Sequence[float], t: int) -> None:
+                heard.append(("batch", request, tuple(values), t))
+
+            return on_batch
+
+    bank = ActuatorBank(actuators)
+    bank.set_values_nowait([0.1, 0.2])
+    listener = Listener(batches=True)
+    for actuator in actuators:
+        actuator.set_listener(listener)  # type: ignore[arg-type]
+    now = actuators[0].clock.now_ns()
+    read = bank.get_values_nowait(Request.POSITION_ACTUAL)
+    assert await bank.get_values(Request.POSITION_ACTUAL) == read
+    bank.get_values_nowait(Request.POSITION)  # the commanded values: not a reading
+    assert heard == [("batch", Request.POSITION_ACTUAL, read, now)] * 2
+    heard.clear()
+    plain = Listener(batches=False)
+    for actuator in actuators:
+        actuator.set_listener(None)
+        actuator.set_listener(plain)  # type: ignore[arg-type]
+    bank.get_values_nowait(Request.POSITION_ACTUAL)
+    assert heard == [("one", f"Servo{i}", Request.POSITION_ACTUAL, (read[i],)) for i in range(2)]
+    for actuator in actuators:
+        actuator.set_listener(None)

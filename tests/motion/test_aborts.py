@@ -160,3 +160,33 @@ async def test_an_axis_finalized_mid_move_aborts_the_motion(make_rig: RigFactory
         await motion
     assert info.value.axis == 0 and "Finalized" in str(info.value)
     assert info.value.cause is None
+
+
+class _BrokenReadMotor(RecordingMotor):
+    """A motor whose synchronous read raises a driver's own exception once ``broken``."""
+
+    broken = False
+
+    def read_nowait(self, request: Request) -> float:
+        if self.broken and request is Request.POSITION_ACTUAL:
+            raise RuntimeError("driver bug")
+        return super().read_nowait(request)
+
+
+async def test_a_driver_exception_in_the_bank_read_names_its_axis(make_rig: RigFactory) -> None:
+    """The actual positions are read in one bank read per tick (devices read without I/O):
+    a driver's exception there (no device fault: the axis stays Active) still aborts
+    naming the axis whose read raised, with the exception as its cause."""
+    broken = _BrokenReadMotor()
+    rig = await make_rig(
+        motors=[RecordingMotor(), broken, RecordingMotor()], tolerances=Tolerances(path=0.5)
+    )
+    motion = await rig.group.move_to([0.5, 0.5, 0.5])
+    await rig.sleep(0.1)
+    broken.broken = True
+    with pytest.raises(AxisFaultError) as info:
+        await motion
+    error = info.value
+    assert error.axis == 1 and error.axis_name == "joint1"
+    assert isinstance(error.cause, RuntimeError) and "driver bug" in str(error)
+    assert rig.actuators[1].state is ComponentState.ACTIVE

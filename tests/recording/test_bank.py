@@ -1,7 +1,9 @@
 """A bank's streamed batches: a POSITION batch is one record of the bank's column buffer in the
 control loop (its time and values appended: the bank's batch listener), one command message
 per component on its own channel in the file, counted as messages (queued, written,
-dropped); the joint-state sample takes the latest command heard, a bank's or a single one."""
+dropped); a bank's read likewise (one record, a reading message per component); the
+joint-state sample takes the latest command heard, a bank's or a single one, and the
+application's own read at the same time."""
 
 from __future__ import annotations
 
@@ -9,7 +11,7 @@ from pathlib import Path
 
 from openel_async import Actuator, ActuatorBank, Request, VirtualClock
 from openel_async.recording import Recorder, read_recording
-from openel_async.recording.records import BATCH, COMMAND, JOINTS
+from openel_async.recording.records import BATCH, COMMAND, JOINTS, READING
 from openel_sim import SimMotor
 
 
@@ -108,3 +110,66 @@ async def test_the_sample_takes_the_latest_command_bank_or_single(tmp_path: Path
         assert sample() == [0.4, 0.5]
     for axis in axes:
         axis.set_listener(None)
+
+
+async def test_a_bank_read_is_one_record_and_a_reading_per_component(tmp_path: Path) -> None:
+    """``get_values`` of actual positions: one call of the bank's batch listener, a record of
+    a column buffer of the bank's (no per-member ``on_reading``), a reading message per
+    component in the file, in order with its own readings and commands; the joint-state
+    sample at the same clock time takes those values (no read of its own)."""
+    clock = VirtualClock()
+    path = tmp_path / "reads.mcap"
+    recorder = Recorder(path)
+    async with clock.autojump(), recorder:
+        axes = _axes(clock)
+        for axis in axes:
+            recorder.observe(axis)
+        async with axes[0], axes[1]:
+            bank = ActuatorBank(axes)
+            queue = recorder.pipeline.queue
+            heard: list[tuple[float, ...]] = []
+            for k in range(1, 21):
+                bank.set_values_nowait([0.01 * k, -0.01 * k])
+                await clock.sleep(0.01)
+                heard.append(bank.get_values_nowait(Request.POSITION_ACTUAL))
+            (reads,) = [
+                c
+                for c in recorder.pipeline.columns
+                if len(c.channels) == 2 and c.request == int(Request.POSITION_ACTUAL)
+            ]
+            assert len(reads.times) == 20 and reads.width == 2
+            assert reads.values[:2] == list(heard[0])
+            assert not [m for m in queue if m[2] == READING]  # nothing per member
+            counts = iter(range(1000))
+            for axis in axes:  # from now on each read answers a new value: the order shows
+                axis.device.read_nowait = lambda request: 0.5 + next(counts)  # type: ignore[method-assign]
+            own = await axes[1].get_value(Request.POSITION_ACTUAL)  # its own read: after them
+            later = await bank.get_values(Request.POSITION_ACTUAL)  # the async read: the same
+            again = axes[1].get_value_nowait(Request.POSITION_ACTUAL)  # and after it
+            last = bank.get_values_nowait(Request.POSITION_ACTUAL)
+            devices = [a.device for a in axes]
+            for device in devices:  # the sample must take the app's values, not read
+                device.read_nowait = _unread  # type: ignore[method-assign]
+            recorder.sample(clock.now_ns())
+            joints = queue[-1]
+            assert joints[2] == JOINTS
+            assert [actual for _, _, actual in joints[4]] == list(last)
+            for device in devices:
+                del device.read_nowait
+    final = recorder.final_stats
+    assert final is not None and final.dropped == 0 and final.queued == final.written
+    rec = read_recording(path)
+    for i in range(2):
+        readings = [m for m in rec.topic(f"/hal/AXIS_{i}") if m["kind"] == "reading"]
+        expected = [h[i] for h in heard] + ([own] if i else []) + [later[i]]
+        expected += ([again] if i else []) + [last[i]]
+        assert [m["value"] for m in readings] == expected
+        assert all(m["request"] == "POSITION_ACTUAL" for m in readings)
+        assert [m["values"] for m in readings] == [[v] for v in expected]
+        times = [m["time_ns"] for m in readings]
+        at_once = 5 if i else 3  # the last bank read, its own, the bank's, its own, the bank's
+        assert times == sorted(times) and len(set(times[-at_once:])) == 1
+
+
+def _unread(request: Request) -> float:
+    raise AssertionError("the sample read the device")

@@ -111,6 +111,9 @@ class AxisGroup:
         # Devices that accept a command without I/O (simulations): the batch is streamed
         # without suspending and builds no Motion per axis (ActuatorBank.set_values_nowait).
         self._nowait = all(has_nowait(a.device, "command_nowait", "command") for a in axes)
+        # Devices read without I/O: the actual positions in one bank read per tick (its
+        # listeners hear the batch in one call).
+        self._read_now = all(has_nowait(a.device, "read_nowait", "read") for a in axes)
         self.timer = timer
         self._limits: tuple[AxisLimits, ...] = per_axis(limits, n, "limits", AxisLimits)
         self._tolerances: tuple[Tolerances, ...] = per_axis(
@@ -387,14 +390,21 @@ class AxisGroup:
         if settling or motion._checks_path or self._log_actual:
             if self._axis_left_active(motion, t):
                 return
-            actual = []
-            append = actual.append
-            try:
-                for axis in self.axes:
-                    append(await axis.get_value(POSITION_ACTUAL))
-            except Exception as exc:
-                self._axis_failed(len(actual), exc, t)
-                return
+            if self._read_now:
+                try:
+                    actual = list(self._bank.get_values_nowait(POSITION_ACTUAL))
+                except Exception as exc:
+                    self._read_failed(motion, exc, t)
+                    return
+            else:
+                actual = []
+                append = actual.append
+                try:
+                    for axis in self.axes:
+                        append(await axis.get_value(POSITION_ACTUAL))
+                except Exception as exc:
+                    self._axis_failed(len(actual), exc, t)
+                    return
             if self._active is not motion:  # preempted or held during the reads
                 return
             if not settling and motion._checks_path and self._path_violated(motion, actual, t):
@@ -513,6 +523,26 @@ class AxisGroup:
                 )
                 return True
         return False
+
+    def _read_failed(self, motion: GroupMotion, exc: Exception, t: int) -> None:
+        """The bank's read of the actual positions raised: abort, naming the axis.
+
+        A device fault (link failure, a non-finite value) has moved that axis to Error and
+        is named with its fault; else (an exception of a driver) the first axis whose own
+        read raises, read again one by one (axis 0 if none does any more).
+        """
+        if self._axis_left_active(motion, t):
+            return
+        index = 0
+        for i, axis in enumerate(self.axes):
+            try:
+                axis.get_value_nowait(POSITION_ACTUAL)
+            except Exception:
+                index = i
+                break
+            if self._axis_left_active(motion, t):
+                return
+        self._axis_failed(index, exc, t)
 
     def _stream_failed(
         self, motion: GroupMotion, position: list[float], exc: Exception, t: int

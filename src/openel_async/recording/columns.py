@@ -13,7 +13,9 @@ them at hand).
 
 A record: kind COMMAND, ``values[i]`` commanded to the component of ``channels[i]`` (a
 bank's batch: one message per channel; an actuator's own command: one channel); or kind
-READING, the ``width`` values read from the component of ``channels[0]`` (one message).
+READING, ``width // len(channels)`` values read from the component of each channel, in
+channel order (a sensor's reading: one channel, its values; a bank's read: one value per
+member), one message per channel.
 """
 
 from __future__ import annotations
@@ -49,6 +51,8 @@ class Columns:
     ) -> None:
         if kind == COMMAND and width != len(channels):
             raise ValueError(f"a command column has one value per channel, got width {width}")
+        if width % len(channels):
+            raise ValueError(f"width {width} is not a multiple of {len(channels)} channels")
         if request not in REQUEST_NAMES:
             raise ValueError(f"unknown request code {request!r}")
         self.kind = kind
@@ -56,7 +60,7 @@ class Columns:
         self.channels = channels
         self.width = width
         self.capacity = capacity
-        self.per_record = len(channels) if kind == COMMAND else 1
+        self.per_record = len(channels)
         """Messages one record makes."""
         self.times: list[int] = []
         self.values: list[float] = []
@@ -115,7 +119,7 @@ class Columns:
 
 def column_messages_count(entry: Sequence[Any]) -> int:
     """The messages a :data:`~.records.COLUMNS` entry makes."""
-    return len(entry[5]) * (len(entry[3]) if entry[1] == COMMAND else 1)
+    return len(entry[5]) * len(entry[3])
 
 
 def column_messages(entry: Sequence[Any]) -> Iterator[tuple[int, int, dict[str, Any]]]:
@@ -133,17 +137,19 @@ def column_messages(entry: Sequence[Any]) -> Iterator[tuple[int, int, dict[str, 
                     {"kind": "command", "time_ns": t, "request": name, "value": values[base + i]},
                 )
     else:
-        channel = channels[0]
+        each = width // len(channels)
         for row, t in enumerate(times):
-            read = values[row * width : (row + 1) * width]
-            yield (
-                channel,
-                t,
-                {
-                    "kind": "reading",
-                    "time_ns": t,
-                    "request": name,
-                    "value": read[0] if read else None,
-                    "values": read,
-                },
-            )
+            base = row * width
+            for i, channel in enumerate(channels):
+                read = values[base + i * each : base + (i + 1) * each]
+                yield (
+                    channel,
+                    t,
+                    {
+                        "kind": "reading",
+                        "time_ns": t,
+                        "request": name,
+                        "value": read[0] if read else None,
+                        "values": read,
+                    },
+                )

@@ -91,7 +91,7 @@ class _ComponentTap:
     int: the garbage collector then untracks them at its first passes)."""
 
     __slots__ = (
-        "actual",
+        "actuals",
         "capacity",
         "channel",
         "component",
@@ -117,11 +117,13 @@ class _ComponentTap:
         self.capacity = tap.pipeline.capacity
         self.muted = False
         """True while the tap reads the component itself (that read is not recorded)."""
-        self.actual: Columns | None = None
-        """The column buffer of its POSITION_ACTUAL readings, once it has one."""
+        self.actuals: list[tuple[Columns, int, int]] = []
+        """The column buffers of its POSITION_ACTUAL readings (its own, its banks' reads):
+        each with its value's index in a record and the record's width."""
         self.readings: dict[Request | None, Columns | None] = {}
         """Request -> the column buffer of its readings (None: they do not fit one)."""
         self.read_code: Request | bool | None = False  # the request of the buffer at hand
+        # (False: none yet; True: none, its reads take the other path, _ActuatorTap._reading)
         self.read_times: list[int] = []
         self.read_values: list[float] = []
         self.read_width = 0
@@ -170,7 +172,7 @@ class _ComponentTap:
                 columns = self.pipeline.add_columns(READING, code, (self.channel,), len(values))
             self.readings[request] = columns
             if columns is not None and request is _POSITION_ACTUAL:
-                self.actual = columns  # the joint-state sample looks at it
+                self.actuals.append((columns, 0, columns.width))  # the sample looks at it
             if columns is not None and self.read_code is False:
                 self.read_code = request
                 self.read_times, self.read_values = columns.times, columns.values
@@ -266,8 +268,22 @@ class _ActuatorTap(_ComponentTap):
         if commands is not None and commands.times:
             pipeline.hand_over(commands)
         for bank, _ in self.banks:
-            if bank.times:
-                pipeline.hand_over(bank.columns)
+            bank.hand_over()
+
+    def _reading(self, request: Request | None, values: tuple[float, ...]) -> None:
+        """Its own read of a code that one of its banks reads too: the banks' reads held
+        first, and its later own reads of it stay off the path at hand (and the bank's too,
+        :meth:`_BankTap._read`): the two sources of one channel keep their order."""
+        shared = False
+        for bank, _ in self.banks:
+            if request in bank.reads:
+                shared = True
+                bank.hand_over()
+                if bank.read_code is request:
+                    bank.read_code = None
+        super()._reading(request, values)
+        if shared and self.read_code is request:
+            self.read_code = True
 
     def _command_columns(self) -> None:
         columns = self.pipeline.add_columns(COMMAND, _POSITION_CODE, (self.channel,), 1)
@@ -332,9 +348,11 @@ class _ActuatorTap(_ComponentTap):
 class _BankTap:
     """The batch listener of a bank (:func:`openel_async.listeners.batch_listener`): a
     POSITION batch is a record of a column buffer (:mod:`.columns`; the writer process makes
-    a COMMAND message of each value on its component's channel), another request's a BATCH
+    a COMMAND message of each value on its component's channel), another command's a BATCH
     record in the queue; the latest POSITION batch is what the joint-state sample takes
-    (:meth:`_ActuatorTap.latest_commanded`)."""
+    (:meth:`_ActuatorTap.latest_commanded`). A read of the members (an actual-value code) is
+    a record of that code's column buffer (a READING message of each value on its
+    component's channel); the first code read is kept at hand."""
 
     __slots__ = (
         "capacity",
@@ -347,6 +365,10 @@ class _BankTap:
         "members",
         "pipeline",
         "queue",
+        "read_code",
+        "read_times",
+        "read_values",
+        "reads",
         "size",
         "times",
         "values",
@@ -370,6 +392,11 @@ class _BankTap:
         """POSITION batches dropped so far."""
         self.lost_at = 0
         """:meth:`batches` when :attr:`lost` was dropped."""
+        self.reads: dict[Request, Columns | None] = {}
+        """Actual-value code -> the column buffer of the reads (None: they do not fit one)."""
+        self.read_code: Request | None = None  # the code of the buffer at hand
+        self.read_times: list[int] = []
+        self.read_values: list[float] = []
 
     def __call__(self, request: Request, values: Sequence[float], time_ns: int) -> None:
         if request is _POSITION:  # Columns.append, inline (the per-tick path)
@@ -383,16 +410,66 @@ class _BankTap:
                 self.drops += 1
                 self.lost_at = self.batches()
             return
+        if request is self.read_code:  # the members' actual positions read (per tick)
+            times = self.read_times
+            if len(times) < self.capacity:
+                times.append(time_ns)
+                self.read_values.extend(values)
+            else:
+                self.pipeline.dropped += self.size
+            return
+        if not request.is_command:
+            self._read(request, values, time_ns)
+            return
         for member in self.members:  # their channels' earlier records first
             member.hand_over()
-        if self.times:
-            self.pipeline.hand_over(self.columns)
+        self.hand_over()
         queue = self.queue
         if len(queue) < self.capacity:
             queue.append((BATCH, time_ns, COMMAND, int(request), self.channels, tuple(values)))
             self.count += 1
         else:
             self.pipeline.dropped += self.size
+
+    def _read(self, request: Request, values: Sequence[float], time_ns: int) -> None:
+        """A read off the path at hand: into its code's column buffer (made at its first
+        read), else each value to its member's listener."""
+        if request in self.reads:
+            columns = self.reads[request]
+        else:
+            columns = None
+            if all(type(v) is float for v in values):  # as the actual values are
+                code = int(request)
+                columns = self.pipeline.add_columns(READING, code, self.channels, self.size)
+                for member in self.members:
+                    if isinstance(member, _ActuatorTap) and request is _POSITION_ACTUAL:
+                        member.actuals.append((columns, self.members.index(member), self.size))
+            self.reads[request] = columns
+            own = [m for m in self.members if request in m.readings]
+            for member in own:  # its own reads of it leave the path at hand (see _reading)
+                if member.read_code is request:
+                    member.read_code = True
+            if columns is not None and self.read_code is None and not own:
+                self.read_code = request
+                self.read_times, self.read_values = columns.times, columns.values
+        if columns is not None and all(type(v) is float for v in values):
+            for member in self.members:  # a member's own reads held: they came first
+                if request in member.readings:
+                    member.hand_over()
+            if not columns.append(time_ns, values):
+                self.pipeline.dropped += self.size
+            return
+        for member, value in zip(self.members, values, strict=True):
+            member.on_reading(member.component, request, (value,))
+
+    def hand_over(self) -> None:
+        """Queue what its column buffers hold (before another record of its members)."""
+        pipeline = self.pipeline
+        if self.times:
+            pipeline.hand_over(self.columns)
+        for columns in self.reads.values():
+            if columns is not None and columns.times:
+                pipeline.hand_over(columns)
 
     def batches(self) -> int:
         """POSITION batches heard so far (held, handed over or dropped)."""
@@ -817,12 +894,15 @@ class Tap(AppHook):
                 if read is None:  # the framework answers the commanded value for it
                     joints.append((tap.name, commanded, commanded))
                     continue
-                readings = tap.actual
-                if readings is not None:
+                app_read = None
+                for readings, index, width in tap.actuals:
                     times = readings.times
                     if times and times[-1] == now:  # the app read it at this very time
-                        joints.append((tap.name, commanded, readings.values[-1]))
-                        continue
+                        app_read = readings.values[(len(times) - 1) * width + index]
+                        break
+                if app_read is not None:
+                    joints.append((tap.name, commanded, app_read))
+                    continue
                 try:
                     actual: float | None = read(_POSITION_ACTUAL)
                 except WouldBlockError:  # a bus device: no synchronous read, now or later
