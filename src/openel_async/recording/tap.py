@@ -305,7 +305,17 @@ class _ActuatorTap(_ComponentTap):
         batch, whichever came last (read through the framework after an activation)."""
         commanded = self.commanded
         banks = self.banks
-        if banks:  # _BankTap.batches and latest, inline (every sample)
+        if len(banks) == 1 and not banks[0][0].drops:  # the usual case: one bank, no drop
+            bank, index = banks[0]
+            columns = bank.columns
+            times = columns.times
+            n = len(times)
+            if columns.taken + n > self.marks[0]:  # a batch since its own command
+                if n:
+                    return columns.values[(n - 1) * columns.width + index]
+                if columns.last_values is not None:
+                    return columns.last_values[index]
+        elif banks:  # _BankTap.batches and latest, inline (every sample)
             at = -1
             for (bank, index), mark in zip(banks, self.marks, strict=True):
                 columns = bank.columns
@@ -618,6 +628,7 @@ class Tap(AppHook):
         self._put = self.pipeline.put
         self.joint_period_ns = round(joint_period_ms * 1e6)
         self.timer_stats_period_ns = round(timer_stats_ms * 1e6)
+        self._pace_period = min(self.joint_period_ns, self.timer_stats_period_ns)
         self._logs = logs
         self._offset: int | None = None
         self._clock: Clock | None = None
@@ -807,12 +818,9 @@ class Tap(AppHook):
         if isinstance(clock, InlineScheduler) and clock is self._clock:
             self._paced.append(observer)
             if self._pace_call is None:
-                self._pace_call = clock.call_at(clock.now_ns() + self._pace_ns(), self.pace)
+                self._pace_call = clock.call_at(clock.now_ns() + self._pace_period, self.pace)
         else:
             timer.add_observer(observer)
-
-    def _pace_ns(self) -> int:
-        return min(self.joint_period_ns, self.timer_stats_period_ns)
 
     def pace(self) -> int:
         """The tap's callback on an InlineScheduler clock, every ``min(joint_period_ms,
@@ -820,12 +828,13 @@ class Tap(AppHook):
         a batch of records encoded for the writer; returns its next deadline."""
         now = self.now()
         for timer_tap in self._paced:
-            timer_tap.stats_due(now)
+            if now + (timer_tap.timer_period_ns >> 1) >= timer_tap.next_ns:  # stats_due's test
+                timer_tap.stats_due(now)
         if now >= self.next_joint_ns:  # on the timer's deadlines: exact
             self.next_joint_ns = next_due(self.next_joint_ns, self.joint_period_ns, now, 0)
             self.sample(now)
         self.flush_due()
-        due = now + self._pace_ns()
+        due = now + self._pace_period
         timer = self._paced[0].timer
         fields = timer.last_tick_fields
         if fields is not None:  # on one of the timer's deadlines: no extra break of the steps
