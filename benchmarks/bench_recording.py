@@ -8,15 +8,19 @@ functions: ``find_app("arm2")`` and ``run_app`` with the hooks that ``taps_from_
 the CLI's logging at info level), lockstep by default: an AxisGroup streaming both joints'
 trajectory on a 2 ms EventTimer, both joints' actual positions read per tick, the tip sensor
 read per tick by an async TimerObserver, a TrajectoryRecorder, four laps of the square (about
-12 600 ticks). Three variants run in the same process, interleaved round by round (the order
-reversed every other round): no hook (the baseline); ``--record FILE.mcap`` (a ``Tap`` writing
+12 600 ticks). Three variants run in three fresh processes one after the other (a CLI run is a
+fresh process, and where the interpreter and MuJoCo lay out their memory changes a tap's cost
+by a few percent from one process to the next), five rounds in each, interleaved round by
+round (the order reversed every other round): no hook (the baseline); ``--record FILE.mcap`` (a ``Tap`` writing
 MCAP, its writer process started by ``taps_from_args`` before the app starts, stopped after it
 returns, as the CLI does); ``--foxglove`` (port 0), both with the tap's default periods, with
 one Foxglove WebSocket client subscribed to every channel before the control loop runs (a
 process of its own on 127.0.0.1, nice 19, reading the socket raw and counting the messages).
 Figure: the real time per timer tick of the run as the app reports it (``wall_time_s /
 timer_ticks`` of its result: the simulation's running time from its start to the end of the
-last lap, the pauses excluded); medians over the rounds; ratio = variant / baseline. The writer
+last lap, the pauses excluded); medians over every round; ratio: the median of the rounds'
+own ratios (each round's variant over the baseline run next to it, in the same process: a
+slow drift of the machine cancels out), which the target is checked on. The writer
 process's start and stop are outside that window; the writer's work during the run, the app
 process's listener calls, samples and batch encoding are inside. To hold the loop until the
 client has subscribed, the live variant has one more hook that pauses the simulation
@@ -76,6 +80,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import gc
 import inspect
 import io
@@ -199,6 +204,8 @@ APP_CHANNELS = 8
 """The arm2 app's channels with a tap: /log, /tf, /scene, /hal/shoulder, /joint_states,
 /hal/elbow, /timer/arm2-sync, /hal/tip_pos."""
 APP_VARIANTS = ("base", "rec", "live")
+APP_PROCESSES = 3
+APP_ROUNDS = 5  # per process
 
 
 @dataclass(frozen=True, slots=True)
@@ -627,11 +634,54 @@ MINIMAL = "minimal 9 us step (informational): "
 """The label of the stand-in loop's rows (the recorder at saturation)."""
 
 
-def _app_rows(runs: dict[str, list[_AppRun]]) -> tuple[list[Row], list[str]]:
-    """The target rows (the arm2 demo's loop) and their notes."""
+def _app_rounds(rounds: int, tmp: Path) -> dict[str, list[_AppRun]]:
+    """``rounds`` rounds of the three variants, interleaved (the order reversed every other
+    round), after a warm-up run."""
+    runs: dict[str, list[_AppRun]] = {k: [] for k in APP_VARIANTS}
+    _app_run("base", tmp, -1)  # warm-up: imports, model load, matplotlib
+    for r in range(rounds):
+        order = APP_VARIANTS if r % 2 == 0 else APP_VARIANTS[::-1]
+        for variant in order:
+            gc.collect()  # each run from the same heap (a CLI run is a fresh process)
+            runs[variant].append(_app_run(variant, tmp, r))
+    return runs
+
+
+def _app_processes(processes: int, rounds: int, tmp: Path) -> list[dict[str, list[_AppRun]]]:
+    """:func:`_app_rounds` in ``processes`` fresh processes, one after the other (each CLI
+    run is a fresh process; where the interpreter and MuJoCo lay their memory out differs
+    from one process to the next, and so does the cost of a tap by a few percent)."""
+    results = []
+    root = Path(__file__).resolve().parent.parent
+    for p in range(processes):
+        out = tmp / f"worker-{p}.json"
+        work = tmp / f"worker-{p}"
+        work.mkdir()
+        command = [sys.executable, "-m", "benchmarks.bench_recording", str(rounds), str(work)]
+        subprocess.run(
+            [*command, str(out)], cwd=root, check=True, stdout=subprocess.DEVNULL, timeout=900
+        )
+        found = json.loads(out.read_text())
+        results.append({k: [_AppRun(**r) for r in found[k]] for k in APP_VARIANTS})
+    return results
+
+
+def _paired(runs: dict[str, list[_AppRun]], variant: str) -> list[float]:
+    """Each round's ``variant`` time per tick over the baseline's of the same round."""
+    return [r.per_tick / b.per_tick for r, b in zip(runs[variant], runs["base"], strict=True)]
+
+
+def _app_rows(processes: list[dict[str, list[_AppRun]]]) -> tuple[list[Row], list[str]]:
+    """The target rows (the arm2 demo's loop) and their notes: the time per tick, medians of
+    every round of every process; the ratio, the median of the rounds' own ratios (each
+    round's variant over the same round's baseline, run next to it)."""
+    runs = {k: [r for p in processes for r in p[k]] for k in APP_VARIANTS}
     per_tick = {k: median(r.per_tick for r in v) for k, v in runs.items()}
     b, rc, lv = (per_tick[k] * 1e6 for k in APP_VARIANTS)
-    rec_ratio, live_ratio = ratio_of(rc, b), ratio_of(lv, b)
+    rec_ratio, live_ratio = median(_paired(runs, "rec")), median(_paired(runs, "live"))
+    by_process = ", ".join(
+        f"{median(_paired(p, 'rec')):.3f}x / {median(_paired(p, 'live')):.3f}x" for p in processes
+    )
     rec, live = runs["rec"], runs["live"]
     rec_dropped = sum(r.dropped for r in rec)
     live_dropped = sum(r.dropped for r in live)
@@ -722,6 +772,8 @@ def _app_rows(runs: dict[str, list[_AppRun]]) -> tuple[list[Row], list[str]]:
         f"{cpu['rec'] - cpu['base']:.1f} us of the app thread's CPU time (live view: "
         f"{lv - b:.1f} and {cpu['live'] - cpu['base']:.1f} us): "
         f"{(rc - b) / (written / ticks) * 1000:.0f} ns of real time per message recorded.",
+        f"arm2 demo loop, the ratios in each of the {len(processes)} processes (recorder / "
+        f"live view, medians of their rounds): {by_process}.",
     ]
     return rows, notes
 
@@ -787,11 +839,11 @@ def _minimal_rows(
 
 
 def run(quick: bool) -> BenchResult:
-    app_rounds = 3 if quick else 9
+    app_processes = 1 if quick else APP_PROCESSES
+    app_rounds = 3 if quick else APP_ROUNDS
     ticks = 2_000 if quick else 20_000
     rounds = 3 if quick else 5
     names = ("base", "rec", "live", "rec_io", "live_io")
-    runs: dict[str, list[_AppRun]] = {k: [] for k in APP_VARIANTS}
     wall: dict[str, list[float]] = {k: [] for k in names}
     thread: dict[str, list[float]] = {k: [] for k in names}
     process: dict[str, list[float]] = {k: [] for k in names}
@@ -801,13 +853,9 @@ def run(quick: bool) -> BenchResult:
     from openel_async.recording.pipeline import Pipeline
 
     with tempfile.TemporaryDirectory() as tmp:
-        # the target rows: the arm2 demo's loop, its variants interleaved round by round
-        _app_run("base", Path(tmp), -1)  # warm-up: imports, model load, matplotlib
-        for r in range(app_rounds):
-            order = APP_VARIANTS if r % 2 == 0 else APP_VARIANTS[::-1]
-            for variant in order:
-                gc.collect()  # each run from the same heap (a CLI run is a fresh process)
-                runs[variant].append(_app_run(variant, Path(tmp), r))
+        # the target rows: the arm2 demo's loop in fresh processes, its variants interleaved
+        # round by round in each
+        app_runs = _app_processes(app_processes, app_rounds, Path(tmp))
         # informational: the minimal 9 us step
         anyio.run(_baseline, 500, backend="asyncio")  # warm-up
         stream = Path(tmp) / "stream.bin"  # a Recorder loop's writer input, for interference
@@ -850,7 +898,7 @@ def run(quick: bool) -> BenchResult:
     t = {k: median(v) for k, v in thread.items()}
     p = {k: median(v) for k, v in process.items()}
     wr = {k: median(v) for k, v in writer.items()}
-    app_rows, app_notes = _app_rows(runs)
+    app_rows, app_notes = _app_rows(app_runs)
     rows = (
         *app_rows,
         *_minimal_rows(w, t, p, wr),
@@ -889,9 +937,18 @@ def run(quick: bool) -> BenchResult:
         rows=rows,
         description=__doc__ or "",
         params={
-            "arm2 demo runs": f"{app_rounds} rounds x 3 variants, {APP_LAPS} laps each",
+            "arm2 demo runs": f"{app_processes} processes x {app_rounds} rounds x 3 variants, "
+            f"{APP_LAPS} laps each",
             "minimal step": f"{rounds} rounds of {ticks} ticks",
             "period": f"{PERIOD_MS} ms",
             "tap periods (defaults)": _tap_periods(),
         },
+    )
+
+
+if __name__ == "__main__":  # a worker of _app_processes: ROUNDS WORKDIR OUT.json
+    _rounds, _work, _out = sys.argv[1:4]
+    _found = _app_rounds(int(_rounds), Path(_work))
+    Path(_out).write_text(
+        json.dumps({k: [dataclasses.asdict(r) for r in v] for k, v in _found.items()})
     )

@@ -367,6 +367,7 @@ async def test_loop_driven_writer_killed_mid_run_is_told(tmp_path: Path) -> None
             for k in range(60):
                 if k == 20:
                     os.kill(pid, signal.SIGKILL)
+                    _wait_exited(pid)  # its pipe closed: the next write must find it broken
                 for _ in range(1000):
                     produced += 1
                     actuator.set_value_nowait(1e-6 * (k % 7), Request.POSITION)
@@ -376,3 +377,17 @@ async def test_loop_driven_writer_killed_mid_run_is_told(tmp_path: Path) -> None
     assert stats is not None and stats.dropped > 0
     assert stats.queued + stats.dropped == produced + 3  # and the 3 state changes
     assert stats.written <= stats.queued
+
+
+def _wait_exited(pid: int, timeout: float = 30.0) -> None:
+    """Until process ``pid`` has exited (a zombie or gone: its file descriptors closed)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except (FileNotFoundError, ProcessLookupError):
+            return
+        if state in ("Z", "X"):
+            return
+        time.sleep(0.005)
+    raise TimeoutError(f"process {pid} still runs {timeout} s after SIGKILL")

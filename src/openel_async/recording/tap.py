@@ -33,6 +33,7 @@ from ..clock import Clock, InlineScheduler, ScheduledCall, run_in_thread
 from ..component import ComponentState, HALComponent
 from ..device import ValueSource
 from ..errors import HALError, WouldBlockError
+from ..listeners import BatchListener
 from ..requests import EventId, Request
 from ..timer import EventTimer
 from .columns import Columns
@@ -295,10 +296,12 @@ class _ActuatorTap(_ComponentTap):
         self.mark()  # and the banks' earlier batches are older
         super().on_state(component, old, new)
 
-    def batch_listener(self, components: Sequence[HALComponent]) -> _BankTap | None:
-        """The batch listener of a bank of ``components`` (every one observed by this tap),
-        else None (each member's listener hears its command)."""
-        return self.tap.bank_tap(components)
+    def batch_listener(self, components: Sequence[HALComponent]) -> BatchListener | None:
+        """The batch listener of a bank of ``components`` (every one observed by this tap):
+        its :meth:`_BankTap.on_batch` (a bound method: the cheapest call, not an instance's
+        ``__call__``), else None (each member's listener hears its command)."""
+        bank = self.tap.bank_tap(components)
+        return None if bank is None else bank.on_batch
 
     def latest_commanded(self) -> float | None:
         """The commanded position: the last POSITION command heard, its own or in a bank's
@@ -408,7 +411,8 @@ class _BankTap:
         self.read_times: list[int] = []
         self.read_values: list[float] = []
 
-    def __call__(self, request: Request, values: Sequence[float], time_ns: int) -> None:
+    def on_batch(self, request: Request, values: Sequence[float], time_ns: int) -> None:
+        """The :data:`~openel_async.listeners.BatchListener`."""
         if request is _POSITION:  # Columns.append, inline (the per-tick path)
             times = self.times
             if len(times) < self.capacity:
