@@ -702,19 +702,21 @@ class CanBus:
         assert bus is not None
         timeout = self.send_timeout
 
-        def send_all() -> int:
-            sent = 0
+        sent = [0]  # frames the thread has sent: the ones before a failure went out
+
+        def send_all() -> None:
             for msg in batch:
                 bus.send(msg, timeout)
-                sent += 1
-            return sent
+                sent[0] += 1
 
         async with self._io_lock:
             try:
-                self.stats.tx_frames += await run_in_thread(send_all)
+                await run_in_thread(send_all)
             except Exception as exc:
-                self.stats.tx_dropped += len(batch)
+                self.stats.tx_dropped += len(batch) - sent[0]
                 self._set_down(f"send failed: {exc!r}")
+            finally:
+                self.stats.tx_frames += sent[0]
 
     async def _sync_producer(self, period: float) -> None:
         """CANopen SYNC (COB-ID 0x080, no data) every ``period`` seconds, on absolute deadlines."""

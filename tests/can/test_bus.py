@@ -128,6 +128,41 @@ async def test_blocking_sends_run_in_a_thread_and_a_full_queue_times_out() -> No
         slow.shutdown()
 
 
+class _FailingBus(can.BusABC):
+    """A bus whose send fails from its ``fail_at``-th frame on (0-based)."""
+
+    def __init__(self, fail_at: int) -> None:
+        super().__init__(channel="failing")
+        self.fail_at = fail_at
+        self.sent: list[can.Message] = []
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if len(self.sent) >= self.fail_at:
+            raise can.CanOperationError("transmit buffer overflow")
+        self.sent.append(msg)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        time.sleep(min(timeout or 0.0, 0.01))
+        return None, False
+
+
+async def test_a_threaded_batch_failing_midway_counts_what_went_out() -> None:
+    """A batch sent from the thread that fails at its third frame: the two before it went
+    out and count as sent, only the rest as dropped; the bus goes down."""
+    failing = _FailingBus(fail_at=2)
+    try:
+        async with CanBus(failing, send_mode="thread", poll_interval=0.01) as bus:
+            port = bus.attach([], name="tx")
+            for k in range(5):  # queued without a pause: the sender takes them as one batch
+                await port.send(0x100 + k, b"\x00")
+            await wait_until(lambda: bus.stats.tx_frames + bus.stats.tx_dropped == 5, 2)
+            assert [m.arbitration_id for m in failing.sent] == [0x100, 0x101]
+            assert bus.stats.tx_frames == 2 and bus.stats.tx_dropped == 3
+            assert bus.state is not BusState.UP
+    finally:
+        failing.shutdown()
+
+
 async def test_sync_producer(channel: str, raw_bus: can.BusABC) -> None:
     async with CanBus(interface="virtual", channel=channel, sync_period=0.005):
         frames: list[can.Message] = []
