@@ -455,9 +455,9 @@ class _BankTap:
             if all(type(v) is float for v in values):  # as the actual values are
                 code = int(request)
                 columns = self.pipeline.add_columns(READING, code, self.channels, self.size)
-                for member in self.members:
-                    if isinstance(member, _ActuatorTap) and request is _POSITION_ACTUAL:
-                        member.actuals.append((columns, self.members.index(member), self.size))
+                if request is _POSITION_ACTUAL:  # the joint-state sample looks at it
+                    for index, member in enumerate(self.members):
+                        member.actuals.append((columns, index, self.size))
             self.reads[request] = columns
             own = [m for m in self.members if request in m.readings]
             for member in own:  # its own reads of it leave the path at hand (see _reading)
