@@ -100,7 +100,7 @@ from typing import IO, Any
 import anyio
 import structlog
 
-from openel_async.cli.app import AppContext, AppHook
+from openel_async.app import AppContext, AppHook
 
 from .harness import BenchResult, Row, ratio_of
 
@@ -292,7 +292,7 @@ def _app_run(variant: str, tmp: Path, index: int) -> _AppRun:
     """One run of the app ``arm2`` as ``openel-async run [--record FILE | --foxglove] arm2
     --no-live --laps N --out DIR`` runs it (``variant``: base, rec or live)."""
     from openel_apps import arm2_square
-    from openel_async.cli.app import find_app, run_app
+    from openel_async.app import find_app, run_app
     from openel_async.cli.logs import configure_logging
     from openel_async.cli.record_cmd import taps_from_args
 

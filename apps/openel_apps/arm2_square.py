@@ -41,9 +41,7 @@ import anyio.to_thread
 import structlog
 
 from openel_async import EventTimer, HALError, Sensor
-from openel_async.cli.app import AppContext, AppInfo, DemoOptions
-from openel_async.cli.interrupt import atomic_output
-from openel_async.cli.progress import LiveLine
+from openel_async.app import AppContext, AppInfo, DemoOptions, LiveLine, atomic_output
 from openel_async.motion import (
     AxisGroup,
     AxisLimits,
@@ -392,7 +390,7 @@ class _TipMonitor:
 
 
 def open_sim(*, realtime: bool, ctx: AppContext | None = None) -> MujocoSim:
-    """The ``arm2`` simulation; raises :class:`~openel_async.cli.app.AppUnavailable` when
+    """The ``arm2`` simulation; raises :class:`~openel_async.app.AppUnavailable` when
     MuJoCo or the model cannot load."""
     return open_arm_sim("arm2", realtime=realtime, ctx=ctx)
 

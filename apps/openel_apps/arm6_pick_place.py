@@ -41,8 +41,7 @@ import anyio
 import structlog
 
 from openel_async import Actuator, EventTimer, HALError, Request, Sensor
-from openel_async.cli.app import AppContext, AppInfo, AppUnavailable, DemoOptions
-from openel_async.cli.progress import LiveLine
+from openel_async.app import AppContext, AppInfo, AppUnavailable, DemoOptions, LiveLine
 from openel_async.motion import (
     AxisGroup,
     AxisLimits,
@@ -224,7 +223,7 @@ DESCRIPTION: Final[Mapping[str, Any]] = {
 
 def open_sim(*, realtime: bool, ctx: AppContext | None = None) -> MujocoSim:
     """The ``arm6`` simulation from :data:`DESCRIPTION` (its clock registered with ``ctx``);
-    raises :class:`~openel_async.cli.app.AppUnavailable` when MuJoCo or the model cannot
+    raises :class:`~openel_async.app.AppUnavailable` when MuJoCo or the model cannot
     load."""
     try:
         from openel_mujoco import MujocoSim

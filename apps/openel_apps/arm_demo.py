@@ -15,7 +15,7 @@ The arm apps (:mod:`.arm2_square` and :mod:`.arm6_pick_place`) share:
   its timing (:func:`record_times`, :func:`times_text`);
 - the flow of a run (:func:`run_reported`: plan, run, report, exit status), the summary printer
   and bounded waits on group motions;
-- loading the model (:func:`open_arm_sim`: :class:`~openel_async.cli.app.AppUnavailable` when
+- loading the model (:func:`open_arm_sim`: :class:`~openel_async.app.AppUnavailable` when
   MuJoCo or the model cannot load) and the ``openel-async demo`` options as an arm app's
   command line (:func:`arm_demo_args`).
 
@@ -41,9 +41,7 @@ import numpy as np
 import structlog
 
 from openel_async.actuator import Actuator
-from openel_async.cli.app import AppContext, AppUnavailable, DemoOptions
-from openel_async.cli.interrupt import atomic_output
-from openel_async.cli.progress import LiveLine
+from openel_async.app import AppContext, AppUnavailable, DemoOptions, LiveLine, atomic_output
 from openel_async.component import HALComponent
 from openel_async.errors import HALError
 from openel_async.motion import (

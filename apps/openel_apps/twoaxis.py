@@ -45,8 +45,7 @@ from openel_async import (
     TimedValue,
     VirtualClock,
 )
-from openel_async.cli.app import AppContext, AppInfo, DemoOptions
-from openel_async.cli.progress import LiveLine
+from openel_async.app import AppContext, AppInfo, DemoOptions, LiveLine
 from openel_async.clock import NS_PER_S
 from openel_async.ids import DeviceKind
 

@@ -19,8 +19,7 @@ from typing import TYPE_CHECKING, TypeAlias
 import anyio
 import structlog
 
-from openel_async.cli.commands import CliCommand
-from openel_async.cli.hal4rt_cmd import load_bytes
+from openel_async.cli.commands import CliCommand, load_bytes
 from openel_async.errors import BadParameterError, HALError
 from openel_async.surface import xml_psm
 from openel_async.surface.messages import Device

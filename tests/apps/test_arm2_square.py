@@ -12,8 +12,8 @@ import structlog
 
 from openel_apps.arm2_square import SquareOptions, open_sim, run_square
 from openel_apps.arm_demo import ArmOptions, arrival_spread, arrival_ticks, save_snapshot
+from openel_async.app import LiveLine
 from openel_async.cli import main as cli_main
-from openel_async.cli.progress import LiveLine
 from openel_async.motion import TrajectorySamples
 
 from .conftest import assert_snapshot_written_or_explained, is_png, load

@@ -13,7 +13,7 @@ import pytest
 from openel_apps import arm6_pick_place as app
 from openel_apps.arm_demo import ArmOptions
 from openel_async import Actuator, BadParameterError, NotImplementedHALError, Request
-from openel_async.cli.progress import LiveLine
+from openel_async.app import LiveLine
 from openel_async.testing import EventRecorder
 from openel_mujoco import MujocoEffector, MujocoEventId, MujocoSim
 

@@ -12,8 +12,7 @@ import structlog
 
 from openel_apps import arm2_square, arm6_pick_place, pan_tilt, twoaxis
 from openel_async import ComponentState, VirtualClock
-from openel_async.cli import main
-from openel_async.cli.app import (
+from openel_async.app import (
     AppContext,
     AppHook,
     AppInfo,
@@ -22,6 +21,7 @@ from openel_async.cli.app import (
     find_app,
     run_app,
 )
+from openel_async.cli import main
 from openel_async.component import HALComponent
 from openel_async.timer import EventTimer
 

@@ -11,8 +11,8 @@ import anyio
 import pytest
 import structlog
 
+from openel_async.app import atomic_output, collect_written, run_interruptible
 from openel_async.cli import main
-from openel_async.cli.interrupt import atomic_output, collect_written, run_interruptible
 
 ROOT = Path(__file__).resolve().parents[2]
 PAN_TILT = ROOT / "apps" / "pan_tilt" / "RTC.yaml"

@@ -126,3 +126,37 @@ def test_the_static_check_sees_every_form_of_import(source: str, tmp_path: Path)
     assert len(_driver_imports(probe)) == 1
     probe.write_text(source.replace("openel_", "openel_async_"))
     assert _driver_imports(probe) == []
+
+
+def _imported_modules(path: Path) -> set[str]:
+    """Absolute module names imported by ``path`` (relative imports resolved)."""
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    package = list(parts[1:-1] if parts[0] in ("src", "drivers", "apps") else parts[:-1])
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = package[: len(package) - node.level + 1] if node.level else []
+            module = ".".join([*base, *([node.module] if node.module else [])])
+            found.add(module)
+            found.update(f"{module}.{alias.name}" for alias in node.names)
+    return found
+
+
+def test_apps_and_the_library_use_the_public_app_sdk_not_the_cli() -> None:
+    """Issue 21 point 11: apps import ``openel_async.app``; the CLI package is private to the
+    command line, and nothing outside it (framework, drivers but the command plug-in seam,
+    apps) imports it."""
+    offenders = []
+    roots = [SRC, ROOT / "apps" / "openel_apps", *(ROOT / "drivers").glob("openel_*")]
+    for root in roots:
+        for path in root.rglob("*.py"):
+            if SRC / "cli" in path.parents:
+                continue
+            for module in _imported_modules(path):
+                if module == "openel_async.cli" or module.startswith("openel_async.cli."):
+                    if module.startswith("openel_async.cli.commands") and "drivers" in path.parts:
+                        continue  # the seam a driver contributes a subcommand through
+                    offenders.append(f"{path.relative_to(ROOT)}: {module}")
+    assert offenders == []

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from openel_async.cli.app import AppInfo
+from openel_async.app import AppInfo
 
 PROFILE = Path(__file__).with_name("RTC.yaml")
 

@@ -8,8 +8,8 @@ import signal
 import sys
 from collections.abc import Sequence
 
+from ..app import EXIT_SIGINT, install_sigterm_handler, interrupt_code
 from .commands import attach, discover_commands
-from .interrupt import EXIT_SIGINT, install_sigterm_handler, interrupt_code
 from .logs import LEVELS, configure_logging
 from .record_cmd import add_parser as add_record_parser
 from .record_cmd import add_tap_arguments

@@ -16,12 +16,14 @@ is left out of the command line, silently (the parser is built before logging is
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib.metadata import entry_points
+from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
-__all__ = ["ENTRY_POINT_GROUP", "CliCommand", "discover_commands"]
+__all__ = ["ENTRY_POINT_GROUP", "CliCommand", "discover_commands", "load_bytes"]
 
 ENTRY_POINT_GROUP = "openel_async.commands"
 
@@ -58,3 +60,8 @@ def attach(command: CliCommand, sub: SubParsers) -> None:
     """Add ``command`` to ``sub``; the parsed arguments carry it as ``contributed``."""
     parser = command.add_parser(sub)
     parser.set_defaults(contributed=command)
+
+
+def load_bytes(name: str) -> bytes:
+    """The bytes of file ``name`` (``-``: standard input), for a command's file arguments."""
+    return sys.stdin.buffer.read() if name == "-" else Path(name).read_bytes()

@@ -16,7 +16,7 @@ import sys
 
 import structlog
 
-from .app import AppInfo, AppUnavailable, DemoOptions, discover_apps, find_app, run_app
+from ..app import AppInfo, AppUnavailable, DemoOptions, discover_apps, find_app, run_app
 from .record_cmd import taps_from_args
 
 __all__ = ["BUS_APP", "DEFAULT_APP", "PROG", "list_apps", "run"]

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 from ..errors import BadParameterError
 from ..surface import xml_psm
@@ -25,6 +24,7 @@ from ..surface.messages import (
     Parameter,
     ResultList,
 )
+from .commands import load_bytes
 
 
 def add_parser(
@@ -57,11 +57,6 @@ def run(args: argparse.Namespace) -> int:
         print("\n".join(describe(message)))
         return 0
     raise AssertionError(f"unknown hal4rt action {command!r}")  # argparse allows no other
-
-
-def load_bytes(name: str) -> bytes:
-    """The bytes of file ``name`` (``-``: standard input)."""
-    return sys.stdin.buffer.read() if name == "-" else Path(name).read_bytes()
 
 
 def _read(name: str) -> Message | None:

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from .app import AppHook
+    from ..app import AppHook
 
 __all__ = ["add_parser", "add_tap_arguments", "run", "taps_from_args"]
 

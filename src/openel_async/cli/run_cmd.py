@@ -8,7 +8,7 @@
 - ``*.py`` or a directory with ``app.py``/``__init__.py``: a Python application that
   defines ``async def main(argv: list[str]) -> int | None``; the remaining command-line
   arguments are passed to it; or a module that defines ``APP_INFO``
-  (an :class:`~openel_async.cli.app.AppInfo`), run as a registered app would be. SIGINT
+  (an :class:`~openel_async.app.AppInfo`), run as a registered app would be. SIGINT
   (Ctrl-C) or SIGTERM cancels ``main`` (its clean-ups run), prints a short summary and exits
   with 130 or 143.
 
@@ -29,8 +29,7 @@ from typing import Any
 
 import anyio
 
-from .app import AppInfo, AppUnavailable, find_app, run_app
-from .interrupt import Interrupted, run_interruptible
+from ..app import AppInfo, AppUnavailable, Interrupted, find_app, run_app, run_interruptible
 from .record_cmd import taps_from_args
 
 PROFILE_SUFFIXES = (".yaml", ".yml", ".xml")

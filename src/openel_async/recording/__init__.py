@@ -9,7 +9,7 @@
 - :mod:`.plot`: the demos' joint plot from a recording; :mod:`.replay`: its commands fed to a
   rig at their recorded times.
 
-Both are :class:`~openel_async.cli.app.AppHook` objects: ``openel-async demo --record
+Both are :class:`~openel_async.app.AppHook` objects: ``openel-async demo --record
 FILE.mcap --foxglove`` attaches them to any app. docs/recording.md has the details.
 """
 

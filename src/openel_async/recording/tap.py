@@ -5,7 +5,7 @@ listener object per component and an observer per timer: the only work done in t
 loop); the writer process makes them the messages of
 :mod:`.schemas`. Nothing here blocks or raises into the control loop.
 
-A :class:`Tap` is an :class:`~openel_async.cli.app.AppHook` (``--record``/``--foxglove``
+A :class:`Tap` is an :class:`~openel_async.app.AppHook` (``--record``/``--foxglove``
 attach it to any app) and can be used directly::
 
     async with Recorder("run.mcap") as rec:
@@ -28,7 +28,7 @@ import anyio
 import structlog
 
 from ..actuator import Actuator
-from ..cli.app import AppContext, AppHook
+from ..app import AppContext, AppHook
 from ..clock import Clock, InlineScheduler, ScheduledCall, run_in_thread
 from ..component import ComponentState, HALComponent
 from ..device import ValueSource
