@@ -8,8 +8,19 @@ and the vendor functions of ``info.functions``. ``DeviceProfile.to_dict()`` is p
 data: ``openel-async devices --profile`` prints it and the surface layer dispatches on it.
 
 Command ids are this project's (HAL4RT names the commands but numbers none): 0x00xx common
-to every component, 0x01xx Motor, 0x02xx Sensor, 0x03xx-0x0Fxx kind-specific (GPS,
-Direction: :func:`register_kind_commands`), 0x1000 + i the device's i-th vendor function.
+to every component, 0x01xx Motor, 0x02xx Sensor, 0x03xx-0x0Fxx kind-specific
+(:func:`register_kind_commands`): 0x0301-0x030B the GPS Sensor's operations and
+0x0401-0x040B the Direction Sensor's, each in the order of the spec's operation table
+(§7.4.5.13, §7.4.5.14), this project's extensions of a kind from 0x0381 / 0x0481; 0x1000 +
+i the device's i-th vendor function. A kind command named like a common one (the GPS
+Sensor's ``GetTime``, the fix time) keeps the spec's name; the common one is then listed as
+``Hal`` + name (``HalGetTime``, OpenEL's C name).
+
+The Device Characteristics Profile Definition (§7.4.5.1, "a register to have
+componentName, vendorId, productId, instanceId and profileId") is each profile's instance
+register: :meth:`DeviceProfile.register_instance` ... :attr:`DeviceProfile.instances`,
+one :class:`ProfileInstance` per instance of the device; ``DeviceRegistry.create``
+(HalCreate) registers the component it creates.
 """
 
 from __future__ import annotations
@@ -17,13 +28,16 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .device import ActuatorDevice, Device, SensorDevice
 from .errors import BadParameterError
-from .ids import HALId, component_name, profile_name
+from .ids import DeviceKind, HALId, check_u32, component_name, profile_name
 from .requests import Request
 from .sensor_kinds import HAL4RT_KIND_NAMES
+
+if TYPE_CHECKING:
+    from .component import HALComponent
 
 VENDOR_COMMAND_BASE = 0x1000
 
@@ -203,10 +217,156 @@ KIND_COMMANDS: dict[int, tuple[Command, ...]] = {}
 
 def register_kind_commands(kind: int, commands: tuple[Command, ...]) -> None:
     """Declare the commands of a device kind beyond Sensor's (ids 0x0300-0x0FFF)."""
+    check_u32("kind", kind)
+    names: set[str] = set()
     for command in commands:
+        if not isinstance(command, Command):
+            raise BadParameterError("commands", command, "a sequence of Command")
         if not 0x300 <= command.id < VENDOR_COMMAND_BASE:
             raise BadParameterError("commands", command, "command ids in 0x0300..0x0FFF")
+        if command.name in names:
+            raise BadParameterError("commands", command, "commands with distinct names")
+        names.add(command.name)
     KIND_COMMANDS[int(kind)] = tuple(commands)
+
+
+def _deg(name: str) -> Parameter:
+    return _out(name, "float", "deg")
+
+
+GPS_COMMANDS = (
+    Command("GetLatitude", 0x301, (_deg("latitude"),), "get_latitude", description="N positive"),
+    Command("GetLongitude", 0x302, (_deg("longitude"),), "get_longitude", description="E positive"),
+    Command("GetAccuracy", 0x303, (_out("accuracy", "float", "m"),), "get_accuracy"),
+    Command("GetDOP", 0x304, (_out("DOP", "float"),), "get_dop", description="HDOP"),
+    Command(
+        "GetAltitude",
+        0x305,
+        (_out("altitude", "float", "m"),),
+        "get_altitude",
+        description="above the WGS-84 ellipsoid",
+    ),
+    Command(
+        "GetTime",
+        0x306,
+        (_out("time", "float", "ms"),),
+        "get_fix_time",
+        description="UTC time of the fix, ms since 1970-01-01",
+    ),
+    Command("GetSpeed", 0x307, (_out("speed", "float", "m/s"),), "get_speed"),
+    Command("GetCourse", 0x308, (_deg("course"),), "get_course", description="true, [0, 360)"),
+    Command(
+        "GetSignalStrength",
+        0x309,
+        (_out("signal_strength", "float", "dB-Hz"),),
+        "get_signal_strength",
+    ),
+    Command(
+        "GetAngle",
+        0x30A,
+        (_deg("angle"),),
+        "get_angle",
+        description="heading to the SetTarget position, clockwise from true north",
+    ),
+    Command("SetPeriod", 0x30B, (_p("period", "float", "ms"),), "set_period"),
+    Command(
+        "SetTarget",
+        0x381,
+        (_p("latitude", "float", "deg"), _p("longitude", "float", "deg")),
+        "set_target",
+        description="extension: the GPS position of GetAngle and GetDistance",
+    ),
+    Command(
+        "GetDistance",
+        0x382,
+        (_out("distance", "float", "m"),),
+        "get_distance",
+        description="extension: great-circle distance to the SetTarget position",
+    ),
+    Command(
+        "IsStale",
+        0x383,
+        (_out("stale", "bool"),),
+        "is_stale",
+        description="extension: the receiver reports no fix now",
+    ),
+)
+"""HAL4RT's GPS Sensor operations (§7.4.5.13), in its table's order, then extensions."""
+
+DIRECTION_COMMANDS = (
+    Command("SetLatitude", 0x401, (_p("latitude", "float", "deg"),), "set_latitude"),
+    Command("SetLongitude", 0x402, (_p("longitude", "float", "deg"),), "set_longitude"),
+    Command(
+        "SetAltitude",
+        0x403,
+        (_p("altitude", "float", "m"),),
+        "set_altitude",
+        description="above the WGS-84 ellipsoid",
+    ),
+    Command("SetDate", 0x404, (_p("date", "float", "year"),), "set_date", description="decimal"),
+    Command("GetF", 0x405, (_out("F", "float", "nT"),), "get_f", description="total intensity"),
+    Command("GetH", 0x406, (_out("H", "float", "nT"),), "get_h", description="horizontal"),
+    Command("GetX", 0x407, (_out("X", "float", "nT"),), "get_x", description="north component"),
+    Command("GetY", 0x408, (_out("Y", "float", "nT"),), "get_y", description="east component"),
+    Command("GetZ", 0x409, (_out("Z", "float", "nT"),), "get_z", description="down component"),
+    Command("GetI", 0x40A, (_deg("I"),), "get_i", description="inclination, down positive"),
+    Command("GetD", 0x40B, (_deg("D"),), "get_d", description="declination, east positive"),
+    Command(
+        "GetHeading",
+        0x481,
+        (_deg("heading"),),
+        "get_heading",
+        description="extension: heading from true north of a level magnetometer",
+    ),
+    Command(
+        "GetMagneticHeading",
+        0x482,
+        (_deg("heading"),),
+        "get_magnetic_heading",
+        description="extension: heading from magnetic north",
+    ),
+)
+"""HAL4RT's Direction Sensor operations (§7.4.5.14), in its table's order, then extensions."""
+
+register_kind_commands(DeviceKind.GPS, GPS_COMMANDS)
+register_kind_commands(DeviceKind.COMPASS, DIRECTION_COMMANDS)
+
+
+def common_name(name: str) -> str:
+    """The name of a common command in a kind that has its own command of that name."""
+    return f"Hal{name}"
+
+
+@dataclass(frozen=True, slots=True)
+class ProfileInstance:
+    """One entry of the Device Characteristics Profile Definition (§7.4.5.1): an instance
+    of the profile's device, by the five attributes the spec lists."""
+
+    component_name: str
+    vendor_id: int
+    product_id: int
+    instance_id: int
+    profile_id: int
+
+    @classmethod
+    def of(cls, component: HALComponent) -> ProfileInstance:
+        """The entry of a component (its ``component_name`` and ``hal_id``)."""
+        hal_id = getattr(component, "hal_id", None)
+        name = getattr(component, "component_name", None)
+        if not isinstance(hal_id, HALId) or not isinstance(name, str):
+            raise BadParameterError("component", component, "a HALComponent")
+        return cls(
+            name, hal_id.vendor_id, hal_id.product_id, hal_id.instance_id, hal_id.device_kind_id
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "component_name": self.component_name,
+            "vendor_id": self.vendor_id,
+            "product_id": self.product_id,
+            "instance_id": self.instance_id,
+            "profile_id": self.profile_id,
+        }
 
 
 @dataclass(frozen=True)
@@ -228,12 +388,68 @@ class DeviceProfile:
     commands: tuple[Command, ...]
     attributes: Mapping[str, Any] = field(default_factory=dict)
     """Kind-specific data: limits, linear, velocity_ramp, units..."""
+    _instances: dict[int, ProfileInstance] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     def command(self, name_or_id: str | int) -> Command:
         for command in self.commands:
             if name_or_id in (command.name, command.id):
                 return command
         raise BadParameterError("command", name_or_id, f"a command of {self.component_name}")
+
+    # -- the Device Characteristics Profile Definition: the instance register -------------
+    @property
+    def instances(self) -> tuple[ProfileInstance, ...]:
+        """Every registered instance, by instance id."""
+        return tuple(self._instances[i] for i in sorted(self._instances))
+
+    def register_instance(self, instance: ProfileInstance | HALComponent) -> ProfileInstance:
+        """Register an instance of this profile's device (a ``ProfileInstance``, or a
+        component whose ``hal_id`` and ``component_name`` give it).
+
+        BadParameterError naming ``instance`` when its profile id, vendor id or product id
+        are not this profile's, naming ``instance_id`` when another instance has that id
+        (registering the same entry again is allowed and changes nothing).
+        """
+        entry = instance if isinstance(instance, ProfileInstance) else ProfileInstance.of(instance)
+        key = (entry.profile_id, entry.vendor_id, entry.product_id)
+        mine = (self.kind_id, self.vendor_id, self.product_id)
+        if key != mine:
+            raise BadParameterError(
+                "instance",
+                instance,
+                f"an instance of {self.profile_name} (profile id 0x{mine[0]:X}, vendor id "
+                f"0x{mine[1]:X}, product id 0x{mine[2]:X}); it has 0x{key[0]:X}, "
+                f"0x{key[1]:X}, 0x{key[2]:X}",
+            )
+        check_u32("instance_id", entry.instance_id)
+        existing = self._instances.get(entry.instance_id)
+        if existing is not None and existing != entry:
+            raise BadParameterError(
+                "instance_id",
+                entry.instance_id,
+                f"an instance id not yet registered for {self.profile_name}: it is "
+                f"{existing.component_name!r}'s",
+            )
+        self._instances[entry.instance_id] = entry
+        return entry
+
+    def unregister_instance(self, instance_id: int) -> ProfileInstance:
+        """Remove the instance ``instance_id`` from the register; returns its entry."""
+        entry = self.instance(instance_id)
+        del self._instances[entry.instance_id]
+        return entry
+
+    def instance(self, instance_id: int) -> ProfileInstance:
+        """The registered instance ``instance_id``; BadParameterError when there is none."""
+        entry = self._instances.get(instance_id)
+        if entry is None or isinstance(instance_id, bool):
+            registered = sorted(self._instances) or "none"
+            raise BadParameterError(
+                "instance_id", instance_id, f"a registered instance id ({registered})"
+            )
+        return entry
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -249,7 +465,20 @@ class DeviceProfile:
             "role": self.role,
             "attributes": dict(self.attributes),
             "commands": [c.to_dict() for c in self.commands],
+            "instances": [i.to_dict() for i in self.instances],
         }
+
+
+def _renamed(command: Command, name: str) -> Command:
+    return Command(
+        name,
+        command.id,
+        command.parameters,
+        command.method,
+        command.synchronous,
+        command.supported,
+        command.description,
+    )
 
 
 def _number(value: float) -> float | str:
@@ -300,7 +529,10 @@ def profile_of(device: Device | type[Device], hal_id: HALId | None = None) -> De
         attributes["units"] = list(device.units)  # type: ignore[union-attr]
     else:
         role = "device"
-    commands += KIND_COMMANDS.get(kind, ())
+    kind_commands = KIND_COMMANDS.get(kind, ())
+    own = {c.name for c in kind_commands}
+    commands = [_renamed(c, common_name(c.name)) if c.name in own else c for c in commands]
+    commands += kind_commands
     commands += getattr(device, "profile_commands", ())
     commands += [
         Command(name, VENDOR_COMMAND_BASE + i, (), name, description="vendor function")

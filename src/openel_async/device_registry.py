@@ -104,12 +104,15 @@ class DeviceRegistry:
 
     def create(self, hal_id: HALId, *args: Any, **kwargs: Any) -> HALComponent:
         """HalCreate: the component for ``hal_id`` (its device built with the arguments),
-        with that HALId; enter it with ``async with``. Component options (``clock``,
-        ``auto_init``...) go in ``component_options``."""
+        with that HALId, registered in its profile's instance register; enter it with
+        ``async with``. Component options (``clock``, ``auto_init``...) go in
+        ``component_options``."""
         options: dict[str, Any] = kwargs.pop("component_options", {}) or {}
         device = self.create_device(hal_id, *args, **kwargs)
         factory = component_class(device)
         component: HALComponent = factory(device, hal_id=hal_id, **options)
+        entry = self.lookup(hal_id.device_kind_id, hal_id.vendor_id, hal_id.product_id)
+        entry.profile.register_instance(component)  # the profile's instance register
         return component
 
     @classmethod

@@ -29,7 +29,7 @@ from pygeomag import GeoMag, decimal_year_from_date  # type: ignore[import-untyp
 from .clock import Clock
 from .component import ComponentState
 from .device import SensorDevice
-from .errors import BadParameterError, HALError, StateError
+from .errors import BadParameterError, HALError
 from .gps import check_latitude, check_longitude
 from .ids import DeviceKind, HALId
 from .sensor_kinds import KindSensor, register_sensor_class
@@ -210,30 +210,36 @@ class DirectionSensor(KindSensor):
 
     def set_latitude(self, latitude: float) -> None:
         """SetLatitude: geodetic degrees, -90..90."""
+        self._require("set_latitude", _ACTIVE)
         self._latitude = check_latitude(latitude)
         self._field = None
 
     def set_longitude(self, longitude: float) -> None:
         """SetLongitude: degrees, -180..180, east positive."""
+        self._require("set_longitude", _ACTIVE)
         self._longitude = check_longitude(longitude)
         self._field = None
 
     def set_altitude(self, altitude: float) -> None:
         """SetAltitude: metres above the WGS-84 ellipsoid (-1 km .. 850 km)."""
+        self._require("set_altitude", _ACTIVE)
         self._altitude = _check_altitude(altitude)
         self._field = None
 
     def set_date(self, date: float | dt.date) -> None:
         """SetDate: a decimal year (2027.5), a ``date`` or a ``datetime``, inside the model's
         validity (WMM2025: 2025.0..2030.0)."""
+        self._require("set_date", _ACTIVE)
         self._date = self.model.decimal_year(date)
         self._field = None
 
     # -- the model's field -------------------------------------------------------------
     def field(self) -> MagneticField:
         """The WMM's field at the place and date set (computed once per change)."""
-        if self.state is not _ACTIVE:
-            raise StateError("field", self.state, (_ACTIVE,))
+        return self._model_field("field")
+
+    def _model_field(self, operation: str) -> MagneticField:
+        self._require(operation, _ACTIVE)
         field = self._field
         if field is None:
             if self._date is None:
@@ -245,31 +251,31 @@ class DirectionSensor(KindSensor):
 
     def get_f(self) -> float:
         """GetF: total intensity, nT."""
-        return self.field().f
+        return self._model_field("get_f").f
 
     def get_h(self) -> float:
         """GetH: horizontal intensity, nT."""
-        return self.field().h
+        return self._model_field("get_h").h
 
     def get_x(self) -> float:
         """GetX: north component, nT."""
-        return self.field().x
+        return self._model_field("get_x").x
 
     def get_y(self) -> float:
         """GetY: east component, nT."""
-        return self.field().y
+        return self._model_field("get_y").y
 
     def get_z(self) -> float:
         """GetZ: vertical component (down positive), nT."""
-        return self.field().z
+        return self._model_field("get_z").z
 
     def get_i(self) -> float:
         """GetI: inclination (dip), degrees, down positive."""
-        return self.field().i
+        return self._model_field("get_i").i
 
     def get_d(self) -> float:
         """GetD: declination (magnetic variation), degrees, east positive."""
-        return self.field().d
+        return self._model_field("get_d").d
 
     # -- heading from the magnetometer ----------------------------------------------------
     async def get_magnetic_heading(self) -> float:
@@ -279,7 +285,7 @@ class DirectionSensor(KindSensor):
 
     async def get_heading(self) -> float:
         """Heading from true north: the magnetic heading corrected by the declination D."""
-        declination = self.field().d
+        declination = self._model_field("get_heading").d
         values = await self.get_value()
         return heading_deg(values[0], self._left_sign * values[1], declination)
 

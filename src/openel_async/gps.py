@@ -24,7 +24,7 @@ from typing import Final
 from .clock import Clock
 from .component import LINK_FAULTS, ComponentState
 from .device import Reading, SensorDevice
-from .errors import BadParameterError, HALError, StateError
+from .errors import BadParameterError, HALError
 from .ids import DeviceKind, HALId
 from .sensor_kinds import KindSensor, register_sensor_class
 
@@ -240,15 +240,17 @@ class GPSSensor(KindSensor):
     # -- the fix -----------------------------------------------------------------------
     async def get_fix(self) -> GPSData:
         """The whole latest fix (every quantity, None where not available)."""
-        if self.state is not _ACTIVE:
-            raise StateError("get_fix", self.state, (_ACTIVE,))
+        return await self._fix("get_fix")
+
+    async def _fix(self, operation: str) -> GPSData:
+        self._require(operation, _ACTIVE)
         try:
             return await self.device.read_gps()
         except LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
 
-    async def _quantity(self, name: str) -> float:
-        data = await self.get_fix()
+    async def _quantity(self, name: str, operation: str) -> float:
+        data = await self._fix(operation)
         value = getattr(data, name)
         if value is None:
             raise HALError(f"{self.device_name}: {name} not available (not received yet)")
@@ -256,48 +258,50 @@ class GPSSensor(KindSensor):
 
     async def get_latitude(self) -> float:
         """GetLatitude: degrees, north positive."""
-        return await self._quantity("latitude")
+        return await self._quantity("latitude", "get_latitude")
 
     async def get_longitude(self) -> float:
         """GetLongitude: degrees, east positive."""
-        return await self._quantity("longitude")
+        return await self._quantity("longitude", "get_longitude")
 
     async def get_accuracy(self) -> float:
         """GetAccuracy: the estimated horizontal accuracy, metres."""
-        return await self._quantity("accuracy")
+        return await self._quantity("accuracy", "get_accuracy")
 
     async def get_dop(self) -> float:
         """GetDOP: the horizontal dilution of precision (HDOP)."""
-        return await self._quantity("dop")
+        return await self._quantity("dop", "get_dop")
 
     async def get_altitude(self) -> float:
         """GetAltitude: metres above the WGS-84 ellipsoid."""
-        return await self._quantity("altitude")
+        return await self._quantity("altitude", "get_altitude")
 
     async def get_fix_time(self) -> float:
         """HAL4RT GPS ``GetTime``: UTC time of the fix, ms since 1970-01-01 (renamed: the
         component's own ``get_time`` is OpenEL's GetTime of the component clock)."""
-        return await self._quantity("time_ms")
+        return await self._quantity("time_ms", "get_fix_time")
 
     async def get_speed(self) -> float:
         """GetSpeed: m/s over ground."""
-        return await self._quantity("speed")
+        return await self._quantity("speed", "get_speed")
 
     async def get_course(self) -> float:
         """GetCourse: degrees true, 0 <= course < 360."""
-        return await self._quantity("course")
+        return await self._quantity("course", "get_course")
 
     async def get_signal_strength(self) -> float:
         """GetSignalStrength: mean C/N0 of the satellites tracked, dB-Hz."""
-        return await self._quantity("signal_strength")
+        return await self._quantity("signal_strength", "get_signal_strength")
 
     async def is_stale(self) -> bool:
         """True when the receiver reports no fix now (the values are the last fix's)."""
-        return (await self.get_fix()).stale
+        return (await self._fix("is_stale")).stale
 
     # -- angle: heading to a GPS position -------------------------------------------------
     def set_target(self, latitude: float, longitude: float) -> None:
-        """The GPS position that :meth:`get_angle` and :meth:`get_distance` refer to."""
+        """The GPS position that :meth:`get_angle` and :meth:`get_distance` refer to
+        (Active state only, as every operation)."""
+        self._require("set_target", _ACTIVE)
         lat = check_latitude(latitude)
         lon = check_longitude(longitude)
         self._target = (lat, lon)
@@ -306,22 +310,25 @@ class GPSSensor(KindSensor):
     def target(self) -> tuple[float, float] | None:
         return self._target
 
-    async def _to_target(self) -> tuple[float, float, float, float]:
+    async def _to_target(self, operation: str) -> tuple[float, float, float, float]:
+        self._require(operation, _ACTIVE)
         target = self._target
         if target is None:
             raise HALError(f"{self.device_name}: no target position: call set_target first")
-        lat = await self._quantity("latitude")
-        lon = await self._quantity("longitude")
-        return lat, lon, *target
+        data = await self._fix(operation)
+        if data.latitude is None or data.longitude is None:
+            missing = "latitude" if data.latitude is None else "longitude"
+            raise HALError(f"{self.device_name}: {missing} not available (not received yet)")
+        return data.latitude, data.longitude, *target
 
     async def get_angle(self) -> float:
         """GetAngle: the heading to the target (``set_target``), degrees clockwise from
         true north in [0, 360): the initial great-circle bearing from the fix."""
-        return bearing_deg(*await self._to_target())
+        return bearing_deg(*await self._to_target("get_angle"))
 
     async def get_distance(self) -> float:
         """Distance from the fix to the target, metres (great circle; an extension)."""
-        return distance_m(*await self._to_target())
+        return distance_m(*await self._to_target("get_distance"))
 
     # -- period ---------------------------------------------------------------------------
     @property
@@ -335,13 +342,12 @@ class GPSSensor(KindSensor):
         ``BadParameterError`` naming ``period_ms`` for a value that is not finite and > 0
         or outside the device's ``period_range_ms``; the period is then unchanged.
         """
+        self._require("set_period", _ACTIVE)
         low, high = self.device.period_range_ms
         allowed = f"a finite period in ms, > 0 and within [{low:g}, {high:g}]"
         period = _finite("period_ms", period_ms, allowed)
         if not (period > 0 and low <= period <= high):
             raise BadParameterError("period_ms", period_ms, allowed)
-        if self.state is not _ACTIVE:
-            raise StateError("set_period", self.state, (_ACTIVE,))
         try:
             await self.device.set_period(period)
         except LINK_FAULTS as exc:

@@ -137,6 +137,19 @@ class SensingMotor(Motor):
         time_ns = reading.time_ns
         return TimedValue(values, self.clock.now_ns() if time_ns is None else time_ns)
 
+    def get_timed_value_nowait(self) -> TimedValue:
+        """:meth:`get_timed_value` without suspending (devices without I/O)."""
+        self._require("get_timed_value_nowait", _ACTIVE)
+        if not self.device.has_time:
+            raise HALError(f"{self.device_name} has no time attribute")
+        try:
+            reading = self.device.read_sensor_nowait()
+        except LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+        values = self._measured(reading.values)
+        time_ns = reading.time_ns
+        return TimedValue(values, self.clock.now_ns() if time_ns is None else time_ns)
+
     def get_unit_of_measurement(self) -> tuple[str, ...]:
         self._require("get_unit_of_measurement", _ACTIVE)
         return self.sensor_units

@@ -5,13 +5,16 @@ sensors). A synchronous operation returns its results; an asynchronous one retur
 :class:`Motion` whose end the surface reports with ``completed``. An operation may also
 have a ``run_nowait`` twin that does the same without suspending (``get_value_nowait``,
 ``set_value_nowait``...) for components that need no I/O; it raises WouldBlockError,
-before any effect, when the component has no synchronous path. Device characteristics
-profiles can later build such tables from their own definitions; :data:`DEFAULT_PROFILES`
-covers the plain components (``Actuator`` as Motor, ``Sensor`` by its device kind).
+before any effect, when the component has no synchronous path. The tables take their
+names, command ids, synchronous flags and arguments from the device characteristics profiles
+(``device_profile``); :data:`DEFAULT_PROFILES` covers every component class: ``Actuator``
+and ``Motor`` (with a ``SensingMotor``'s Sensor operations) as Motor, ``Sensor`` by its
+device kind, with the GPS Sensor's and the Direction Sensor's own operations.
 """
 
 from __future__ import annotations
 
+import inspect
 import math
 import re
 from collections.abc import Awaitable, Callable, Mapping
@@ -21,14 +24,25 @@ from typing import Any
 from ..actuator import Actuator
 from ..completion import Motion
 from ..component import HALComponent
-from ..device_profile import COMMON_COMMANDS, SENSOR_COMMANDS, motor_commands
+from ..device_profile import (
+    COMMON_COMMANDS,
+    DIRECTION_COMMANDS,
+    GPS_COMMANDS,
+    SENSOR_COMMANDS,
+    common_name,
+    motor_commands,
+    sensing_commands,
+)
 from ..device_profile import Command as ProfileCommand
+from ..direction import DirectionSensor
 from ..errors import BadParameterError, NotImplementedHALError, NullParameterError, WouldBlockError
+from ..gps import GPSSensor
 from ..ids import DeviceKind
 from ..motor import TWO_PI, Motor
 from ..requests import Request
+from ..sensing import SensingMotor
 from ..sensor import Sensor
-from .messages import CommandMessage, DataType, ResultList
+from .messages import CommandMessage, DataType, Parameter, ResultList
 
 SyncRun = Callable[[HALComponent, CommandMessage], Awaitable[ResultList | None]]
 AsyncRun = Callable[[HALComponent, CommandMessage], Awaitable[Motion]]
@@ -405,6 +419,113 @@ SENSOR_SPECIFIC = (
 """The HAL4RT Sensor operations (§7.4.5.5) of every Sensor."""
 
 
+# -- A SensingMotor's Sensor side (addressed as a Motor) ---------------------------------
+_SENSING_COMMANDS = {c.name: c for c in sensing_commands()}
+
+
+def _sensing(component: HALComponent, name: str) -> SensingMotor:
+    if not isinstance(component, SensingMotor):
+        raise NotImplementedHALError(
+            f"{name}: {component.device_name} is a {type(component).__name__} without a "
+            "sensor; a SensingMotor (psm.md §8.3) has it"
+        )
+    return component
+
+
+def _sensing_op(
+    name: str, now: Callable[[SensingMotor, dict[str, Any]], ResultList | None]
+) -> Operation:
+    """A SensingMotor Sensor operation that never suspends (its profile's name and id)."""
+    profile_command = _SENSING_COMMANDS[name]
+    declared = _declared(profile_command)
+
+    def run_now(component: HALComponent, command: CommandMessage) -> ResultList | None:
+        return now(_sensing(component, name), _arguments(command, declared))
+
+    run, nowait = now_and_async(run_now)
+    return _profiled(profile_command, run, nowait)
+
+
+async def _sensing_values(component: HALComponent, command: CommandMessage) -> ResultList:
+    head = _sensing(component, command.function_name)
+    if head.device.has_time:
+        timed = await head.get_timed_value()
+        return ResultList.of(values=list(timed.values), time_ns=timed.time_ns)
+    return ResultList.of(values=list(await head.get_value_of_measurement()))
+
+
+def _sensing_values_nowait(component: HALComponent, command: CommandMessage) -> ResultList:
+    head = _sensing(component, command.function_name)
+    if head.device.has_time:
+        timed = head.get_timed_value_nowait()
+        return ResultList.of(values=list(timed.values), time_ns=timed.time_ns)
+    return ResultList.of(values=list(head.get_value_of_measurement_nowait()))
+
+
+SENSING_OPERATIONS = (
+    _sensing_op("GetSensorKind", lambda h, a: ResultList.of(sensor_kind=h.get_sensor_kind())),
+    _profiled(_SENSING_COMMANDS["GetValueOfMeasurement"], _sensing_values, _sensing_values_nowait),
+    _sensing_op("SetUnitOfMeasurement", lambda h, a: h.set_unit_of_measurement(a["units"])),
+    _sensing_op("GetUnitOfMeasurement", lambda h, a: _units(h.get_unit_of_measurement())),
+    _sensing_op("SensorSetScaleFactor", lambda h, a: h.set_measurement_scale_factor(a["values"])),
+    _sensing_op(
+        "SensorGetScaleFactor",
+        lambda h, a: ResultList.of(values=list(h.get_measurement_scale_factor())),
+    ),
+    _sensing_op("SensorSetOrigin", lambda h, a: h.set_measurement_origin(a["values"])),
+)
+"""A SensingMotor's Sensor operations under its profile's names (``SensorSetOrigin``...);
+any other Motor answers them with NOT_IMPLEMENTED."""
+
+
+# -- Kind operations: the GPS Sensor's and the Direction Sensor's ------------------------
+def _method_op(command: ProfileCommand, component_type: type[HALComponent]) -> Operation:
+    """The profile command ``command`` as a call of its method on a ``component_type``:
+    the ``in`` parameters in order as arguments, the result as the ``out`` parameter.
+    A component of another class answers NOT_IMPLEMENTED."""
+    declared = _declared(command)
+    outputs = [(p.name, _DATA_TYPE_OF[p.type]) for p in command.parameters if p.direction == "out"]
+    suspends = inspect.iscoroutinefunction(getattr(component_type, command.method))
+
+    def bound(component: HALComponent, message: CommandMessage) -> tuple[Any, list[Any]]:
+        if not isinstance(component, component_type):
+            raise NotImplementedHALError(
+                f"{command.name}: {component.device_name} is a {type(component).__name__}; "
+                f"a {component_type.__name__} has it"
+            )
+        values = _arguments(message, declared)
+        return getattr(component, command.method), [values[name] for name, _ in declared]
+
+    def answer(value: object) -> ResultList | None:
+        if not outputs:
+            return None
+        name, data_type = outputs[0]
+        if data_type is DataType.FLOAT:
+            value = float(value)  # type: ignore[arg-type]
+        return ResultList((Parameter(int(data_type), name, value),))
+
+    if suspends:
+
+        async def run(component: HALComponent, message: CommandMessage) -> ResultList | None:
+            method, args = bound(component, message)
+            return answer(await method(*args))
+
+        return _profiled(command, run, None)
+
+    def now(component: HALComponent, message: CommandMessage) -> ResultList | None:
+        method, args = bound(component, message)
+        return answer(method(*args))
+
+    return _profiled(command, *now_and_async(now))
+
+
+GPS_OPERATIONS = tuple(_method_op(c, GPSSensor) for c in GPS_COMMANDS)
+"""HAL4RT's GPS Sensor operations (§7.4.5.13) and this project's (SetTarget...)."""
+
+DIRECTION_OPERATIONS = tuple(_method_op(c, DirectionSensor) for c in DIRECTION_COMMANDS)
+"""HAL4RT's Direction Sensor operations (§7.4.5.14) and GetHeading, GetMagneticHeading."""
+
+
 # -- Every component ---------------------------------------------------------------------
 async def _reset(component: HALComponent, command: CommandMessage) -> None:
     await component.re_init()
@@ -440,6 +561,8 @@ def _get_profile(component: HALComponent, command: CommandMessage) -> ResultList
         values["origin"] = component.origin
     if isinstance(component, Sensor):
         values["units"] = list(component.units) or [""]
+    if isinstance(component, SensingMotor):
+        values["sensor_units"] = list(component.sensor_units) or [""]
     return ResultList.of(**values)
 
 
@@ -477,6 +600,7 @@ MOTOR_OPERATIONS = (
     _get_op("GetSpeed", Request.VELOCITY_ACTUAL, "speed"),
     _get_op("GetTorque", Request.TORQUE_ACTUAL, "torque"),
     _set_motor_origin(),
+    *SENSING_OPERATIONS,
     *COMMON,
 )
 
@@ -491,6 +615,7 @@ SENSOR_KIND_NAMES: dict[int, str] = {
     DeviceKind.TEMPERATURE: "TemperatureSensor",
     DeviceKind.HUMIDITY: "HumiditySensor",
     DeviceKind.COMPASS: "DirectionSensor",
+    DeviceKind.GPS: "GPSSensor",
     DeviceKind.DISTANCE: "DistanceSensor",
     DeviceKind.CO2: "CO2Sensor",
     DeviceKind.COLOR: "ColorSensor",
@@ -503,6 +628,19 @@ def _table(operations: tuple[Operation, ...]) -> dict[str, Operation]:
     return {op.name: op for op in operations}
 
 
+def _with_kind(base: tuple[Operation, ...], kind: tuple[Operation, ...]) -> dict[str, Operation]:
+    """``base`` and a kind's own operations; a base operation named like one of the kind's
+    (the GPS Sensor's GetTime) is renamed as in the device profile (``HalGetTime``)."""
+    own = {op.name for op in kind}
+    renamed = (replace(op, name=common_name(op.name)) if op.name in own else op for op in base)
+    return _table((*renamed, *kind))
+
+
+_KIND_TABLES: dict[str, tuple[type[HALComponent], dict[str, Operation]]] = {
+    "GPSSensor": (GPSSensor, _with_kind(SENSOR_OPERATIONS, GPS_OPERATIONS)),
+    "DirectionSensor": (DirectionSensor, _with_kind(SENSOR_OPERATIONS, DIRECTION_OPERATIONS)),
+}
+
 DEFAULT_PROFILES: dict[str, KindProfile] = {
     "Motor": KindProfile("Motor", Actuator, _table(MOTOR_OPERATIONS)),
     "Actuator": KindProfile("Actuator", Actuator, _table(MOTOR_OPERATIONS)),
@@ -511,6 +649,7 @@ DEFAULT_PROFILES: dict[str, KindProfile] = {
         name: KindProfile(name, Sensor, _table(SENSOR_OPERATIONS))
         for name in SENSOR_KIND_NAMES.values()
     },
+    **{name: KindProfile(name, cls, table) for name, (cls, table) in _KIND_TABLES.items()},
 }
 
 
