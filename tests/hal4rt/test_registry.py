@@ -158,3 +158,65 @@ def test_cli_devices_profile_prints_json(capsys: pytest.CaptureFixture[str]) -> 
     assert document["devices"]["sim.magnetometer"]["kind_id"] == DeviceKind.COMPASS
     registered = {f"{d.name}.{n}" for d in discover_drivers() if d.info for n in d.info.devices}
     assert registered == set(document["devices"]) | set(document["not_registered"])
+
+
+def test_device_profile_definition_is_an_instance_register() -> None:
+    """§7.4.5.1 Device Characteristics Profile Definition: "a register to have
+    componentName, vendorId, productId, instanceId and profileId" (issue 21 point 19)."""
+    from openel_async.device_profile import ProfileInstance
+
+    registry = DeviceRegistry()
+    entry = registry.register(SimMotor, driver="sim")
+    profile = entry.profile
+    assert profile.instances == ()
+    first = registry.create(HALId(DeviceKind.MOTOR, 0x0E1, 0x100, 3))  # HalCreate registers
+    second = registry.create(
+        HALId(DeviceKind.MOTOR, 0x0E1, 0x100, 1), component_options={"device_name": "pan"}
+    )
+    assert profile.instances == (
+        ProfileInstance("pan", 0x0E1, 0x100, 1, DeviceKind.MOTOR),
+        ProfileInstance("HalMotorOpenELSimMotor", 0x0E1, 0x100, 3, DeviceKind.MOTOR),
+    )
+    got = profile.instance(3)
+    assert (got.component_name, got.vendor_id, got.product_id, got.instance_id) == (
+        first.component_name,
+        0x0E1,
+        0x100,
+        3,
+    )
+    assert got.profile_id == first.profile_id == DeviceKind.MOTOR
+    assert profile.register_instance(second) == profile.instance(1)  # again: no change
+    data = json.loads(json.dumps(profile.to_dict()))
+    assert data["instances"] == [
+        {
+            "component_name": "pan",
+            "vendor_id": 0x0E1,
+            "product_id": 0x100,
+            "instance_id": 1,
+            "profile_id": 1,
+        },
+        {
+            "component_name": "HalMotorOpenELSimMotor",
+            "vendor_id": 0x0E1,
+            "product_id": 0x100,
+            "instance_id": 3,
+            "profile_id": 1,
+        },
+    ]
+    # Another device under a registered instance id, or of another profile, is refused.
+    with pytest.raises(BadParameterError) as taken:
+        registry.create(
+            HALId(DeviceKind.MOTOR, 0x0E1, 0x100, 3), component_options={"device_name": "tilt"}
+        )
+    assert taken.value.parameter == "instance_id" and "HalMotorOpenELSimMotor" in str(taken.value)
+    with pytest.raises(BadParameterError) as other:
+        profile.register_instance(ProfileInstance("x", 0x0E1, 0x200, 5, DeviceKind.ROTARY_ANGLE))
+    assert other.value.parameter == "instance"
+    assert profile.unregister_instance(1).component_name == "pan"
+    assert [i.instance_id for i in profile.instances] == [3]
+    for missing in (1, True):
+        with pytest.raises(BadParameterError) as absent:
+            profile.instance(missing)
+        assert absent.value.parameter == "instance_id"
+    with pytest.raises(BadParameterError):
+        profile.unregister_instance(1)

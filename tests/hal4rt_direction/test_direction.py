@@ -16,6 +16,7 @@ import pytest
 from openel_async import (
     Actuator,
     BadParameterError,
+    ComponentState,
     HALError,
     Request,
     StateError,
@@ -224,3 +225,26 @@ async def test_operations_need_the_active_state() -> None:
             compass.get_f()
         with pytest.raises(StateError):
             await compass.get_heading()
+
+
+@pytest.mark.parametrize(
+    ("setter", "value"),
+    [("set_latitude", 10.0), ("set_longitude", 20.0), ("set_altitude", 100.0),
+     ("set_date", 2026.0)],
+)  # fmt: skip
+async def test_setters_need_the_active_state_as_every_operation(setter: str, value: float) -> None:
+    """HAL4RT §7.4.5.1: outside Active only Init (Initialized) or Reset and Exit (Error)
+    are callable; the setters were accepted in any state (issue 21 point 19)."""
+    compass = DirectionSensor(SimMagnetometer(), frame="FRD", clock=VirtualClock())
+    before = (compass.latitude, compass.longitude, compass.altitude, compass.date)
+    with pytest.raises(StateError) as never_entered:
+        getattr(compass, setter)(value)
+    assert never_entered.value.operation == setter
+    assert never_entered.value.allowed == (ComponentState.ACTIVE,)
+    async with compass:
+        await compass.finalize()
+        with pytest.raises(StateError) as finalized:
+            getattr(compass, setter)(value)
+        assert finalized.value.operation == setter
+        assert finalized.value.state is ComponentState.FINALIZED
+    assert (compass.latitude, compass.longitude, compass.altitude, compass.date) == before

@@ -319,3 +319,28 @@ async def test_operations_need_the_active_state(silent_peer: SimGps) -> None:
             await gps.get_latitude()
         with pytest.raises(StateError):
             await gps.set_period(1000)
+
+
+async def test_set_target_needs_the_active_state_as_every_operation(
+    silent_peer: SimGps,
+) -> None:
+    """HAL4RT §7.4.5.1: outside Active only Init (Initialized) or Reset and Exit (Error)
+    are callable; set_target was accepted in any state (issue 21 point 19)."""
+    gps = GPSSensor(NmeaGps(silent_peer.path), clock=VirtualClock())
+    with pytest.raises(StateError) as before:  # never entered
+        gps.set_target(1.0, 2.0)
+    assert before.value.operation == "set_target"
+    assert before.value.allowed == (ComponentState.ACTIVE,) and gps.target is None
+    async with gps:
+        gps.set_target(1.0, 2.0)
+        await gps.finalize()
+        for call in (lambda: gps.set_target(3.0, 4.0), lambda: gps.set_target(99.0, 0.0)):
+            with pytest.raises(StateError) as after:
+                call()
+            assert after.value.operation == "set_target"
+            assert after.value.state is ComponentState.FINALIZED
+        assert gps.target == (1.0, 2.0)
+        for name in ("get_angle", "get_distance"):
+            with pytest.raises(StateError) as getter:
+                await getattr(gps, name)()
+            assert getter.value.operation == name
