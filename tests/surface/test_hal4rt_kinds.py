@@ -330,3 +330,26 @@ def test_gps_has_its_device_kind_in_the_extension_range() -> None:
     assert profile_of(FixedGps).kind_name == "GPSSensor"
     gps = GPSSensor(FixedGps(), clock=VirtualClock())
     assert kind_of(gps) == "GPSSensor" and gps.component_name == "HalGpsOpenELFixedGps"
+
+
+async def test_the_xml_samples_run_on_the_kinds(hal_components: ComponentStack) -> None:
+    """tests/surface/samples: a GPS and a Direction Device, as a client would send them."""
+    from pathlib import Path
+
+    from openel_async.surface.xml_psm import device_from_xml
+
+    samples = Path(__file__).parent / "samples"
+    gps = await hal_components.enter(GPSSensor(FixedGps(), clock=hal_components.clock))
+    compass = await hal_components.enter(
+        DirectionSensor(SimMagnetometer(), frame="FRD", clock=hal_components.clock)
+    )
+    async with Surface([gps, compass]) as surface:
+        sent = device_from_xml((samples / "gps_get_time_result.xml").read_bytes())
+        reply = await surface.execute(sent)
+        got = [c.results.as_dict() for c in reply.commands if c.results is not None]
+        assert got == [{"return_code": 0, "time": FIX.time_ms}, {"return_code": 0}]
+        assert [r.as_dict() for r in (c.results for c in sent.commands) if r] == got
+        sent = device_from_xml((samples / "direction_set_date_get_d.xml").read_bytes())
+        reply = await surface.execute(sent)
+        d = reply.commands[1].results
+        assert d is not None and d.value("D") == compass.get_d()
