@@ -175,7 +175,9 @@ class NmeaGps(GPSDevice):
         product_id=0x1,
         vendor_name="Generic",
         product_name="NmeaGps",
-        functions=("set_target", "get_distance", "next_fix"),
+        # SetTarget and GetDistance are GPS kind commands (GPSSensor's, device_profile);
+        # the device's own vendor function is next_fix.
+        functions=("next_fix",),
     )
     period_range_ms = PMTK_PERIOD_RANGE_MS
 

@@ -353,3 +353,13 @@ async def test_the_xml_samples_run_on_the_kinds(hal_components: ComponentStack) 
         reply = await surface.execute(sent)
         d = reply.commands[1].results
         assert d is not None and d.value("D") == compass.get_d()
+
+
+def test_gps_profile_vendor_functions_are_the_devices() -> None:
+    """The NMEA receiver's profile listed set_target and get_distance as its vendor
+    functions: they are the GPS Sensor's kind commands (0x381, 0x382), not the device's."""
+    profile = profile_of(NmeaGps)
+    vendor = [c for c in profile.commands if c.id >= 0x1000]
+    assert [c.name for c in vendor] == ["next_fix"]
+    assert all(hasattr(NmeaGps, c.method) for c in vendor)
+    assert profile.command("SetTarget").id == 0x381 and profile.command("GetDistance").id == 0x382
