@@ -348,6 +348,12 @@ class ProfileInstance:
     instance_id: int
     profile_id: int
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.component_name, str) or not self.component_name:
+            raise BadParameterError("component_name", self.component_name, "a non-empty string")
+        for name in ("vendor_id", "product_id", "instance_id", "profile_id"):
+            check_u32(name, getattr(self, name))
+
     @classmethod
     def of(cls, component: HALComponent) -> ProfileInstance:
         """The entry of a component (its ``component_name`` and ``hal_id``)."""
@@ -423,7 +429,6 @@ class DeviceProfile:
                 f"0x{mine[1]:X}, product id 0x{mine[2]:X}); it has 0x{key[0]:X}, "
                 f"0x{key[1]:X}, 0x{key[2]:X}",
             )
-        check_u32("instance_id", entry.instance_id)
         existing = self._instances.get(entry.instance_id)
         if existing is not None and existing != entry:
             raise BadParameterError(
@@ -443,8 +448,8 @@ class DeviceProfile:
 
     def instance(self, instance_id: int) -> ProfileInstance:
         """The registered instance ``instance_id``; BadParameterError when there is none."""
-        entry = self._instances.get(instance_id)
-        if entry is None or isinstance(instance_id, bool):
+        entry = None if isinstance(instance_id, bool) else self._instances.get(instance_id)
+        if entry is None:
             registered = sorted(self._instances) or "none"
             raise BadParameterError(
                 "instance_id", instance_id, f"a registered instance id ({registered})"

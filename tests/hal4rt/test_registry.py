@@ -220,3 +220,23 @@ def test_device_profile_definition_is_an_instance_register() -> None:
         assert absent.value.parameter == "instance_id"
     with pytest.raises(BadParameterError):
         profile.unregister_instance(1)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("component_name", ""), ("vendor_id", -1), ("product_id", 2**32), ("instance_id", 1.5),
+     ("profile_id", True)],
+)  # fmt: skip
+def test_a_profile_instance_refuses_bad_fields(field: str, value: object) -> None:
+    from openel_async.device_profile import ProfileInstance
+
+    fields: dict[str, object] = {
+        "component_name": "pan",
+        "vendor_id": 0x0E1,
+        "product_id": 0x100,
+        "instance_id": 1,
+        "profile_id": 1,
+    }
+    with pytest.raises(BadParameterError) as info:
+        ProfileInstance(**{**fields, field: value})  # type: ignore[arg-type]
+    assert info.value.parameter == field

@@ -485,6 +485,8 @@ def _method_op(command: ProfileCommand, component_type: type[HALComponent]) -> O
     A component of another class answers NOT_IMPLEMENTED."""
     declared = _declared(command)
     outputs = [(p.name, _DATA_TYPE_OF[p.type]) for p in command.parameters if p.direction == "out"]
+    if len(outputs) > 1:
+        raise BadParameterError("command", command, "a command with at most one out parameter")
     suspends = inspect.iscoroutinefunction(getattr(component_type, command.method))
 
     def bound(component: HALComponent, message: CommandMessage) -> tuple[Any, list[Any]]:
