@@ -240,11 +240,11 @@ async def test_setters_need_the_active_state_as_every_operation(setter: str, val
     with pytest.raises(StateError) as never_entered:
         getattr(compass, setter)(value)
     assert never_entered.value.operation == setter
-    assert never_entered.value.allowed == (ComponentState.ACTIVE,)
     async with compass:
         await compass.finalize()
         with pytest.raises(StateError) as finalized:
             getattr(compass, setter)(value)
         assert finalized.value.operation == setter
         assert finalized.value.state is ComponentState.FINALIZED
+        assert finalized.value.allowed == (ComponentState.ACTIVE,)
     assert (compass.latitude, compass.longitude, compass.altitude, compass.date) == before
