@@ -5,6 +5,7 @@ point 17)."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -116,6 +117,32 @@ def test_consoleout_runs_with_the_console_script(tmp_path: Path) -> None:
     assert "context            EXT_TRIG (one cycle per tick, nominal 1000 Hz)" in done.stdout
     assert "cycles             6 (overruns 0" in done.stdout
     assert "executed           6" in done.stdout
+
+
+def test_consoleout_ticked_from_a_terminal(tmp_path: Path) -> None:
+    # A person at a terminal: told how to tick, Enter ticks once, "2" Enter twice, Ctrl-D
+    # ends the run.
+    copy = _consoleout(tmp_path)
+    master, slave = os.openpty()  # canonical mode: one line per read, Ctrl-D is end of file
+    try:
+        with subprocess.Popen(
+            [sys.executable, "-m", "openel_async.cli", "run", str(copy)],
+            stdin=slave,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        ) as process:
+            os.write(master, b"\n2\n\x04")
+            out, err = process.communicate(timeout=60)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert process.returncode == 0, err
+    assert (
+        "openel-async run: ExtTrigExecutionContext: Enter ticks once, a number N then Enter "
+        "ticks N times, Ctrl-D ends the run" in err
+    )
+    assert "executed           3" in out
 
 
 def _consoleout(tmp_path: Path) -> Path:
