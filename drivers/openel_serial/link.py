@@ -5,8 +5,13 @@
 simulated time does not pass meanwhile) and hands the open ``serial.Serial`` to
 ``serial_asyncio_fast.connection_for_serial``, whose transport reads whenever the fd is
 readable and passes the bytes to ``on_data`` in the event loop's thread, with no task of
-ours in between. A read error or EOF (an unplugged USB adapter, a closed pty master) ends
-the transport; ``on_lost`` is then called once with the reason. Writes are buffered by the transport and never block.
+ours in between. A read or write error or EOF (an unplugged USB adapter, a closed pty
+master) ends the transport; ``on_lost`` is then called once with the reason. That is an
+expected, handled event: the transports here (:class:`QuietSerialTransport` and its
+subclass) do not also report an I/O error to the event loop's exception handler, as the
+library's ``_fatal_error`` does ("Fatal write error on serial transport", logged at ERROR
+with a traceback by asyncio's default handler, and raised after the test by anyio's pytest
+plugin). Writes are buffered by the transport and never block.
 
 Hot path: for a port with a file descriptor (every POSIX tty), the transport reads and
 writes that descriptor with ``os.read``/``os.write`` itself (:class:`FdSerialTransport`)
@@ -30,7 +35,7 @@ import structlog
 from openel_async.clock import run_in_thread
 from openel_serial.errors import PortDisconnectedError
 
-__all__ = ["FdSerialTransport", "SerialLink"]
+__all__ = ["FdSerialTransport", "QuietSerialTransport", "SerialLink"]
 
 log = structlog.get_logger(__name__)
 
@@ -41,7 +46,28 @@ CLOSE_TIMEOUT_S = 2.0
 """Bound on waiting for the transport to close the port (a worker thread does it)."""
 
 
-class FdSerialTransport(serial_asyncio_fast.SerialTransport):
+class QuietSerialTransport(serial_asyncio_fast.SerialTransport):
+    """pyserial-asyncio-fast's transport, for which a port failing under a write is a
+    disconnect, not a crash.
+
+    The library reports a write error (and, on Windows, a poll error) through
+    ``_fatal_error``, which passes it to ``loop.call_exception_handler`` before aborting
+    the transport. A vanished port is expected and handled (the protocol's
+    ``connection_lost`` gets the error, :class:`SerialLink` reports it through
+    ``on_lost``), so an ``OSError`` (``serial.SerialException`` is one) only aborts the
+    transport here. Any other exception is a bug and still goes to the handler.
+    """
+
+    def _fatal_error(
+        self, exc: BaseException, message: str = "Fatal error on serial transport"
+    ) -> None:
+        if isinstance(exc, OSError):
+            self._abort(exc)  # connection_lost(exc): the link reports the loss
+            return
+        super()._fatal_error(exc, message)
+
+
+class FdSerialTransport(QuietSerialTransport):
     """pyserial-asyncio-fast's transport, reading and writing the port's fd directly.
 
     Only the two I/O primitives differ from the base class (buffering, flow control,
@@ -100,11 +126,12 @@ class FdSerialTransport(serial_asyncio_fast.SerialTransport):
 def _transport_for(
     loop: asyncio.AbstractEventLoop, protocol: asyncio.Protocol, port: serial.Serial
 ) -> serial_asyncio_fast.SerialTransport:
-    """The fd transport for a port with a file descriptor, else the library's own."""
+    """The fd transport for a port with a file descriptor, else the library's own (both
+    quiet about a vanished port)."""
     try:
         port.fileno()
     except (AttributeError, OSError, ValueError, serial.SerialException):
-        return serial_asyncio_fast.SerialTransport(loop, protocol, port)
+        return QuietSerialTransport(loop, protocol, port)
     return FdSerialTransport(loop, protocol, port)
 
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 import copy
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
@@ -92,6 +94,46 @@ def test_real_profiles_validate_show_and_convert_with_the_cli(
     assert cli(["profile", "convert", str(path), str(converted)]) == 0
     assert cli(["profile", "convert", str(converted), str(back)]) == 0
     assert load_profile(converted) == load_profile(back) == load_profile(path)
+
+
+@pytest.mark.parametrize("name", ["ConsoleOut.RTC.xml", "TestComp.RTC.xml"])
+def test_ext_trig_profiles_show_with_the_console_script(name: str) -> None:
+    # Was: "invalid: ... unsupported execution type 'ExtTrigExecutionContext'", exit 1
+    # (issue 21, point 17).
+    done = subprocess.run(
+        [sys.executable, "-m", "openel_async.cli", "profile", "show", str(REAL / name)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""
+    lines = done.stdout.splitlines()
+    assert lines[0] == f"id              {load_profile(REAL / name).id}"
+    assert (
+        "execution       ExtTrigExecutionContext (one cycle per tick, nominal rate 1000 Hz)"
+        in lines
+    )
+
+
+def test_show_summarises_a_profile_whose_context_cannot_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # show is a summary: any profile that loads is shown; validate still refuses it.
+    text = (REAL / "Motor.RTC.xml").read_text()
+    path = tmp_path / "RTC.xml"
+    path.write_text(text.replace("PeriodicExecutionContext", "OpenHRPExecutionContext"))
+    assert cli(["profile", "show", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "execution       OpenHRPExecutionContext at 1000 Hz (openel-async cannot run it: "
+        "rtcProfile.basicInfo.executionType: unsupported execution type "
+        "'OpenHRPExecutionContext'" in out
+    )
+    assert "motor_id" in out
+    assert cli(["profile", "validate", str(path)]) == 1
+    assert "unsupported execution type 'OpenHRPExecutionContext'" in capsys.readouterr().err
 
 
 def test_language_ext_without_targets_loads() -> None:

@@ -100,7 +100,7 @@ def _validate(path: Path, implementation: bool) -> int:
     profile = load_profile(path)
     spec = execution_spec(profile)
     config = build_configuration(profile)
-    detail = f"{spec.kind}" + (f" at {spec.rate_hz:g} Hz" if spec.rate_hz is not None else "")
+    detail = spec.describe()
     line = (
         f"OK: {path}: {profile.id} ({profile.basic_info.component_kind}), {detail}, "
         f"{len(config.parameters)} configuration parameter(s)"
@@ -114,18 +114,28 @@ def _validate(path: Path, implementation: bool) -> int:
 
 def _show(path: Path) -> int:
     from ..rtc.constraints import describe
-    from ..rtc.profile import load_profile
+    from ..rtc.profile import ProfileError, load_profile
     from ..rtc.runner import IMPLEMENTATION_PARAMETER, execution_spec
 
     profile = load_profile(path)
     b = profile.basic_info
-    spec = execution_spec(profile)
+    # A summary of what the profile says: a context openel-async cannot run is shown too.
+    try:
+        spec = execution_spec(profile)
+    except ProfileError as exc:
+        rate = f" at {b.execution_rate:g} Hz" if b.execution_rate is not None else ""
+        execution = f"{b.execution_type}{rate} (openel-async cannot run it: {exc})"
+    else:
+        execution = b.execution_type
+        if spec.ext_trig:
+            execution += f" (one cycle per tick, nominal rate {spec.rate_hz:g} Hz)"
+        elif spec.rate_hz is not None:
+            execution += f" at {spec.rate_hz:g} Hz"
     out = [
         f"id              {profile.id}",
         f"name            {b.name} ({b.category}, vendor {b.vendor}, version {b.version})",
         f"kind            {b.component_kind}, {b.component_type}, activity {b.activity_type}",
-        f"execution       {b.execution_type}"
-        + (f" at {spec.rate_hz:g} Hz" if spec.rate_hz is not None else ""),
+        f"execution       {execution}",
     ]
     if b.description:
         out.append(f"description     {b.description}")

@@ -2,7 +2,8 @@
 
 - :mod:`.rtobject`: :class:`RTObject` (LightweightRTObject + ComponentAction +
   DataFlowComponentAction), :class:`MultiModeObject` in :mod:`.modes`;
-- :mod:`.context`: :class:`PeriodicExecutionContext`, :class:`EventDrivenExecutionContext`;
+- :mod:`.context`: :class:`PeriodicExecutionContext`, :class:`EventDrivenExecutionContext`,
+  :class:`ExtTrigExecutionContext`, :class:`SporadicExecutionContext`;
 - :mod:`.errors`: ``ReturnCode_t`` and the exceptions carrying it;
 - :mod:`.profile`, :mod:`.constraints`, :mod:`.configuration`: RTC Profiles and
   configuration sets; :mod:`.runner`: running a component described by a profile;
@@ -19,6 +20,7 @@ from .context import (
     ExecutionContext,
     ExecutionContextStats,
     ExecutionKind,
+    ExtTrigExecutionContext,
     LifeCycleState,
     PeriodicExecutionContext,
     SporadicExecutionContext,
@@ -46,6 +48,7 @@ __all__ = [
     "ExecutionContext",
     "ExecutionContextStats",
     "ExecutionKind",
+    "ExtTrigExecutionContext",
     "LifeCycleState",
     "MultiModeObject",
     "ObjectState",

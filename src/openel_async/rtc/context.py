@@ -8,7 +8,9 @@ A context holds its participants in the order they were added and runs *cycles*:
 
 :class:`PeriodicExecutionContext` runs a cycle on every tick of an
 :class:`~openel_async.timer.EventTimer` (rate in Hz); :class:`EventDrivenExecutionContext`
-runs one when :meth:`~EventDrivenExecutionContext.trigger` is called.
+runs one when :meth:`~EventDrivenExecutionContext.trigger` is called;
+:class:`ExtTrigExecutionContext` runs one per :meth:`~ExtTrigExecutionContext.tick` and
+returns after it (OpenRTM-aist's ExtTrigExecutionContext, for simulators and steppers).
 
 Concurrency. Each (component, context) pair has a lock. The cycle takes a participant's
 lock around that participant's callbacks only; a lifecycle call (activate, deactivate,
@@ -60,6 +62,7 @@ __all__ = [
     "ExecutionContext",
     "ExecutionContextStats",
     "ExecutionKind",
+    "ExtTrigExecutionContext",
     "LifeCycleState",
     "PeriodicExecutionContext",
     "SporadicExecutionContext",
@@ -953,6 +956,101 @@ class EventDrivenExecutionContext(ExecutionContext):
                 await end.wait()
             elif not await _wait_until(self.clock, end, deadline):
                 raise RTCTimeoutError(f"trigger_and_wait: no cycle finished on {self.name}")
+
+
+class ExtTrigExecutionContext(ExecutionContext):
+    """Runs one cycle per :meth:`tick`, and nothing else: OpenRTM-aist's
+    ExtTrigExecutionContext, the context of components stepped from outside (a simulator,
+    a test, a person pressing Enter).
+
+    As in OpenRTM-aist, ``get_kind()`` is PERIODIC and the context has a rate
+    (``get_rate``/``set_rate``, ``on_rate_changed``): it is *nominal*, the period each
+    tick stands for (e.g. for a component computing ``dt = 1 / rate``); nothing ticks at
+    that rate. Lifecycle calls (activate, deactivate, reset...) go through the context as
+    in the other contexts and take effect at once, without a tick; unlike OpenRTM-aist,
+    activation does not run an extra ``on_execute``: N ticks run exactly N cycles.
+    """
+
+    kind: ClassVar[ExecutionKind] = ExecutionKind.PERIODIC
+
+    def __init__(
+        self,
+        rate: float = 1000.0,
+        *,
+        name: str = "",
+        owner: RTObject | None = None,
+        clock: Clock | None = None,
+        lifecycle_timeout: float | None = DEFAULT_LIFECYCLE_TIMEOUT_S,
+    ) -> None:
+        _check_rate(rate)
+        super().__init__(name=name, owner=owner, clock=clock, lifecycle_timeout=lifecycle_timeout)
+        self._rate = float(rate)
+        self._tick_lock = anyio.Lock()
+        self._ticks = 0
+
+    @property
+    def ticks(self) -> int:
+        """Ticks accepted since the context was created."""
+        return self._ticks
+
+    def get_rate(self) -> float:
+        """The nominal rate in Hz (nothing ticks at it)."""
+        return self._rate
+
+    async def set_rate(self, rate: float) -> None:
+        """Change the nominal rate (MIN_RATE_HZ..MAX_RATE_HZ, BAD_PARAMETER otherwise),
+        then run on_rate_changed for every participant, as a periodic context does.
+        PRECONDITION_NOT_MET, changing nothing, from a participant's own callback."""
+        _check_rate(rate)
+        self._refuse_own_callback("set_rate")
+        async with self._op_lock:
+            old = self._rate
+            self._rate = float(rate)
+            self.log.info("ec_rate_changed", old_hz=old, new_hz=self._rate)
+            await self._each("set_rate", "on_rate_changed")
+
+    async def tick(self) -> None:
+        """Run one cycle (on_execute of the Active participants, on_error of those in
+        Error, then on_state_update) and return after it.
+
+        Ticks from several tasks run one cycle each, one after the other (never merged).
+        The wait is bounded by ``lifecycle_timeout`` (RTCTimeoutError). Cancelling
+        ``tick()`` abandons the wait, not the cycle: once accepted, it runs in the
+        context's worker. When ``stop()`` comes first, the cycle is cut short or never
+        runs and ``tick()`` returns. PRECONDITION_NOT_MET when the context is stopped
+        (OpenRTM-aist ignores such a tick) or from a participant's own callback in this
+        context (it would wait for itself).
+        """
+        self._refuse_own_callback("tick")
+        if not self._running:
+            raise PreconditionNotMetError("tick", "Stopped", ["Running"])
+        timeout = self._timeout_ns
+        deadline = None if timeout is None else self.clock.now_ns() + timeout
+        async with self._tick_lock:
+            # A tick cancelled while waiting may have left its cycle pending or running.
+            while self._pending is not None or self._cycles_started > self._cycles_done:
+                await self._cycle_change(deadline)
+            if not self._running:
+                raise PreconditionNotMetError("tick", "Stopped", ["Running"])
+            target = self._cycles_done + 1
+            generation = self._generation
+            self._ticks += 1
+            self._submit(self.clock.now_ns())
+            while self._cycles_done < target and self._generation == generation:
+                await self._cycle_change(deadline)
+
+    async def _cycle_change(self, deadline_ns: int | None) -> None:
+        """Wait for the end of a cycle (or a stop), until ``deadline_ns``."""
+        end = self._cycle_end
+        if deadline_ns is None:
+            await end.wait()
+        elif not await _wait_until(self.clock, end, deadline_ns):
+            raise RTCTimeoutError(f"tick: no cycle finished on {self.name} within the timeout")
+
+    def _stop_ticking(self) -> None:
+        # Wake the ticks waiting for a cycle that stop() cuts short or drops.
+        self._cycle_end.set()
+        self._cycle_end = anyio.Event()
 
 
 class SporadicExecutionContext(ExecutionContext):

@@ -17,9 +17,11 @@ when ``componentKind`` names a multi-mode component) and accept
 ``cls(instance_name, configuration=..., clock=...)``.
 
 The execution context comes from ``basicInfo.executionType`` (``PeriodicExecutionContext``
-or ``PERIODIC``; ``EventDrivenExecutionContext`` or ``EVENTDRIVEN``) and the rate from
-``basicInfo.executionRate``, else the ``exec_ctxt.periodic.rate`` parameter, else
-1000 Hz (the spec's default). docs/rtc.md describes the whole sequence.
+or ``PERIODIC``; ``EventDrivenExecutionContext`` or ``EVENTDRIVEN``;
+``SporadicExecutionContext`` or ``SPORADIC``; ``ExtTrigExecutionContext`` or ``EXTTRIG``,
+ticked by a :data:`Ticker`) and the rate from ``basicInfo.executionRate``, else the
+``exec_ctxt.periodic.rate`` parameter, else 1000 Hz (the spec's default). docs/rtc.md
+describes the whole sequence.
 """
 
 from __future__ import annotations
@@ -28,16 +30,19 @@ import argparse
 import importlib
 import importlib.util
 import math
+import os
 import re
 import signal
+import stat
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 from types import ModuleType
 
 import anyio
+import anyio.to_thread
 import structlog
 from anyio.abc import TaskStatus
 
@@ -49,6 +54,7 @@ from .context import (
     EventDrivenExecutionContext,
     ExecutionContext,
     ExecutionKind,
+    ExtTrigExecutionContext,
     LifeCycleState,
     PeriodicExecutionContext,
     SporadicExecutionContext,
@@ -65,6 +71,7 @@ __all__ = [
     "ExecutionSpec",
     "PreparedRun",
     "RunSummary",
+    "Ticker",
     "build_configuration",
     "execution_spec",
     "load_implementation",
@@ -73,6 +80,8 @@ __all__ = [
     "run_prepared",
     "run_profile",
     "run_profile_cli",
+    "tick_lines",
+    "ticks",
 ]
 
 log = structlog.get_logger(__name__)
@@ -88,6 +97,12 @@ CLI_MAX_VIRTUAL_CYCLES = 1_000_000
 _PERIODIC_TYPES = frozenset({"periodicexecutioncontext", "periodic"})
 _EVENT_TYPES = frozenset({"eventdrivenexecutioncontext", "eventdriven", "event_driven"})
 _SPORADIC_TYPES = frozenset({"sporadicexecutioncontext", "sporadic"})
+_EXT_TRIG_TYPES = frozenset({"exttrigexecutioncontext", "exttrig", "ext_trig"})
+KNOWN_EXECUTION_TYPES = (
+    "PeriodicExecutionContext (PERIODIC), EventDrivenExecutionContext (EVENTDRIVEN), "
+    "SporadicExecutionContext (SPORADIC) or ExtTrigExecutionContext (EXTTRIG)"
+)
+"""The execution types ``openel-async run`` knows (case-insensitive)."""
 _BASIC = "rtcProfile.basicInfo"
 _loaded: dict[Path, ModuleType] = {}
 """Implementation modules imported from files, by path (imported once per process)."""
@@ -100,7 +115,19 @@ class ExecutionSpec:
     kind: ExecutionKind
     rate_hz: float | None
     """Rate of a periodic context; None for an event-driven one; for a sporadic one
-    (kind OTHER) its highest rate (None: no minimum interval)."""
+    (kind OTHER) its highest rate (None: no minimum interval); for an ExtTrig one its
+    nominal rate."""
+    ext_trig: bool = False
+    """An :class:`~openel_async.rtc.ExtTrigExecutionContext`: kind PERIODIC (as in
+    OpenRTM-aist), one cycle per tick, nothing ticks at ``rate_hz``."""
+
+    def describe(self) -> str:
+        """``PERIODIC at 100 Hz``, ``EVENT_DRIVEN``, ``EXT_TRIG (one cycle per tick,
+        nominal 1000 Hz)``..."""
+        if self.ext_trig:
+            return f"EXT_TRIG (one cycle per tick, nominal {self.rate_hz:g} Hz)"
+        rate = f" at {self.rate_hz:g} Hz" if self.rate_hz is not None else ""
+        return f"{self.kind}{rate}"
 
 
 @dataclass(slots=True)
@@ -122,16 +149,18 @@ class RunSummary:
     lateness_max_us: float = 0.0
     final_state: LifeCycleState | None = None
     """State in the context just before deactivation."""
+    ext_trig: bool = False
+    """The context was an ExtTrigExecutionContext (``rate_hz`` is its nominal rate)."""
     mode: str | None = None
     report: dict[str, object] = field(default_factory=dict)
     stopped_by: str | None = None
     """The signal that ended the run (``"SIGINT"``, ``"SIGTERM"``), None otherwise."""
 
     def lines(self) -> list[str]:
-        rate = f" at {self.rate_hz:g} Hz" if self.rate_hz is not None else ""
+        context = ExecutionSpec(self.kind, self.rate_hz, self.ext_trig).describe()
         out = [
             f"component          {self.component} ({self.profile_id})",
-            f"context            {self.kind}{rate}",
+            f"context            {context}",
             f"duration           {self.duration_s:.3f} s",
             f"cycles             {self.cycles} (overruns {self.overruns}, skipped {self.skipped}"
             f", periods missed {self.timer_missed})",
@@ -168,12 +197,12 @@ def execution_spec(profile: RtcProfile, rate_hz: float | None = None) -> Executi
     if kind_text in _EVENT_TYPES:
         return ExecutionSpec(ExecutionKind.EVENT_DRIVEN, None)
     sporadic = kind_text in _SPORADIC_TYPES
-    if kind_text not in _PERIODIC_TYPES and not sporadic:
+    ext_trig = kind_text in _EXT_TRIG_TYPES
+    if kind_text not in _PERIODIC_TYPES and not (sporadic or ext_trig):
         raise ProfileError(
             f"{_BASIC}.executionType",
             f"unsupported execution type {basic.execution_type!r}; expected "
-            "PeriodicExecutionContext (PERIODIC), EventDrivenExecutionContext (EVENTDRIVEN) "
-            "or SporadicExecutionContext (SPORADIC)",
+            + KNOWN_EXECUTION_TYPES,
         )
     if sporadic and rate_hz is None and basic.execution_rate is None:
         return ExecutionSpec(ExecutionKind.OTHER, None)
@@ -195,7 +224,8 @@ def execution_spec(profile: RtcProfile, rate_hz: float | None = None) -> Executi
             f"the rate must be a number of Hz, {MIN_RATE_HZ:g} <= rate <= {MAX_RATE_HZ:g}, "
             f"got {rate!r}",
         )
-    return ExecutionSpec(ExecutionKind.OTHER if sporadic else ExecutionKind.PERIODIC, float(rate))
+    kind = ExecutionKind.OTHER if sporadic else ExecutionKind.PERIODIC
+    return ExecutionSpec(kind, float(rate), ext_trig)
 
 
 def build_configuration(
@@ -280,7 +310,7 @@ def load_implementation(profile: RtcProfile, profile_path: Path) -> type[RTObjec
             raise ProfileError(
                 path,
                 f"no module {module_name!r}: neither {directory / (module_name + '.py')} "
-                "nor an importable module of that name",
+                "nor an importable module of that name" + _not_python(profile, class_name),
             ) from None
         except Exception as exc:
             raise ProfileError(path, f"importing {module_name!r} failed: {exc!r}") from exc
@@ -299,14 +329,29 @@ def load_implementation(profile: RtcProfile, profile_path: Path) -> type[RTObjec
     return cls
 
 
+def _not_python(profile: RtcProfile, class_name: str) -> str:
+    """A hint when the profile describes a component in another language."""
+    language = profile.language.kind if profile.language is not None else None
+    if language is None or language.strip().lower() == "python":
+        return ""
+    return (
+        f" (the profile describes a {language} component; openel-async runs a Python "
+        f"implementation: write the class {class_name} there, or name one with an "
+        f"'{IMPLEMENTATION_PARAMETER}' parameter)"
+    )
+
+
 def _check_actions(profile: RtcProfile, cls: type[RTObject]) -> None:
     """Warn when the profile says a callback is implemented and the class does not
     override it (or the reverse): the profile and the code disagree."""
     for name, status in profile.actions.items():
         if not hasattr(RTObject, name) and not hasattr(MultiModeObject, name):
             continue  # on_action: finite state machines are not supported
-        base = MultiModeObject if name == "on_mode_changed" else RTObject
-        overridden = getattr(cls, name, None) is not getattr(base, name, None)
+        if name == "on_mode_changed" and not issubclass(cls, MultiModeObject):
+            overridden = False  # a component without modes has no on_mode_changed
+        else:
+            base = MultiModeObject if name == "on_mode_changed" else RTObject
+            overridden = getattr(cls, name, None) is not getattr(base, name, None)
         if status.implemented != overridden:
             log.warning(
                 "profile_action_mismatch",
@@ -320,6 +365,9 @@ def make_context(
     spec: ExecutionSpec, *, owner: RTObject, clock: Clock, name: str = ""
 ) -> ExecutionContext:
     """The context of an ExecutionSpec."""
+    if spec.ext_trig:
+        rate = DEFAULT_RATE_HZ if spec.rate_hz is None else spec.rate_hz
+        return ExtTrigExecutionContext(rate, name=name, owner=owner, clock=clock)
     if spec.kind is ExecutionKind.EVENT_DRIVEN:
         return EventDrivenExecutionContext(name=name, owner=owner, clock=clock)
     if spec.kind is ExecutionKind.OTHER:
@@ -327,6 +375,92 @@ def make_context(
         return SporadicExecutionContext(interval, name=name, owner=owner, clock=clock)
     assert spec.rate_hz is not None
     return PeriodicExecutionContext(spec.rate_hz, name=name, owner=owner, clock=clock)
+
+
+# -- ticking an ExtTrig context ----------------------------------------------------------
+
+Ticker = Callable[[ExtTrigExecutionContext], Awaitable[None]]
+"""What ticks the ExtTrig context of a run: ``await ticker(ec)`` calls ``ec.tick()`` as it
+likes; the run ends when it returns (or at ``duration_s`` / a signal, if sooner)."""
+
+
+def ticks(
+    count: int | None = None, *, rate_hz: float | None = None, clock: Clock | None = None
+) -> Ticker:
+    """A Ticker: ``count`` ticks (None: no end), back to back (each after the previous
+    cycle returned) or ``rate_hz`` a second on ``clock`` (the context's clock when None),
+    the first at once. ValueError naming ``count`` or ``rate_hz`` when they are unusable."""
+    if count is not None and (isinstance(count, bool) or not isinstance(count, int) or count < 0):
+        raise ValueError(f"count={count!r}: expected a number of ticks >= 0, or None")
+    if rate_hz is not None and (
+        isinstance(rate_hz, bool)
+        or not isinstance(rate_hz, int | float)
+        or not (math.isfinite(rate_hz) and MIN_RATE_HZ <= rate_hz <= MAX_RATE_HZ)
+    ):
+        raise ValueError(
+            f"rate_hz={rate_hz!r}: expected ticks per second, {MIN_RATE_HZ:g} to "
+            f"{MAX_RATE_HZ:g}, or None (back to back)"
+        )
+
+    async def run(ec: ExtTrigExecutionContext) -> None:
+        on = clock or ec.clock
+        period = None if rate_hz is None else max(1, round(NS_PER_S / rate_hz))
+        start = on.now_ns()
+        n = 0
+        while count is None or n < count:
+            if period is not None:
+                await on.sleep_until(start + n * period)
+            await ec.tick()
+            n += 1
+
+    return run
+
+
+async def _read_chunk(fd: int) -> bytes:
+    """Read what ``fd`` has, without blocking the event loop."""
+    mode = os.fstat(fd).st_mode
+    if stat.S_ISFIFO(mode) or stat.S_ISSOCK(mode) or stat.S_ISCHR(mode):
+        try:
+            await anyio.wait_readable(fd)
+        except OSError:  # no readiness notification for it (e.g. /dev/null): just read
+            pass
+        else:
+            return os.read(fd, 4096)
+    return await anyio.to_thread.run_sync(os.read, fd, 4096)
+
+
+def tick_lines(fd: int | None = None) -> Ticker:
+    """A Ticker reading lines from ``fd`` (standard input when None): an empty line is
+    one tick, a line holding a number N is N ticks; the run ends at end of file (Ctrl-D
+    on a terminal). Other lines are logged (``tick_line_ignored``) and skipped."""
+
+    async def run(ec: ExtTrigExecutionContext) -> None:
+        source = sys.stdin.fileno() if fd is None else fd
+        pending = b""
+        while True:
+            chunk = await _read_chunk(source)
+            if not chunk:
+                return
+            pending += chunk
+            *lines, pending = pending.split(b"\n")
+            for raw in lines:
+                text = raw.decode(errors="replace").strip()
+                if not text:
+                    count = 1
+                elif text.isdigit() and len(text) <= 7:
+                    count = int(text)
+                else:
+                    log.warning("tick_line_ignored", line=text[:80], expected="empty or N")
+                    continue
+                for _ in range(count):
+                    await ec.tick()
+
+    return run
+
+
+async def _drive(ticker: Ticker, ec: ExtTrigExecutionContext, scope: anyio.CancelScope) -> None:
+    await ticker(ec)
+    scope.cancel()
 
 
 # -- running ---------------------------------------------------------------------------
@@ -386,9 +520,13 @@ async def run_profile(
     settings: Mapping[str, str] | None = None,
     instance_name: str | None = None,
     handle_signals: bool = True,
+    ticker: Ticker | None = None,
 ) -> RunSummary:
     """Load, validate and run the component of a profile until ``duration_s`` seconds
-    on ``clock`` have passed or SIGINT/SIGTERM arrives (with ``handle_signals``).
+    on ``clock`` have passed, SIGINT/SIGTERM arrives (with ``handle_signals``) or
+    ``ticker`` returns. ``ticker`` (e.g. :func:`ticks`, :func:`tick_lines`) ticks the
+    context of a profile whose execution type is ExtTrigExecutionContext; without one
+    such a context runs no cycle.
 
     Sequence: :func:`prepare_profile`, create the component and its context (owned by
     it), initialize, add, start, activate, run, then ``exit()`` (stop, deactivate,
@@ -396,7 +534,7 @@ async def run_profile(
     ProfileError / ConfigurationError for bad input and RTCError when a lifecycle step
     fails.
     """
-    _check_run(duration_s, handle_signals)
+    _check_run(duration_s, handle_signals, ticker)
     prepared = prepare_profile(path, rate_hz=rate_hz, settings=settings)
     return await run_prepared(
         prepared,
@@ -404,14 +542,25 @@ async def run_profile(
         clock=clock,
         instance_name=instance_name,
         handle_signals=handle_signals,
+        ticker=ticker,
     )
 
 
-def _check_run(duration_s: float | None, handle_signals: bool) -> None:
+def _check_run(
+    duration_s: float | None,
+    handle_signals: bool,
+    ticker: Ticker | None,
+    spec: ExecutionSpec | None = None,
+) -> None:
     if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
         raise ValueError(f"duration_s={duration_s!r}: expected a finite number of seconds > 0")
-    if duration_s is None and not handle_signals:
-        raise ValueError("a run without duration_s needs handle_signals to end")
+    if duration_s is None and not handle_signals and ticker is None:
+        raise ValueError("a run without duration_s needs handle_signals or a ticker to end")
+    if ticker is not None and spec is not None and not spec.ext_trig:
+        raise ValueError(
+            f"ticker: the profile's context is {spec.describe()}; only an "
+            "ExtTrigExecutionContext is ticked"
+        )
 
 
 async def run_prepared(
@@ -421,10 +570,11 @@ async def run_prepared(
     clock: Clock | None = None,
     instance_name: str | None = None,
     handle_signals: bool = True,
+    ticker: Ticker | None = None,
 ) -> RunSummary:
     """Run a :class:`PreparedRun` (see :func:`run_profile`)."""
-    _check_run(duration_s, handle_signals)
     profile, spec, config = prepared.profile, prepared.spec, prepared.configuration
+    _check_run(duration_s, handle_signals, ticker, spec)
     clock = clock or MonotonicClock()
     comp = prepared.implementation(
         instance_name or profile.basic_info.name, configuration=config, clock=clock
@@ -438,7 +588,9 @@ async def run_prepared(
         rate_hz=spec.rate_hz,
         config_set=config.active_set,
     )
-    summary = RunSummary(comp.instance_name, profile.id, spec.kind, spec.rate_hz, 0.0)
+    summary = RunSummary(
+        comp.instance_name, profile.id, spec.kind, spec.rate_hz, 0.0, ext_trig=spec.ext_trig
+    )
     async with ec:
         await comp.initialize()
         start_ns = clock.now_ns()
@@ -454,6 +606,9 @@ async def run_prepared(
                     if duration_s is not None:
                         end = start_ns + round(duration_s * NS_PER_S)
                         tg.start_soon(_until_duration, clock, end, waiting)
+                    if ticker is not None:
+                        assert isinstance(ec, ExtTrigExecutionContext)
+                        tg.start_soon(_drive, ticker, ec, waiting)
         finally:
             # Not shielded: on_finalize leaves what on_initialize entered (task groups
             # of HAL components), which must happen in this task's own scope.
@@ -487,13 +642,16 @@ def _parse_args(argv: Sequence[str]) -> argparse.Namespace:
         "imports and executes the Python module the profile names (its 'implementation' "
         "parameter: a module next to the profile or an installed one): run only profiles "
         "you trust. Ctrl-C (SIGINT) ends the run with exit status 130, SIGTERM with 143, "
-        "after the summary.",
+        "after the summary. A component whose execution type is ExtTrigExecutionContext "
+        "runs one cycle per tick: --ticks/--tick-rate, else one per line of standard input "
+        "(Enter: one tick, a number N: N ticks, end of input (Ctrl-D): the end of the run).",
     )
     parser.add_argument("--duration", type=float, help="seconds to run (default: until Ctrl-C)")
     parser.add_argument(
         "--virtual",
         action="store_true",
-        help="run on the virtual clock (simulated time, as fast as possible; needs --duration)",
+        help="run on the virtual clock (simulated time, as fast as possible; needs --duration, "
+        "or --ticks for an ExtTrigExecutionContext)",
     )
     parser.add_argument(
         "--rate",
@@ -509,6 +667,20 @@ def _parse_args(argv: Sequence[str]) -> argparse.Namespace:
         help="configuration value (repeatable); checked against the parameter's constraint",
     )
     parser.add_argument("--name", help="instance name (default: basicInfo.name)")
+    parser.add_argument(
+        "--ticks",
+        type=int,
+        metavar="N",
+        help="ExtTrigExecutionContext: tick N times (each after the previous cycle), then end "
+        f"the run (at most {CLI_MAX_VIRTUAL_CYCLES:,})",
+    )
+    parser.add_argument(
+        "--tick-rate",
+        type=float,
+        metavar="HZ",
+        help="ExtTrigExecutionContext: tick HZ times a second (with --ticks N: N times; "
+        "else until --duration or Ctrl-C) instead of back to back",
+    )
     return parser.parse_args(list(argv))
 
 
@@ -522,10 +694,51 @@ def _settings(pairs: Sequence[str]) -> dict[str, str]:
     return out
 
 
+def _tick_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with --ticks / --tick-rate by themselves, or None."""
+    if args.ticks is not None and not 0 <= args.ticks <= CLI_MAX_VIRTUAL_CYCLES:
+        return f"--ticks must be a number of ticks from 0 to {CLI_MAX_VIRTUAL_CYCLES:,}"
+    rate = args.tick_rate
+    if rate is not None and not (math.isfinite(rate) and MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
+        return f"--tick-rate must be a number of Hz, {MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}"
+    return None
+
+
+def _cli_ticker(spec: ExecutionSpec, args: argparse.Namespace) -> tuple[Ticker | None, str | None]:
+    """The ticker of a command-line run and the problem, if any."""
+    asked = args.ticks is not None or args.tick_rate is not None
+    if not spec.ext_trig:
+        if asked:
+            option = "--ticks" if args.ticks is not None else "--tick-rate"
+            return None, (
+                f"{option} ticks an ExtTrigExecutionContext; this profile's context is "
+                f"{spec.describe()}"
+            )
+        return None, None
+    if args.virtual and args.ticks is None and args.tick_rate is not None:
+        cycles = args.tick_rate * args.duration
+        if cycles > CLI_MAX_VIRTUAL_CYCLES:
+            return None, (
+                f"--tick-rate {args.tick_rate:g} Hz for --duration {args.duration:g} s is "
+                f"{cycles:.3g} ticks on the virtual clock; at most {CLI_MAX_VIRTUAL_CYCLES:,}"
+            )
+    if asked:
+        return ticks(args.ticks, rate_hz=args.tick_rate), None
+    if args.virtual:  # --duration without ticks: a virtual run of no cycles
+        return None, None
+    if sys.stdin.isatty():
+        print(
+            f"{PROG}: ExtTrigExecutionContext: Enter ticks once, a number N then Enter ticks "
+            "N times, Ctrl-D ends the run",
+            file=sys.stderr,
+        )
+    return tick_lines(), None
+
+
 def _check_cli_rate(spec: ExecutionSpec, args: argparse.Namespace) -> str | None:
     """The work a command-line run may ask for (the context itself bounds the rate): the
     problem, or None."""
-    if spec.rate_hz is None:
+    if spec.rate_hz is None or spec.ext_trig:  # an ExtTrig rate is nominal
         return None
     rate = spec.rate_hz
     source = "--rate" if args.rate is not None else "the profile's rate"
@@ -541,7 +754,8 @@ def _check_cli_rate(spec: ExecutionSpec, args: argparse.Namespace) -> str | None
 
 
 def run_profile_cli(path: Path, argv: list[str]) -> int:
-    """``openel-async run PROFILE [--duration S] [--virtual] [--rate HZ] [--set N=V]...``.
+    """``openel-async run PROFILE [--duration S] [--virtual] [--rate HZ] [--set N=V]...
+    [--ticks N] [--tick-rate HZ]``.
 
     Exit status: 0 after a clean run, 1 when a lifecycle step failed, 2 for a bad
     profile, configuration or command line (a rate the context cannot run included),
@@ -556,7 +770,10 @@ def run_profile_cli(path: Path, argv: list[str]) -> int:
     except SystemExit as exc:  # argparse printed the problem
         return int(exc.code or 0) if exc.code in (0, None) else 2
     prog = PROG
-    problem = duration_problem(args.duration, args.virtual)
+    # --virtual without --duration: checked with the profile (--ticks may end the run)
+    problem = duration_problem(args.duration, False) or _tick_problem(args)
+    if problem is None and args.virtual and args.duration is None and args.ticks is None:
+        problem = f"{duration_problem(None, True)}; or --ticks N for an ExtTrigExecutionContext"
     if problem is not None:
         print(f"{prog}: {problem}", file=sys.stderr)
         return 2
@@ -578,12 +795,20 @@ def run_profile_cli(path: Path, argv: list[str]) -> int:
         print(f"{prog}: {path}: configuration: {exc}", file=sys.stderr)
         return 2
     problem = _check_cli_rate(prepared.spec, args)
+    ticker, tick_problem = _cli_ticker(prepared.spec, args)
+    problem = problem or tick_problem
     if problem is not None:
         print(f"{prog}: {path}: {problem}", file=sys.stderr)
         return 2
 
     async def main() -> RunSummary:
-        run = partial(run_prepared, prepared, duration_s=args.duration, instance_name=args.name)
+        run = partial(
+            run_prepared,
+            prepared,
+            duration_s=args.duration,
+            instance_name=args.name,
+            ticker=ticker,
+        )
         if not args.virtual:
             return await run()
         clock = VirtualClock()

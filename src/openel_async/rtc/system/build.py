@@ -61,6 +61,13 @@ def _execution(comp: ComponentSpec, profile: RtcProfile) -> ExecutionSpec:
     except ProfileError as exc:
         raise SystemFileError(f"{comp.where}.profile ({comp.profile})", str(exc)) from None
     if ctx.type is None:
+        if spec.ext_trig:
+            raise SystemFileError(
+                where,
+                "the profile's ExtTrigExecutionContext runs a cycle only when ticked, and a "
+                "system run ticks nothing: give the component a context (periodic, "
+                "event_driven or sporadic)",
+            )
         return spec
     kind = {
         "periodic": ExecutionKind.PERIODIC,
