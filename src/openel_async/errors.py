@@ -74,14 +74,27 @@ class BadParameterError(HALError, ValueError):
         self.allowed = allowed
 
 
+STATE_HINTS: dict[object, str] = {}
+"""What to do about a state, by state (an enum member): appended to a :class:`StateError`'s
+message (the component module registers its Initializing and Initialized states)."""
+
+
 class StateError(HALError):
-    """HAL_ERROR: the operation is not callable in the component's current state."""
+    """HAL_ERROR: the operation is not callable in the component's current state.
+
+    The message names the operation, the state and the states it is allowed in, and, for a
+    state with a hint in :data:`STATE_HINTS` (a component never entered, or never
+    initialized), how to get out of it.
+    """
 
     def __init__(self, operation: str, state: object, allowed: Iterable[object]) -> None:
         allowed_names = ", ".join(str(s) for s in allowed) or "none"
-        super().__init__(
-            f"{operation}() is not callable in state {state}; allowed in: {allowed_names}"
-        )
+        message = f"{operation}() is not callable in state {state}; allowed in: {allowed_names}"
+        try:
+            hint = STATE_HINTS.get(state) if operation != "__aenter__" else None
+        except TypeError:  # an unhashable state
+            hint = None
+        super().__init__(message if hint is None else f"{message}. {hint}")
         self.operation = operation
         self.state = state
         self.allowed = tuple(allowed)
