@@ -100,6 +100,19 @@ class StateError(HALError):
         self.allowed = tuple(allowed)
 
 
+class VirtualClockStalledError(StateError):
+    """A task sleeps on a VirtualClock that nothing drives: the clock is not in auto-jump,
+    no ``advance`` runs, and the event loop has had nothing else to do for the clock's
+    ``stall_timeout`` of real time. Raised in every task sleeping on that clock; the
+    message says how to drive it."""
+
+    def __init__(self, message: str) -> None:
+        HALError.__init__(self, message)
+        self.operation = "sleep_until"
+        self.state = "manual, never advanced"
+        self.allowed = ("auto-jump", "advanced")
+
+
 class DeviceFaultError(HALError):
     """The device faulted; the component went to the Error state."""
 
