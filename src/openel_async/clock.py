@@ -268,7 +268,7 @@ class VirtualClock(ClockBase):
         waker = self._new_sleeper
         if waker is not None and not waker.done():
             waker.set_result(None)
-        elif self._watchdog is None and not self._autojumping:  # manual mode: watch for a stall
+        elif not self._autojumping and self._watchdog is None:  # manual: watch for a stall
             self._arm_watchdog(loop)
         try:
             await future
