@@ -1,7 +1,10 @@
-"""Simulated sensors: encoder, IMU and temperature, with noise and timestamps.
+"""Simulated sensors: encoder (rad), IMU (m/s^2, rad/s), gyro (rad/s), accelerometer
+(m/s^2), torque (N*m), force (N), temperature (K), humidity (percent) and magnetometer (T),
+with noise and timestamps; docs/testing.md lists every constructor with its units.
 
-Noise comes from a seeded generator so a run is reproducible; readings carry the
-clock time at which they were taken.
+Noise (``noise``: a standard deviation in the value's unit) comes from a generator seeded
+with ``seed`` so a run is reproducible; readings carry the clock time at which they were
+taken. A sensor given a ``motor`` reads that SimMotor's state at that time.
 """
 
 from __future__ import annotations

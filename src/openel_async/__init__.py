@@ -34,6 +34,7 @@ from .errors import (
     ReturnCode,
     StateError,
     SupersededError,
+    VirtualClockStalledError,
     WouldBlockError,
 )
 from .gps import GPSSensor
@@ -128,6 +129,7 @@ __all__ = [
     "ValueSource",
     "VelocityRamp",
     "VirtualClock",
+    "VirtualClockStalledError",
     "WouldBlockError",
     "component_name",
     "default_clock",

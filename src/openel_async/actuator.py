@@ -3,7 +3,9 @@
 ``set_value`` returns as soon as the device accepted the target and gives back a
 :class:`Motion`. Reaching the target posts event 1 (COMPLETED) to the observers,
 exactly once and only for the final target: a replaced target's Motion raises
-:class:`SupersededError` and posts nothing.
+:class:`SupersededError` and posts nothing. Setpoints streamed by an AxisGroup are not
+targets in that sense: their Motions post nothing (``Motion.posts_completed``) and the
+group posts one COMPLETED per axis when its motion arrives.
 """
 
 from __future__ import annotations
@@ -141,8 +143,9 @@ class Actuator(HALComponent):
         self._sync_send = 0  # sequence of the command inside command_nowait, else 0
         self._reached_in_send = 0  # sequence reported reached from inside command_nowait
         self._motion: Motion | None = None
-        self._latest: tuple[Request, float, int, int] | None = None
-        """The latest command when no Motion was built for it yet (see ``stream_targets``)."""
+        self._latest: tuple[Request, float, int, int, bool] | None = None
+        """The latest command when no Motion was built for it yet (see ``stream_targets``):
+        the arguments of its Motion."""
         self._stream: tuple[StreamBatch, int, int, int] | None = None
         """Attached to a bank's batch stream: (batch, index in it, the batch's count and this
         actuator's sequence when last settled); see :class:`StreamBatch`."""
@@ -189,7 +192,7 @@ class Actuator(HALComponent):
             sequence += behind
             req, target = batch.request, batch.targets[index]
             self._sequence = sequence
-            self._latest = (req, target, sequence, batch.stamp)
+            self._latest = (req, target, sequence, batch.stamp, batch.posts_completed)
             self._commanded[req] = target
             self._stream = (batch, index, batch.count, sequence)
 
@@ -246,7 +249,7 @@ class Actuator(HALComponent):
         device.limits.check(req, target)
         return target
 
-    async def _send(self, req: Request, target: float) -> Motion:
+    async def _send(self, req: Request, target: float, posts_completed: bool = True) -> Motion:
         """Send a validated command and make its Motion the current one."""
         # Commands reach the device in call order; the sequence number taken before the
         # device call decides which target is final if calls overlap (a bus send).
@@ -255,7 +258,7 @@ class Actuator(HALComponent):
             await self.device.command(req, target)
         except _LINK_FAULTS as exc:
             raise self._fault_from(exc) from exc
-        return self._accept(req, target, sequence)
+        return self._accept(req, target, sequence, posts_completed)
 
     def _send_now(self, req: Request, target: float) -> Motion:
         """:meth:`_send` through the device's synchronous path."""
@@ -280,9 +283,11 @@ class Actuator(HALComponent):
         self._sequence += 1
         return self._sequence
 
-    def _accept(self, req: Request, target: float, sequence: int) -> Motion:
+    def _accept(
+        self, req: Request, target: float, sequence: int, posts_completed: bool = True
+    ) -> Motion:
         """The device accepted the command: make its Motion the current one."""
-        motion = Motion(req, target, sequence, self.clock.now_ns())
+        motion = Motion(req, target, sequence, self.clock.now_ns(), posts_completed)
         listener = self._observers.listener
         if listener is not None:
             listener.on_command(self, req, target, motion.issued_ns)
@@ -407,9 +412,19 @@ class Actuator(HALComponent):
 
     # -- completion ----------------------------------------------------------------
     def _complete(self, motion: Motion) -> None:
-        if motion is self.motion and motion._reach(self.clock.now_ns()):
+        if (
+            motion is self.motion
+            and motion._reach(self.clock.now_ns())
+            and motion.posts_completed  # not a setpoint an AxisGroup streamed
+        ):
             self.completed_count += 1
             self._publish_event(EventId.COMPLETED)
+
+    def _post_completed(self) -> None:
+        """COMPLETED for a target reached through streamed setpoints that posted none
+        (an AxisGroup's motion arrived)."""
+        self.completed_count += 1
+        self._publish_event(EventId.COMPLETED)
 
     def _on_target_reached(self) -> None:
         if self._sync_send:  # from inside command_nowait: completed once it is accepted
@@ -509,10 +524,12 @@ def stream_targets(
     req: Request,
     targets: Sequence[float],
     now_ns: int | None,
+    posts_completed: bool = True,
 ) -> None:
     """Setpoint streaming (:class:`~openel_async.ActuatorBank`): ``_send_now`` on every
     actuator in order, with the same semantics, but each Motion is only built if someone asks
-    for it (``Actuator.motion``).  ``now_ns`` stamps every command (None: each actuator's clock).
+    for it (``Actuator.motion``).  ``now_ns`` stamps every command (None: each actuator's clock);
+    ``posts_completed``: whether reaching these targets posts COMPLETED (``Motion``).
 
     One loop rather than a method call per axis: a bank runs it on every control tick.
     """
@@ -528,7 +545,7 @@ def stream_targets(
         finally:
             actuator._sync_send = 0
         if not (lazy and actuator._reports_completion and actuator.state is _ACTIVE):
-            actuator._accept(req, target, sequence)
+            actuator._accept(req, target, sequence, posts_completed)
         else:
             previous = actuator._motion
             if previous is not None:  # built because someone asked: it is replaced
@@ -536,7 +553,7 @@ def stream_targets(
                     previous._supersede(sequence)
                 actuator._motion = None
             stamp = actuator.clock.now_ns() if now_ns is None else now_ns
-            actuator._latest = (req, target, sequence, stamp)
+            actuator._latest = (req, target, sequence, stamp, posts_completed)
             actuator._commanded[req] = target
             listener = actuator._observers.listener
             if listener is not None:
@@ -552,6 +569,7 @@ def accept_streamed(
     targets: Sequence[float],
     now_ns: int | None,
     listening: bool,
+    posts_completed: bool = True,
 ) -> None:
     """The bookkeeping of :func:`stream_targets` after a device batch (``BatchCommander``)
     commanded every actuator: each one's latest command, its Motion built only when asked
@@ -568,7 +586,7 @@ def accept_streamed(
                 previous._supersede(sequence)
             actuator._motion = None
         stamp = actuator.clock.now_ns() if now_ns is None else now_ns
-        actuator._latest = (req, target, sequence, stamp)
+        actuator._latest = (req, target, sequence, stamp, posts_completed)
         actuator._commanded[req] = target
         if listening:
             listener = actuator._observers.listener
@@ -589,11 +607,23 @@ class StreamBatch:
     ``intact``: every member is attached (a member that leaves, e.g. for a ``set_value``,
     clears it: the next batch attaches them all again).  ``built``: members whose Motion
     was built while attached (someone asked for it): the next batch supersedes it.
+    ``posts_completed``: whether reaching the batches' targets posts COMPLETED (``Motion``).
     """
 
-    __slots__ = ("built", "count", "intact", "listen_at", "on_batch", "request", "stamp", "targets")
+    __slots__ = (
+        "built",
+        "count",
+        "intact",
+        "listen_at",
+        "on_batch",
+        "posts_completed",
+        "request",
+        "stamp",
+        "targets",
+    )
 
-    def __init__(self, size: int) -> None:
+    def __init__(self, size: int, posts_completed: bool = True) -> None:
+        self.posts_completed = posts_completed
         self.listen_at = -1  # LISTENING.changes when on_batch was asked for
         self.on_batch: BatchListener | None = None
         """The members' batch listener (:func:`~openel_async.listeners.batch_listener`)."""

@@ -7,7 +7,9 @@ checks its components' state once per call, validates every value before it comm
 
 Each component keeps its own semantics: ``ActuatorBank.set_values`` is ``set_value`` on
 every actuator in order (one Motion each, COMPLETED per actuator, only for its final
-target), ``SensorBank.get_values`` is ``get_value`` on every sensor.  The ``*_nowait`` calls
+target), ``SensorBank.get_values`` is ``get_value`` on every sensor.  A bank built with
+``setpoint_events=False`` streams setpoints rather than targets: reaching them posts no
+COMPLETED (an AxisGroup's bank: the group posts one per axis when its motion arrives).  The ``*_nowait`` calls
 are for synchronous code (a plain TimerObserver) over devices that need no I/O.
 """
 
@@ -81,9 +83,18 @@ def _require_nowait(members: Sequence[HALComponent], flag: str, operation: str) 
 
 
 class ActuatorBank:
-    """Actuators commanded together; see the module docstring."""
+    """Actuators commanded together; see the module docstring.
 
-    def __init__(self, actuators: Iterable[Actuator]) -> None:
+    ``setpoint_events``: whether reaching the values sent posts COMPLETED to each actuator's
+    observers, as ``set_value`` does (True, the default); False for setpoints streamed along
+    a trajectory, whose arrival the caller announces itself (their Motions still complete:
+    ``Motion.posts_completed`` is False).
+    """
+
+    def __init__(self, actuators: Iterable[Actuator], *, setpoint_events: bool = True) -> None:
+        if not isinstance(setpoint_events, bool):
+            raise BadParameterError("setpoint_events", setpoint_events, "True or False")
+        self.setpoint_events = setpoint_events
         self.actuators = _members(actuators, Actuator, "actuators")
         self._devices = tuple(a.device for a in self.actuators)
         # STATE_CHANGES.value when every actuator was last seen Active (-1: never).
@@ -125,7 +136,7 @@ class ActuatorBank:
         # The latest batch the device batch commanded, which the actuators settle from
         # lazily (one stamp per batch: only when they share a clock).
         self._streamed = (
-            StreamBatch(len(devices))
+            StreamBatch(len(devices), setpoint_events)
             if self._now_ns is not None and self._batch is not None
             else None
         )
@@ -173,7 +184,7 @@ class ActuatorBank:
             self._stream(req, targets)
         else:
             for actuator, target in zip(self.actuators, targets, strict=True):
-                await actuator._send(req, target)
+                await actuator._send(req, target, self.setpoint_events)
 
     def set_values_nowait(
         self, values: Sequence[float], request: Request | int = Request.POSITION
@@ -217,7 +228,7 @@ class ActuatorBank:
                 if sent:
                     streamed.accept(actuators, _POSITION, values, stamp, LISTENING.count > 0)
                 else:
-                    stream_targets(actuators, _POSITION, values, stamp)
+                    stream_targets(actuators, _POSITION, values, stamp, self.setpoint_events)
                 return
         if not self._nowait:
             _require_nowait(self.actuators, "_command_nowait", "set_values")
@@ -240,9 +251,16 @@ class ActuatorBank:
                 if streamed is not None and stamp is not None:
                     streamed.accept(self.actuators, req, targets, stamp, LISTENING.count > 0)
                 else:
-                    accept_streamed(self.actuators, req, targets, stamp, LISTENING.count > 0)
+                    accept_streamed(
+                        self.actuators,
+                        req,
+                        targets,
+                        stamp,
+                        LISTENING.count > 0,
+                        self.setpoint_events,
+                    )
                 return
-        stream_targets(self.actuators, req, targets, stamp)
+        stream_targets(self.actuators, req, targets, stamp, self.setpoint_events)
 
     def position_stream(
         self, lows: Sequence[float], highs: Sequence[float]
@@ -272,6 +290,7 @@ class ActuatorBank:
         if not self._proves(lows, highs):
             return None
         actuators = self.actuators
+        setpoint_events = self.setpoint_events
         proves = functools.partial(self._proves, lows, highs)
         proven_at = self._limits_at  # LIMITS_CHANGES.value when the proof last held
 
@@ -292,7 +311,7 @@ class ActuatorBank:
             if sent:
                 streamed.accept(actuators, _POSITION, values, stamp, LISTENING.count > 0)
             else:
-                stream_targets(actuators, _POSITION, values, stamp)
+                stream_targets(actuators, _POSITION, values, stamp, setpoint_events)
 
         return send
 

@@ -16,6 +16,11 @@ the loop with nothing runnable although something is still happening: :func:`ext
 detector so, and no idle moment is handed out while such work is in flight, so simulated
 time does not pass during it. It is for bounded work only: a thread that waits for
 external input (a bus reader, standard input) must not hold it, or time would stop.
+
+A VirtualClock that nothing drives (no auto-jump, no ``advance``) would leave its sleepers
+waiting forever in silence; once the loop has had nothing else to do for the clock's
+``stall_timeout`` of real time, they get a :class:`VirtualClockStalledError` saying how to
+drive it.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from __future__ import annotations
 import asyncio
 import heapq
 import itertools
+import math
 import time
 import weakref
 from collections import Counter, deque
@@ -37,7 +43,7 @@ import anyio.to_thread
 import structlog
 
 from . import timerfd
-from .errors import BadParameterError, StateError
+from .errors import BadParameterError, StateError, VirtualClockStalledError
 
 NS_PER_S = 1_000_000_000
 NS_PER_MS = 1_000_000
@@ -45,6 +51,13 @@ NS_PER_MS = 1_000_000
 EXTERNAL_WORK_WARNING_S = 10.0
 """Real seconds an idle waiter waits for external work before a warning names what is in
 flight (once per wait: a clock held that long usually means work that never ends)."""
+
+STALL_TIMEOUT_S = 5.0
+"""Default ``VirtualClock(stall_timeout=...)``: real seconds of an otherwise idle event loop
+after which the sleepers of a clock that nothing drives get a VirtualClockStalledError."""
+
+_STALL_SAMPLE_S = 0.1
+"""Real seconds between two looks of a manual clock's stall watchdog (at most)."""
 
 log = structlog.get_logger(__name__)
 
@@ -124,11 +137,45 @@ class _TimerfdSleeper:
         self._fd.close()
 
 
-class MonotonicClock:
-    """The real clock: CLOCK_MONOTONIC, with timerfd deadlines where available."""
+class ClockBase:
+    """What the framework's clocks (:class:`MonotonicClock`, :class:`VirtualClock`) add to
+    the :class:`Clock` protocol: the reading they started at and the seconds elapsed since a
+    reading. A clock of your own may subclass it (and set ``start_ns``); code that accepts
+    any :class:`Clock` must not rely on it.
+    """
+
+    start_ns: int
+    """This clock's reading when it was created (``now_ns()`` then)."""
+
+    def now_ns(self) -> int:
+        raise NotImplementedError
+
+    def elapsed_s(self, since_ns: int | None = None) -> float:
+        """Seconds of this clock from ``since_ns`` (an earlier ``now_ns()`` of this clock)
+        to now; by default since the clock started (:attr:`start_ns`)."""
+        if since_ns is None:
+            since_ns = self.start_ns
+        elif isinstance(since_ns, bool) or not isinstance(since_ns, int):
+            raise BadParameterError(
+                "since_ns", since_ns, "an int (a reading of this clock's now_ns(), ns) or None"
+            )
+        return (self.now_ns() - since_ns) / NS_PER_S
+
+
+class MonotonicClock(ClockBase):
+    """The real clock: CLOCK_MONOTONIC, with timerfd deadlines where available.
+
+    ``now_ns()`` is ``time.monotonic_ns()``: nanoseconds from an unspecified point (on
+    Linux, the boot, not counting time suspended), the same for every MonotonicClock of the
+    machine and never going back; only differences between readings mean something (it is
+    not wall-clock time). :attr:`start_ns` is the reading when the clock was created
+    (for :func:`default_clock`, when ``openel_async`` was imported) and
+    ``elapsed_s(since_ns=None)`` the seconds since it or since a reading.
+    """
 
     def __init__(self, *, use_timerfd: bool = True) -> None:
         self.use_timerfd = use_timerfd and timerfd.available()
+        self.start_ns = time.monotonic_ns()
 
     def now_ns(self) -> int:
         return time.monotonic_ns()
@@ -160,17 +207,40 @@ def default_clock() -> MonotonicClock:
     return _DEFAULT_CLOCK
 
 
-class VirtualClock:
-    """Deterministic simulated time.
+class VirtualClock(ClockBase):
+    """Deterministic simulated time, from ``start_ns`` (0 by default: ``now_ns()`` and
+    ``elapsed_s()`` count simulated time since the start).
 
     Sleepers are woken strictly in deadline order (ties in arrival order). Time moves
     only through :meth:`advance`/:meth:`advance_to` (manual mode) or, inside
     :meth:`autojump`, whenever every other task of the event loop is waiting; the two
     modes exclude each other (:class:`StateError`).
+
+    ``stall_timeout`` (real seconds, or None: never): in manual mode, when tasks sleep on
+    the clock and, for that long, the clock did not move, is not in auto-jump, no
+    ``advance`` runs and the event loop had nothing else to do (no runnable task, no
+    :func:`external_work`, no I/O being waited for, no real-time timer other than the
+    deadlines of cancel scopes), every sleeper gets a :class:`VirtualClockStalledError`
+    naming the ways to drive the clock, instead of waiting forever.
     """
 
-    def __init__(self, start_ns: int = 0) -> None:
+    def __init__(self, start_ns: int = 0, *, stall_timeout: float | None = STALL_TIMEOUT_S) -> None:
         _check_ns("start_ns", start_ns, 0)
+        if stall_timeout is not None and (
+            isinstance(stall_timeout, bool)
+            or not isinstance(stall_timeout, int | float)
+            or not (math.isfinite(stall_timeout) and stall_timeout > 0)
+        ):
+            raise BadParameterError(
+                "stall_timeout", stall_timeout, "a finite number of real seconds > 0, or None"
+            )
+        self.stall_timeout = stall_timeout
+        """Real seconds of an idle loop before the sleepers of this clock, if nothing drives
+        it, get a VirtualClockStalledError (None: never); may be changed at any time."""
+        self._watchdog: asyncio.TimerHandle | None = None
+        self._idle_since: float | None = None
+        self._seen = (0, start_ns)
+        self.start_ns = start_ns
         self._now = start_ns
         self._heap: list[tuple[int, int, asyncio.Future[None]]] = []
         self._seq = itertools.count()
@@ -192,11 +262,14 @@ class VirtualClock:
             return
         # Loop futures rather than anyio.Event: this is the clock's innermost hot path,
         # and the clock is tied to the asyncio backend anyway (see wait_idle).
-        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        loop = asyncio.get_running_loop()
+        future: asyncio.Future[None] = loop.create_future()
         heapq.heappush(self._heap, (deadline_ns, next(self._seq), future))
         waker = self._new_sleeper
         if waker is not None and not waker.done():
             waker.set_result(None)
+        elif not self._autojumping and self._watchdog is None:  # manual: watch for a stall
+            self._arm_watchdog(loop)
         try:
             await future
         except asyncio.CancelledError:
@@ -310,6 +383,52 @@ class VirtualClock:
                 continue
             self._wake_next()
 
+    # -- the stall watchdog (manual mode) -------------------------------------------------------
+    def _arm_watchdog(self, loop: asyncio.AbstractEventLoop) -> None:
+        timeout = self.stall_timeout
+        if timeout is None:
+            return
+        self._idle_since = None
+        self._seen = (self.jumps, self._now)
+        self._watchdog = loop.call_later(min(_STALL_SAMPLE_S, timeout / 4), self._watch_stall, loop)
+
+    def _watch_stall(self, loop: asyncio.AbstractEventLoop) -> None:
+        """One look of the watchdog: a stall is a loop idle for ``stall_timeout`` while this
+        clock has sleepers and does not move (see the class docstring)."""
+        self._watchdog = None
+        timeout = self.stall_timeout
+        sleepers = [future for _, _, future in self._heap if not future.done()]
+        if timeout is None or not sleepers:
+            return  # the next sleeper arms it again
+        now = loop.time()
+        seen = (self.jumps, self._now)
+        if self._autojumping or self._advancing or seen != self._seen or not _loop_idle(loop):
+            self._idle_since = None
+            self._seen = seen
+        elif self._idle_since is None:
+            self._idle_since = now
+        elif now - self._idle_since >= timeout:
+            self._stalled(sleepers, now - self._idle_since)
+            return
+        self._watchdog = loop.call_later(min(_STALL_SAMPLE_S, timeout / 4), self._watch_stall, loop)
+
+    def _stalled(self, sleepers: list[asyncio.Future[None]], idle_s: float) -> None:
+        deadline = min(d for d, _, future in self._heap if not future.done())
+        message = (
+            f"{self!r}: nothing advances this clock: {len(sleepers)} task(s) sleep on it "
+            f"(the earliest until {deadline} ns), it is not in auto-jump, no advance() runs "
+            f"and the event loop has had nothing else to do for {idle_s:.1f} s of real time. "
+            "Drive it: run the code inside `async with clock.autojump():` (or a task running "
+            "`await clock.run_autojump()`), or call `await clock.advance(delta_ns)` / "
+            "`await clock.advance_to(t_ns)` from another task; in pytest, the "
+            "`virtual_clock` fixture is a clock in auto-jump. "
+            f"(This check fires after stall_timeout={self.stall_timeout:g} s of an idle "
+            "loop; VirtualClock(stall_timeout=None) turns it off.)"
+        )
+        log.warning("virtual_clock_stalled", clock=repr(self), sleepers=len(sleepers))
+        for future in sleepers:
+            future.set_exception(VirtualClockStalledError(message))
+
     def _drop_cancelled(self) -> None:
         heap = self._heap
         while heap and heap[0][2].done():
@@ -328,6 +447,56 @@ class VirtualClock:
 
     def __repr__(self) -> str:
         return f"VirtualClock(now_ns={self._now})"
+
+
+_DEADLINE_CALLBACKS: frozenset[object] | None = None
+
+
+def _deadline_callbacks() -> frozenset[object]:
+    """Callbacks of real-time timers that only cancel a wait (a cancel scope's deadline,
+    ``asyncio.timeout``, ``wait_for``) or watch a clock: they never drive a VirtualClock."""
+    global _DEADLINE_CALLBACKS
+    if _DEADLINE_CALLBACKS is None:
+        from asyncio import tasks, timeouts
+
+        from anyio._backends import _asyncio as anyio_asyncio
+
+        found = (
+            VirtualClock._watch_stall,
+            getattr(timeouts.Timeout, "_on_timeout", None),
+            getattr(tasks, "_release_waiter", None),
+            getattr(anyio_asyncio.CancelScope, "_timeout", None),
+        )
+        _DEADLINE_CALLBACKS = frozenset(f for f in found if f is not None)
+    return _DEADLINE_CALLBACKS
+
+
+def _loop_idle(loop: asyncio.AbstractEventLoop) -> bool:
+    """Whether nothing in ``loop`` can happen by itself: no runnable callback, no external
+    work, no I/O being waited for and no real-time timer but deadlines (False when the loop
+    does not expose what this needs: never a stall there)."""
+    ready = getattr(loop, "_ready", None)
+    scheduled = getattr(loop, "_scheduled", None)
+    selector = getattr(loop, "_selector", None)
+    if ready is None or scheduled is None or selector is None or ready:
+        return False
+    detector = _IDLE_DETECTORS.get(loop)
+    if detector is not None and detector.external_count:
+        return False
+    try:
+        watched = len(selector.get_map())
+    except Exception:
+        return False
+    if watched > (1 if getattr(loop, "_ssock", None) is not None else 0):  # beyond the self-pipe
+        return False
+    deadlines = _deadline_callbacks()
+    for handle in scheduled:
+        if handle.cancelled():
+            continue
+        callback = handle._callback
+        if getattr(callback, "__func__", callback) not in deadlines:
+            return False
+    return True
 
 
 def _check_ns(name: str, value: object, minimum: int, what: str | None = None) -> None:

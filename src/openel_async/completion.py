@@ -36,6 +36,12 @@ class Motion:
     :class:`DeviceFaultError` when the actuator faulted, or
     :class:`MotionCancelledError` when the actuator was finalized or re-initialized.
     It can be awaited any number of times, from any task, and cancelled like any wait.
+
+    ``posts_completed``: whether reaching the target posts COMPLETED to the actuator's
+    observers. True for ``set_value`` (and ``ActuatorBank.set_values``); False for the
+    setpoints an :class:`~openel_async.motion.AxisGroup` streams (the group posts one
+    COMPLETED per axis when its motion arrives) or a bank built with
+    ``setpoint_events=False``: such a Motion is still reached, superseded or faulted.
     """
 
     __slots__ = (
@@ -44,17 +50,26 @@ class Motion:
         "_superseded_by",
         "issued_ns",
         "outcome",
+        "posts_completed",
         "reached_ns",
         "request",
         "sequence",
         "target",
     )
 
-    def __init__(self, request: Request, target: float, sequence: int, issued_ns: int) -> None:
+    def __init__(
+        self,
+        request: Request,
+        target: float,
+        sequence: int,
+        issued_ns: int,
+        posts_completed: bool = True,
+    ) -> None:
         self.request = request
         self.target = target
         self.sequence = sequence
         self.issued_ns = issued_ns
+        self.posts_completed = posts_completed
         self.reached_ns: int | None = None
         self.outcome = _PENDING
         self._error: HALError | None = None

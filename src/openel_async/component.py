@@ -22,6 +22,7 @@ import structlog
 from .clock import Clock, default_clock
 from .device import Device, ErrorId
 from .errors import (
+    STATE_HINTS,
     BadParameterError,
     DeviceFaultError,
     HALError,
@@ -50,6 +51,15 @@ class ComponentState(Enum):
 
 
 S = ComponentState
+
+STATE_HINTS[S.INITIALIZING] = (
+    "The component was never entered: use `async with component:` first (it opens the "
+    "device and calls init(); with auto_init=False, `await component.init()` inside the block)"
+)
+STATE_HINTS[S.INITIALIZED] = (
+    "The component was entered with auto_init=False but never initialized: "
+    "`await component.init()` first"
+)
 
 # Observers hear from a component only while it is operating.
 _NOTIFYING = frozenset({ComponentState.ACTIVE, ComponentState.ERROR})

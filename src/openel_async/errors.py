@@ -74,17 +74,43 @@ class BadParameterError(HALError, ValueError):
         self.allowed = allowed
 
 
+STATE_HINTS: dict[object, str] = {}
+"""What to do about a state, by state (an enum member): appended to a :class:`StateError`'s
+message (the component module registers its Initializing and Initialized states)."""
+
+
 class StateError(HALError):
-    """HAL_ERROR: the operation is not callable in the component's current state."""
+    """HAL_ERROR: the operation is not callable in the component's current state.
+
+    The message names the operation, the state and the states it is allowed in, and, for a
+    state with a hint in :data:`STATE_HINTS` (a component never entered, or never
+    initialized), how to get out of it.
+    """
 
     def __init__(self, operation: str, state: object, allowed: Iterable[object]) -> None:
         allowed_names = ", ".join(str(s) for s in allowed) or "none"
-        super().__init__(
-            f"{operation}() is not callable in state {state}; allowed in: {allowed_names}"
-        )
+        message = f"{operation}() is not callable in state {state}; allowed in: {allowed_names}"
+        try:
+            hint = STATE_HINTS.get(state) if operation != "__aenter__" else None
+        except TypeError:  # an unhashable state
+            hint = None
+        super().__init__(message if hint is None else f"{message}. {hint}")
         self.operation = operation
         self.state = state
         self.allowed = tuple(allowed)
+
+
+class VirtualClockStalledError(StateError):
+    """A task sleeps on a VirtualClock that nothing drives: the clock is not in auto-jump,
+    no ``advance`` runs, and the event loop has had nothing else to do for the clock's
+    ``stall_timeout`` of real time. Raised in every task sleeping on that clock; the
+    message says how to drive it."""
+
+    def __init__(self, message: str) -> None:
+        HALError.__init__(self, message)
+        self.operation = "sleep_until"
+        self.state = "manual, never advanced"
+        self.allowed = ("auto-jump", "advanced")
 
 
 class DeviceFaultError(HALError):

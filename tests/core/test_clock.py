@@ -508,3 +508,33 @@ async def test_timerfd_wait_until_past_and_future() -> None:
         assert time.monotonic_ns() >= deadline
     finally:
         fd.close()
+
+
+# -- elapsed_s: seconds since the start or since a reading ------------------------------
+
+
+async def test_elapsed_s_on_a_virtual_clock_counts_simulated_seconds() -> None:
+    clock = VirtualClock(start_ns=2 * NS_PER_S)
+    assert clock.start_ns == 2 * NS_PER_S and clock.elapsed_s() == 0.0
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(clock.sleep, 1.5)
+        await clock.advance(1_500 * NS_PER_MS)
+    mark = clock.now_ns()
+    assert clock.elapsed_s() == 1.5  # since the start
+    await clock.advance(250 * NS_PER_MS)
+    assert clock.elapsed_s(mark) == 0.25 and clock.elapsed_s() == 1.75
+    for bad in (1.0, True, "0"):
+        with pytest.raises(BadParameterError, match="since_ns"):
+            clock.elapsed_s(bad)  # type: ignore[arg-type]
+
+
+async def test_elapsed_s_on_the_monotonic_clock_counts_real_seconds() -> None:
+    before = time.monotonic_ns()
+    clock = MonotonicClock()
+    after = time.monotonic_ns()
+    assert before <= clock.start_ns <= after  # now_ns() is time.monotonic_ns()
+    mark = clock.now_ns()
+    await clock.sleep_until(mark + 20 * NS_PER_MS)
+    assert 0.02 <= clock.elapsed_s(mark) < 5.0
+    assert clock.elapsed_s() >= clock.elapsed_s(mark)
+    assert default_clock().elapsed_s() > 0.0  # since openel_async was imported

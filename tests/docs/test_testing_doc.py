@@ -1,7 +1,8 @@
 """The examples of docs/testing.md, verbatim (test_examples.py checks that they match),
 then tests of the plugin's ComponentStack beyond the examples."""
 
-from contextlib import AsyncExitStack
+import contextlib
+import math
 
 import anyio
 import pytest
@@ -13,15 +14,18 @@ from openel_async import (
     ErrorId,
     EventId,
     EventTimer,
+    HALComponent,
     HALId,
     Request,
     Sensor,
     StateError,
     SupersededError,
     VirtualClock,
+    VirtualClockStalledError,
 )
+from openel_async.app import AppContext, AppHook, AppInfo, run_app
 from openel_async.testing import ComponentStack, EventRecorder
-from openel_sim import SimMotor, SimTemperature
+from openel_sim import SimEncoder, SimMotor, SimTemperature
 
 
 async def test_move_completes(
@@ -149,6 +153,61 @@ async def test_bounded_in_real_time(virtual_clock: VirtualClock) -> None:
     assert virtual_clock.now_ns() == 3600 * 10**9
 
 
+async def hello(ctx: AppContext) -> int:
+    target = float(ctx.argv[0])
+    clock = ctx.use_clock(VirtualClock())
+    motor = ctx.add_component(Actuator(SimMotor(), device_name="MOTOR_1", clock=clock))
+    async with clock.autojump(), motor:
+        await (await motor.set_value(target))
+        position = await motor.get_value(Request.POSITION_ACTUAL)
+    print(f"{ctx.prog}: at {position:+.3f} rad after {clock.elapsed_s():.2f} s")
+    return 0 if abs(position - target) < 1e-3 else 1
+
+
+HELLO = AppInfo(name="hello", description="one motor to a position", main=hello)
+
+
+class ComponentNames(AppHook):
+    """Told of each component the app registers, before the app enters it."""
+
+    def __init__(self) -> None:
+        self.names: list[str] = []
+
+    def component_added(self, ctx: AppContext, component: HALComponent) -> None:
+        self.names.append(component.device_name)
+
+
+def test_an_app_runs_to_its_exit_status(capsys: pytest.CaptureFixture[str]) -> None:
+    names = ComponentNames()
+    assert run_app(HELLO, ["1.0"], prog="hello", hooks=[names]) == 0
+    assert "hello: at +1.000 rad after 0.70 s" in capsys.readouterr().out
+    assert names.names == ["MOTOR_1"]
+
+
+async def test_a_coarse_noisy_encoder(
+    hal_components: ComponentStack, sim_actuator: Actuator, sim_motor: SimMotor
+) -> None:
+    encoder = SimEncoder(sim_motor, counts_per_rev=360, noise=1e-3, seed=7)
+    sensor = await hal_components.sensor(encoder)
+    await (await sim_actuator.set_value(0.5))
+    (angle,) = await sensor.get_value()
+    assert angle == pytest.approx(0.5, abs=2 * math.pi / 360)  # within a count: 1 degree
+
+
+async def test_seconds_since_start(virtual_clock: VirtualClock) -> None:
+    await virtual_clock.sleep(1.5)
+    mark = virtual_clock.now_ns()
+    await virtual_clock.sleep(0.25)
+    assert virtual_clock.elapsed_s() == 1.75  # since start_ns (0)
+    assert virtual_clock.elapsed_s(mark) == 0.25
+
+
+async def test_a_clock_nothing_drives_raises() -> None:
+    clock = VirtualClock(stall_timeout=0.1)  # real seconds of an otherwise idle loop
+    with pytest.raises(VirtualClockStalledError, match="nothing advances this clock"):
+        await clock.sleep(1.0)  # no autojump(), no advance(): an error, not a hang
+
+
 # -- ComponentStack: cancel scopes of the test never interleave with components -----------
 
 
@@ -159,7 +218,7 @@ class _Probe:
         self.name = name
         self.log = log
         self.hold = hold  # wait forever in __aenter__ (until cancelled)
-        self.stack = AsyncExitStack()
+        self.stack = contextlib.AsyncExitStack()
 
     async def __aenter__(self) -> "_Probe":
         task = anyio.get_current_task().id

@@ -372,6 +372,43 @@ async def test_set_value_after_streaming_supersedes_the_streamed_target(
     assert events.count("event", COMPLETED, source=actuators[1]) == 1
 
 
+@pytest.mark.parametrize("path", ["batch", "per device", "awaited"])
+async def test_a_bank_without_setpoint_events_completes_its_motions_silently(
+    hal_components: ComponentStack, virtual_clock: VirtualClock, path: str
+) -> None:
+    """setpoint_events=False (an AxisGroup's bank): the streamed targets' Motions are reached
+    but post no COMPLETED; the same bank's default posts one per reached target."""
+    events = EventRecorder(virtual_clock)
+
+    class OwnPath(SimMotor):  # a command path of its own: no device batch (batch_commander)
+        def command_nowait(self, request: Request, value: float) -> None:
+            super().command_nowait(request, value)
+
+    kind = {"batch": SimMotor, "per device": OwnPath, "awaited": AsyncSimMotor}[path]
+    actuators = [await hal_components.actuator(kind()) for _ in range(2)]
+    for actuator in actuators:
+        actuator.add_observer(events)
+    quiet = ActuatorBank(actuators, setpoint_events=False)
+    assert (quiet._streamed is not None) is (path == "batch")
+    for k in (1, 2, 3):
+        if path == "awaited":
+            await quiet.set_values([0.1 * k, -0.1 * k])
+        else:
+            quiet.set_values_nowait([0.1 * k, -0.1 * k])
+        await virtual_clock.sleep(0.5)
+    motions = quiet.motions
+    assert all(m is not None and m.outcome is Outcome.REACHED for m in motions)
+    assert not any(m is not None and m.posts_completed for m in motions)
+    assert events.count("event", COMPLETED) == 0
+    assert [a.completed_count for a in actuators] == [0, 0]
+    await (await actuators[0].set_value(0.0))  # set_value keeps its event
+    loud = ActuatorBank(actuators)
+    await loud.set_values([0.2, 0.2])
+    await virtual_clock.sleep(0.5)
+    assert events.count("event", COMPLETED, source=actuators[0]) == 2
+    assert events.count("event", COMPLETED, source=actuators[1]) == 1
+
+
 # -- validation: all or nothing ------------------------------------------------------------------
 
 BAD_VALUES: list[tuple[int, object, Request]] = [

@@ -264,3 +264,21 @@ async def test_sensor_and_actuator_share_the_state_machine(hal_components: Compo
     device.reconnect()
     await sensor.re_init()
     assert sensor.state is S.ACTIVE
+
+
+async def test_a_component_never_entered_says_so_and_how_to_fix_it(
+    virtual_clock: VirtualClock,
+) -> None:
+    motor = Actuator(SimMotor(), clock=virtual_clock)
+    with pytest.raises(StateError, match="never entered: use `async with component:`") as info:
+        await motor.set_value(1.0)
+    assert info.value.code is ReturnCode.HAL_ERROR
+    assert "not callable in state Initializing; allowed in: Active" in str(info.value)
+    with pytest.raises(StateError, match="never entered"):
+        await Sensor(SimTemperature(SimMotor()), clock=virtual_clock).get_value()
+    async with Actuator(SimMotor(), clock=virtual_clock, auto_init=False) as idle:
+        with pytest.raises(StateError, match=r"never initialized: `await component.init\(\)`"):
+            await idle.get_value()
+    with pytest.raises(StateError) as finalized:
+        await idle.get_value()
+    assert "never" not in str(finalized.value)  # Finalized: entered and left

@@ -1,7 +1,7 @@
 """The group's batch streaming over drivers with a synchronous command path: one
-validated ActuatorBank batch per tick, no Motion per axis and tick, completion only for
-an actuator's latest target (never for a superseded one), and a failing axis named as
-before."""
+validated ActuatorBank batch per tick, no Motion per axis and tick, one COMPLETED per axis
+when a motion arrives (per-setpoint events only on request, and never for a superseded
+setpoint), and a failing axis named as before."""
 
 from __future__ import annotations
 
@@ -9,12 +9,23 @@ from typing import Any
 
 import pytest
 
-from openel_async import ComponentState, EventId, EventTimer, Request, VirtualClock
+from openel_async import (
+    ActuatorBank,
+    BadParameterError,
+    ComponentState,
+    EventId,
+    EventNotice,
+    EventTimer,
+    ObserverQueue,
+    Outcome,
+    Request,
+    VirtualClock,
+)
 from openel_async.motion import AxisFaultError, AxisGroup, GroupOutcome, PreemptedError
-from openel_async.testing import ComponentStack
+from openel_async.testing import ComponentStack, EventRecorder
 from openel_sim import SimMotor
 
-from .rigs import LIMITS
+from .rigs import LIMITS, RecordingMotor, RigFactory
 
 MS = 1_000_000
 
@@ -58,13 +69,16 @@ class Completions:
 
 
 async def _group(
-    hal_components: ComponentStack, clock: VirtualClock, motors: list[SyncRecordingMotor]
+    hal_components: ComponentStack,
+    clock: VirtualClock,
+    motors: list[SyncRecordingMotor],
+    **kwargs: Any,
 ) -> tuple[AxisGroup, list[Any], EventTimer]:
     actuators = [
         await hal_components.actuator(m, device_name=f"joint{i}") for i, m in enumerate(motors)
     ]
     timer = EventTimer(1, clock=clock)
-    return AxisGroup(actuators, timer=timer, limits=LIMITS), actuators, timer
+    return AxisGroup(actuators, timer=timer, limits=LIMITS, **kwargs), actuators, timer
 
 
 async def test_a_move_streams_one_batch_per_tick_and_completes_only_the_final_target(
@@ -90,13 +104,10 @@ async def test_a_move_streams_one_batch_per_tick_and_completes_only_the_final_ta
             assert latest is not None and latest.target == target
             assert await actuator.get_value(Request.POSITION) == target
         await virtual_clock.sleep(0.1)
-    # A device reaching a setpoint before the next tick completes it (as a set_value
-    # would), but only ever the latest one; the final target is completed last.
+    # The streamed setpoints post nothing: one COMPLETED per axis, for the group's target.
     for observer, actuator, target in zip(completions, actuators, [0.5, -0.25, 1.0], strict=True):
-        assert observer.seen, "the final target was not completed"
-        assert all(done == latest for done, latest in observer.seen)
-        assert observer.seen[-1][0] == target
-        assert actuator.completed_count == len(observer.seen)
+        assert observer.seen == [(target, target)]
+        assert actuator.completed_count == 1
     # The log holds what was sent, sampled from the plan at snapshot time.
     samples = group.log.snapshot()
     sent = [v for t, v in motors[1].setpoints]
@@ -155,3 +166,88 @@ async def test_a_link_fault_in_the_batch_names_the_axis_in_error(
         assert info.value.axis == 1
         assert actuators[1].state is ComponentState.ERROR
         assert info.value.time_ns is not None
+
+
+async def test_an_observer_queue_on_two_axes_hears_one_completed_per_axis(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    """Issue 21: a 0.8 s group move flooded an observer with 800 COMPLETED events (one per
+    streamed setpoint reached); the group's target is what completes, once per axis."""
+    motors = [SyncRecordingMotor() for _ in range(2)]
+    group, actuators, timer = await _group(hal_components, virtual_clock, motors)
+    queue: ObserverQueue = ObserverQueue()
+    for actuator in actuators:
+        actuator.add_observer(queue)
+    async with timer, group:
+        motion = await group.move_to([0.6, -0.6], duration=0.8)
+        await motion
+        await virtual_clock.sleep(0.2)  # nothing more comes while the axes rest
+        finished = motion.finished_ns
+    notices = queue.drain()
+    assert all(isinstance(n, EventNotice) for n in notices)
+    assert sorted((n.source.device_name, n.event_id) for n in notices) == [  # type: ignore[union-attr]
+        ("joint0", EventId.COMPLETED),
+        ("joint1", EventId.COMPLETED),
+    ]
+    assert len(motors[0].setpoints) >= 800  # every setpoint streamed; none posted
+    for actuator, target in zip(actuators, [0.6, -0.6], strict=True):
+        latest = actuator.motion  # the final setpoint's Motion is reached, silently
+        assert latest is not None and latest.outcome is Outcome.REACHED
+        assert latest.target == target and not latest.posts_completed
+        assert actuator.completed_count == 1
+    assert finished is not None
+
+
+async def test_the_group_completes_once_per_axis_over_awaited_sends(
+    make_rig: RigFactory, virtual_clock: VirtualClock
+) -> None:
+    """The same over drivers without a synchronous path (one awaited command per axis)."""
+    rig = await make_rig(2, motors=[RecordingMotor(), RecordingMotor()])
+    events = EventRecorder(virtual_clock)
+    for actuator in rig.actuators:
+        actuator.add_observer(events)
+    first = await rig.group.move_to([0.3, 0.2])
+    await rig.sleep(0.2)
+    second = await rig.group.move_to([-0.2, 0.4])  # preempts: the first posts nothing
+    with pytest.raises(PreemptedError):
+        await first
+    await second
+    await rig.sleep(0.1)
+    assert [(r.source, r.id, r.time_ns) for r in events.records] == [
+        (actuator, EventId.COMPLETED, second.finished_ns) for actuator in rig.actuators
+    ]
+    await rig.group.stop()  # idle: nothing
+    assert len(events.records) == 2
+
+
+async def test_per_setpoint_events_on_request(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    """setpoint_events=True: each setpoint an axis reaches before the next one is sent
+    completes as a set_value would (only ever the latest one), and the group posts none."""
+    motors = [SyncRecordingMotor() for _ in range(2)]
+    group, actuators, timer = await _group(
+        hal_components, virtual_clock, motors, setpoint_events=True
+    )
+    completions = [Completions(m) for m in motors]
+    for actuator, observer in zip(actuators, completions, strict=True):
+        actuator.add_observer(observer)
+    async with timer, group:
+        await (await group.move_to([0.5, -0.25]))
+        await virtual_clock.sleep(0.1)
+    for observer, actuator, target in zip(completions, actuators, [0.5, -0.25], strict=True):
+        assert len(observer.seen) > 1
+        assert all(done == latest for done, latest in observer.seen)
+        assert observer.seen[-1][0] == target
+        assert actuator.completed_count == len(observer.seen)
+
+
+async def test_setpoint_events_is_a_bool(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    actuator = await hal_components.actuator(SimMotor())
+    timer = EventTimer(1, clock=virtual_clock)
+    with pytest.raises(BadParameterError, match="setpoint_events=1 is not allowed"):
+        AxisGroup([actuator], timer=timer, limits=LIMITS, setpoint_events=1)  # type: ignore[arg-type]
+    with pytest.raises(BadParameterError, match="setpoint_events='no' is not allowed"):
+        ActuatorBank([actuator], setpoint_events="no")  # type: ignore[arg-type]

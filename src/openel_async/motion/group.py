@@ -86,6 +86,12 @@ class AxisGroup:
     ``synchronization``: ``"phase"`` (straight lines in joint space when ruckig can)
     or ``"time"``. ``log_capacity`` ticks are kept in :attr:`log` (0: no log);
     ``log_actual`` also reads and logs every axis' POSITION_ACTUAL at every tick.
+
+    Each axis' observers hear COMPLETED once per motion, when a ``move_to`` or ``follow``
+    succeeds (every axis within its goal tolerance), not for each streamed setpoint; a
+    stopped, held, preempted or aborted motion posts none. ``setpoint_events=True`` asks
+    for the per-setpoint events instead: each setpoint an axis reaches before the next
+    one posts COMPLETED, as a ``set_value`` would, and the group posts none itself.
     """
 
     def __init__(
@@ -100,14 +106,20 @@ class AxisGroup:
         name: str = "axis-group",
         log_capacity: int = 10_000,
         log_actual: bool = False,
+        setpoint_events: bool = False,
     ) -> None:
         axes = _check_actuators(actuators)
         if not isinstance(timer, EventTimer):
             raise BadParameterError("timer", timer, "an EventTimer")
+        if not isinstance(setpoint_events, bool):
+            raise BadParameterError("setpoint_events", setpoint_events, "True or False")
         n = len(axes)
         self.name = name
         self.axes: tuple[Actuator, ...] = axes
-        self._bank = ActuatorBank(axes)
+        self.setpoint_events = setpoint_events
+        """Whether each streamed setpoint an axis reaches posts COMPLETED (else: one
+        COMPLETED per axis when a motion succeeds)."""
+        self._bank = ActuatorBank(axes, setpoint_events=setpoint_events)
         # Devices that accept a command without I/O (simulations): the batch is streamed
         # without suspending and builds no Motion per axis (ActuatorBank.set_values_nowait).
         self._nowait = all(has_nowait(a.device, "command_nowait", "command") for a in axes)
@@ -654,6 +666,9 @@ class AxisGroup:
         if self._active is motion:
             self._active = None
             self._fast = self._fast_motion = None
+        if motion.kind != "stop" and not motion.done() and not self.setpoint_events:
+            for axis in self.axes:  # the group's target is reached: one COMPLETED per axis
+                axis._post_completed()
         if motion._finish(GroupOutcome.SUCCEEDED, t):
             self._log.info("motion_succeeded", motion=motion.id, kind=motion.kind)
 
