@@ -17,7 +17,8 @@ from datetime import date, datetime, timedelta, timezone
 from enum import StrEnum
 from typing import Any, TypeVar
 
-from ..constraints import Constraint, parse_bool, parse_int, parse_number
+from ...positioned import did_you_mean, is_namespaced
+from ..constraints import RTC_NS, Constraint, parse_bool, parse_int, parse_number
 from .errors import ProfileError
 from .model import (
     ACTION_KEYS,
@@ -58,6 +59,18 @@ from .model import (
 )
 
 SinkScalar = str | int | float | bool | datetime
+
+
+def is_extension_key(key: str) -> bool:
+    """True for a key that marks itself as an extension: ``prefix::name`` or
+    ``prefix:name`` (YAML), ``{uri}name`` (an XML name in a foreign namespace), except
+    the RTC namespace itself (``rtc:``), whose names are all known.  Unknown keys that
+    are extensions are kept (``extra``); any other unknown key is an error."""
+    if not is_namespaced(key):
+        return False
+    if key.startswith("{"):
+        return not key.startswith(f"{{{RTC_NS}}}")
+    return key.partition(":")[0] != "rtc"
 
 
 class Source(ABC):
@@ -247,7 +260,11 @@ def _date_int(value: object, path: str) -> int:
 def _date_from_mapping(raw: Mapping[Any, Any], path: str) -> datetime:
     unknown = [k for k in raw if k not in _DATE_PARTS + _DATE_EXTRA]
     if unknown:
-        raise ProfileError(f"{path}.{unknown[0]}", "unknown date field")
+        key = str(unknown[0])
+        raise ProfileError(
+            f"{path}.{key}",
+            f"unknown date field {key!r} ({did_you_mean(key, _DATE_PARTS + _DATE_EXTRA)})",
+        )
     parts: list[int] = []
     for part in _DATE_PARTS:
         value = raw.get(part)
@@ -368,6 +385,15 @@ def _read_doc(src: Source, cls: type[_D]) -> _D:
     if doc is None:
         return cls()
     values = {name: opt_str(doc, key) for name, key in _DOC_KEYS[cls]}
+    if cls is DataPortDoc:
+        # OpenRTP's RtcProfile_doc.xsd (and so RTCBuilder) spells it "occerrence".
+        misspelt = opt_str(doc, "occerrence")
+        if misspelt is not None:
+            if values["occurrence"] is not None and values["occurrence"] != misspelt:
+                raise ProfileError(
+                    f"{doc.path}.occerrence", "disagrees with occurrence (give one of them)"
+                )
+            values["occurrence"] = misspelt
     return cls(**values, extra=doc.extras())
 
 
