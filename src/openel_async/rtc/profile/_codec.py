@@ -10,6 +10,7 @@ and error paths are defined once.
 
 from __future__ import annotations
 
+import difflib
 import re
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
@@ -17,7 +18,7 @@ from datetime import date, datetime, timedelta, timezone
 from enum import StrEnum
 from typing import Any, TypeVar
 
-from ...positioned import did_you_mean, is_namespaced
+from ...positioned import Location, did_you_mean, is_namespaced
 from ..constraints import RTC_NS, Constraint, parse_bool, parse_int, parse_number
 from .errors import ProfileError
 from .model import (
@@ -104,7 +105,31 @@ class Source(ABC):
 
     @abstractmethod
     def extras(self) -> dict[str, ExtraValue]:
-        """Everything not consumed so far."""
+        """The extension keys not consumed so far (any other unknown key is refused)."""
+
+    @abstractmethod
+    def unread(self) -> list[str]:
+        """The keys present and not read so far (YAML-style, as ``extras`` names them)."""
+
+    @abstractmethod
+    def locate(self, key: str) -> Location | None:
+        """Where ``key`` is written (None when unknown)."""
+
+    def missing(self, key: str) -> ProfileError:
+        """The error for a required ``key`` that is absent; when an unknown key present
+        is close to it, the error points at that key as a likely misspelling."""
+        path = f"{self.path}.{key}"
+        present = [k for k in self.unread() if not is_extension_key(k)]
+        lowered = [k.lower() for k in present]
+        close = difflib.get_close_matches(key.lower(), lowered, n=1, cutoff=0.75)
+        if not close:
+            return ProfileError(path, "required field missing")
+        found = next(k for k in present if k.lower() == close[0])
+        return ProfileError(
+            path,
+            f"required field missing (did you mean it by {found!r}?)",
+            location=self.locate(found),
+        )
 
 
 class Sink(ABC):
@@ -179,7 +204,7 @@ def req_str(src: Source, key: str, *, allow_empty: bool = False) -> str:
     path = f"{src.path}.{key}"
     raw = src.raw(key)
     if raw is None:
-        raise ProfileError(path, "required field missing")
+        raise src.missing(key)
     value = _as_str(raw, path)
     if not value and not allow_empty:
         raise ProfileError(path, "must not be empty")
@@ -231,7 +256,7 @@ def req_bool(src: Source, key: str) -> bool:
     path = f"{src.path}.{key}"
     raw = src.raw(key)
     if raw is None:
-        raise ProfileError(path, "required field missing")
+        raise src.missing(key)
     if isinstance(raw, bool):
         return raw
     value = parse_bool(raw) if isinstance(raw, str) else None
@@ -310,7 +335,7 @@ def req_datetime(src: Source, key: str) -> datetime:
     path = f"{src.path}.{key}"
     raw = src.raw(key)
     if raw is None:
-        raise ProfileError(path, "required field missing")
+        raise src.missing(key)
     if isinstance(raw, datetime):
         return raw
     if isinstance(raw, date):
@@ -433,11 +458,11 @@ def read_profile(src: Source) -> RtcProfile:
     version = req_str(src, "version")
     basic = src.child("basicInfo")
     if basic is None:
-        raise ProfileError(f"{src.path}.basicInfo", "required field missing")
+        raise src.missing("basicInfo")
     basic_info = _read_basic_info(basic)
     actions = src.child("actions")
     if actions is None:
-        raise ProfileError(f"{src.path}.actions", "required field missing")
+        raise src.missing("actions")
     config_set = src.child("configurationSet")
     language = src.child("language")
     return RtcProfile(

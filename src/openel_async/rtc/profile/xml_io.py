@@ -296,6 +296,20 @@ class _XmlSource(Source):
                 return True
         return False
 
+    def unread(self) -> list[str]:
+        attributes = [n for n in self._elem.attrib if n not in self._used_attrs]
+        children = [c for i, c in enumerate(self._elem) if i not in self._used_children]
+        return [_key(n, self._ns) for n in attributes] + [_key(c.tag, self._ns) for c in children]
+
+    def locate(self, key: str) -> Location | None:
+        for name in self._elem.attrib:
+            if _key(name, self._ns) == key:
+                return self._places.attribute(self._elem, name)
+        for child in self._elem:
+            if _key(child.tag, self._ns) == key:
+                return self._places.element(child)
+        return None
+
     def _refuse(self, what: str, name: str, location: Location) -> ProfileError:
         shown = _shown_name(name)
         return ProfileError(

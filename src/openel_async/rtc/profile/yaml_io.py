@@ -121,17 +121,13 @@ class _Places:
             m.group(1) if m.group(1) is not None else int(m.group(2))
             for m in _PATH_PART.finditer(path[len(best) :])
         ]
-        if not rest:
-            return self.doc.where(mapping)
-        first = rest[0]
-        if not isinstance(first, str) or first not in mapping:
-            return self.doc.where(mapping)
-        value = mapping[first]
-        if len(rest) == 1 or not isinstance(value, Mapping | list):
-            return (
-                self.doc.key(mapping, first) if len(rest) == 1 else self.doc.value(mapping, first)
-            )
-        return self.doc.follow(rest[1:], value)[1]
+        container = self.doc.follow(rest[:-1], mapping)[0]
+        last = rest[-1] if rest else None
+        if isinstance(container, Mapping) and last in container:
+            return self.doc.key(container, last)  # the field's key
+        if isinstance(container, list) and isinstance(last, int) and last < len(container):
+            return self.doc.value(container, last)
+        return self.doc.where(container)
 
 
 def _extra_value(value: object, path: str) -> ExtraValue:
@@ -203,6 +199,12 @@ class _YamlSource(Source):
 
     def has_ext(self, keys: Sequence[str]) -> bool:
         return any(k in self._data for k in keys)
+
+    def unread(self) -> list[str]:
+        return [k for k in self._data if k not in self._used]
+
+    def locate(self, key: str) -> Location | None:
+        return self._places.doc.key(self._data, key)
 
     def extras(self) -> dict[str, ExtraValue]:
         """The extension keys not read; any other unknown key is refused."""
