@@ -315,16 +315,51 @@ _PART = re.compile(r"\.([^.\[]+)|\[(\d+|\.\.\.)\]")
 _UNKNOWN = re.compile(r"^Object contains unknown field `(?P<field>.*)`$", re.S)
 
 
-def _parse_path(path: str) -> list[str | int]:
-    parts: list[str | int] = []
+_ANY = None  # a dict value in msgspec's path: it does not say which key
+
+
+def _parse_path(path: str) -> list[str | int | None]:
+    parts: list[str | int | None] = []
     for m in _PART.finditer(path[1:]):
         if m.group(1) is not None:
             parts.append(m.group(1))
         elif m.group(2) == "...":
-            break  # a dict value: msgspec does not say which key
+            parts.append(_ANY)
         else:
             parts.append(int(m.group(2)))
     return parts
+
+
+def _resolve(node: object, parts: Sequence[str | int | None], key: str | None) -> list[str | int]:
+    """``parts`` as far as they resolve in ``node``; a dict wildcard is resolved only for
+    an unknown field ``key``: to the first entry whose value, at the rest of the path,
+    holds ``key`` (a wrong type stops at the dict rather than guess)."""
+    out: list[str | int] = []
+    for i, part in enumerate(parts):
+        if part is _ANY:
+            if key is None or not isinstance(node, Mapping):
+                return out
+            for name, value in node.items():
+                rest = _resolve(value, parts[i + 1 :], key)
+                if len(rest) == len(parts) - i - 1:
+                    reached = _walk(value, rest)
+                    if isinstance(reached, Mapping) and key in reached:
+                        return [*out, name, *rest]
+            return out
+        found = (isinstance(node, Mapping) and part in node) or (
+            isinstance(node, list) and isinstance(part, int) and 0 <= part < len(node)
+        )
+        if not found:
+            return out
+        node = node[part]  # type: ignore[index]
+        out.append(part)
+    return out
+
+
+def _walk(node: object, path: Sequence[str | int]) -> object:
+    for part in path:
+        node = node[part]  # type: ignore[index]  # a resolved path
+    return node
 
 
 def _struct_fields(info: msgspec.inspect.Type, path: Sequence[str | int]) -> list[str]:
@@ -378,12 +413,12 @@ def convert(doc: YamlDocument, data: object, type: type[_T], root: str) -> _T:
         m = _AT.match(str(exc))
         assert m is not None  # the pattern matches any text
         message = m.group("message")
-        path = _parse_path(m.group("path") or "$")
-        container, location = doc.follow(path, data)
         unknown = _UNKNOWN.match(message)
+        key = unknown.group("field") if unknown is not None else None
+        path = _resolve(data, _parse_path(m.group("path") or "$"), key)
+        container, location = doc.follow(path, data)
         where = _dotted(root, path)
-        if unknown is not None:
-            key = unknown.group("field")
+        if key is not None:
             allowed = _struct_fields(msgspec.inspect.type_info(type), path)
             raise DocumentError(
                 unknown_key_message(key, where, allowed),
