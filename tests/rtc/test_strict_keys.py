@@ -233,3 +233,44 @@ def test_duplicate_keys_are_refused_with_both_positions() -> None:
         r"\(first at line 1, column 1\)",
     ):
         load_yaml("a: 1\nb: 2\na: 3\n", "d.yaml")
+
+
+_ATTRS = [
+    'rtc:name="Comp"',
+    'rtc:componentType="STATIC"',
+    'rtc:activityType="PERIODIC"',
+    'rtc:componentKind="DataFlowComponent"',
+    'rtc:category="Cat"',
+    'rtc:executionType="PeriodicExecutionContext"',
+    'rtc:executionRate="100.0"',
+    'rtc:vendor="Vendor"',
+    'rtc:version="1.0.0"',
+    'rtc:creationDate="2024-05-01T12:30:00"',
+    'rtc:updateDate="2024-05-02T08:00:00"',
+]
+
+
+@given(
+    st.permutations(_ATTRS),
+    st.lists(st.sampled_from([" ", "  ", "\n    ", "\n\t"]), min_size=11, max_size=11),
+    st.sampled_from(["ü", "x"]),
+)
+def test_an_xml_attribute_position_points_at_the_attribute(
+    attrs: list[str], gaps: list[str], letter: str
+) -> None:
+    attrs = [a.replace("executionRate=", "executionRat=") for a in attrs]
+    attrs[0] = attrs[0].replace('"Comp"', f'"C{letter}mp"')  # non-ASCII before it, maybe
+    head = "".join(gap + attr for gap, attr in zip(gaps, attrs, strict=True))
+    text = (
+        XML[: XML.index("<rtc:BasicInfo")]
+        + "<rtc:BasicInfo"
+        + head
+        + "/>\n"
+        + (XML[XML.index("  <rtc:Actions>") :])
+    )
+    with pytest.raises(ProfileError, match="unknown attribute 'rtc:executionRat'") as info:
+        loads_xml(text.encode())
+    e = info.value
+    assert e.line is not None and e.column is not None
+    line = text.splitlines()[e.line - 1]
+    assert line[e.column - 1 :].startswith("rtc:executionRat="), (line, e.column)

@@ -175,11 +175,21 @@ class _Places:
     def add(self, path: str, elem: ET.Element) -> None:
         self._paths.setdefault(path, elem)
 
+    def _at(self, offset: int, line: int, column: int) -> Location:
+        """The location of a byte offset, its column counted in characters (expat's
+        columns count bytes); expat's line and column when the bytes are not known."""
+        if self._raw is None or offset < 0:
+            return Location(self.source, line, column + 1)
+        start = self._raw.rfind(b"\n", 0, offset) + 1
+        chars = len(self._raw[start:offset].decode("utf-8", "replace"))
+        return Location(self.source, self._raw.count(b"\n", 0, offset) + 1, chars + 1)
+
     def element(self, elem: ET.Element) -> Location:
         start = self._starts.get(id(elem))
         if start is None:
             return Location(self.source)
-        return Location(self.source, start[1], start[2] + 1)
+        _, line, column, offset = start
+        return self._at(offset, line, column)
 
     def attribute(self, elem: ET.Element, name: str) -> Location:
         start = self._starts.get(id(elem))
@@ -192,11 +202,7 @@ class _Places:
         m = re.search(rb"[\s](?:[\w.-]+:)?" + local + rb"\s*=", tag)
         if m is None:
             return self.element(elem)
-        before = tag[: m.start() + 1]
-        newlines = before.count(b"\n")
-        if newlines:
-            return Location(self.source, line + newlines, len(before) - before.rfind(b"\n"))
-        return Location(self.source, line, column + len(before) + 1)
+        return self._at(offset + m.start() + 1, line, column)
 
     def locate(self, path: str) -> Location:
         """The position of the field an error path names (its nearest element's)."""
