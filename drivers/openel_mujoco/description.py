@@ -17,7 +17,10 @@ through YAML or JSON)::
       - suction                                    # the adhesion actuator of arm6
 
 Joint, sensor and actuator names are those of the model; unknown names raise
-:class:`~openel_mujoco.models.ModelLoadError` when the simulation is built.  Every field of
+:class:`~openel_mujoco.models.ModelLoadError` when the simulation is built.  Keys are
+strict: an unknown key raises :class:`BadParameterError` with a "did you mean" for near
+misses; read by :meth:`SimDescription.from_yaml`, every refusal starts with the file,
+line and column (``arm.yaml:7:20: ...``).  Every field of
 :class:`JointSpec`, :class:`SensorSpec` and :class:`EffectorSpec` can also be given in code,
 e.g. ``sim.actuator("shoulder", max_velocity=2.0)`` or ``sim.effector("suction")``.
 """
@@ -33,6 +36,7 @@ from typing import Any, Literal, TypeGuard, TypeVar, get_args
 
 from openel_async.errors import BadParameterError
 from openel_async.ids import DeviceKind
+from openel_async.positioned import DocumentError, Location, YamlDocument, did_you_mean, relocate
 from openel_async.sensor_kinds import HAL4RT_KIND_NAMES
 
 from .models import ControlMode
@@ -393,19 +397,25 @@ class SimDescription:
         """Read a YAML file; a relative model path is taken relative to that file.
 
         Every problem with the file (unreadable, not UTF-8, not YAML, not a mapping, bad
-        fields) raises :class:`BadParameterError` naming the path or the field.
+        fields, unknown keys) raises :class:`BadParameterError` naming the path or the
+        field; its text starts with ``FILE:LINE:COL:`` where the problem is written.
         """
         file = pathlib.Path(path)
         try:
             raw = file.read_bytes()
         except OSError as exc:
             raise BadParameterError("path", str(path), f"a readable YAML file ({exc})") from exc
-        data = _parse_yaml(str(path), raw)
+        doc = _parse_yaml(str(path), raw)
+        data = doc.data
         if not isinstance(data, Mapping):
-            raise BadParameterError(
+            error = BadParameterError(
                 "path", str(path), f"a YAML file holding a mapping (it holds {_kind(data)})"
             )
-        return cls.from_dict(data, base_dir=file.parent)
+            raise _at(error, doc.where(data))
+        try:
+            return cls.from_dict(data, base_dir=file.parent)
+        except BadParameterError as exc:
+            raise _at(exc, _locate(exc, doc)) from exc.__cause__
 
     def to_dict(self) -> dict[str, Any]:
         """A plain dict (YAML/JSON-able) that :meth:`from_dict` turns back into this."""
@@ -446,9 +456,10 @@ def _specs(name: str, value: object, build: Callable[[Any], _Spec]) -> tuple[_Sp
     return tuple(specs)
 
 
-def _parse_yaml(path: str, raw: bytes) -> object:
-    """The YAML document of a file, or BadParameterError naming the path and the problem."""
-    import yaml
+def _parse_yaml(path: str, raw: bytes) -> YamlDocument:
+    """The YAML document of a file, with positions, or BadParameterError naming the path,
+    the line and the column of the problem."""
+    from openel_async.positioned import load_yaml
 
     try:
         text = raw.decode("utf-8")
@@ -459,15 +470,50 @@ def _parse_yaml(path: str, raw: bytes) -> object:
             f"a UTF-8 text file (byte 0x{raw[exc.start]:02x} at offset {exc.start} is not UTF-8)",
         ) from exc
     try:
-        return yaml.safe_load(text)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        problem = exc.problem or exc.context or "invalid YAML"
-        raise BadParameterError("path", path, f"a YAML file ({problem}{where})") from exc
-    except (yaml.YAMLError, ValueError, OverflowError, RecursionError) as exc:
-        # Also what PyYAML's constructors raise for values like the date 2020-13-45.
-        raise BadParameterError("path", path, f"a YAML file ({exc})") from exc
+        return load_yaml(text, path)
+    except DocumentError as exc:
+        problem = exc.message.removeprefix("invalid YAML: ").removeprefix("invalid YAML value: ")
+        error = BadParameterError("path", path, f"a YAML file ({problem})")
+        raise _at(error, exc.location) from None
+
+
+def _at(error: BadParameterError, location: Location | None) -> BadParameterError:
+    """``error`` with its text prefixed by ``FILE:LINE:COL:`` (and ``location`` on it)."""
+    if location is None:
+        return error
+    return relocate(error, DocumentError(str(error), path=error.parameter, location=location))
+
+
+_LISTS = ("joints", "sensors", "effectors")
+
+
+def _locate(error: BadParameterError, doc: YamlDocument) -> Location:
+    """Where the field a from_dict refusal names is written: the parameter's last part
+    in the entry the note ``in joints[2]`` names, or at the top."""
+    data = doc.data
+    field = error.parameter.rpartition(".")[2]
+    unknown = error.allowed.startswith("a known field")
+    container: object = data
+    for note in getattr(error, "__notes__", ()):
+        name, _, index = note.removeprefix("in ").partition("[")
+        items = data.get(name) if isinstance(data, Mapping) else None
+        if name in _LISTS and isinstance(items, list) and index.rstrip("]").isdigit():
+            i = int(index.rstrip("]"))
+            if i < len(items):
+                container = items[i]
+                if not isinstance(container, Mapping):
+                    return doc.value(items, i)
+    if isinstance(container, Mapping):
+        key: object = field
+        if unknown:
+            key = next((k for k in container if str(k) == field), field)
+            return doc.key(container, key)
+        if field in container:
+            return doc.value(container, field)
+        for name in _LISTS:  # a list-level problem (duplicate names...)
+            if field == name and name in container:
+                return doc.value(container, name)
+    return doc.where(container)
 
 
 def _kind(value: object) -> str:
@@ -515,7 +561,7 @@ def _fields_of(cls: type, data: object, where: str, *, required: str) -> dict[st
     if unknown:
         key = unknown[0]  # the key itself: YAML keys need not be strings (1, null, ...)
         raise BadParameterError(
-            f"{where}.{key}", data[key], f"a known field ({', '.join(sorted(known))})"
+            f"{where}.{key}", data[key], f"a known field ({did_you_mean(str(key), known)})"
         )
     if required not in data:
         raise BadParameterError(f"{where}.{required}", None, f"a {required} name (required)")

@@ -209,7 +209,9 @@ def test_missing_required_field_names_the_path(remove: tuple[Any, ...], path: st
     with pytest.raises(ProfileError) as info:
         load_modified(change)
     assert info.value.path == path
-    assert str(info.value) == f"{path}: required field missing"
+    assert info.value.location is not None and info.value.location.source == "<string>"
+    assert info.value.line is not None and info.value.column is not None
+    assert str(info.value) == f"{info.value.location}: {path}: required field missing"
 
 
 def _set(path: tuple[Any, ...], value: Any) -> Any:
@@ -350,8 +352,8 @@ def test_recursive_alias_is_refused() -> None:
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("rtcProfile: [unclosed", "invalid YAML at line"),
-        ("a: b\n  c: d", "invalid YAML at line 2"),
+        ("rtcProfile: [unclosed", r"^<string>:1:22: <document>: invalid YAML: expected"),
+        ("a: b\n  c: d", r"^<string>:2:4: <document>: invalid YAML: mapping values"),
         ("[" * 5000, "invalid YAML"),
         ("rtcProfile: !!int abc", "invalid YAML value"),
         ("- just\n- a list", "expected a mapping with the key 'rtcProfile'"),
@@ -370,15 +372,15 @@ def test_malformed_documents(text: str, message: str) -> None:
 def test_unknown_keys_survive_a_round_trip() -> None:
     def change(d: dict[str, Any]) -> None:
         d["basicInfo"]["rtcExt::vendorUrl"] = "https://example.org"
-        d["basicInfo"]["rtcDoc::doc"] = {"description": "x", "tutorial": {"steps": ["a", "b"]}}
-        d["dataPorts"][0]["custom"] = None
-        d["futureTopLevel"] = [{"k": "v"}]
+        d["basicInfo"]["rtcDoc::doc"] = {"description": "x", "my:tutorial": {"steps": ["a", "b"]}}
+        d["dataPorts"][0]["vendor::custom"] = None
+        d["future:topLevel"] = [{"k": "v"}]
 
     p = load_modified(change)
     assert p.basic_info.extra == {"rtcExt::vendorUrl": "https://example.org"}
-    assert p.basic_info.doc.extra == {"tutorial": {"steps": ["a", "b"]}}
-    assert p.data_ports[0].extra == {"custom": None}
-    assert p.extra == {"futureTopLevel": [{"k": "v"}]}
+    assert p.basic_info.doc.extra == {"my:tutorial": {"steps": ["a", "b"]}}
+    assert p.data_ports[0].extra == {"vendor::custom": None}
+    assert p.extra == {"future:topLevel": [{"k": "v"}]}
     assert loads_yaml(dumps_yaml(p)) == p
 
 

@@ -140,14 +140,14 @@ def test_blocking_cycle_graph() -> None:
     ("text", "match"),
     [
         ("system: {}", "system.components"),
-        ("systems: {}", "single key 'system'"),
+        ("systems: {}", r"s\.yaml:1:1: unknown key 'systems' \(did you mean 'system'\?"),
         ("system: {components: {a: {profile: x.yaml, colour: red}}}", "colour"),
         ("system: {components: {a.b: {profile: x.yaml}}}", "without '.'"),
         (
             "system: {components: {a: {profile: x.yaml}}, connections: [{from: a, to: b.c}]}",
             "component.port",
         ),
-        ("system: [", "not valid YAML"),
+        ("system: [", r"s\.yaml:1:10: invalid YAML"),
     ],
 )
 def test_bad_yaml(tmp_path: Path, text: str, match: str) -> None:

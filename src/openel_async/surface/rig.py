@@ -16,18 +16,22 @@ components:
 
 A device class that subclasses ``ActuatorDevice`` becomes an ``Actuator``, a
 ``SensorDevice`` a ``Sensor``. Every mistake is a :class:`BadParameterError` naming the
-entry and what was allowed.
+entry and what was allowed; read from a file, its text starts with ``FILE:LINE:COL:``
+and it carries ``location``.  Keys are strict: an unknown key (at the top, in a
+component, in ``hal_id``, or a ``params`` key the device class does not take) is refused
+with a "did you mean" for near misses.
 """
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import AsyncIterator, Mapping
 from contextlib import AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
+import msgspec
 
 from ..actuator import Actuator
 from ..clock import Clock
@@ -36,6 +40,15 @@ from ..device import ActuatorDevice, SensorDevice
 from ..errors import BadParameterError
 from ..ids import DeviceKind, HALId
 from ..motor import Motor
+from ..positioned import (
+    DocumentError,
+    Location,
+    YamlDocument,
+    convert,
+    load_yaml,
+    relocate,
+    unknown_key_message,
+)
 from ..registry import discover_drivers
 from ..sensor_kinds import sensor_class
 
@@ -47,6 +60,9 @@ class ComponentSpec:
     device: str
     params: Mapping[str, Any] = field(default_factory=dict)
     hal_id: Mapping[str, int] | None = None
+    locations: Mapping[str, Location] = field(default_factory=dict, compare=False, repr=False)
+    """Where the entry (``""``) and each of its ``params`` keys are written, when read
+    from a file (for the messages of :func:`build_components`)."""
 
 
 @dataclass(frozen=True)
@@ -55,52 +71,105 @@ class RigSpec:
     components: tuple[ComponentSpec, ...]
 
 
-def parse_rig(data: object, source: str = "rig") -> RigSpec:
+class _HalIdDoc(msgspec.Struct, forbid_unknown_fields=True):
+    device_kind_id: int | None = None
+    vendor_id: int | None = None
+    product_id: int | None = None
+    instance_id: int | None = None
+
+
+class _ComponentDoc(msgspec.Struct, forbid_unknown_fields=True):
+    name: str
+    driver: str
+    device: str
+    params: dict[str, Any] | None = None
+    hal_id: _HalIdDoc | None = None
+
+
+class _RigDoc(msgspec.Struct, forbid_unknown_fields=True):
+    components: list[_ComponentDoc]
+    namespace: str = "default"
+
+
+def parse_rig(data: object, source: str = "rig", doc: YamlDocument | None = None) -> RigSpec:
+    """A rig from its parsed document (``doc`` gives the positions when it came from a
+    file, see :func:`load_rig`); BadParameterError for any mistake."""
+    located = doc is not None  # plain data (not from a file) has no positions
+    if doc is None:
+        doc = YamlDocument(data, source, {})
+
+    def _located(error: BadParameterError, location: Location) -> BadParameterError:
+        if not located:
+            return error
+        cause = DocumentError(str(error), path=error.parameter, location=location)
+        return relocate(error, cause)
+
     if not isinstance(data, Mapping):
-        raise BadParameterError(source, data, "a mapping with 'components'")
-    namespace = data.get("namespace", "default")
-    if not isinstance(namespace, str) or not namespace:
-        raise BadParameterError(f"{source}.namespace", namespace, "a non-empty string")
-    entries = data.get("components")
-    if not isinstance(entries, list) or not entries:
-        raise BadParameterError(f"{source}.components", entries, "a non-empty list")
+        raise _located(
+            BadParameterError(source, data, "a mapping with 'components'"), doc.where(data)
+        )
+    try:
+        rig = convert(doc, data, _RigDoc, source)
+    except DocumentError as exc:
+        error = BadParameterError(exc.path, None, exc.message)
+        cause = exc if located else DocumentError(exc.message, path=exc.path)
+        raise relocate(error, cause) from None
+    if not rig.namespace:
+        raise _located(
+            BadParameterError(f"{source}.namespace", rig.namespace, "a non-empty string"),
+            doc.value(data, "namespace"),
+        )
+    entries = data["components"]
+    if not rig.components:
+        raise _located(
+            BadParameterError(f"{source}.components", [], "a non-empty list"),
+            doc.value(data, "components"),
+        )
     specs: list[ComponentSpec] = []
-    for i, entry in enumerate(entries):
+    for i, (entry, raw) in enumerate(zip(rig.components, entries, strict=True)):
         where = f"{source}.components[{i}]"
-        if not isinstance(entry, Mapping):
-            raise BadParameterError(where, entry, "a mapping with name, driver, device")
-        unknown = set(entry) - {"name", "driver", "device", "params", "hal_id"}
-        if unknown:
-            raise BadParameterError(
-                where, sorted(unknown), "keys among name, driver, device, params, hal_id"
-            )
         for key in ("name", "driver", "device"):
-            if not isinstance(entry.get(key), str) or not entry[key]:
-                raise BadParameterError(f"{where}.{key}", entry.get(key), "a non-empty string")
-        params = entry.get("params") or {}
-        if not isinstance(params, Mapping):
-            raise BadParameterError(f"{where}.params", params, "a mapping of keyword arguments")
-        hal_id = entry.get("hal_id")
-        if hal_id is not None and not isinstance(hal_id, Mapping):
-            raise BadParameterError(
-                f"{where}.hal_id", hal_id, "a mapping of vendor_id, product_id, instance_id"
-            )
+            if not getattr(entry, key):
+                raise _located(
+                    BadParameterError(f"{where}.{key}", "", "a non-empty string"),
+                    doc.value(raw, key),
+                )
+        hal_id = None
+        if entry.hal_id is not None:
+            hal_id = {
+                k: v for k, v in msgspec.structs.asdict(entry.hal_id).items() if v is not None
+            }
+        params = entry.params or {}
+        raw_params = raw.get("params") or {}
+        locations = (
+            {"": doc.where(raw)} | {k: doc.key(raw_params, k) for k in params} if located else {}
+        )
         specs.append(
-            ComponentSpec(entry["name"], entry["driver"], entry["device"], dict(params), hal_id)
+            ComponentSpec(entry.name, entry.driver, entry.device, params, hal_id, locations)
         )
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
-        raise BadParameterError(f"{source}.components", names, "unique names")
-    return RigSpec(namespace, tuple(specs))
+        twice = next(n for i, n in enumerate(names) if n in names[:i])
+        raise _located(
+            BadParameterError(f"{source}.components", names, f"unique names ({twice!r} twice)"),
+            doc.value(entries[names.index(twice, names.index(twice) + 1)], "name"),
+        )
+    return RigSpec(rig.namespace, tuple(specs))
 
 
 def load_rig(path: str | Path) -> RigSpec:
+    """Read a rig file; BadParameterError naming the file (and the line and column)."""
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
         raise BadParameterError("rig", str(path), f"a readable YAML rig file ({exc})") from None
-    return parse_rig(data, path.name)
+    try:
+        doc = load_yaml(text, str(path))
+    except DocumentError as exc:
+        error = BadParameterError("rig", str(path), f"a valid YAML rig file ({exc.message})")
+        raise relocate(error, exc) from None
+    return parse_rig(doc.data, "rig", doc)
 
 
 def _device_classes() -> dict[str, Mapping[str, type]]:
@@ -114,19 +183,23 @@ def build_components(spec: RigSpec, clock: Clock | None = None) -> list[HALCompo
     for c in spec.components:
         devices = drivers.get(c.driver)
         if devices is None:
-            raise BadParameterError(f"{c.name}.driver", c.driver, f"one of {sorted(drivers)}")
+            error = BadParameterError(f"{c.name}.driver", c.driver, f"one of {sorted(drivers)}")
+            raise _at(error, c, "")
         cls = devices.get(c.device)
         if cls is None:
-            raise BadParameterError(
+            error = BadParameterError(
                 f"{c.name}.device", c.device, f"one of {sorted(devices)} of driver {c.driver}"
             )
-        params = {k: _resolve(c.name, k, v, built) for k, v in c.params.items()}
+            raise _at(error, c, "")
+        _check_params(c, cls)
+        params = {k: _resolve(c, k, v, built) for k, v in c.params.items()}
         try:
             device = cls(**params)
         except TypeError as exc:
-            raise BadParameterError(
+            error = BadParameterError(
                 f"{c.name}.params", dict(c.params), f"the arguments of {cls.__name__} ({exc})"
-            ) from None
+            )
+            raise _at(error, c, "") from None
         hal_id = None
         if c.hal_id is not None:
             info = device.info
@@ -154,15 +227,49 @@ def build_components(spec: RigSpec, clock: Clock | None = None) -> list[HALCompo
     return list(built.values())
 
 
-def _resolve(name: str, key: str, value: Any, built: Mapping[str, HALComponent]) -> Any:
+def _at(error: BadParameterError, spec: ComponentSpec, key: str) -> BadParameterError:
+    """``error`` located at the entry (``key=""``) or its params key, when known."""
+    location = spec.locations.get(key) or spec.locations.get("")
+    if location is None:
+        return error
+    return relocate(error, DocumentError(str(error), path=error.parameter, location=location))
+
+
+def _check_params(spec: ComponentSpec, cls: type) -> None:
+    """Refuse a params key the device class does not take, naming the close ones."""
+    try:
+        parameters = inspect.signature(cls).parameters.values()
+    except (TypeError, ValueError):  # no signature to check against: the call will tell
+        return
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
+        return
+    allowed = [
+        p.name
+        for p in parameters
+        if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+    ]
+    for key in spec.params:
+        if key not in allowed:
+            where = f"{spec.name}.params (arguments of {cls.__name__})"
+            message = unknown_key_message(key, where, allowed)
+            error = BadParameterError(f"{spec.name}.params", key, f"an argument of {cls.__name__}")
+            location = spec.locations.get(key) or spec.locations.get("")
+            cause = DocumentError(message, path=f"{spec.name}.params")
+            if location is not None:
+                cause = DocumentError(cause.message, path=cause.path, location=location)
+            raise relocate(error, cause)
+
+
+def _resolve(spec: ComponentSpec, key: str, value: Any, built: Mapping[str, HALComponent]) -> Any:
     if isinstance(value, Mapping) and set(value) == {"ref"}:
         target = built.get(value["ref"])
         if target is None:
-            raise BadParameterError(
-                f"{name}.params.{key}",
+            error = BadParameterError(
+                f"{spec.name}.params.{key}",
                 value,
                 f"a reference to an earlier component among {sorted(built)}",
             )
+            raise _at(error, spec, key)
         return target.device
     return value
 

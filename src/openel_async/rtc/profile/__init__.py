@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from ...positioned import Location
 from .errors import ProfileError
 from .model import (
     ACTION_KEYS,
@@ -113,18 +114,18 @@ def _format_of(path: Path) -> str:
 
 
 def load_profile(path: str | os.PathLike[str]) -> RtcProfile:
-    """Read a profile file; the suffix selects YAML or XML.  Raises ProfileError
-    (and OSError when the file cannot be read)."""
+    """Read a profile file; the suffix selects YAML or XML.  Raises ProfileError naming
+    the file, line and column (and OSError when the file cannot be read)."""
     file = Path(path)
     kind = _format_of(file)
     data = file.read_bytes()  # bytes: the XML parser honours the declared encoding
     if kind == "xml":
-        return loads_xml(data)
+        return loads_xml(data, str(path))
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
-        raise ProfileError("<document>", f"not UTF-8: {e}") from None
-    return loads_yaml(text)
+        raise ProfileError("<document>", f"not UTF-8: {e}", location=Location(str(path))) from None
+    return loads_yaml(text, str(path))
 
 
 def save_profile(profile: RtcProfile, path: str | os.PathLike[str]) -> None:

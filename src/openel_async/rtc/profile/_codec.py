@@ -10,6 +10,7 @@ and error paths are defined once.
 
 from __future__ import annotations
 
+import difflib
 import re
 from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
@@ -17,7 +18,8 @@ from datetime import date, datetime, timedelta, timezone
 from enum import StrEnum
 from typing import Any, TypeVar
 
-from ..constraints import Constraint, parse_bool, parse_int, parse_number
+from ...positioned import Location, did_you_mean, is_namespaced
+from ..constraints import RTC_NS, Constraint, parse_bool, parse_int, parse_number
 from .errors import ProfileError
 from .model import (
     ACTION_KEYS,
@@ -60,6 +62,18 @@ from .model import (
 SinkScalar = str | int | float | bool | datetime
 
 
+def is_extension_key(key: str) -> bool:
+    """True for a key that marks itself as an extension: ``prefix::name`` or
+    ``prefix:name`` (YAML), ``{uri}name`` (an XML name in a foreign namespace), except
+    the RTC namespace itself (``rtc:``), whose names are all known.  Unknown keys that
+    are extensions are kept (``extra``); any other unknown key is an error."""
+    if not is_namespaced(key):
+        return False
+    if key.startswith("{"):
+        return not key.startswith(f"{{{RTC_NS}}}")
+    return key.partition(":")[0] != "rtc"
+
+
 class Source(ABC):
     """One mapping/element being read; every accessor marks its key as consumed."""
 
@@ -91,7 +105,31 @@ class Source(ABC):
 
     @abstractmethod
     def extras(self) -> dict[str, ExtraValue]:
-        """Everything not consumed so far."""
+        """The extension keys not consumed so far (any other unknown key is refused)."""
+
+    @abstractmethod
+    def unread(self) -> list[str]:
+        """The keys present and not read so far (YAML-style, as ``extras`` names them)."""
+
+    @abstractmethod
+    def locate(self, key: str) -> Location | None:
+        """Where ``key`` is written (None when unknown)."""
+
+    def missing(self, key: str) -> ProfileError:
+        """The error for a required ``key`` that is absent; when an unknown key present
+        is close to it, the error points at that key as a likely misspelling."""
+        path = f"{self.path}.{key}"
+        present = [k for k in self.unread() if not is_extension_key(k)]
+        lowered = [k.lower() for k in present]
+        close = difflib.get_close_matches(key.lower(), lowered, n=1, cutoff=0.75)
+        if not close:
+            return ProfileError(path, "required field missing")
+        found = next(k for k in present if k.lower() == close[0])
+        return ProfileError(
+            path,
+            f"required field missing (did you mean it by {found!r}?)",
+            location=self.locate(found),
+        )
 
 
 class Sink(ABC):
@@ -166,7 +204,7 @@ def req_str(src: Source, key: str, *, allow_empty: bool = False) -> str:
     path = f"{src.path}.{key}"
     raw = src.raw(key)
     if raw is None:
-        raise ProfileError(path, "required field missing")
+        raise src.missing(key)
     value = _as_str(raw, path)
     if not value and not allow_empty:
         raise ProfileError(path, "must not be empty")
@@ -218,7 +256,7 @@ def req_bool(src: Source, key: str) -> bool:
     path = f"{src.path}.{key}"
     raw = src.raw(key)
     if raw is None:
-        raise ProfileError(path, "required field missing")
+        raise src.missing(key)
     if isinstance(raw, bool):
         return raw
     value = parse_bool(raw) if isinstance(raw, str) else None
@@ -247,7 +285,11 @@ def _date_int(value: object, path: str) -> int:
 def _date_from_mapping(raw: Mapping[Any, Any], path: str) -> datetime:
     unknown = [k for k in raw if k not in _DATE_PARTS + _DATE_EXTRA]
     if unknown:
-        raise ProfileError(f"{path}.{unknown[0]}", "unknown date field")
+        key = str(unknown[0])
+        raise ProfileError(
+            f"{path}.{key}",
+            f"unknown date field {key!r} ({did_you_mean(key, _DATE_PARTS + _DATE_EXTRA)})",
+        )
     parts: list[int] = []
     for part in _DATE_PARTS:
         value = raw.get(part)
@@ -293,7 +335,7 @@ def req_datetime(src: Source, key: str) -> datetime:
     path = f"{src.path}.{key}"
     raw = src.raw(key)
     if raw is None:
-        raise ProfileError(path, "required field missing")
+        raise src.missing(key)
     if isinstance(raw, datetime):
         return raw
     if isinstance(raw, date):
@@ -368,6 +410,15 @@ def _read_doc(src: Source, cls: type[_D]) -> _D:
     if doc is None:
         return cls()
     values = {name: opt_str(doc, key) for name, key in _DOC_KEYS[cls]}
+    if cls is DataPortDoc:
+        # OpenRTP's RtcProfile_doc.xsd (and so RTCBuilder) spells it "occerrence".
+        misspelt = opt_str(doc, "occerrence")
+        if misspelt is not None:
+            if values["occurrence"] is not None and values["occurrence"] != misspelt:
+                raise ProfileError(
+                    f"{doc.path}.occerrence", "disagrees with occurrence (give one of them)"
+                )
+            values["occurrence"] = misspelt
     return cls(**values, extra=doc.extras())
 
 
@@ -407,11 +458,11 @@ def read_profile(src: Source) -> RtcProfile:
     version = req_str(src, "version")
     basic = src.child("basicInfo")
     if basic is None:
-        raise ProfileError(f"{src.path}.basicInfo", "required field missing")
+        raise src.missing("basicInfo")
     basic_info = _read_basic_info(basic)
     actions = src.child("actions")
     if actions is None:
-        raise ProfileError(f"{src.path}.actions", "required field missing")
+        raise src.missing("actions")
     config_set = src.child("configurationSet")
     language = src.child("language")
     return RtcProfile(

@@ -16,6 +16,7 @@ import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from datetime import datetime
+from typing import Any
 
 import defusedxml.ElementTree as DefusedET
 from defusedxml import (
@@ -25,6 +26,7 @@ from defusedxml import (
     ExternalReferenceForbidden,
 )
 
+from ...positioned import Location, did_you_mean
 from ..constraints import (
     RTC_NS,
     Constraint,
@@ -32,7 +34,7 @@ from ..constraints import (
     constraint_from_xml,
     constraint_to_xml,
 )
-from ._codec import Sink, SinkScalar, Source, read_profile, write_profile
+from ._codec import Sink, SinkScalar, Source, is_extension_key, read_profile, write_profile
 from .errors import MAX_DEPTH, MAX_NODES, ProfileError
 from .model import Extra, ExtraValue, Position, RtcProfile, validate_profile
 
@@ -149,16 +151,93 @@ def _element_value(elem: ET.Element, path: str, depth: int) -> ExtraValue:
     return _element_extra(elem, path, depth)
 
 
+def _shown_name(name: str) -> str:
+    """An attribute/element name as written with the spec's prefixes (rtc:executionRate)."""
+    uri, local = _split_clark(name)
+    if uri is None:
+        return local
+    return f"{PREFIXES.get(uri, '{' + uri + '}')}:{local}"
+
+
+class _Places:
+    """Where each element starts in the document (expat's line and column), and where
+    its attributes are written (found in the start tag's text)."""
+
+    def __init__(self, source: str, raw: bytes | None) -> None:
+        self.source = source
+        self._raw = raw  # UTF-8 bytes of the document, when known
+        self._starts: dict[int, tuple[ET.Element, int, int, int]] = {}
+        self._paths: dict[str, ET.Element] = {}
+
+    def started(self, elem: ET.Element, line: int, column: int, offset: int) -> None:
+        self._starts[id(elem)] = (elem, line, column, offset)
+
+    def add(self, path: str, elem: ET.Element) -> None:
+        self._paths.setdefault(path, elem)
+
+    def _at(self, offset: int, line: int, column: int) -> Location:
+        """The location of a byte offset, its column counted in characters (expat's
+        columns count bytes); expat's line and column when the bytes are not known."""
+        if self._raw is None or offset < 0:
+            return Location(self.source, line, column + 1)
+        start = self._raw.rfind(b"\n", 0, offset) + 1
+        chars = len(self._raw[start:offset].decode("utf-8", "replace"))
+        return Location(self.source, self._raw.count(b"\n", 0, offset) + 1, chars + 1)
+
+    def element(self, elem: ET.Element) -> Location:
+        start = self._starts.get(id(elem))
+        if start is None:
+            return Location(self.source)
+        _, line, column, offset = start
+        return self._at(offset, line, column)
+
+    def attribute(self, elem: ET.Element, name: str) -> Location:
+        start = self._starts.get(id(elem))
+        if start is None or self._raw is None:
+            return self.element(elem)
+        _, line, column, offset = start
+        end = self._raw.find(b">", offset)
+        tag = self._raw[offset : end if end >= 0 else len(self._raw)]
+        local = re.escape(_split_clark(name)[1].encode())
+        m = re.search(rb"[\s](?:[\w.-]+:)?" + local + rb"\s*=", tag)
+        if m is None:
+            return self.element(elem)
+        return self._at(offset + m.start() + 1, line, column)
+
+    def locate(self, path: str) -> Location:
+        """The position of the field an error path names (its nearest element's)."""
+        best = ""
+        for known in self._paths:
+            if len(known) > len(best) and (
+                path == known or path.startswith((known + ".", known + "["))
+            ):
+                best = known
+        if not best:
+            return Location(self.source)
+        elem = self._paths[best]
+        rest = path[len(best) :]
+        if rest.startswith(".") and "." not in rest[1:] and "[" not in rest:
+            ns, local = _split(rest[1:], RTC_NS)
+            for name in (f"{{{ns}}}{local}", local):
+                if name in elem.attrib:
+                    return self.attribute(elem, name)
+        return self.element(elem)
+
+
 class _XmlSource(Source):
-    def __init__(self, elem: ET.Element, path: str, ns: str) -> None:
+    def __init__(self, elem: ET.Element, path: str, ns: str, places: _Places) -> None:
         self._elem = elem
         self.path = path
         self._ns = ns
         self._used_attrs: set[str] = {_XSI_TYPE}
         self._used_children: set[int] = set()
+        self._known: set[str] = set()  # names asked for, as written (rtc:name...)
+        self._places = places
+        places.add(path, elem)
 
     def raw(self, key: str) -> object:
         ns, local = _split(key, self._ns)
+        self._known.add(_shown_name(f"{{{ns}}}{local}"))
         for name in (f"{{{ns}}}{local}", local):
             if name in self._elem.attrib:
                 self._used_attrs.add(name)
@@ -167,6 +246,7 @@ class _XmlSource(Source):
 
     def _find(self, key: str) -> tuple[list[ET.Element], str]:
         ns, names, child_ns = _child_spec(key, self._ns)
+        self._known.update(_shown_name(f"{{{ns}}}{n}") for n in names)
         wanted = {f"{{{ns}}}{n}" for n in names} | set(names)
         found: list[ET.Element] = []
         for i, child in enumerate(self._elem):
@@ -181,11 +261,14 @@ class _XmlSource(Source):
             return None
         if len(found) > 1:
             raise ProfileError(f"{self.path}.{key}", f"expected one element, got {len(found)}")
-        return _XmlSource(found[0], f"{self.path}.{key}", child_ns)
+        return _XmlSource(found[0], f"{self.path}.{key}", child_ns, self._places)
 
     def children(self, key: str) -> list[Source]:
         found, child_ns = self._find(key)
-        return [_XmlSource(e, f"{self.path}.{key}[{i}]", child_ns) for i, e in enumerate(found)]
+        return [
+            _XmlSource(e, f"{self.path}.{key}[{i}]", child_ns, self._places)
+            for i, e in enumerate(found)
+        ]
 
     def texts(self, key: str) -> list[object]:
         found, _ = self._find(key)
@@ -219,14 +302,50 @@ class _XmlSource(Source):
                 return True
         return False
 
+    def unread(self) -> list[str]:
+        attributes = [n for n in self._elem.attrib if n not in self._used_attrs]
+        children = [c for i, c in enumerate(self._elem) if i not in self._used_children]
+        return [_key(n, self._ns) for n in attributes] + [_key(c.tag, self._ns) for c in children]
+
+    def locate(self, key: str) -> Location | None:
+        for name in self._elem.attrib:
+            if _key(name, self._ns) == key:
+                return self._places.attribute(self._elem, name)
+        for child in self._elem:
+            if _key(child.tag, self._ns) == key:
+                return self._places.element(child)
+        return None
+
+    def _refuse(self, what: str, name: str, location: Location) -> ProfileError:
+        shown = _shown_name(name)
+        return ProfileError(
+            self.path,
+            f"unknown {what} {shown!r} ({did_you_mean(shown, self._known)}; "
+            "extensions: any name in a namespace other than rtc)",
+            location=location,
+        )
+
     def extras(self) -> dict[str, ExtraValue]:
+        """The extension attributes/elements not read; anything else unknown (a name in
+        the element's own or the rtc namespace, or text) is refused."""
+        for name in self._elem.attrib:
+            if name not in self._used_attrs and not is_extension_key(_key(name, self._ns)):
+                where = self._places.attribute(self._elem, name)
+                raise self._refuse("attribute", name, where)
+        rest = [c for i, c in enumerate(self._elem) if i not in self._used_children]
+        for child in rest:
+            if not is_extension_key(_key(child.tag, self._ns)):
+                raise self._refuse("element", child.tag, self._places.element(child))
+        text = self._elem.text or ""
+        if text.strip():
+            raise ProfileError(
+                self.path,
+                f"unexpected text {_clip(text.strip())!r} (this element holds no text)",
+                location=self._places.element(self._elem),
+            )
         out: dict[str, ExtraValue] = {
             _key(k, self._ns): v for k, v in self._elem.attrib.items() if k not in self._used_attrs
         }
-        text = self._elem.text or ""
-        if text.strip():
-            out["#text"] = text.strip()
-        rest = [c for i, c in enumerate(self._elem) if i not in self._used_children]
         _add_children(out, rest, self._ns, self.path, 1)
         return out
 
@@ -433,18 +552,52 @@ def _check_budget(root: ET.Element) -> None:
         stack.extend((child, depth + 1) for child in elem)
 
 
-def _parse(text: str | bytes) -> ET.Element:
+def _parse(text: str | bytes, source: str = "<string>") -> tuple[ET.Element, _Places]:
     if isinstance(text, bytes):
-        text = _decode(text)
-    root = _parse_safely(text)
-    _check_budget(root)
-    return root
+        try:
+            text = _decode(text)
+        except ProfileError as e:
+            raise e.at(Location(source)) from None
+    if isinstance(text, str):
+        raw: bytes | None = text.encode("utf-8", "surrogatepass")
+    else:
+        utf8 = not text.startswith((b"\xff\xfe", b"\xfe\xff"))
+        raw = text if utf8 else None
+    places = _Places(source, raw)
+    try:
+        root = _parse_safely(text, places)
+        _check_budget(root)
+    except ProfileError as e:
+        raise e.at(Location(source)) from None
+    return root, places
 
 
-def _parse_safely(text: str | bytes) -> ET.Element:
+class _PlacedBuilder(ET.TreeBuilder):
+    """A TreeBuilder that tells ``places`` where each element starts."""
+
+    def __init__(self, places: _Places) -> None:
+        super().__init__()
+        self._places = places
+        self.parser: Any = None  # the expat parser, set once it exists
+
+    def start(self, tag: str, attrs: dict[str, str]) -> ET.Element:
+        elem = super().start(tag, attrs)
+        expat = self.parser
+        if expat is not None:
+            self._places.started(
+                elem, expat.CurrentLineNumber, expat.CurrentColumnNumber, expat.CurrentByteIndex
+            )
+        return elem
+
+
+def _parse_safely(text: str | bytes, places: _Places) -> ET.Element:
     refused = "unsafe XML refused: "
     try:
-        root: ET.Element = DefusedET.fromstring(text, forbid_dtd=True)
+        builder = _PlacedBuilder(places)
+        parser = DefusedET.DefusedXMLParser(target=builder, forbid_dtd=True)
+        builder.parser = parser.parser
+        parser.feed(text)
+        root: ET.Element = parser.close()
     except DTDForbidden:
         raise ProfileError(
             DOCUMENT,
@@ -458,20 +611,31 @@ def _parse_safely(text: str | bytes) -> ET.Element:
     except DefusedXmlException as e:
         raise ProfileError(DOCUMENT, refused + str(e)) from None
     except ET.ParseError as e:
-        raise ProfileError(DOCUMENT, f"invalid XML: {e}") from None
+        line, column = e.position
+        where = Location(places.source, line, column + 1)
+        message = re.sub(r": line \d+, column \d+$", "", str(e))
+        raise ProfileError(DOCUMENT, f"invalid XML: {message}", location=where) from None
     except (ValueError, LookupError, RecursionError) as e:
         raise ProfileError(DOCUMENT, f"invalid XML: {e}") from None
     return root
 
 
-def loads_xml(text: str | bytes) -> RtcProfile:
-    """Parse and validate an XML RTC Profile; raises ProfileError only."""
-    root = _parse(text)
+def loads_xml(text: str | bytes, source: str = "<string>") -> RtcProfile:
+    """Parse and validate an XML RTC Profile; raises ProfileError only, located in
+    ``source`` (the file name shown in messages) at the line and column of the field."""
+    root, places = _parse(text, source)
     uri, local = _split_clark(root.tag)
     if local != "RtcProfile" or uri not in (RTC_NS, None):
-        raise ProfileError(DOCUMENT, f"expected an rtc:RtcProfile root element, got {root.tag!r}")
-    profile = read_profile(_XmlSource(root, ROOT, RTC_NS))
-    validate_profile(profile)
+        raise ProfileError(
+            DOCUMENT,
+            f"expected an rtc:RtcProfile root element, got {root.tag!r}",
+            location=places.element(root),
+        )
+    try:
+        profile = read_profile(_XmlSource(root, ROOT, RTC_NS, places))
+        validate_profile(profile)
+    except ProfileError as e:
+        raise e.at(places.locate(e.path)) from None
     return profile
 
 
@@ -487,7 +651,7 @@ def dumps_xml(profile: RtcProfile) -> str:
 def loads_constraint_xml(text: str | bytes) -> Constraint:
     """A standalone ``Constraint`` element (namespaced or not, as in §8.1)."""
     try:
-        return constraint_from_xml(_parse(text))
+        return constraint_from_xml(_parse(text)[0])
     except ConstraintError as e:
         raise ProfileError(e.path, e.message) from None
 

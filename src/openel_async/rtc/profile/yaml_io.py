@@ -12,18 +12,20 @@ refused instead of expanded.
 from __future__ import annotations
 
 import copy
+import re
 from collections.abc import Mapping, Sequence
 from datetime import datetime
 
 import yaml
 
+from ...positioned import DocumentError, Location, YamlDocument, did_you_mean, load_yaml
 from ..constraints import (
     Constraint,
     ConstraintError,
     constraint_from_yaml,
     constraint_to_yaml,
 )
-from ._codec import Sink, SinkScalar, Source, read_profile, write_profile
+from ._codec import Sink, SinkScalar, Source, is_extension_key, read_profile, write_profile
 from .errors import MAX_DEPTH, MAX_NODES, ProfileError
 from .model import Extra, ExtraValue, Position, RtcProfile, validate_profile
 
@@ -65,25 +67,20 @@ def _check_budget(data: object) -> None:
             stack.extend((v, depth + 1) for v in node)
 
 
-def _load(text: str | bytes) -> object:
+def _load(text: str | bytes, source: str) -> YamlDocument:
     try:
-        data = yaml.load(text, Loader=_ProfileLoader)  # a SafeLoader subclass: safe
-    except yaml.MarkedYAMLError as e:
-        mark = e.problem_mark
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise ProfileError(DOCUMENT, f"invalid YAML{where}: {e.problem or e}") from None
-    except yaml.YAMLError as e:
-        raise ProfileError(DOCUMENT, f"invalid YAML: {e}") from None
-    except RecursionError:
-        raise ProfileError(DOCUMENT, "invalid YAML: nested too deeply") from None
-    except (ValueError, TypeError, OverflowError) as e:
-        # SafeConstructor lets some bad explicit tags through (e.g. "!!int abc").
-        raise ProfileError(DOCUMENT, f"invalid YAML value: {e}") from None
-    _check_budget(data)
-    return data
+        doc = load_yaml(text, source, loader=_ProfileLoader)
+    except DocumentError as e:
+        raise ProfileError(DOCUMENT, e.message, location=e.location) from None
+    try:
+        _check_budget(doc.data)
+    except ProfileError as e:
+        raise e.at(Location(source)) from None
+    return doc
 
 
-def _mapping(data: object, path: str) -> dict[str, object]:
+def _mapping(data: object, path: str) -> Mapping[str, object]:
+    """``data`` itself (not a copy: positions are looked up by object)."""
     if data is None:
         return {}
     if not isinstance(data, Mapping):
@@ -92,7 +89,45 @@ def _mapping(data: object, path: str) -> dict[str, object]:
     for key in data:
         if not isinstance(key, str):
             raise ProfileError(path, f"keys must be strings, got {key!r}")
-    return dict(data)
+    return data
+
+
+_PATH_PART = re.compile(r"\.([^.\[]+)|\[(\d+)\]")
+
+
+class _Places:
+    """Where the mappings read so far are in the file, by their error path."""
+
+    def __init__(self, doc: YamlDocument) -> None:
+        self.doc = doc
+        self._mappings: dict[str, Mapping[str, object]] = {}
+
+    def add(self, path: str, mapping: Mapping[str, object]) -> None:
+        self._mappings.setdefault(path, mapping)
+
+    def locate(self, path: str) -> Location:
+        """The position of the field an error path names (its nearest known parent's
+        when the field itself is not written)."""
+        best = ""
+        for known in self._mappings:
+            if len(known) > len(best) and (
+                path == known or path.startswith((known + ".", known + "["))
+            ):
+                best = known
+        if not best:
+            return Location(self.doc.source)
+        mapping = self._mappings[best]
+        rest: list[str | int] = [
+            m.group(1) if m.group(1) is not None else int(m.group(2))
+            for m in _PATH_PART.finditer(path[len(best) :])
+        ]
+        container = self.doc.follow(rest[:-1], mapping)[0]
+        last = rest[-1] if rest else None
+        if isinstance(container, Mapping) and last in container:
+            return self.doc.key(container, last)  # the field's key
+        if isinstance(container, list) and isinstance(last, int) and last < len(container):
+            return self.doc.value(container, last)
+        return self.doc.where(container)
 
 
 def _extra_value(value: object, path: str) -> ExtraValue:
@@ -106,10 +141,12 @@ def _extra_value(value: object, path: str) -> ExtraValue:
 
 
 class _YamlSource(Source):
-    def __init__(self, data: Mapping[str, object], path: str) -> None:
+    def __init__(self, data: Mapping[str, object], path: str, places: _Places) -> None:
         self._data = data
         self.path = path
         self._used: set[str] = set()
+        self._places = places
+        places.add(path, data)
 
     def raw(self, key: str) -> object:
         self._used.add(key)
@@ -120,7 +157,7 @@ class _YamlSource(Source):
         if key not in self._data:
             return None
         path = f"{self.path}.{key}"
-        return _YamlSource(_mapping(self._data[key], path), path)
+        return _YamlSource(_mapping(self._data[key], path), path, self._places)
 
     def children(self, key: str) -> list[Source]:
         alias = _PLURALS.get(key)
@@ -139,7 +176,7 @@ class _YamlSource(Source):
         if not isinstance(value, list):
             raise ProfileError(path, f"expected a sequence, got {type(value).__name__}")
         return [
-            _YamlSource(_mapping(item, f"{path}[{i}]"), f"{path}[{i}]")
+            _YamlSource(_mapping(item, f"{path}[{i}]"), f"{path}[{i}]", self._places)
             for i, item in enumerate(value)
         ]
 
@@ -163,7 +200,22 @@ class _YamlSource(Source):
     def has_ext(self, keys: Sequence[str]) -> bool:
         return any(k in self._data for k in keys)
 
+    def unread(self) -> list[str]:
+        return [k for k in self._data if k not in self._used]
+
+    def locate(self, key: str) -> Location | None:
+        return self._places.doc.key(self._data, key)
+
     def extras(self) -> dict[str, ExtraValue]:
+        """The extension keys not read; any other unknown key is refused."""
+        for key in self._data:
+            if key not in self._used and not is_extension_key(key):
+                raise ProfileError(
+                    self.path,
+                    f"unknown key {key!r} ({did_you_mean(key, self._used)}; "
+                    "extensions: any prefix::name key)",
+                    location=self._places.doc.key(self._data, key),
+                )
         return {
             k: _extra_value(v, f"{self.path}.{k}")
             for k, v in self._data.items()
@@ -250,16 +302,28 @@ class _YamlSink(Sink):
             self._data[key] = _plain(value)
 
 
-def loads_yaml(text: str | bytes) -> RtcProfile:
-    """Parse and validate a YAML RTC Profile; raises ProfileError only."""
-    data = _load(text)
+def loads_yaml(text: str | bytes, source: str = "<string>") -> RtcProfile:
+    """Parse and validate a YAML RTC Profile; raises ProfileError only, located in
+    ``source`` (the file name shown in messages) at the line and column of the field."""
+    doc = _load(text, source)
+    data = doc.data
     if not isinstance(data, Mapping) or ROOT not in data:
-        raise ProfileError(DOCUMENT, f"expected a mapping with the key {ROOT!r}")
-    unknown = [k for k in data if k != ROOT]
-    if unknown:
-        raise ProfileError(str(unknown[0]), "unknown top-level key")
-    profile = read_profile(_YamlSource(_mapping(data[ROOT], ROOT), ROOT))
-    validate_profile(profile)
+        raise ProfileError(
+            DOCUMENT, f"expected a mapping with the key {ROOT!r}", location=doc.where(data)
+        )
+    for key in data:
+        if key != ROOT:
+            raise ProfileError(
+                str(key),
+                f"unknown top-level key (allowed: {ROOT})",
+                location=doc.key(data, key),
+            )
+    places = _Places(doc)
+    try:
+        profile = read_profile(_YamlSource(_mapping(data[ROOT], ROOT), ROOT, places))
+        validate_profile(profile)
+    except ProfileError as e:
+        raise e.at(places.locate(e.path)) from None
     return profile
 
 

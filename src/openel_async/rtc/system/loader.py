@@ -32,16 +32,18 @@ are errors.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
 
 import defusedxml.ElementTree as DefusedET
+import msgspec
 import structlog
-import yaml
 from defusedxml import DefusedXmlException
 
+from ...positioned import DocumentError, YamlDocument, convert, load_yaml, relocate
 from ..ports.profile import KNOWN_KEYS
 from ..profile import ProfileError, load_profile
 from .model import (
@@ -146,9 +148,6 @@ def _context(value: object, where: str) -> ContextSpec:
     if value is None:
         return ContextSpec()
     data = _mapping(value, where)
-    unknown = set(data) - {"type", "rate"}
-    if unknown:
-        raise SystemFileError(f"{where}.{sorted(unknown)[0]}", "unknown key; expected type, rate")
     kind = None
     if "type" in data:
         text = _string(data["type"], f"{where}.type").strip().lower()
@@ -193,24 +192,74 @@ def _sets(data: Mapping[str, Any], where: str) -> tuple[dict[str, dict[str, str]
     return sets, active
 
 
-_COMPONENT_KEYS = {"profile", "context", "configuration", "configuration_sets", "active_set"}
+# The keys of the YAML form (values are checked by hand below, for their messages).
+class _ContextKeys(msgspec.Struct, forbid_unknown_fields=True):
+    type: Any = None
+    rate: Any = None
+
+
+class _ComponentKeys(msgspec.Struct, forbid_unknown_fields=True):
+    profile: Any = None
+    context: _ContextKeys | None = None
+    configuration: Any = None
+    configuration_sets: Any = None
+    active_set: Any = None
+
+
+class _ConnectionKeys(msgspec.Struct, forbid_unknown_fields=True, rename={"source": "from"}):
+    name: Any = None
+    source: Any = None
+    to: Any = None
+    properties: Any = None
+
+
+class _SystemKeys(msgspec.Struct, forbid_unknown_fields=True):
+    name: Any = None
+    components: dict[str, _ComponentKeys] | None = None
+    connections: list[_ConnectionKeys] | None = None
+    services: Any = None
+
+
+class _FileKeys(msgspec.Struct, forbid_unknown_fields=True):
+    system: _SystemKeys
+
+
+_WHERE_PART = re.compile(r"\.([^.\[]+)|\[(\d+)\]")
+
+
+def _located(exc: SystemFileError, doc: YamlDocument) -> SystemFileError:
+    """``exc`` at the position of the field it names (as far as the file has it)."""
+    parts: list[str | int] = [
+        m.group(1) if m.group(1) is not None else int(m.group(2))
+        for m in _WHERE_PART.finditer("." + exc.path)
+    ]
+    location = doc.follow(parts)[1] if exc.path != "<document>" else doc.where(doc.data)
+    return relocate(exc, DocumentError(str(exc), path=exc.path, location=location))
 
 
 def loads_system_yaml(raw: str | bytes, path: Path) -> SystemSpec:
+    """A YAML system file; SystemFileError naming the file, line and column of the field
+    (unknown keys with a "did you mean")."""
     try:
-        doc = yaml.safe_load(raw)
-    except yaml.YAMLError as exc:
-        raise SystemFileError("<document>", f"not valid YAML: {exc}") from None
-    root = _mapping(doc, "<document>")
-    if set(root) != {"system"}:
-        raise SystemFileError("<document>", "expected a mapping with the single key 'system'")
-    system = _mapping(root["system"], "system")
-    unknown = set(system) - {"name", "components", "connections", "services"}
-    if unknown:
-        raise SystemFileError(
-            f"system.{sorted(unknown)[0]}",
-            "unknown key; expected name, components, connections, services",
+        doc = load_yaml(raw, str(path))
+    except DocumentError as exc:
+        raise relocate(SystemFileError("<document>", exc.message), exc) from None
+    if not isinstance(doc.data, Mapping):
+        raise _located(
+            SystemFileError("<document>", "expected a mapping with the key 'system'"), doc
         )
+    try:
+        convert(doc, doc.data, _FileKeys, "")
+    except DocumentError as exc:
+        raise relocate(SystemFileError(exc.path, exc.message), exc) from None
+    try:
+        return _system_yaml(doc.data, path)
+    except SystemFileError as exc:
+        raise _located(exc, doc) from None
+
+
+def _system_yaml(root: Mapping[str, Any], path: Path) -> SystemSpec:
+    system = _mapping(root["system"], "system")
     name = _string(system.get("name", path.stem), "system.name")
     comps_data = _mapping(system.get("components"), "system.components")
     if not comps_data:
@@ -221,12 +270,6 @@ def loads_system_yaml(raw: str | bytes, path: Path) -> SystemSpec:
         if "." in comp_name or not comp_name.strip():
             raise SystemFileError(where, "a component name must be non-empty, without '.'")
         data = _mapping(value, where)
-        unknown = set(data) - _COMPONENT_KEYS
-        if unknown:
-            raise SystemFileError(
-                f"{where}.{sorted(unknown)[0]}",
-                "unknown key; expected " + ", ".join(sorted(_COMPONENT_KEYS)),
-            )
         profile = path.parent / _string(data.get("profile"), f"{where}.profile")
         sets, active = _sets(data, where)
         components.append(
@@ -246,11 +289,6 @@ def loads_system_yaml(raw: str | bytes, path: Path) -> SystemSpec:
     for i, value in enumerate(conns):
         where = f"system.connections[{i}]"
         data = _mapping(value, where)
-        unknown = set(data) - {"name", "from", "to", "properties"}
-        if unknown:
-            raise SystemFileError(
-                f"{where}.{sorted(unknown)[0]}", "unknown key; expected name, from, to, properties"
-            )
         props = _flatten(
             _mapping(data.get("properties") or {}, f"{where}.properties"), f"{where}.properties"
         )
