@@ -108,3 +108,16 @@ def test_serve_names_the_file_line_and_column(tmp_path: Path) -> None:
     )
     assert run.returncode == 2, run.stderr
     assert f"{rig}:1:1: unknown key 'namespce' in rig (did you mean 'namespace'?" in run.stderr
+
+
+def test_a_rig_builds_each_device_as_the_component_class_of_its_kind(tmp_path: Path) -> None:
+    """A device with its own sensor (the pan-tilt head) becomes a SensingMotor, so the surface
+    serves its sensor operations (a plain Motor answered them HAL_NOT_IMPLEMENTED)."""
+    from openel_async import Encoder, Motor, SensingMotor
+
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(RIG + "  - name: HEAD\n    driver: sim\n    device: pan_tilt_head\n")
+    built = {c.device_name: c for c in build_components(load_rig(rig))}
+    assert type(built["MOTOR_1"]) is Motor
+    assert isinstance(built["ENCODER_1"], Encoder)
+    assert type(built["HEAD"]) is SensingMotor

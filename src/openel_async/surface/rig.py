@@ -14,8 +14,9 @@ components:
     params: {motor: {ref: MOTOR_1}}   # another component's device as a parameter
 ```
 
-A device class that subclasses ``ActuatorDevice`` becomes an ``Actuator``, a
-``SensorDevice`` a ``Sensor``. Every mistake is a :class:`BadParameterError` naming the
+A device becomes the component class of its kind (``device_registry.component_class``): a
+``Motor`` (``SensingMotor`` for a device with its own sensor) or an ``Actuator``, a
+kind's ``Sensor`` class. Every mistake is a :class:`BadParameterError` naming the
 entry and what was allowed; read from a file, its text starts with ``FILE:LINE:COL:``
 and it carries ``location``.  Keys are strict: an unknown key (at the top, in a
 component, in ``hal_id``, or a ``params`` key the device class does not take) is refused
@@ -33,13 +34,11 @@ from typing import Any
 
 import msgspec
 
-from ..actuator import Actuator
 from ..clock import Clock
 from ..component import HALComponent
-from ..device import ActuatorDevice, SensorDevice
+from ..device_registry import component_class
 from ..errors import BadParameterError
-from ..ids import DeviceKind, HALId
-from ..motor import Motor
+from ..ids import HALId
 from ..positioned import (
     DocumentError,
     Location,
@@ -50,7 +49,6 @@ from ..positioned import (
     unknown_key_message,
 )
 from ..registry import discover_drivers
-from ..sensor_kinds import sensor_class
 
 
 @dataclass(frozen=True)
@@ -209,20 +207,17 @@ def build_components(spec: RigSpec, clock: Clock | None = None) -> list[HALCompo
                 int(c.hal_id.get("product_id", info.product_id)),
                 int(c.hal_id.get("instance_id", len(built) + 1)),
             )
-        # The HAL4RT class of the device's kind: a Motor for motor devices, the kind's
-        # Sensor class (Encoder, GyroSensor, GPSSensor...) for sensors, so that the surface
-        # serves their HAL4RT operations (SetSpeed with tmAcc, SetOrigin, units...).
-        component: HALComponent
-        if isinstance(device, ActuatorDevice):
-            actuator_class = Motor if int(device.info.kind) == DeviceKind.MOTOR else Actuator
-            component = actuator_class(device, hal_id=hal_id, device_name=c.name, clock=clock)
-        elif isinstance(device, SensorDevice):
-            kind_class = sensor_class(int(device.info.kind))
-            component = kind_class(device, hal_id=hal_id, device_name=c.name, clock=clock)
-        else:
+        # The HAL4RT class of the device: a Motor for motor devices (a SensingMotor for one
+        # with a sensor of its own), the kind's Sensor class (Encoder, GyroSensor,
+        # GPSSensor...) for sensors, so that the surface serves their HAL4RT operations
+        # (SetSpeed with tmAcc, SetOrigin, units, a sensing motor's sensor operations...).
+        try:
+            component_cls = component_class(device)
+        except BadParameterError:
             raise BadParameterError(
                 f"{c.name}.device", c.device, "an actuator or sensor device class"
-            )
+            ) from None
+        component = component_cls(device, hal_id=hal_id, device_name=c.name, clock=clock)
         built[c.name] = component
     return list(built.values())
 
