@@ -70,13 +70,29 @@ def test_run_by_name(capsys: pytest.CaptureFixture[str]) -> None:
     assert "timer ticks        100 (missed 0)" in out
     assert "sensor faults      0" in out
     assert main(["run", "pantilt", "--virtual", "--duration", "0.2"]) == 0
-    assert "cycles             20" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "cycles             20" in out
+    assert re.search(r"final positions    pan [+-]\d\.\d{4} rad, tilt [+-]\d\.\d{4} rad", out)
     assert main(["run", "twoaxis", "--period-ms", "0"]) == 2
     assert "openel-async run twoaxis: error: --period-ms 0: from 0.1 to 1000 ms" in (
         capsys.readouterr().err
     )
     assert main(["run", "nosuchapp"]) == 2
     assert "no app named 'nosuchapp'" in capsys.readouterr().err
+
+
+async def test_the_pan_tilt_axes_have_the_names_the_app_gave() -> None:
+    """Not both ``HalMotorOpenELSimMotor`` (issue 21 point 7)."""
+    from openel_apps.pan_tilt.pan_tilt import PanTilt
+
+    clock = VirtualClock()
+    component = PanTilt("head", clock=clock)
+    await component.on_initialize()
+    try:
+        assert component.pan is not None and component.tilt is not None
+        assert (component.pan.device_name, component.tilt.device_name) == ("pan", "tilt")
+    finally:
+        await component.on_finalize()
 
 
 def test_run_reports_an_app_that_cannot_load_what_it_needs(
