@@ -73,6 +73,7 @@ from .arm_demo import (
     run_reported,
     save_plot,
     save_snapshot,
+    spread_text,
     times_text,
 )
 
@@ -332,8 +333,8 @@ class SquareResult:
             f"corners reached    {sum(a.outcome == 'succeeded' for a in self.arrivals)}"
             f"/{len(self.arrivals)}, tip within "
             f"{fmt_mm(max((a.tip_error_m for a in self.arrivals), default=0.0))} of the corner",
-            f"synchronization    joint setpoints arrive within "
-            f"{self.max_setpoint_spread_ticks} tick(s) of each other at every corner",
+            f"synchronization    joint setpoints arrive "
+            f"{spread_text(self.max_setpoint_spread_ticks, self.period_ms)} at every corner",
             f"actual arrival     every joint within {GOAL_TOLERANCE_RAD * 1e3:g} mrad of the "
             f"corner at most {settle * 1e3:.0f} ms after the last setpoint",
             f"tip deviation      max {fmt_mm(self.max_deviation_m)}, "

@@ -73,6 +73,7 @@ from .arm_demo import (
     run_reported,
     save_plot,
     save_snapshot,
+    spread_text,
     times_text,
 )
 
@@ -297,9 +298,9 @@ class PickPlaceResult:
         )
         lines = [
             f"sequence           {' -> '.join(s.name for s in self.steps)}",
-            f"motions            {ok}/{len(motions)} succeeded (AxisGroup of 6 joints at "
-            f"{self.period_ms:g} ms), joint setpoints arrive within "
-            f"{self.max_setpoint_spread_ticks} tick(s) of each other",
+            f"motions            {ok}/{len(motions)} succeeded (AxisGroup of 6 joints, "
+            f"period {self.period_ms:g} ms), joint setpoints arrive "
+            f"{spread_text(self.max_setpoint_spread_ticks, self.period_ms)}",
             f"box                {picked}; contact force {self.grip_force_n:.1f} N with the "
             f"suction on",
             f"box moved          from {fmt_point(self.box_start_m)} to "

@@ -468,6 +468,14 @@ def record_times(result: RunTimes, timer: EventTimer, sim: MujocoSim) -> None:
     result.wall_time_s = sim.stats.wall_time_s  # lockstep: the snapshots' pauses excluded
 
 
+def spread_text(ticks: int, period_ms: float) -> str:
+    """``on the same tick`` or ``within 2 ticks (4 ms) of each other``."""
+    if ticks == 0:
+        return "on the same tick"
+    unit = "tick" if ticks == 1 else "ticks"
+    return f"within {ticks} {unit} ({ticks * period_ms:g} ms) of each other"
+
+
 def pacing_name(pacing: str) -> str:
     """A ``MujocoSim`` pacing as the summaries say it: ``lockstep`` or ``real time``."""
     return "real time" if pacing == "realtime" else pacing
