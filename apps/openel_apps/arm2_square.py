@@ -574,8 +574,8 @@ def build_parser(prog: str = "arm2_square") -> argparse.ArgumentParser:
     add_common_arguments(
         parser,
         APP,
-        duration_help=f"Seconds per lap of the square, at most {MAX_DURATION_S:g} with "
-        f"--laps (default {DEFAULT_LAP_S:g}).",
+        duration_help=f"Seconds per lap of the square, all laps together at most "
+        f"{MAX_DURATION_S:g} (default {DEFAULT_LAP_S:g}).",
         default_duration=DEFAULT_LAP_S,
         default_period_ms=DEFAULT_PERIOD_MS,
     )

@@ -482,12 +482,13 @@ def pacing_name(pacing: str) -> str:
 
 
 def times_text(result: RunTimes) -> str:
-    """``7.12 s simulated (lockstep) in 0.52 s of real time (13.6x real time), timer ticks ...``"""
+    """``7.12 s simulated in 0.52 s of real time (13.6x, lockstep), timer ticks ...``"""
     speed = result.sim_time_s / result.wall_time_s if result.wall_time_s > 0 else 0.0
+    pacing = "real-time pacing" if result.pacing == "realtime" else result.pacing
     return (
-        f"{result.sim_time_s:.2f} s simulated ({pacing_name(result.pacing)}) in "
-        f"{result.wall_time_s:.2f} s of real time ({speed:.1f}x real time), timer ticks "
-        f"{result.timer_ticks} (missed {result.timer_missed})"
+        f"{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.2f} s of real time "
+        f"({speed:.1f}x, {pacing}), timer ticks {result.timer_ticks} (missed "
+        f"{result.timer_missed})"
     )
 
 
