@@ -2,8 +2,8 @@
 
 The app is :mod:`openel_apps.arm2_square`, shipped in the wheel and registered as ``arm2``
 (``uv run openel-async run arm2 [options]``); this file keeps the path
-``uv run openel-async run apps/arm2_square.py [--realtime] [--duration S] [--laps N]
-[--side M] [--elbow up|down] [--out DIR] [--no-live]`` working. ``--help`` lists every
+``uv run openel-async run apps/arm2_square.py [--virtual | --realtime] [--duration S]
+[--laps N] [--side M] [--elbow up|down] [--out DIR] [--no-live]`` working. ``--help`` lists every
 option; see docs/apps.md.
 """
 

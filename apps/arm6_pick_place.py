@@ -3,7 +3,7 @@
 The app is :mod:`openel_apps.arm6_pick_place`, shipped in the wheel and registered as
 ``arm6`` (``uv run openel-async run arm6 [options]`` or ``uv run openel-async demo --app
 arm6``); this file keeps the path ``uv run openel-async run apps/arm6_pick_place.py
-[--realtime] [--duration S] [--place X Y] [--out DIR] [--no-live]`` working. ``--help``
+[--virtual | --realtime] [--duration S] [--place X Y] [--out DIR] [--no-live]`` working. ``--help``
 lists every option; see docs/apps.md.
 """
 

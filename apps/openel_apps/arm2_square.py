@@ -20,8 +20,8 @@
 - **Measurement**: the ``tip_pos`` framepos sensor, read through an OpenEL ``Sensor`` at every
   timer tick, gives the tip's deviation from the ideal square edges.
 
-Pacing is lockstep by default (deterministic, as fast as the CPU allows), real time with
-``--realtime``.  At the end the run writes a plot of commanded vs actual joint positions, a plot
+Pacing is real time by default, as ``openel-async demo``; lockstep (deterministic, as fast as
+the CPU allows) with ``--virtual``.  At the end the run writes a plot of commanded vs actual joint positions, a plot
 of the tip path against the square, and a snapshot of the scene (when OpenGL is available).
 """
 
@@ -29,10 +29,9 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from collections.abc import Sequence
 from contextlib import AsyncExitStack
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
@@ -66,6 +65,7 @@ from .arm_demo import (
     line_waypoints,
     open_arm_sim,
     options_from,
+    pacing_name,
     preload_plotting,
     print_report,
     record_times,
@@ -73,6 +73,7 @@ from .arm_demo import (
     run_reported,
     save_plot,
     save_snapshot,
+    spread_text,
     times_text,
 )
 
@@ -85,6 +86,7 @@ __all__ = [
     "APP",
     "APP_INFO",
     "CornerArrival",
+    "LapTooFastError",
     "PlanarArm",
     "SquareOptions",
     "SquareResult",
@@ -93,6 +95,7 @@ __all__ = [
     "distance_to_polygon",
     "edge_waypoints",
     "main",
+    "min_lap_s",
     "open_sim",
     "plan_square",
     "report",
@@ -107,7 +110,8 @@ APP = "arm2_square"
 JOINTS = ("shoulder", "elbow")
 Elbow = Literal["up", "down"]
 
-DEFAULT_LAP_S = 6.0
+DEFAULT_LAP_S = 5.0
+"""Default ``--duration``: seconds per lap (also the lap of ``openel-async demo``)."""
 DEFAULT_PERIOD_MS = 2.0
 DEFAULT_SIDE_M = 0.15
 DEFAULT_CENTER_M = (0.35, 0.0)
@@ -322,14 +326,15 @@ class SquareResult:
 
     def lines(self) -> list[str]:
         settle = max((a.settled_after_s for a in self.arrivals), default=0.0)
+        laps = "1 lap" if self.laps == 1 else f"{self.laps} laps"
         lines = [
-            f"square             {self.laps} lap(s) of {self.side_m * 100:.0f} cm in "
-            f"{self.lap_s:g} s each, elbow {self.elbow}, AxisGroup at {self.period_ms:g} ms",
+            f"square             {laps} of a {self.side_m * 100:.0f} cm square, {self.lap_s:g} s "
+            f"per lap, elbow {self.elbow}, AxisGroup period {self.period_ms:g} ms",
             f"corners reached    {sum(a.outcome == 'succeeded' for a in self.arrivals)}"
             f"/{len(self.arrivals)}, tip within "
             f"{fmt_mm(max((a.tip_error_m for a in self.arrivals), default=0.0))} of the corner",
-            f"synchronization    joint setpoints arrive within "
-            f"{self.max_setpoint_spread_ticks} tick(s) of each other at every corner",
+            f"synchronization    joint setpoints arrive "
+            f"{spread_text(self.max_setpoint_spread_ticks, self.period_ms)} at every corner",
             f"actual arrival     every joint within {GOAL_TOLERANCE_RAD * 1e3:g} mrad of the "
             f"corner at most {settle * 1e3:.0f} ms after the last setpoint",
             f"tip deviation      max {fmt_mm(self.max_deviation_m)}, "
@@ -338,7 +343,7 @@ class SquareResult:
             f"tip lag            max {fmt_mm(self.max_lag_m)} behind the commanded point",
             f"time               square traced in {self.square_sim_s:.2f} s, " + times_text(self),
         ]
-        return lines + self.artifacts.lines()
+        return lines
 
 
 class _TipMonitor:
@@ -442,7 +447,7 @@ async def run_square(
             )
             timer, group = rig.timer, rig.group
             tip = await stack.enter_async_context(
-                register(ctx, Sensor(sim.sensor("tip_pos"), clock=sim.clock))
+                register(ctx, Sensor(sim.sensor("tip_pos"), device_name="tip_pos", clock=sim.clock))
             )
             monitor = _TipMonitor(tip, arm, group, result, live, sim)
             timer.add_observer(monitor)
@@ -564,22 +569,25 @@ def build_parser(prog: str = "arm2_square") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=prog,
         description="The 2-DoF MuJoCo arm traces a square with its tip (inverse kinematics, "
-        "joints synchronized by an AxisGroup).",
+        "joints synchronized by an AxisGroup). Every option is checked before the arm moves.",
     )
     add_common_arguments(
         parser,
         APP,
-        duration_help=f"seconds per lap of the square (default {DEFAULT_LAP_S:g})",
+        duration_help=f"Seconds per lap of the square, all laps together at most "
+        f"{MAX_DURATION_S:g} (default {DEFAULT_LAP_S:g}).",
         default_duration=DEFAULT_LAP_S,
         default_period_ms=DEFAULT_PERIOD_MS,
     )
-    parser.add_argument("--laps", type=int, default=1, help="laps of the square (default 1)")
+    parser.add_argument(
+        "--laps", type=int, default=1, metavar="N", help="Laps of the square (default 1)."
+    )
     parser.add_argument(
         "--side",
         type=float,
         default=DEFAULT_SIDE_M,
         metavar="M",
-        help=f"side length, m (default {DEFAULT_SIDE_M:g})",
+        help=f"Side length of the square in m (default {DEFAULT_SIDE_M:g}).",
     )
     parser.add_argument(
         "--center",
@@ -587,16 +595,21 @@ def build_parser(prog: str = "arm2_square") -> argparse.ArgumentParser:
         nargs=2,
         default=list(DEFAULT_CENTER_M),
         metavar=("X", "Y"),
-        help="centre of the square in the arm's plane, m (default 0.35 0)",
+        help="Centre of the square in the arm's plane in m (default 0.35 0).",
     )
     parser.add_argument(
-        "--elbow", choices=("up", "down"), default="up", help="IK solution (default up)"
+        "--elbow",
+        choices=("up", "down"),
+        default="up",
+        help="Inverse kinematics solution to follow (default up).",
     )
     parser.add_argument(
         "--points",
         type=int,
         default=DEFAULT_POINTS,
-        help=f"IK waypoints per edge (default {DEFAULT_POINTS})",
+        metavar="N",
+        help=f"Inverse kinematics waypoints per edge, from 1 to {MAX_POINTS} "
+        f"(default {DEFAULT_POINTS}).",
     )
     return parser
 
@@ -604,15 +617,15 @@ def build_parser(prog: str = "arm2_square") -> argparse.ArgumentParser:
 def square_from(args: argparse.Namespace, lap_s: float) -> SquareOptions:
     if not (args.laps >= 1 and args.laps * lap_s <= MAX_DURATION_S):
         raise ValueError(
-            f"--laps must be >= 1, with --laps x --duration at most {MAX_DURATION_S:g} s, "
-            f"not {args.laps} x {lap_s:g} s"
+            f"--laps {args.laps}: from 1, with --laps x --duration at most "
+            f"{MAX_DURATION_S:g} s (here {args.laps} x {lap_s:g} s)"
         )
     if not 1 <= args.points <= MAX_POINTS:
-        raise ValueError(f"--points must be from 1 to {MAX_POINTS}, not {args.points}")
+        raise ValueError(f"--points {args.points}: from 1 to {MAX_POINTS}")
     if not (math.isfinite(args.side) and args.side > 0):
-        raise ValueError(f"--side must be > 0 m, not {args.side}")
+        raise ValueError(f"--side {args.side:g}: a length in m > 0")
     if not all(math.isfinite(v) for v in args.center):
-        raise ValueError(f"--center must be two finite numbers of m, not {args.center}")
+        raise ValueError(f"--center {args.center[0]:g} {args.center[1]:g}: two finite numbers of m")
     return SquareOptions(
         lap_s=lap_s,
         laps=args.laps,
@@ -623,12 +636,15 @@ def square_from(args: argparse.Namespace, lap_s: float) -> SquareOptions:
     )
 
 
-def plan_square(arm: PlanarArm, square: SquareOptions) -> list[list[Waypoint]]:
-    """The four edges' waypoints, checked before anything moves.
+class LapTooFastError(ValueError):
+    """The lap is faster than the joints' limits allow (the message names ``--duration``
+    and the shortest lap)."""
 
-    Raises :class:`UnreachableError` for a point out of reach, and ``ValueError`` when the lap
-    is too fast for the group's edge limits (each edge is planned offline, as the group will).
-    """
+
+def _plan_edges(arm: PlanarArm, square: SquareOptions) -> list[list[Waypoint]]:
+    """The four edges' waypoints, each planned offline as the group will; raises
+    :class:`UnreachableError` for a point out of reach and :class:`HALError` from the
+    planner when the lap is too fast."""
     corners = square_corners(square.center, square.side)
     edges = [
         edge_waypoints(
@@ -648,32 +664,77 @@ def plan_square(arm: PlanarArm, square: SquareOptions) -> list[list[Waypoint]]:
     )
     for i, edge in enumerate(edges):
         start = arm.inverse(*corners[i], square.elbow)
-        try:
-            planner.waypoints(
-                0,
-                KinematicState(list(start), [0.0, 0.0], [0.0, 0.0]),
-                [(list(w.positions), w.time) for w in edge],
-                [EDGE_LIMITS] * len(JOINTS),
-            )
-        except HALError as exc:
-            raise ValueError(
-                f"a lap of {square.lap_s:g} s is too fast for the joints' limits (edge {i + 1}: "
-                f"{exc}); give a longer --duration"
-            ) from exc
+        planner.waypoints(
+            0,
+            KinematicState(list(start), [0.0, 0.0], [0.0, 0.0]),
+            [(list(w.positions), w.time) for w in edge],
+            [EDGE_LIMITS] * len(JOINTS),
+        )
     return edges
+
+
+def _plans(arm: PlanarArm, square: SquareOptions, lap_s: float) -> bool:
+    try:
+        _plan_edges(arm, replace(square, lap_s=lap_s))
+    except HALError:
+        return False
+    return True
+
+
+def min_lap_s(arm: PlanarArm, square: SquareOptions, *, resolution: float = 0.05) -> float:
+    """The shortest lap (s, rounded up to ``resolution``) the joints' edge limits allow for
+    ``square`` (its ``lap_s`` ignored); :data:`MAX_DURATION_S` when none does."""
+    low, high = 0.0, max(resolution, square.lap_s)
+    while not _plans(arm, square, high):
+        low, high = high, 2.0 * high
+        if high > MAX_DURATION_S:
+            return MAX_DURATION_S
+    while high - low > resolution / 2:
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if _plans(arm, square, middle) else (middle, high)
+    return math.ceil(high / resolution - 1e-9) * resolution
+
+
+def plan_square(arm: PlanarArm, square: SquareOptions) -> list[list[Waypoint]]:
+    """The four edges' waypoints, checked before anything moves.
+
+    Raises :class:`UnreachableError` naming ``--side`` and ``--center`` for a point out of
+    reach, and :class:`LapTooFastError` naming ``--duration`` and the shortest lap when the
+    lap is too fast for the group's edge limits (each edge is planned offline, as the group
+    will).
+    """
+    try:
+        return _plan_edges(arm, square)
+    except UnreachableError as exc:
+        cx, cy = square.center
+        raise UnreachableError(
+            f"--side {square.side:g} --center {cx:g} {cy:g} --elbow {square.elbow}: the square "
+            f"leaves the arm's reach: {exc}"
+        ) from exc
+    except HALError as exc:
+        shortest = min_lap_s(arm, square)
+        raise LapTooFastError(
+            f"--duration {square.lap_s:g}: a lap takes at least {shortest:.2f} s at the "
+            f"joints' limits ({square.side * 100:g} cm square, {square.points} "
+            f"{'point' if square.points == 1 else 'points'} per edge)"
+        ) from exc
 
 
 async def main(ctx: AppContext) -> int:
     """The app ``arm2``: ``openel-async run arm2 [options]`` (``ctx.argv``)."""
-    args = build_parser(ctx.prog).parse_args(ctx.argv)
+    parser = build_parser(ctx.prog)
+    args = parser.parse_args(ctx.argv)
     try:
         options = options_from(args, APP)
         square = square_from(args, options.duration)
-    except ValueError as exc:  # a bad option
-        print(f"{ctx.prog}: {exc}", file=sys.stderr)
-        return 2
+    except ValueError as exc:  # a bad option: argparse's message and exit status 2
+        parser.error(str(exc))
     ctx.title = "MuJoCo arm2 demo"
     sim = open_sim(realtime=options.realtime, ctx=ctx)
+    try:
+        plan_square(PlanarArm.from_model(sim.model), square)
+    except ValueError as exc:  # checked before anything runs
+        parser.error(str(exc))
     return await run_app(sim, options, square=square, prog=ctx.prog, ctx=ctx)
 
 
@@ -706,16 +767,15 @@ async def run_app(
 
 
 def report(result: SquareResult) -> None:
-    print_report(f"MuJoCo arm2 square, {result.pacing}", result.lines(), result.artifacts)
-
-
-DEMO_LAP_S = 5.0
-"""The lap of ``openel-async demo`` (the app's own default is :data:`DEFAULT_LAP_S`)."""
+    print_report(
+        f"MuJoCo arm2 square, {pacing_name(result.pacing)}", result.lines(), result.artifacts
+    )
 
 
 def demo_args(options: DemoOptions) -> list[str]:
-    """``openel-async demo`` options as this app's command line (a 5 s lap by default)."""
-    return arm_demo_args(options, default_duration=DEMO_LAP_S)
+    """``openel-async demo`` options as this app's command line (the app's defaults are the
+    demo's)."""
+    return arm_demo_args(options)
 
 
 APP_INFO = AppInfo(

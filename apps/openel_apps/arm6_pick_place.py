@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from collections.abc import Mapping, Sequence
 from contextlib import AsyncExitStack
 from dataclasses import dataclass, field
@@ -53,6 +52,7 @@ from openel_async.motion import (
 )
 
 from .arm_demo import (
+    MAX_DURATION_S,
     ArmOptions,
     Artifacts,
     UnreachableError,
@@ -65,6 +65,7 @@ from .arm_demo import (
     fmt_point,
     line_waypoints,
     options_from,
+    pacing_name,
     preload_plotting,
     print_report,
     record_times,
@@ -72,6 +73,7 @@ from .arm_demo import (
     run_reported,
     save_plot,
     save_snapshot,
+    spread_text,
     times_text,
 )
 
@@ -87,10 +89,12 @@ __all__ = [
     "Arm6Kinematics",
     "PickPlacePlan",
     "PickPlaceResult",
+    "SequenceTooFastError",
     "StepRecord",
     "UnreachableError",
     "build_parser",
     "main",
+    "min_duration_s",
     "open_sim",
     "plan_pick_place",
     "report",
@@ -294,9 +298,9 @@ class PickPlaceResult:
         )
         lines = [
             f"sequence           {' -> '.join(s.name for s in self.steps)}",
-            f"motions            {ok}/{len(motions)} succeeded (AxisGroup of 6 joints at "
-            f"{self.period_ms:g} ms), joint setpoints arrive within "
-            f"{self.max_setpoint_spread_ticks} tick(s) of each other",
+            f"motions            {ok}/{len(motions)} succeeded (AxisGroup of 6 joints, "
+            f"period {self.period_ms:g} ms), joint setpoints arrive "
+            f"{spread_text(self.max_setpoint_spread_ticks, self.period_ms)}",
             f"box                {picked}; contact force {self.grip_force_n:.1f} N with the "
             f"suction on",
             f"box moved          from {fmt_point(self.box_start_m)} to "
@@ -305,7 +309,7 @@ class PickPlaceResult:
             f"{fmt_mm(self.place_error_m)} from it",
             f"time               {times_text(self)}",
         ]
-        return lines + self.artifacts.lines()
+        return lines
 
 
 def _box_position(sim: MujocoSim) -> tuple[float, float, float]:
@@ -366,13 +370,60 @@ class PickPlacePlan:
     durations: dict[str, float]
 
 
+class SequenceTooFastError(ValueError):
+    """``--duration`` is too short for the arm's limits (the message names the shortest)."""
+
+
 def plan_pick_place(sim: MujocoSim, place: tuple[float, float], duration: float) -> PickPlacePlan:
     """Solve every target (the box's position comes from the simulation's initial state) and
     plan every motion offline as the group will, from rest to rest.
 
-    Raises :class:`UnreachableError` for a point out of reach and ``ValueError`` when
+    Raises :class:`UnreachableError` naming ``--place`` for a point out of reach and
+    :class:`SequenceTooFastError` naming ``--duration`` and the shortest sequence when
     ``duration`` is too short for the group's limits.
     """
+    try:
+        return _plan(sim, place, duration)
+    except UnreachableError as exc:
+        raise UnreachableError(f"--place {place[0]:g} {place[1]:g}: {exc}") from exc
+    except HALError as exc:
+        shortest = min_duration_s(sim, place)
+        if shortest is None:
+            raise SequenceTooFastError(
+                f"--place {place[0]:g} {place[1]:g}: the arm cannot put the box there "
+                f"smoothly in any --duration up to {MAX_DURATION_S:g} s ({exc})"
+            ) from exc
+        raise SequenceTooFastError(
+            f"--duration {duration:g}: the sequence takes at least {shortest:.2f} s of arm "
+            f"motion at the arm's limits (--place {place[0]:g} {place[1]:g})"
+        ) from exc
+
+
+def min_duration_s(
+    sim: MujocoSim, place: tuple[float, float], *, resolution: float = 0.05
+) -> float | None:
+    """The shortest ``--duration`` (s, rounded up to ``resolution``) the arm's limits allow
+    for ``place``; None when none up to :data:`MAX_DURATION_S` does."""
+
+    def plans(duration: float) -> bool:
+        try:
+            _plan(sim, place, duration)
+        except HALError:
+            return False
+        return True
+
+    if not plans(MAX_DURATION_S):
+        return None
+    low, high = 0.0, MAX_DURATION_S
+    while high - low > resolution / 2:
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if plans(middle) else (middle, high)
+    return math.ceil(high / resolution - 1e-9) * resolution
+
+
+def _plan(sim: MujocoSim, place: tuple[float, float], duration: float) -> PickPlacePlan:
+    """:func:`plan_pick_place` without the messages: raises :class:`UnreachableError` and
+    the planner's :class:`HALError`."""
     kin = Arm6Kinematics.from_model(sim.model)
     box = _box_position(sim)
     half = float(sim.model.geom("box").size[2])
@@ -411,19 +462,13 @@ def plan_pick_place(sim: MujocoSim, place: tuple[float, float], duration: float)
     paths = {"down": plan.down, "lift": plan.lift, "place down": plan.place_down, "up": plan.up}
     for name in ("above box", "down", "lift", "move", "place down", "up", "home"):
         start = KinematicState(position, rest, rest)
-        try:
-            if name in moves:
-                position = moves[name]
-                planner.move(0, start, position, [MOVE_LIMITS] * n, duration=d[name])
-            else:
-                points = [(list(w.positions), w.time) for w in paths[name]]
-                planner.waypoints(0, start, points, [LINE_LIMITS] * n)
-                position = points[-1][0]
-        except HALError as exc:
-            raise ValueError(
-                f"--duration {duration:g} s is too short for the arm's limits (step {name!r}: "
-                f"{exc}); give a longer one"
-            ) from exc
+        if name in moves:
+            position = moves[name]
+            planner.move(0, start, position, [MOVE_LIMITS] * n, duration=d[name])
+        else:
+            points = [(list(w.positions), w.time) for w in paths[name]]
+            planner.waypoints(0, start, points, [LINE_LIMITS] * n)
+            position = points[-1][0]
     return plan
 
 
@@ -527,12 +572,14 @@ async def run_pick_place(
             )
             timer, group = rig.timer, rig.group
             cup = sim.effector("suction")  # the adhesion actuator: a MujocoEffector
-            suction = await stack.enter_async_context(register(ctx, Actuator(cup, clock=clock)))
+            suction = await stack.enter_async_context(
+                register(ctx, Actuator(cup, device_name="suction", clock=clock))
+            )
             tool = await stack.enter_async_context(
-                register(ctx, Sensor(sim.sensor("tool_pos"), clock=clock))
+                register(ctx, Sensor(sim.sensor("tool_pos"), device_name="tool_pos", clock=clock))
             )
             touch = await stack.enter_async_context(
-                register(ctx, Sensor(sim.sensor("pad_touch"), clock=clock))
+                register(ctx, Sensor(sim.sensor("pad_touch"), device_name="pad_touch", clock=clock))
             )
             progress = None
             if live is not None:
@@ -598,13 +645,13 @@ def build_parser(prog: str = APP) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=prog,
         description="The 6-DoF MuJoCo arm picks the box with its suction cup and places it "
-        "(joints synchronized by an AxisGroup).",
+        "(joints synchronized by an AxisGroup). Every option is checked before the arm moves.",
     )
     add_common_arguments(
         parser,
         APP,
-        duration_help=f"seconds of arm motion for the whole sequence (default "
-        f"{DEFAULT_DURATION_S:g}; the suction dwells come on top)",
+        duration_help=f"Seconds of arm motion for the whole sequence, the suction dwells "
+        f"not counted, at most {MAX_DURATION_S:g} (default {DEFAULT_DURATION_S:g}).",
         default_duration=DEFAULT_DURATION_S,
         default_period_ms=DEFAULT_PERIOD_MS,
     )
@@ -614,24 +661,30 @@ def build_parser(prog: str = APP) -> argparse.ArgumentParser:
         nargs=2,
         default=list(DEFAULT_PLACE_M),
         metavar=("X", "Y"),
-        help="where to put the box down, m (default 0.20 0.40)",
+        help="Where to put the box down on the floor in m (default 0.20 0.40).",
     )
     return parser
 
 
 async def main(ctx: AppContext) -> int:
     """The app ``arm6``: ``openel-async run arm6 [options]`` (``ctx.argv``)."""
-    args = build_parser(ctx.prog).parse_args(ctx.argv)
+    parser = build_parser(ctx.prog)
+    args = parser.parse_args(ctx.argv)
     try:
         options = options_from(args, APP)
         if not all(math.isfinite(v) for v in args.place):
-            raise ValueError(f"--place must be two finite numbers of m, not {args.place}")
-    except ValueError as exc:  # a bad option
-        print(f"{ctx.prog}: {exc}", file=sys.stderr)
-        return 2
+            raise ValueError(
+                f"--place {args.place[0]:g} {args.place[1]:g}: two finite numbers of m"
+            )
+    except ValueError as exc:  # a bad option: argparse's message and exit status 2
+        parser.error(str(exc))
     ctx.title = "MuJoCo arm6 demo"
     sim = open_sim(realtime=options.realtime, ctx=ctx)
     place = (float(args.place[0]), float(args.place[1]))
+    try:
+        plan_pick_place(sim, place, options.duration)
+    except ValueError as exc:  # checked before anything runs
+        parser.error(str(exc))
     return await run_app(sim, options, place=place, prog=ctx.prog, ctx=ctx)
 
 
@@ -663,11 +716,16 @@ async def run_app(
 
 
 def report(result: PickPlaceResult) -> None:
-    print_report(f"MuJoCo arm6 pick and place, {result.pacing}", result.lines(), result.artifacts)
+    print_report(
+        f"MuJoCo arm6 pick and place, {pacing_name(result.pacing)}",
+        result.lines(),
+        result.artifacts,
+    )
 
 
 def demo_args(options: DemoOptions) -> list[str]:
-    """``openel-async demo --app arm6`` options as this app's command line."""
+    """``openel-async demo --app arm6`` options as this app's command line (the app's
+    defaults are the demo's)."""
     return arm_demo_args(options)
 
 

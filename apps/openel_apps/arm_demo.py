@@ -3,8 +3,9 @@
 
 The arm apps (:mod:`.arm2_square` and :mod:`.arm6_pick_place`) share:
 
-- the common command-line options (``--duration``, ``--realtime``, ``--out``, ``--no-live``,
-  ``--period-ms``) and the output directory (``out/<app>/`` under the current directory);
+- the common command-line options (``--duration``, ``--virtual`` / ``--realtime``, ``--out``,
+  ``--no-live``, ``--period-ms``; real time by default, as ``openel-async demo``) and the output
+  directory (``out/<app>/`` under the current directory);
 - the end-of-run files: a PNG plot of commanded vs actual joint positions and a PNG snapshot of
   the scene, rendered in a worker thread and skipped with a reason when OpenGL is unavailable;
 - timed straight-line paths in task space (:func:`line_waypoints`, minimum-jerk timing) for
@@ -104,29 +105,42 @@ def add_common_arguments(
     default_duration: float,
     default_period_ms: float,
 ) -> None:
+    """The options every arm app takes; the defaults are those of ``openel-async demo``."""
     parser.add_argument(
         "--duration", type=float, default=default_duration, metavar="S", help=duration_help
     )
-    parser.add_argument(
-        "--realtime",
-        action="store_true",
-        help="pace the simulation against the real clock (default: lockstep, as fast as the CPU "
-        "allows, deterministic)",
-    )
+    add_pacing_arguments(parser)
     parser.add_argument(
         "--out",
         metavar="DIR",
         default=None,
-        help=f"directory for the PNG files (default: {OUT_ROOT}/{app}/ under the current "
-        "directory)",
+        help=f"Directory for the PNG files, created if needed (default: {OUT_ROOT}/{app}/ "
+        "under the current directory).",
     )
-    parser.add_argument("--no-live", action="store_true", help="no live progress line")
+    parser.add_argument("--no-live", action="store_true", help="Print no live progress line.")
     parser.add_argument(
         "--period-ms",
         type=float,
         default=default_period_ms,
         metavar="MS",
-        help=f"EventTimer period of the axis group, ms (default {default_period_ms:g})",
+        help=f"EventTimer period of the axis group in ms, a whole number from "
+        f"{PHYSICS_STEP_MS:g} to {MAX_PERIOD_MS:g} (default {default_period_ms:g}).",
+    )
+
+
+def add_pacing_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--virtual`` and ``--realtime`` (mutually exclusive; real time by default), the same
+    two flags in every shipped app and in ``openel-async demo``."""
+    pacing = parser.add_mutually_exclusive_group()
+    pacing.add_argument(
+        "--virtual",
+        action="store_true",
+        help="Run the simulation in lockstep: as fast as the CPU allows, and deterministic.",
+    )
+    pacing.add_argument(
+        "--realtime",
+        action="store_true",
+        help="Pace the simulation against the real clock (the default).",
     )
 
 
@@ -136,7 +150,7 @@ def options_from(args: argparse.Namespace, app: str) -> ArmOptions:
     check_out_dir(out_dir)
     return ArmOptions(
         duration=check_duration(args.duration),
-        realtime=bool(args.realtime),
+        realtime=not args.virtual,
         out_dir=out_dir,
         live=not args.no_live,
         period_ms=check_period_ms(args.period_ms),
@@ -147,7 +161,7 @@ def check_duration(duration: float) -> float:
     """``--duration``: a finite number of seconds, 0 < S <= :data:`MAX_DURATION_S`."""
     if not (math.isfinite(duration) and 0 < duration <= MAX_DURATION_S):
         raise ValueError(
-            f"--duration must be a number of seconds > 0 and <= {MAX_DURATION_S:g}, not {duration}"
+            f"--duration {duration:g}: a number of seconds > 0 and at most {MAX_DURATION_S:g}"
         )
     return float(duration)
 
@@ -160,8 +174,8 @@ def check_period_ms(period_ms: float) -> float:
         period_ms <= MAX_PERIOD_MS
     ):
         raise ValueError(
-            f"--period-ms must be a whole multiple of the {PHYSICS_STEP_MS:g} ms physics step "
-            f"from {PHYSICS_STEP_MS:g} to {MAX_PERIOD_MS:g} ms, not {period_ms}"
+            f"--period-ms {period_ms:g}: a whole multiple of the {PHYSICS_STEP_MS:g} ms physics "
+            f"step, from {PHYSICS_STEP_MS:g} to {MAX_PERIOD_MS:g} ms"
         )
     return float(period_ms)
 
@@ -245,17 +259,28 @@ class Artifacts:
     extra: list[tuple[str, Path]] = field(default_factory=list)
     """Further files, with a label."""
 
-    def lines(self) -> list[str]:
-        rows = []
-        if self.plot is not None:
-            rows.append(f"plot               {display_path(self.plot)}")
+    def files(self) -> list[tuple[str, Path]]:
+        """``(label, path)`` of every file written."""
+        rows = [] if self.plot is None else [("joint plot", self.plot)]
         if self.snapshot is not None:
-            rows.append(f"snapshot           {display_path(self.snapshot)}")
-        else:
-            rows.append(f"snapshot           skipped: {self.snapshot_skipped or 'not taken'}")
-        for label, path in self.extra:
-            rows.append(f"{label:<18} {display_path(path)}")
+            rows.append(("snapshot", self.snapshot))
+        return rows + self.extra
+
+    def lines(self) -> list[str]:
+        """The files section of the summary: one row per file (its name, the directory is
+        the section's heading: :meth:`heading`), and why the snapshot is missing."""
+        rows = [f"{label:<18} {path.name}" for label, path in self.files()]
+        if self.snapshot is None:
+            rows.append(f"{'snapshot':<18} skipped: {self.snapshot_skipped or 'not taken'}")
         return rows
+
+    def heading(self) -> str:
+        """``files in DIR/`` (the directory of the files written), or ``files`` when there
+        is none or they are in several directories."""
+        folders = {path.parent for _, path in self.files()}
+        if len(folders) != 1:
+            return "files"
+        return f"files in {display_path(folders.pop())}/"
 
 
 def _rendering_disabled() -> bool:
@@ -394,13 +419,16 @@ async def enter_arm(
     log_actual: bool = False,
     ctx: AppContext | None = None,
 ) -> ArmRig:
-    """Enter on ``stack`` one Actuator per joint of ``sim``, an EventTimer of
+    """Enter on ``stack`` one Actuator per joint of ``sim`` (named after its joint), an
+    EventTimer of
     ``options.period_ms`` on the simulation clock (``<name>-sync``) and the AxisGroup ``name``
     over them (goal time 1 s); its log holds ``planned_s`` seconds of motion plus
     :data:`LOG_MARGIN_S`. The Actuators and the timer are registered with ``ctx``."""
     clock = sim.clock
     axes = [
-        await stack.enter_async_context(register(ctx, Actuator(sim.actuator(joint), clock=clock)))
+        await stack.enter_async_context(
+            register(ctx, Actuator(sim.actuator(joint), device_name=joint, clock=clock))
+        )
         for joint in joints
     ]
     timer = EventTimer(options.period_ms, clock=clock, name=f"{name}-sync")
@@ -440,13 +468,27 @@ def record_times(result: RunTimes, timer: EventTimer, sim: MujocoSim) -> None:
     result.wall_time_s = sim.stats.wall_time_s  # lockstep: the snapshots' pauses excluded
 
 
+def spread_text(ticks: int, period_ms: float) -> str:
+    """``on the same tick`` or ``within 2 ticks (4 ms) of each other``."""
+    if ticks == 0:
+        return "on the same tick"
+    unit = "tick" if ticks == 1 else "ticks"
+    return f"within {ticks} {unit} ({ticks * period_ms:g} ms) of each other"
+
+
+def pacing_name(pacing: str) -> str:
+    """A ``MujocoSim`` pacing as the summaries say it: ``lockstep`` or ``real time``."""
+    return "real time" if pacing == "realtime" else pacing
+
+
 def times_text(result: RunTimes) -> str:
-    """``7.12 s simulated (lockstep) in 0.52 s of real time (13.6x real time), timer ticks ...``"""
+    """``7.12 s simulated in 0.52 s of real time (13.6x, lockstep), timer ticks ...``"""
     speed = result.sim_time_s / result.wall_time_s if result.wall_time_s > 0 else 0.0
+    pacing = "real-time pacing" if result.pacing == "realtime" else result.pacing
     return (
-        f"{result.sim_time_s:.2f} s simulated ({result.pacing}) in "
-        f"{result.wall_time_s:.2f} s of real time ({speed:.1f}x real time), timer ticks "
-        f"{result.timer_ticks} (missed {result.timer_missed})"
+        f"{result.sim_time_s:.2f} s simulated in {result.wall_time_s:.2f} s of real time "
+        f"({speed:.1f}x, {pacing}), timer ticks {result.timer_ticks} (missed "
+        f"{result.timer_missed})"
     )
 
 
@@ -477,23 +519,23 @@ def open_arm_sim(model: str, *, realtime: bool, ctx: AppContext | None = None) -
     return sim
 
 
-def arm_demo_args(options: DemoOptions, *, default_duration: float | None = None) -> list[str]:
-    """``openel-async demo`` options as an arm app's command line (``--virtual``: lockstep,
-    else ``--realtime``); ValueError for an option an arm app cannot honour."""
+def arm_demo_args(options: DemoOptions) -> list[str]:
+    """``openel-async demo`` options as an arm app's command line: only the options given
+    (the app's defaults are the demo's), ``--virtual`` for lockstep; ValueError for an option
+    an arm app cannot honour."""
     if options.bus not in (None, "mujoco"):
         raise ValueError("--app needs --bus mujoco (the arm apps run on MuJoCo)")
     if options.inject_fault:
         raise ValueError("--inject-fault needs --bus sim or --bus can")
     argv: list[str] = []
-    duration = default_duration if options.duration is None else options.duration
-    if duration is not None:
-        argv += ["--duration", repr(duration)]
+    if options.duration is not None:
+        argv += ["--duration", repr(options.duration)]
     if options.period_ms is not None:
         argv += ["--period-ms", repr(options.period_ms)]
     if options.out is not None:
         argv += ["--out", options.out]
-    if not options.virtual:
-        argv.append("--realtime")
+    if options.virtual:
+        argv.append("--virtual")
     if not options.live:
         argv.append("--no-live")
     return argv
@@ -531,19 +573,24 @@ async def run_reported(
 # -- output -----------------------------------------------------------------------------------
 
 
-def print_summary(title: str, lines: Sequence[str], stream: TextIO | None = None) -> None:
+def print_summary(
+    title: str, lines: Sequence[str], stream: TextIO | None = None, *, heading: bool = True
+) -> None:
+    """``summary (title)`` (or ``title`` alone when not ``heading``) and the lines below it;
+    nothing when there are no lines."""
+    if not lines:
+        return
     out = stream or sys.stdout
-    out.write(f"\nsummary ({title})\n")
+    out.write(f"\nsummary ({title})\n" if heading else f"\n{title}\n")
     for line in lines:
         out.write("  " + line + "\n")
     out.flush()
 
 
 def print_report(title: str, lines: Sequence[str], artifacts: Artifacts) -> None:
-    """The summary, then where the files went."""
+    """The summary, then the files the run wrote."""
     print_summary(title, lines)
-    if artifacts.plot is not None:
-        print(f"\nfiles in {display_path(artifacts.plot.parent)}/")
+    print_summary(artifacts.heading(), artifacts.lines(), heading=False)
 
 
 def fmt_mm(meters: float) -> str:

@@ -1,8 +1,8 @@
 """twoaxis: the OpenEL synchronous-control demo (spec Figures 7.5-7.8) on two axes.
 
-``openel-async run twoaxis [--bus sim|can|remote] [--duration S] [--period-ms MS] [--virtual]
-[--inject-fault] [--no-live]``, also ``openel-async demo --bus sim|can`` and
-``openel-async demo --remote`` (``--bus remote``).
+``openel-async run twoaxis [--bus sim|can|remote] [--duration S] [--period-ms MS]
+[--virtual | --realtime] [--inject-fault] [--no-live]``, also ``openel-async demo --bus sim|can``
+and ``openel-async demo --remote`` (``--bus remote``); real time by default, as the demo.
 
 Two actuators are initialized with observers (Fig. 7.6), driven in step from an
 EventTimer's notify_timer (Fig. 7.7), and two sensors are read with their times to
@@ -47,6 +47,7 @@ from openel_async import (
 )
 from openel_async.app import AppContext, AppInfo, DemoOptions, LiveLine
 from openel_async.clock import NS_PER_S
+from openel_async.device import ErrorId
 from openel_async.ids import DeviceKind
 
 log = structlog.get_logger(__name__)
@@ -70,6 +71,41 @@ SENSOR_BACKOFF_NS = (100_000_000, 200_000_000, 400_000_000)
 """Wait on the demo's clock before each re_init attempt."""
 
 
+ERROR_NAMES: Mapping[int, str] = {
+    ErrorId.DEVICE_ERROR: "device error",
+    ErrorId.DISCONNECTED: "disconnected",
+    ErrorId.TIMEOUT: "timeout",
+    ErrorId.BUS_ERROR: "bus error",
+    ErrorId.LIMIT_VIOLATION: "limit violation",
+    ErrorId.PROTOCOL_ERROR: "protocol error",
+}
+"""What the error ids the bundled drivers share mean (others are device-specific)."""
+POSITION_UNIT = "rad"
+"""The unit of the axes' positions (both rigs' motors are rotary)."""
+
+
+@dataclass(frozen=True, slots=True)
+class ErrorReport:
+    """One notify_error: the device, the error id and, for a fault, its reason."""
+
+    device: str
+    error_id: int
+    reason: str | None = None
+
+    def text(self) -> str:
+        """``MOTOR_2 error 1 (device error: over-temperature)``."""
+        meaning = ERROR_NAMES.get(self.error_id, "device-specific")
+        if self.reason:
+            meaning += f": {self.reason}"
+        return f"{self.device} error {self.error_id} ({meaning})"
+
+
+def reading_text(value: float, unit: str) -> str:
+    """A sensor value with its unit: ``298.137 K``, ``+0.123 rad``."""
+    number = f"{value:.3f}" if unit == "K" else f"{value:+.3f}"
+    return f"{number} {unit}".rstrip()
+
+
 @dataclass
 class DemoSummary:
     duration_s: float
@@ -82,7 +118,8 @@ class DemoSummary:
     setpoints: int = 0
     completed_events: int = 0
     device_events: int = 0
-    errors: list[tuple[str, int]] = field(default_factory=list)
+    errors: list[ErrorReport] = field(default_factory=list)
+    """Every notify_error, in order."""
     recoveries: int = 0
     sensor_reads: int = 0
     sensor_faults: list[tuple[str, str]] = field(default_factory=list)
@@ -92,7 +129,28 @@ class DemoSummary:
     """Sensors that did not come back after :data:`SENSOR_RETRIES` re_init attempts."""
     max_sensor_skew_us: float = 0.0
     max_tracking_error_rad: float = 0.0
+    axis_names: tuple[str, str] = ("axis 1", "axis 2")
     final_positions: tuple[float, float] = (0.0, 0.0)
+    last_readings: dict[str, str] = field(default_factory=dict)
+    """The last value read from each sensor, with its unit."""
+
+    def error_line(self) -> str:
+        """``errors 1: MOTOR_2 error 1 (device error: ...)``; repeats are counted once each,
+        shown once with their number."""
+        if not self.errors:
+            return "errors             0"
+        counts: dict[str, int] = {}
+        for report in self.errors:
+            text = report.text()
+            counts[text] = counts.get(text, 0) + 1
+        shown = "; ".join(text if n == 1 else f"{text} x{n}" for text, n in counts.items())
+        return f"errors             {len(self.errors)}: {shown}"
+
+    def events_line(self) -> str:
+        return (
+            f"events             {self.completed_events} COMPLETED, {self.device_events} "
+            "device-specific"
+        )
 
     def sensor_fault_line(self) -> str:
         if not self.sensor_faults:
@@ -106,30 +164,37 @@ class DemoSummary:
             line += f", lost {', '.join(self.sensors_lost)}"
         return line
 
+    def readings_line(self) -> str:
+        shown = ", ".join(f"{name} {text}" for name, text in self.last_readings.items())
+        return f"last readings      {shown or 'none'}"
+
     def lines(self) -> list[str]:
+        (first, second), unit = self.axis_names, POSITION_UNIT
         return [
             f"duration           {self.duration_s:.2f} s",
             f"timer ticks        {self.ticks} (missed {self.missed_ticks})",
             f"tick lateness      p50 {self.lateness_p50_us:.0f} us, p99 {self.lateness_p99_us:.0f} us, max {self.lateness_max_us:.0f} us",
             f"setpoints sent     {self.setpoints}",
-            f"events             COMPLETED x{self.completed_events}, device-specific x{self.device_events}",
-            f"errors             {len(self.errors)} {self.errors if self.errors else ''}".rstrip(),
+            self.events_line(),
+            self.error_line(),
             f"recoveries         {self.recoveries} (re_init)",
             f"sensor reads       {self.sensor_reads}, max time skew between sensors {self.max_sensor_skew_us:.0f} us",
+            self.readings_line(),
             self.sensor_fault_line(),
-            f"tracking error     max {self.max_tracking_error_rad:.4f} rad",
-            f"final positions    {self.final_positions[0]:+.4f}, {self.final_positions[1]:+.4f} rad",
-        ]
+            f"tracking error     max {self.max_tracking_error_rad:.4f} {unit}",
+            f"final positions    {first} {self.final_positions[0]:+.4f} {unit}, {second} {self.final_positions[1]:+.4f} {unit}",
+        ]  # fmt: skip
 
     def partial_lines(self) -> list[str]:
         """What an interrupted demo did before it stopped."""
         return [
             f"timer ticks        {self.ticks} (missed {self.missed_ticks})",
             f"setpoints sent     {self.setpoints}",
-            f"events             COMPLETED x{self.completed_events}, device-specific x{self.device_events}",
-            f"errors             {len(self.errors)} {self.errors if self.errors else ''}".rstrip(),
+            self.events_line(),
+            self.error_line(),
             f"recoveries         {self.recoveries} (re_init)",
             f"sensor reads       {self.sensor_reads}",
+            self.readings_line(),
             self.sensor_fault_line(),
         ]
 
@@ -157,7 +222,11 @@ class Application:
 
     def notify_error(self, source: HALComponent, error_id: int) -> None:
         assert self.summary is not None
-        self.summary.errors.append((source.device_name, int(error_id)))
+        fault = source.last_fault if source.state.value == "Error" else None
+        reason = None
+        if fault is not None:  # "MOTOR_2: <reason>": the device is named already
+            reason = str(fault).removeprefix(f"{source.device_name}: ")
+        self.summary.errors.append(ErrorReport(source.device_name, int(error_id), reason))
         self.faulted.set()
 
     # TimerObserver: stream synchronized setpoints to both axes (Fig. 7.7).
@@ -215,7 +284,8 @@ async def sim_rig(clock: Clock) -> AsyncIterator[Rig]:
     )  # fmt: skip
 
     def trip() -> None:
-        motors[1].inject_fault(error_id=7, reason="demo: over-temperature trip")
+        # The id the CAN rig's drive reports for the same over-temperature trip.
+        motors[1].inject_fault(ErrorId.DEVICE_ERROR, "injected over-temperature trip")
 
     yield Rig(
         "simulated devices, openel_sim",
@@ -287,6 +357,7 @@ async def _scenario(
     axes, sensors = rig.axes, rig.sensors
     app = Application(axes, amplitude=0.5, frequency_hz=0.5)
     app.summary = summary
+    summary.axis_names = (axes[0].device_name, axes[1].device_name)
     timer = EventTimer(period_ms, clock=clock, name="sync")
     if ctx is not None:
         for component in (*axes, *sensors):
@@ -383,7 +454,11 @@ async def _run(
                     continue
                 value = await read_sensor(clock, sensor, summary)
                 timed.append(value)
-                shown[i] = "fault" if value is None else f"{value.values[0]:+.3f}"
+                if value is None:
+                    shown[i] = "fault"
+                else:
+                    shown[i] = reading_text(value.values[0], _unit(sensor))
+                    summary.last_readings[sensor.device_name] = shown[i]
             summary.sensor_reads += sum(value is not None for value in timed)
             first, second = timed
             if first is not None and second is not None:
@@ -392,7 +467,7 @@ async def _run(
             if live is not None:
                 live.update(
                     f"t={(clock.now_ns() - app.t0_ns) / NS_PER_S:5.2f}s ticks={timer.stats.ticks} "
-                    f"{sensors[0].device_name}={shown[0]} {sensors[1].device_name}={shown[1]} "
+                    f"{sensors[0].device_name} {shown[0]}  {sensors[1].device_name} {shown[1]}  "
                     f"events={summary.completed_events} errors={len(summary.errors)} "
                     f"sensor faults={len(summary.sensor_faults)}"
                 )
@@ -408,6 +483,12 @@ async def _run(
         for motion in motions:
             await motion
         await anyio.lowlevel.checkpoint()
+
+
+def _unit(sensor: Sensor) -> str:
+    """The unit of the sensor's first value ("" when it declares none)."""
+    units = sensor.units
+    return units[0] if units else ""
 
 
 async def _fault_and_recover(
@@ -432,34 +513,46 @@ def build_parser(prog: str = NAME) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=prog,
         description="The two-axis synchronized demo of OpenEL spec Figs. 7.5-7.8 on simulated "
-        "motors (--bus sim) or simulated CAN drives (--bus can).",
+        "motors (--bus sim), simulated CAN drives (--bus can) or sim devices served by another "
+        "process (--bus remote). Every option is checked before anything runs.",
     )
     parser.add_argument(
         "--bus",
         choices=("sim", "can", "remote"),
         default="sim",
-        help="device layer (remote: the sim devices served by another process over Zenoh)",
+        help="Device layer: openel_sim motors, simulated CAN drives, or the sim devices served "
+        "by another process over Zenoh (default sim).",
     )
     parser.add_argument(
         "--duration",
         type=float,
         default=DURATION_S,
         metavar="S",
-        help=f"seconds of synchronized motion (default {DURATION_S:g})",
+        help=f"Seconds of synchronized motion (default {DURATION_S:g}).",
     )
     parser.add_argument(
         "--period-ms",
         type=float,
         default=PERIOD_MS,
         metavar="MS",
-        help=f"EventTimer period, ms (default {PERIOD_MS:g}, from {MIN_PERIOD_MS:g} to "
-        f"{MAX_PERIOD_MS:g})",
+        help=f"EventTimer period in ms, from {MIN_PERIOD_MS:g} to {MAX_PERIOD_MS:g} "
+        f"(default {PERIOD_MS:g}).",
     )
-    parser.add_argument("--virtual", action="store_true", help="the virtual clock (sim only)")
+    pacing = parser.add_mutually_exclusive_group()
+    pacing.add_argument(
+        "--virtual",
+        action="store_true",
+        help="Run on the virtual clock, as fast as the CPU allows (--bus sim only).",
+    )
+    pacing.add_argument(
+        "--realtime", action="store_true", help="Run on the real clock (the default)."
+    )
     parser.add_argument(
-        "--inject-fault", action="store_true", help="trip a drive halfway and recover"
+        "--inject-fault",
+        action="store_true",
+        help="Trip the second drive halfway and recover it with re_init (--bus sim or can).",
     )
-    parser.add_argument("--no-live", action="store_true", help="no live progress line")
+    parser.add_argument("--no-live", action="store_true", help="Print no live progress line.")
     return parser
 
 
@@ -467,21 +560,26 @@ def check_options(args: argparse.Namespace) -> str | None:
     """Every option, before anything runs: the problem, or None."""
     duration, period = args.duration, args.period_ms
     if args.virtual and args.bus != "sim":
-        return "--virtual needs --bus sim: a bus runs in real time"
+        return f"--virtual needs --bus sim: --bus {args.bus} runs in real time"
     if args.inject_fault and args.bus == "remote":
         return (
-            "--inject-fault is not available with --remote: the devices are in the server "
+            "--inject-fault needs --bus sim or can: the remote devices are in the server "
             "process, and there is no remote fault injection"
         )
     if not (math.isfinite(duration) and duration > 0):
-        return f"--duration must be a finite number of seconds > 0, not {duration}"
+        return f"--duration {duration:g}: a finite number of seconds > 0"
     if not (math.isfinite(period) and MIN_PERIOD_MS <= period <= MAX_PERIOD_MS):
-        return f"--period-ms must be from {MIN_PERIOD_MS:g} to {MAX_PERIOD_MS:g} ms, not {period}"
+        return f"--period-ms {period:g}: from {MIN_PERIOD_MS:g} to {MAX_PERIOD_MS:g} ms"
+    if duration * 1000.0 < period:
+        return (
+            f"--duration {duration:g}: at least one timer period (--period-ms {period:g}), "
+            f"{period / 1000.0:g} s"
+        )
     ticks = duration * 1000.0 / period
     if args.virtual and ticks > MAX_VIRTUAL_TICKS:
         return (
-            f"--duration {duration:g} s at --period-ms {period:g} is {ticks:.3g} timer ticks "
-            f"on the virtual clock; at most {MAX_VIRTUAL_TICKS:,} (a longer period or a "
+            f"--duration {duration:g} at --period-ms {period:g}: {ticks:.3g} timer ticks "
+            f"on the virtual clock, at most {MAX_VIRTUAL_TICKS:,} (a longer period or a "
             "shorter duration)"
         )
     return None
@@ -489,11 +587,11 @@ def check_options(args: argparse.Namespace) -> str | None:
 
 async def main(ctx: AppContext) -> int:
     """Run the demo with ``ctx.argv``; print its summary; the exit status."""
-    args = build_parser(ctx.prog).parse_args(ctx.argv)
+    parser = build_parser(ctx.prog)
+    args = parser.parse_args(ctx.argv)
     problem = check_options(args)
-    if problem is not None:
-        print(f"{ctx.prog}: {problem}", file=sys.stderr)
-        return 2
+    if problem is not None:  # argparse's message and exit status 2
+        parser.error(problem)
     try:
         rig = rig_for(args.bus)
     except ImportError as exc:

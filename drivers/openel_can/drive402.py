@@ -40,9 +40,11 @@ SDO to |target - start| / tmAcc in increments/s², then the target velocity 0x60
 values in force before the first ramp (read once by SDO) are written back by the next
 plain velocity command, so ``tm_acc = 0`` keeps the drive's own acceleration.
 
-Faults: EMCY -> ``post_error(DEVICE_ERROR)`` (code 0x0000, "error reset", is only
-logged); a statusword in Fault or Fault reaction active, a heartbeat in another NMT state
-than Operational, a boot-up message -> ``fault(DEVICE_ERROR)``; no heartbeat for
+Faults: one report per fault. An EMCY is posted with the next statusword: when that
+statusword shows Fault or Fault reaction active, the ``fault(DEVICE_ERROR)`` it causes is
+the report (its reason names the EMCY), else ``post_error(DEVICE_ERROR)`` (a warning; code
+0x0000, "error reset", is only logged); a statusword in Fault or Fault reaction active, a
+heartbeat in another NMT state than Operational, a boot-up message -> ``fault(DEVICE_ERROR)``; no heartbeat for
 ``heartbeat_timeout`` -> ``fault(DISCONNECTED)``; SDO timeout -> ``TimeoutError`` (a link
 fault: Error, ``ErrorId.TIMEOUT``); SDO abort -> :class:`~openel_can.sdo.SdoAbortError`
 (the state does not change); bus failure -> ``fault(BUS_ERROR)``.
@@ -266,6 +268,8 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         self._ramp_accel_written = False
         self.last_emcy: co.Emergency | None = None
         self.emcy_count = 0
+        self._emcy_unreported = False
+        """An EMCY came since the last statusword (reported with the next one)."""
         self.log = log.bind(node=node_id)
 
     # -- units ----------------------------------------------------------------------------
@@ -767,9 +771,16 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         if state is None:
             state = ds.state_from_statusword(statusword)
         self._statusword = statusword
+        faulted = state in (PS.FAULT, PS.FAULT_REACTION_ACTIVE)
+        if self._emcy_unreported:
+            self._emcy_unreported = False
+            # An EMCY with a fault is reported once, by the fault below (or by the fault
+            # of this episode already latched); without one it is a warning.
+            if not (faulted and self._engaged) and self._ctx is not None:
+                self._ctx.post_error(ErrorId.DEVICE_ERROR)
         if not self._engaged or self._latched:
             return
-        if state in (PS.FAULT, PS.FAULT_REACTION_ACTIVE):
+        if faulted:
             emcy = self.last_emcy
             detail = f", EMCY {_emcy_name(emcy.error_code)}" if emcy and emcy.error_code else ""
             self._fault(
@@ -797,8 +808,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         self.log.warning(
             "cia402_emcy", code=_emcy_name(msg.error_code), register=f"{msg.error_register:#04x}"
         )
-        if self._ctx is not None:
-            self._ctx.post_error(ErrorId.DEVICE_ERROR)
+        self._emcy_unreported = True  # with the next statusword: a fault, or a warning
 
     def _on_heartbeat(self, frame: can.Message, now: int) -> None:
         msg = co.decode(frame.arbitration_id, frame.data)

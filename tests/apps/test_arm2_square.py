@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import io
+import subprocess
+import sys
+from dataclasses import replace
 from pathlib import Path
 
 import anyio
@@ -10,7 +13,15 @@ import numpy as np
 import pytest
 import structlog
 
-from openel_apps.arm2_square import SquareOptions, open_sim, run_square
+from openel_apps.arm2_square import (
+    LapTooFastError,
+    PlanarArm,
+    SquareOptions,
+    min_lap_s,
+    open_sim,
+    plan_square,
+    run_square,
+)
 from openel_apps.arm_demo import ArmOptions, arrival_spread, arrival_ticks, save_snapshot
 from openel_async.app import LiveLine
 from openel_async.cli import main as cli_main
@@ -70,14 +81,18 @@ def test_the_app_runs_from_the_command_line(
     app = load("arm2_square")
     assert callable(app.main)
     code = cli_main(
-        ["--log-level", "warning", "run", "apps/arm2_square.py", "--no-live", "--out",
-         str(tmp_path), "--duration", "4"]
+        ["--log-level", "warning", "run", "apps/arm2_square.py", "--virtual", "--no-live",
+         "--out", str(tmp_path), "--duration", "4"]
     )  # fmt: skip
     out = capsys.readouterr().out
     assert code == 0, out
     assert "summary (MuJoCo arm2 square, lockstep)" in out
-    assert f"plot               {(tmp_path / 'arm2_square_joints.png').resolve()}" in out
-    assert "files in" in out
+    assert "square             1 lap of a 15 cm square, 4 s per lap, elbow up" in out
+    # The files are listed under their directory (no heading without files below it).
+    files = out[out.index("\nfiles in ") :].splitlines()[1:]
+    assert files[0] == f"files in {tmp_path.resolve()}/"
+    assert "  joint plot         arm2_square_joints.png" in files
+    assert "  tip path plot      arm2_square_tip.png" in files
     assert is_png(tmp_path / "arm2_square_joints.png")
 
 
@@ -85,9 +100,9 @@ def test_bad_options_are_refused_with_a_message(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert cli_main(["run", "apps/arm2_square.py", "--side", "0.5", "--out", str(tmp_path)]) == 2
-    assert "out of reach" in capsys.readouterr().err
-    assert cli_main(["run", "apps/arm2_square.py", "--duration", "1"]) == 2
-    assert "too fast" in capsys.readouterr().err
+    assert "error: --side 0.5 --center 0.35 0 --elbow up: the square leaves the arm's reach: " in (
+        capsys.readouterr().err
+    )
     assert cli_main(["run", "apps/arm2_square.py", "--duration", "0"]) == 2
     assert not list(tmp_path.iterdir())  # nothing ran, nothing written
 
@@ -95,13 +110,14 @@ def test_bad_options_are_refused_with_a_message(
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--period-ms", "nan"], "--period-ms must be a whole multiple of the 1 ms physics step"),
-        (["--period-ms", "1.5"], "--period-ms must be a whole multiple of the 1 ms physics step"),
-        (["--duration", "inf"], "--duration must be a number of seconds > 0 and <= 600"),
-        (["--laps", "101"], "--laps x --duration at most 600 s"),
-        (["--points", "0"], "--points must be from 1 to 1000"),
-        (["--points", "100000"], "--points must be from 1 to 1000"),
-        (["--center", "nan", "0"], "--center must be two finite numbers"),
+        (["--period-ms", "nan"], "--period-ms nan: a whole multiple of the 1 ms physics step"),
+        (["--period-ms", "1.5"], "--period-ms 1.5: a whole multiple of the 1 ms physics step"),
+        (["--duration", "inf"], "--duration inf: a number of seconds > 0 and at most 600"),
+        (["--laps", "121"], "--laps 121: from 1, with --laps x --duration at most 600 s"),
+        (["--points", "0"], "--points 0: from 1 to 1000"),
+        (["--points", "100000"], "--points 100000: from 1 to 1000"),
+        (["--center", "nan", "0"], "--center nan 0: two finite numbers of m"),
+        (["--virtual", "--realtime"], "argument --realtime: not allowed with argument --virtual"),
     ],
 )
 def test_every_option_is_checked_before_the_model_loads(
@@ -111,6 +127,31 @@ def test_every_option_is_checked_before_the_model_loads(
     assert cli_main(["run", "apps/arm2_square.py", *args, "--out", str(out_dir)]) == 2
     assert message in capsys.readouterr().err
     assert not out_dir.exists()
+
+
+def test_a_lap_too_fast_names_the_option_and_the_shortest_lap(tmp_path: Path) -> None:
+    """Issue 21 point 5: not the planner's ``waypoints[0].time=0.015625 is not allowed``."""
+    done = subprocess.run(
+        [sys.executable, "-m", "openel_async.cli", "run", "arm2", "--duration", "1", "--out",
+         str(tmp_path / "out")],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("openel-async run arm2: error: --duration 1: a lap takes at least ")
+    shortest = float(last.split("at least ")[1].split(" s ")[0])
+    assert 2.0 < shortest < 4.0 and "waypoints" not in done.stderr
+    assert not (tmp_path / "out").exists()  # nothing ran
+
+
+def test_the_shortest_lap_is_the_planners_limit() -> None:
+    sim = open_sim(realtime=False)
+    arm = PlanarArm.from_model(sim.model)
+    square = SquareOptions()
+    shortest = min_lap_s(arm, square)
+    plan_square(arm, replace(square, lap_s=shortest))  # plans
+    with pytest.raises(LapTooFastError, match=rf"a lap takes at least {shortest:.2f} s"):
+        plan_square(arm, replace(square, lap_s=shortest - 0.1))
 
 
 def test_an_out_that_is_a_file_is_refused(

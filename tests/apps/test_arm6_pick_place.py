@@ -13,25 +13,41 @@ import pytest
 from openel_apps import arm6_pick_place as app
 from openel_apps.arm_demo import ArmOptions
 from openel_async import Actuator, BadParameterError, NotImplementedHALError, Request
-from openel_async.app import LiveLine
+from openel_async.app import AppContext, AppHook, LiveLine
+from openel_async.component import HALComponent
 from openel_async.testing import EventRecorder
 from openel_mujoco import MujocoEffector, MujocoEventId, MujocoSim
 
 from .conftest import assert_snapshot_written_or_explained, is_png, load
 
 
+class Names(AppHook):
+    def __init__(self) -> None:
+        self.names: list[str] = []
+
+    def component_added(self, ctx: AppContext, component: HALComponent) -> None:
+        self.names.append(component.device_name)
+
+
 async def test_pick_and_place_moves_the_box(tmp_path: Path) -> None:
     options = ArmOptions(duration=8.0, realtime=False, out_dir=tmp_path, live=False, period_ms=2.0)
     sim = MujocoSim("arm6", keyframe="home")
     stream = io.StringIO()
+    names = Names()
     with anyio.fail_after(40):
         result = await app.run_pick_place(
-            sim, options=options, place=(0.20, 0.40), live=LiveLine(stream)
+            sim,
+            options=options,
+            place=(0.20, 0.40),
+            live=LiveLine(stream),
+            ctx=AppContext(hooks=[names]),
         )
+    # The components carry the names the app gave them (issue 21 point 7).
+    assert names.names == [*app.JOINTS, "suction", "tool_pos", "pad_touch"]
     assert "suction" in stream.getvalue() and "tool (" in stream.getvalue()  # live progress
 
-    names = [step.name for step in result.steps]
-    assert names == [
+    steps = [step.name for step in result.steps]
+    assert steps == [
         "home", "above box", "down", "suction on", "lift", "move", "down", "suction off", "up",
         "home",
     ]  # fmt: skip
@@ -68,10 +84,24 @@ def test_the_app_refuses_an_unreachable_place(
         ["run", "apps/arm6_pick_place.py", "--place", "0.9", "0", "--out", str(tmp_path)]
     )
     assert code == 2
-    assert "out of reach" in capsys.readouterr().err
+    assert "error: --place 0.9 0: tool point (0.900, 0.000, " in capsys.readouterr().err
     code = cli_main(["run", "apps/arm6_pick_place.py", "--place", "nan", "0"])
     assert code == 2
-    assert "--place must be two finite numbers of m" in capsys.readouterr().err
+    assert "error: --place nan 0: two finite numbers of m" in capsys.readouterr().err
+    code = cli_main(["run", "apps/arm6_pick_place.py", "--duration", "2", "--out", str(tmp_path)])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "error: --duration 2: the sequence takes at least 4.60 s of arm motion" in err
+    assert not list(tmp_path.iterdir())  # nothing ran, nothing written
+
+
+def test_the_shortest_sequence_is_the_planners_limit() -> None:
+    sim = app.open_sim(realtime=False)
+    shortest = app.min_duration_s(sim, app.DEFAULT_PLACE_M)
+    assert shortest is not None
+    app.plan_pick_place(sim, app.DEFAULT_PLACE_M, shortest)  # plans
+    with pytest.raises(app.SequenceTooFastError, match=f"at least {shortest:.2f} s"):
+        app.plan_pick_place(sim, app.DEFAULT_PLACE_M, shortest - 0.1)
 
 
 def test_the_apps_file_is_a_thin_wrapper_of_the_package() -> None:

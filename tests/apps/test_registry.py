@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterator
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 import structlog
@@ -17,6 +18,7 @@ from openel_async.app import (
     AppHook,
     AppInfo,
     AppUnavailable,
+    DemoOptions,
     discover_apps,
     find_app,
     run_app,
@@ -68,11 +70,29 @@ def test_run_by_name(capsys: pytest.CaptureFixture[str]) -> None:
     assert "timer ticks        100 (missed 0)" in out
     assert "sensor faults      0" in out
     assert main(["run", "pantilt", "--virtual", "--duration", "0.2"]) == 0
-    assert "cycles             20" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "cycles             20" in out
+    assert re.search(r"final positions    pan [+-]\d\.\d{4} rad, tilt [+-]\d\.\d{4} rad", out)
     assert main(["run", "twoaxis", "--period-ms", "0"]) == 2
-    assert "openel-async run twoaxis: --period-ms must be from 0.1" in capsys.readouterr().err
+    assert "openel-async run twoaxis: error: --period-ms 0: from 0.1 to 1000 ms" in (
+        capsys.readouterr().err
+    )
     assert main(["run", "nosuchapp"]) == 2
     assert "no app named 'nosuchapp'" in capsys.readouterr().err
+
+
+async def test_the_pan_tilt_axes_have_the_names_the_app_gave() -> None:
+    """Not both ``HalMotorOpenELSimMotor`` (issue 21 point 7)."""
+    from openel_apps.pan_tilt.pan_tilt import PanTilt
+
+    clock = VirtualClock()
+    component = PanTilt("head", clock=clock)
+    await component.on_initialize()
+    try:
+        assert component.pan is not None and component.tilt is not None
+        assert (component.pan.device_name, component.tilt.device_name) == ("pan", "tilt")
+    finally:
+        await component.on_finalize()
 
 
 def test_run_reports_an_app_that_cannot_load_what_it_needs(
@@ -136,17 +156,48 @@ def test_hooks_see_the_clock_components_and_timers_of_an_app() -> None:
 
 def test_hooks_see_the_arm_apps_components(tmp_path: Path) -> None:
     hook = Recorder()
-    argv = ["--no-live", "--out", str(tmp_path), "--duration", "4"]
+    argv = ["--virtual", "--no-live", "--out", str(tmp_path), "--duration", "4"]
     assert run_app(arm2_square.APP_INFO, argv, prog="t", hooks=[hook]) == 0
-    assert hook.events == [
+    assert hook.events == [  # the names the app gave (the model's), not class names
         "enter",
         "clock LockstepClock",
-        "HalMotorMuJoCoShoulder",
-        "HalMotorMuJoCoElbow",
+        "shoulder",
+        "elbow",
         "timer arm2-sync",
-        "HalDistanceMuJoCoTipPos",
+        "tip_pos",
         "exit",
     ]
+
+
+APPS_WITH_DEMO_OPTIONS = [arm2_square, arm6_pick_place, twoaxis]
+
+
+@pytest.mark.parametrize("app", APPS_WITH_DEMO_OPTIONS, ids=lambda m: m.APP_INFO.name)
+def test_the_demo_and_the_app_agree_on_defaults(app: ModuleType) -> None:
+    """Issue 21 point 4: ``openel-async demo`` without options runs the app exactly as
+    ``openel-async run NAME`` without options (duration, period, pacing, outputs)."""
+    info = app.APP_INFO
+    assert info.demo_args is not None
+    parser = app.build_parser("t")
+    assert parser.parse_args(info.demo_args(DemoOptions())) == parser.parse_args([])
+    # Real time by default everywhere; --virtual and --realtime are the same two flags.
+    defaults = parser.parse_args([])
+    assert (defaults.virtual, defaults.realtime) == (False, False)
+    assert parser.parse_args(info.demo_args(DemoOptions(virtual=True))).virtual
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--virtual", "--realtime"])
+
+
+@pytest.mark.parametrize("app", APPS_WITH_DEMO_OPTIONS, ids=lambda m: m.APP_INFO.name)
+def test_every_app_help_reads_as_sentences(app: ModuleType) -> None:
+    """One sentence per option, no reStructuredText backticks (issue 21 points 4 and 7)."""
+    parser = app.build_parser("t")
+    assert "``" not in parser.format_help()
+    for action in parser._actions:
+        if action.help and action.dest != "help":
+            sentence = action.help.strip()
+            assert sentence[0].isupper() and sentence.endswith("."), sentence
+            assert ". " not in sentence, sentence
 
 
 def test_an_app_unavailable_is_raised_to_the_caller() -> None:

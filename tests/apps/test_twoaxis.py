@@ -4,6 +4,9 @@ goes on without a sensor that does not come back."""
 
 from __future__ import annotations
 
+import re
+import subprocess
+import sys
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
@@ -126,3 +129,26 @@ async def test_the_can_demo_survives_a_drive_that_stops_answering_sdo() -> None:
     assert summary.sensor_faults and {name for name, _ in summary.sensor_faults} == {"TEMP_2"}
     assert summary.sensor_recoveries >= 1 and summary.sensors_lost == []
     assert summary.final_positions == pytest.approx((0.0, 0.0), abs=2e-3)
+
+
+def test_the_summary_speaks_the_users_language() -> None:
+    """Issue 21 point 7: units, the names the app gave, no Python reprs, one error per
+    injected fault with the id every bus reports (the CAN rig: tests/can/test_demo.py)."""
+    done = subprocess.run(
+        [sys.executable, "-m", "openel_async.cli", "--log-level", "warning", "run", "twoaxis",
+         "--virtual", "--duration", "1", "--no-live", "--inject-fault"],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    out = done.stdout
+    assert (
+        "  errors             1: MOTOR_2 error 1 (device error: injected over-temperature trip)\n"
+        in out
+    )
+    assert "  final positions    MOTOR_1 +0.0000 rad, MOTOR_2 +0.0000 rad\n" in out
+    readings = next(line for line in out.splitlines() if "last readings" in line)
+    assert re.fullmatch(
+        r"  last readings      ENCODER_1 [+-]\d\.\d{3} rad, TEMP_2 \d{3}\.\d{3} K", readings
+    )
+    assert "events             " in out and " COMPLETED, 0 device-specific" in out
+    assert "[(" not in out and "Hal" not in out

@@ -43,9 +43,12 @@ def test_virtual_demo_prints_a_summary(capsys: pytest.CaptureFixture[str]) -> No
     assert code == 0
     out = capsys.readouterr().out
     assert "timer ticks        200 (missed 0)" in out
-    assert "errors             1 [('MOTOR_2', 7)]" in out
+    assert (
+        "errors             1: MOTOR_2 error 1 (device error: injected over-temperature trip)"
+        in out
+    )
     assert "recoveries         1" in out
-    assert "final positions    +0.0000, +0.0000 rad" in out
+    assert "final positions    MOTOR_1 +0.0000 rad, MOTOR_2 +0.0000 rad" in out
 
 
 async def test_demo_scenario_drives_both_axes_in_step() -> None:
@@ -67,7 +70,7 @@ def test_bad_arguments_are_refused(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--inject-fault"]) == 2  # the MuJoCo arm has no fault to inject
     assert "--inject-fault needs --bus sim or --bus can" in capsys.readouterr().err
     assert main(["demo", "--virtual", "--duration", "1"]) == 2  # a 1 s lap of the square
-    assert "too fast for the joints' limits" in capsys.readouterr().err
+    assert "error: --duration 1: a lap takes at least " in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["demo", "--bus", "carrier-pigeon"])
 
@@ -80,7 +83,7 @@ def test_the_default_demo_is_the_mujoco_arm(
     assert code == 0, out
     assert "summary (MuJoCo arm2 square, lockstep)" in out
     assert "corners reached    4/4" in out
-    assert "square             1 lap(s) of 15 cm in 5 s each" in out  # --duration: 5 s lap
+    assert "square             1 lap of a 15 cm square, 5 s per lap" in out  # --duration: 5 s lap
     assert f"files in {tmp_path.resolve()}/" in out
     assert (tmp_path / "arm2_square_joints.png").read_bytes()[:4] == b"\x89PNG"
 
@@ -104,7 +107,9 @@ def test_demo_app_options_are_checked(
     assert main(["demo", "--app", "arm6", "--bus", "sim", "--virtual"]) == 2
     assert "--app needs --bus mujoco" in capsys.readouterr().err
     assert main(["demo", "--app", "arm6", "--virtual", "--duration", "1", "--no-live"]) == 2
-    assert "openel-async demo: --duration 1 s is too short" in capsys.readouterr().err
+    assert "openel-async demo: error: --duration 1: the sequence takes at least" in (
+        capsys.readouterr().err
+    )
     assert main(["demo", "--app", "arm7"]) == 2
     assert "no app named 'arm7' (registered: arm2, arm6, " in capsys.readouterr().err
     # asked for by name, the app does not fall back to the sim demo when MuJoCo cannot load

@@ -73,12 +73,8 @@ class PanTilt(MultiModeObject):
     async def on_initialize(self) -> CallbackResult:
         stack = AsyncExitStack()
         try:
-            self.pan = await stack.enter_async_context(
-                Actuator(SimMotor(max_velocity=4.0, max_acceleration=40.0), clock=self.clock)
-            )
-            self.tilt = await stack.enter_async_context(
-                Actuator(SimMotor(max_velocity=4.0, max_acceleration=40.0), clock=self.clock)
-            )
+            self.pan = await stack.enter_async_context(_axis("pan", self.clock))
+            self.tilt = await stack.enter_async_context(_axis("tilt", self.clock))
         except BaseException:
             await stack.aclose()
             raise
@@ -149,5 +145,11 @@ class PanTilt(MultiModeObject):
             "setpoints": self.setpoints,
             "mode changes": self.mode_changes,
             "tracking error": f"max {self.max_tracking_error:.4f} rad",
-            "final positions": f"{pan:+.4f}, {tilt:+.4f} rad",
+            "final positions": f"pan {pan:+.4f} rad, tilt {tilt:+.4f} rad",
         }
+
+
+def _axis(name: str, clock: Clock) -> Actuator:
+    """One axis of the head, named as the user knows it (logs, recordings, summaries)."""
+    motor = SimMotor(max_velocity=4.0, max_acceleration=40.0)
+    return Actuator(motor, device_name=name, clock=clock)
