@@ -415,13 +415,13 @@ class HALComponent:
         if self.state is S.ACTIVE:
             self.last_fault = error
             self._set_state(S.ERROR)
-            self.log.error("device_fault", error_id=error_id, reason=reason, code=code.name)
+            self.log.error("device_fault", error_id=int(error_id), reason=reason, code=code.name)
             self._on_fault(error)
         if self.state in (S.ACTIVE, S.ERROR):
             self._publish_error(error_id)
         else:
             self.log.warning(
-                "fault_outside_operation", error_id=error_id, reason=reason, state=str(self.state)
+                "fault_outside_operation", error_id=int(error_id), reason=reason, state=str(self.state)
             )
         return error
 

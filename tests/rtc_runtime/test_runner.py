@@ -421,3 +421,12 @@ def test_profile_and_class_disagreeing_on_actions_is_logged(tmp_path: Path) -> N
         if e["event"] == "profile_action_mismatch"
     }
     assert mismatches == {("on_execute", False, True), ("on_reset", True, False)}
+
+
+def test_realtime_and_virtual_are_the_apps_flags(capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 21 point 4: a profile run takes --realtime (the default) and --virtual like every
+    app; the two exclude each other."""
+    assert run_profile_cli(APP, ["--realtime", "--duration", "0.05"]) == 0
+    assert "cycles" in capsys.readouterr().out
+    assert run_profile_cli(APP, ["--realtime", "--virtual", "--duration", "1"]) == 2
+    assert "not allowed with argument" in capsys.readouterr().err

@@ -647,11 +647,17 @@ def _parse_args(argv: Sequence[str]) -> argparse.Namespace:
         "(Enter: one tick, a number N: N ticks, end of input (Ctrl-D): the end of the run).",
     )
     parser.add_argument("--duration", type=float, help="seconds to run (default: until Ctrl-C)")
-    parser.add_argument(
+    clock = parser.add_mutually_exclusive_group()
+    clock.add_argument(
         "--virtual",
         action="store_true",
         help="run on the virtual clock (simulated time, as fast as possible; needs --duration, "
         "or --ticks for an ExtTrigExecutionContext)",
+    )
+    clock.add_argument(
+        "--realtime",
+        action="store_true",
+        help="run on the real monotonic clock (the default), as every app does",
     )
     parser.add_argument(
         "--rate",
@@ -754,7 +760,7 @@ def _check_cli_rate(spec: ExecutionSpec, args: argparse.Namespace) -> str | None
 
 
 def run_profile_cli(path: Path, argv: list[str]) -> int:
-    """``openel-async run PROFILE [--duration S] [--virtual] [--rate HZ] [--set N=V]...
+    """``openel-async run PROFILE [--duration S] [--virtual | --realtime] [--rate HZ] [--set N=V]...
     [--ticks N] [--tick-rate HZ]``.
 
     Exit status: 0 after a clean run, 1 when a lifecycle step failed, 2 for a bad
