@@ -130,4 +130,4 @@ def test_unwritable_record_path_is_refused(
     target = tmp_path / "missing-dir" / "x.mcap"
     code = cli_main(["demo", "--bus", "sim", "--virtual", "--no-live", "--record", str(target)])
     assert code == 2
-    assert "--record: cannot start" in capsys.readouterr().err
+    assert f"--record: {target}: no such directory" in capsys.readouterr().err
