@@ -17,6 +17,7 @@ from openel_async.recording import Recorder, info_lines, read_recording
 from openel_sim import SimMotor
 
 from .conftest import TARGETS, scenario
+from .schema_check import check_recording
 
 
 def _mcap_counts(path: Path) -> tuple[dict[str, str], Counter[str], list[tuple[str, dict]]]:
@@ -75,6 +76,7 @@ def test_virtual_clock_demo_recording(tmp_path: Path, capsys: pytest.CaptureFixt
     assert [m["ticks"] for m in stats] == [1] + [10] * 9 + [9]
     assert not any(m["missed_ticks"] for m in stats)
     assert any("timer_stopped" in m["message"] for t, m in decoded if t == "/log")
+    assert check_recording(out) == sum(counts.values())  # every message fits its schema
     info = "\n".join(info_lines(read_recording(out)))
     assert "complete    yes, 0 message(s) dropped" in info
     assert re.search(r"/timer/sync\s+11\s+openel_async.TimerTick", info)

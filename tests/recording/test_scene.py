@@ -126,3 +126,29 @@ def test_mujoco_scene_poses_are_its_transforms() -> None:
     assert poses_message(scene.frames(), scene.poses(), 5) == transforms_message(transforms, 5)
     assert poses_from_bytes(*scene.pose_bytes()) == scene.poses()
     assert any(t.rotation != (0.0, 0.0, 0.0, 1.0) for t in transforms)
+
+
+def test_arm6_hands_its_scene_over_to_the_hooks() -> None:
+    """arm6 gives a recorder or a live view its MuJoCo scene, as arm2 does (its recordings
+    had no /tf and no /scene: the shipped layout's 3D panel was empty); without hooks it
+    builds none."""
+    pytest.importorskip("mujoco")
+    from openel_apps.arm6_pick_place import open_sim
+    from openel_async.app import AppContext, AppHook
+
+    class Spy(AppHook):
+        def __init__(self) -> None:
+            self.scenes: list[object] = []
+
+        def scene_added(self, ctx: AppContext, source: object) -> None:
+            self.scenes.append(source)
+
+    spy = Spy()
+    sim = open_sim(realtime=False, ctx=AppContext(hooks=[spy]))
+    (scene,) = spy.scenes
+    frames = [child for _, child in scene.frames()]  # type: ignore[attr-defined]
+    assert len(frames) >= 7 and len(scene.primitives()) > 0  # type: ignore[attr-defined]
+    assert scene.sim is sim  # type: ignore[attr-defined]
+    spy.scenes.clear()
+    open_sim(realtime=False, ctx=AppContext())
+    assert spy.scenes == []
