@@ -150,12 +150,17 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 def run(args: argparse.Namespace) -> int:
     from ..recording import info_lines, read_recording
+    from ..recording.reader import NotMcapError
 
     path = Path(args.file)
     if not path.is_file():
         print(f"openel-async record: {path}: no such file", file=sys.stderr)
         return 2
-    recording = read_recording(path)
+    try:
+        recording = read_recording(path)
+    except (NotMcapError, OSError) as exc:
+        print(f"openel-async record {args.record_action}: {exc}", file=sys.stderr)
+        return 1
     if args.record_action == "info":
         print("\n".join(info_lines(recording)))
         return 0
