@@ -152,3 +152,23 @@ def test_a_directory_as_record_path_is_refused(
     captured = capsys.readouterr()
     assert f"openel-async demo: --record: {tmp_path}: is a directory" in captured.err
     assert "summary" not in captured.out
+
+
+def test_a_port_in_use_leaves_no_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--record with --foxglove on a port in use: refused before anything runs, and the
+    MCAP file the writer had opened first is not left behind."""
+    import socket
+
+    from openel_async.cli import main
+
+    path = tmp_path / "x.mcap"
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        args = ["demo", "--bus", "sim", "--virtual", "--record", str(path), "--foxglove"]
+        assert main([*args, "--foxglove-port", str(port)]) == 2
+    assert "--record/--foxglove: cannot start" in capsys.readouterr().err
+    assert not path.exists()

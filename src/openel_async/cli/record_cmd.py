@@ -76,7 +76,12 @@ def taps_from_args(args: argparse.Namespace, prog: str) -> list[AppHook] | None:
     tap = _command_tap(record, server)
     try:
         tap.start()
-    except SinkStartError as exc:
+    except BaseException as exc:  # no file is left behind (a port in use, a signal...)
+        if record is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(record)
+        if not isinstance(exc, SinkStartError):
+            raise
         what = (
             "--record/--foxglove"
             if record is not None and foxglove

@@ -327,7 +327,13 @@ class Pipeline:
             self.writer_command(), stdin=subprocess.PIPE, stdout=subprocess.PIPE
         )
         assert process.stdout is not None
-        line = self._ready_line(process.stdout.fileno())
+        try:
+            line = self._ready_line(process.stdout.fileno())
+        except BaseException:  # a signal meanwhile (KeyboardInterrupt): no writer left behind
+            with contextlib.suppress(Exception):
+                process.kill()
+                process.wait(timeout=10)
+            raise
         try:
             if line is None:
                 info = {
