@@ -131,7 +131,7 @@ def test_a_run_refused_before_it_ran_leaves_no_recording(tmp_path: Path) -> None
     process = _start(["run", "--record", str(path), str(app), "--go"], tmp_path)
     code, out = _finish(process, [])
     assert code == 0, out
-    assert f"recording          {path} ({_complete_messages(path)} messages, 0 dropped)" in out
+    assert f"  recording          {path} ({_complete_messages(path)} messages, 0 dropped)" in out
 
 
 def test_an_unwritable_record_path_is_named_before_anything_runs(tmp_path: Path) -> None:

@@ -134,7 +134,7 @@ def _command_tap(record: str | None, server: tuple[str, int] | None) -> Tap:
             import anyio
 
             if exc_type is None or not issubclass(exc_type, anyio.get_cancelled_exc_class()):
-                print(f"recording          {path} ({detail})", flush=True)
+                print(f"  recording          {path} ({detail})", flush=True)
 
     return CommandTap()
 
