@@ -120,6 +120,10 @@ def test_a_file_that_is_not_mcap_is_refused(tmp_path: Path) -> None:
         "MCAP magic)\n"
     )
     assert result.stdout == ""
+    missing = tmp_path / "missing.mcap"
+    result = _cli("record", "plot", str(missing))
+    assert result.returncode == 2
+    assert result.stderr == f"openel-async record plot: {missing}: no such file\n"
 
 
 def test_replay_lines_say_units_and_labels() -> None:

@@ -159,7 +159,7 @@ def run(args: argparse.Namespace) -> int:
 
     path = Path(args.file)
     if not path.is_file():
-        print(f"openel-async record: {path}: no such file", file=sys.stderr)
+        print(f"openel-async record {args.record_action}: {path}: no such file", file=sys.stderr)
         return 2
     try:
         recording = read_recording(path)
