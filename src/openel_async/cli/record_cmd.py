@@ -3,10 +3,11 @@
 
 The recording of ``--record`` is complete or absent: its path is checked before anything
 runs (exit status 2), and a run that the app refuses before it registers a component (a bad
-option, ``--help``, MuJoCo unavailable) leaves no file. At the end the summary says where the
-recording went: a ``recording`` line after the app's own summary, or, when a signal stopped
-the run, a ``file written`` line of the interrupted run's summary (the writer process ignores
-the signal and closes the file once the run has stopped)."""
+option, ``--help``, MuJoCo unavailable) leaves no file, nor does a writer that cannot start.
+At the end the summary says where the recording went (its path, messages and drops): a
+``recording`` line after the app's own summary lines, or, when a signal stopped the run, a
+``file written`` line of the interrupted run's summary (the writer process ignores the signal
+and closes the file once the run has stopped)."""
 
 from __future__ import annotations
 
@@ -97,6 +98,8 @@ def taps_from_args(args: argparse.Namespace, prog: str) -> list[AppHook] | None:
 def _command_tap(record: str | None, server: tuple[str, int] | None) -> Tap:
     """The :class:`~openel_async.recording.Tap` of the command line (see the module
     docstring); a class made here, so that importing this module imports no recorder."""
+    import anyio
+
     from ..app._interrupt import note_written
     from ..recording import Tap
 
@@ -131,8 +134,6 @@ def _command_tap(record: str | None, server: tuple[str, int] | None) -> Tap:
                 "" if error is None else f"; cut short: {error}"
             )
             note_written(path, detail)  # an interrupted run's summary lists it
-            import anyio
-
             if exc_type is None or not issubclass(exc_type, anyio.get_cancelled_exc_class()):
                 print(f"  recording          {path} ({detail})", flush=True)
 
