@@ -178,3 +178,52 @@ def test_a_port_in_use_leaves_no_recording(
         assert main([*args, "--foxglove-port", str(port)]) == 2
     assert "--record/--foxglove: cannot start" in capsys.readouterr().err
     assert not path.exists()
+
+
+@pytest.mark.skipif(not hasattr(os, "login_tty"), reason="a pseudo-terminal (Unix)")
+def test_ctrl_c_in_a_terminal_leaves_a_complete_recording(tmp_path: Path) -> None:
+    """Ctrl-C typed in a terminal (a pseudo-terminal here: the line discipline sends SIGINT
+    to the foreground process group, the app and its writer): no traceback of the writer,
+    a complete file, named by the summary."""
+    import pty
+    import select
+
+    path = tmp_path / "tty.mcap"
+    master, slave = pty.openpty()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "openel_async.cli", "--log-level", "info", "demo", "--bus",
+         "sim", "--duration", "60", "--record", str(path)],
+        stdin=slave,
+        stdout=slave,
+        stderr=slave,
+        cwd=tmp_path,
+        preexec_fn=lambda: os.login_tty(slave),  # a session whose terminal it is
+    )  # fmt: skip
+    os.close(slave)
+    out = b""
+
+    def read() -> bytes:
+        if not select.select([master], [], [], TIMEOUT_S)[0]:
+            process.kill()
+            pytest.fail(f"no output within {TIMEOUT_S} s:\n{out.decode(errors='replace')}")
+        try:
+            return os.read(master, 4096)
+        except OSError:  # EIO: every process of the terminal has ended
+            return b""
+
+    try:
+        while not any(text.encode() in out for text in READY):
+            chunk = read()
+            assert chunk, out.decode(errors="replace")
+            out += chunk
+        os.write(master, b"\x03")  # Ctrl-C
+        while chunk := read():
+            out += chunk
+    finally:
+        os.close(master)
+    code = process.wait(timeout=TIMEOUT_S)
+    text = out.decode(errors="replace")
+    assert code == 130, text
+    assert "Traceback" not in text and "KeyboardInterrupt" not in text, text
+    messages = _complete_messages(path)
+    assert f"file written       {path} ({messages} messages, 0 dropped)" in text, text
