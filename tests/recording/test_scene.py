@@ -21,6 +21,8 @@ from openel_async.recording.scene import (
 )
 from openel_sim import SimMotor
 
+from .schema_check import check_recording
+
 
 class _Arm:
     """A one-link "arm": its link's pose follows a sim motor's position (Transform objects
@@ -102,6 +104,7 @@ async def test_tf_messages_match_the_transforms(tmp_path: Path, source_class: ty
     angles = [m["transforms"][1]["rotation"]["z"] for m in tf]
     assert angles[0] == 0.0 and angles[-1] > angles[1] > 0.0  # the link turned
     assert read_recording(path).topic("/scene")[0]["entities"][0]["frame_id"] == "link"
+    assert check_recording(path) > 0  # /tf and /scene fit their schemas too
 
 
 def test_poses_message_checks_its_numbers() -> None:
