@@ -3,9 +3,9 @@ terminal reaches the app and its writer process alike) ends the run with a compl
 the summary names, a killed app leaves a complete file and no traceback of its writer, a run
 refused before it ran leaves no file, and an unwritable path is refused before anything runs.
 
-Each run is signalled once it printed its first progress line (the app runs, its writer is
-ready), and read to the end of its output: the writer process inherits the output pipe, so its
-end comes when the writer has ended too."""
+Each run (a small app streaming commands until stopped) is signalled once it printed that it
+runs (its writer is ready: it starts before the app), and read to the end of its output: the
+writer process inherits the output pipe, so its end comes when the writer has ended too."""
 
 from __future__ import annotations
 
@@ -21,15 +21,44 @@ from mcap.reader import make_reader
 TIMEOUT_S = 60.0
 
 
-READY = ("ticks=", "timer_started")
-"""The first progress line, or the log line of the timer's start: the app runs, its writer
-process is ready (it starts before the app)."""
+READY = "looper running"
+"""What the app below prints once it runs: its writer process is ready (it starts before the
+app), its components are Active and a timer streams commands."""
+
+LOOPER = """
+import anyio
+from openel_async import Actuator, EventTimer, MonotonicClock
+from openel_async.app import AppContext, AppInfo
+from openel_sim import SimMotor
+
+
+async def main(ctx: AppContext) -> int:
+    clock = ctx.use_clock(MonotonicClock())
+    axis = ctx.add_component(Actuator(SimMotor(), device_name="AXIS", clock=clock))
+    timer = ctx.add_timer(EventTimer(10, clock=clock, name="loop"))
+    async with axis, timer:
+        timer.add_observer(lambda t: axis.set_value_nowait(0.1 * (t.ticks_delivered % 5)))
+        timer.start_timer()
+        await axis.set_value(0.5)
+        print("looper running", flush=True)
+        await anyio.sleep_forever()  # until a signal stops it
+    return 0
+
+
+APP_INFO = AppInfo("looper", "streams commands until stopped", main=main)
+"""
+
+
+def _looper(tmp_path: Path) -> Path:
+    app = tmp_path / "looper.py"
+    app.write_text(LOOPER)
+    return app
 
 
 def _start(args: list[str], cwd: Path) -> subprocess.Popen[str]:
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     return subprocess.Popen(
-        [sys.executable, "-m", "openel_async.cli", "--log-level", "info", *args],
+        [sys.executable, "-m", "openel_async.cli", *args],
         cwd=cwd,
         env=env,
         stdout=subprocess.PIPE,
@@ -40,15 +69,15 @@ def _start(args: list[str], cwd: Path) -> subprocess.Popen[str]:
 
 
 def _until_ready(process: subprocess.Popen[str]) -> list[str]:
-    """The lines up to and including the first that holds one of :data:`READY`."""
+    """The lines up to and including :data:`READY`."""
     assert process.stdout is not None
     lines = []
     for line in process.stdout:
         lines.append(line)
-        if any(text in line for text in READY):
+        if READY in line:
             return lines
     process.kill()
-    pytest.fail(f"no line with one of {READY}:\n{''.join(lines)}")
+    pytest.fail(f"no line {READY!r}:\n{''.join(lines)}")
 
 
 def _finish(process: subprocess.Popen[str], lines: list[str]) -> tuple[int, str]:
@@ -77,7 +106,7 @@ def test_a_signal_to_the_process_group_leaves_a_complete_recording_in_the_summar
     tmp_path: Path, signum: signal.Signals
 ) -> None:
     path = tmp_path / "run.mcap"
-    process = _start(["demo", "--bus", "sim", "--duration", "60", "--record", str(path)], tmp_path)
+    process = _start(["run", "--record", str(path), str(_looper(tmp_path))], tmp_path)
     lines = _until_ready(process)
     os.killpg(process.pid, signum)  # the app and its writer process, as Ctrl-C does
     code, out = _finish(process, lines)
@@ -92,14 +121,14 @@ def test_a_killed_app_leaves_a_complete_recording_and_no_writer_traceback(
     tmp_path: Path,
 ) -> None:
     path = tmp_path / "killed.mcap"
-    process = _start(["demo", "--bus", "sim", "--duration", "60", "--record", str(path)], tmp_path)
+    process = _start(["run", "--record", str(path), str(_looper(tmp_path))], tmp_path)
     lines = _until_ready(process)
     os.kill(process.pid, signal.SIGKILL)  # the app only: its writer sees its input end
     code, out = _finish(process, lines)  # its end: the writer has exited too
     assert code == -signal.SIGKILL
     assert "Traceback" not in out and "BrokenPipeError" not in out, out
     _complete_messages(path)  # complete: summary, footer, the writer's statistics (what the
-    # app had handed over before it was killed: how much that is depends on when it died)
+    # app had handed over before it was killed: how much depends on when it died)
 
 
 APP = """
@@ -154,7 +183,7 @@ def test_a_directory_as_record_path_is_refused(
 ) -> None:
     from openel_async.cli import main
 
-    assert main(["demo", "--bus", "sim", "--virtual", "--record", str(tmp_path)]) == 2
+    assert main(["demo", "--bus", "sim", "--record", str(tmp_path)]) == 2
     captured = capsys.readouterr()
     assert f"openel-async demo: --record: {tmp_path}: is a directory" in captured.err
     assert "summary" not in captured.out
@@ -174,7 +203,7 @@ def test_a_port_in_use_leaves_no_recording(
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
-        args = ["demo", "--bus", "sim", "--virtual", "--record", str(path), "--foxglove"]
+        args = ["demo", "--bus", "sim", "--record", str(path), "--foxglove"]
         assert main([*args, "--foxglove-port", str(port)]) == 2
     assert "--record/--foxglove: cannot start" in capsys.readouterr().err
     assert not path.exists()
@@ -191,8 +220,8 @@ def test_ctrl_c_in_a_terminal_leaves_a_complete_recording(tmp_path: Path) -> Non
     path = tmp_path / "tty.mcap"
     master, slave = pty.openpty()
     process = subprocess.Popen(
-        [sys.executable, "-m", "openel_async.cli", "--log-level", "info", "demo", "--bus",
-         "sim", "--duration", "60", "--record", str(path)],
+        [sys.executable, "-m", "openel_async.cli", "run", "--record", str(path),
+         str(_looper(tmp_path))],
         stdin=slave,
         stdout=slave,
         stderr=slave,
@@ -212,7 +241,7 @@ def test_ctrl_c_in_a_terminal_leaves_a_complete_recording(tmp_path: Path) -> Non
             return b""
 
     try:
-        while not any(text.encode() in out for text in READY):
+        while READY.encode() not in out:
             chunk = read()
             assert chunk, out.decode(errors="replace")
             out += chunk
