@@ -238,6 +238,10 @@ def open_sim(*, realtime: bool, ctx: AppContext | None = None) -> MujocoSim:
         raise AppUnavailable("MuJoCo", f"{type(exc).__name__}: {exc}") from exc
     if ctx is not None:
         ctx.use_clock(sim.clock)
+        if ctx.hooks:  # a recorder or a live view: the arm's bodies for the 3D panel
+            from openel_mujoco.foxglove_scene import MujocoScene
+
+            ctx.add_scene(MujocoScene(sim))
     return sim
 
 

@@ -9,10 +9,15 @@ import math
 from pathlib import Path
 
 import anyio
+import pytest
 
 from openel_async import Actuator, ActuatorBank, ComponentState, EventTimer, Request, VirtualClock
+from openel_async.cli import main as cli_main
+from openel_async.device import DeviceInfo
 from openel_async.recording import Recorder, read_recording
 from openel_sim import SimMotor
+
+from .schema_check import check_recording
 
 
 class _GlitchyMotor(SimMotor):
@@ -80,7 +85,7 @@ async def test_joint_states_from_the_listener_and_the_device(tmp_path: Path) -> 
             # The latest setpoint streamed (0.0 before any): the tap's timer observer was
             # added first, so the sample precedes the setpoint of its own tick.
             assert joint["commanded"] == (before[-1] if before else 0.0)
-            if joint["position"] is None:
+            if "position" not in joint:  # unknown: left out, as the schema has it
                 glitched += 1
                 assert joint["name"] == "AXIS_0"
             else:
@@ -158,3 +163,76 @@ async def test_samples_keep_their_period_when_ticks_do_not_divide_it(tmp_path: P
     stats = rec.topic("/timer/loop")
     assert 12 <= len(stats) <= 14  # every 100 ms, and the rest at the exit
     assert sum(m["ticks"] for m in stats) == delivered >= 399
+
+
+def test_can_joint_states_carry_the_drives_reported_positions(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """On CAN the app reads POSITION_ACTUAL with an awaited ``get_value`` (I/O: the reading
+    comes after the sample's instant, and the drive has no synchronous read): every sample
+    after the first read carries the app's latest read (every one was null), and every
+    message matches its channel's schema."""
+    path = tmp_path / "can.mcap"
+    code = cli_main(
+        ["demo", "--bus", "can", "--duration", "0.6", "--no-live", "--record", str(path)]
+    )
+    assert code == 0, capsys.readouterr().err
+    assert check_recording(path) > 0
+    rec = read_recording(path)
+    reads = {
+        name: [
+            (m["time_ns"], m["value"])
+            for m in rec.topic(f"/hal/{name}")
+            if m["kind"] == "reading" and m["request"] == "POSITION_ACTUAL"
+        ]
+        for name in ("MOTOR_1", "MOTOR_2")
+    }
+    samples = rec.topic("/joint_states")
+    first_read = min(times[0][0] for times in reads.values())
+    later = [s for s in samples if s["time_ns"] > first_read + 100_000_000]
+    assert len(later) >= 10
+    for sample in later:
+        for joint in sample["joints"]:
+            latest = [v for t, v in reads[joint["name"]] if t <= sample["time_ns"]][-1]
+            assert joint["position"] == latest, sample
+
+
+class _SuctionCup(SimMotor):
+    """An actuator of a HAL extension kind (128): no joint."""
+
+    info = DeviceInfo(kind=0x80, vendor_id=0x0E1, product_id=0x999, product_name="Cup")
+
+
+async def test_only_joints_go_into_joint_states(tmp_path: Path) -> None:
+    """A non-joint actuator (an extension kind, a suction cup) has its channel, not a joint
+    state; the channels of the actuators say their unit and whether they are joints."""
+    path = tmp_path / "cup.mcap"
+    clock = VirtualClock()
+    async with clock.autojump(), Recorder(path) as recorder:
+        axis = Actuator(SimMotor(), device_name="AXIS", clock=clock)
+        cup = Actuator(_SuctionCup(), device_name="CUP", clock=clock)
+        timer = EventTimer(10, clock=clock, name="loop")
+        for component in (axis, cup):
+            recorder.observe(component)
+        recorder.observe_timer(timer)
+        async with axis, cup, timer:
+            timer.start_timer()
+            cup.set_value_nowait(1.0, Request.POSITION)
+            await clock.sleep(0.1)
+            timer.stop_timer()
+    rec = read_recording(path)
+    samples = rec.topic("/joint_states")
+    assert samples and all([j["name"] for j in s["joints"]] == ["AXIS"] for s in samples)
+    assert [m["kind"] for m in rec.topic("/hal/CUP")].count("command") == 1
+    meta = {c.topic: c.metadata for c in rec.channels.values()}
+    assert meta["/hal/AXIS"]["joint"] == "true" and meta["/hal/AXIS"]["unit"] == "rad"
+    assert meta["/hal/CUP"]["joint"] == "false"
+    check_recording(path)
+
+
+async def test_glitched_joint_states_match_their_schema(tmp_path: Path) -> None:
+    """A position that could not be read is left out of its joint state (it was null where
+    the schema says number)."""
+    path = tmp_path / "glitch.mcap"
+    await _run(path)
+    assert check_recording(path) > 0

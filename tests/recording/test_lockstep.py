@@ -10,8 +10,11 @@ from pathlib import Path
 
 import anyio
 import pytest
+import structlog
 
 from openel_async.recording import Recorder
+
+from .schema_check import check_recording
 
 pytest.importorskip("mujoco")
 
@@ -78,9 +81,18 @@ async def test_on_a_lockstep_clock_the_tap_paces_itself(tmp_path: Path) -> None:
                 timer.start_timer()
                 await done.wait()
                 delivered = timer.ticks_delivered
+                logged_at = sim.clock.now_ns()
+                structlog.get_logger("test_lockstep").warning("lockstep_line")
     from openel_async.recording import read_recording
 
+    assert check_recording(path) > 0  # every message fits its schema
     rec = read_recording(path)
+    # /log on the simulation's clock (shifted to the wall clock, as every other channel)
+    (line,) = [
+        m for m in rec.messages if m.topic == "/log" and m.data["message"] == "lockstep_line"
+    ]
+    (sample,) = [m for m in rec.messages if m.topic == "/joint_states"][-1:]
+    assert line.log_time_ns == sample.log_time_ns - sample.data["time_ns"] + logged_at
     stats = rec.topic("/timer/loop")
     assert sum(m["ticks"] for m in stats) == delivered == 500
     assert all(m["missed_ticks"] == 0 for m in stats)

@@ -8,6 +8,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+import structlog
 from mcap.reader import make_reader
 
 from openel_async import Actuator, BadParameterError, VirtualClock
@@ -16,6 +17,7 @@ from openel_async.recording import Recorder, info_lines, read_recording
 from openel_sim import SimMotor
 
 from .conftest import TARGETS, scenario
+from .schema_check import check_recording
 
 
 def _mcap_counts(path: Path) -> tuple[dict[str, str], Counter[str], list[tuple[str, dict]]]:
@@ -74,6 +76,7 @@ def test_virtual_clock_demo_recording(tmp_path: Path, capsys: pytest.CaptureFixt
     assert [m["ticks"] for m in stats] == [1] + [10] * 9 + [9]
     assert not any(m["missed_ticks"] for m in stats)
     assert any("timer_stopped" in m["message"] for t, m in decoded if t == "/log")
+    assert check_recording(out) == sum(counts.values())  # every message fits its schema
     info = "\n".join(info_lines(read_recording(out)))
     assert "complete    yes, 0 message(s) dropped" in info
     assert re.search(r"/timer/sync\s+11\s+openel_async.TimerTick", info)
@@ -130,4 +133,34 @@ def test_unwritable_record_path_is_refused(
     target = tmp_path / "missing-dir" / "x.mcap"
     code = cli_main(["demo", "--bus", "sim", "--virtual", "--no-live", "--record", str(target)])
     assert code == 2
-    assert "--record: cannot start" in capsys.readouterr().err
+    assert f"--record: {target}: no such directory" in capsys.readouterr().err
+
+
+async def test_log_lines_are_on_the_apps_clock(tmp_path: Path) -> None:
+    """``/log`` is on the app's clock shifted to the wall clock, as every other channel: on a
+    virtual clock a line logged 5 s later (of virtual time, instant in real time) is 5 s
+    later in the file, at the same log time as a command sent with it (it was the wall
+    clock: every line within the run's few milliseconds)."""
+    path = tmp_path / "log.mcap"
+    clock = VirtualClock()
+    logger = structlog.get_logger("test_recording_log")
+    async with clock.autojump(), Recorder(path) as recorder:
+        axis = Actuator(SimMotor(), device_name="AXIS", clock=clock)
+        recorder.observe(axis)
+        async with axis:
+            logger.warning("first_line")
+            await clock.sleep(5.0)
+            axis.set_value_nowait(0.1)
+            logger.warning("second_line")
+    rec = read_recording(path)
+    logs = {
+        m.data["message"]: m
+        for m in rec.messages
+        if m.topic == "/log" and m.data["message"] in ("first_line", "second_line")
+    }
+    first, second = logs["first_line"], logs["second_line"]
+    assert second.log_time_ns - first.log_time_ns == 5_000_000_000
+    stamp = second.data["timestamp"]
+    assert stamp["sec"] * 1_000_000_000 + stamp["nsec"] == second.log_time_ns
+    (command,) = [m for m in rec.messages if m.topic == "/hal/AXIS" and m.data["kind"] == "command"]
+    assert command.log_time_ns == second.log_time_ns

@@ -21,6 +21,8 @@ from openel_async.recording.scene import (
 )
 from openel_sim import SimMotor
 
+from .schema_check import check_recording
+
 
 class _Arm:
     """A one-link "arm": its link's pose follows a sim motor's position (Transform objects
@@ -102,6 +104,7 @@ async def test_tf_messages_match_the_transforms(tmp_path: Path, source_class: ty
     angles = [m["transforms"][1]["rotation"]["z"] for m in tf]
     assert angles[0] == 0.0 and angles[-1] > angles[1] > 0.0  # the link turned
     assert read_recording(path).topic("/scene")[0]["entities"][0]["frame_id"] == "link"
+    assert check_recording(path) > 0  # /tf and /scene fit their schemas too
 
 
 def test_poses_message_checks_its_numbers() -> None:
@@ -126,3 +129,29 @@ def test_mujoco_scene_poses_are_its_transforms() -> None:
     assert poses_message(scene.frames(), scene.poses(), 5) == transforms_message(transforms, 5)
     assert poses_from_bytes(*scene.pose_bytes()) == scene.poses()
     assert any(t.rotation != (0.0, 0.0, 0.0, 1.0) for t in transforms)
+
+
+def test_arm6_hands_its_scene_over_to_the_hooks() -> None:
+    """arm6 gives a recorder or a live view its MuJoCo scene, as arm2 does (its recordings
+    had no /tf and no /scene: the shipped layout's 3D panel was empty); without hooks it
+    builds none."""
+    pytest.importorskip("mujoco")
+    from openel_apps.arm6_pick_place import open_sim
+    from openel_async.app import AppContext, AppHook
+
+    class Spy(AppHook):
+        def __init__(self) -> None:
+            self.scenes: list[object] = []
+
+        def scene_added(self, ctx: AppContext, source: object) -> None:
+            self.scenes.append(source)
+
+    spy = Spy()
+    sim = open_sim(realtime=False, ctx=AppContext(hooks=[spy]))
+    (scene,) = spy.scenes
+    frames = [child for _, child in scene.frames()]  # type: ignore[attr-defined]
+    assert len(frames) >= 7 and len(scene.primitives()) > 0  # type: ignore[attr-defined]
+    assert scene.sim is sim  # type: ignore[attr-defined]
+    spy.scenes.clear()
+    open_sim(realtime=False, ctx=AppContext())
+    assert spy.scenes == []

@@ -12,7 +12,8 @@ turns SIGTERM into ``SystemExit(143)`` and the CLI's ``main`` turns ``KeyboardIn
 
 Output files are written through :func:`atomic_output`: a file is either complete or absent
 (a temporary name, renamed when written; removed when interrupted or failed).  The files a
-command wrote are collected by :func:`collect_written` for its summary.
+command wrote are collected by :func:`collect_written` for its summary; a file written by
+other means (a recording, closed by its writer process) is counted with :func:`note_written`.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ __all__ = [
     "exit_code",
     "install_sigterm_handler",
     "interrupt_code",
+    "note_written",
     "run_interruptible",
 ]
 
@@ -53,6 +55,7 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 T = TypeVar("T")
 
 _written: ContextVar[list[Path] | None] = ContextVar("openel_cli_written", default=None)
+_details: ContextVar[dict[Path, str] | None] = ContextVar("openel_cli_details", default=None)
 
 
 def exit_code(signum: int) -> int:
@@ -71,6 +74,8 @@ class Interrupted:
     """An error raised while the work was being cancelled (logged, not raised)."""
     files: list[Path] = field(default_factory=list)
     """Complete files the work wrote before it was stopped."""
+    details: dict[Path, str] = field(default_factory=dict)
+    """What the summary says of some of them (:func:`note_written`)."""
 
     @property
     def exit_code(self) -> int:
@@ -82,7 +87,9 @@ class Interrupted:
         if self.cleanup_error is not None:
             out.append(f"clean-up error     {self.cleanup_error}")
         if self.files:
-            out += [f"file written       {path}" for path in self.files]
+            for path in self.files:
+                detail = self.details.get(path)
+                out.append(f"file written       {path}" + (f" ({detail})" if detail else ""))
         else:
             out.append("files              none written")
         return out
@@ -117,7 +124,9 @@ async def run_interruptible(work: Callable[[], Awaitable[T]]) -> T | Interrupted
     previous_sigterm = signal.getsignal(signal.SIGTERM)
     caught: list[signal.Signals] = []
     written: list[Path] = []
+    details: dict[Path, str] = {}
     token = _written.set(written)
+    details_token = _details.set(details)
     start = time.monotonic()
     scope = anyio.CancelScope()
     results: list[T] = []
@@ -136,12 +145,13 @@ async def run_interruptible(work: Callable[[], Awaitable[T]]) -> T | Interrupted
             tg.cancel_scope.cancel()
     finally:
         _written.reset(token)
+        _details.reset(details_token)
         with contextlib.suppress(ValueError, TypeError, OSError):
             signal.signal(signal.SIGTERM, previous_sigterm)
     if results:
         return results[0]
     # Not finished: cancelled by the signal caught (the work cannot return without a result).
-    return Interrupted(caught[0], time.monotonic() - start, error, written)
+    return Interrupted(caught[0], time.monotonic() - start, error, written, details)
 
 
 def _raise_terminated(signum: int, frame: FrameType | None) -> None:
@@ -184,6 +194,18 @@ def atomic_output(path: Path) -> Iterator[Path]:
     finally:
         with contextlib.suppress(FileNotFoundError):
             temporary.unlink()
+
+
+def note_written(path: Path, detail: str = "") -> None:
+    """Count ``path``, a complete file written by other means than :func:`atomic_output` (a
+    recording), among this command's files (:func:`collect_written`); ``detail`` is what its
+    summary line says of it."""
+    written = _written.get()
+    if written is not None:
+        written.append(path)
+        details = _details.get()
+        if details is not None and detail:
+            details[path] = detail
 
 
 def collect_written() -> list[Path]:

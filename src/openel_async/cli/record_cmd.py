@@ -1,17 +1,30 @@
 """``openel-async record info|plot FILE.mcap`` and the ``--record``/``--foxglove`` options of
-``demo`` and ``run`` (the hooks they attach to the app)."""
+``demo`` and ``run`` (the hooks they attach to the app).
+
+The recording of ``--record`` is complete or absent: its path is checked before anything
+runs (exit status 2), and a run that the app refuses before it registers a component (a bad
+option, ``--help``, MuJoCo unavailable) leaves no file, nor does a writer that cannot start.
+At the end the summary says where the recording went (its path, messages and drops): a
+``recording`` line after the app's own summary lines, or, when a signal stopped the run, a
+``file written`` line of the interrupted run's summary (the writer process ignores the signal
+and closes the file once the run has stopped)."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import sys
 from pathlib import Path
+from types import TracebackType
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from ..app import AppHook
+    from ..app import AppContext, AppHook
+    from ..component import HALComponent
+    from ..recording import Tap
 
-__all__ = ["add_parser", "add_tap_arguments", "run", "taps_from_args"]
+__all__ = ["add_parser", "add_tap_arguments", "record_path_problem", "run", "taps_from_args"]
 
 
 def add_tap_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,20 +46,43 @@ def add_tap_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--foxglove-port", type=int, default=8765, help=argparse.SUPPRESS)
 
 
+def record_path_problem(path: Path) -> str | None:
+    """Why ``--record`` cannot write ``path`` (None: it can), said before anything runs."""
+    parent = path.parent
+    if path.is_dir():
+        return f"{path}: is a directory"
+    if not parent.exists():
+        return f"{path}: no such directory: {parent}"
+    if not parent.is_dir():
+        return f"{path}: {parent} is not a directory"
+    if not os.access(parent, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        return f"{path}: permission denied"
+    return None
+
+
 def taps_from_args(args: argparse.Namespace, prog: str) -> list[AppHook] | None:
     """The hook ``--record``/``--foxglove`` ask for, its writer process started; None (after
     printing why) when it cannot start (an unwritable file, a port in use)."""
     record, foxglove = getattr(args, "record", None), getattr(args, "foxglove", False)
     if record is None and not foxglove:
         return []
-    from ..recording import Tap
+    if record is not None:
+        problem = record_path_problem(Path(record))
+        if problem is not None:
+            print(f"{prog}: --record: {problem}", file=sys.stderr)
+            return None
     from ..recording.pipeline import SinkStartError
 
     server = (args.foxglove_host, args.foxglove_port) if foxglove else None
-    tap = Tap(record=record, foxglove=server)
+    tap = _command_tap(record, server)
     try:
         tap.start()
-    except SinkStartError as exc:
+    except BaseException as exc:  # no file is left behind (a port in use, a signal...)
+        if record is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(record)
+        if not isinstance(exc, SinkStartError):
+            raise
         what = (
             "--record/--foxglove"
             if record is not None and foxglove
@@ -57,6 +93,51 @@ def taps_from_args(args: argparse.Namespace, prog: str) -> list[AppHook] | None:
     if foxglove:
         print(f"{prog}: Foxglove live view on ws://{args.foxglove_host}:{tap.pipeline.port}")
     return [tap]
+
+
+def _command_tap(record: str | None, server: tuple[str, int] | None) -> Tap:
+    """The :class:`~openel_async.recording.Tap` of the command line (see the module
+    docstring); a class made here, so that importing this module imports no recorder."""
+    import anyio
+
+    from ..app._interrupt import note_written
+    from ..recording import Tap
+
+    path = None if record is None else Path(record).absolute()
+
+    class CommandTap(Tap):
+        def __init__(self) -> None:
+            super().__init__(record=record, foxglove=server)
+            self.registered = False
+            """The app registered a component: it ran (else its recording is removed)."""
+
+        def component_added(self, ctx: AppContext, component: HALComponent) -> None:
+            self.registered = True
+            super().component_added(ctx, component)
+
+        async def __aexit__(
+            self,
+            exc_type: type[BaseException] | None,
+            exc: BaseException | None,
+            tb: TracebackType | None,
+        ) -> None:
+            await super().__aexit__(exc_type, exc, tb)
+            if path is None:
+                return
+            if not self.registered:  # refused before it ran: complete or absent
+                with contextlib.suppress(OSError):
+                    os.unlink(path)  # a local file: no wait worth a thread
+                return
+            stats = self.final_stats or self.stats
+            error = self.pipeline.error
+            detail = f"{stats.written} messages, {stats.dropped} dropped" + (
+                "" if error is None else f"; cut short: {error}"
+            )
+            note_written(path, detail)  # an interrupted run's summary lists it
+            if exc_type is None or not issubclass(exc_type, anyio.get_cancelled_exc_class()):
+                print(f"  recording          {path} ({detail})", flush=True)
+
+    return CommandTap()
 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -75,12 +156,17 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 def run(args: argparse.Namespace) -> int:
     from ..recording import info_lines, read_recording
+    from ..recording.reader import NotMcapError
 
     path = Path(args.file)
     if not path.is_file():
-        print(f"openel-async record: {path}: no such file", file=sys.stderr)
+        print(f"openel-async record {args.record_action}: {path}: no such file", file=sys.stderr)
         return 2
-    recording = read_recording(path)
+    try:
+        recording = read_recording(path)
+    except (NotMcapError, OSError) as exc:
+        print(f"openel-async record {args.record_action}: {exc}", file=sys.stderr)
+        return 1
     if args.record_action == "info":
         print("\n".join(info_lines(recording)))
         return 0

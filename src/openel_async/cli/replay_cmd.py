@@ -44,31 +44,53 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 
 
 def _rig(args: argparse.Namespace) -> Any:
-    from ..recording.replay import parse_options, sim_rig
+    """The rig factory, its options checked (ValueError: ``(option, message)``)."""
+    from ..recording.replay import parse_options, sim_motor_class, sim_rig
 
     if args.rig == "sim":
-        return sim_rig(virtual=not args.realtime, **parse_options(args.option))
+        if args.rig_arg is not None:
+            raise _OptionError("--rig-arg", "only a MODULE:FACTORY rig takes an argument")
+        try:
+            options = parse_options(args.option, sim_motor_class())
+        except ValueError as exc:
+            raise _OptionError("--option", str(exc)) from exc
+        return sim_rig(virtual=not args.realtime, **options)
+    if args.option:
+        raise _OptionError("--option", "only the sim rig takes motor options")
     module_name, sep, factory_name = args.rig.partition(":")
     if not sep:
-        raise ValueError(f"--rig must be sim or MODULE:FACTORY, not {args.rig!r}")
-    factory = getattr(importlib.import_module(module_name), factory_name)
-    return factory(args.rig_arg) if args.rig_arg is not None else factory()
+        raise _OptionError("--rig", f"sim or MODULE:FACTORY, not {args.rig!r}")
+    try:
+        factory = getattr(importlib.import_module(module_name), factory_name)
+        return factory(args.rig_arg) if args.rig_arg is not None else factory()
+    except (ValueError, LookupError, ImportError, AttributeError, TypeError) as exc:
+        raise _OptionError("--rig", f"{args.rig}: {exc}") from exc
+
+
+class _OptionError(Exception):
+    def __init__(self, option: str, message: str) -> None:
+        super().__init__(f"{option}: {message}")
 
 
 def run(args: argparse.Namespace) -> int:
     from ..recording import read_recording
+    from ..recording.reader import NotMcapError
     from ..recording.replay import replay
 
     path = Path(args.file)
     if not path.is_file():
         print(f"openel-async replay: {path}: no such file", file=sys.stderr)
         return 2
-    try:
+    try:  # every option before anything runs
         rig = _rig(args)
-    except (ValueError, LookupError, ImportError, AttributeError, TypeError) as exc:
-        print(f"openel-async replay: --rig: {exc}", file=sys.stderr)
+    except (_OptionError, LookupError) as exc:
+        print(f"openel-async replay: {exc}", file=sys.stderr)
         return 2
-    recording = read_recording(path)
+    try:
+        recording = read_recording(path)
+    except (NotMcapError, OSError) as exc:
+        print(f"openel-async replay: {exc}", file=sys.stderr)
+        return 1
     try:
         result = anyio.run(replay, recording, rig, backend="asyncio")
     except (ValueError, LookupError) as exc:

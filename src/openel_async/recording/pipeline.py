@@ -61,6 +61,15 @@ PIPE_SIZE = 1 << 20
 
 log = structlog.get_logger(__name__)
 
+WRITER_BOOTSTRAP = (
+    "import signal as s; s.signal(s.SIGINT, s.SIG_IGN); s.signal(s.SIGTERM, s.SIG_IGN)\n"
+    "from openel_async.recording.sink_process import main\n"
+    "raise SystemExit(main())"
+)
+"""The writer process's ``python -c`` program (:mod:`.sink_process`): SIGINT and SIGTERM are
+ignored before anything is imported (``python -m`` would import the package first, and a
+Ctrl-C meanwhile would end it with a traceback); the writer ends when its input does."""
+
 
 class Sink(Protocol):
     """What the writer process opens on its Foxglove SDK context (:class:`~.recorder.McapSink`,
@@ -297,8 +306,8 @@ class Pipeline:
 
     def writer_command(self) -> list[str]:
         """The writer process's command line (:mod:`.sink_process` with this pipeline's
-        sinks)."""
-        command = [sys.executable, "-m", "openel_async.recording.sink_process"]
+        sinks; it ignores SIGINT and SIGTERM from its first line on)."""
+        command = [sys.executable, "-c", WRITER_BOOTSTRAP]
         command += ["--nice", str(self.writer_nice)]
         if self.writer_idle and hasattr(os, "SCHED_IDLE"):
             command += ["--idle"]
@@ -318,7 +327,13 @@ class Pipeline:
             self.writer_command(), stdin=subprocess.PIPE, stdout=subprocess.PIPE
         )
         assert process.stdout is not None
-        line = self._ready_line(process.stdout.fileno())
+        try:
+            line = self._ready_line(process.stdout.fileno())
+        except BaseException:  # a signal meanwhile (KeyboardInterrupt): no writer left behind
+            with contextlib.suppress(Exception):
+                process.kill()
+                process.wait(timeout=10)
+            raise
         try:
             if line is None:
                 info = {

@@ -17,7 +17,14 @@ from mcap.exceptions import McapError
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
-__all__ = ["RecordedChannel", "RecordedMessage", "Recording", "info_lines", "read_recording"]
+__all__ = [
+    "NotMcapError",
+    "RecordedChannel",
+    "RecordedMessage",
+    "Recording",
+    "info_lines",
+    "read_recording",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,12 +74,26 @@ class Recording:
                 yield m.topic, m.data
 
 
+MAGIC = b"\x89MCAP0\r\n"
+"""The first bytes of every MCAP file."""
+
+
+class NotMcapError(ValueError):
+    """The file is not an MCAP file (it does not begin with the MCAP magic)."""
+
+
 def read_recording(path: str | os.PathLike[str]) -> Recording:
     """Every channel and message of the MCAP file ``path``, in file order; a file cut short
-    is read up to its last complete record (``complete`` False)."""
+    is read up to its last complete record (``complete`` False). Raises
+    :class:`NotMcapError` for a file that is not MCAP at all."""
     out = Recording(Path(path))
     schemas: dict[int, str] = {}
     with open(out.path, "rb") as f:
+        head = f.read(len(MAGIC))
+        if head != MAGIC:
+            what = "it is empty" if not head else "it does not begin with the MCAP magic"
+            raise NotMcapError(f"{out.path}: not an MCAP file ({what})")
+        f.seek(0)
         reader = StreamReader(f, skip_magic=False)
         try:
             for record in reader.records:

@@ -69,6 +69,15 @@ def _request_name(code: int | None) -> str:
     return name
 
 
+def _joint(name: str, commanded: float | None, position: float | None) -> dict[str, Any]:
+    joint: dict[str, Any] = {"name": name}
+    if commanded is not None:
+        joint["commanded"] = commanded
+    if position is not None:
+        joint["position"] = position
+    return joint
+
+
 def to_message(entry: list[Any]) -> dict[str, Any]:
     """The JSON message of an entry (see :mod:`.schemas`); the frequent kinds first."""
     kind = entry[2]
@@ -87,23 +96,21 @@ def to_message(entry: list[Any]) -> dict[str, Any]:
         }
     if kind == READING:
         _, t, _, request, values = entry
-        return {
-            "kind": "reading",
-            "time_ns": t,
-            "request": _request_name(request),
-            "value": values[0] if values else None,
-            "values": values,
-        }
+        reading = {"kind": "reading", "time_ns": t, "request": _request_name(request)}
+        if values:  # no value: left out (the schema says number)
+            reading["value"] = values[0]
+        reading["values"] = values
+        return reading
     _, t, _, *f = entry
     if kind == STATE:
         return {"kind": "state", "time_ns": t, "state": f[1], "old_state": f[0]}
     if kind in _EVENT_NAMES:
         return {"kind": _EVENT_NAMES[kind], "time_ns": t, "id": f[0]}
-    if kind == JOINTS:
+    if kind == JOINTS:  # an unknown value is left out (the schema says number)
         return {
             "timestamp": stamp(f[0]),
             "time_ns": t,
-            "joints": [{"name": n, "commanded": c, "position": a} for n, c, a in f[1]],
+            "joints": [_joint(n, c, a) for n, c, a in f[1]],
         }
     if kind == LOG_LINE:
         return {

@@ -13,7 +13,8 @@ reads every actuator's final position, compared with the recorded one.
 
 from __future__ import annotations
 
-import contextlib
+import difflib
+import inspect
 import math
 from collections.abc import AsyncIterator, Callable, Mapping, Sequence
 from contextlib import AbstractAsyncContextManager, AsyncExitStack, asynccontextmanager
@@ -76,6 +77,11 @@ class ReplayResult:
     """Replayed time on the rig's clock."""
     final_positions: dict[str, float] = field(default_factory=dict)
     recorded_final_positions: dict[str, float] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+    """Component -> the unit of its positions (``rad``, ``m``; from its channel)."""
+    labels: dict[str, str] = field(default_factory=dict)
+    """Component -> the name to show, when not its component name (its channel's
+    ``label``: the device's own name where the component's is derived from its class)."""
 
     @property
     def max_final_error(self) -> float:
@@ -93,11 +99,16 @@ class ReplayResult:
             f"{self.duration_s:.3f} s replayed"
         ]
         for name, value in self.final_positions.items():
+            unit = self.units.get(name, "")
+            suffix = f" {unit}" if unit else ""
             recorded = self.recorded_final_positions.get(name)
-            rec = "not recorded" if recorded is None else f"recorded {recorded:+.6f}"
-            out.append(f"  {name:16} final {value:+.6f} ({rec})")
+            rec = "not recorded" if recorded is None else f"recorded {recorded:+.6f}{suffix}"
+            label = self.labels.get(name, name)
+            out.append(f"  {label:16} final {value:+.6f}{suffix} ({rec})")
         if not math.isnan(self.max_final_error):
-            out.append(f"max final position difference {self.max_final_error:.3g}")
+            units = {self.units.get(n, "") for n in self.recorded_final_positions}
+            unit = f" {units.pop()}" if len(units) == 1 and "" not in units else ""
+            out.append(f"max final position difference {self.max_final_error:.3g}{unit}")
         return out
 
 
@@ -146,15 +157,49 @@ def _end_ns(recording: Recording) -> int | None:
     return max(times) if times else None
 
 
-def sim_rig(*, virtual: bool = True, **motor_options: Any) -> RigFactory:
-    """A rig of the ``sim`` driver's motors, one per recorded actuator, built with
-    ``motor_options`` (e.g. ``max_velocity=3.0``), on a virtual clock (instant) or, with
-    ``virtual=False``, the real one."""
+def sim_motor_class() -> type[Any]:
+    """The ``sim`` driver's motor class (through the driver registry); LookupError when it
+    is unavailable."""
     entry = next((e for e in discover_drivers() if e.name == "sim"), None)
     if entry is None or entry.info is None or "motor" not in entry.info.devices:
         reason = "not registered" if entry is None else entry.error
         raise LookupError(f"the sim driver's motor is unavailable: {reason}")
-    motor_class = entry.info.devices["motor"]
+    return entry.info.devices["motor"]
+
+
+def _motor_parameters(motor_class: type[Any]) -> dict[str, inspect.Parameter]:
+    keyword = (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    return {
+        name: p
+        for name, p in inspect.signature(motor_class).parameters.items()
+        if p.kind in keyword
+    }
+
+
+def check_motor_options(motor_class: type[Any], options: Mapping[str, Any]) -> None:
+    """Raise ValueError for an option ``motor_class`` does not take (with "did you mean"
+    and the options it takes) or a value it refuses (one motor is built to check them)."""
+    parameters = _motor_parameters(motor_class)
+    for key in options:
+        if key not in parameters:
+            close = difflib.get_close_matches(key, parameters, n=1)
+            hint = f"did you mean {close[0]}? " if close else ""
+            raise ValueError(
+                f"{key!r} is not an option of the motor {motor_class.__name__} ({hint}it takes "
+                f"{', '.join(sorted(parameters))})"
+            )
+    try:
+        motor_class(**options)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(str(exc)) from exc
+
+
+def sim_rig(*, virtual: bool = True, **motor_options: Any) -> RigFactory:
+    """A rig of the ``sim`` driver's motors, one per recorded actuator, built with
+    ``motor_options`` (e.g. ``max_velocity=3.0``: checked now, :func:`check_motor_options`),
+    on a virtual clock (instant) or, with ``virtual=False``, the real one."""
+    motor_class = sim_motor_class()
+    check_motor_options(motor_class, motor_options)
 
     @asynccontextmanager
     async def factory(recording: Recording) -> AsyncIterator[ReplayRig]:
@@ -181,7 +226,12 @@ async def replay(
     """Send the recording's commands to ``rig`` at their recorded times; see the module
     docstring. ``settle_timeout_s`` bounds (in real time) the wait for the last motions."""
     commands = recorded_commands(recording)
-    result = ReplayResult(recorded_final_positions=recorded_final_positions(recording))
+    channels = actuator_channels(recording)
+    result = ReplayResult(
+        recorded_final_positions=recorded_final_positions(recording),
+        units={n: m["unit"] for n, m in channels.items() if "unit" in m},
+        labels={n: m["label"] for n, m in channels.items() if "label" in m},
+    )
     if not commands:
         raise ValueError(f"{recording.path}: no recorded commands to replay")
     end_ns = max(_end_ns(recording) or 0, commands[-1].time_ns)
@@ -225,18 +275,58 @@ async def replay(
     return result
 
 
-def parse_options(items: Sequence[str]) -> dict[str, Any]:
-    """``KEY=VALUE`` options for a rig (numbers as floats, true/false as bools)."""
+def parse_options(items: Sequence[str], motor_class: type[Any] | None = None) -> dict[str, Any]:
+    """``KEY=VALUE`` options for a rig; ValueError naming the option that is malformed. With
+    ``motor_class``, each value is converted to the type of that option's default (a number,
+    true/false, ``LOW,HIGH`` for a pair) and checked (:func:`check_motor_options`); without,
+    numbers become floats and true/false bools."""
+    parameters = {} if motor_class is None else _motor_parameters(motor_class)
     out: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition("=")
         if not sep or not key.isidentifier():
-            raise ValueError(f"--option must be KEY=VALUE, not {item!r}")
-        value: Any = text
-        if text.lower() in ("true", "false"):
-            value = text.lower() == "true"
+            raise ValueError(f"{item!r} is not KEY=VALUE (e.g. max_velocity=3.0)")
+        if motor_class is not None and key in parameters:
+            out[key] = _typed(key, text, parameters[key].default)
         else:
-            with contextlib.suppress(ValueError):
-                value = float(text)
-        out[key] = value
+            out[key] = _guess(text)
+    if motor_class is not None:
+        check_motor_options(motor_class, out)
     return out
+
+
+def _guess(text: str) -> Any:
+    if text.lower() in ("true", "false"):
+        return text.lower() == "true"
+    try:
+        return float(text)
+    except ValueError:
+        return text
+
+
+def _typed(key: str, text: str, default: Any) -> Any:
+    """``text`` as a value of the type of ``default``."""
+    try:
+        if isinstance(default, bool):
+            if text.lower() not in ("true", "false"):
+                raise ValueError
+            return text.lower() == "true"
+        if isinstance(default, int):
+            return int(text)
+        if isinstance(default, float):
+            return float(text)
+        if isinstance(default, tuple):
+            parts = tuple(float(p) for p in text.split(","))
+            if len(parts) != len(default):
+                raise ValueError
+            return parts
+    except ValueError:
+        if isinstance(default, tuple):
+            expected = f"{len(default)} numbers separated by commas"
+        else:
+            expected = {bool: "true or false", int: "an integer"}.get(type(default), "a number")
+        shown = ",".join(map(repr, default)) if isinstance(default, tuple) else repr(default)
+        raise ValueError(
+            f"{key}={text!r} is not allowed: expected {expected} (default {key}={shown})"
+        ) from None
+    return _guess(text) if default is inspect.Parameter.empty else text

@@ -9,15 +9,16 @@ Topic                      Schema                      One message per
 ``/hal/<component>``       ``openel_async.HalRecord``  command, reading, event, completion, error, state
                                                        change of that component (``kind`` tells which)
 ``/timer/<timer>``         ``openel_async.TimerTick``  that EventTimer's tick statistics (ticks, lateness, missed)
-``/joint_states``          ``openel_async.JointStates`` sample of every actuator (commanded and actual)
-``/log``                   ``foxglove.Log``            log line (info and above)
+``/joint_states``          ``openel_async.JointStates`` sample of every joint (commanded and actual)
+``/log``                   ``foxglove.Log``            log line (info and above), on the app's clock
 ``/tf``                    ``foxglove.FrameTransforms`` sample of a scene's body poses (MuJoCo rigs)
 ``/scene``                 ``foxglove.SceneUpdate``    the scene's geometry (once, then on subscribe)
 =========================  ==========================  =================================================
 
 Times: ``log_time`` is wall-clock ns since 1970 (the app's clock shifted to the wall clock
-at the start); every message also carries ``time_ns``, the time on the app's own clock
-(virtual or simulated time included), which replay uses.
+at the start, on every channel); every message but ``/log``'s also carries ``time_ns``, the
+time on the app's own clock (virtual or simulated time included), which replay uses. A value
+that is not known is left out of its message (never ``null`` where a schema says number).
 """
 
 from __future__ import annotations
@@ -148,7 +149,8 @@ JOINT_STATES = Schema(
     "openel_async.JointStates",
     {
         "title": "openel_async.JointStates",
-        "description": "Commanded and actual position of every actuator",
+        "description": "Commanded and actual position of every joint (a motor); a value "
+        "that is not known is left out",
         "type": "object",
         "properties": {
             "timestamp": _TIME,
@@ -157,10 +159,11 @@ JOINT_STATES = Schema(
                 "type": "array",
                 "items": {
                     "type": "object",
+                    "required": ["name"],
                     "properties": {
                         "name": _STR,
                         "commanded": _NUMBER,
-                        "position": {**_NUMBER, "description": "actual (null: not readable)"},
+                        "position": {**_NUMBER, "description": "actual (left out: not known)"},
                     },
                 },
             },

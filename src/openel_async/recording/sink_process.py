@@ -10,7 +10,15 @@ the interpreter lock: the application only appends tuples to a list. The parent
 list of entries (:mod:`.records`). When its stdin closes -- the parent finished or was
 killed -- the process writes what it received, closes the MCAP file (summary and footer) and
 exits. It prints one JSON line when ready (``{"port": N}``: the WebSocket port) and one when
-done (``{"written": N, "cpu_s": S}``: the CPU time it spent writing).
+done (``{"written": N, "cpu_s": S}``: the CPU time it spent writing; not printed, and no error
+either, when the parent is gone).
+
+It ignores SIGINT and SIGTERM (the parent starts it with
+:data:`~.pipeline.WRITER_BOOTSTRAP`, which does that before anything is imported): Ctrl-C in
+a terminal and a SIGTERM to the process group reach the parent and its writer alike, and the
+parent stops the run, then closes the writer's input, which ends it with a complete file. A
+signal must not cut the file first, nor print a ``KeyboardInterrupt`` traceback of the
+writer beside the parent's summary.
 
 ``python -m openel_async.recording.sink_process [--mcap PATH] [--foxglove HOST:PORT]
 [--chunk-size BYTES] [--nice N] [--idle] [--cpu N]``
@@ -22,6 +30,7 @@ import argparse
 import contextlib
 import json
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable
@@ -37,6 +46,28 @@ from .records import BATCH, CHANNEL, COLUMNS, COMMAND, HEADER, SCHEMAS, STATS, t
 from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, Schema
 
 LogCall = Callable[[bytes, int | None, int | None], None]
+
+
+def ignore_stop_signals() -> None:
+    """SIGINT and SIGTERM are the parent's to handle (see the module docstring)."""
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(ValueError, OSError):  # not the main thread
+            signal.signal(signum, signal.SIG_IGN)
+
+
+def say(info: dict[str, Any]) -> bool:
+    """Print ``info`` as a JSON line to the parent; False (quietly) when the parent is gone
+    (its end of the pipe closed: killed). stdout then goes to /dev/null, so that nothing
+    fails again when the interpreter flushes it at exit."""
+    try:
+        print(json.dumps(info), flush=True)
+    except (BrokenPipeError, ValueError, OSError):
+        with contextlib.suppress(OSError, ValueError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+        return False
+    return True
 
 
 def flush(out: list[tuple[int, LogCall, bytes]]) -> int:
@@ -124,6 +155,7 @@ def main(argv: list[str] | None = None) -> int:
         "--cpu", type=int, default=None, help="the one CPU to run on (before any thread)"
     )
     args = parser.parse_args(argv)
+    ignore_stop_signals()
     if args.nice and hasattr(os, "nice"):
         os.nice(args.nice)  # the control loop comes first; this process catches up
     if args.idle and hasattr(os, "SCHED_IDLE"):
@@ -154,17 +186,17 @@ def main(argv: list[str] | None = None) -> int:
             sinks.append(live)
             info["port"] = live.port
     except Exception as exc:
-        print(json.dumps({"error": f"{type(exc).__name__}: {exc}"}), flush=True)
+        say({"error": f"{type(exc).__name__}: {exc}"})
         for sink in sinks:
             sink.close(PipelineStats(0, 0, 0, 0))
         return 1
-    print(json.dumps(info), flush=True)
+    say(info)  # the parent gone already: its input ends at once, and the file is closed
     cpu = time.process_time()
     stats = serve(sys.stdin.buffer, context, SCHEMAS)
     for sink in sinks:
         sink.close(stats)
     cpu = time.process_time() - cpu
-    print(json.dumps({"written": stats.written, "cpu_s": cpu}), flush=True)
+    say({"written": stats.written, "cpu_s": cpu})  # nobody to tell when the parent was killed
     return 0
 
 

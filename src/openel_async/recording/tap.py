@@ -33,6 +33,7 @@ from ..clock import Clock, InlineScheduler, ScheduledCall, run_in_thread
 from ..component import ComponentState, HALComponent
 from ..device import ValueSource
 from ..errors import HALError, WouldBlockError
+from ..ids import DeviceKind, component_name, profile_name
 from ..listeners import BatchListener
 from ..requests import EventId, Request
 from ..timer import EventTimer
@@ -78,6 +79,10 @@ _COMPLETED = int(EventId.COMPLETED)
 _POSITION = Request.POSITION
 _POSITION_ACTUAL = Request.POSITION_ACTUAL
 _POSITION_CODE = int(Request.POSITION)
+FRESH_PERIODS = 5
+"""A joint-state sample of a device that reads only with I/O takes the application's latest
+read when it is at most this many joint periods old (a late tick of a busy real-time loop
+moves the reads by tens of ms), else the position is unknown."""
 _LOG_LEVELS = {"debug": 1, "info": 2, "warning": 3, "warn": 3, "error": 4, "critical": 5}
 
 
@@ -491,6 +496,30 @@ class _BankTap:
         return columns.taken + len(self.times) + self.drops
 
 
+def is_joint(component: HALComponent) -> bool:
+    """``component`` is a joint of ``/joint_states``: an Actuator of the HAL Motor kind (a
+    rotary or linear motor), not an extension device such as a suction cup."""
+    return isinstance(component, Actuator) and component.hal_id.device_kind_id == DeviceKind.MOTOR
+
+
+def user_name(component: HALComponent) -> str:
+    """The name to show for ``component``: its component name, unless that is the one
+    HAL4RT derives from its device's class (``HalMotorMuJoCoShoulder``) and the device has a
+    name of its own (the model's joint, ``shoulder``)."""
+    name = component.device_name
+    own = getattr(component.device, "name", None)
+    if not isinstance(own, str) or not own:
+        return name
+    info = component.device.info
+    try:
+        derived = component_name(
+            profile_name(component.hal_id.device_kind_id), info.vendor_name, info.product_name
+        )
+    except HALError:
+        return name
+    return own if name == derived else name
+
+
 def _unreadable(request: Request) -> float:
     """The read of a device without a synchronous read path: nothing (NaN: None)."""
     return math.nan
@@ -683,7 +712,7 @@ class Tap(AppHook):
         else:
             self.pipeline.drive_from(loop)  # the loop writes: no thread wakes up meanwhile
         offset, self.pipeline.offset_ns = self.pipeline.offset_ns, 0
-        self._log_channel = self.pipeline.add_channel(LOG_TOPIC, LOG)  # wall-clock times
+        self._log_channel = self.pipeline.add_channel(LOG_TOPIC, LOG)  # times: log times
         self.pipeline.offset_ns = offset
         if self._logs:
             self._install_log_forwarder()
@@ -756,6 +785,13 @@ class Tap(AppHook):
             "device": str(getattr(device, "name", "") or type(device).__name__),
             "device_class": f"{type(device).__module__}.{type(device).__qualname__}",
         }
+        label = user_name(component)
+        if label != component.device_name:
+            metadata["label"] = label
+        joint = is_joint(component)
+        if isinstance(component, Actuator):
+            metadata["unit"] = "m" if getattr(device, "linear", False) else "rad"
+            metadata["joint"] = "true" if joint else "false"
         if limits is not None:
             low, high = limits.position
             metadata.update(
@@ -773,7 +809,7 @@ class Tap(AppHook):
         )
         self._listeners[id(component)] = listener
         self._components.append(component)
-        if isinstance(listener, _ActuatorTap):
+        if isinstance(listener, _ActuatorTap) and joint:  # a suction cup is no joint
             self._actuators.append(listener)
             if self._joint_channel < 0:
                 self._joint_channel = self.pipeline.add_channel(JOINT_STATES_TOPIC, JOINT_STATES)
@@ -890,15 +926,19 @@ class Tap(AppHook):
         self._put((self._channels[id(source)], source.clock.now_ns(), ERROR, error_id))
 
     def sample(self, now: int) -> None:
-        """``/joint_states`` (and ``/tf``) at ``now``: each Active actuator's commanded
+        """``/joint_states`` (and ``/tf``) at ``now``: each Active joint's commanded
         position (the last one its listener heard) and actual position (the application's
         own ``POSITION_ACTUAL`` read at this very clock time, when it made one; else its
         device's synchronous read, as ``get_value_nowait`` reads it but without its side
         effects: a non-finite value is recorded as None, not made a fault of the actuator;
-        None when the device cannot read now), with no read through the framework."""
+        for a device that reads only with I/O -- a bus drive, which the application reads
+        with an awaited ``get_value`` that ends after the sample's instant -- the
+        application's latest read within the last :data:`FRESH_PERIODS` joint periods; else
+        None), with no read through the framework."""
         log_time = now + (self._offset or 0)
         if self._actuators:
             joints = []
+            fresh = FRESH_PERIODS * self.joint_period_ns
             for tap in self._actuators:
                 if tap.actuator.state is not _ACTIVE:
                     continue
@@ -908,23 +948,32 @@ class Tap(AppHook):
                     joints.append((tap.name, commanded, commanded))
                     continue
                 app_read = None
-                for readings, index, width in tap.actuals:
+                at = -1
+                for readings, index, width in tap.actuals:  # the app's latest read
                     times = readings.times
-                    if times and times[-1] == now:  # the app read it at this very time
-                        app_read = readings.values[(len(times) - 1) * width + index]
-                        break
-                if app_read is not None:
+                    n = len(times)
+                    if n:
+                        if times[n - 1] > at:
+                            at = times[n - 1]
+                            app_read = readings.values[(n - 1) * width + index]
+                    elif readings.last_values is not None and readings.last_time > at:
+                        at = readings.last_time
+                        app_read = readings.last_values[index]
+                if app_read is not None and at == now:  # read at this very time
                     joints.append((tap.name, commanded, app_read))
                     continue
-                try:
-                    actual: float | None = read(_POSITION_ACTUAL)
-                except WouldBlockError:  # a bus device: no synchronous read, now or later
-                    tap.read = _unreadable
-                    actual = None
-                except Exception:  # a fault: the component reports it on its own path
-                    actual = None
-                if type(actual) is not float or actual - actual != 0.0:
-                    actual = None  # recorded as unknown, not made a fault of the actuator
+                actual: float | None = None
+                if read is not _unreadable:
+                    try:
+                        actual = read(_POSITION_ACTUAL)
+                    except WouldBlockError:  # a bus device: no synchronous read, now or later
+                        tap.read = read = _unreadable
+                    except Exception:  # a fault: the component reports it on its own path
+                        actual = None
+                    if type(actual) is not float or actual - actual != 0.0:
+                        actual = None  # recorded as unknown, not made a fault of the actuator
+                if read is _unreadable and app_read is not None and now - at <= fresh:
+                    actual = app_read  # what the drive last reported to the application
                 joints.append((tap.name, commanded, actual))
             self._put((self._joint_channel, now, JOINTS, log_time, joints))
         for entry in self._scenes:
@@ -948,7 +997,11 @@ class Tap(AppHook):
     def _forward(self, logger: Any, method_name: str, event_dict: Any) -> Any:
         level = _LOG_LEVELS.get(method_name, 2)
         if level >= 2:
-            wall = time.time_ns()  # the /log channel's offset is 0: wall-clock times
+            # On the app's clock shifted to the wall clock, as every other channel (the
+            # /log channel's offset is 0: its records carry their log time); before a clock
+            # is known, the wall clock (the shift is taken from it then).
+            offset = self._offset
+            wall = time.time_ns() if offset is None else self.now() + offset
             fields = " ".join(
                 f"{k}={v}"
                 for k, v in event_dict.items()
