@@ -421,7 +421,10 @@ class HALComponent:
             self._publish_error(error_id)
         else:
             self.log.warning(
-                "fault_outside_operation", error_id=int(error_id), reason=reason, state=str(self.state)
+                "fault_outside_operation",
+                error_id=int(error_id),
+                reason=reason,
+                state=str(self.state),
             )
         return error
 

@@ -222,7 +222,8 @@ def test_every_key_position_points_at_the_key(tree: dict[str, object], indent: i
             for key, value in node.items():
                 where = doc.key(node, key)
                 assert where.line is not None and where.column is not None
-                assert lines[where.line - 1][where.column - 1 :].startswith(f"{key}:")
+                at = lines[where.line - 1][where.column - 1 :]
+                assert at.startswith((f"{key}:", f"'{key}':"))  # YAML quotes "no", "on"
                 stack.append(value)
 
 
