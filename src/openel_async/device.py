@@ -30,13 +30,10 @@ class ErrorId(IntEnum):
     BUS_ERROR = 4
     LIMIT_VIOLATION = 5
     PROTOCOL_ERROR = 6
-    INJECTED = 7
-    """Reserved: a fault injected by a test or a demo (the bundled drivers report injected
-    faults as the fault they simulate, DEVICE_ERROR)."""
-    WATCHDOG = 8
+    WATCHDOG = 7
     """The device's own watchdog expired: the host went silent for longer than the timeout
     and the device stopped by itself (:mod:`openel_async.safety`)."""
-    ESTOP = 9
+    ESTOP = 8
     """The device was put into its protocol's emergency state (:mod:`openel_async.safety`)."""
 
 
