@@ -296,7 +296,8 @@ def run_system_cli(path: Path, argv: Sequence[str]) -> int:
         print(f"{prog}: {path}: {read_problem(exc)}", file=sys.stderr)
         return 2
     except SystemFileError as exc:
-        print(f"{prog}: {path}: {exc}", file=sys.stderr)
+        # a located error starts with the file's name (and line and column) already
+        print(f"{prog}: {exc if exc.location is not None else f'{path}: {exc}'}", file=sys.stderr)
         return 2
     if args.virtual:
         cycles = sum(
