@@ -27,7 +27,7 @@ from ..ports import (
 from ..profile import PortType, ProfileError, RtcProfile, load_profile
 from ..rtobject import RTObject
 from ..runner import ExecutionSpec, execution_spec, load_implementation
-from .model import ComponentSpec, PortRef, SystemFileError, SystemSpec
+from .model import ComponentSpec, DataConnectionSpec, PortRef, SystemFileError, SystemSpec
 
 __all__ = ["PreparedComponent", "PreparedSystem", "blocking_cycle", "prepare_system"]
 
@@ -216,6 +216,7 @@ def prepare_system(spec: SystemSpec, *, clock: Clock) -> PreparedSystem:
     rtcs = {p.spec.name: p.rtc for p in prepared}
     connectors: list[Connector] = []
     edges: dict[str, set[str]] = {}
+    blocking: dict[tuple[str, str], DataConnectionSpec] = {}
     for conn in spec.connections:
         out, inp = _port(rtcs, conn.source), _port(rtcs, conn.target)
         if not isinstance(out, OutPort):
@@ -233,13 +234,15 @@ def prepare_system(spec: SystemSpec, *, clock: Clock) -> PreparedSystem:
         connectors.append(connector)
         if connector.profile.blocking:
             edges.setdefault(conn.source.component, set()).add(conn.target.component)
+            blocking.setdefault((conn.source.component, conn.target.component), conn)
     cycle = blocking_cycle(edges)
     if cycle is not None:
+        first = blocking[(cycle[0], cycle[1])]
         raise SystemFileError(
-            "connections",
+            first.where,
             "a cycle of blocking connectors (full_policy or empty_policy 'block') can "
             "deadlock its components: " + " -> ".join(cycle),
-        )
+        ).at(first.location)
     services: list[ServiceConnection] = []
     for svc in spec.services:
         a, b = _port(rtcs, svc.a), _port(rtcs, svc.b)

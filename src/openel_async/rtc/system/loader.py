@@ -28,6 +28,12 @@ else the RTC Profile next to the rtsys file (or one directory down) whose id is 
 component's ``rts:id``. ``dataport.*`` properties this runtime does not know (e.g.
 ``dataport.serializer.cdr.endian``) are dropped from rtsys connectors; in YAML they
 are errors.
+
+Both forms are strict: an unknown YAML key, or an rtsys element or attribute in the
+``rts``/``rtsExt`` namespaces that OpenRTP's RtsProfile schema does not declare
+(``rtsys_schema``), is refused with the file, line and column and a "did you mean".
+Components and connection ends carry where they are written (``location``), so that
+the errors found when the system is built point there too.
 """
 
 from __future__ import annotations
