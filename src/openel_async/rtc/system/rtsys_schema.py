@@ -57,7 +57,7 @@ def schema() -> xmlschema.XMLSchema:
     first use (importing xmlschema costs about a second)."""
     import xmlschema
 
-    path = files(__package__).joinpath(SCHEMA_DIR, SCHEMA_FILE)
+    path = files(__package__).joinpath(SCHEMA_DIR).joinpath(SCHEMA_FILE)
     return xmlschema.XMLSchema(str(path))
 
 
