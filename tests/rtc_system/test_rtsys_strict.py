@@ -287,3 +287,34 @@ def test_cli_names_the_position(tmp_path: Path) -> None:
         f"openel-async run: {path}:{line}:{column}: system.connections[0].to: component "
         "'tracker' has no port 'targte' (did you mean 'target'?"
     ), done.stderr
+
+
+def test_near_miss_of_the_rts_ext_namespace_refused(tmp_path: Path) -> None:
+    # a typo in xmlns:rtsExt would make every rtsExt name an "extension", silently
+    text = RTSYS.replace(
+        'xmlns:rtsExt="http://www.openrtp.org/namespaces/rts_ext"',
+        'xmlns:rtsExt="http://www.openrtp.org/namespaces/rts_ex"',
+    )
+    path = rtsys(tmp_path, text)
+    line, column = position(text, 'xsi:type="rtsExt:component_ext"')
+    assert str(refused(path)).startswith(
+        f"{path}:{line}:{column}: rts:Components[0]: namespace "
+        "'http://www.openrtp.org/namespaces/rts_ex' is not OpenRTP's (did you mean "
+        "'http://www.openrtp.org/namespaces/rts_ext'?)"
+    )
+    # without xsi:type, at the first rtsExt name
+    text = text.replace('xsi:type="rtsExt:component_ext" ', "")
+    text = text.replace('xsi:type="rtsExt:dataport_ext" ', "")
+    text = text.replace('xsi:type="rtsExt:execution_context_ext" ', "")
+    path.write_text(text)
+    line, column = position(text, '<rtsExt:Properties rtsExt:value="head.yaml"')
+    assert str(refused(path)).startswith(f"{path}:{line}:{column}: rts:Components[2]: namespace ")
+
+
+def test_text_in_an_element_only_element_refused(tmp_path: Path) -> None:
+    text = RTSYS.replace("<rts:ServicePortConnectors ", "oops\n  <rts:ServicePortConnectors ")
+    path = rtsys(tmp_path, text)
+    line, column = position(text, "<rts:RtsProfile ")
+    assert str(refused(path)).startswith(
+        f"{path}:{line}:{column}: rts:RtsProfile: unexpected text 'oops'"
+    )

@@ -21,6 +21,7 @@ tag's text), with columns counted in characters.
 
 from __future__ import annotations
 
+import difflib
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -47,6 +48,10 @@ SCHEMA_DIR = "schema"
 SCHEMA_FILE = "RtsProfile_ext.xsd"
 _PREFIXES = {RTS_NS: "rts", RTS_EXT_NS: "rtsExt", XSI_NS: "xsi", XML_NS: "xml"}
 _XSI_TYPE = f"{{{XSI_NS}}}type"
+# OpenRTP's other namespaces: not near misses of rts/rts_ext
+_OTHER_OPENRTP = frozenset(
+    f"http://www.openrtp.org/namespaces/{n}" for n in ("rtc", "rtc_ext", "rtc_doc", "rts_doc")
+)
 _ROOT = "rts:RtsProfile"
 _CHECKED = (RTS_NS, RTS_EXT_NS, None)  # None: unqualified names
 
@@ -296,24 +301,62 @@ def _effective(
     actual = _qname(written, doc.namespaces(elem))
     allowed = names.derived.get(declared, frozenset({declared}))
     if actual not in allowed:
+        where = doc.attribute(elem, _XSI_TYPE)
+        uri, _ = _split(actual)
+        if uri not in (RTS_NS, RTS_EXT_NS):
+            _extension(doc, uri, path, where)  # a namespace typo, said as such
         options = [shown(t) for t in allowed]
         raise _refuse(
             doc,
             path,
             f"xsi:type {written!r} is not a type this element can have "
             f"({did_you_mean(shown(actual), options)})",
-            doc.attribute(elem, _XSI_TYPE),
+            where,
         )
     return frozenset({actual})
+
+
+def _extension(doc: RtsysDocument, uri: str | None, path: str, location: Location) -> None:
+    """Accept a name in another namespace, unless that namespace is a near miss of
+    rts/rts_ext (a typo in ``xmlns:rtsExt`` would turn every rtsExt name into an
+    extension, silently)."""
+    if uri is None or uri in _OTHER_OPENRTP:
+        return
+    close = difflib.get_close_matches(uri, (RTS_NS, RTS_EXT_NS), n=1, cutoff=0.9)
+    if close:
+        raise _refuse(
+            doc,
+            path,
+            f"namespace {uri!r} is not OpenRTP's (did you mean {close[0]!r}?)",
+            location,
+        )
+
+
+def _text(doc: RtsysDocument, elem: ET.Element, path: str) -> None:
+    """Refuse text in an element the schema gives element-only content."""
+    for text in (elem.text, *(child.tail for child in elem)):
+        if text is not None and text.strip():
+            shown_text = text.strip()
+            shown_text = shown_text if len(shown_text) <= 40 else shown_text[:40] + "..."
+            raise _refuse(
+                doc,
+                path,
+                f"unexpected text {shown_text!r} (this element holds no text)",
+                doc.element(elem),
+            )
 
 
 def _check(doc: RtsysDocument, elem: ET.Element, declared: str, names: _Names, path: str) -> None:
     types = _effective(doc, elem, declared, names, path)
     elements, attributes = _allowed(names, types)
+    _text(doc, elem, path)
     for name in elem.attrib:
         uri, _ = _split(name)
-        if uri in (XSI_NS, XML_NS) or uri not in _CHECKED:
-            continue  # xsi:type (checked above), xml:lang..., and extensions
+        if uri in (XSI_NS, XML_NS):
+            continue  # xsi:type (checked above), xml:lang...
+        if uri not in _CHECKED:
+            _extension(doc, uri, path, doc.attribute(elem, name))
+            continue
         if name not in attributes:
             raise _refuse(
                 doc,
@@ -330,6 +373,7 @@ def _check(doc: RtsysDocument, elem: ET.Element, declared: str, names: _Names, p
             continue  # comments, processing instructions
         uri, _ = _split(tag)
         if uri not in _CHECKED:
+            _extension(doc, uri, path, doc.element(child))
             continue  # an extension element, with whatever it holds
         if tag not in elements:
             raise _refuse(
