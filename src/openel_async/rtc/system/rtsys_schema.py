@@ -349,7 +349,6 @@ def _text(doc: RtsysDocument, elem: ET.Element, path: str) -> None:
 def _check(doc: RtsysDocument, elem: ET.Element, declared: str, names: _Names, path: str) -> None:
     types = _effective(doc, elem, declared, names, path)
     elements, attributes = _allowed(names, types)
-    _text(doc, elem, path)
     for name in elem.attrib:
         uri, _ = _split(name)
         if uri in (XSI_NS, XML_NS):
@@ -366,6 +365,7 @@ def _check(doc: RtsysDocument, elem: ET.Element, declared: str, names: _Names, p
                 "extensions: names in another namespace)",
                 doc.attribute(elem, name),
             )
+    _text(doc, elem, path)
     counts: dict[str, int] = {}
     for child in elem:
         tag = child.tag
@@ -390,7 +390,12 @@ def _check(doc: RtsysDocument, elem: ET.Element, declared: str, names: _Names, p
         child_type = elements[tag]
         if child_type is None:
             if len(child) or child.attrib:
-                raise _refuse(doc, child_path, "holds text only", doc.element(child))
+                raise _refuse(
+                    doc,
+                    child_path,
+                    "holds text only (no attributes, no elements)",
+                    doc.element(child),
+                )
             continue
         _check(doc, child, child_type, names, child_path)
 
