@@ -126,8 +126,10 @@ def test_cycle_of_blocking_connectors_refused(tmp_path: Path) -> None:
     with pytest.raises(
         SystemFileError,
         match=r"cycle of blocking connectors.*(tracker -> head -> tracker|head -> tracker -> head)",
-    ):
+    ) as info:
         prepare_system(load_system(path), clock=VirtualClock())
+    # located at a connection of the cycle
+    assert str(info.value).startswith(f"{path}:") and "system.connections[" in str(info.value)
 
 
 def test_blocking_cycle_graph() -> None:

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ...clock import Clock
+from ...positioned import did_you_mean
 from ..configuration import Configuration, ConfigurationError
 from ..context import ExecutionKind
 from ..errors import RTCError
@@ -26,7 +27,7 @@ from ..ports import (
 from ..profile import PortType, ProfileError, RtcProfile, load_profile
 from ..rtobject import RTObject
 from ..runner import ExecutionSpec, execution_spec, load_implementation
-from .model import ComponentSpec, PortRef, SystemFileError, SystemSpec
+from .model import ComponentSpec, DataConnectionSpec, PortRef, SystemFileError, SystemSpec
 
 __all__ = ["PreparedComponent", "PreparedSystem", "blocking_cycle", "prepare_system"]
 
@@ -156,15 +157,18 @@ def _port(components: Mapping[str, RTObject], ref: PortRef) -> PortBase:
     rtc = components.get(ref.component)
     if rtc is None:
         raise SystemFileError(
-            ref.where, f"no component {ref.component!r}; the system has {sorted(components)}"
-        )
+            ref.where,
+            f"no component {ref.component!r} in the system "
+            f"({did_you_mean(ref.component, components)})",
+        ).at(ref.location)
     ports = {p.name: p for p in rtc.ports}
     port = ports.get(ref.port)
     if port is None:
         raise SystemFileError(
             ref.where,
-            f"component {ref.component!r} has no port {ref.port!r}; it has {sorted(ports)}",
-        )
+            f"component {ref.component!r} has no port {ref.port!r} "
+            f"({did_you_mean(ref.port, ports)})",
+        ).at(ref.location)
     return port
 
 
@@ -196,44 +200,61 @@ def prepare_system(spec: SystemSpec, *, clock: Clock) -> PreparedSystem:
     connectors are checked, not connected; service ports are bound).
 
     Raises SystemFileError naming the field for anything wrong."""
-    names = [c.name for c in spec.components]
-    if len(set(names)) != len(names):
-        dup = next(n for n in names if names.count(n) > 1)
-        raise SystemFileError("components", f"component name {dup!r} used twice")
-    prepared = [_prepare_component(c, clock) for c in spec.components]
+    seen: set[str] = set()
+    for comp in spec.components:
+        if comp.name in seen:
+            raise SystemFileError("components", f"component name {comp.name!r} used twice").at(
+                comp.location
+            )
+        seen.add(comp.name)
+    prepared = []
+    for comp in spec.components:
+        try:
+            prepared.append(_prepare_component(comp, clock))
+        except SystemFileError as exc:
+            raise exc.at(comp.location) from None
     rtcs = {p.spec.name: p.rtc for p in prepared}
     connectors: list[Connector] = []
     edges: dict[str, set[str]] = {}
+    blocking: dict[tuple[str, str], DataConnectionSpec] = {}
     for conn in spec.connections:
         out, inp = _port(rtcs, conn.source), _port(rtcs, conn.target)
         if not isinstance(out, OutPort):
-            raise SystemFileError(conn.source.where, f"{conn.source} is not an OutPort ({out!r})")
+            raise SystemFileError(
+                conn.source.where, f"{conn.source} is not an OutPort ({out!r})"
+            ).at(conn.source.location)
         if not isinstance(inp, InPort):
-            raise SystemFileError(conn.target.where, f"{conn.target} is not an InPort ({inp!r})")
+            raise SystemFileError(
+                conn.target.where, f"{conn.target} is not an InPort ({inp!r})"
+            ).at(conn.target.location)
         try:
             connector = Connector(out, inp, conn.properties, name=conn.name)
         except RTCError as exc:
-            raise SystemFileError(conn.where, str(exc)) from None
+            raise SystemFileError(conn.where, str(exc)).at(conn.location) from None
         connectors.append(connector)
         if connector.profile.blocking:
             edges.setdefault(conn.source.component, set()).add(conn.target.component)
+            blocking.setdefault((conn.source.component, conn.target.component), conn)
     cycle = blocking_cycle(edges)
     if cycle is not None:
+        first = blocking[(cycle[0], cycle[1])]
         raise SystemFileError(
-            "connections",
+            first.where,
             "a cycle of blocking connectors (full_policy or empty_policy 'block') can "
             "deadlock its components: " + " -> ".join(cycle),
-        )
+        ).at(first.location)
     services: list[ServiceConnection] = []
     for svc in spec.services:
         a, b = _port(rtcs, svc.a), _port(rtcs, svc.b)
         for ref, port in ((svc.a, a), (svc.b, b)):
             if not isinstance(port, ServicePort):
-                raise SystemFileError(ref.where, f"{ref} is not a service port ({port!r})")
+                raise SystemFileError(ref.where, f"{ref} is not a service port ({port!r})").at(
+                    ref.location
+                )
         try:
             services.append(connect_services(a, b))  # type: ignore[arg-type]
         except RTCError as exc:
             for done in services:
                 done.disconnect()
-            raise SystemFileError(svc.where, str(exc)) from None
+            raise SystemFileError(svc.where, str(exc)).at(svc.location) from None
     return PreparedSystem(spec, prepared, connectors, services)

@@ -28,6 +28,12 @@ else the RTC Profile next to the rtsys file (or one directory down) whose id is 
 component's ``rts:id``. ``dataport.*`` properties this runtime does not know (e.g.
 ``dataport.serializer.cdr.endian``) are dropped from rtsys connectors; in YAML they
 are errors.
+
+Both forms are strict: an unknown YAML key, or an rtsys element or attribute in the
+``rts``/``rtsExt`` namespaces that OpenRTP's RtsProfile schema does not declare
+(``rtsys_schema``), is refused with the file, line and column and a "did you mean".
+Components and connection ends carry where they are written (``location``), so that
+the errors found when the system is built point there too.
 """
 
 from __future__ import annotations
@@ -38,12 +44,10 @@ from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
 
-import defusedxml.ElementTree as DefusedET
 import msgspec
 import structlog
-from defusedxml import DefusedXmlException
 
-from ...positioned import DocumentError, YamlDocument, convert, load_yaml, relocate
+from ...positioned import DocumentError, Location, YamlDocument, convert, load_yaml, relocate
 from ..ports.profile import KNOWN_KEYS
 from ..profile import ProfileError, load_profile
 from .model import (
@@ -55,6 +59,7 @@ from .model import (
     SystemFileError,
     SystemSpec,
 )
+from .rtsys_schema import RTS_EXT_NS, RTS_NS, RtsysDocument, check_rtsys, parse_rtsys
 
 __all__ = [
     "RTS_EXT_NS",
@@ -67,8 +72,6 @@ __all__ = [
 
 log = structlog.get_logger(__name__)
 
-RTS_NS = "http://www.openrtp.org/namespaces/rts"
-RTS_EXT_NS = "http://www.openrtp.org/namespaces/rts_ext"
 PROFILE_PROPERTY = "openel.profile"
 _CONTEXT_TYPES = {
     "periodic": "periodic",
@@ -123,12 +126,12 @@ def _string(value: object, where: str) -> str:
     return str(value)
 
 
-def _port_ref(value: object, where: str) -> PortRef:
+def _port_ref(value: object, where: str, location: Location | None = None) -> PortRef:
     text = _string(value, where)
     component, dot, port = text.partition(".")
     if not dot or not component or not port:
         raise SystemFileError(where, f"expected 'component.port', got {text!r}")
-    return PortRef(component, port, where)
+    return PortRef(component, port, where, location)
 
 
 def _flatten(props: Mapping[str, Any], where: str, prefix: str = "") -> dict[str, object]:
@@ -227,14 +230,21 @@ class _FileKeys(msgspec.Struct, forbid_unknown_fields=True):
 _WHERE_PART = re.compile(r"\.([^.\[]+)|\[(\d+)\]")
 
 
-def _located(exc: SystemFileError, doc: YamlDocument) -> SystemFileError:
-    """``exc`` at the position of the field it names (as far as the file has it)."""
+def _place(doc: YamlDocument, path: str) -> Location:
+    """Where the field ``path`` (``system.connections[0].to``) is written, as far as the
+    file has it."""
+    if path == "<document>":
+        return doc.where(doc.data)
     parts: list[str | int] = [
         m.group(1) if m.group(1) is not None else int(m.group(2))
-        for m in _WHERE_PART.finditer("." + exc.path)
+        for m in _WHERE_PART.finditer("." + path)
     ]
-    location = doc.follow(parts)[1] if exc.path != "<document>" else doc.where(doc.data)
-    return relocate(exc, DocumentError(str(exc), path=exc.path, location=location))
+    return doc.follow(parts)[1]
+
+
+def _located(exc: SystemFileError, doc: YamlDocument) -> SystemFileError:
+    """``exc`` at the position of the field it names (as far as the file has it)."""
+    return relocate(exc, DocumentError(str(exc), path=exc.path, location=_place(doc, exc.path)))
 
 
 def loads_system_yaml(raw: str | bytes, path: Path) -> SystemSpec:
@@ -253,12 +263,12 @@ def loads_system_yaml(raw: str | bytes, path: Path) -> SystemSpec:
     except DocumentError as exc:
         raise relocate(SystemFileError(exc.path, exc.message), exc) from None
     try:
-        return _system_yaml(doc.data, path)
+        return _system_yaml(doc.data, path, doc)
     except SystemFileError as exc:
         raise _located(exc, doc) from None
 
 
-def _system_yaml(root: Mapping[str, Any], path: Path) -> SystemSpec:
+def _system_yaml(root: Mapping[str, Any], path: Path, doc: YamlDocument) -> SystemSpec:
     system = _mapping(root["system"], "system")
     name = _string(system.get("name", path.stem), "system.name")
     comps_data = _mapping(system.get("components"), "system.components")
@@ -280,6 +290,7 @@ def _system_yaml(root: Mapping[str, Any], path: Path) -> SystemSpec:
                 _context(data.get("context"), f"{where}.context"),
                 sets,
                 active,
+                doc.key(comps_data, comp_name),
             )
         )
     connections = []
@@ -295,10 +306,11 @@ def _system_yaml(root: Mapping[str, Any], path: Path) -> SystemSpec:
         connections.append(
             DataConnectionSpec(
                 str(data.get("name", "")),
-                _port_ref(data.get("from"), f"{where}.from"),
-                _port_ref(data.get("to"), f"{where}.to"),
+                _port_ref(data.get("from"), f"{where}.from", _place(doc, f"{where}.from")),
+                _port_ref(data.get("to"), f"{where}.to", _place(doc, f"{where}.to")),
                 props,
                 where,
+                _place(doc, where),
             )
         )
     services = []
@@ -311,7 +323,11 @@ def _system_yaml(root: Mapping[str, Any], path: Path) -> SystemSpec:
             raise SystemFileError(where, "expected a pair [component.port, component.port]")
         services.append(
             ServiceConnectionSpec(
-                "", _port_ref(value[0], f"{where}[0]"), _port_ref(value[1], f"{where}[1]"), where
+                "",
+                _port_ref(value[0], f"{where}[0]", _place(doc, f"{where}[0]")),
+                _port_ref(value[1], f"{where}[1]", _place(doc, f"{where}[1]")),
+                where,
+                _place(doc, where),
             )
         )
     return SystemSpec(name, path, tuple(components), tuple(connections), tuple(services))
@@ -325,7 +341,7 @@ def _rts(name: str) -> str:
 
 
 def _attr(el: ET.Element, name: str, default: str | None = None) -> str | None:
-    for key in (_rts(name), f"{{{RTS_EXT_NS}}}{name}", name):
+    for key in (_rts(name), f"{{{RTS_EXT_NS}}}{name}"):
         if key in el.attrib:
             return el.attrib[key]
     return default
@@ -334,7 +350,7 @@ def _attr(el: ET.Element, name: str, default: str | None = None) -> str | None:
 def _props(el: ET.Element) -> dict[str, str]:
     out: dict[str, str] = {}
     for child in el:
-        if child.tag in (f"{{{RTS_EXT_NS}}}Properties", _rts("Properties")):
+        if child.tag == f"{{{RTS_EXT_NS}}}Properties":
             key = _attr(child, "name")
             if key:
                 out[key] = _attr(child, "value", "") or ""
@@ -361,23 +377,25 @@ def _find_profile(directory: Path, rtc_id: str, where: str) -> Path:
     )
 
 
-def _rtsys_port(el: ET.Element | None, where: str) -> PortRef:
+def _rtsys_port(
+    doc: RtsysDocument, el: ET.Element | None, where: str, parent: ET.Element
+) -> PortRef:
     if el is None:
-        raise SystemFileError(where, "missing")
+        raise SystemFileError(where, "missing").at(doc.element(parent))
     inst = _attr(el, "instanceName")
     port = _attr(el, "portName")
     if not inst or not port:
-        raise SystemFileError(where, "needs rts:instanceName and rts:portName")
-    return PortRef(inst, port.removeprefix(f"{inst}."), where)
+        raise SystemFileError(where, "needs rts:instanceName and rts:portName").at(doc.element(el))
+    return PortRef(inst, port.removeprefix(f"{inst}."), where, doc.attribute(el, _rts("portName")))
 
 
 def loads_rtsys(raw: str | bytes, path: Path) -> SystemSpec:
-    try:
-        root: ET.Element = DefusedET.fromstring(raw, forbid_dtd=True)
-    except (ET.ParseError, DefusedXmlException) as exc:
-        raise SystemFileError("<document>", f"not a readable rtsys XML: {exc}") from None
-    if root.tag != _rts("RtsProfile"):
-        raise SystemFileError("<document>", f"expected rts:RtsProfile, got {root.tag}")
+    """An rtsys XML; SystemFileError naming the file, line and column for an element or
+    attribute OpenRTP's schema does not declare (with a "did you mean") and for any
+    other refusal."""
+    doc = parse_rtsys(raw, str(path))
+    check_rtsys(doc)
+    root = doc.root
     parts = (_attr(root, "id") or "").split(":")
     name = parts[2] if len(parts) >= 4 and parts[2] else path.stem  # RTSystem:vendor:name:ver
     components = []
@@ -385,12 +403,15 @@ def loads_rtsys(raw: str | bytes, path: Path) -> SystemSpec:
         where = f"rts:Components[{i}]"
         inst = _attr(comp, "instanceName")
         if not inst:
-            raise SystemFileError(f"{where}.instanceName", "required")
+            raise SystemFileError(f"{where}.instanceName", "required").at(doc.element(comp))
         props = _props(comp)
         if PROFILE_PROPERTY in props:
             profile = path.parent / props[PROFILE_PROPERTY]
         else:
-            profile = _find_profile(path.parent, _attr(comp, "id") or "", f"{where}.id")
+            try:
+                profile = _find_profile(path.parent, _attr(comp, "id") or "", f"{where}.id")
+            except SystemFileError as exc:
+                raise exc.at(doc.attribute(comp, _rts("id"))) from None
         sets: dict[str, dict[str, str]] = {}
         for cs in comp.findall(_rts("ConfigurationSets")):
             set_id = _attr(cs, "id") or ""
@@ -412,10 +433,18 @@ def loads_rtsys(raw: str | bytes, path: Path) -> SystemSpec:
             except ValueError:
                 raise SystemFileError(
                     f"{where}.ExecutionContexts.rate", f"not a number: {rate_text!r}"
-                ) from None
+                ).at(doc.attribute(ecs[0], _rts("rate"))) from None
             context = ContextSpec(ctx_type, rate if ctx_type != "event_driven" else None)
         components.append(
-            ComponentSpec(inst, profile, where, context, sets, active if active in sets else None)
+            ComponentSpec(
+                inst,
+                profile,
+                where,
+                context,
+                sets,
+                active if active in sets else None,
+                doc.element(comp),
+            )
         )
     connections = []
     for i, conn in enumerate(root.findall(_rts("DataPortConnectors"))):
@@ -442,10 +471,15 @@ def loads_rtsys(raw: str | bytes, path: Path) -> SystemSpec:
         connections.append(
             DataConnectionSpec(
                 _attr(conn, "name") or "",
-                _rtsys_port(conn.find(_rts("sourceDataPort")), f"{where}.sourceDataPort"),
-                _rtsys_port(conn.find(_rts("targetDataPort")), f"{where}.targetDataPort"),
+                _rtsys_port(
+                    doc, conn.find(_rts("sourceDataPort")), f"{where}.sourceDataPort", conn
+                ),
+                _rtsys_port(
+                    doc, conn.find(_rts("targetDataPort")), f"{where}.targetDataPort", conn
+                ),
                 conn_props,
                 where,
+                doc.element(conn),
             )
         )
     services = []
@@ -454,11 +488,18 @@ def loads_rtsys(raw: str | bytes, path: Path) -> SystemSpec:
         services.append(
             ServiceConnectionSpec(
                 _attr(conn, "name") or "",
-                _rtsys_port(conn.find(_rts("sourceServicePort")), f"{where}.sourceServicePort"),
-                _rtsys_port(conn.find(_rts("targetServicePort")), f"{where}.targetServicePort"),
+                _rtsys_port(
+                    doc, conn.find(_rts("sourceServicePort")), f"{where}.sourceServicePort", conn
+                ),
+                _rtsys_port(
+                    doc, conn.find(_rts("targetServicePort")), f"{where}.targetServicePort", conn
+                ),
                 where,
+                doc.element(conn),
             )
         )
     if not components:
-        raise SystemFileError("rts:Components", "at least one component is needed")
+        raise SystemFileError("rts:Components", "at least one component is needed").at(
+            doc.element(root)
+        )
     return SystemSpec(name, path, tuple(components), tuple(connections), tuple(services))

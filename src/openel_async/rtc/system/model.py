@@ -7,6 +7,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ...positioned import DocumentError, Location, relocate
+
 __all__ = [
     "ComponentSpec",
     "ContextSpec",
@@ -20,12 +22,24 @@ __all__ = [
 
 class SystemFileError(ValueError):
     """A system file that cannot be run; ``path`` names the field (``str(e)`` is
-    ``"<path>: <message>"``)."""
+    ``"<path>: <message>"``, or ``"FILE:LINE:COL: <path>: <message>"`` when the place
+    is known: then ``location``, ``source``, ``line`` and ``column`` say where)."""
+
+    location: Location | None = None
+    source: str | None = None
+    line: int | None = None
+    column: int | None = None
 
     def __init__(self, path: str, message: str) -> None:
         super().__init__(f"{path}: {message}" if path else message)
         self.path = path
         self.message = message
+
+    def at(self, location: Location | None) -> SystemFileError:
+        """This error located at ``location`` (unchanged when None, or already located)."""
+        if location is None or self.location is not None:
+            return self
+        return relocate(self, DocumentError(str(self), path=self.path, location=location))
 
 
 @dataclass(frozen=True, slots=True)
@@ -34,6 +48,8 @@ class PortRef:
     port: str
     where: str
     """The field it came from, for error messages."""
+    location: Location | None = None
+    """Where it is written (file, line, column), when the loader knows."""
 
     def __str__(self) -> str:
         return f"{self.component}.{self.port}"
@@ -57,6 +73,8 @@ class ComponentSpec:
     context: ContextSpec = ContextSpec()
     configuration_sets: Mapping[str, Mapping[str, str]] = field(default_factory=dict)
     active_set: str | None = None
+    location: Location | None = None
+    """Where the component is written (file, line, column), when the loader knows."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,6 +84,8 @@ class DataConnectionSpec:
     target: PortRef
     properties: Mapping[str, object]
     where: str
+    location: Location | None = None
+    """Where the connection is written (file, line, column), when the loader knows."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,6 +94,8 @@ class ServiceConnectionSpec:
     a: PortRef
     b: PortRef
     where: str
+    location: Location | None = None
+    """Where the connection is written (file, line, column), when the loader knows."""
 
 
 @dataclass(frozen=True, slots=True)

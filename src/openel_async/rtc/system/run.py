@@ -21,6 +21,7 @@ from functools import partial
 from pathlib import Path
 
 import anyio
+import anyio.to_thread
 import structlog
 
 from ...clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
@@ -250,7 +251,9 @@ async def run_system_file(
 ) -> SystemSummary:
     """Load, check and run a system file (SystemFileError before anything starts)."""
     clock = clock or MonotonicClock()
-    prepared = prepare_system(load_system(path), clock=clock)
+    # reading the file (and, for rtsys, the schema on first use) blocks: not in the loop
+    spec = await anyio.to_thread.run_sync(load_system, path)
+    prepared = prepare_system(spec, clock=clock)
     return await run_system(
         prepared,
         clock=clock,
@@ -296,7 +299,8 @@ def run_system_cli(path: Path, argv: Sequence[str]) -> int:
         print(f"{prog}: {path}: {read_problem(exc)}", file=sys.stderr)
         return 2
     except SystemFileError as exc:
-        print(f"{prog}: {path}: {exc}", file=sys.stderr)
+        # a located error starts with the file's name (and line and column) already
+        print(f"{prog}: {exc if exc.location is not None else f'{path}: {exc}'}", file=sys.stderr)
         return 2
     if args.virtual:
         cycles = sum(
