@@ -48,7 +48,7 @@ def test_virtual_clock_demo_recording(tmp_path: Path, capsys: pytest.CaptureFixt
     ticks = int(re.search(r"timer ticks\s+(\d+)", text).group(1))  # type: ignore[union-attr]
     setpoints = int(re.search(r"setpoints sent\s+(\d+)", text).group(1))  # type: ignore[union-attr]
     reads = int(re.search(r"sensor reads\s+(\d+)", text).group(1))  # type: ignore[union-attr]
-    completed = int(re.search(r"COMPLETED x(\d+)", text).group(1))  # type: ignore[union-attr]
+    completed = int(re.search(r"(\d+) COMPLETED", text).group(1))  # type: ignore[union-attr]
     schemas, counts, decoded = _mcap_counts(out)
     assert schemas == {
         "/hal/MOTOR_1": "openel_async.HalRecord",

@@ -52,7 +52,7 @@ def test_demo_remote_runs_the_two_axis_demo_on_a_served_rig() -> None:
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--inject-fault"], "--inject-fault is not available with --remote"),
+        (["--inject-fault"], "--inject-fault needs --bus sim or can: the remote devices are in"),
         (["--bus", "can"], "--remote serves the sim devices; not with --bus can"),
         (["--virtual"], "--virtual needs --bus sim"),
     ],

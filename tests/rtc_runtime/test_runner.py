@@ -90,7 +90,7 @@ async def test_configuration_from_the_command_line(virtual_clock: VirtualClock) 
     )
     assert summary.mode == "hold"
     assert summary.report["setpoints"] == 0
-    assert summary.report["final positions"] == "+0.0000, +0.0000 rad"
+    assert summary.report["final positions"] == "pan +0.0000 rad, tilt +0.0000 rad"
 
 
 async def test_the_xml_form_runs_the_same(virtual_clock: VirtualClock, tmp_path: Path) -> None:

@@ -217,11 +217,11 @@ async def test_errors_reach_attached_applications_with_detail(
     app = ApplicationQueue()
     async with Surface(axes) as surface:
         surface.attach(app)
-        motors[0].inject_fault(error_id=7, reason="over-temperature")
+        motors[0].inject_fault(error_id=77, reason="over-temperature")  # a device-specific id
         with anyio.fail_after(5):
             notice = await app.get()
         assert isinstance(notice, ErrorNotification)
-        assert notice.error_type == "ERROR_7"
+        assert notice.error_type == "ERROR_77"
         detail = surface.get_error_detail(notice.error_id).as_dict()
         assert detail["faulted"] is True and detail["logical_id"] == 0
         assert "over-temperature" in str(detail["message"])
