@@ -411,6 +411,7 @@ async def test_estop_goes_ahead_of_queued_transactions(
         await anyio.lowlevel.checkpoint()
         await anyio.lowlevel.checkpoint()
         tg.start_soon(port.estop, [1, 2])
+    await port.ping(1)  # the peer handles packets in order: everything before is in
     kinds = [type(m).__name__ for m in bus.instructions if not isinstance(m, dx.SyncRead)]
     # At most the exchange already on the wire goes before it.
     assert "SyncWrite" in kinds[:2], kinds
