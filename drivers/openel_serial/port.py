@@ -484,7 +484,10 @@ class DynamixelPort:
         if not targets:
             return
         for dxl_id in targets:
-            dx.Ping(dxl_id)  # validates the id
+            if isinstance(dxl_id, bool) or not isinstance(dxl_id, int):
+                raise BadParameterError("ids", ids, f"servo ids in 0..{dx.MAX_ID}")
+            if not 0 <= dxl_id <= dx.MAX_ID:
+                raise BadParameterError("ids", ids, f"servo ids in 0..{dx.MAX_ID}")
         self._estop_ids.update(targets)
         await anyio.lowlevel.checkpoint()  # let the other e-stops of this instant join
         await self._lock.acquire(first=True)

@@ -10,6 +10,9 @@ exactly when the test says, whatever the machine's load).
 from __future__ import annotations
 
 import math
+import signal
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -299,6 +302,74 @@ async def test_init_clears_a_bus_watchdog_error_left_by_an_earlier_run(
             motion = await a1.set_value(0.2)
             await run_servo_time(clock, port, 0.3)
             assert motion.done()
+
+
+CHILD = """
+import sys
+
+import anyio
+
+from openel_async import Actuator, Request
+from openel_serial import DynamixelPort, DynamixelServo
+
+
+async def main() -> None:
+    port = DynamixelPort(
+        sys.argv[1], baudrate=1_000_000, return_delay=0.0, timeout_margin=0.1, poll_period=0.005
+    )
+    async with (
+        port,
+        Actuator(DynamixelServo(port, 1)) as a1,
+        Actuator(DynamixelServo(port, 2)) as a2,
+    ):
+        for actuator, speed in ((a1, 2.0), (a2, -2.0)):
+            await actuator.device.arm_watchdog(0.1)
+            await (await actuator.set_value(speed, Request.VELOCITY))
+        sys.stderr.write("READY\\n")
+        sys.stderr.flush()
+        await anyio.sleep_forever()
+
+
+anyio.run(main)
+"""
+
+
+async def test_kill_9_of_the_app_stops_every_servo_within_the_timeout() -> None:
+    """The app (a child process) arms the Bus Watchdogs and turns both servos; kill -9:
+    every servo stops by itself within the timeout, with nobody left to tell it."""
+    bus = SimDynamixelBus([make_servo(1), make_servo(2)])
+    async with PeerThread(bus) as host:
+        async with await anyio.open_process(
+            [sys.executable, "-c", CHILD, bus.path],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        ) as child:
+            assert child.stderr is not None
+            output = b""
+            with anyio.fail_after(20):
+                while b"READY\n" not in output:
+                    output += await child.stderr.receive()
+            moving = await host.call(lambda: [bus[i].state()[1] for i in (1, 2)])
+            assert all(v != 0 for v in moving)
+            killed_ns = time.monotonic_ns()
+            child.send_signal(signal.SIGKILL)
+            with anyio.fail_after(WAIT_S):
+                assert await child.wait() == -signal.SIGKILL
+        # Let the timeout pass on the servos' (real) clock; no instruction reaches them.
+        deadline_ns = killed_ns + round((TIMEOUT_S + 0.02) * NS)
+        await anyio.sleep((deadline_ns - time.monotonic_ns()) / NS + 0.01)
+
+        def look() -> list[tuple[bool, int | None, float, bool]]:
+            return [
+                (s.watchdog_tripped, s.watchdog_tripped_ns, s.state()[1], s.torque_enabled)
+                for s in (bus[1], bus[2])
+            ]
+
+        for tripped, tripped_ns, velocity, torque in await host.call(look):
+            assert tripped and tripped_ns is not None
+            # Within the timeout of the kill (+20 ms: a poll in flight when it was killed).
+            assert tripped_ns <= deadline_ns
+            assert velocity == 0.0 and torque  # stopped, holding
 
 
 # -- dynamixel-sdk reads what we armed -----------------------------------------------------------
