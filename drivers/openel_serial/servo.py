@@ -696,7 +696,9 @@ class DynamixelServo(ActuatorDevice):
             await self.reboot()
             if self._alert:
                 raise DynamixelHardwareAlert(self._dxl_id, dx.ALERT_BIT, "reboot", None)
-        watchdog = await self._read_watchdog()
+        firmware = self.firmware_version
+        has_watchdog = firmware is None or firmware >= dx.BUS_WATCHDOG_FIRMWARE
+        watchdog = await self._read_watchdog() if has_watchdog else 0
         if watchdog == dx.BUS_WATCHDOG_ERROR or (watchdog and self._watchdog_units is None):
             # Expired (goals are read-only until 0 is written), or armed by an earlier run.
             self._log.warning("dynamixel_bus_watchdog_cleared", value=watchdog)
