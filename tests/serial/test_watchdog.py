@@ -123,8 +123,10 @@ async def test_a_poll_period_that_cannot_feed_in_time_is_refused(
 
 async def test_firmware_without_a_bus_watchdog_is_refused(recorder: EventRecorder) -> None:
     bus = SimDynamixelBus([make_servo(1, firmware_version=37)])
+    bus[1].table[X.BUS_WATCHDOG.address] = 0x07  # not an item on this firmware: left alone
     async with bus, open_port(bus) as port, AsyncExitStack() as stack:
         (a1,) = await actuators(stack, port, recorder, 1)
+        assert bus[1].table[X.BUS_WATCHDOG.address] == 0x07
         with pytest.raises(NotImplementedHALError, match="firmware v37"):
             await servo_of(a1).arm_watchdog(TIMEOUT_S)
 
@@ -471,6 +473,12 @@ async def test_concurrent_servo_estops_share_one_packet(
         assert not bus[1].torque_enabled and not bus[2].torque_enabled
         await a2.re_init()
         assert bus[2].torque_enabled and not bus[1].torque_enabled
+
+
+async def test_estop_refuses_bad_ids(port: DynamixelPort) -> None:
+    for bad in ([253], [-1], [True], ["1"]):
+        with pytest.raises(BadParameterError, match=r"ids.*0\.\.252"):
+            await port.estop(bad)  # type: ignore[list-item]
 
 
 async def test_estop_goes_ahead_of_queued_transactions(
