@@ -32,6 +32,10 @@ __all__ = [
     "ACCELERATION_UNIT_RPM2",
     "ALERT_BIT",
     "BROADCAST_ID",
+    "BUS_WATCHDOG_ERROR",
+    "BUS_WATCHDOG_FIRMWARE",
+    "BUS_WATCHDOG_MAX",
+    "BUS_WATCHDOG_UNIT_S",
     "CENTER_TICK",
     "CLEAR_KEY",
     "CURRENT_UNIT_A",
@@ -73,6 +77,7 @@ __all__ = [
     "XSeries",
     "acceleration_to_rad_s2",
     "amps_to_current",
+    "bus_watchdog_units",
     "crc16",
     "current_to_amps",
     "decode",
@@ -927,7 +932,8 @@ class XSeries:
     POSITION_P_GAIN: Final = ControlItem(84, 2)
     FEEDFORWARD_2ND_GAIN: Final = ControlItem(88, 2)
     FEEDFORWARD_1ST_GAIN: Final = ControlItem(90, 2)
-    BUS_WATCHDOG: Final = ControlItem(98, 1)
+    BUS_WATCHDOG: Final = ControlItem(98, 1, signed=True)
+    """-1 (0xFF on the wire): Bus Watchdog Error; 0: off; 1..127: armed, 20 ms units."""
     GOAL_PWM: Final = ControlItem(100, 2, signed=True)
     GOAL_CURRENT: Final = ControlItem(102, 2, signed=True)
     GOAL_VELOCITY: Final = ControlItem(104, 4, signed=True)
@@ -999,6 +1005,12 @@ ACCELERATION_UNIT_RPM2: Final = 214.577
 CURRENT_UNIT_A: Final = 0.00269  # XM430 series; 2.69 mA per unit
 VOLTAGE_UNIT_V: Final = 0.1
 PWM_FULL_SCALE: Final = 885  # 100 % duty
+#: Bus Watchdog (98): unit, largest setting, the value it reads after expiring (0xFF), and
+#: the first firmware version that has it (e-manual, "Bus Watchdog (98)").
+BUS_WATCHDOG_UNIT_S: Final = 0.020
+BUS_WATCHDOG_MAX: Final = 127
+BUS_WATCHDOG_ERROR: Final = -1
+BUS_WATCHDOG_FIRMWARE: Final = 38
 _RAD_PER_TICK: Final = 2 * math.pi / TICKS_PER_REV
 _RAD_S_PER_UNIT: Final = VELOCITY_UNIT_RPM * 2 * math.pi / 60
 _RAD_S2_PER_UNIT: Final = ACCELERATION_UNIT_RPM2 * 2 * math.pi / 3600
@@ -1036,3 +1048,18 @@ def current_to_amps(units: int) -> float:
 
 def amps_to_current(amps: float) -> int:
     return round(amps / CURRENT_UNIT_A)
+
+
+def bus_watchdog_units(timeout_s: float) -> int:
+    """Bus Watchdog (98) setting for ``timeout_s``: a whole number of 20 ms units in
+    1..127 (0.02..2.54 s); anything else raises :class:`ValueError`."""
+    if isinstance(timeout_s, bool) or not isinstance(timeout_s, int | float):
+        raise ValueError(f"bus watchdog timeout {timeout_s!r} is not a number")
+    units = timeout_s / BUS_WATCHDOG_UNIT_S if math.isfinite(timeout_s) else -1.0
+    whole = round(units)
+    if not (1 <= whole <= BUS_WATCHDOG_MAX and abs(units - whole) <= 1e-6):
+        raise ValueError(
+            f"bus watchdog timeout {timeout_s!r} s is not a multiple of "
+            f"{BUS_WATCHDOG_UNIT_S} s in {BUS_WATCHDOG_UNIT_S}..{BUS_WATCHDOG_MAX * BUS_WATCHDOG_UNIT_S:g} s"
+        )
+    return whole

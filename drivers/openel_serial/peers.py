@@ -10,13 +10,19 @@ points the link at it, so the driver reopens the same path.
 
 Peers are anyio tasks that wait on the master fd with ``anyio.wait_readable`` /
 ``wait_writable`` and use non-blocking ``os.read``/``os.write``: they never block the
-event loop. A pty has no baud rate: bytes arrive as fast as the two ends run.
+event loop. A pty has no baud rate: bytes arrive as fast as the two ends run. By default a
+peer runs on the event loop that enters it (the application's, in most tests);
+:class:`PeerThread` hosts one on an event loop of its own in a thread, so that it goes on
+running (and its clock on deciding, e.g., a watchdog's expiry) while the application's
+loop is blocked, as a real device would.
 
 * :class:`SimDynamixelBus` with :class:`SimServo` s: control table, trapezoidal
   profile moves (Profile Velocity/Acceleration), velocity mode ramping at Profile
   Acceleration, current mode, a mode change resetting the profile (as the e-manual says), Moving /
   Moving Status, Return Delay Time, read-only and EEPROM access rules, limit errors,
-  REBOOT, error 3 (CRC error) for an instruction received damaged; injection of status
+  REBOOT, error 3 (CRC error) for an instruction received damaged, the Bus Watchdog
+  (98: the servo stops by itself when no instruction reached it for the set time, reads
+  -1 and refuses goal writes until 0 is written); injection of status
   errors, hardware errors (alert bit), unresponsive servos, dropped and corrupted
   replies, damaged instructions, garbage bytes; unplug/plug.
 * :class:`SimGps`: GGA + RMC (``extended``: + GSA, GSV, GST) at ``rate_hz`` along a
@@ -33,16 +39,19 @@ import os
 import shutil
 import struct
 import tempfile
+import threading
 import tty
-from collections.abc import Iterable
-from contextlib import AsyncExitStack
+from collections.abc import Callable, Iterable
+from contextlib import AbstractAsyncContextManager, AbstractContextManager, AsyncExitStack
 from dataclasses import dataclass, replace
 from pathlib import Path
 from types import TracebackType
-from typing import Final, Self
+from typing import Any, Final, Generic, Self, TypeVar, cast
 
 import anyio
 import anyio.abc
+import anyio.from_thread
+import anyio.to_thread
 import structlog
 
 from openel_async.clock import Clock, default_clock
@@ -52,6 +61,7 @@ from openel_sim import profile as prof
 
 __all__ = [
     "GpsPath",
+    "PeerThread",
     "PtyPort",
     "SimDynamixelBus",
     "SimGps",
@@ -72,6 +82,9 @@ COAST_ACCELERATION: Final = 20_000.0
 TABLE_SIZE: Final = 147
 WRITE_TIMEOUT_S: Final = 1.0
 NS: Final = 1_000_000_000
+_GOALS: Final = (X.GOAL_PWM, X.GOAL_CURRENT, X.GOAL_VELOCITY, X.GOAL_POSITION)
+"""The goal items, read-only after a Bus Watchdog Error (the profile items are not)."""
+_WATCHDOG_TRIPPED: Final = 0xFF
 
 
 # -- the pty ------------------------------------------------------------------------------
@@ -251,6 +264,70 @@ class _PtyPeer:
         raise NotImplementedError
 
 
+P = TypeVar("P", bound=_PtyPeer)
+T = TypeVar("T")
+
+
+class PeerThread(Generic[P]):
+    """Hosts ``peer`` on an event loop of its own, in a thread (``async with``).
+
+    The peer then keeps serving its pty, and its clock keeps deciding (a watchdog's
+    expiry, a move's end), while the event loop that entered it is blocked -- as a real
+    device does while the host stalls. Entering and leaving wait in a worker thread (the
+    caller's loop is not blocked); :meth:`call` runs a function in the peer's thread
+    (``plug``/``unplug``, fault injection, reading a servo's state consistently).
+    """
+
+    def __init__(self, peer: P) -> None:
+        self.peer = peer
+        self._portal_cm: AbstractContextManager[anyio.from_thread.BlockingPortal] | None = None
+        self._portal: anyio.from_thread.BlockingPortal | None = None
+        self._peer_cm: AbstractContextManager[P] | None = None
+        self.thread: threading.Thread | None = None
+
+    async def __aenter__(self) -> Self:
+        await anyio.to_thread.run_sync(self._enter)
+        return self
+
+    async def __aexit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        await anyio.to_thread.run_sync(self._exit)
+
+    def _enter(self) -> None:
+        self._portal_cm = anyio.from_thread.start_blocking_portal()
+        self._portal = self._portal_cm.__enter__()
+        try:
+            peer = cast("AbstractAsyncContextManager[P]", self.peer)
+            self._peer_cm = self._portal.wrap_async_context_manager(peer)
+            self._peer_cm.__enter__()
+            self.thread = self._portal.call(threading.current_thread)
+        except BaseException:
+            self._portal_cm.__exit__(None, None, None)
+            self._portal = self._portal_cm = self._peer_cm = None
+            raise
+
+    def _exit(self) -> None:
+        peer_cm, portal_cm = self._peer_cm, self._portal_cm
+        self._peer_cm = self._portal_cm = self._portal = None
+        try:
+            if peer_cm is not None:
+                peer_cm.__exit__(None, None, None)
+        finally:
+            if portal_cm is not None:
+                portal_cm.__exit__(None, None, None)
+
+    async def call(self, func: Callable[..., T], *args: Any) -> T:
+        """``func(*args)`` in the peer's thread (waited for in a worker thread)."""
+        portal = self._portal
+        if portal is None:
+            raise RuntimeError("enter the PeerThread ('async with') first")
+        return await anyio.to_thread.run_sync(portal.call, func, *args)
+
+
 # -- Dynamixel ----------------------------------------------------------------------------
 
 
@@ -338,6 +415,10 @@ class SimServo:
         self.crc_errors = 0
         """Instructions to this servo that failed their CRC (answered with CRC_ERROR)."""
         self.reboots = 0
+        self._last_instruction_ns = now
+        self.watchdog_trips = 0
+        self.watchdog_tripped_ns: int | None = None
+        """When the Bus Watchdog last expired (the servo's clock), or None."""
 
     # -- control table ---------------------------------------------------------------
     def _set(self, item: dx.ControlItem, value: int) -> None:
@@ -345,7 +426,7 @@ class SimServo:
 
     def get(self, item: dx.ControlItem) -> int:
         """A control-table item (present values are computed at the current time)."""
-        if item.address >= X.REALTIME_TICK.address:
+        if item.address >= X.REALTIME_TICK.address or item == X.BUS_WATCHDOG:
             self._refresh(self.clock.now_ns())
         return item.decode(bytes(self.table[item.address : item.address + item.size]))
 
@@ -370,10 +451,43 @@ class SimServo:
     def hardware_error(self) -> int:
         return self.table[X.HARDWARE_ERROR_STATUS.address]
 
+    @property
+    def watchdog_tripped(self) -> bool:
+        """Whether Bus Watchdog (98) reads -1 (Bus Watchdog Error) now."""
+        self._check_watchdog(self.clock.now_ns())
+        return self.table[X.BUS_WATCHDOG.address] == _WATCHDOG_TRIPPED
+
     def state(self) -> tuple[float, float]:
         """(position in ticks, velocity in ticks/s) now."""
-        p, v, _ = prof.evaluate(self._segments, self.clock.now_ns())
+        now = self.clock.now_ns()
+        self._check_watchdog(now)
+        p, v, _ = prof.evaluate(self._segments, now)
         return p, v
+
+    # -- Bus Watchdog (98) -----------------------------------------------------------
+    def _check_watchdog(self, now: int) -> None:
+        """Expire the Bus Watchdog if no instruction reached the servo for its time.
+
+        e-manual, Bus Watchdog (98): watched while the torque is on; at expiry the servo
+        stops at once (the profile applied as 0: no deceleration ramp) and keeps its
+        torque, the item reads -1 and the goal items become read-only until 0 is written.
+        Expiry is decided on this servo's clock, whenever the servo is looked at: the
+        motion is closed-form, so the stop happens at the expiry time however late that is.
+        """
+        setting = self.table[X.BUS_WATCHDOG.address]
+        if not 1 <= setting <= dx.BUS_WATCHDOG_MAX or not self.torque_enabled:
+            return
+        expiry = self._last_instruction_ns + round(setting * dx.BUS_WATCHDOG_UNIT_S * NS)
+        if now <= expiry:
+            return
+        p, _, _ = prof.evaluate(self._segments, expiry)
+        self._segments = [*_until(self._segments, expiry), *prof.hold(expiry, p)]
+        self._plan_start = self._old_end = expiry
+        self._current = 0.0
+        self.table[X.BUS_WATCHDOG.address] = _WATCHDOG_TRIPPED
+        self.watchdog_trips += 1
+        self.watchdog_tripped_ns = expiry
+        log.debug("sim_dxl_bus_watchdog_expired", id=self.id, position=round(p))
 
     def arrival_ns(self) -> int:
         """When the current profile ends."""
@@ -416,6 +530,8 @@ class SimServo:
         """
         if not self.torque_enabled or self.hardware_error:
             return
+        if self.table[X.BUS_WATCHDOG.address] == _WATCHDOG_TRIPPED:
+            return  # stopped by the Bus Watchdog: no motion until cleared and a new goal
         start = now + round(self.reaction_delay * NS)
         old = self._segments
         p, v, _ = prof.evaluate(old, start)
@@ -444,6 +560,7 @@ class SimServo:
 
     def _refresh(self, now: int) -> None:
         """Write the present values (120..143) for time ``now`` into the table."""
+        self._check_watchdog(now)
         p, v, a = prof.evaluate(self._segments, now)
         if now < self._plan_start:  # the servo has not reacted to the latest goal yet
             ongoing = now < self._old_end
@@ -506,6 +623,16 @@ class SimServo:
             return dx.ErrorNumber.ACCESS_ERROR
         if address < X.TORQUE_ENABLE.address and self.torque_enabled:
             return dx.ErrorNumber.ACCESS_ERROR  # EEPROM is locked while the torque is on
+        watchdog = X.BUS_WATCHDOG.address
+        if address <= watchdog < end:
+            value = X.BUS_WATCHDOG.decode(data[watchdog - address : watchdog - address + 1])
+            tripped = self.table[watchdog] == _WATCHDOG_TRIPPED
+            if not 0 <= value <= dx.BUS_WATCHDOG_MAX or (tripped and value != 0):
+                return dx.ErrorNumber.DATA_RANGE_ERROR  # only 0 clears a Bus Watchdog Error
+        elif self.table[watchdog] == _WATCHDOG_TRIPPED and any(
+            address < goal.address + goal.size and end > goal.address for goal in _GOALS
+        ):
+            return dx.ErrorNumber.DATA_RANGE_ERROR  # goals are read-only after expiry
         goal = X.GOAL_POSITION
         if address <= goal.address and end >= goal.address + goal.size and self.mode == 3:
             offset = goal.address - address
@@ -602,6 +729,9 @@ class SimServo:
         if isinstance(msg, dx.SyncRead) and self.id not in msg.ids:
             return None
         self.instructions += 1
+        now = self.clock.now_ns()
+        self._check_watchdog(now)  # expired before this packet arrived?
+        self._last_instruction_ns = now  # any instruction packet feeds the watchdog
         answers = self._answers(msg)
         if answers and self.injected_errors:
             return self._status(self.injected_errors.pop(0))  # refused, not executed

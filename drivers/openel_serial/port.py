@@ -28,6 +28,20 @@ Present PWM/Current/Velocity/Position (addresses 122..135) of all of them with o
 SYNC READ per cycle and hands each servo its :class:`PresentState`; the servos serve
 their actual values from it and detect completion on it.
 
+Bus Watchdog (98): the poller's SYNC READ is an instruction packet to every polled
+servo, so it is what feeds their Bus Watchdogs -- from the event loop, never from a
+thread: a stalled loop stops the polls and the servos stop by themselves.
+:meth:`DynamixelPort.arm_bus_watchdog` registers a servo's timeout (refused unless
+``poll_period`` is below half of it). A poll cycle that starts later than half the
+shortest armed timeout after the previous one (the loop was blocked, the bus was busy) is
+followed by a SYNC READ of Bus Watchdog (98) of the armed servos; those reading -1
+(0xFF: expired) are told (``_watchdog_tripped``) and their components go to Error with
+``ErrorId.WATCHDOG``.
+
+E-stop: :meth:`DynamixelPort.estop` sends Torque Enable (64) = 0 to servos in one SYNC
+WRITE, ahead of every queued transaction (only the exchange on the wire, bounded by its
+response timeout, is waited for); concurrent calls share one packet.
+
 Faults: a vanished port (read/write error, EOF) is reported to every attached servo,
 whose component goes to Error (``ErrorId.DISCONNECTED``, ``HAL_NO_CONNECTED``);
 :meth:`DynamixelPort.reconnect` (called by each servo's ``reset``) reopens it.
@@ -171,6 +185,10 @@ class PortClient(Protocol):
 
     def _port_lost(self, reason: str) -> None: ...
 
+    def _watchdog_tripped(self, reason: str) -> None: ...
+
+    def _estopped(self, reason: str) -> None: ...
+
 
 class _BusLock:
     """The bus's FIFO lock: ``async with lock:`` around every transaction.
@@ -194,13 +212,20 @@ class _BusLock:
         return self._locked
 
     async def __aenter__(self) -> None:
+        await self.acquire()
+
+    async def acquire(self, *, first: bool = False) -> None:
+        """Take the lock; ``first``: ahead of every waiter (an e-stop), not in arrival order."""
         if not self._locked:  # waiters only exist while it is held
             await anyio.lowlevel.checkpoint_if_cancelled()
             if not self._locked:
                 self._locked = True
                 return
         waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        self._waiters.append(waiter)
+        if first:
+            self._waiters.appendleft(waiter)
+        else:
+            self._waiters.append(waiter)
         try:
             await waiter
         except BaseException:
@@ -303,6 +328,10 @@ class DynamixelPort:
         self._sync_read_packets: dict[tuple[int, int, tuple[int, ...]], bytes] = {}
         self._last_sync_read: tuple[object, int, int, bytes] = ((), -1, -1, b"")
         self._poll_wake: anyio.Event | None = None
+        self._bus_watchdogs: dict[int, float] = {}
+        """Servos whose Bus Watchdog is armed: id -> timeout (s)."""
+        self._last_poll_ns: int | None = None
+        self._estop_ids: set[int] = set()
         self._stack: AsyncExitStack | None = None
         self._entered = False
         self._log = log.bind(port=url)
@@ -390,6 +419,101 @@ class DynamixelPort:
     @property
     def clients(self) -> Mapping[int, PortClient]:
         return dict(self._clients)
+
+    # -- Bus Watchdog and e-stop -------------------------------------------------------
+    def arm_bus_watchdog(self, dxl_id: int, timeout_s: float) -> None:
+        """Record that servo ``dxl_id``'s Bus Watchdog is armed with ``timeout_s``.
+
+        The poller feeds it; refused (:class:`BadParameterError` naming ``timeout_s``)
+        unless ``poll_period`` is below half the timeout, so that a poll reaches the
+        servo at least twice per timeout while the event loop runs.
+        """
+        if not self.poll_period < timeout_s / 2:
+            raise BadParameterError(
+                "timeout_s",
+                timeout_s,
+                f"more than twice the poll_period of {self.url} ({self.poll_period} s): "
+                "the poller feeds the Bus Watchdog",
+            )
+        self._bus_watchdogs[dxl_id] = float(timeout_s)
+
+    def disarm_bus_watchdog(self, dxl_id: int) -> None:
+        self._bus_watchdogs.pop(dxl_id, None)
+
+    @property
+    def bus_watchdogs(self) -> Mapping[int, float]:
+        """The armed Bus Watchdogs: servo id -> timeout (s)."""
+        return dict(self._bus_watchdogs)
+
+    async def check_bus_watchdogs(self, ids: Sequence[int] | None = None) -> list[int]:
+        """SYNC READ Bus Watchdog (98) of the armed servos among ``ids`` (default: all
+        armed); tell those reading -1 (expired) and return their ids."""
+        armed = sorted(
+            i for i in (self._bus_watchdogs if ids is None else ids) if i in self._bus_watchdogs
+        )
+        if not armed:
+            return []
+        item = X.BUS_WATCHDOG
+        statuses = await self.sync_read_statuses(armed, item.address, item.size)
+        tripped: list[int] = []
+        for dxl_id in armed:
+            status = statuses.get(dxl_id)
+            if status is None or status.error_number or len(status.params) != item.size:
+                continue  # a silent servo is reported by the poll
+            if item.decode(status.params) == dx.BUS_WATCHDOG_ERROR:
+                tripped.append(dxl_id)
+        for dxl_id in tripped:
+            timeout = self._bus_watchdogs.get(dxl_id, math.nan)
+            self._log.warning("dxl_bus_watchdog_expired", id=dxl_id, timeout_s=timeout)
+            client = self._clients.get(dxl_id)
+            if client is not None:
+                client._watchdog_tripped(
+                    f"servo {dxl_id}: Bus Watchdog expired (no instruction packet for more "
+                    f"than {timeout} s): the servo stopped by itself"
+                )
+        return tripped
+
+    async def estop(self, ids: Sequence[int] | None = None) -> None:
+        """Torque Enable (64) = 0 on ``ids`` (default: every attached servo) in one SYNC
+        WRITE, sent before any transaction waiting for the bus; with the default, every
+        attached servo is told (its component goes to Error with ``ErrorId.ESTOP``).
+
+        Calls made together (an e-stop of every component) share one packet.
+        """
+        targets = sorted(self._clients) if ids is None else list(ids)
+        if not targets:
+            return
+        for dxl_id in targets:
+            if isinstance(dxl_id, bool) or not isinstance(dxl_id, int):
+                raise BadParameterError("ids", ids, f"servo ids in 0..{dx.MAX_ID}")
+            if not 0 <= dxl_id <= dx.MAX_ID:
+                raise BadParameterError("ids", ids, f"servo ids in 0..{dx.MAX_ID}")
+        self._estop_ids.update(targets)
+        await anyio.lowlevel.checkpoint()  # let the other e-stops of this instant join
+        await self._lock.acquire(first=True)
+        try:
+            pending, self._estop_ids = self._estop_ids, set()
+            if pending:
+                self.check_connected()
+                item = X.TORQUE_ENABLE
+                packet = dx.encode(
+                    dx.SyncWrite(
+                        item.address,
+                        item.size,
+                        tuple(dx.SyncWriteItem(i, item.encode(0)) for i in sorted(pending)),
+                    )
+                )
+                self._transaction += 1
+                self.stats.transactions += 1
+                self._link.write(packet)
+                self._log.warning("dxl_estop", ids=sorted(pending))
+        finally:
+            self._lock._release()
+        if ids is None:
+            for dxl_id in targets:
+                client = self._clients.get(dxl_id)
+                if client is not None:
+                    client._estopped(f"e-stop on {self.url}: torque off")
 
     def wake_poller(self) -> None:
         if self._poll_wake is not None:
@@ -756,7 +880,10 @@ class DynamixelPort:
         ids = self._poll_ids()
         if not ids:
             return
+        start = self.clock.now_ns()
+        late = self._feeding_late(ids, start)
         statuses = await self.sync_read_statuses(ids, POLL_ADDRESS, POLL_LENGTH)
+        self._last_poll_ns = start
         transaction = self._transaction
         now = self.clock.now_ns()
         self.stats.poll_cycles += 1
@@ -792,6 +919,25 @@ class DynamixelPort:
             client = self._clients.get(dxl_id)
             if client is not None:
                 client._hardware_alert(alert)
+        if late:
+            await self.check_bus_watchdogs(ids)
+
+    def _feeding_late(self, ids: Sequence[int], start_ns: int) -> bool:
+        """Whether this poll comes more than half an armed Bus Watchdog timeout after the
+        previous one (a servo may have stopped by itself meanwhile)."""
+        if not self._bus_watchdogs:
+            return False
+        last = self._last_poll_ns
+        timeouts = [self._bus_watchdogs[i] for i in ids if i in self._bus_watchdogs]
+        if not timeouts:
+            return False
+        if last is None:
+            return True
+        gap_s = (start_ns - last) / 1e9
+        if gap_s <= min(timeouts) / 2:
+            return False
+        self._log.warning("dxl_bus_watchdog_feed_late", gap_s=gap_s, timeout_s=min(timeouts))
+        return True
 
     async def _poll_loop(self) -> None:
         clock = self.clock

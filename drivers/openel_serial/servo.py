@@ -33,6 +33,30 @@ the goal write was acknowledged (its transaction number is larger), so the stale
 
 A new command drops the pending completion of the previous one before it is sent.
 Actual values (``read``) are served from the latest poll.
+
+Safety (:mod:`openel_async.safety`; a servo is a ``Watchdog`` and an ``EmergencyStop``):
+
+* ``arm_watchdog(timeout_s)`` writes Bus Watchdog (98) = timeout / 20 ms (a multiple of
+  20 ms in 0.02..2.54 s, firmware >= 38; the port's ``poll_period`` must be below half the
+  timeout). The port's poller, a task of the event loop, feeds it: when the loop stalls
+  for longer than the timeout the servo stops by itself (Goal values ignored, torque kept,
+  98 reads -1). The trip is found when the loop resumes (the late poll is followed by a
+  read of 98, or a goal write is refused with Data Range Error) and the component goes to
+  Error with ``ErrorId.WATCHDOG``; ``re_init`` writes 0 (clears it), holds the present
+  position and arms it again. Init clears a Bus Watchdog Error left by an earlier run.
+* ``estop()``: Torque Enable (64) = 0 at once (a SYNC WRITE ahead of queued transactions;
+  :meth:`DynamixelPort.estop` does every servo of a port in one packet), the component goes
+  to Error with ``ErrorId.ESTOP``; ``re_init`` enables the torque again, holding the
+  present position.
+* ``safe_stop(action)``: ``HOLD`` and ``STOP`` hold the present position with the torque on
+  (Goal Position = present position, in position mode -- switched to it, with the torque
+  briefly off as the servo requires, from velocity or current mode); the servo has no
+  separate braking command: a position goal at the present position while moving makes
+  its profile brake at Profile Acceleration and settle on that point. ``STOP`` in
+  velocity mode writes Goal Velocity 0 instead (braking at Profile Acceleration).
+  ``TORQUE_OFF`` writes Torque Enable 0. An e-stopped servo keeps its torque off; a servo
+  stopped by its Bus Watchdog is left as it is (its goals are read-only) unless the action
+  is ``TORQUE_OFF``.
 """
 
 from __future__ import annotations
@@ -61,6 +85,7 @@ from openel_async.errors import (
 )
 from openel_async.ids import DeviceKind
 from openel_async.requests import Request
+from openel_async.safety import ExitAction
 from openel_serial import dynamixel as dx
 from openel_serial.errors import (
     DynamixelHardwareAlert,
@@ -253,6 +278,10 @@ class DynamixelServo(ActuatorDevice):
         self.return_delay: float | None = None
         """The servo's Return Delay Time in seconds, read at open."""
         self.completions = 0
+        self._watchdog_units: int | None = None
+        """Bus Watchdog (98) setting while armed (None: not armed by us)."""
+        self._estop_active = False
+        self.watchdog_trips = 0
         self._log = log.bind(port=port.url, dxl_id=dxl_id)
 
     # -- identity --------------------------------------------------------------------
@@ -348,6 +377,8 @@ class DynamixelServo(ActuatorDevice):
                     continue  # still booting (each PING waited its timeout)
         await self._load_table()
         await self._refresh_state()
+        if self._watchdog_units is not None:  # RAM reset: arm it again
+            await self._write(X.BUS_WATCHDOG, self._watchdog_units)
         if polled and not self._alert:
             self._polled = True
             self.port.wake_poller()
@@ -367,6 +398,8 @@ class DynamixelServo(ActuatorDevice):
             self._fault_alert(exc)
             raise
         except DynamixelStatusError as exc:
+            if await self._refused_by_watchdog(exc):
+                raise
             if (self._mode, self._torque) == (mode_before, torque_before):
                 self._pending = previous  # nothing changed on the servo
             self._log.warning("dynamixel_command_refused", error=str(exc))
@@ -394,6 +427,8 @@ class DynamixelServo(ActuatorDevice):
             self._fault_alert(exc)
             raise
         except DynamixelStatusError as exc:
+            if await self._refused_by_watchdog(exc):
+                raise
             self._log.warning("dynamixel_command_refused", error=str(exc))
             self._context().post_error(ErrorId.PROTOCOL_ERROR)
             raise
@@ -421,6 +456,109 @@ class DynamixelServo(ActuatorDevice):
         raise BadParameterError(
             "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
         )
+
+    # -- safety (openel_async.safety.Watchdog, EmergencyStop) ----------------------------
+    @property
+    def watchdog_timeout(self) -> float | None:
+        """The armed Bus Watchdog timeout (s), or None."""
+        units = self._watchdog_units
+        return None if units is None else units * dx.BUS_WATCHDOG_UNIT_S
+
+    @property
+    def estopped(self) -> bool:
+        """Whether the servo was e-stopped (torque off) and not made operational since."""
+        return self._estop_active
+
+    async def arm_watchdog(self, timeout_s: float) -> None:
+        """Bus Watchdog (98) = ``timeout_s`` / 20 ms, fed by the port's poller.
+
+        Refused with :class:`BadParameterError` naming ``timeout_s`` unless it is a
+        multiple of 20 ms in 0.02..2.54 s and more than twice the port's ``poll_period``;
+        :class:`NotImplementedHALError` for a firmware older than v38 (no Bus Watchdog).
+        """
+        try:
+            units = dx.bus_watchdog_units(timeout_s)
+        except ValueError:
+            raise BadParameterError(
+                "timeout_s",
+                timeout_s,
+                f"a multiple of {dx.BUS_WATCHDOG_UNIT_S} s in {dx.BUS_WATCHDOG_UNIT_S}.."
+                f"{dx.BUS_WATCHDOG_MAX * dx.BUS_WATCHDOG_UNIT_S:g} s (Bus Watchdog (98): "
+                f"1..{dx.BUS_WATCHDOG_MAX} units of 20 ms)",
+            ) from None
+        firmware = self.firmware_version
+        if firmware is not None and firmware < dx.BUS_WATCHDOG_FIRMWARE:
+            raise NotImplementedHALError(
+                f"servo {self._dxl_id}: firmware v{firmware} has no Bus Watchdog "
+                f"(v{dx.BUS_WATCHDOG_FIRMWARE} and later)"
+            )
+        self.port.arm_bus_watchdog(self._dxl_id, units * dx.BUS_WATCHDOG_UNIT_S)
+        try:
+            await self._write(X.BUS_WATCHDOG, units)
+        except BaseException:
+            self.port.disarm_bus_watchdog(self._dxl_id)
+            raise
+        self._watchdog_units = units
+        self._log.info("dynamixel_bus_watchdog_armed", timeout_s=units * dx.BUS_WATCHDOG_UNIT_S)
+
+    async def disarm_watchdog(self) -> None:
+        """Bus Watchdog (98) = 0 (off; also clears a Bus Watchdog Error)."""
+        self._watchdog_units = None
+        self.port.disarm_bus_watchdog(self._dxl_id)
+        if self.port.connected:
+            await self._write(X.BUS_WATCHDOG, 0)
+
+    async def estop(self) -> None:
+        """Torque Enable (64) = 0 now, component to Error with ``ErrorId.ESTOP``."""
+        try:
+            await self.port.estop([self._dxl_id])
+        finally:
+            self._estopped_now(f"servo {self._dxl_id}: e-stop: torque off")
+
+    async def safe_stop(self, action: ExitAction) -> None:
+        """Leave the servo in ``action``'s state (see the module docstring)."""
+        action = ExitAction(action)
+        self._pending = None
+        if action is ExitAction.TORQUE_OFF:
+            await self._write(X.TORQUE_ENABLE, 0)
+            self._torque = False
+        elif self._estop_active or self._alert or not self._torque:
+            pass  # torque off (e-stop, hardware error, NO_EXCITE): keep it off
+        elif await self._read_watchdog() == dx.BUS_WATCHDOG_ERROR:
+            pass  # stopped and holding by itself; goals are read-only
+        elif action is ExitAction.STOP and self._mode == dx.OperatingMode.VELOCITY:
+            await self._write(X.GOAL_VELOCITY, 0)
+        else:
+            state = await self._refresh_state()
+            await self._apply(self.position_mode, X.GOAL_POSITION, state.position)
+        self._log.info("dynamixel_safe_stop", action=str(action), torque=self._torque)
+
+    def _estopped_now(self, reason: str) -> None:
+        self._estop_active = True
+        self._torque = False
+        self._polled = False
+        self._pending = None
+        if self._ctx is not None:
+            self._ctx.fault(ErrorId.ESTOP, reason)
+
+    async def _read_watchdog(self) -> int:
+        return await self.port.read_item(self._dxl_id, X.BUS_WATCHDOG, check_alert=False)
+
+    async def _refused_by_watchdog(self, exc: DynamixelStatusError) -> bool:
+        """Whether a refused goal write was refused because the Bus Watchdog expired
+        (then the component faults with ``ErrorId.WATCHDOG``)."""
+        if exc.error_number != dx.ErrorNumber.DATA_RANGE_ERROR or self._watchdog_units is None:
+            return False
+        try:
+            tripped = await self._read_watchdog() == dx.BUS_WATCHDOG_ERROR
+        except (HALError, *_LINK_ERRORS):
+            return False
+        if tripped:
+            self._watchdog_tripped(
+                f"servo {self._dxl_id}: Bus Watchdog expired (goal refused: {exc}): "
+                "the servo stopped by itself"
+            )
+        return tripped
 
     # -- poller callbacks (called by the port) ------------------------------------------
     def _poll_update(self, state: PresentState) -> None:
@@ -456,6 +594,16 @@ class DynamixelServo(ActuatorDevice):
     def _hardware_alert(self, error: DynamixelHardwareAlert) -> None:
         if self._polled:
             self._fault_alert(error)
+
+    def _watchdog_tripped(self, reason: str) -> None:
+        self.watchdog_trips += 1
+        if self._polled:
+            self._polled = False
+            self._pending = None
+            self._context().fault(ErrorId.WATCHDOG, reason)
+
+    def _estopped(self, reason: str) -> None:
+        self._estopped_now(reason)
 
     def _port_lost(self, reason: str) -> None:
         if self._polled:
@@ -535,7 +683,8 @@ class DynamixelServo(ActuatorDevice):
         return state
 
     async def _make_operational(self) -> None:
-        """Clear a hardware error, write the profile, hold the present position, torque on."""
+        """Clear a hardware error and a Bus Watchdog Error, write the profile, hold the
+        present position, torque on, arm the Bus Watchdog again if it was armed."""
         await self.port.reconnect()
         if self._alert:
             if not self.reboot_on_alert:
@@ -547,6 +696,14 @@ class DynamixelServo(ActuatorDevice):
             await self.reboot()
             if self._alert:
                 raise DynamixelHardwareAlert(self._dxl_id, dx.ALERT_BIT, "reboot", None)
+        firmware = self.firmware_version
+        has_watchdog = firmware is None or firmware >= dx.BUS_WATCHDOG_FIRMWARE
+        watchdog = await self._read_watchdog() if has_watchdog else 0
+        if watchdog == dx.BUS_WATCHDOG_ERROR or (watchdog and self._watchdog_units is None):
+            # Expired (goals are read-only until 0 is written), or armed by an earlier run.
+            self._log.warning("dynamixel_bus_watchdog_cleared", value=watchdog)
+            await self._write(X.BUS_WATCHDOG, 0)
+            watchdog = 0
         if self._base_acc is None or self._base_vel is None:
             data = await self.port.read(self._dxl_id, X.PROFILE_ACCELERATION.address, 8)
             self._profile_acc = X.PROFILE_ACCELERATION.decode(data[:4])
@@ -560,6 +717,9 @@ class DynamixelServo(ActuatorDevice):
         self._pending = None
         # Writes the profile too (and again after a mode change, which resets it).
         await self._apply(self.position_mode, X.GOAL_POSITION, state.position)
+        self._estop_active = False
+        if self._watchdog_units is not None and watchdog != self._watchdog_units:
+            await self._write(X.BUS_WATCHDOG, self._watchdog_units)
         self._polled = True
         self.port.wake_poller()
 
