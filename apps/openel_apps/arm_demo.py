@@ -540,10 +540,8 @@ def print_summary(title: str, lines: Sequence[str], stream: TextIO | None = None
 
 
 def print_report(title: str, lines: Sequence[str], artifacts: Artifacts) -> None:
-    """The summary, then where the files went."""
+    """The summary; its lines say where each file went (no heading of its own)."""
     print_summary(title, lines)
-    if artifacts.plot is not None:
-        print(f"\nfiles in {display_path(artifacts.plot.parent)}/")
 
 
 def fmt_mm(meters: float) -> str:

@@ -77,7 +77,7 @@ def test_the_app_runs_from_the_command_line(
     assert code == 0, out
     assert "summary (MuJoCo arm2 square, lockstep)" in out
     assert f"plot               {(tmp_path / 'arm2_square_joints.png').resolve()}" in out
-    assert "files in" in out
+    assert "files in" not in out  # no empty heading after the summary (issue 21 point 7)
     assert is_png(tmp_path / "arm2_square_joints.png")
 
 
