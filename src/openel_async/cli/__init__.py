@@ -46,7 +46,8 @@ and the app's after '--').
 
 All of these EXECUTE Python code: the app, or the module the profile's 'implementation'
 parameter names (next to the profile, or installed); run only what you trust. Ctrl-C (SIGINT)
-stops the run with exit status 130, SIGTERM with 143, after a summary.
+stops the run with exit status 130, SIGTERM with 143, after a summary. The output options
+(--log-level, -v, -q, --log-format) go before NAME: after it they are the app's.
 """
 
 
@@ -72,6 +73,11 @@ def _finish(parser: argparse.ArgumentParser, depth: int) -> None:
     """Give every subcommand below ``parser`` the formatter and the global options."""
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
+            helps = {choice.dest: choice.help for choice in action._choices_actions}
+            for name, child in action.choices.items():
+                if child.description is None and helps.get(name):  # its one line, as a sentence
+                    text = str(helps[name])
+                    child.description = text[0].upper() + text[1:] + "."
             for child in dict.fromkeys(action.choices.values()):
                 child.formatter_class = HelpFormatter
                 if not any(a.dest.startswith("verbose_") for a in child._actions):

@@ -36,7 +36,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "profile", help="validate, show or convert an RTC Profile (.yaml/.yml/.xml)"
     )
     actions = profile.add_subparsers(dest="profile_action", required=True)
-    validate = actions.add_parser("validate", help="check a profile (exit status 1 if invalid)")
+    validate = actions.add_parser(
+        "validate", help="check a profile (exit status 1 if invalid, 2 if missing)"
+    )
     validate.add_argument("file", help="RTC Profile (.yaml, .yml or .xml)")
     validate.add_argument(
         "--implementation",
