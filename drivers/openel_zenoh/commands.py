@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, TypeAlias
 import anyio
 import structlog
 
-from openel_async.cli.commands import CliCommand, load_bytes
+from openel_async.cli.commands import EXIT_USAGE, CliCommand, load_bytes, no_such_file
 from openel_async.errors import BadParameterError, HALError
 from openel_async.surface import xml_psm
 from openel_async.surface.messages import Device
@@ -63,6 +63,8 @@ def add_serve_parser(sub: SubParsers) -> argparse.ArgumentParser:
 def run_serve(args: argparse.Namespace) -> int:
     from .gate import GatedEventLoop
 
+    if no_such_file("openel-async serve", args.rig):
+        return EXIT_USAGE
     try:
         # A gated loop: plain reads are answered on Zenoh's thread while the loop is idle.
         return anyio.run(
@@ -142,12 +144,18 @@ def add_exec_parser(actions: SubParsers) -> argparse.ArgumentParser:
     execute.add_argument(
         "--config", metavar="FILE", help="Zenoh JSON5 configuration (replaces the safe defaults)"
     )
-    execute.add_argument("--namespace", default="default")
+    execute.add_argument(
+        "--namespace",
+        default="default",
+        help="the server's key-expression namespace (default: default)",
+    )
     execute.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for the reply")
     return execute
 
 
 def run_exec(args: argparse.Namespace) -> int:
+    if no_such_file("openel-async hal4rt exec", args.file):
+        return EXIT_USAGE
     try:
         device = xml_psm.device_from_xml(load_bytes(args.file))
     except (OSError, BadParameterError) as exc:

@@ -4,6 +4,7 @@ Components are async objects: ``await actuator.set_value(...)`` returns once the
 device accepted the target, and reaching it is posted as event 1 (COMPLETED).
 """
 
+from . import _logging  # noqa: F401  (first: structlog to logging, unless the app configured it)
 from .actuator import Actuator, CompletionPolicy
 from .banks import ActuatorBank, SensorBank
 from .clock import Clock, MonotonicClock, VirtualClock, default_clock

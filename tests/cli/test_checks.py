@@ -9,10 +9,10 @@ from pathlib import Path
 
 import anyio
 import pytest
-import structlog
 
 from openel_async.app import atomic_output, collect_written, run_interruptible
 from openel_async.cli import main
+from openel_async.cli.logs import reset_logging
 
 ROOT = Path(__file__).resolve().parents[2]
 PAN_TILT = ROOT / "apps" / "pan_tilt" / "RTC.yaml"
@@ -21,7 +21,7 @@ PAN_TILT = ROOT / "apps" / "pan_tilt" / "RTC.yaml"
 @pytest.fixture(autouse=True)
 def _reset_logging() -> Iterator[None]:
     yield
-    structlog.reset_defaults()
+    reset_logging()
 
 
 # -- demo options -------------------------------------------------------------------------------

@@ -9,10 +9,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-import structlog
 
 from openel_apps.twoaxis import run_demo
 from openel_async.cli import main
+from openel_async.cli.logs import reset_logging
 from openel_async.registry import discover_drivers
 
 
@@ -20,7 +20,7 @@ from openel_async.registry import discover_drivers
 def _reset_logging() -> Iterator[None]:
     """main() configures structlog for the process; undo it after each test."""
     yield
-    structlog.reset_defaults()
+    reset_logging()
 
 
 def test_devices_lists_the_sim_driver(capsys: pytest.CaptureFixture[str]) -> None:
@@ -97,7 +97,8 @@ def test_the_demo_runs_the_arm6_pick_and_place(
     assert "summary (MuJoCo arm6 pick and place, lockstep)" in out
     assert "box                picked and carried" in out
     assert "motions            7/7 succeeded" in out
-    assert f"files in {tmp_path.resolve()}/" in out
+    assert f"files in {tmp_path.resolve()}/" in out  # a heading with the files below it
+    assert "  joint plot         arm6_pick_place_joints.png" in out
     assert (tmp_path / "arm6_pick_place_joints.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -168,7 +169,7 @@ def test_run_passes_arguments_to_an_app(tmp_path: Path) -> None:
 def test_json_logs_go_to_stderr_as_json_lines() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "openel_async.cli", "--log-format", "json", "demo",
-         "--bus", "sim", "--virtual", "--duration", "0.2", "--no-live"],
+         "--bus", "sim", "--virtual", "--duration", "0.2", "--no-live", "-v"],
         capture_output=True, text=True, timeout=60, check=True,
     )  # fmt: skip
     lines = [line for line in result.stderr.splitlines() if line.strip()]

@@ -112,7 +112,7 @@ def test_sigterm_stops_the_mujoco_demo_and_leaves_no_partial_file(tmp_path: Path
 
 
 def test_signals_end_a_profile_run_with_its_summary(tmp_path: Path) -> None:
-    command = Command(["run", str(PAN_TILT)], tmp_path)  # until Ctrl-C, real clock
+    command = Command(["-v", "run", str(PAN_TILT)], tmp_path)  # until Ctrl-C; -v: info events
     command.wait_for("profile_running")
     code, elapsed = command.stop(signal.SIGTERM)
     out = command.output()

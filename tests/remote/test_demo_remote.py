@@ -13,7 +13,8 @@ import anyio
 import anyio.abc
 import pytest
 
-DEMO = [sys.executable, "-m", "openel_async.cli", "demo", "--remote", "--no-live"]
+# -v: the tests follow the server process through its info events (the default shows warnings).
+DEMO = [sys.executable, "-m", "openel_async.cli", "-v", "demo", "--remote", "--no-live"]
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
 
 

@@ -351,7 +351,7 @@ def test_profile_validate_show_convert(tmp_path: Path, capsys: pytest.CaptureFix
     assert cli(["profile", "show", str(APP)]) == 0
     out = capsys.readouterr().out
     assert "implementation  pan_tilt:PanTilt" in out
-    assert "amplitude      double     = '0.5' rad  [0<=x<=1.5]" in out
+    assert "amplitude      double     = 0.5 rad  [0<=x<=1.5]" in out
     assert "on_mode_changed" in out
     xml = tmp_path / "RTC.xml"
     assert cli(["profile", "convert", str(APP), str(xml)]) == 0
@@ -361,7 +361,7 @@ def test_profile_validate_show_convert(tmp_path: Path, capsys: pytest.CaptureFix
     assert printed.startswith("rtcProfile:") or "rtcProfile:" in printed.splitlines()[1]
     assert cli(["profile", "convert", str(APP), "--to", "xml"]) == 0
     assert "<rtc:RtcProfile" in capsys.readouterr().out
-    assert cli(["profile", "show", str(tmp_path / "none.yaml")]) == 1
+    assert cli(["profile", "show", str(tmp_path / "none.yaml")]) == 2
     assert "no such file" in capsys.readouterr().err
     assert cli(["profile", "convert", str(APP), str(tmp_path / "out.json")]) == 1
     assert "unknown profile format" in capsys.readouterr().err

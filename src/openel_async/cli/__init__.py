@@ -1,4 +1,9 @@
-"""The ``openel-async`` command line."""
+"""openel-async: run the demos and apps, check RTC Profiles and HAL4RT messages, inspect and
+replay recordings.
+
+Options after a command apply to it; the output options (--log-format, --log-level, -v, -q)
+work before or after any command. 'openel-async COMMAND --help' explains a command.
+"""
 
 from __future__ import annotations
 
@@ -7,104 +12,192 @@ import importlib
 import signal
 import sys
 from collections.abc import Sequence
+from importlib.metadata import PackageNotFoundError, version
 
 from ..app import EXIT_SIGINT, install_sigterm_handler, interrupt_code
 from .commands import attach, discover_commands
-from .logs import LEVELS, configure_logging
+from .logs import configure_logging
+from .options import HelpFormatter, add_global_options, log_level
 from .record_cmd import add_parser as add_record_parser
 from .record_cmd import add_tap_arguments
 from .replay_cmd import add_parser as add_replay_parser
 
+PROG = "openel-async"
+SHELLS = ("bash", "zsh", "tcsh")
+
+DEMO_DESCRIPTION = """\
+Run a demo app with the demo's options. Without --app: the MuJoCo arm traces a square
+(--bus mujoco, the default; the two-axis demo where MuJoCo cannot load), or the two-axis
+synchronized demo of spec Figs. 7.5-7.8 (--bus sim, --bus can, --remote).
+
+Every option is checked before anything runs (exit status 2). Ctrl-C (SIGINT) stops the demo
+with exit status 130, SIGTERM with 143, after a summary; the PNG files are then complete or
+absent.
+"""
+
+RUN_DESCRIPTION = """\
+Run a registered app (by name: 'openel-async demo --list'), a Python app file (async def
+main(argv), or an APP_INFO) or the RT component an RTC Profile describes.
+
+Options after NAME are the app's ('openel-async run NAME --help' lists them), except
+--record, --foxglove, --foxglove-host and --foxglove-port, which openel-async takes wherever
+they are (an app with an option of the same name is refused: give openel-async's before NAME
+and the app's after '--').
+
+All of these EXECUTE Python code: the app, or the module the profile's 'implementation'
+parameter names (next to the profile, or installed); run only what you trust. Ctrl-C (SIGINT)
+stops the run with exit status 130, SIGTERM with 143, after a summary. The output options
+(--log-level, -v, -q, --log-format) go before NAME: after it they are the app's.
+"""
+
+
+def _version() -> str:
+    try:
+        return version("openel-async")
+    except PackageNotFoundError:  # a source tree that is not installed
+        return "unknown"
+
+
+def _subcommand(
+    sub: argparse._SubParsersAction[argparse.ArgumentParser], name: str, **kwargs: object
+) -> argparse.ArgumentParser:
+    parser: argparse.ArgumentParser = sub.add_parser(
+        name,
+        formatter_class=HelpFormatter,
+        **kwargs,  # type: ignore[arg-type]
+    )
+    return parser
+
+
+def _finish(parser: argparse.ArgumentParser, depth: int) -> None:
+    """Give every subcommand below ``parser`` the formatter and the global options."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            helps = {choice.dest: choice.help for choice in action._choices_actions}
+            for name, child in action.choices.items():
+                if child.description is None and helps.get(name):  # its one line, as a sentence
+                    text = str(helps[name])
+                    child.description = text[0].upper() + text[1:] + "."
+            for child in dict.fromkeys(action.choices.values()):
+                child.formatter_class = HelpFormatter
+                if not any(a.dest.startswith("verbose_") for a in child._actions):
+                    add_global_options(child, depth=depth + 1)
+                _finish(child, depth + 1)
+
 
 def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="openel-async", description=__doc__)
-    parser.add_argument("--log-format", choices=("console", "json"), default="console")
-    parser.add_argument("--log-level", choices=LEVELS, default="info")
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__, formatter_class=HelpFormatter)
+    parser.add_argument(
+        "--version", action="version", version=f"%(prog)s {_version()}",
+        help="print the version and exit",
+    )  # fmt: skip
+    add_global_options(parser, depth=0)
+    sub = parser.add_subparsers(title="commands", dest="command", required=True, metavar="COMMAND")
 
-    demo = sub.add_parser(
+    demo = _subcommand(
+        sub,
         "demo",
-        help="run the demo: the MuJoCo arm traces a square (default), the 6-DoF arm picks and "
-        "places a box (--app arm6), or the two-axis synchronized demo of spec Figs. 7.5-7.8 "
-        "(--bus sim or can)",
-        description="Every option is checked before anything runs (exit status 2). Ctrl-C "
-        "(SIGINT) stops the demo with exit status 130, SIGTERM with 143, after a summary; "
-        "the PNG files are then complete or absent.",
+        help="run a demo: the MuJoCo arm traces a square (default), the 6-DoF arm picks and "
+        "places a box (--app arm6), two axes in step (--bus sim or can)",
+        description=DEMO_DESCRIPTION,
     )
     demo.add_argument(
         "--app",
         metavar="NAME",
         default=None,
-        help="the app to run, by its registered name (--list shows them): arm2 (the 2-DoF arm "
-        "traces a square; default), arm6 (the 6-DoF arm picks and places a box with its suction "
-        "cup), twoaxis (the two-axis demo; the default of --bus sim or can)",
+        help="the app to run, by its registered name (--list shows them):\n"
+        "arm2: the 2-DoF arm traces a square (the default).\n"
+        "arm6: the 6-DoF arm picks and places a box with its suction cup.\n"
+        "twoaxis: the two-axis demo (the default of --bus sim, --bus can and --remote).",
     )
     demo.add_argument(
-        "--list", action="store_true", help="list the registered apps, one line each, and exit"
+        "--list", action="store_true", help="list the registered apps, one a line, and exit"
     )
     demo.add_argument(
         "--duration",
         type=float,
+        metavar="S",
         default=None,
-        help="seconds of synchronized motion (default 5; mujoco: seconds per lap of the square, "
-        "default 5; arm6: seconds of arm motion, default 8; mujoco: at most 600)",
+        help="seconds, for each app:\n"
+        "arm2: seconds per lap of the square (default 5, at most 600).\n"
+        "arm6: seconds of arm motion (default 8, at most 600).\n"
+        "twoaxis: seconds of synchronized motion (default 5).",
     )
     demo.add_argument(
         "--period-ms",
         type=float,
+        metavar="MS",
         default=None,
-        help="EventTimer period, ms (default: 10, from 0.1 to 1000; mujoco: 2, a whole "
-        "number of ms from 1 to 100)",
+        help="the EventTimer's period in milliseconds:\n"
+        "arm2, arm6: a whole number from 1 to 100 (default 2).\n"
+        "twoaxis: from 0.1 to 1000 (default 10).",
     )
-    demo.add_argument(
+    pacing = demo.add_mutually_exclusive_group()
+    pacing.add_argument(
         "--virtual",
+        dest="virtual",
         action="store_true",
-        help="run on the virtual clock (instant); mujoco: lockstep pacing",
+        default=False,
+        help="run as fast as possible: the virtual clock (twoaxis, --bus sim only) or "
+        "lockstep MuJoCo pacing (arm2, arm6)",
+    )
+    pacing.add_argument(
+        "--realtime",
+        dest="virtual",
+        action="store_false",
+        default=False,
+        help="run in real time on the monotonic clock (the default)",
     )
     demo.add_argument(
-        "--inject-fault", action="store_true", help="trip a drive halfway and recover (sim, can)"
+        "--inject-fault",
+        action="store_true",
+        help="trip a drive halfway and recover it (twoaxis on --bus sim or can)",
     )
     demo.add_argument("--no-live", action="store_true", help="no live progress line")
     demo.add_argument(
-        "--out", metavar="DIR", default=None, help="mujoco: directory for the PNG files, "
-        "created if needed (default: out/<app>/ under the current directory, e.g. "
-        "out/arm2_square/)",
-    )  # fmt: skip
-
+        "--out",
+        metavar="DIR",
+        default=None,
+        help="arm2, arm6: the folder for the PNG files, created if needed (default "
+        "out/<app>/ in the current folder, e.g. out/arm2_square/)",
+    )
     demo.add_argument(
         "--bus",
         choices=("mujoco", "sim", "can"),
         default=None,
-        help="device layer: mujoco (the MuJoCo arm; falls back to sim when MuJoCo cannot "
-        "load), sim (openel_sim motors) or can (simulated CAN drives)",
+        help="the device layer:\n"
+        "mujoco: the MuJoCo arm (falls back to sim when MuJoCo cannot load).\n"
+        "sim: openel_sim motors.\n"
+        "can: simulated CAN drives.",
     )
     demo.add_argument(
         "--remote",
         action="store_true",
-        help="two-axis demo with its sim devices served by a second process "
+        help="the two-axis demo with its sim devices served by a second process "
         "('openel-async serve' on a free loopback port) and driven over Zenoh",
     )
     add_tap_arguments(demo)
 
-    run = sub.add_parser(
+    run = _subcommand(
+        sub,
         "run",
-        help="run an app by its registered name (openel-async demo --list), an app file "
-        "(apps/<name>.py) or an RTC Profile (.yaml/.xml); this executes the app's Python code, "
-        "or the module the profile's 'implementation' names",
-        description="Run a registered app (by name), a Python app file (async def main(argv), "
-        "or an APP_INFO) or the RT component an RTC Profile describes. All EXECUTE Python "
-        "code: the app, or the module the profile's 'implementation' parameter names (next to "
-        "the profile, or installed); run only what you trust. Ctrl-C (SIGINT) stops the run "
-        "with exit status 130, SIGTERM with 143, after a summary. 'openel-async run NAME "
-        "--help' lists an app's options, 'openel-async run PROFILE --help' a profile's.",
+        help="run an app by name, an app file (apps/NAME.py) or an RTC Profile (.yaml, .xml)",
+        description=RUN_DESCRIPTION,
     )
     add_tap_arguments(run)
     run.add_argument(
-        "path", help="registered app name, application file or directory, or RTC Profile"
+        "path", metavar="NAME|PATH", help="a registered app's name, an app file or folder, or "
+        "an RTC Profile",
+    )  # fmt: skip
+    run.add_argument(
+        "app_args", nargs=argparse.REMAINDER, metavar="...", help="the app's own options"
     )
-    run.add_argument("app_args", nargs=argparse.REMAINDER, help="arguments for the application")
 
-    devices = sub.add_parser("devices", help="list the registered drivers and their devices")
+    devices = _subcommand(
+        sub, "devices", help="list the registered drivers and their devices",
+        description="List the registered drivers (entry-point group openel_async.drivers) and "
+        "the devices each offers, with the class that implements each.",
+    )  # fmt: skip
     devices.add_argument(
         "--profile",
         action="store_true",
@@ -119,10 +212,23 @@ def _build_parser() -> argparse.ArgumentParser:
     from .hal4rt_cmd import add_parser as add_hal4rt_parser
 
     parents = {"hal4rt": add_hal4rt_parser(sub)}
+    completion = _subcommand(
+        sub,
+        "completion",
+        help="print a shell completion script (bash, zsh or tcsh)",
+        description="Print the completion script of a shell. Load it in the current shell:\n\n"
+        '- bash: eval "$(openel-async completion bash)"\n'
+        "- zsh: openel-async completion zsh > ~/.zfunc/_openel-async (a folder on $fpath)\n"
+        "- tcsh: eval `openel-async completion tcsh`",
+    )
+    completion.add_argument("shell", choices=SHELLS, help="the shell: bash, zsh or tcsh")
     for command in discover_commands():  # contributed by drivers (openel_zenoh: serve, exec)
         target = sub if command.parent is None else parents.get(command.parent)
         if target is not None:
             attach(command, target)
+    _finish(parser, 0)
+    groups = parser._action_groups  # the commands first, then the options
+    groups.sort(key=lambda group: group.title != "commands")
     return parser
 
 
@@ -131,7 +237,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     SIGINT (Ctrl-C) ends any command with status 130 and SIGTERM with 143, without a
     traceback: the long-running commands stop their work, print a summary and leave their
-    output files complete or absent (:mod:`.interrupt`); elsewhere the signal unwinds the
+    output files complete or absent (openel_async.app); elsewhere the signal unwinds the
     command like an exception."""
     previous_sigterm = signal.getsignal(signal.SIGTERM)
     install_sigterm_handler()
@@ -142,25 +248,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         if code is None:
             raise
         name = "SIGINT" if code == EXIT_SIGINT else "SIGTERM"
-        print(f"\nopenel-async: interrupted by {name}", file=sys.stderr)
+        print(f"\n{PROG}: interrupted by {name}", file=sys.stderr)
         return code
     finally:
         signal.signal(signal.SIGTERM, previous_sigterm)
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    args = _build_parser().parse_args(argv)
-    configure_logging(args.log_format, args.log_level)
+    parser = _build_parser()
+    args = parser.parse_args(argv)
+    configure_logging(args.log_format, log_level(args))
     contributed = getattr(args, "contributed", None)
     if contributed is not None:
         code: int = contributed.run(args)
         return code
+    if args.command == "completion":
+        import shtab
+
+        print(shtab.complete(parser, shell=args.shell), end="")
+        return 0
     if args.command == "devices":
         if args.profile:
             from .devices_cmd import print_profiles
 
             return print_profiles()
-        return _devices()
+        from .devices_cmd import print_devices
+
+        return print_devices()
     if args.command == "demo":
         from .demo_cmd import run as run_demo_cmd
 
@@ -168,7 +282,12 @@ def _main(argv: Sequence[str] | None) -> int:
     if args.command == "run":
         from .run_cmd import run
 
-        return run(args.path, list(args.app_args), tap_args=args)
+        app_args = list(args.app_args)
+        raw = list(sys.argv[1:] if argv is None else argv)
+        cut = len(raw) - len(app_args) - 1
+        if cut >= 0 and raw[cut] == "--" and raw[cut + 1 :] == app_args:
+            app_args.insert(0, "--")  # argparse drops a '--' right after the app's name
+        return run(args.path, app_args, tap_args=args)
     if args.command == "record":
         from .record_cmd import run as run_record_cmd
 
@@ -186,20 +305,6 @@ def _main(argv: Sequence[str] | None) -> int:
         status: int = module.run(args)
         return status
     return 2
-
-
-def _devices() -> int:
-    from ..registry import discover_drivers
-
-    for entry in discover_drivers():
-        if entry.info is None:
-            print(f"{entry.name:10} ({entry.value})  unavailable: {entry.error}")
-            continue
-        print(f"{entry.name:10} {entry.info.description}")
-        width = max((len(name) for name in entry.info.devices), default=0) + 2
-        for device_name, cls in entry.info.devices.items():
-            print(f"  {device_name:{width}}{cls.__module__}.{cls.__qualname__}")
-    return 0
 
 
 if __name__ == "__main__":

@@ -23,7 +23,16 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
-__all__ = ["ENTRY_POINT_GROUP", "CliCommand", "discover_commands", "load_bytes"]
+from .options import EXIT_USAGE, no_such_file
+
+__all__ = [
+    "ENTRY_POINT_GROUP",
+    "EXIT_USAGE",
+    "CliCommand",
+    "discover_commands",
+    "load_bytes",
+    "no_such_file",
+]
 
 ENTRY_POINT_GROUP = "openel_async.commands"
 

@@ -33,3 +33,30 @@ def profiles_document() -> dict[str, Any]:
 def print_profiles() -> int:
     print(json.dumps(profiles_document(), indent=2))
     return 0
+
+
+def print_devices() -> int:
+    """``openel-async devices``: each driver, its description, and its devices with the class
+    that implements each; a driver that cannot load says why."""
+    import textwrap
+
+    from ..registry import discover_drivers
+
+    entries = discover_drivers()
+    name_width = max((len(e.name) for e in entries), default=0) + 2
+    for entry in entries:
+        if entry.info is None:
+            print(f"{entry.name:{name_width}}unavailable ({entry.value}): {entry.error}")
+            continue
+        print(
+            textwrap.fill(
+                entry.info.description,
+                width=100,
+                initial_indent=f"{entry.name:{name_width}}",
+                subsequent_indent=" " * name_width,
+            )
+        )
+        width = max((len(name) for name in entry.info.devices), default=0) + 2
+        for device_name, cls in entry.info.devices.items():
+            print(f"  {device_name:{width}}{cls.__module__}.{cls.__qualname__}")
+    return 0

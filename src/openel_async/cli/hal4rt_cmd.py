@@ -25,6 +25,7 @@ from ..surface.messages import (
     ResultList,
 )
 from .commands import load_bytes
+from .options import EXIT_USAGE, no_such_file
 
 
 def add_parser(
@@ -36,9 +37,11 @@ def add_parser(
     validate = actions.add_parser(
         "validate", help="validate XML messages against the HAL4RT schema"
     )
-    validate.add_argument("files", nargs="+", metavar="FILE.xml")
+    validate.add_argument(
+        "files", nargs="+", metavar="FILE.xml", help="the messages ('-' for standard input)"
+    )
     show = actions.add_parser("show", help="print a message as a tree")
-    show.add_argument("file", metavar="FILE.xml")
+    show.add_argument("file", metavar="FILE.xml", help="the message ('-' for standard input)")
     actions.add_parser("schema", help="print the shipped XML schema")
     return actions
 
@@ -51,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
         print(xml_psm.schema_text(), end="")
         return 0
     if command == "show":
+        if no_such_file("openel-async hal4rt show", args.file):
+            return EXIT_USAGE
         message = _read(args.file)
         if message is None:
             return 1
@@ -68,14 +73,18 @@ def _read(name: str) -> Message | None:
 
 
 def _validate(files: list[str]) -> int:
-    failed = 0
+    """Each file valid or not; 1 when one is invalid, 2 when one does not exist."""
+    failed = missing = 0
     for name in files:
+        if no_such_file("openel-async hal4rt validate", name):
+            missing += 1
+            continue
         message = _read(name)
         if message is None:
             failed += 1
         else:
             print(f"{name}: valid {type(message).__name__}")
-    return 1 if failed else 0
+    return EXIT_USAGE if missing else (1 if failed else 0)
 
 
 def _parameter(p: Parameter) -> str:
@@ -83,7 +92,8 @@ def _parameter(p: Parameter) -> str:
         kind = DataType(p.data_type_id).name
     except ValueError:
         kind = str(p.data_type_id)
-    return f"{p.name} ({kind}) = {p.value!r}"
+    value = f'"{p.value}"' if isinstance(p.value, str) else p.value
+    return f"{p.name} ({kind}) = {value}"
 
 
 def describe(message: Message, indent: str = "") -> list[str]:

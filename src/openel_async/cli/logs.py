@@ -1,4 +1,13 @@
-"""structlog configuration, done by the CLI only (the library never configures logging)."""
+"""Logging of the command line: the CLI is the application, so it configures structlog and
+the standard ``logging`` module (the library only routes structlog to ``logging``,
+``openel_async._logging``).
+
+Log lines go to standard error, one record a line, rendered for people (``console``) or as
+JSON, at the level the options select (default: warnings and errors). The handler writes to
+``sys.stderr`` as it is when a record is emitted: while a :class:`~openel_async.app.LiveLine`
+shows progress on the terminal, that is the live display's stand-in, which prints the line
+above the progress line, so a log record and the progress never share a line.
+"""
 
 from __future__ import annotations
 
@@ -7,27 +16,76 @@ import sys
 
 import structlog
 
-LEVELS = ("debug", "info", "warning", "error")
+from .options import DEFAULT_LEVEL, LEVELS
+
+__all__ = ["LEVELS", "configure_logging"]
 
 
-def configure_logging(log_format: str = "console", level: str = "info") -> None:
-    """Console (human) or JSON lines on stderr, filtered at ``level``."""
-    renderer: structlog.typing.Processor
-    if log_format == "json":
-        renderer = structlog.processors.JSONRenderer()
-    else:
-        renderer = structlog.dev.ConsoleRenderer(colors=sys.stderr.isatty())
+class _StderrHandler(logging.Handler):
+    """Each record on the current ``sys.stderr``, one line."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            line = self.format(record)
+            stream = sys.stderr
+            stream.write(line + "\n")
+            stream.flush()
+        except Exception:
+            self.handleError(record)
+
+
+def configure_logging(log_format: str = "console", level: str = DEFAULT_LEVEL) -> None:
+    """Console (human) or JSON lines on stderr, filtered at ``level``; calling it again
+    replaces the previous configuration."""
+    shown = getattr(logging, level.upper())
+    # Events from INFO up run through the processors whatever is shown: a recording's /log
+    # channel (openel_async.recording.Tap inserts itself before the last processor) keeps them.
+    processed = min(shown, logging.INFO)
+    shared: list[structlog.typing.Processor] = [
+        structlog.contextvars.merge_contextvars,
+        structlog.processors.add_log_level,
+        structlog.processors.TimeStamper(fmt="iso", utc=True),
+        structlog.processors.StackInfoRenderer(),
+    ]
     structlog.configure(
-        processors=[
-            structlog.contextvars.merge_contextvars,
-            structlog.processors.add_log_level,
-            structlog.processors.TimeStamper(fmt="iso", utc=True),
-            structlog.processors.StackInfoRenderer(),
-            structlog.processors.format_exc_info,
-            renderer,
-        ],
-        wrapper_class=structlog.make_filtering_bound_logger(getattr(logging, level.upper())),
-        # Resolve sys.stderr per logger so a redirected stderr (tests, daemons) is honoured.
-        logger_factory=lambda *_: structlog.PrintLogger(sys.stderr),
+        processors=[*shared, structlog.stdlib.ProcessorFormatter.wrap_for_formatter],
+        logger_factory=structlog.stdlib.LoggerFactory(),
+        wrapper_class=structlog.make_filtering_bound_logger(processed),
         cache_logger_on_first_use=False,
     )
+    renderer: list[structlog.typing.Processor]
+    if log_format == "json":
+        renderer = [
+            structlog.processors.format_exc_info,
+            structlog.processors.JSONRenderer(),
+        ]
+    else:
+        renderer = [
+            structlog.dev.ConsoleRenderer(
+                colors=sys.stderr.isatty(), exception_formatter=structlog.dev.plain_traceback
+            )
+        ]
+    formatter = structlog.stdlib.ProcessorFormatter(
+        processors=[structlog.stdlib.ProcessorFormatter.remove_processors_meta, *renderer],
+        foreign_pre_chain=shared,  # records of plain logging (asyncio, libraries)
+    )
+    handler = _StderrHandler(level=shown)
+    handler.setFormatter(formatter)
+    root = logging.getLogger()
+    for old in [h for h in root.handlers if isinstance(h, _StderrHandler)]:
+        root.removeHandler(old)
+    root.addHandler(handler)
+    root.setLevel(processed)
+
+
+def reset_logging() -> None:
+    """Undo :func:`configure_logging` (tests that call the CLI in-process): the library's
+    default again."""
+    from .._logging import configure_default
+
+    root = logging.getLogger()
+    for old in [h for h in root.handlers if isinstance(h, _StderrHandler)]:
+        root.removeHandler(old)
+    root.setLevel(logging.WARNING)
+    structlog.reset_defaults()
+    configure_default()

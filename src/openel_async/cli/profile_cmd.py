@@ -12,7 +12,7 @@
   suffix and folder are checked before FILE is read; OUT is written whole or not at all.
 
 Exit status: 0 on success, 1 when the profile is invalid or OUT cannot be written (the
-message names the file at fault).
+message names the file at fault), 2 when FILE does not exist.
 """
 
 from __future__ import annotations
@@ -22,6 +22,8 @@ import inspect
 import os
 import sys
 from pathlib import Path
+
+from .options import EXIT_USAGE, no_such_file
 
 __all__ = ["add_parser", "run"]
 
@@ -34,7 +36,9 @@ def add_parser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) 
         "profile", help="validate, show or convert an RTC Profile (.yaml/.yml/.xml)"
     )
     actions = profile.add_subparsers(dest="profile_action", required=True)
-    validate = actions.add_parser("validate", help="check a profile (exit status 1 if invalid)")
+    validate = actions.add_parser(
+        "validate", help="check a profile (exit status 1 if invalid, 2 if missing)"
+    )
     validate.add_argument("file", help="RTC Profile (.yaml, .yml or .xml)")
     validate.add_argument(
         "--implementation",
@@ -65,6 +69,8 @@ def run(args: argparse.Namespace) -> int:
 
     action: str = args.profile_action
     path = Path(args.file)
+    if no_such_file(f"openel-async profile {action}", args.file):
+        return EXIT_USAGE
     if action == "convert" and args.out is not None:
         problem = _check_out(Path(args.out))
         if problem is not None:
@@ -77,9 +83,11 @@ def run(args: argparse.Namespace) -> int:
             return _show(path)
         if action == "convert":
             return _convert(path, args.out, args.to)
-    except FileNotFoundError as exc:
-        print(f"{path}: no such file ({exc.strerror})", file=sys.stderr)
-        return 1
+    except FileNotFoundError as exc:  # a file the profile names
+        print(
+            f"openel-async profile {action}: {exc.filename or path}: no such file", file=sys.stderr
+        )
+        return EXIT_USAGE
     except OSError as exc:
         print(f"{path}: {exc}", file=sys.stderr)
         return 1
@@ -149,16 +157,24 @@ def _show(path: Path) -> int:
         for c in profile.configurations:
             constraint = f"  [{describe(c.constraint)}]" if c.constraint is not None else ""
             unit = f" {c.unit}" if c.unit else ""
-            out.append(f"  {c.name:<14} {c.type:<10} = {c.default_value!r}{unit}{constraint}")
+            out.append(f"  {c.name:<14} {c.type:<10} = {_shown(c.default_value)}{unit}{constraint}")
     for port in profile.data_ports:
         out.append(f"port            {port.name} ({port.port_type}, {port.type})")
     for sport in profile.service_ports:
         out.append(f"service port    {sport.name} ({len(sport.interfaces)} interface(s))")
     others = [p for p in profile.parameters if p.name != IMPLEMENTATION_PARAMETER]
     for param in others:
-        out.append(f"parameter       {param.name} = {param.default_value!r}")
+        out.append(f"parameter       {param.name} = {_shown(param.default_value)}")
     print("\n".join(out))
     return 0
+
+
+def _shown(value: object) -> str:
+    """A value as a person reads it: a string as it is (quoted only when empty or padded)."""
+    if value is None:
+        return "(none)"
+    text = str(value)
+    return f'"{text}"' if text != text.strip() or not text else text
 
 
 def _check_out(out: Path) -> str | None:

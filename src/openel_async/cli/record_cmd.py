@@ -24,26 +24,50 @@ if TYPE_CHECKING:
     from ..component import HALComponent
     from ..recording import Tap
 
-__all__ = ["add_parser", "add_tap_arguments", "record_path_problem", "run", "taps_from_args"]
+__all__ = [
+    "TAP_OPTIONS",
+    "add_parser",
+    "add_tap_arguments",
+    "record_path_problem",
+    "run",
+    "taps_from_args",
+]
+
+
+TAP_OPTIONS = ("--record", "--foxglove", "--foxglove-host", "--foxglove-port")
+"""The options of :func:`add_tap_arguments`: ``run`` takes them after the app's name too."""
 
 
 def add_tap_arguments(parser: argparse.ArgumentParser) -> None:
     """``--record FILE.mcap``, ``--foxglove``, ``--foxglove-host``, ``--foxglove-port``."""
-    parser.add_argument(
+    group = parser.add_argument_group("recording and live view (docs/recording.md)")
+    group.add_argument(
         "--record",
         metavar="FILE.mcap",
         default=None,
         help="record every command, reading, event, error, state change and timer tick to "
-        "this MCAP file (openel-async record info FILE)",
+        "this MCAP file (openel-async record info FILE.mcap summarizes it)",
     )
-    parser.add_argument(
+    group.add_argument(
         "--foxglove",
         action="store_true",
         help="publish joint states, sensor values, events and logs live to Foxglove "
-        "(WebSocket server, ws://127.0.0.1:8765 by default)",
+        "(a WebSocket server at --foxglove-host and --foxglove-port)",
     )
-    parser.add_argument("--foxglove-host", default="127.0.0.1", help=argparse.SUPPRESS)
-    parser.add_argument("--foxglove-port", type=int, default=8765, help=argparse.SUPPRESS)
+    group.add_argument(
+        "--foxglove-host",
+        metavar="HOST",
+        default="127.0.0.1",
+        help="the address the Foxglove server listens on (default 127.0.0.1: this machine "
+        "only; 0.0.0.0: every network)",
+    )
+    group.add_argument(
+        "--foxglove-port",
+        metavar="PORT",
+        type=int,
+        default=8765,
+        help="the Foxglove server's TCP port (default 8765; 0: any free port)",
+    )
 
 
 def record_path_problem(path: Path) -> str | None:
@@ -146,9 +170,9 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     )
     actions = record.add_subparsers(dest="record_action", required=True)
     info = actions.add_parser("info", help="summarize a recording: channels, counts, duration")
-    info.add_argument("file", metavar="FILE.mcap")
+    info.add_argument("file", metavar="FILE.mcap", help="the recording")
     plot = actions.add_parser("plot", help="the demos' joint plot (PNG) from a recording")
-    plot.add_argument("file", metavar="FILE.mcap")
+    plot.add_argument("file", metavar="FILE.mcap", help="the recording")
     plot.add_argument(
         "--out", metavar="DIR", default=None, help="output directory (default: next to FILE)"
     )
@@ -157,11 +181,11 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
 def run(args: argparse.Namespace) -> int:
     from ..recording import info_lines, read_recording
     from ..recording.reader import NotMcapError
+    from .options import EXIT_USAGE, no_such_file
 
     path = Path(args.file)
-    if not path.is_file():
-        print(f"openel-async record {args.record_action}: {path}: no such file", file=sys.stderr)
-        return 2
+    if no_such_file(f"openel-async record {args.record_action}", args.file):
+        return EXIT_USAGE
     try:
         recording = read_recording(path)
     except (NotMcapError, OSError) as exc:

@@ -21,7 +21,7 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
         help="feed a recording's commands, at their recorded times, to a rig and compare the "
         "final positions",
     )
-    replay.add_argument("file", metavar="FILE.mcap")
+    replay.add_argument("file", metavar="FILE.mcap", help="the recording to replay")
     replay.add_argument(
         "--rig",
         default="sim",
@@ -76,11 +76,11 @@ def run(args: argparse.Namespace) -> int:
     from ..recording import read_recording
     from ..recording.reader import NotMcapError
     from ..recording.replay import replay
+    from .options import EXIT_USAGE, no_such_file
 
     path = Path(args.file)
-    if not path.is_file():
-        print(f"openel-async replay: {path}: no such file", file=sys.stderr)
-        return 2
+    if no_such_file("openel-async replay", args.file):
+        return EXIT_USAGE
     try:  # every option before anything runs
         rig = _rig(args)
     except (_OptionError, LookupError) as exc:

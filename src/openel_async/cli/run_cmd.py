@@ -18,19 +18,22 @@ Both execute code: the application file, or the Python module a profile names.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
 import inspect
 import sys
+from collections.abc import Iterator
 from functools import partial
 from pathlib import Path
 from types import ModuleType
-from typing import Any
+from typing import Any, NoReturn
 
 import anyio
 
 from ..app import AppInfo, AppUnavailable, Interrupted, find_app, run_app, run_interruptible
-from .record_cmd import taps_from_args
+from .options import EXIT_USAGE, no_such_file
+from .record_cmd import TAP_OPTIONS, add_tap_arguments, taps_from_args
 
 PROFILE_SUFFIXES = (".yaml", ".yml", ".xml")
 
@@ -66,15 +69,93 @@ def load_app(path: Path) -> ModuleType:
     return module
 
 
+_TAP_FLAGS = frozenset({"--foxglove"})  # the tap options that take no value
+
+
+class TapOptionError(Exception):
+    """A tap option after the app's name is malformed (no value, a bad port)."""
+
+
+def split_tap_options(argv: list[str]) -> tuple[list[str], list[str]]:
+    """``argv`` (what follows the app's name) split into the tap options openel-async takes
+    (:data:`~.record_cmd.TAP_OPTIONS`, with their values) and the app's own arguments. A
+    first ``--`` ends the search; it is dropped and everything after it is the app's."""
+    taps: list[str] = []
+    rest: list[str] = []
+    tokens = iter(argv)
+    for token in tokens:
+        if token == "--":
+            rest += tokens
+            break
+        name = token.split("=", 1)[0]
+        if name not in TAP_OPTIONS:
+            rest.append(token)
+            continue
+        taps.append(token)
+        if name not in _TAP_FLAGS and "=" not in token:
+            value = next(tokens, None)
+            if value is None:
+                raise TapOptionError(f"{token} needs a value")
+            taps.append(value)
+    return taps, rest
+
+
+def merge_tap_options(tap_args: argparse.Namespace, taps: list[str]) -> None:
+    """Parse ``taps`` (from :func:`split_tap_options`) into ``tap_args``: given after the
+    app's name, they override those given before it."""
+
+    class _Parser(argparse.ArgumentParser):
+        def error(self, message: str) -> NoReturn:
+            raise TapOptionError(message)
+
+    parser = _Parser(add_help=False, allow_abbrev=False)
+    add_tap_arguments(parser)
+    for action in parser._actions:
+        action.default = argparse.SUPPRESS
+    parser.parse_args(taps, namespace=tap_args)
+
+
+@contextlib.contextmanager
+def refuse_shadowed(options: set[str], label: str) -> Iterator[None]:
+    """While the app runs, an argparse option of the app named like one of ``options`` (tap
+    options openel-async took from after the app's name) stops it with exit status 2: the
+    option would be ambiguous."""
+    if not options:
+        yield
+        return
+    original = argparse._ActionsContainer.add_argument  # groups' options too
+
+    def add_argument(self: argparse._ActionsContainer, *args: Any, **kwargs: Any) -> Any:
+        action = original(self, *args, **kwargs)
+        clash = sorted(options.intersection(action.option_strings))
+        if clash:
+            print(
+                f"{label}: the app has an option {clash[0]} of its own: give openel-async's "
+                f"{clash[0]} before the app's name, and the app's after '--'",
+                file=sys.stderr,
+            )
+            raise SystemExit(EXIT_USAGE)
+        return action
+
+    argparse._ActionsContainer.add_argument = add_argument  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        argparse._ActionsContainer.add_argument = original  # type: ignore[method-assign]
+
+
 def is_app_name(text: str) -> bool:
     """``text`` names a registered app rather than a file: an identifier, not a file here."""
     return text.isidentifier() and not Path(text).exists()
 
 
+PROG = "openel-async run"
+
+
 def _run_info(
     info: AppInfo, argv: list[str], prog: str, label: str, tap_args: argparse.Namespace | None
 ) -> int:
-    hooks = [] if tap_args is None else taps_from_args(tap_args, "openel-async run")
+    hooks = [] if tap_args is None else taps_from_args(tap_args, PROG)
     if hooks is None:
         return 2
     try:
@@ -86,51 +167,68 @@ def _run_info(
 
 def run(path_text: str, argv: list[str], tap_args: argparse.Namespace | None = None) -> int:
     """Run ``path_text``; ``tap_args``: the parsed ``--record``/``--foxglove`` options (for
-    registered apps and APP_INFO modules, which register their components)."""
+    registered apps and APP_INFO modules, which register their components), completed by
+    those found in ``argv`` (after the app's name, before a ``--``)."""
+    pulled: set[str] = set()
+    if tap_args is not None:
+        try:
+            taps, argv = split_tap_options(argv)
+            merge_tap_options(tap_args, taps)
+        except TapOptionError as exc:
+            print(f"{PROG}: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+        pulled = {t.split("=", 1)[0] for t in taps} & set(TAP_OPTIONS)
+    with refuse_shadowed(pulled, f"{PROG} {path_text}"):
+        return _run(path_text, argv, tap_args)
+
+
+def _run(path_text: str, argv: list[str], tap_args: argparse.Namespace | None) -> int:
     if is_app_name(path_text):
         try:
             info = find_app(path_text)
         except LookupError as exc:
-            print(f"openel-async run: {exc}", file=sys.stderr)
-            return 2
-        prog = f"openel-async run {path_text}"
-        return _run_info(info, argv, prog, f"openel-async run: {path_text}", tap_args)
+            print(f"{PROG}: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+        prog = f"{PROG} {path_text}"
+        return _run_info(info, argv, prog, f"{PROG}: {path_text}", tap_args)
+    if no_such_file(PROG, path_text, folder_ok=True):
+        return EXIT_USAGE
     path = Path(path_text)
     tapped = tap_args is not None and (tap_args.record is not None or tap_args.foxglove)
     if path.suffix.lower() in PROFILE_SUFFIXES:
         if tapped:
-            print(
-                "openel-async run: --record/--foxglove need an app (not a profile)", file=sys.stderr
-            )
-            return 2
+            print(f"{PROG}: --record/--foxglove need an app (not a profile)", file=sys.stderr)
+            return EXIT_USAGE
         runner = importlib.import_module("openel_async.rtc.runner")
         return int(runner.run_profile_cli(path, argv))
     try:
         module = load_app(path)
     except AppLoadError as exc:
-        print(f"openel-async run: {exc}", file=sys.stderr)
-        return 2
+        print(f"{PROG}: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     app_info = getattr(module, "APP_INFO", None)
     if isinstance(app_info, AppInfo):
-        prog = f"openel-async run {path}"
-        return _run_info(app_info, argv, prog, f"openel-async run: {path}", tap_args)
+        prog = f"{PROG} {path}"
+        return _run_info(app_info, argv, prog, f"{PROG}: {path}", tap_args)
     if tapped:
         print(
-            f"openel-async run: {path}: --record/--foxglove need an app that registers its "
+            f"{PROG}: {path}: --record/--foxglove need an app that registers its "
             "components (an APP_INFO, docs/apps.md), not a bare main(argv)",
             file=sys.stderr,
         )
-        return 2
+        return EXIT_USAGE
     main: Any = module.main
-    result = anyio.run(run_interruptible, partial(main, argv), backend="asyncio")
+    try:
+        result = anyio.run(run_interruptible, partial(main, argv), backend="asyncio")
+    except SystemExit as exc:  # the app's argparse (or the option clash above)
+        return exc.code if isinstance(exc.code, int) else 1
     if isinstance(result, Interrupted):
         print(f"\nsummary ({path}, interrupted)")
         for line in result.lines():
             print("  " + line)
         sys.stdout.flush()
         print(
-            f"openel-async run: {path}: interrupted by {result.signum.name} "
-            f"(exit status {result.exit_code})",
+            f"{PROG}: {path}: interrupted by {result.signum.name} (exit status {result.exit_code})",
             file=sys.stderr,
         )
         return result.exit_code
