@@ -256,3 +256,18 @@ def test_ctrl_c_in_a_terminal_leaves_a_complete_recording(tmp_path: Path) -> Non
     assert "Traceback" not in text and "KeyboardInterrupt" not in text, text
     messages = _complete_messages(path)
     assert f"file written       {path} ({messages} messages, 0 dropped)" in text, text
+
+
+def test_the_writer_process_is_quiet_at_the_cli_default_level(tmp_path: Path) -> None:
+    """The live view's address is said once, by the command; the writer process shares the
+    terminal and logs only warnings and errors (it printed foxglove_server_started too)."""
+    done = subprocess.run(
+        [sys.executable, "-m", "openel_async.cli", "run", "twoaxis", "--virtual",
+         "--duration", "0.2", "--no-live", "--foxglove", "--foxglove-port", "0",
+         "--record", str(tmp_path / "x.mcap")],
+        capture_output=True, text=True, timeout=TIMEOUT_S, cwd=tmp_path,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "Foxglove live view on ws://127.0.0.1:" in done.stdout
+    assert "foxglove_server_started" not in done.stdout + done.stderr
+    assert done.stderr == ""

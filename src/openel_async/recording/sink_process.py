@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import logging
 import os
 import signal
 import sys
@@ -168,8 +169,12 @@ def main(argv: list[str] | None = None) -> int:
         # the SDK's server threads (one per core by default) inherit it: the writer never
         # takes more than one core, whatever its niceness
         os.sched_setaffinity(0, {args.cpu})
-    # stdout carries the ready line: the log goes to stderr.
-    structlog.configure(logger_factory=structlog.PrintLoggerFactory(sys.stderr))
+    # stdout carries the ready line: the log goes to stderr, warnings and errors only (the
+    # parent says where the file and the live view are; this process shares its terminal).
+    structlog.configure(
+        logger_factory=structlog.PrintLoggerFactory(sys.stderr),
+        wrapper_class=structlog.make_filtering_bound_logger(logging.WARNING),
+    )
     context = foxglove.Context()
     sinks: list[Sink] = []
     info: dict[str, Any] = {}
