@@ -300,6 +300,31 @@ def test_bitrate_mismatch_flags_and_no_frames(adapter: SlcanAdapter, bus_side: c
     assert bus_side.recv(1.0) is not None
 
 
+def test_a_host_that_does_not_read_loses_frames_not_the_adapter(
+    adapter: SlcanAdapter, bus_side: can.BusABC
+) -> None:
+    with raw_port(adapter.port) as fd:
+        assert talk(fd, b"S8") == b"\r"
+        assert talk(fd, b"O") == b"\r"
+        frame = can.Message(arbitration_id=0x123, is_extended_id=False, data=bytes(8))
+        for _ in range(5000):  # 105 kB: more than the pty and the adapter's buffer hold
+            bus_side.send(frame)
+        deadline = time.monotonic() + 2.0
+        while adapter.stats.to_host + adapter.stats.dropped < 5000:
+            assert time.monotonic() < deadline, adapter.stats
+            time.sleep(0.005)
+        assert adapter.stats.dropped > 0
+        os.write(fd, b"F\r")
+        backlog = b""
+        while b"F" not in backlog:  # whole lines, then the status reply
+            backlog += read_reply(fd, 1)
+        lines = backlog.split(b"\r")
+        assert set(lines[:-2]) == {b"t1238" + b"00" * 8}
+        overrun = StatusFlag.RX_FIFO_FULL | StatusFlag.DATA_OVERRUN
+        assert lines[-2] == f"F{overrun:02X}".encode()
+    assert adapter.stats.errors == 0
+
+
 # -- python-can's slcan interface -----------------------------------------------------------------
 def test_python_can_slcan_sends_and_receives(adapter: SlcanAdapter, bus_side: can.BusABC) -> None:
     host = slcan_bus(adapter.port)

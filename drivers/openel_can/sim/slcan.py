@@ -102,6 +102,8 @@ import structlog
 from openel_async.clock import VirtualClock
 from openel_async.errors import BadParameterError
 
+from ..errors import DecodeError
+
 __all__ = [
     "BITRATES",
     "MAX_LINE",
@@ -151,8 +153,8 @@ class StatusFlag:
     BUS_ERROR: Final = 0x80
 
 
-class SlcanError(ValueError):
-    """A command line the adapter refuses (answered with BEL)."""
+class SlcanError(DecodeError):
+    """A command line the adapter refuses (answered with BEL); a frame line that is not one."""
 
 
 @dataclass
@@ -460,7 +462,7 @@ class SlcanAdapter:
             self._reply_error("refused")
         except _BitrateMismatch:
             self._reply_error("bitrate")
-        except (SlcanError, ValueError):
+        except ValueError:  # SlcanError included
             self._reply_error("malformed")
         else:
             self._emit(reply, frame=False)
