@@ -66,7 +66,8 @@ Running it:
   trajectories then follow wall time, as on a real bus.
 * as a process: ``python -m openel_can.sim.slcan --odrive 0,1 --cia402 5 --bitrate 1000000``
   prints the pty path on its first stdout line and runs until SIGTERM or SIGINT; a host can
-  be killed (``kill -9``) while the drives keep running.
+  be killed (``kill -9``) while the drives keep running. :class:`SlcanAdapterProcess` starts
+  it for a test and stops it.
 
 The pty: both sides are raw (no echo, no CR/LF translation). The adapter keeps the slave
 open itself, so a host may close and reopen the port (or die) without the adapter seeing a
@@ -81,6 +82,7 @@ import functools
 import os
 import select
 import signal
+import subprocess
 import sys
 import threading
 import time
@@ -109,6 +111,7 @@ __all__ = [
     "MAX_LINE",
     "MAX_PENDING",
     "SlcanAdapter",
+    "SlcanAdapterProcess",
     "SlcanError",
     "SlcanStats",
     "StatusFlag",
@@ -617,6 +620,55 @@ class _ignore_oserror:
 
     def __exit__(self, exc_type: type[BaseException] | None, *rest: Any) -> bool:
         return exc_type is not None and issubclass(exc_type, OSError)
+
+
+class SlcanAdapterProcess:
+    """``python -m openel_can.sim.slcan ARGS`` as a context manager (for tests): entering
+    starts it and waits at most ``timeout`` s for its port (:attr:`port`); leaving sends
+    SIGTERM and waits (SIGKILL after ``timeout`` s). :attr:`process` is the ``Popen``."""
+
+    def __init__(self, *args: str, timeout: float = 10.0) -> None:
+        self.args = args
+        self.timeout = timeout
+        self.port = ""
+        self.process: subprocess.Popen[bytes] | None = None
+
+    def __enter__(self) -> Self:
+        proc = self.process = subprocess.Popen(
+            [sys.executable, "-m", "openel_can.sim.slcan", *self.args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+        )
+        assert proc.stdout is not None
+        try:
+            if not select.select([proc.stdout], [], [], self.timeout)[0]:
+                raise TimeoutError(f"the slcan adapter process printed no port in {self.timeout} s")
+            self.port = proc.stdout.readline().decode().strip()
+            if not self.port.startswith("/dev/"):
+                raise RuntimeError(f"the slcan adapter process failed (printed {self.port!r})")
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        proc = self.process
+        if proc is None:
+            return
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+        try:
+            proc.wait(self.timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        if proc.stdout is not None:
+            proc.stdout.close()
 
 
 # -- command line ------------------------------------------------------------------------------
