@@ -11,29 +11,21 @@ thread for non-virtual interfaces) runs as with a USB adapter.
 
 Protocol subset (each command ends with CR, ``\\r``; ``\\r`` acknowledges, BEL ``\\a`` refuses):
 
-============  ===============================================================  =============
-command       meaning                                                          state
-============  ===============================================================  =============
-``Sn``        bit rate n = 0..8: 10k 20k 50k 100k 125k 250k 500k 750k 1M      closed
-``sxxyy``     SJA1000 BTR0/BTR1 (8 MHz clock), the bit rate computed from it   closed
-``O``         open (needs a bit rate set by ``S``/``s``; acknowledged again     any
-              when already open, as CANable does: python-can sends it twice)
-``L``         open listen-only (frames from the host refused)                  any
-``C``         close (acknowledged when already closed, as CANable does)        any
-``V``         ``Vhhss\\r`` hardware and software version (python-can's           any
-              ``get_version``)
-``v``         ``vMMmm\\r`` firmware version (USBtin)                             any
-``N``         ``Nxxxx\\r`` serial number (python-can's ``get_serial_number``)    any
-``F``         ``Fxx\\r`` status flags (hex), cleared by reading                  open
-``Zn``        timestamps off/on: 4 hex digits of milliseconds (0..EA5F) after  closed
-              each frame sent to the host
-``Mxxxxxxxx`` acceptance code / mask: stored, no filtering is simulated         closed
-``mxxxxxxxx``
-``tiiildd..`` standard data frame (id 000..7FF, dlc 0..8, 2 hex digits a byte)  open
-``Tiiiiiiiildd..`` extended data frame (id 00000000..1FFFFFFF)                  open
-``riiil``     standard remote frame (dlc 0..8)                                 open
-``Riiiiiiiil`` extended remote frame                                            open
-============  ===============================================================  =============
+* ``Sn`` (closed): bit rate n = 0..8: 10k 20k 50k 100k 125k 250k 500k 750k 1M;
+* ``sxxyy`` (closed): SJA1000 BTR0/BTR1 (8 MHz CAN clock), the bit rate computed from it;
+* ``O`` (needs a bit rate set by ``S``/``s``; acknowledged again when already open, as
+  CANable does: python-can sends it twice); ``L``: open listen-only (host frames refused);
+* ``C``: close (acknowledged when already closed too, as CANable does);
+* ``V`` → ``Vhhss\\r`` hardware and software version (python-can's ``get_version``);
+  ``v`` → ``vMMmm\\r`` firmware version (USBtin); ``N`` → ``Nxxxx\\r`` serial number
+  (python-can's ``get_serial_number``);
+* ``F`` (open) → ``Fxx\\r`` status flags (hex), cleared by reading;
+* ``Zn`` (closed): timestamps off/on, 4 hex digits of milliseconds (0..EA5F) after each
+  frame sent to the host;
+* ``Mxxxxxxxx`` / ``mxxxxxxxx`` (closed): acceptance code / mask, stored (no filtering);
+* ``tiiildd..`` standard data frame (id 000..7FF, dlc 0..8, 2 hex digits a byte),
+  ``Tiiiiiiiildd..`` extended (id 00000000..1FFFFFFF), ``riiil`` / ``Riiiiiiiil`` remote
+  frames (open).
 
 A transmitted frame is answered ``z\\r`` (standard) or ``Z\\r`` (extended) as the Lawicel
 CAN232/CANUSB and USBtin do. Frames received on the bus are sent to the host as ``t…``,
@@ -299,6 +291,8 @@ class SlcanAdapter:
         for pname, version in (("hardware_version", hardware_version), ("software_version", software_version)):  # fmt: skip
             if not 0 <= version <= 99:
                 raise BadParameterError(pname, version, "an int 0..99")
+        if isinstance(history, bool) or not isinstance(history, int) or history < 1:
+            raise BadParameterError("history", history, "an int >= 1")
         if len(serial_number) != 4 or not serial_number.isalnum():
             raise BadParameterError("serial_number", serial_number, "4 letters or digits")
         for peer in peers:
