@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import select
 import signal
 import subprocess
@@ -317,7 +318,7 @@ def test_a_host_that_does_not_read_loses_frames_not_the_adapter(
         assert adapter.stats.dropped > 0
         os.write(fd, b"F\r")
         backlog = b""
-        while b"F" not in backlog:  # whole lines, then the status reply
+        while not re.search(rb"F[0-9A-F]{2}\r$", backlog):  # whole lines, then the status
             backlog += read_reply(fd, 1)
         lines = backlog.split(b"\r")
         assert set(lines[:-2]) == {b"t1238" + b"00" * 8}
@@ -409,6 +410,26 @@ async def test_in_thread_peers_keep_running_while_the_host_loop_blocks() -> None
             assert adapter.stats.to_host >= before + 3  # heartbeats every 20 ms meanwhile
         finally:
             host.shutdown()
+
+
+def test_faults_are_injected_in_the_peers_thread() -> None:
+    odrive_sim = SimODrive(ODRIVE, heartbeat_period=HB)
+    with SlcanAdapter(peers=[odrive_sim]) as adapter:
+        host = slcan_bus(adapter.port)
+        try:
+            adapter.call(odrive_sim.inject_error)
+            deadline = time.monotonic() + 1.0
+            while True:
+                beat = recv_matching(host, (ODRIVE << 5) | 1)
+                msg = cs.decode(beat.arbitration_id, beat.data, from_host=False)
+                assert isinstance(msg, cs.Heartbeat)
+                if msg.axis_error:
+                    break
+                assert time.monotonic() < deadline, "no heartbeat with the error"
+        finally:
+            host.shutdown()
+    with SlcanAdapter() as bare, pytest.raises(RuntimeError, match="no peers"):
+        bare.call(print)
 
 
 async def test_drivers_complete_a_move_through_the_adapter_process() -> None:

@@ -81,11 +81,11 @@ import time
 import tty
 import uuid
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from contextlib import ExitStack
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Any, Final, Protocol, Self
+from typing import Any, Final, Protocol, Self, TypeVar
 
 import anyio
 import anyio.abc
@@ -113,6 +113,7 @@ __all__ = [
 ]
 
 log = structlog.get_logger(__name__)
+T = TypeVar("T")
 
 OK: Final = b"\r"
 BEL: Final = b"\a"
@@ -329,6 +330,7 @@ class SlcanAdapter:
         self._bus: can.BusABC | None = None
         self._threads: list[threading.Thread] = []
         self._stack = ExitStack()
+        self._portal: anyio.from_thread.BlockingPortal | None = None
         self._started = False
 
     # -- life cycle -----------------------------------------------------------------------
@@ -353,6 +355,7 @@ class SlcanAdapter:
                 self._threads.append(thread)
             if self.peers:
                 portal = self._stack.enter_context(anyio.from_thread.start_blocking_portal())
+                self._portal = portal
                 for peer in self.peers:
                     serve = functools.partial(peer.serve, interface=self.interface)
                     future, _ = portal.start_task(serve, self.channel)
@@ -363,6 +366,14 @@ class SlcanAdapter:
         log.info("slcan_sim_started", port=self.port, channel=self.channel, peers=len(self.peers))
         return self
 
+    def call(self, func: Callable[..., T], *args: object) -> T:
+        """Run ``func(*args)`` in the peers' event loop thread and return its result (fault
+        injection on a hosted peer without racing its tasks), e.g.
+        ``adapter.call(sim.inject_error)``."""
+        if self._portal is None:
+            raise RuntimeError("SlcanAdapter.call: no peers are running")
+        return self._portal.call(func, *args)
+
     def close(self) -> None:
         """Stop the peers and the threads, close the bus and the pty (idempotent)."""
         self._stop.set()
@@ -370,6 +381,7 @@ class SlcanAdapter:
             with _ignore_oserror():
                 os.write(self._wake_w, b"x")
         self._stack.close()
+        self._portal = None
         for thread in self._threads:
             thread.join(timeout=2.0)
         self._threads.clear()
