@@ -255,6 +255,7 @@ def test_wire_bytes_both_ways(adapter: SlcanAdapter, bus_side: can.BusABC) -> No
     [
         ([b"S8", b"t1230"], "refused"),  # a frame before O
         ([b"S8", b"L", b"t1230"], "refused"),  # listen-only
+        ([b"S8", b"O", b"C", b"t1230"], "refused"),  # after C
         ([b"O"], "malformed"),  # no bit rate set yet
         ([b"S9"], "malformed"),  # 83.3 kbit/s: not in this (CANable) table
         ([b"S8", b"O", b"S6"], "malformed"),  # bit rate while open
@@ -478,3 +479,14 @@ def test_the_adapter_process_outlives_a_killed_host() -> None:
             recv_matching(again, (ODRIVE << 5) | 1)  # heartbeats keep coming
         finally:
             again.shutdown()
+
+
+def test_the_adapter_process_refuses_bad_arguments() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "openel_can.sim.slcan", "--bitrate", "123"],
+        capture_output=True,
+        timeout=20,
+        check=False,
+    )
+    assert result.returncode == 2 and result.stdout == b""
+    assert b"bitrate" in result.stderr and b"1000000" in result.stderr
