@@ -481,12 +481,20 @@ def test_the_adapter_process_outlives_a_killed_host() -> None:
             again.shutdown()
 
 
-def test_the_adapter_process_refuses_bad_arguments() -> None:
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--bitrate", "123"), b"bitrate=123 is not allowed"),
+        (("--odrive", "99"), b"--odrive: node_id 99 outside 0..62"),
+        (("--cia402", "0"), b"--cia402: node_id 0 outside 1..127"),
+    ],
+)
+def test_the_adapter_process_refuses_bad_arguments(args: tuple[str, ...], message: bytes) -> None:
     result = subprocess.run(
-        [sys.executable, "-m", "openel_can.sim.slcan", "--bitrate", "123"],
+        [sys.executable, "-m", "openel_can.sim.slcan", *args],
         capture_output=True,
         timeout=20,
         check=False,
     )
     assert result.returncode == 2 and result.stdout == b""
-    assert b"bitrate" in result.stderr and b"1000000" in result.stderr
+    assert message in result.stderr

@@ -705,10 +705,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--log-level", choices=LEVELS, default="warning", help="log level (stderr; default warning)")  # fmt: skip
     args = parser.parse_args(argv)
     configure_logging(level=args.log_level)  # on stderr: stdout carries the port only
-    peers: list[SimPeer] = [
-        SimODrive(n, heartbeat_period=args.odrive_heartbeat) for n in args.odrive
-    ]
-    peers += [SimCia402Drive(n) for n in args.cia402]
+    peers: list[SimPeer] = []
+    option = "--odrive"
+    try:  # a node id out of its protocol's range is refused by the peer
+        peers += [SimODrive(n, heartbeat_period=args.odrive_heartbeat) for n in args.odrive]
+        option = "--cia402"
+        peers += [SimCia402Drive(n) for n in args.cia402]
+    except ValueError as exc:
+        parser.error(f"{option}: {exc}")
     stop = threading.Event()
 
     def _on_signal(signum: int, frame: object) -> None:
