@@ -79,6 +79,7 @@ from .arm_demo import (
 
 if TYPE_CHECKING:
     import mujoco
+    from matplotlib.figure import Figure
 
     from openel_mujoco import MujocoSim
 
@@ -531,7 +532,15 @@ async def _arrival(
 
 
 def plot_tip_path(path: Path, result: SquareResult) -> Path:
-    """The ideal square and the measured tip path, seen from above (Agg canvas, no pyplot)."""
+    """The ideal square and the measured tip path, seen from above, as a PNG."""
+    fig = tip_path_figure(result)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    return path
+
+
+def tip_path_figure(result: SquareResult) -> Figure:
+    """The tip path plot's figure (Agg canvas, no pyplot)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -554,12 +563,11 @@ def plot_tip_path(path: Path, result: SquareResult) -> Path:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper left", fontsize="small")
+    # Below the axes: inside, the legend covered a corner of the square.
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), fontsize="small")
     ax.set_title(f"arm2 tip path, seen from above ({result.pacing})")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    return path
+    return fig
 
 
 # -- command line -------------------------------------------------------------------------------

@@ -176,8 +176,8 @@ class TrajectoryRecorder:
         axes = fig.subplots(k, 1, sharex=True, squeeze=False)
         for i, name in enumerate(self.joint_names):
             ax = axes[i][0]
-            ax.plot(t, actual[:, i], label="actual", linewidth=1.2)
-            ax.plot(t, commanded[:, i], "--", label="commanded", linewidth=1.0)
+            ax.plot(t, actual[:, i], color="C0", label="actual", linewidth=1.2)
+            ax.plot(t, commanded[:, i], "--", color="C1", label="commanded", linewidth=1.0)
             unit = "rad" if self._joints[i].rotational else "m"
             ax.set_ylabel(f"{name} [{unit}]")
             ax.grid(True, alpha=0.3)

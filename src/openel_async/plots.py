@@ -45,11 +45,20 @@ def plot_joint_trajectories(
     fig, axes = plt.subplots(n, 1, sharex=True, figsize=(9, 1.9 * n + 1.0), squeeze=False)
     for j, name in enumerate(joint_names):
         ax = axes[j][0]
-        ax.plot(times_s, [row[j] for row in commanded], "--", label="commanded", linewidth=1.2)
-        ax.plot(times_s, [row[j] for row in actual], "-", label="actual", linewidth=1.0)
+        # The colours of every plot of the project (the demos', ``record plot``): actual solid
+        # C0, commanded dashed C1.
+        ax.plot(times_s, [row[j] for row in actual], "-", color="C0", label="actual", linewidth=1.2)
+        ax.plot(
+            times_s,
+            [row[j] for row in commanded],
+            "--",
+            color="C1",
+            label="commanded",
+            linewidth=1.0,
+        )
         ax.set_ylabel(f"{name}\n[{unit}]")
         ax.grid(True, alpha=0.3)
-    axes[0][0].legend(loc="upper right", fontsize="small")
+    axes[0][0].legend(loc="best", fontsize="small")
     axes[-1][0].set_xlabel("time [s]")
     fig.suptitle(title)
     fig.tight_layout()

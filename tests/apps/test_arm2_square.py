@@ -213,3 +213,19 @@ async def test_lockstep_runs_are_deterministic(
     assert first.sim_time_s == second.sim_time_s
     assert first.artifacts.snapshot is None
     assert first.artifacts.snapshot_skipped == "rendering disabled (MUJOCO_GL=disable)"
+
+
+def test_the_tip_plot_legend_covers_no_data() -> None:
+    """Issue 21 point 16: the legend sat in the top-left corner, over a corner of the square."""
+    from openel_apps.arm2_square import SquareResult, tip_path_figure
+
+    corners = [(0.25, 0.05), (0.40, 0.05), (0.40, 0.20), (0.25, 0.20)]
+    path = [(x + 0.001, y - 0.001) for x, y in corners]
+    result = SquareResult("lockstep", 2.0, 5.0, 1, 0.15, "up", corners, tip_path=path)
+    fig = tip_path_figure(result)
+    fig.canvas.draw()  # type: ignore[no-untyped-call]
+    ax = fig.axes[0]
+    legend = ax.get_legend().get_window_extent()
+    for line in ax.get_lines():
+        for point in ax.transData.transform(line.get_xydata()):
+            assert not legend.contains(*point), line.get_label()
