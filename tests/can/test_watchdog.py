@@ -19,9 +19,11 @@ from openel_async.clock import default_clock
 from openel_async.errors import BadParameterError
 from openel_async.safety import Watchdog
 from openel_async.testing import EventRecorder
-from openel_can import CanBus, ODriveAxis
+from openel_can import CanBus, Cia402Drive, ODriveAxis
 from openel_can import cansimple as cs
+from openel_can import cia402 as ds
 from openel_can.odrive import ODriveError
+from openel_can.sim.cia402 import SimCia402Drive
 from openel_can.sim.faults import peers_on_thread
 from openel_can.sim.odrive import SimODrive
 
@@ -131,4 +133,108 @@ async def test_odrive_disarm_stops_feeding_without_a_trip(
         assert odrives[0].watchdog_trips == 0
         assert odrives[0].axis_state is cs.AxisState.CLOSED_LOOP_CONTROL
         await anyio.sleep(2 * HB)
+        assert axis.state is ComponentState.ACTIVE and recorder.errors == []
+
+
+# -- CiA 402: heartbeat consumer 0x1016 + abort connection option 0x6007 = quick stop --------
+
+CIA_NODES = (5, 6)
+
+
+@pytest.fixture
+def drives(channel: str) -> Iterator[list[SimCia402Drive]]:
+    sims = [SimCia402Drive(node) for node in CIA_NODES]
+    with peers_on_thread(sims, channel):
+        yield sims
+
+
+@pytest.fixture
+async def cia_bus(drives: list[SimCia402Drive], channel: str) -> AsyncIterator[CanBus]:
+    async with CanBus(interface="virtual", channel=channel, poll_interval=0.01, name="host") as b:
+        yield b
+
+
+async def test_cia402_blocked_loop_quick_stops_every_drive(
+    cia_bus: CanBus, drives: list[SimCia402Drive]
+) -> None:
+    recorder = EventRecorder(default_clock())
+    async with Actuator(Cia402Drive(cia_bus, 5)) as a1, Actuator(Cia402Drive(cia_bus, 6)) as a2:
+        axes = (a1, a2)
+        for axis in axes:
+            axis.add_observer(recorder)
+            device = axis.device
+            assert isinstance(device, Cia402Drive) and isinstance(device, Watchdog)
+            await device.arm_watchdog(T)
+        for sim in drives:
+            assert sim.od[(0x1016, 1)].value == 127 << 16 | 100
+            assert sim.od[(0x6007, 0)].value == 3
+            assert sim.power_state is ds.PowerState.OPERATION_ENABLED
+        await anyio.sleep(2 * T)  # monitoring runs (started by the first host heartbeat)
+        assert all(sim.consumer_heard_ns is not None for sim in drives)
+        _block_loop(3 * T)
+        # The drives quick-stopped by themselves (0x605A = 2: then Switch on disabled).
+        for sim in drives:
+            assert sim.heartbeat_errors == 1
+            assert sim.power_state in (
+                ds.PowerState.QUICK_STOP_ACTIVE,
+                ds.PowerState.SWITCH_ON_DISABLED,
+            )
+            assert sim.emcy_sent.total and sim.emcy_sent[-1].error_code == 0x8130
+        for axis in axes:
+            record = await recorder.wait_for("error", source=axis, timeout=1)
+            assert record.id == ErrorId.WATCHDOG
+            assert axis.state is ComponentState.ERROR
+        for axis in axes:
+            await axis.re_init()
+            assert axis.state is ComponentState.ACTIVE
+        await anyio.sleep(3 * T)
+        assert all(sim.power_state is ds.PowerState.OPERATION_ENABLED for sim in drives)
+        assert all(sim.heartbeat_errors == 1 for sim in drives)
+        assert len(recorder.errors) == 2
+
+
+async def test_cia402_running_loop_never_trips(
+    cia_bus: CanBus, drives: list[SimCia402Drive]
+) -> None:
+    recorder = EventRecorder(default_clock())
+    async with Actuator(Cia402Drive(cia_bus, 5)) as axis:
+        axis.add_observer(recorder)
+        device = axis.device
+        assert isinstance(device, Cia402Drive)
+        await device.arm_watchdog(T)
+        await anyio.sleep(10 * T)
+        assert drives[0].heartbeat_errors == 0
+        assert drives[0].consumer_heard_ns is not None  # monitoring, fed
+        assert drives[0].power_state is ds.PowerState.OPERATION_ENABLED
+        assert axis.state is ComponentState.ACTIVE and recorder.errors == []
+
+
+@pytest.mark.parametrize("bad", [0.0, 0.003, 0.1005, 65.536, float("nan"), -1.0, True])
+async def test_cia402_refuses_a_timeout_the_protocol_cannot_express(
+    cia_bus: CanBus, drives: list[SimCia402Drive], bad: float
+) -> None:
+    async with Actuator(Cia402Drive(cia_bus, 5)) as axis:
+        device = axis.device
+        assert isinstance(device, Cia402Drive)
+        with pytest.raises(BadParameterError, match="timeout_s"):
+            await device.arm_watchdog(bad)
+        assert drives[0].od[(0x1016, 1)].value == 0
+
+
+async def test_cia402_disarm_stops_feeding_without_a_trip(
+    cia_bus: CanBus, drives: list[SimCia402Drive]
+) -> None:
+    recorder = EventRecorder(default_clock())
+    async with Actuator(Cia402Drive(cia_bus, 5)) as axis:
+        axis.add_observer(recorder)
+        device = axis.device
+        assert isinstance(device, Cia402Drive)
+        await device.arm_watchdog(T)
+        await anyio.sleep(2 * T)
+        await device.disarm_watchdog()
+        assert drives[0].od[(0x1016, 1)].value == 0
+        _block_loop(3 * T)
+        await anyio.sleep(3 * T)  # the host heartbeat has stopped: nothing watches it
+        assert drives[0].heartbeat_errors == 0
+        assert drives[0].power_state is ds.PowerState.OPERATION_ENABLED
         assert axis.state is ComponentState.ACTIVE and recorder.errors == []
