@@ -87,6 +87,7 @@ from openel_async.device import (
 from openel_async.errors import BadParameterError, HALError, ReturnCode
 from openel_async.ids import DeviceKind
 from openel_async.requests import Request
+from openel_async.safety import ExitAction
 
 from . import canopen as co
 from . import cia402 as ds
@@ -757,6 +758,30 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         finally:
             self.bus.release_heartbeat(self)
             self.watchdog_timeout = None
+
+    async def estop(self) -> None:
+        """Controlword Quick stop (the drive ramps down with 0x6085, then acts as 0x605A
+        says) and ``fault(ESTOP)`` at once; ``re_init`` enables the drive again."""
+        try:
+            await self.quick_stop()
+        finally:
+            self._fault(ErrorId.ESTOP, f"CiA 402 node {self.node_id}: e-stop (quick stop)")
+
+    async def safe_stop(self, action: ExitAction) -> None:
+        """HOLD: Operation enabled with Halt (bit 8): ramps down with the profile
+        deceleration 0x6084 and holds, loop closed; STOP: Quick stop (0x6085, then as
+        0x605A says: 1..4 Switch on disabled, 5..8 stay in Quick stop active holding);
+        TORQUE_OFF: Disable voltage (Switch on disabled, power stage off)."""
+        action = ExitAction(action)
+        async with self._lock:
+            self._enabled_wanted = action is ExitAction.HOLD and self._enabled_wanted
+            self._pending = None
+            if action is ExitAction.HOLD:
+                await self._send_control(_ENABLE | int(CB.HALT))
+            elif action is ExitAction.STOP:
+                await self._send_control(int(ds.Command.QUICK_STOP))
+            else:
+                await self._send_control(int(ds.Command.DISABLE_VOLTAGE))
 
     async def quick_stop(self) -> None:
         """Controlword quick stop: the drive ramps down (next command re-enables it)."""

@@ -62,6 +62,7 @@ from openel_async.device import (
 from openel_async.errors import BadParameterError, HALError, NotConnectedError, ReturnCode
 from openel_async.ids import DeviceKind
 from openel_async.requests import Request
+from openel_async.safety import ExitAction
 
 from . import cansimple as cs
 from .bus import CanBus, NodePort
@@ -757,9 +758,36 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         self.torque_feedforward = float(torque)
 
     async def estop(self) -> None:
-        """Send Estop: the ODrive disarms with ESTOP_REQUESTED and the component faults
-        with ``ErrorId.ESTOP`` (``re_init`` sends Clear_Errors and re-engages)."""
-        await self._link.send(cs.Estop(self.node_id))
+        """Send Estop: the ODrive disarms with ESTOP_REQUESTED (IDLE: the motor coasts)
+        and the component faults with ``ErrorId.ESTOP`` at once (``re_init`` sends
+        Clear_Errors and re-engages)."""
+        try:
+            await self._link.send(cs.Estop(self.node_id))
+        finally:
+            self._fault(ErrorId.ESTOP, f"ODrive node {self.node_id}: e-stop (Estop sent)")
+
+    async def safe_stop(self, action: ExitAction) -> None:
+        """HOLD: position control (passthrough) at the current position estimate; STOP:
+        velocity control with VEL_RAMP to 0 (the ODrive's ``vel_ramp_rate``), then it holds
+        zero velocity; TORQUE_OFF: IDLE."""
+        action = ExitAction(action)
+        node = self.node_id
+        async with self._lock:
+            self._pending = None
+            if action is ExitAction.TORQUE_OFF:
+                self._closed_loop_wanted = False
+                await self._link.send(cs.SetAxisState(node, cs.AxisState.IDLE))
+            elif action is ExitAction.STOP:
+                await self._set_controller_mode(cs.ControlMode.VELOCITY, cs.InputMode.VEL_RAMP)
+                await self._link.send(cs.SetInputVel(node, 0.0, 0.0))
+            else:
+                _, est = await self._link.fresh(
+                    cs.CmdId.GET_ENCODER_ESTIMATES,
+                    cs.EncoderEstimates,
+                    round(self.encoder_period * 1e9),
+                )
+                await self._set_controller_mode(cs.ControlMode.POSITION, cs.InputMode.PASSTHROUGH)
+                await self._link.send(cs.SetInputPos(node, est.pos, 0.0, 0.0))
 
     # -- axis watchdog --------------------------------------------------------------------
     async def arm_watchdog(self, timeout_s: float) -> None:

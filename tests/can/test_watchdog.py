@@ -17,7 +17,7 @@ import pytest
 from openel_async import Actuator, ComponentState, ErrorId
 from openel_async.clock import default_clock
 from openel_async.errors import BadParameterError
-from openel_async.safety import Watchdog
+from openel_async.safety import EmergencyStop, ExitAction, Watchdog
 from openel_async.testing import EventRecorder
 from openel_can import CanBus, Cia402Drive, ODriveAxis
 from openel_can import cansimple as cs
@@ -237,4 +237,104 @@ async def test_cia402_disarm_stops_feeding_without_a_trip(
         await anyio.sleep(3 * T)  # the host heartbeat has stopped: nothing watches it
         assert drives[0].heartbeat_errors == 0
         assert drives[0].power_state is ds.PowerState.OPERATION_ENABLED
+        assert axis.state is ComponentState.ACTIVE and recorder.errors == []
+
+
+# -- e-stop and safe stop ---------------------------------------------------------------------
+
+
+async def test_odrive_estop_faults_with_estop_and_re_init_recovers(
+    bus: CanBus, odrives: list[SimODrive]
+) -> None:
+    recorder = EventRecorder(default_clock())
+    async with Actuator(ODriveAxis(bus, 1, heartbeat_period=HB)) as axis:
+        axis.add_observer(recorder)
+        device = axis.device
+        assert isinstance(device, ODriveAxis) and isinstance(device, EmergencyStop)
+        await device.estop()
+        record = await recorder.wait_for("error", source=axis, timeout=1)
+        assert record.id == ErrorId.ESTOP and axis.state is ComponentState.ERROR
+        await wait_until(lambda: odrives[0].axis_state is cs.AxisState.IDLE, 1)
+        assert odrives[0].disarm_reason & ODriveError.ESTOP_REQUESTED
+        await anyio.sleep(3 * HB)  # the heartbeats showing ESTOP_REQUESTED: no second report
+        await axis.re_init()
+        assert axis.state is ComponentState.ACTIVE
+        assert odrives[0].axis_state is cs.AxisState.CLOSED_LOOP_CONTROL
+        assert len(recorder.errors) == 1
+
+
+async def test_cia402_estop_faults_with_estop_and_re_init_recovers(
+    cia_bus: CanBus, drives: list[SimCia402Drive]
+) -> None:
+    recorder = EventRecorder(default_clock())
+    async with Actuator(Cia402Drive(cia_bus, 5)) as axis:
+        axis.add_observer(recorder)
+        device = axis.device
+        assert isinstance(device, Cia402Drive) and isinstance(device, EmergencyStop)
+        await device.estop()
+        record = await recorder.wait_for("error", source=axis, timeout=1)
+        assert record.id == ErrorId.ESTOP and axis.state is ComponentState.ERROR
+        await wait_until(
+            lambda: (
+                drives[0].power_state
+                in (ds.PowerState.QUICK_STOP_ACTIVE, ds.PowerState.SWITCH_ON_DISABLED)
+            ),
+            1,
+        )
+        await axis.re_init()
+        assert axis.state is ComponentState.ACTIVE
+        assert drives[0].power_state is ds.PowerState.OPERATION_ENABLED
+        assert len(recorder.errors) == 1
+
+
+@pytest.mark.parametrize("action", list(ExitAction))
+async def test_odrive_safe_stop_mapping(
+    bus: CanBus, odrives: list[SimODrive], action: ExitAction
+) -> None:
+    recorder = EventRecorder(default_clock())
+    sim = odrives[0]
+    async with Actuator(ODriveAxis(bus, 1, heartbeat_period=HB)) as axis:
+        axis.add_observer(recorder)
+        device = axis.device
+        assert isinstance(device, ODriveAxis)
+        await device.safe_stop(action)
+        expected = {
+            ExitAction.HOLD: (cs.AxisState.CLOSED_LOOP_CONTROL, cs.ControlMode.POSITION),
+            ExitAction.STOP: (cs.AxisState.CLOSED_LOOP_CONTROL, cs.ControlMode.VELOCITY),
+            ExitAction.TORQUE_OFF: (cs.AxisState.IDLE, None),
+        }[action]
+        await wait_until(lambda: sim.axis_state is expected[0], 1)
+        if expected[1] is not None:
+            await wait_until(lambda: sim.control_mode is expected[1], 1)
+        await anyio.sleep(3 * HB)
+        assert axis.state is ComponentState.ACTIVE and recorder.errors == []
+
+
+@pytest.mark.parametrize("action", list(ExitAction))
+async def test_cia402_safe_stop_mapping(
+    cia_bus: CanBus, drives: list[SimCia402Drive], action: ExitAction
+) -> None:
+    recorder = EventRecorder(default_clock())
+    sim = drives[0]
+    async with Actuator(Cia402Drive(cia_bus, 5)) as axis:
+        axis.add_observer(recorder)
+        device = axis.device
+        assert isinstance(device, Cia402Drive)
+        await device.safe_stop(action)
+        if action is ExitAction.HOLD:
+            await wait_until(lambda: sim.halted, 1)
+            assert sim.power_state is ds.PowerState.OPERATION_ENABLED
+        elif action is ExitAction.STOP:
+            await wait_until(
+                lambda: (
+                    sim.power_state
+                    in (ds.PowerState.QUICK_STOP_ACTIVE, ds.PowerState.SWITCH_ON_DISABLED)
+                ),
+                1,
+            )
+            assert ds.Command.QUICK_STOP in sim.received_controlwords
+        else:
+            await wait_until(lambda: sim.power_state is ds.PowerState.SWITCH_ON_DISABLED, 1)
+            assert sim.received_controlwords[-1] == ds.Command.DISABLE_VOLTAGE
+        await anyio.sleep(0.05)
         assert axis.state is ComponentState.ACTIVE and recorder.errors == []
