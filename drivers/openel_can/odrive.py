@@ -758,13 +758,11 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         self.torque_feedforward = float(torque)
 
     async def estop(self) -> None:
-        """Send Estop: the ODrive disarms with ESTOP_REQUESTED (IDLE: the motor coasts)
-        and the component faults with ``ErrorId.ESTOP`` at once (``re_init`` sends
+        """Send Estop: the ODrive disarms with ESTOP_REQUESTED (IDLE: the motor coasts); its
+        next heartbeat faults the component with ``ErrorId.ESTOP`` (``re_init`` sends
         Clear_Errors and re-engages)."""
-        try:
-            await self._link.send(cs.Estop(self.node_id))
-        finally:
-            self._fault(ErrorId.ESTOP, f"ODrive node {self.node_id}: e-stop (Estop sent)")
+        await self._link.send(cs.Estop(self.node_id))
+        self._query_error()  # Get_Error now: the report need not wait for the heartbeat
 
     async def safe_stop(self, action: ExitAction) -> None:
         """HOLD: position control (passthrough) at the current position estimate; STOP:
