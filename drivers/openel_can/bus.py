@@ -448,6 +448,7 @@ class CanBus:
             if self.sync_period is not None:
                 tg.start_soon(self._sync_producer, self.sync_period)
             self._tg = tg
+            stack.callback(setattr, self, "_tg", None)
         except BaseException:
             await stack.aclose()
             raise

@@ -7,6 +7,7 @@ a GC pause or a blocking call. Each test is bounded (a few hundred ms of real ti
 
 from __future__ import annotations
 
+import math
 import time
 import uuid
 from collections.abc import AsyncIterator, Iterator
@@ -338,3 +339,15 @@ async def test_cia402_safe_stop_mapping(
             assert sim.received_controlwords[-1] == ds.Command.DISABLE_VOLTAGE
         await anyio.sleep(0.05)
         assert axis.state is ComponentState.ACTIVE and recorder.errors == []
+
+
+async def test_bus_heartbeat_producer_refuses_bad_parameters(channel: str) -> None:
+    owner, other = object(), object()
+    async with CanBus(interface="virtual", channel=channel, name="host") as bus:
+        for node, period in ((0, 0.01), (128, 0.01), (True, 0.01), (127, 0.0), (127, math.nan)):
+            with pytest.raises(BadParameterError):
+                bus.produce_heartbeat(node, period, owner)  # type: ignore[arg-type]
+        bus.produce_heartbeat(127, 0.01, owner)
+        with pytest.raises(BadParameterError, match="node_id"):
+            bus.produce_heartbeat(100, 0.01, other)  # one host node id per bus
+        bus.release_heartbeat(owner)
