@@ -45,6 +45,9 @@ kvaser, virtual ...) and runs, in its own task group:
   starve the readers. Frames are sent as :class:`TxMessage` (a ``can.Message`` whose
   deep copy, made by the ``virtual`` interface for every receiver, is cheap).
 * optionally a SYNC producer (CANopen, COB-ID 0x080) every ``sync_period`` seconds.
+* on demand the host's CANopen heartbeat (:meth:`CanBus.produce_heartbeat`: COB-ID
+  0x700 + host node id, state Operational), fed to the drives' heartbeat consumers
+  (0x1016) by a task of the bus in the event loop: a stalled loop stops it.
 
 Use it as an async context manager and create the node drivers with it::
 
@@ -376,6 +379,11 @@ class CanBus:
         self.rx_buffer = rx_buffer
         self.reconnect_backoff = (low, high)
         self.sync_period = sync_period
+        self._tg: anyio.abc.TaskGroup | None = None
+        self._hb_node: int | None = None
+        self._hb_owners: dict[int, float] = {}
+        """id(owner) -> heartbeat period wanted (see :meth:`produce_heartbeat`)."""
+        self._hb_running = False
         self.stats = BusStats()
         self.log = log.bind(bus=self.name)
         self.state = BusState.CLOSED
@@ -439,6 +447,8 @@ class CanBus:
             tg.start_soon(self._sender)
             if self.sync_period is not None:
                 tg.start_soon(self._sync_producer, self.sync_period)
+            self._tg = tg
+            stack.callback(setattr, self, "_tg", None)
         except BaseException:
             await stack.aclose()
             raise
@@ -717,6 +727,55 @@ class CanBus:
                 self._set_down(f"send failed: {exc!r}")
             finally:
                 self.stats.tx_frames += sent[0]
+
+    def produce_heartbeat(self, node_id: int, period: float, owner: object) -> None:
+        """Send the host's heartbeat (COB-ID 0x700 + ``node_id``, NMT state Operational)
+        every ``period`` seconds while ``owner`` (e.g. a drive whose heartbeat consumer
+        watches the host) needs it; with several owners the shortest period wins. One host
+        node id per bus. The producer is a task of the bus in the event loop, so the
+        heartbeat stops when the loop stalls (the drives' consumers then trip)."""
+        if isinstance(node_id, bool) or not isinstance(node_id, int) or not 1 <= node_id <= 127:
+            raise BadParameterError("node_id", node_id, "a CANopen node id in 1..127")
+        if not (math.isfinite(period) and period > 0):
+            raise BadParameterError("period", period, "seconds > 0")
+        if self._hb_node is not None and self._hb_node != node_id and self._hb_owners:
+            raise BadParameterError(
+                "node_id",
+                node_id,
+                f"the host node id already produced on this bus ({self._hb_node})",
+            )
+        if self._tg is None:
+            raise NotConnectedError(f"CAN bus {self.name}: not entered")
+        self._hb_node = node_id
+        self._hb_owners[id(owner)] = period
+        if not self._hb_running:
+            self._hb_running = True
+            self._tg.start_soon(self._heartbeat_producer)
+
+    def release_heartbeat(self, owner: object) -> None:
+        """``owner`` no longer needs the host heartbeat (the producer stops with the last)."""
+        self._hb_owners.pop(id(owner), None)
+
+    async def _heartbeat_producer(self) -> None:
+        try:
+            next_at = time.monotonic()
+            while self._hb_owners and self._hb_node is not None:
+                msg = can.Message(
+                    arbitration_id=0x700 + self._hb_node,
+                    data=b"\x05",  # NMT state Operational
+                    is_extended_id=False,
+                )
+                if self.state is BusState.UP and self._tx_send is not None:
+                    try:
+                        self._tx_send.send_nowait(msg)
+                    except anyio.WouldBlock:
+                        self.stats.tx_dropped += 1
+                period = min(self._hb_owners.values())
+                now = time.monotonic()
+                next_at = max(next_at + period, now)  # after a stall: no burst of late beats
+                await anyio.sleep(next_at - now)
+        finally:
+            self._hb_running = False
 
     async def _sync_producer(self, period: float) -> None:
         """CANopen SYNC (COB-ID 0x080, no data) every ``period`` seconds, on absolute deadlines."""

@@ -398,6 +398,10 @@ ERROR_CODE: Final = ObjectEntry(0x603F, 0, DataType.UNSIGNED16)
 CONTROLWORD: Final = ObjectEntry(0x6040, 0, DataType.UNSIGNED16)
 STATUSWORD: Final = ObjectEntry(0x6041, 0, DataType.UNSIGNED16)
 QUICK_STOP_OPTION_CODE: Final = ObjectEntry(0x605A, 0, DataType.INTEGER16)
+ABORT_CONNECTION_OPTION_CODE: Final = ObjectEntry(0x6007, 0, DataType.INTEGER16)
+"""What the drive does in Operation enabled when its connection is lost (e.g. a heartbeat
+consumer timeout): 0 no action, 1 fault signal, 2 disable voltage, 3 quick stop (negative
+values: manufacturer-specific)."""
 MODES_OF_OPERATION: Final = ObjectEntry(0x6060, 0, DataType.INTEGER8)
 MODES_OF_OPERATION_DISPLAY: Final = ObjectEntry(0x6061, 0, DataType.INTEGER8)
 POSITION_ACTUAL_VALUE: Final = ObjectEntry(0x6064, 0, DataType.INTEGER32)

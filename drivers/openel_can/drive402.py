@@ -49,6 +49,15 @@ heartbeat in another NMT state than Operational, a boot-up message -> ``fault(DE
 fault: Error, ``ErrorId.TIMEOUT``); SDO abort -> :class:`~openel_can.sdo.SdoAbortError`
 (the state does not change); bus failure -> ``fault(BUS_ERROR)``.
 
+Heartbeat watchdog (:class:`~openel_async.safety.Watchdog`): :meth:`Cia402Drive.arm_watchdog`
+makes the bus produce the host's heartbeat (0x700 + ``host_node_id``, every timeout / 4, a
+task of the bus in the event loop: :meth:`~openel_can.bus.CanBus.produce_heartbeat`), then
+writes by SDO the abort connection option code 0x6007 = 3 (quick stop) and the drive's
+heartbeat consumer 0x1016:1 = ``host_node_id << 16 | timeout in ms`` (4..65535 ms). When
+the host's heartbeat stops (the loop stalls, the process dies) the drive raises EMCY 0x8130
+and quick-stops; the driver reports that episode as ``fault(WATCHDOG)``.
+:meth:`Cia402Drive.disarm_watchdog` writes 0x1016:1 = 0, then releases the producer.
+
 Units: positions ``rad = counts * 2π / counts_per_rev``, velocities in counts/s the same
 way, torques in per mille of the rated torque (Nm at the API).
 """
@@ -78,6 +87,7 @@ from openel_async.device import (
 from openel_async.errors import BadParameterError, HALError, ReturnCode
 from openel_async.ids import DeviceKind
 from openel_async.requests import Request
+from openel_async.safety import ExitAction
 
 from . import canopen as co
 from . import cia402 as ds
@@ -123,6 +133,15 @@ _ACK: Final = int(SB.SETPOINT_ACKNOWLEDGE)
 _REACHED: Final = int(SB.TARGET_REACHED)
 _NEW_SETPOINT: Final = int(CB.NEW_SETPOINT)
 _PP_BASE: Final = _ENABLE | int(CB.CHANGE_SET_IMMEDIATELY)
+
+
+DEFAULT_HOST_NODE_ID: Final = 127
+"""The host's CANopen node id for its heartbeat (0x77F): give another one when a drive uses 127."""
+CONSUMER_HEARTBEAT_TIME_1: Final = co.ObjectEntry(0x1016, 1, co.DataType.UNSIGNED32)
+QUICK_STOP_ON_ABORT: Final = 3
+"""0x6007 value: quick stop on a lost connection."""
+WATCHDOG_FEED_FRACTION: Final = 4
+"""The host heartbeat period is ``timeout / WATCHDOG_FEED_FRACTION``."""
 
 
 def _emcy_name(code: int) -> str:
@@ -199,10 +218,22 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         sdo_timeout: float = 0.1,
         state_timeout: float = 0.5,
         feedback_max_age: float | None = None,
+        host_node_id: int = DEFAULT_HOST_NODE_ID,
     ) -> None:
         if not isinstance(bus, CanBus):
             raise BadParameterError("bus", bus, "an openel_can.CanBus")
         _check_node(node_id)
+        if (
+            isinstance(host_node_id, bool)
+            or not isinstance(host_node_id, int)
+            or not 1 <= host_node_id <= co.MAX_NODE_ID
+            or host_node_id == node_id
+        ):
+            raise BadParameterError(
+                "host_node_id",
+                host_node_id,
+                f"a CANopen node id in 1..{co.MAX_NODE_ID} other than the drive's ({node_id})",
+            )
         if counts_per_rev is not None and (
             isinstance(counts_per_rev, bool)
             or not isinstance(counts_per_rev, int)
@@ -237,6 +268,11 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         self.sdo_timeout = sdo_timeout
         self.state_timeout = state_timeout
         self.feedback_max_age = feedback_max_age or max(0.05, 3 * tpdo_event_ms / 1000)
+        self.host_node_id = host_node_id
+        self.watchdog_timeout: float | None = None
+        """The armed heartbeat consumer time in seconds (None: not armed by this driver)."""
+        self._heartbeat_error = False
+        """EMCY 0x8130 (the drive's consumer missed the host's heartbeat) this episode."""
         self.sdo = SdoClient.for_node(bus, node_id, timeout=sdo_timeout)
         self._ctx: DeviceContext | None = None
         self._port: NodePort | None = None
@@ -318,6 +354,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
 
     async def init(self) -> None:
         self._latched = False
+        self._heartbeat_error = False
         await self._enable()
         self._heartbeat_ns = self._now()
         self._engaged = True
@@ -326,6 +363,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         # Not engaged while resetting: nothing the drive says now is a new fault.
         self._engaged = False
         self._latched = False
+        self._heartbeat_error = False
         self._pending = None
         await self.bus.wait_up(self.state_timeout)
         # The node answers (an SDO timeout here means it is still gone).
@@ -342,6 +380,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
     async def close(self) -> None:
         self._engaged = False
         self._pending = None
+        self.bus.release_heartbeat(self)
         try:
             if self.bus.is_up and self._port is not None and self._statusword is not None:
                 with anyio.move_on_after(self.state_timeout):
@@ -670,6 +709,80 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
             setpoint.reported = True
             self._ctx.target_reached()
 
+    # -- heartbeat watchdog ---------------------------------------------------------------
+    async def arm_watchdog(self, timeout_s: float) -> None:
+        """Host heartbeat every ``timeout_s / 4`` (the bus's producer), 0x6007 = 3 (quick
+        stop) and 0x1016:1 = ``host_node_id << 16 | ms`` by SDO.
+
+        ``timeout_s``: a whole number of milliseconds in 4..65535 (the consumer time is an
+        UNSIGNED16 in ms; the heartbeat period, a quarter of it, at least 1 ms).
+        """
+        ok = (
+            not isinstance(timeout_s, bool)
+            and isinstance(timeout_s, int | float)
+            and math.isfinite(timeout_s)
+        )
+        ms = round(timeout_s * 1000) if ok else 0
+        if not (
+            ok and WATCHDOG_FEED_FRACTION <= ms <= 0xFFFF and abs(timeout_s * 1000 - ms) < 1e-6
+        ):
+            raise BadParameterError(
+                "timeout_s",
+                timeout_s,
+                "a whole number of milliseconds in 0.004..65.535 s "
+                "(0x1016 heartbeat consumer time, UNSIGNED16 ms)",
+            )
+        if self._ctx is None:
+            raise HALError(f"CiA 402 node {self.node_id}: arm_watchdog before open")
+        self.bus.produce_heartbeat(self.host_node_id, timeout_s / WATCHDOG_FEED_FRACTION, self)
+        try:
+            await self.sdo.write(
+                ds.ABORT_CONNECTION_OPTION_CODE, QUICK_STOP_ON_ABORT, timeout=self.sdo_timeout
+            )
+            await self.sdo.write(
+                CONSUMER_HEARTBEAT_TIME_1, self.host_node_id << 16 | ms, timeout=self.sdo_timeout
+            )
+        except BaseException:
+            self.bus.release_heartbeat(self)
+            raise
+        self.watchdog_timeout = ms / 1000
+        self.log.info("cia402_watchdog_armed", timeout_ms=ms, host_node_id=self.host_node_id)
+
+    async def disarm_watchdog(self) -> None:
+        """0x1016:1 = 0 (consumer off) by SDO, then stop producing the host heartbeat."""
+        if self.watchdog_timeout is None:
+            return
+        try:
+            if self.bus.is_up:
+                await self.sdo.write(CONSUMER_HEARTBEAT_TIME_1, 0, timeout=self.sdo_timeout)
+        finally:
+            self.bus.release_heartbeat(self)
+            self.watchdog_timeout = None
+
+    async def estop(self) -> None:
+        """Controlword Quick stop (the drive ramps down with 0x6085, then acts as 0x605A
+        says) and ``fault(ESTOP)`` at once; ``re_init`` enables the drive again."""
+        try:
+            await self.quick_stop()
+        finally:
+            self._fault(ErrorId.ESTOP, f"CiA 402 node {self.node_id}: e-stop (quick stop)")
+
+    async def safe_stop(self, action: ExitAction) -> None:
+        """HOLD: Operation enabled with Halt (bit 8): ramps down with the profile
+        deceleration 0x6084 and holds, loop closed; STOP: Quick stop (0x6085, then as
+        0x605A says: 1..4 Switch on disabled, 5..8 stay in Quick stop active holding);
+        TORQUE_OFF: Disable voltage (Switch on disabled, power stage off)."""
+        action = ExitAction(action)
+        async with self._lock:
+            self._enabled_wanted = action is ExitAction.HOLD and self._enabled_wanted
+            self._pending = None
+            if action is ExitAction.HOLD:
+                await self._send_control(_ENABLE | int(CB.HALT))
+            elif action is ExitAction.STOP:
+                await self._send_control(int(ds.Command.QUICK_STOP))
+            else:
+                await self._send_control(int(ds.Command.DISABLE_VOLTAGE))
+
     async def quick_stop(self) -> None:
         """Controlword quick stop: the drive ramps down (next command re-enables it)."""
         async with self._lock:
@@ -772,13 +885,25 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
             state = ds.state_from_statusword(statusword)
         self._statusword = statusword
         faulted = state in (PS.FAULT, PS.FAULT_REACTION_ACTIVE)
+        tripped = (
+            self._heartbeat_error
+            and state is not PS.OPERATION_ENABLED
+            and (self._enabled_wanted or faulted)
+        )
         if self._emcy_unreported:
             self._emcy_unreported = False
             # An EMCY with a fault is reported once, by the fault below (or by the fault
             # of this episode already latched); without one it is a warning.
-            if not (faulted and self._engaged) and self._ctx is not None:
+            if not ((faulted or tripped) and self._engaged) and self._ctx is not None:
                 self._ctx.post_error(ErrorId.DEVICE_ERROR)
         if not self._engaged or self._latched:
+            return
+        if tripped:
+            self._fault(
+                ErrorId.WATCHDOG,
+                f"CiA 402 node {self.node_id}: heartbeat consumer timeout (EMCY 0x8130: no host "
+                f"heartbeat within {self.watchdog_timeout} s), drive in {state.name}",
+            )
             return
         if faulted:
             emcy = self.last_emcy
@@ -805,6 +930,8 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
             self.log.info("cia402_emcy_reset")
             return
         self.emcy_count += 1
+        if msg.error_code == co.EmcyCode.LIFE_GUARD_OR_HEARTBEAT:
+            self._heartbeat_error = True
         self.log.warning(
             "cia402_emcy", code=_emcy_name(msg.error_code), register=f"{msg.error_register:#04x}"
         )

@@ -26,7 +26,15 @@ torques are Nm on both sides; temperatures are converted from °C to K.
   the axis in closed loop is posted with ``post_error``. No heartbeat for
   ``heartbeat_timeout`` (default 3 × 100 ms) faults ``ErrorId.DISCONNECTED``; a bus
   failure faults ``ErrorId.BUS_ERROR``. One fault is reported per episode (latched
-  until ``reset``). :meth:`ODriveAxis.estop` sends Estop.
+  until ``reset``). :meth:`ODriveAxis.estop` sends Estop (reported as ``ErrorId.ESTOP``).
+* axis watchdog (:class:`~openel_async.safety.Watchdog`): :meth:`ODriveAxis.arm_watchdog`
+  writes ``axis0.config.watchdog_timeout`` and ``axis0.config.enable_watchdog`` by RxSdo
+  (endpoint access, firmware 0.6.x; 0.5.x CANSimple has no endpoint write: configure the
+  watchdog with odrivetool there) and feeds it from the event loop. The firmware feeds the
+  watchdog on every CANSimple frame addressed to the axis, so streamed set-points feed it;
+  when nothing was sent for a quarter of the timeout, a heartbeat poll (remote frame) does.
+  On expiry the ODrive drops to IDLE with WATCHDOG_TIMER_EXPIRED; the next heartbeat faults
+  the component with ``ErrorId.WATCHDOG``.
 """
 
 from __future__ import annotations
@@ -54,6 +62,7 @@ from openel_async.device import (
 from openel_async.errors import BadParameterError, HALError, NotConnectedError, ReturnCode
 from openel_async.ids import DeviceKind
 from openel_async.requests import Request
+from openel_async.safety import ExitAction
 
 from . import cansimple as cs
 from .bus import CanBus, NodePort
@@ -82,6 +91,13 @@ third-party CANSimple library's copy of that file, not checked against a 0.6.10/
 build or hardware: the default of ``ODriveAxis(vel_ramp_rate_endpoint=...)``. Endpoint
 ids change between firmware builds: look the id up in the ``flat_endpoints.json`` of the
 firmware you run."""
+WATCHDOG_TIMEOUT_ENDPOINT: Final = 200
+"""Endpoint id of ``axis0.config.watchdog_timeout`` (float, s) in the same
+``flat_endpoints.json`` as :data:`VEL_RAMP_RATE_ENDPOINT` (same caveat: check your build)."""
+ENABLE_WATCHDOG_ENDPOINT: Final = 201
+"""Endpoint id of ``axis0.config.enable_watchdog`` (bool) in the same ``flat_endpoints.json``."""
+WATCHDOG_FEED_FRACTION: Final = 4
+"""The axis is fed at least every ``timeout / WATCHDOG_FEED_FRACTION``."""
 _FLOAT32_MAX: Final = 3.4028234663852886e38
 _M = TypeVar("_M", bound=cs.CanSimpleMessage)
 
@@ -130,6 +146,15 @@ def error_names(bits: int) -> str:
     return "|".join(names) or "none"
 
 
+def _error_id(bits: int) -> ErrorId:
+    """The ErrorId a disarming axis error is reported with."""
+    if bits & ODriveError.ESTOP_REQUESTED:
+        return ErrorId.ESTOP
+    if bits & ODriveError.WATCHDOG_TIMER_EXPIRED:
+        return ErrorId.WATCHDOG
+    return ErrorId.DEVICE_ERROR
+
+
 def _check_node(node_id: int) -> None:
     if (
         isinstance(node_id, bool)
@@ -163,6 +188,8 @@ class _Link:
         self.port: NodePort | None = None
         self.ctx: DeviceContext | None = None
         self.on_message: Callable[[cs.CanSimpleMessage, int], None] | None = None
+        self.sent_ns: int | None = None
+        """When a frame to this node was last sent (every frame feeds the axis watchdog)."""
         self._changed = anyio.Event()
 
     def open(self, ctx: DeviceContext, on_bus_error: Callable[[str], None]) -> None:
@@ -206,6 +233,7 @@ class _Link:
         assert self.port is not None, "used before open()"
         arb_id, data = cs.encode(msg)
         await self.port.send(arb_id, data, remote=isinstance(msg, cs.Request))
+        self.sent_ns = self.now()
 
     async def request(self, cmd: cs.CmdId, kind: type[_M]) -> tuple[int, _M]:
         """Poll ``cmd`` with a remote frame; the first reply received after the request."""
@@ -311,20 +339,27 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         torque_tolerance: float = 0.01,
         settle_samples: int = 2,
         vel_ramp_rate_endpoint: int = VEL_RAMP_RATE_ENDPOINT,
+        watchdog_timeout_endpoint: int = WATCHDOG_TIMEOUT_ENDPOINT,
+        enable_watchdog_endpoint: int = ENABLE_WATCHDOG_ENDPOINT,
     ) -> None:
         if not isinstance(bus, CanBus):
             raise BadParameterError("bus", bus, "an openel_can.CanBus")
         _check_node(node_id)
-        if (
-            isinstance(vel_ramp_rate_endpoint, bool)
-            or not isinstance(vel_ramp_rate_endpoint, int)
-            or not 0 < vel_ramp_rate_endpoint <= 0xFFFF
+        for name, endpoint in (
+            ("vel_ramp_rate_endpoint", vel_ramp_rate_endpoint),
+            ("watchdog_timeout_endpoint", watchdog_timeout_endpoint),
+            ("enable_watchdog_endpoint", enable_watchdog_endpoint),
         ):
-            raise BadParameterError(
-                "vel_ramp_rate_endpoint",
-                vel_ramp_rate_endpoint,
-                "an endpoint id in 1..65535 (flat_endpoints.json of the firmware)",
-            )
+            if (
+                isinstance(endpoint, bool)
+                or not isinstance(endpoint, int)
+                or not 0 < endpoint <= 0xFFFF
+            ):
+                raise BadParameterError(
+                    name,
+                    endpoint,
+                    "an endpoint id in 1..65535 (flat_endpoints.json of the firmware)",
+                )
         for name, seconds in (
             ("heartbeat_period", heartbeat_period),
             ("encoder_period", encoder_period),
@@ -395,6 +430,11 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         }
         self.settle_samples = settle_samples
         self.vel_ramp_rate_endpoint = vel_ramp_rate_endpoint
+        self.watchdog_timeout_endpoint = watchdog_timeout_endpoint
+        self.enable_watchdog_endpoint = enable_watchdog_endpoint
+        self.watchdog_timeout: float | None = None
+        """The armed watchdog timeout in seconds (None: not armed by this driver)."""
+        self._feeding = False
         self._saved_ramp_rate: bytes | None = None
         """The ODrive's own vel_ramp_rate (raw float32), read before the first tm_acc ramp
         overwrote it; written back by the next plain velocity command."""
@@ -718,8 +758,108 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         self.torque_feedforward = float(torque)
 
     async def estop(self) -> None:
-        """Send Estop: the ODrive disarms with ESTOP_REQUESTED and the component faults."""
+        """Send Estop: the ODrive disarms with ESTOP_REQUESTED (IDLE: the motor coasts); its
+        next heartbeat faults the component with ``ErrorId.ESTOP`` (``re_init`` sends
+        Clear_Errors and re-engages)."""
         await self._link.send(cs.Estop(self.node_id))
+        self._query_error()  # Get_Error now: the report need not wait for the heartbeat
+
+    async def safe_stop(self, action: ExitAction) -> None:
+        """HOLD: position control (passthrough) at the current position estimate; STOP:
+        velocity control with VEL_RAMP to 0 (the ODrive's ``vel_ramp_rate``), then it holds
+        zero velocity; TORQUE_OFF: IDLE."""
+        action = ExitAction(action)
+        node = self.node_id
+        async with self._lock:
+            self._pending = None
+            if action is ExitAction.TORQUE_OFF:
+                self._closed_loop_wanted = False
+                await self._link.send(cs.SetAxisState(node, cs.AxisState.IDLE))
+            elif action is ExitAction.STOP:
+                await self._set_controller_mode(cs.ControlMode.VELOCITY, cs.InputMode.VEL_RAMP)
+                await self._link.send(cs.SetInputVel(node, 0.0, 0.0))
+            else:
+                _, est = await self._link.fresh(
+                    cs.CmdId.GET_ENCODER_ESTIMATES,
+                    cs.EncoderEstimates,
+                    round(self.encoder_period * 1e9),
+                )
+                await self._set_controller_mode(cs.ControlMode.POSITION, cs.InputMode.PASSTHROUGH)
+                await self._link.send(cs.SetInputPos(node, est.pos, 0.0, 0.0))
+
+    # -- axis watchdog --------------------------------------------------------------------
+    async def arm_watchdog(self, timeout_s: float) -> None:
+        """Write ``watchdog_timeout`` = ``timeout_s`` and ``enable_watchdog`` = True (RxSdo),
+        confirm the enable by reading it back, and feed from the event loop from now on.
+
+        ``timeout_s``: a float32 number of seconds > 0 (0 disables the ODrive's watchdog and
+        is refused here: use :meth:`disarm_watchdog`).
+        """
+        if (
+            isinstance(timeout_s, bool)
+            or not isinstance(timeout_s, int | float)
+            or not (math.isfinite(timeout_s) and 0.0 < timeout_s <= _FLOAT32_MAX)
+            or struct.unpack("<f", struct.pack("<f", timeout_s))[0] <= 0.0
+        ):
+            raise BadParameterError(
+                "timeout_s",
+                timeout_s,
+                "a finite number of seconds > 0 that fits axis.config.watchdog_timeout (float32)",
+            )
+        if self._ctx is None:
+            raise HALError(f"ODrive node {self.node_id}: arm_watchdog before open")
+        async with self._lock:
+            self.watchdog_timeout = float(timeout_s)
+            if not self._feeding:
+                self._feeding = True
+                self._ctx.start_soon(self._feed_watchdog)
+            await self._write_endpoint(
+                self.watchdog_timeout_endpoint, struct.pack("<f", float(timeout_s))
+            )
+            await self._write_endpoint(self.enable_watchdog_endpoint, bytes((1, 0, 0, 0)))
+            try:
+                enabled = await self.read_endpoint(self.enable_watchdog_endpoint)
+            except TimeoutError:
+                raise HALError(
+                    f"ODrive node {self.node_id}: no TxSdo reply for endpoint "
+                    f"{self.enable_watchdog_endpoint}; is enable_watchdog_endpoint the id of "
+                    "axis0.config.enable_watchdog in this firmware's flat_endpoints.json?"
+                ) from None
+            if not enabled[0]:
+                raise HALError(
+                    f"ODrive node {self.node_id}: axis0.config.enable_watchdog reads back False"
+                )
+        self.log.info("odrive_watchdog_armed", timeout_s=timeout_s)
+
+    async def disarm_watchdog(self) -> None:
+        """Write ``enable_watchdog`` = False (RxSdo), then stop feeding."""
+        if self.watchdog_timeout is None:
+            return
+        async with self._lock:
+            if self.bus.is_up and self._link.port is not None:
+                await self._write_endpoint(self.enable_watchdog_endpoint, bytes(4))
+            self.watchdog_timeout = None
+
+    async def _feed_watchdog(self) -> None:
+        """Any frame to the node feeds it: poll a heartbeat when nothing else went out for
+        ``timeout / WATCHDOG_FEED_FRACTION`` (a task of the component: a stalled loop starves it)."""
+        assert self._ctx is not None
+        clock = self._ctx.clock
+        link = self._link
+        try:
+            while (timeout := self.watchdog_timeout) is not None:
+                period_ns = max(1, round(timeout * 1e9 / WATCHDOG_FEED_FRACTION))
+                now = clock.now_ns()
+                sent = link.sent_ns
+                if sent is None or now - sent >= period_ns:
+                    try:
+                        await link.send(cs.Request(self.node_id, cs.CmdId.HEARTBEAT))
+                    except (TimeoutError, NotConnectedError) as exc:
+                        self.log.debug("odrive_watchdog_feed_failed", error=repr(exc))
+                    sent = now
+                await clock.sleep_until(sent + period_ns)
+        finally:
+            self._feeding = False
 
     async def clear_errors(self) -> None:
         """Send Clear_Errors (``re_init`` does this and re-engages closed loop)."""
@@ -760,7 +900,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
             self._query_error()
             if self._closed_loop_wanted and hb.axis_state is not cs.AxisState.CLOSED_LOOP_CONTROL:
                 self._fault(
-                    ErrorId.DEVICE_ERROR,
+                    _error_id(hb.axis_error),
                     f"ODrive node {self.node_id} disarmed: axis error {hb.axis_error:#x} "
                     f"({error_names(hb.axis_error)}), state {cs.value_name(hb.axis_state)}",
                 )
@@ -790,7 +930,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
             return
         if status.disarm_reason:
             self._fault(
-                ErrorId.DEVICE_ERROR,
+                _error_id(status.disarm_reason),
                 f"ODrive node {self.node_id} disarmed: {error_names(status.disarm_reason)} "
                 f"(active {error_names(status.active_errors)})",
             )

@@ -29,6 +29,15 @@ given :class:`~openel_can.bus.CanBus`) implements:
   statusword bit 10 (target reached).
 * **EMCY** on faults (error code 0x603F, error register 0x1001) and 0x0000 on fault
   reset; :meth:`warn` sends an EMCY without faulting.
+* **Heartbeat consumer** (CiA 301 0x1016, one entry: sub 1 = producer node id << 16 |
+  time in ms, 0 disables): monitoring starts with the first heartbeat of that node after the
+  entry is written; when none comes within the time (on the peer's own clock) the drive
+  sends EMCY 0x8130 (heartbeat error, error register bit communication) and, in Operation
+  enabled, applies the **abort connection option code** 0x6007 (CiA 402): 0 no action,
+  1 fault signal (Fault reaction active, then Fault), 2 disable voltage (Switch on disabled,
+  the shaft coasts), 3 quick stop (Quick stop active, then as 0x605A says). Monitoring then
+  waits for the next heartbeat. 0x1029 (error behaviour) is not simulated: the NMT state
+  does not change on a heartbeat error. ``heartbeat_errors`` counts the events.
 
 Units: positions in increments (0x608F: ``counts_per_rev`` increments per motor
 revolution), velocities in increments/s, accelerations in increments/s², torques in
@@ -113,6 +122,9 @@ def _dictionary(
         (0x603F, 0): _Obj(DT.UNSIGNED16, 0, "ro", True),
         (0x6040, 0): _Obj(DT.UNSIGNED16, 0, "rw", True),
         (0x6041, 0): _Obj(DT.UNSIGNED16, 0, "ro", True),
+        (0x1016, 0): _Obj(DT.UNSIGNED8, 1, "const"),
+        (0x1016, 1): _Obj(DT.UNSIGNED32, 0),
+        (0x6007, 0): _Obj(DT.INTEGER16, 1),
         (0x605A, 0): _Obj(DT.INTEGER16, 2),
         (0x6060, 0): _Obj(DT.INTEGER8, int(Mode.PROFILE_POSITION), "rw", True),
         (0x6061, 0): _Obj(DT.INTEGER8, int(Mode.PROFILE_POSITION), "ro", True),
@@ -234,6 +246,9 @@ class SimCia402Drive:
         self._mappings: dict[int, tuple[co.PdoMapEntry, ...]] = {}
         self._transfer: _Transfer | None = None
         self.segments = prof.hold(self.clock.now_ns(), 0.0)
+        self.consumer_heard_ns: int | None = None
+        """When the consumed heartbeat (0x1016:1) was last received (None: not monitoring)."""
+        self.heartbeat_errors = 0
         self._boot()
         self.log = log.bind(sim_cia402=node_id)
 
@@ -272,6 +287,7 @@ class SimCia402Drive:
         self._transfer = None
         self.next_heartbeat_ns = self.clock.now_ns()
         self.pending: list[co.CanOpenMessage] = [co.Heartbeat(self.node_id, co.NmtState.BOOT_UP)]
+        self.consumer_heard_ns = None
 
     def _get(self, index: int, sub: int = 0) -> int:
         return self.od[(index, sub)].value
@@ -426,6 +442,7 @@ class SimCia402Drive:
             co.SYNC_COB_ID,
             co.SDO_RX_BASE + n,
             *(base + n for base in co.RPDO_BASES),
+            *(co.HEARTBEAT_BASE + node for node in range(1, co.MAX_NODE_ID + 1) if node != n),
         ]
         port = self._port = bus.attach(ids, name=f"sim-cia402-{n}", queue_size=256)
         try:
@@ -483,8 +500,42 @@ class SimCia402Drive:
                 await clock.sleep_until(due)
             self._scope = None
 
+    def _consumer_deadline(self) -> int | None:
+        entry = self._get(0x1016, 1)
+        time_ms = entry & 0xFFFF
+        if not time_ms or self.consumer_heard_ns is None:
+            return None
+        return self.consumer_heard_ns + time_ms * 1_000_000
+
+    def _heartbeat_error(self, now: int) -> None:
+        """The consumer timed out: EMCY 0x8130, then the abort connection option 0x6007."""
+        self.consumer_heard_ns = None  # monitoring resumes with the next heartbeat
+        self.heartbeat_errors += 1
+        self.log.info("sim_heartbeat_consumer_timeout", option=self._get(0x6007))
+        option = self._get(0x6007)
+        if self.power_state is PS.OPERATION_ENABLED and option == 1:
+            self.trip(co.EmcyCode.LIFE_GUARD_OR_HEARTBEAT, co.ErrorRegister.COMMUNICATION)
+            return
+        self._set(0x1001, 0, self._get(0x1001) | co.ErrorRegister.COMMUNICATION)
+        self._emcy(co.EmcyCode.LIFE_GUARD_OR_HEARTBEAT)
+        if self.power_state is not PS.OPERATION_ENABLED:
+            return
+        if option == 2:
+            self.power_state = PS.SWITCH_ON_DISABLED
+            p, v, _ = self.state_at(now)
+            self.segments = prof.ramp(now, p, v, 0.0, 2.0 * self.counts_per_rev)  # coasting
+            self.arrival_ns = self.setpoint_due_ns = None
+            self.setpoint_ack = False
+        elif option == 3:
+            self.power_state = PS.QUICK_STOP_ACTIVE
+            self.setpoint_ack = False
+            self._stop(now, self._get(0x6085))
+
     def _advance(self, now: int) -> None:
         """Automatic transitions and events that are due."""
+        consumer_due = self._consumer_deadline()
+        if consumer_due is not None and now > consumer_due:
+            self._heartbeat_error(now)
         if self.setpoint_due_ns is not None and now >= self.setpoint_due_ns:
             self._accept_setpoint(now)
         if self.fault_reaction_end_ns is not None and now >= self.fault_reaction_end_ns:
@@ -519,6 +570,7 @@ class SimCia402Drive:
             self.stop_until_ns,
             self.fault_reaction_end_ns,
             self.setpoint_due_ns,
+            None if (c := self._consumer_deadline()) is None else c + 1,
         ):
             if event is not None:
                 due = min(due, event)
@@ -594,7 +646,11 @@ class SimCia402Drive:
 
     async def _handle(self, msg: co.CanOpenMessage) -> None:
         now = self.clock.now_ns()
-        if isinstance(msg, co.NmtControl):
+        if isinstance(msg, co.Heartbeat):
+            entry = self._get(0x1016, 1)
+            if entry & 0xFFFF and msg.node_id == (entry >> 16) & 0x7F:
+                self.consumer_heard_ns = now
+        elif isinstance(msg, co.NmtControl):
             if msg.node_id in (0, self.node_id):
                 self._nmt(msg.command)
         elif isinstance(msg, co.Sync):
@@ -808,6 +864,8 @@ class SimCia402Drive:
                 self._plan_torque(now)
         if 0x1017 in written:
             self.next_heartbeat_ns = now
+        if 0x1016 in written:
+            self.consumer_heard_ns = None  # monitoring starts with the next heartbeat
         self._refresh_actuals(now)
 
     def _change_mode(self, now: int, mode: int) -> None:

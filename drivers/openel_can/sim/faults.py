@@ -7,16 +7,56 @@ it). :meth:`BusLink.fail` makes every bus of the link raise ``can.CanOperationEr
 ``recv`` and ``send`` (frames arriving meanwhile are lost), and with
 ``unplugged=True`` opening a new one fails too (``can.CanInitializationError``), like a
 USB adapter pulled out; :meth:`BusLink.restore` brings the bus back.
+
+:func:`peers_on_thread` hosts simulated peers on a thread of their own with their own event
+loop on the real clock, so they keep running (their watchdogs expire, their heartbeats go
+out) while the application's event loop is blocked.
 """
 
 from __future__ import annotations
 
 import time
-from typing import Any
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from functools import partial
+from typing import Any, Protocol
 
+import anyio.abc
 import can
+from anyio.from_thread import BlockingPortal, start_blocking_portal
 
-__all__ = ["BusLink", "FlakyBus"]
+__all__ = ["BusLink", "FlakyBus", "ServingPeer", "peers_on_thread"]
+
+
+class ServingPeer(Protocol):
+    """A simulated peer that opens its own bus (:class:`~openel_can.sim.odrive.SimODrive`,
+    :class:`~openel_can.sim.cia402.SimCiA402Drive`)."""
+
+    async def serve(
+        self,
+        channel: str,
+        *,
+        interface: str = ...,
+        task_status: anyio.abc.TaskStatus[None] = ...,
+    ) -> None: ...
+
+
+@contextmanager
+def peers_on_thread(
+    peers: Iterable[ServingPeer], channel: str, *, interface: str = "virtual"
+) -> Iterator[BlockingPortal]:
+    """Run ``peer.serve(channel)`` for every peer on one thread with its own event loop
+    (the peers' clocks must be real-time ones, e.g. the default clock); all have started
+    on entry and are cancelled on exit. Touch a peer's state from the test thread only
+    through the portal (``portal.call``) when it must be consistent."""
+    with start_blocking_portal() as portal:
+        try:
+            for peer in peers:
+                portal.start_task(partial(peer.serve, interface=interface), channel)
+            yield portal
+        finally:
+            portal.call(portal.stop, True)
+
 
 _SLICE_S = 0.005
 

@@ -24,6 +24,15 @@ as a float32 in turns/s²) is read and written; a read is answered with TxSdo, a
 not answered. Other endpoint ids are recorded and otherwise ignored (no reply), as is a
 non-finite or negative rate.
 
+Axis watchdog (``axis0.config.enable_watchdog`` / ``watchdog_timeout``, endpoints
+``enable_watchdog_endpoint`` / ``watchdog_timeout_endpoint``, defaults
+:data:`~openel_can.odrive.ENABLE_WATCHDOG_ENDPOINT` / :data:`~openel_can.odrive.WATCHDOG_TIMEOUT_ENDPOINT`):
+written by RxSdo, or set directly with :meth:`SimODrive.set_watchdog`. As in the firmware's
+CANSimple ``do_command``, every frame addressed to this node (data or remote) feeds it.
+While enabled with a timeout > 0 and the axis is in closed loop, a feed older than the
+timeout (on the peer's own clock) raises WATCHDOG_TIMER_EXPIRED and drops the axis to IDLE.
+``watchdog_trips`` counts the trips.
+
 Set_Limits overwrites both limits with the values received, as the firmware does
 (``vel_limit`` turn/s, ``current_limit`` A); an infinite velocity limit is stored but the
 motion model keeps the last finite one. ``commands`` keeps the newest
@@ -49,7 +58,12 @@ from openel_sim import profile as prof
 from .. import cansimple as cs
 from ..bus import CanBus, NodePort
 from ..errors import DecodeError
-from ..odrive import VEL_RAMP_RATE_ENDPOINT, ODriveError
+from ..odrive import (
+    ENABLE_WATCHDOG_ENDPOINT,
+    VEL_RAMP_RATE_ENDPOINT,
+    WATCHDOG_TIMEOUT_ENDPOINT,
+    ODriveError,
+)
 from .history import DEFAULT_HISTORY, History
 
 __all__ = ["SimODrive"]
@@ -114,6 +128,8 @@ class SimODrive:
         history: int = DEFAULT_HISTORY,
         clock: Clock | None = None,
         vel_ramp_rate_endpoint: int = VEL_RAMP_RATE_ENDPOINT,
+        watchdog_timeout_endpoint: int = WATCHDOG_TIMEOUT_ENDPOINT,
+        enable_watchdog_endpoint: int = ENABLE_WATCHDOG_ENDPOINT,
     ) -> None:
         if not 0 <= node_id < cs.MAX_NODE_ID:
             raise ValueError(f"node_id {node_id} outside 0..{cs.MAX_NODE_ID - 1}")
@@ -154,6 +170,14 @@ class SimODrive:
         """The newest host commands received, in order (``commands.discarded``: older ones)."""
         self.malformed = 0
         self._port: NodePort | None = None
+        self.watchdog_timeout_endpoint = watchdog_timeout_endpoint
+        self.enable_watchdog_endpoint = enable_watchdog_endpoint
+        self.enable_watchdog = False
+        """``axis0.config.enable_watchdog``."""
+        self.watchdog_timeout = 0.0
+        """``axis0.config.watchdog_timeout`` in seconds (0: no watchdog)."""
+        self.watchdog_fed_ns = now
+        self.watchdog_trips = 0
         self.log = log.bind(sim_odrive=node_id)
 
     # -- running ----------------------------------------------------------------------------
@@ -182,6 +206,7 @@ class SimODrive:
             async with anyio.create_task_group() as tg:
                 tg.start_soon(self._receive, port)
                 tg.start_soon(self._cyclic)
+                tg.start_soon(self._watchdog)
                 task_status.started()
         finally:
             port.close()
@@ -203,6 +228,37 @@ class SimODrive:
     def set_silent(self, silent: bool = True) -> None:
         """Stop (or resume) transmitting and listening: a node cut off the bus."""
         self.silent = silent
+
+    def set_watchdog(self, timeout: float, *, enable: bool = True) -> None:
+        """Configure the axis watchdog as ``odrivetool`` would (and feed it)."""
+        self.watchdog_timeout = timeout
+        self.enable_watchdog = enable
+        self.watchdog_feed()
+
+    def watchdog_feed(self) -> None:
+        self.watchdog_fed_ns = self.now()
+
+    def watchdog_expired(self, now: int) -> bool:
+        """The firmware's watchdog check (run while the axis is in closed loop)."""
+        if not self.enable_watchdog or self.watchdog_timeout <= 0.0:
+            return False
+        return now - self.watchdog_fed_ns > round(self.watchdog_timeout * 1e9)
+
+    async def _watchdog(self) -> None:
+        clock = self.clock
+        while True:
+            now = clock.now_ns()
+            if self.axis_state is cs.AxisState.CLOSED_LOOP_CONTROL and self.watchdog_expired(now):
+                self.watchdog_trips += 1
+                self.log.info("sim_watchdog_expired", timeout=self.watchdog_timeout)
+                self.inject_error(ODriveError.WATCHDOG_TIMER_EXPIRED)
+            # The firmware checks every control cycle; here at the deadline (>= 1 ms ahead)
+            # or every 10 ms while the configuration may change.
+            wake = now + 10_000_000
+            if self.enable_watchdog and self.watchdog_timeout > 0.0:
+                deadline = self.watchdog_fed_ns + round(self.watchdog_timeout * 1e9) + 1
+                wake = max(now + 1_000_000, min(wake, deadline))
+            await clock.sleep_until(wake)
 
     # -- state ------------------------------------------------------------------------------
     def now(self) -> int:
@@ -323,9 +379,15 @@ class SimODrive:
 
     def _sdo_read(self, endpoint: int) -> cs.TxSdo | None:
         """The TxSdo answering a read of ``endpoint`` (None: an endpoint not simulated)."""
-        if endpoint != self.vel_ramp_rate_endpoint:
+        if endpoint == self.vel_ramp_rate_endpoint:
+            value = struct.pack("<f", self.vel_ramp_rate)
+        elif endpoint == self.watchdog_timeout_endpoint:
+            value = struct.pack("<f", self.watchdog_timeout)
+        elif endpoint == self.enable_watchdog_endpoint:
+            value = bytes((int(self.enable_watchdog), 0, 0, 0))
+        else:
             return None
-        return cs.TxSdo(self.node_id, endpoint, struct.pack("<f", self.vel_ramp_rate))
+        return cs.TxSdo(self.node_id, endpoint, value)
 
     async def _send(self, msg: cs.CanSimpleMessage | None) -> None:
         if msg is None or self.silent or self._port is None:
@@ -355,10 +417,18 @@ class SimODrive:
         elif isinstance(msg, cs.SetInputPos | cs.SetInputVel | cs.SetInputTorque):
             self._plan(msg)
         elif isinstance(msg, cs.RxSdo):
-            if msg.opcode is cs.SdoOpcode.WRITE and msg.endpoint_id == self.vel_ramp_rate_endpoint:
+            if msg.opcode is not cs.SdoOpcode.WRITE:
+                return
+            if msg.endpoint_id == self.vel_ramp_rate_endpoint:
                 (rate,) = struct.unpack("<f", msg.value)
                 if math.isfinite(rate) and rate >= 0.0:
                     self.vel_ramp_rate = rate
+            elif msg.endpoint_id == self.watchdog_timeout_endpoint:
+                (timeout,) = struct.unpack("<f", msg.value)
+                if math.isfinite(timeout) and timeout >= 0.0:
+                    self.watchdog_timeout = timeout
+            elif msg.endpoint_id == self.enable_watchdog_endpoint:
+                self.enable_watchdog = msg.value[0] != 0  # a bool endpoint: the first byte
         elif isinstance(msg, cs.Estop):
             self.inject_error(ODriveError.ESTOP_REQUESTED)
         elif isinstance(msg, cs.ClearErrors):
@@ -386,6 +456,7 @@ class SimODrive:
             if self.silent:
                 continue
             for frame in batch:
+                self.watchdog_feed()  # do_command feeds on every frame for this node
                 try:
                     msg = cs.decode(
                         frame.arbitration_id,
