@@ -402,6 +402,8 @@ class CanBus:
         self._io_lock = anyio.Lock()
         self._tx_pending = 0
         """Frames queued for the sender task or being sent by it."""
+        self._tx_drained: anyio.Event | None = None
+        """Set by the sender when nothing is pending any more (while the bus closes)."""
         self._shared: dict[object, Any] = {}
         self._entered = False
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -466,6 +468,7 @@ class CanBus:
         exc: BaseException | None,
         tb: TracebackType | None,
     ) -> None:
+        await self._drain_tx()
         self.state = BusState.CLOSED
         for port in list(self._ports):
             self.detach(port)
@@ -478,6 +481,21 @@ class CanBus:
         self._up.set()  # release waiters: they see CLOSED
         self._down.set()
         self.log.info("bus_closed", **self._stats_dict())
+
+    async def _drain_tx(self) -> None:
+        """Let the frames queued before the close go out (at most ``send_timeout``): a
+        drive's last command (IDLE, quick stop, disable) must reach it. What is still queued
+        then counts as dropped and is logged."""
+        if self.state is not BusState.UP or not self._tx_pending:
+            return
+        self._tx_drained = anyio.Event()
+        # Shielded (a cancelled run still sends its last commands), bounded by the deadline
+        # inside the shield.
+        with anyio.CancelScope(shield=True), anyio.move_on_after(self.send_timeout):
+            await self._tx_drained.wait()
+        if self._tx_pending:
+            self.stats.tx_dropped += self._tx_pending
+            self.log.warning("tx_not_drained_at_close", dropped=self._tx_pending)
 
     def _stats_dict(self) -> dict[str, int]:
         s = self.stats
@@ -674,6 +692,8 @@ class CanBus:
                         await self._send_threaded(batch)
                 finally:
                     self._tx_pending -= len(batch)
+                    if not self._tx_pending and self._tx_drained is not None:
+                        self._tx_drained.set()
 
     async def _send_inline(self, batch: list[can.Message]) -> None:
         bus = self._bus

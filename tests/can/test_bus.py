@@ -247,3 +247,38 @@ async def test_attach_checks_ids_and_state(channel: str) -> None:
         port.close()
         with pytest.raises(anyio.EndOfStream):
             await port.receive()
+
+
+async def test_frames_queued_before_the_close_go_out(channel: str, raw_bus: can.BusABC) -> None:
+    """A drive's last command (ODrive IDLE, a CiA 402 disable) is queued just before the bus
+    closes; on an interface that sends from a thread (slcan, pcan, kvaser) the close
+    cancelled the sender first and the frames were lost, uncounted."""
+    async with CanBus(
+        bus_factory=lambda: _SlowSendBus(channel), send_mode="thread", send_timeout=1.0
+    ) as bus:
+        port = bus.attach([], name="tx")
+        for i in range(5):
+            await port.send(0x300, i.to_bytes(2, "little"))
+        assert bus.stats.tx_frames < 5  # still queued when the close begins
+    received = [int.from_bytes(m.data, "little") for m in drain(raw_bus)]
+    assert received == list(range(5))
+    assert (bus.stats.tx_frames, bus.stats.tx_dropped) == (5, 0)
+
+
+class _SlowSendBus(can.BusABC):
+    """A virtual bus whose send takes 5 ms in its thread (a serial adapter at work)."""
+
+    def __init__(self, channel: str) -> None:
+        super().__init__(channel=channel)
+        self._bus = can.Bus(interface="virtual", channel=channel)
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        time.sleep(0.005)
+        self._bus.send(msg, timeout)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        return self._bus.recv(timeout), False
+
+    def shutdown(self) -> None:
+        self._bus.shutdown()
+        super().shutdown()
