@@ -13,6 +13,8 @@ MuJoCo descriptions) refuses keys it does not know.  This module holds what they
   ``str()`` is ``"FILE:LINE:COL: message"``.
 * :func:`unknown_key_message` words a refused key with a "did you mean" for near misses
   (:func:`difflib.get_close_matches`) and the allowed keys.
+* :class:`XmlPositions` parses XML (DTDs, and so entities, refused) and keeps where
+  each element and attribute is written, columns counted in characters.
 * :func:`convert` runs :func:`msgspec.convert` into structs declared with
   ``forbid_unknown_fields=True`` and turns msgspec's ``$.a[0].b`` error path back into
   a position in the file.
@@ -22,10 +24,12 @@ from __future__ import annotations
 
 import difflib
 import re
+import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
+import defusedxml.ElementTree as DefusedET
 import msgspec
 import yaml
 from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
@@ -33,6 +37,7 @@ from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 __all__ = [
     "DocumentError",
     "Location",
+    "XmlPositions",
     "YamlDocument",
     "convert",
     "did_you_mean",
@@ -306,6 +311,129 @@ def _text_location(text: str | bytes, source: str, position: int) -> Location:
     before = text[:position]
     line = before.count("\n") + 1
     return Location(source, line, position - (before.rfind("\n") + 1) + 1)
+
+
+# -- XML ---------------------------------------------------------------------------------------
+
+_XML_NS = "http://www.w3.org/XML/1998/namespace"  # bound to ``xml:`` without a declaration
+_TAG = re.compile(rb"<[^\s/>]+")
+_ATTRIBUTE = re.compile(rb"""\s+([^\s=/>]+)\s*=\s*("[^"]*"|'[^']*')""")
+
+
+class XmlPositions:
+    """Where each element of a parsed XML document starts (expat's line and column,
+    counted in characters), where its attributes are written, and the namespace
+    prefixes in scope at it.
+
+    :meth:`parse` refuses DTDs (so entity declarations and external entities never
+    reach expat) and raises defusedxml's and :class:`xml.etree.ElementTree.ParseError`
+    as they are: callers word them."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self._raw: bytes | None = None  # UTF-8 bytes of the document, when known
+        self._starts: dict[int, tuple[int, int, int]] = {}
+        self._scopes: dict[int, dict[str, str]] = {}
+        self._keep: list[ET.Element] = []  # ids stay unique while the positions live
+
+    def parse(self, text: str | bytes) -> ET.Element:
+        """Parse ``text`` (DTDs refused), recording every element's position."""
+        if isinstance(text, str):
+            self._raw = text.encode("utf-8", "surrogatepass")
+        else:
+            self._raw = None if text.startswith((b"\xff\xfe", b"\xfe\xff")) else text
+        builder = _PositionedBuilder(self)
+        parser = DefusedET.DefusedXMLParser(target=builder, forbid_dtd=True)
+        builder.parser = parser.parser
+        parser.feed(text)
+        root: ET.Element = parser.close()
+        return root
+
+    def _started(
+        self, elem: ET.Element, line: int, column: int, offset: int, scope: dict[str, str]
+    ) -> None:
+        self._keep.append(elem)
+        self._starts[id(elem)] = (line, column, offset)
+        self._scopes[id(elem)] = scope
+
+    def namespaces(self, elem: ET.Element) -> dict[str, str]:
+        """The prefixes in scope at ``elem`` (``""``: the default namespace)."""
+        return self._scopes.get(id(elem), {})
+
+    def _at(self, offset: int, line: int, column: int) -> Location:
+        """The location of a byte offset, its column counted in characters (expat's
+        columns count bytes); expat's line and column when the bytes are not known."""
+        if self._raw is None or offset < 0:
+            return Location(self.source, line, column + 1)
+        start = self._raw.rfind(b"\n", 0, offset) + 1
+        chars = len(self._raw[start:offset].decode("utf-8", "replace"))
+        return Location(self.source, self._raw.count(b"\n", 0, offset) + 1, chars + 1)
+
+    def element(self, elem: ET.Element) -> Location:
+        """Where ``elem``'s start tag is (the document when unknown)."""
+        start = self._starts.get(id(elem))
+        if start is None:
+            return Location(self.source)
+        line, column, offset = start
+        return self._at(offset, line, column)
+
+    def attribute(self, elem: ET.Element, name: str) -> Location:
+        """Where the attribute ``name`` (a Clark name) of ``elem`` is written (the
+        element's start when it cannot be told)."""
+        start = self._starts.get(id(elem))
+        if start is None or self._raw is None:
+            return self.element(elem)
+        line, column, offset = start
+        scope = self.namespaces(elem)
+        tag = _TAG.match(self._raw, offset)
+        pos = tag.end() if tag is not None else len(self._raw)
+        while (m := _ATTRIBUTE.match(self._raw, pos)) is not None:
+            written = m.group(1).decode("utf-8", "replace")
+            prefix, colon, local = written.partition(":")
+            uri = scope.get(prefix, _XML_NS if prefix == "xml" else prefix)
+            clark = f"{{{uri}}}{local}" if colon else written
+            if clark == name:
+                return self._at(m.start(1), line, column)
+            pos = m.end()
+        return self.element(elem)
+
+
+class _PositionedBuilder(ET.TreeBuilder):
+    """A TreeBuilder that tells its :class:`XmlPositions` where each element starts
+    and which namespace prefixes are in scope there."""
+
+    def __init__(self, positions: XmlPositions) -> None:
+        super().__init__()
+        self._positions = positions
+        self.parser: Any = None  # the expat parser, set once it exists
+        self._scope: list[tuple[str, str]] = []
+        self._marks: list[int] = []
+        self._pending = 0
+
+    def start_ns(self, prefix: str, uri: str) -> None:
+        self._scope.append((prefix, uri))
+        self._pending += 1
+
+    def start(self, tag: str, attrs: dict[str, str]) -> ET.Element:
+        elem = super().start(tag, attrs)
+        self._marks.append(self._pending)
+        self._pending = 0
+        p = self.parser
+        if p is not None:
+            self._positions._started(
+                elem,
+                p.CurrentLineNumber,
+                p.CurrentColumnNumber,
+                p.CurrentByteIndex,
+                dict(self._scope),
+            )
+        return elem
+
+    def end(self, tag: str) -> ET.Element:
+        count = self._marks.pop() if self._marks else 0
+        if count:
+            del self._scope[-count:]
+        return super().end(tag)
 
 
 # -- msgspec structs --------------------------------------------------------------------------

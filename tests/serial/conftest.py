@@ -6,19 +6,23 @@ Everything runs in real time (a pty has no virtual clock): every wait is bounded
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
-from typing import Any
+from collections.abc import AsyncIterator, Callable
+from contextlib import AsyncExitStack
+from typing import Any, TypeVar
 
+import anyio
 import pytest
 
-from openel_async import MonotonicClock
+from openel_async import Actuator, MonotonicClock
 from openel_async.testing import EventRecorder
-from openel_serial import DynamixelPort
+from openel_serial import DynamixelPort, DynamixelServo
 from openel_serial.peers import SimDynamixelBus, SimServo
 
 BAUD = 1_000_000
 WAIT_S = 3.0
 """Bound of every wait for an event: far above the expected ~0.1-0.5 s."""
+
+T = TypeVar("T")
 
 
 def make_servo(dxl_id: int, **kwargs: Any) -> SimServo:
@@ -28,6 +32,25 @@ def make_servo(dxl_id: int, **kwargs: Any) -> SimServo:
     kwargs.setdefault("profile_acceleration", 400)
     kwargs.setdefault("velocity_limit", 600)
     return SimServo(dxl_id, **kwargs)
+
+
+async def actuators(
+    stack: AsyncExitStack, port: DynamixelPort, recorder: EventRecorder, *ids: int, **kw: Any
+) -> list[Actuator]:
+    """Open an Actuator over a DynamixelServo for each id on ``stack``, observed by
+    ``recorder``."""
+    out = []
+    for dxl_id in ids:
+        actuator = await stack.enter_async_context(Actuator(DynamixelServo(port, dxl_id, **kw)))
+        actuator.add_observer(recorder)
+        out.append(actuator)
+    return out
+
+
+async def in_thread(call: Callable[[], T]) -> T:
+    """Run a blocking call (dynamixel-sdk's) in a worker thread, bounded by WAIT_S."""
+    with anyio.fail_after(WAIT_S):
+        return await anyio.to_thread.run_sync(call)
 
 
 @pytest.fixture

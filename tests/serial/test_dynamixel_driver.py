@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 from contextlib import AsyncExitStack
-from typing import Any
 
 import anyio
 import pytest
@@ -36,7 +35,7 @@ from openel_serial import (
 from openel_serial import dynamixel as dx
 from openel_serial.peers import SimDynamixelBus
 
-from .conftest import BAUD, WAIT_S, make_servo
+from .conftest import BAUD, WAIT_S, actuators, make_servo
 
 pytestmark = pytest.mark.timeout(20)
 
@@ -45,17 +44,6 @@ TICK = 2 * math.pi / 4096
 GOLDEN_SYNC_WRITE = bytes.fromhex(
     "ff ff fd 00 fe 11 00 83 74 00 04 00 01 00 08 00 00 02 00 04 00 00 98 4c"
 )
-
-
-async def actuators(
-    stack: AsyncExitStack, port: DynamixelPort, recorder: EventRecorder, *ids: int, **kw: Any
-) -> list[Actuator]:
-    out = []
-    for dxl_id in ids:
-        actuator = await stack.enter_async_context(Actuator(DynamixelServo(port, dxl_id, **kw)))
-        actuator.add_observer(recorder)
-        out.append(actuator)
-    return out
 
 
 # -- wire format ------------------------------------------------------------------------------

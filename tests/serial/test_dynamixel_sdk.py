@@ -11,9 +11,8 @@ thread (``anyio.to_thread``), each bounded by the SDK's own packet timeout and b
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any
 
-import anyio
 import dynamixel_sdk as sdk
 import pytest
 from hypothesis import given, settings
@@ -22,12 +21,11 @@ from hypothesis import strategies as st
 from openel_serial import dynamixel as dx
 from openel_serial.peers import SimDynamixelBus
 
-from .conftest import BAUD, WAIT_S, make_servo
+from .conftest import BAUD, in_thread, make_servo
 
 pytestmark = pytest.mark.timeout(30)
 
 X = dx.XSeries
-T = TypeVar("T")
 PH = sdk.PacketHandler(2.0)
 
 
@@ -237,34 +235,29 @@ def test_sdk_remove_stuffing_loses_bytes() -> None:
 # -- over a pty: the SDK talks to our simulated servos ----------------------------------------
 
 
-async def _in_thread(call: Callable[[], T]) -> T:
-    with anyio.fail_after(WAIT_S):
-        return await anyio.to_thread.run_sync(call)
-
-
 async def test_sdk_drives_simulated_servos_over_a_pty() -> None:
     servos = [make_servo(1), make_servo(2, position=1000)]
     async with SimDynamixelBus(servos) as bus:
         port = sdk.PortHandler(bus.path)
-        assert await _in_thread(port.openPort)
+        assert await in_thread(port.openPort)
         try:
-            assert await _in_thread(lambda: port.setBaudRate(BAUD))
-            model, result, error = await _in_thread(lambda: PH.ping(port, 1))
+            assert await in_thread(lambda: port.setBaudRate(BAUD))
+            model, result, error = await in_thread(lambda: PH.ping(port, 1))
             assert (model, result, error) == (1020, sdk.COMM_SUCCESS, 0)
-            _, result, _ = await _in_thread(lambda: PH.ping(port, 9))
+            _, result, _ = await in_thread(lambda: PH.ping(port, 9))
             assert result == sdk.COMM_RX_TIMEOUT  # nobody there
 
-            position, result, error = await _in_thread(
+            position, result, error = await in_thread(
                 lambda: PH.read4ByteTxRx(port, 2, X.PRESENT_POSITION.address)
             )
             assert (position, result, error) == (1000, sdk.COMM_SUCCESS, 0)
             # EEPROM locked while the torque is on: ACCESS_ERROR.
-            await _in_thread(lambda: PH.write1ByteTxRx(port, 1, X.TORQUE_ENABLE.address, 1))
-            result, error = await _in_thread(
+            await in_thread(lambda: PH.write1ByteTxRx(port, 1, X.TORQUE_ENABLE.address, 1))
+            result, error = await in_thread(
                 lambda: PH.write1ByteTxRx(port, 1, X.OPERATING_MODE.address, 1)
             )
             assert (result, error) == (sdk.COMM_SUCCESS, dx.ErrorNumber.ACCESS_ERROR)
-            result, error = await _in_thread(
+            result, error = await in_thread(
                 lambda: PH.write4ByteTxRx(port, 1, X.GOAL_POSITION.address, 2100)
             )
             assert (result, error) == (sdk.COMM_SUCCESS, 0)
@@ -273,11 +266,11 @@ async def test_sdk_drives_simulated_servos_over_a_pty() -> None:
             writer = sdk.GroupSyncWrite(port, PH, X.PROFILE_VELOCITY.address, 4)
             writer.addParam(1, _u32(123))
             writer.addParam(2, _u32(456))
-            assert await _in_thread(writer.txPacket) == sdk.COMM_SUCCESS
+            assert await in_thread(writer.txPacket) == sdk.COMM_SUCCESS
             reader = sdk.GroupSyncRead(port, PH, X.PROFILE_VELOCITY.address, 4)
             reader.addParam(1)
             reader.addParam(2)
-            assert await _in_thread(reader.txRxPacket) == sdk.COMM_SUCCESS
+            assert await in_thread(reader.txRxPacket) == sdk.COMM_SUCCESS
             assert reader.getData(1, X.PROFILE_VELOCITY.address, 4) == 123
             assert reader.getData(2, X.PROFILE_VELOCITY.address, 4) == 456
             assert bus.corrupt_instructions == 0
@@ -288,9 +281,9 @@ async def test_sdk_drives_simulated_servos_over_a_pty() -> None:
 async def test_sim_answers_a_damaged_instruction_with_crc_error_to_the_sdk() -> None:
     async with SimDynamixelBus([make_servo(1), make_servo(2)]) as bus:
         port = sdk.PortHandler(bus.path)
-        assert await _in_thread(port.openPort)
+        assert await in_thread(port.openPort)
         try:
-            assert await _in_thread(lambda: port.setBaudRate(BAUD))
+            assert await in_thread(lambda: port.setBaudRate(BAUD))
 
             def send_damaged(packet: bytes) -> tuple[list[int], int]:
                 damaged = bytearray(packet)
@@ -301,7 +294,7 @@ async def test_sim_answers_a_damaged_instruction_with_crc_error_to_the_sdk() -> 
                 result: tuple[list[int], int] = PH.rxPacket(port, False)
                 return result
 
-            packet, result = await _in_thread(
+            packet, result = await in_thread(
                 lambda: send_damaged(dx.encode(dx.Write(2, 116, _u32b(3000))))
             )
             assert result == sdk.COMM_SUCCESS
@@ -311,10 +304,10 @@ async def test_sim_answers_a_damaged_instruction_with_crc_error_to_the_sdk() -> 
             assert (bus[2].crc_errors, bus[1].crc_errors, bus.corrupt_instructions) == (1, 0, 1)
 
             # A damaged broadcast gets no answer.
-            _, result = await _in_thread(lambda: send_damaged(dx.encode(dx.Ping(dx.BROADCAST_ID))))
+            _, result = await in_thread(lambda: send_damaged(dx.encode(dx.Ping(dx.BROADCAST_ID))))
             assert result == sdk.COMM_RX_TIMEOUT
             # The bus goes on: the next good instruction is answered.
-            model, result, error = await _in_thread(lambda: PH.ping(port, 2))
+            model, result, error = await in_thread(lambda: PH.ping(port, 2))
             assert (model, result, error) == (1020, sdk.COMM_SUCCESS, 0)
         finally:
             port.closePort()

@@ -15,9 +15,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
 from contextlib import AsyncExitStack
-from typing import Any, TypeVar
 
 import anyio
 import dynamixel_sdk as sdk
@@ -38,12 +36,11 @@ from openel_serial import DynamixelPort, DynamixelServo, DynamixelStatusError
 from openel_serial import dynamixel as dx
 from openel_serial.peers import PeerThread, SimDynamixelBus, SimServo
 
-from .conftest import BAUD, WAIT_S, make_servo
+from .conftest import BAUD, WAIT_S, actuators, in_thread, make_servo
 
 pytestmark = pytest.mark.timeout(30)
 
 X = dx.XSeries
-T = TypeVar("T")
 TIMEOUT_S = 0.1
 """The Bus Watchdog timeout of these tests: 5 units of 20 ms."""
 NS = 1_000_000_000
@@ -53,17 +50,6 @@ def servo_of(actuator: Actuator) -> DynamixelServo:
     device = actuator.device
     assert isinstance(device, DynamixelServo)
     return device
-
-
-async def actuators(
-    stack: AsyncExitStack, port: DynamixelPort, recorder: EventRecorder, *ids: int, **kw: Any
-) -> list[Actuator]:
-    out = []
-    for dxl_id in ids:
-        actuator = await stack.enter_async_context(Actuator(DynamixelServo(port, dxl_id, **kw)))
-        actuator.add_observer(recorder)
-        out.append(actuator)
-    return out
 
 
 def virtual_bus(clock: VirtualClock, *ids: int) -> SimDynamixelBus:
@@ -377,11 +363,6 @@ async def test_kill_9_of_the_app_stops_every_servo_within_the_timeout() -> None:
 # -- dynamixel-sdk reads what we armed -----------------------------------------------------------
 
 
-async def _sdk(call: Callable[[], T]) -> T:
-    with anyio.fail_after(WAIT_S):
-        return await anyio.to_thread.run_sync(call)
-
-
 async def test_dynamixel_sdk_reads_the_bus_watchdog_we_armed(recorder: EventRecorder) -> None:
     clock = VirtualClock()
     async with virtual_bus(clock, 1) as bus:
@@ -391,27 +372,27 @@ async def test_dynamixel_sdk_reads_the_bus_watchdog_we_armed(recorder: EventReco
         # Our port is closed: the SDK takes the bus over.
         handler = sdk.PortHandler(bus.path)
         packets = sdk.PacketHandler(2.0)
-        assert await _sdk(handler.openPort)
+        assert await in_thread(handler.openPort)
         try:
-            assert await _sdk(lambda: handler.setBaudRate(BAUD))
-            value, result, error = await _sdk(
+            assert await in_thread(lambda: handler.setBaudRate(BAUD))
+            value, result, error = await in_thread(
                 lambda: packets.read1ByteTxRx(handler, 1, X.BUS_WATCHDOG.address)
             )
             assert (value, result, error) == (5, sdk.COMM_SUCCESS, 0)  # 5 x 20 ms
             await clock.advance(round(2 * TIMEOUT_S * NS))  # the servo's time: silence
-            value, result, error = await _sdk(
+            value, result, error = await in_thread(
                 lambda: packets.read1ByteTxRx(handler, 1, X.BUS_WATCHDOG.address)
             )
             assert (value, result, error) == (0xFF, sdk.COMM_SUCCESS, 0)  # -1: expired
-            result, error = await _sdk(
+            result, error = await in_thread(
                 lambda: packets.write4ByteTxRx(handler, 1, X.GOAL_POSITION.address, 2500)
             )
             assert (result, error) == (sdk.COMM_SUCCESS, dx.ErrorNumber.DATA_RANGE_ERROR)
-            result, error = await _sdk(
+            result, error = await in_thread(
                 lambda: packets.write1ByteTxRx(handler, 1, X.BUS_WATCHDOG.address, 0)
             )
             assert (result, error) == (sdk.COMM_SUCCESS, 0)
-            result, error = await _sdk(
+            result, error = await in_thread(
                 lambda: packets.write4ByteTxRx(handler, 1, X.GOAL_POSITION.address, 2500)
             )
             assert (result, error) == (sdk.COMM_SUCCESS, 0)

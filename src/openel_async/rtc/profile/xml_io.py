@@ -16,9 +16,7 @@ import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from datetime import datetime
-from typing import Any
 
-import defusedxml.ElementTree as DefusedET
 from defusedxml import (
     DefusedXmlException,
     DTDForbidden,
@@ -26,7 +24,7 @@ from defusedxml import (
     ExternalReferenceForbidden,
 )
 
-from ...positioned import Location, did_you_mean
+from ...positioned import Location, XmlPositions, did_you_mean
 from ..constraints import (
     RTC_NS,
     Constraint,
@@ -159,50 +157,16 @@ def _shown_name(name: str) -> str:
     return f"{PREFIXES.get(uri, '{' + uri + '}')}:{local}"
 
 
-class _Places:
-    """Where each element starts in the document (expat's line and column), and where
-    its attributes are written (found in the start tag's text)."""
+class _Places(XmlPositions):
+    """Where each element starts in the document and its attributes are written, and
+    which element each key path names."""
 
-    def __init__(self, source: str, raw: bytes | None) -> None:
-        self.source = source
-        self._raw = raw  # UTF-8 bytes of the document, when known
-        self._starts: dict[int, tuple[ET.Element, int, int, int]] = {}
+    def __init__(self, source: str) -> None:
+        super().__init__(source)
         self._paths: dict[str, ET.Element] = {}
-
-    def started(self, elem: ET.Element, line: int, column: int, offset: int) -> None:
-        self._starts[id(elem)] = (elem, line, column, offset)
 
     def add(self, path: str, elem: ET.Element) -> None:
         self._paths.setdefault(path, elem)
-
-    def _at(self, offset: int, line: int, column: int) -> Location:
-        """The location of a byte offset, its column counted in characters (expat's
-        columns count bytes); expat's line and column when the bytes are not known."""
-        if self._raw is None or offset < 0:
-            return Location(self.source, line, column + 1)
-        start = self._raw.rfind(b"\n", 0, offset) + 1
-        chars = len(self._raw[start:offset].decode("utf-8", "replace"))
-        return Location(self.source, self._raw.count(b"\n", 0, offset) + 1, chars + 1)
-
-    def element(self, elem: ET.Element) -> Location:
-        start = self._starts.get(id(elem))
-        if start is None:
-            return Location(self.source)
-        _, line, column, offset = start
-        return self._at(offset, line, column)
-
-    def attribute(self, elem: ET.Element, name: str) -> Location:
-        start = self._starts.get(id(elem))
-        if start is None or self._raw is None:
-            return self.element(elem)
-        _, line, column, offset = start
-        end = self._raw.find(b">", offset)
-        tag = self._raw[offset : end if end >= 0 else len(self._raw)]
-        local = re.escape(_split_clark(name)[1].encode())
-        m = re.search(rb"[\s](?:[\w.-]+:)?" + local + rb"\s*=", tag)
-        if m is None:
-            return self.element(elem)
-        return self._at(offset + m.start() + 1, line, column)
 
     def locate(self, path: str) -> Location:
         """The position of the field an error path names (its nearest element's)."""
@@ -558,12 +522,7 @@ def _parse(text: str | bytes, source: str = "<string>") -> tuple[ET.Element, _Pl
             text = _decode(text)
         except ProfileError as e:
             raise e.at(Location(source)) from None
-    if isinstance(text, str):
-        raw: bytes | None = text.encode("utf-8", "surrogatepass")
-    else:
-        utf8 = not text.startswith((b"\xff\xfe", b"\xfe\xff"))
-        raw = text if utf8 else None
-    places = _Places(source, raw)
+    places = _Places(source)
     try:
         root = _parse_safely(text, places)
         _check_budget(root)
@@ -572,32 +531,10 @@ def _parse(text: str | bytes, source: str = "<string>") -> tuple[ET.Element, _Pl
     return root, places
 
 
-class _PlacedBuilder(ET.TreeBuilder):
-    """A TreeBuilder that tells ``places`` where each element starts."""
-
-    def __init__(self, places: _Places) -> None:
-        super().__init__()
-        self._places = places
-        self.parser: Any = None  # the expat parser, set once it exists
-
-    def start(self, tag: str, attrs: dict[str, str]) -> ET.Element:
-        elem = super().start(tag, attrs)
-        expat = self.parser
-        if expat is not None:
-            self._places.started(
-                elem, expat.CurrentLineNumber, expat.CurrentColumnNumber, expat.CurrentByteIndex
-            )
-        return elem
-
-
 def _parse_safely(text: str | bytes, places: _Places) -> ET.Element:
     refused = "unsafe XML refused: "
     try:
-        builder = _PlacedBuilder(places)
-        parser = DefusedET.DefusedXMLParser(target=builder, forbid_dtd=True)
-        builder.parser = parser.parser
-        parser.feed(text)
-        root: ET.Element = parser.close()
+        root = places.parse(text)
     except DTDForbidden:
         raise ProfileError(
             DOCUMENT,

@@ -29,10 +29,9 @@ from functools import cache
 from importlib.resources import files
 from typing import TYPE_CHECKING, Any
 
-import defusedxml.ElementTree as DefusedET
 from defusedxml import DefusedXmlException
 
-from ...positioned import Location, did_you_mean
+from ...positioned import Location, XmlPositions, did_you_mean
 from .model import SystemFileError
 
 if TYPE_CHECKING:
@@ -136,116 +135,21 @@ def shown(name: str) -> str:
 
 # -- parsing with positions ---------------------------------------------------------------
 
-_TAG = re.compile(rb"<[^\s/>]+")
-_ATTRIBUTE = re.compile(rb"""\s+([^\s=/>]+)\s*=\s*("[^"]*"|'[^']*')""")
 
-
-class RtsysDocument:
+class RtsysDocument(XmlPositions):
     """A parsed rtsys file: ``root`` and the place of every element and attribute."""
 
-    def __init__(self, root: ET.Element, source: str, raw: bytes | None) -> None:
-        self.root = root
-        self.source = source
-        self._raw = raw
-        self._starts: dict[int, tuple[int, int, int]] = {}
-        self._scopes: dict[int, dict[str, str]] = {}
-        self._keep: list[ET.Element] = []
-
-    def started(
-        self, elem: ET.Element, line: int, column: int, offset: int, scope: dict[str, str]
-    ) -> None:
-        self._keep.append(elem)  # ids stay unique while the document lives
-        self._starts[id(elem)] = (line, column, offset)
-        self._scopes[id(elem)] = scope
-
-    def namespaces(self, elem: ET.Element) -> dict[str, str]:
-        """The prefixes in scope at ``elem`` (``""``: the default namespace)."""
-        return self._scopes.get(id(elem), {})
-
-    def _at(self, offset: int, line: int, column: int) -> Location:
-        if self._raw is None or offset < 0:
-            return Location(self.source, line, column + 1)
-        start = self._raw.rfind(b"\n", 0, offset) + 1
-        chars = len(self._raw[start:offset].decode("utf-8", "replace"))
-        return Location(self.source, self._raw.count(b"\n", 0, offset) + 1, chars + 1)
-
-    def element(self, elem: ET.Element) -> Location:
-        """Where ``elem``'s start tag is (the file when unknown)."""
-        start = self._starts.get(id(elem))
-        if start is None:
-            return Location(self.source)
-        line, column, offset = start
-        return self._at(offset, line, column)
-
-    def attribute(self, elem: ET.Element, name: str) -> Location:
-        """Where the attribute ``name`` (a Clark name) of ``elem`` is written (the
-        element's start when it cannot be told)."""
-        start = self._starts.get(id(elem))
-        if start is None or self._raw is None:
-            return self.element(elem)
-        line, column, offset = start
-        scope = self.namespaces(elem)
-        tag = _TAG.match(self._raw, offset)
-        pos = tag.end() if tag is not None else len(self._raw)
-        while (m := _ATTRIBUTE.match(self._raw, pos)) is not None:
-            written = m.group(1).decode("utf-8", "replace")
-            prefix, colon, local = written.partition(":")
-            clark = f"{{{scope.get(prefix, prefix)}}}{local}" if colon else written
-            if clark == name:
-                return self._at(m.start(1), line, column)
-            pos = m.end()
-        return self.element(elem)
-
-
-class _Builder(ET.TreeBuilder):
-    def __init__(self, doc: RtsysDocument) -> None:
-        super().__init__()
-        self.doc = doc
-        self.parser: Any = None
-        self._scope: list[tuple[str, str]] = []
-        self._marks: list[int] = []
-        self._pending = 0
-
-    def start_ns(self, prefix: str, uri: str) -> None:
-        self._scope.append((prefix, uri))
-        self._pending += 1
-
-    def start(self, tag: str, attrs: dict[str, str]) -> ET.Element:
-        elem = super().start(tag, attrs)
-        self._marks.append(self._pending)
-        self._pending = 0
-        p = self.parser
-        if p is not None:
-            self.doc.started(
-                elem,
-                p.CurrentLineNumber,
-                p.CurrentColumnNumber,
-                p.CurrentByteIndex,
-                dict(self._scope),
-            )
-        return elem
-
-    def end(self, tag: str) -> ET.Element:
-        count = self._marks.pop() if self._marks else 0
-        if count:
-            del self._scope[-count:]
-        return super().end(tag)
+    def __init__(self, source: str) -> None:
+        super().__init__(source)
+        self.root = ET.Element("placeholder")
 
 
 def parse_rtsys(raw: str | bytes, source: str) -> RtsysDocument:
     """Parse (DTDs refused), keeping positions; SystemFileError located in ``source``
     for anything that is not well-formed XML."""
-    if isinstance(raw, str):
-        data: bytes | None = raw.encode("utf-8", "surrogatepass")
-    else:
-        data = None if raw.startswith((b"\xff\xfe", b"\xfe\xff")) else raw
-    doc = RtsysDocument(ET.Element("placeholder"), source, data)
-    builder = _Builder(doc)
+    doc = RtsysDocument(source)
     try:
-        parser = DefusedET.DefusedXMLParser(target=builder, forbid_dtd=True)
-        builder.parser = parser.parser
-        parser.feed(raw)
-        doc.root = parser.close()
+        doc.root = doc.parse(raw)
     except ET.ParseError as exc:
         line, column = exc.position
         message = re.sub(r": line \d+, column \d+$", "", str(exc))
