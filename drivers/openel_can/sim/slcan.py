@@ -71,6 +71,7 @@ from __future__ import annotations
 import argparse
 import errno
 import functools
+import logging
 import os
 import select
 import signal
@@ -687,8 +688,6 @@ def _ids(text: str) -> list[int]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m openel_can.sim.slcan``: an adapter with simulated drives, until a signal."""
-    from openel_async.cli.logs import LEVELS, configure_logging
-
     from .cia402 import SimCia402Drive
     from .odrive import SimODrive
 
@@ -702,9 +701,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--bitrate", type=int, default=1_000_000, help="the bus's bit rate (default 1000000)")  # fmt: skip
     parser.add_argument("--channel", default=None, help="python-can virtual channel of the bus (default: a fresh one)")  # fmt: skip
     parser.add_argument("--odrive-heartbeat", type=float, default=0.1, metavar="S", help="ODrive heartbeat period (default 0.1 s)")  # fmt: skip
-    parser.add_argument("--log-level", choices=LEVELS, default="warning", help="log level (stderr; default warning)")  # fmt: skip
+    parser.add_argument("--log-level", choices=("debug", "info", "warning", "error"), default="warning", help="log level (stderr; default warning)")  # fmt: skip
     args = parser.parse_args(argv)
-    configure_logging(level=args.log_level)  # on stderr: stdout carries the port only
+    # The framework logs through the standard logging module: on stderr, as stdout carries
+    # the port only.
+    logging.basicConfig(
+        level=args.log_level.upper(), stream=sys.stderr, format="%(name)s %(levelname)s %(message)s"
+    )
     peers: list[SimPeer] = []
     option = "--odrive"
     try:  # a node id out of its protocol's range is refused by the peer
