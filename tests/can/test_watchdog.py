@@ -11,6 +11,8 @@ import math
 import time
 import uuid
 from collections.abc import AsyncIterator, Iterator
+from contextlib import asynccontextmanager
+from typing import TypeVar
 
 import anyio
 import pytest
@@ -29,6 +31,8 @@ from openel_can.sim.faults import peers_on_thread
 from openel_can.sim.odrive import SimODrive
 
 from .conftest import wait_until
+
+D = TypeVar("D", ODriveAxis, Cia402Drive)
 
 T = 0.1  # the watchdog timeout under test
 HB = 0.02  # heartbeat period of the simulated ODrives here (real default: 0.1 s)
@@ -51,6 +55,15 @@ def odrives(channel: str) -> Iterator[list[SimODrive]]:
 async def bus(odrives: list[SimODrive], channel: str) -> AsyncIterator[CanBus]:
     async with CanBus(interface="virtual", channel=channel, poll_interval=0.01, name="host") as b:
         yield b
+
+
+@asynccontextmanager
+async def _observed(device: D) -> AsyncIterator[tuple[Actuator, D, EventRecorder]]:
+    """An actuator over ``device``, entered, with an event recorder observing it."""
+    recorder = EventRecorder(default_clock())
+    async with Actuator(device) as axis:
+        axis.add_observer(recorder)
+        yield axis, device, recorder
 
 
 def _block_loop(seconds: float) -> None:
@@ -95,11 +108,7 @@ async def test_odrive_blocked_loop_trips_every_axis_watchdog(
 
 
 async def test_odrive_running_loop_never_trips(bus: CanBus, odrives: list[SimODrive]) -> None:
-    recorder = EventRecorder(default_clock())
-    async with Actuator(ODriveAxis(bus, 1, heartbeat_period=HB)) as axis:
-        axis.add_observer(recorder)
-        device = axis.device
-        assert isinstance(device, ODriveAxis)
+    async with _observed(ODriveAxis(bus, 1, heartbeat_period=HB)) as (axis, device, recorder):
         await device.arm_watchdog(T)
         await anyio.sleep(10 * T)  # nothing commanded: the feeder alone keeps it alive
         assert odrives[0].watchdog_trips == 0
@@ -122,11 +131,7 @@ async def test_odrive_refuses_a_timeout_the_protocol_cannot_express(
 async def test_odrive_disarm_stops_feeding_without_a_trip(
     bus: CanBus, odrives: list[SimODrive]
 ) -> None:
-    recorder = EventRecorder(default_clock())
-    async with Actuator(ODriveAxis(bus, 1, heartbeat_period=HB)) as axis:
-        axis.add_observer(recorder)
-        device = axis.device
-        assert isinstance(device, ODriveAxis)
+    async with _observed(ODriveAxis(bus, 1, heartbeat_period=HB)) as (axis, device, recorder):
         await device.arm_watchdog(T)
         await device.disarm_watchdog()
         await wait_until(lambda: not odrives[0].enable_watchdog, 1)
@@ -197,11 +202,7 @@ async def test_cia402_blocked_loop_quick_stops_every_drive(
 async def test_cia402_running_loop_never_trips(
     cia_bus: CanBus, drives: list[SimCia402Drive]
 ) -> None:
-    recorder = EventRecorder(default_clock())
-    async with Actuator(Cia402Drive(cia_bus, 5)) as axis:
-        axis.add_observer(recorder)
-        device = axis.device
-        assert isinstance(device, Cia402Drive)
+    async with _observed(Cia402Drive(cia_bus, 5)) as (axis, device, recorder):
         await device.arm_watchdog(T)
         await anyio.sleep(10 * T)
         assert drives[0].heartbeat_errors == 0
@@ -225,11 +226,7 @@ async def test_cia402_refuses_a_timeout_the_protocol_cannot_express(
 async def test_cia402_disarm_stops_feeding_without_a_trip(
     cia_bus: CanBus, drives: list[SimCia402Drive]
 ) -> None:
-    recorder = EventRecorder(default_clock())
-    async with Actuator(Cia402Drive(cia_bus, 5)) as axis:
-        axis.add_observer(recorder)
-        device = axis.device
-        assert isinstance(device, Cia402Drive)
+    async with _observed(Cia402Drive(cia_bus, 5)) as (axis, device, recorder):
         await device.arm_watchdog(T)
         await anyio.sleep(2 * T)
         await device.disarm_watchdog()
@@ -247,11 +244,8 @@ async def test_cia402_disarm_stops_feeding_without_a_trip(
 async def test_odrive_estop_faults_with_estop_and_re_init_recovers(
     bus: CanBus, odrives: list[SimODrive]
 ) -> None:
-    recorder = EventRecorder(default_clock())
-    async with Actuator(ODriveAxis(bus, 1, heartbeat_period=HB)) as axis:
-        axis.add_observer(recorder)
-        device = axis.device
-        assert isinstance(device, ODriveAxis) and isinstance(device, EmergencyStop)
+    async with _observed(ODriveAxis(bus, 1, heartbeat_period=HB)) as (axis, device, recorder):
+        assert isinstance(device, EmergencyStop)
         await device.estop()
         record = await recorder.wait_for("error", source=axis, timeout=1)
         assert record.id == ErrorId.ESTOP and axis.state is ComponentState.ERROR
@@ -267,11 +261,8 @@ async def test_odrive_estop_faults_with_estop_and_re_init_recovers(
 async def test_cia402_estop_faults_with_estop_and_re_init_recovers(
     cia_bus: CanBus, drives: list[SimCia402Drive]
 ) -> None:
-    recorder = EventRecorder(default_clock())
-    async with Actuator(Cia402Drive(cia_bus, 5)) as axis:
-        axis.add_observer(recorder)
-        device = axis.device
-        assert isinstance(device, Cia402Drive) and isinstance(device, EmergencyStop)
+    async with _observed(Cia402Drive(cia_bus, 5)) as (axis, device, recorder):
+        assert isinstance(device, EmergencyStop)
         await device.estop()
         record = await recorder.wait_for("error", source=axis, timeout=1)
         assert record.id == ErrorId.ESTOP and axis.state is ComponentState.ERROR
