@@ -561,11 +561,13 @@ class SlcanAdapter:
         return b"Z\r" if msg.is_extended_id else b"z\r"
 
     def _emit(self, data: bytes, *, frame: bool) -> None:
+        """Queue ``data`` for the host. Only received frames overrun: a reply to a command
+        always waits its turn (the host asked for it, one command at a time), as an adapter's
+        USB endpoint queues it; dropping it lost the answer to ``F`` after an overrun."""
         with self._out_lock:
-            if len(self._pending) + len(data) > MAX_PENDING:
+            if frame and len(self._pending) + len(data) > MAX_PENDING:
                 with self._lock:
-                    if frame:
-                        self.stats.dropped += 1
+                    self.stats.dropped += 1
                     self.flags |= StatusFlag.RX_FIFO_FULL | StatusFlag.DATA_OVERRUN
                 return
             self._pending += data
