@@ -5,8 +5,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
+from typing import TYPE_CHECKING
 
 import structlog
+
+if TYPE_CHECKING:
+    from .rig.buses import BusKind
 
 log = structlog.get_logger(__name__)
 
@@ -15,11 +19,14 @@ ENTRY_POINT_GROUP = "openel_async.drivers"
 
 @dataclass(frozen=True)
 class DriverInfo:
-    """What a driver package registers: a name, a description and its device classes."""
+    """What a driver package registers: a name, a description, its device classes and the
+    kinds of bus a rig file can name (``buses: {can0: {type: can, ...}}``, see
+    :class:`openel_async.rig.BusKind`)."""
 
     name: str
     description: str
     devices: Mapping[str, type] = field(default_factory=dict)
+    buses: Mapping[str, BusKind] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,100 @@
+"""Bus kinds: how a driver opens the buses a rig file names, and how it simulates them.
+
+A driver registers its bus kinds in :attr:`openel_async.registry.DriverInfo.buses` under the
+``type`` a rig file writes (``can``, ``serial``)::
+
+    buses:
+      can0: {type: can, interface: socketcan, channel: can0, bitrate: 1000000}
+
+The framework reads the entry's other keys with the kind's :attr:`BusKind.options_type` (a
+``msgspec.Struct`` with ``forbid_unknown_fields=True``: an unknown key is refused with its
+position), opens the bus with :meth:`BusKind.open` (one bus object, shared by every device
+that names it), and builds each device on it with the keyword arguments
+:meth:`BusKind.device_arguments` returns. With ``--sim``, :meth:`BusKind.simulate` starts
+simulated peers that speak the bus's protocol at the devices' addresses (a python-can
+``virtual`` channel, a pseudo-terminal) and returns the options to open instead: the whole
+driver stack then runs as on the machine.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Mapping, Sequence
+from contextlib import AbstractAsyncContextManager
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+import msgspec
+
+__all__ = ["BusKind", "FaultInjection", "SimulatedBus", "SimulatedDevice"]
+
+
+@dataclass(frozen=True)
+class SimulatedDevice:
+    """A device of the rig on the bus being simulated: what a peer must answer as."""
+
+    name: str
+    """The component's name in the rig."""
+    driver: str
+    device: str
+    """The device class's name in its driver (``odrive_axis``, ``dynamixel``)."""
+    params: Mapping[str, Any]
+    """The entry's ``params`` as written (addresses: ``node_id``, ``dxl_id``...)."""
+
+
+@dataclass
+class SimulatedBus:
+    """What :meth:`BusKind.simulate` yields: the options to open instead of the rig's, and
+    the simulated peers."""
+
+    options: Any
+    """An instance of the kind's ``options_type``, e.g. a ``virtual`` channel or a pty path."""
+    description: str
+    """One line for ``rig show --sim`` and the run's banner."""
+    peers: Mapping[str, object] = field(default_factory=dict)
+    """The simulated peer of each device, by component name (several components may share
+    one peer: an ODrive's axis and its encoder)."""
+
+
+@runtime_checkable
+class FaultInjection(Protocol):
+    """A simulated peer that can trip on demand (a demo's ``--inject-fault``)."""
+
+    def inject_fault(self, reason: str) -> None:
+        """Trip as the real device does on a fault (over-temperature, say): the driver on
+        the host must see it through the protocol."""
+
+
+class BusKind(ABC):
+    """One kind of bus a driver opens (see the module docstring)."""
+
+    options_type: ClassVar[type[msgspec.Struct]]
+    """The keys of a bus entry besides ``type`` (strict: ``forbid_unknown_fields=True``)."""
+
+    def check(self, options: Any, devices: Sequence[SimulatedDevice]) -> None:
+        """Refuse (BadParameterError naming the key) what the schema cannot express: two
+        devices at one address, an address the protocol cannot carry, a device class that
+        cannot be on this bus. Called by ``rig check``; opens nothing."""
+
+    @abstractmethod
+    def describe(self, options: Any) -> str:
+        """One line saying what :meth:`open` would open (``rig show``)."""
+
+    @abstractmethod
+    def open(self, name: str, options: Any) -> AbstractAsyncContextManager[object]:
+        """Open the bus (entering the context) and close it at exit; yields the bus object
+        the devices share."""
+
+    @abstractmethod
+    def device_arguments(
+        self, bus: object, options: Any, device: SimulatedDevice
+    ) -> Mapping[str, Any]:
+        """The keyword arguments that put ``device`` on ``bus`` (e.g. ``{"bus": bus}``),
+        added to the entry's ``params``; a params key of the same name is refused."""
+
+    @abstractmethod
+    def simulate(
+        self, name: str, options: Any, devices: Sequence[SimulatedDevice]
+    ) -> AbstractAsyncContextManager[SimulatedBus]:
+        """Start simulated peers for ``devices`` at their addresses, speaking the bus's
+        protocol; yields what to open instead. Peers stop at exit."""
