@@ -75,6 +75,7 @@ class BusKind(ABC):
         """Refuse (BadParameterError naming the key) what the schema cannot express: two
         devices at one address, an address the protocol cannot carry, a device class that
         cannot be on this bus. Called by ``rig check``; opens nothing."""
+        return None
 
     @abstractmethod
     def describe(self, options: Any) -> str:
