@@ -52,6 +52,12 @@ def add_serve_parser(sub: SubParsers) -> argparse.ArgumentParser:
     )
     serve.add_argument("--namespace", help="key-expression namespace (default: the rig file's)")
     serve.add_argument(
+        "--sim",
+        action="store_true",
+        help="run the rig against simulated peers: every bus becomes a simulated one with the "
+        "simulated devices at the same addresses",
+    )
+    serve.add_argument(
         "--stop-on-eof",
         action="store_true",
         help="also stop when standard input reaches its end (a parent process that started "
@@ -78,8 +84,8 @@ def run_serve(args: argparse.Namespace) -> int:
 
 
 async def _serve(args: argparse.Namespace) -> int:
+    from openel_async.rig import Rig, load_rig, open_rig
     from openel_async.surface import Surface
-    from openel_async.surface.rig import load_rig, open_rig
 
     from . import SurfaceServer, close_session, open_session
     from .config import DEFAULT_ENDPOINT, file_config, server_config
@@ -89,19 +95,23 @@ async def _serve(args: argparse.Namespace) -> int:
     listen = args.listen or [DEFAULT_ENDPOINT]
     config = file_config(args.config) if args.config else server_config(listen)
     session = await open_session(config)
+    opened: list[Rig] = []
     try:
         async with (
-            open_rig(spec) as components,
-            Surface(components) as surface,
+            open_rig(spec, sim=args.sim, handle_sigquit=True) as rig,
+            Surface(list(rig.components.values())) as surface,
             SurfaceServer(surface, session, namespace),
         ):
+            opened.append(rig)
+            for bus, description in rig.bus_descriptions.items():
+                print(f"bus {bus}: {description}", flush=True)
             where = f"config {args.config}" if args.config else ", ".join(listen)
             names = ", ".join(
                 f"{e.device_kind}[{e.logical_id}]={e.component.device_name}"
                 for e in surface.entries
             )
             print(
-                f"serving {len(components)} components on {where}, namespace {namespace!r}: {names}",
+                f"serving {len(rig.components)} components on {where}, namespace {namespace!r}: {names}",
                 flush=True,
             )
             async with anyio.create_task_group() as tg:
@@ -114,6 +124,8 @@ async def _serve(args: argparse.Namespace) -> int:
                 tg.cancel_scope.cancel()
     finally:
         await close_session(session)
+        if opened:
+            print(opened[0].exit_line().strip(), flush=True)
     return 0
 
 

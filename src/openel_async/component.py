@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Coroutine
+from collections.abc import Awaitable, Callable, Coroutine
 from contextlib import AsyncExitStack
 from enum import Enum
 from types import TracebackType
@@ -34,6 +34,7 @@ from .fanout import Fanout
 from .ids import DeviceKind, HALId, Property, component_name, profile_name
 from .listeners import LISTENING, ComponentListener
 from .observers import ErrorNotice, EventNotice
+from .safety import EmergencyStop
 from .stats import ObserverStats
 
 log = structlog.get_logger(__name__)
@@ -165,6 +166,11 @@ class HALComponent:
 
     device_class: ClassVar[type[Device]] = Device
     """The driver base class the constructor accepts (ActuatorDevice for an Actuator...)."""
+
+    estop_latched: bool = False
+    """An e-stop (:meth:`estop`) holds until :meth:`release_estop`: ``re_init`` is refused
+    meanwhile. (A class default: the instance attribute exists only once latched.)"""
+    _active_hooks: tuple[Callable[[HALComponent], Awaitable[None]], ...] = ()
 
     def __init__(
         self,
@@ -308,10 +314,17 @@ class HALComponent:
             raise HALError(f"{self.device_name}: init failed: {exc}") from exc
         self._set_state(S.ACTIVE)
         await self._on_active()
+        await self._run_active_hooks()
 
     async def re_init(self) -> None:
-        """ReInit: reset the error condition and return to Active."""
+        """ReInit: reset the error condition and return to Active (refused while an e-stop
+        is latched: :meth:`release_estop` first)."""
         self._require("re_init", S.ERROR)
+        if self.estop_latched:
+            raise HALError(
+                f"{self.device_name}: re_init refused: the e-stop is not released "
+                "(release_estop first)"
+            )
         self._before_reset()
         try:
             await self.device.reset()
@@ -323,6 +336,39 @@ class HALComponent:
         self.last_fault = None
         self._set_state(S.ACTIVE)
         await self._on_active()
+        await self._run_active_hooks()
+
+    def add_active_hook(self, hook: Callable[[HALComponent], Awaitable[None]]) -> None:
+        """Await ``hook(component)`` each time the component becomes Active (``init`` and
+        ``re_init``), before they return: a rig applies its limits and arms the device's
+        watchdog this way. A hook that raises fails the ``init``/``re_init`` with the
+        component left Active."""
+        self._active_hooks = (*self._active_hooks, hook)
+
+    async def _run_active_hooks(self) -> None:
+        for hook in self._active_hooks:
+            await hook(self)
+
+    async def estop(self) -> None:
+        """E-stop: latch (``re_init`` is refused until :meth:`release_estop`) and put the
+        device into its protocol's emergency state (:class:`~openel_async.safety.EmergencyStop`:
+        the device reports :attr:`~openel_async.device.ErrorId.ESTOP`). A device without one
+        is faulted with ESTOP here, so that no command reaches it any more. Refused only in
+        Initializing and Finalized."""
+        self._require("estop", S.INITIALIZED, S.ACTIVE, S.ERROR)
+        self.estop_latched = True
+        self.log.warning("estop")
+        device = self.device
+        if isinstance(device, EmergencyStop):
+            await device.estop()
+        if self.state is S.ACTIVE:  # the device did not fault it (yet): no more commands
+            self._fault(ErrorId.ESTOP, "e-stop")
+
+    def release_estop(self) -> None:
+        """Release a latched e-stop: ``re_init`` recovers the component again."""
+        if self.estop_latched:
+            self.estop_latched = False
+            self.log.warning("estop_released")
 
     async def finalize(self) -> None:
         """Finalize: quit the component (Active or Error -> Finalized)."""

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from openel_async.surface.rig import build_components, parse_rig
+from openel_async.rig import build_components, parse_rig
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 

@@ -1,0 +1,253 @@
+"""Resolving a rig against the installed drivers (``rig check``: nothing is opened) and
+building its components on opened buses."""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import msgspec
+
+from ..clock import Clock
+from ..component import HALComponent
+from ..device_registry import component_class
+from ..errors import BadParameterError
+from ..ids import HALId
+from ..positioned import DocumentError, convert, relocate, unknown_key_message
+from ..registry import discover_drivers
+from .buses import BusKind, SimulatedDevice
+from .spec import BusSpec, ComponentSpec, RigSpec
+
+__all__ = ["ResolvedBus", "ResolvedRig", "build_components", "resolve_rig"]
+
+
+@dataclass(frozen=True)
+class ResolvedBus:
+    spec: BusSpec
+    driver: str
+    kind: BusKind
+    options: Any
+    """An instance of ``kind.options_type``."""
+    devices: tuple[SimulatedDevice, ...]
+    """The rig's devices on this bus."""
+
+
+@dataclass(frozen=True)
+class ResolvedRig:
+    """A rig whose drivers, device classes and bus options are known to be right."""
+
+    spec: RigSpec
+    classes: Mapping[str, type]
+    """The device class of each component, by name."""
+    buses: Mapping[str, ResolvedBus]
+
+
+def _located(error: BadParameterError, spec: ComponentSpec, key: str) -> BadParameterError:
+    """``error`` located at the entry (``key=""``), its bus (``"@bus"``) or a params key."""
+    location = spec.locations.get(key) or spec.locations.get("")
+    if location is None:
+        return error
+    return relocate(error, DocumentError(str(error), path=error.parameter, location=location))
+
+
+def _bus_error(error: BadParameterError, bus: BusSpec) -> BadParameterError:
+    if bus.location is None:
+        return error
+    return relocate(error, DocumentError(str(error), path=error.parameter, location=bus.location))
+
+
+def resolve_rig(spec: RigSpec) -> ResolvedRig:
+    """Check a rig against the installed drivers without opening anything: drivers, device
+    classes, ``params`` keys, bus types and their options, devices on buses (their kind's
+    ``check``). BadParameterError at the first mistake, with its position."""
+    drivers = {e.name: e.info for e in discover_drivers() if e.info is not None}
+    kinds: dict[str, tuple[str, BusKind]] = {}
+    for driver_name, info in drivers.items():
+        for type_name, kind in info.buses.items():
+            kinds[type_name] = (driver_name, kind)
+    classes: dict[str, type] = {}
+    for c in spec.components:
+        driver = drivers.get(c.driver)
+        if driver is None:
+            error = BadParameterError(f"{c.name}.driver", c.driver, f"one of {sorted(drivers)}")
+            raise _located(error, c, "")
+        cls = driver.devices.get(c.device)
+        if cls is None:
+            error = BadParameterError(
+                f"{c.name}.device",
+                c.device,
+                f"one of {sorted(driver.devices)} of driver {c.driver}",
+            )
+            raise _located(error, c, "")
+        classes[c.name] = cls
+    buses: dict[str, ResolvedBus] = {}
+    for bus in spec.buses:
+        found = kinds.get(bus.type)
+        if found is None:
+            error = BadParameterError(
+                f"buses.{bus.name}.type", bus.type, f"a bus type of a driver: {sorted(kinds)}"
+            )
+            raise _bus_error(error, bus)
+        driver_name, kind = found
+        if bus.doc is not None:
+            try:
+                options = convert(bus.doc, bus.options, kind.options_type, f"buses.{bus.name}")
+            except DocumentError as exc:
+                raise relocate(BadParameterError(exc.path, None, exc.message), exc) from None
+        else:
+            try:
+                options = convert_plain(bus.options, kind.options_type)
+            except ValueError as exc:
+                raise BadParameterError(f"buses.{bus.name}", dict(bus.options), str(exc)) from None
+        devices: list[SimulatedDevice] = []
+        for c in spec.components:
+            if c.bus != bus.name:
+                continue
+            if c.driver != driver_name:
+                error = BadParameterError(
+                    f"{c.name}.bus",
+                    c.bus,
+                    f"a bus of driver {c.driver} (bus {bus.name} is a {bus.type} bus of driver "
+                    f"{driver_name})",
+                )
+                raise _located(error, c, "@bus")
+            devices.append(SimulatedDevice(c.name, c.driver, c.device, dict(c.params)))
+        try:
+            kind.check(options, tuple(devices))
+        except BadParameterError as exc:
+            raise _bus_error(exc, bus) from None
+        buses[bus.name] = ResolvedBus(bus, driver_name, kind, options, tuple(devices))
+    for c in spec.components:
+        _check_params(c, classes[c.name], buses[c.bus] if c.bus is not None else None)
+    return ResolvedRig(spec, classes, buses)
+
+
+def convert_plain(options: Mapping[str, Any], options_type: type[Any]) -> Any:
+    """Bus options given as plain data (no file positions)."""
+    try:
+        return msgspec.convert(dict(options), options_type)
+    except msgspec.ValidationError as exc:
+        raise ValueError(str(exc)) from None
+
+
+def _bus_arguments(bus: ResolvedBus | None, spec: ComponentSpec) -> set[str]:
+    """The argument names the bus gives the device (asked with a placeholder bus object)."""
+    if bus is None:
+        return set()
+    device = SimulatedDevice(spec.name, spec.driver, spec.device, dict(spec.params))
+    return set(bus.kind.device_arguments(object(), bus.options, device))
+
+
+def _check_params(spec: ComponentSpec, cls: type, bus: ResolvedBus | None) -> None:
+    """Refuse a params key the device class does not take (naming the close ones), or one
+    the bus gives."""
+    given_by_bus = _bus_arguments(bus, spec)
+    for key in spec.params:
+        if key in given_by_bus:
+            error = BadParameterError(
+                f"{spec.name}.params", key, f"no {key!r}: the bus {spec.bus} gives it"
+            )
+            raise _located(error, spec, key)
+    try:
+        parameters = inspect.signature(cls).parameters.values()
+    except (TypeError, ValueError):  # no signature to check against: the call will tell
+        return
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
+        return
+    allowed = [
+        p.name
+        for p in parameters
+        if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+        and p.name not in given_by_bus
+    ]
+    for key in spec.params:
+        if key not in allowed:
+            where = f"{spec.name}.params (arguments of {cls.__name__})"
+            message = unknown_key_message(key, where, allowed)
+            error = BadParameterError(f"{spec.name}.params", key, f"an argument of {cls.__name__}")
+            location = spec.locations.get(key) or spec.locations.get("")
+            cause = DocumentError(message, path=f"{spec.name}.params", location=location)
+            raise relocate(error, cause)
+    required = [
+        p.name
+        for p in parameters
+        if p.default is inspect.Parameter.empty
+        and p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
+        and p.name not in given_by_bus
+        and p.name not in spec.params
+    ]
+    if required:
+        error = BadParameterError(
+            f"{spec.name}.params",
+            dict(spec.params),
+            f"the arguments of {cls.__name__}, with {', '.join(required)}"
+            + ("" if spec.bus is not None else " (or 'bus:' naming a bus of the rig)"),
+        )
+        raise _located(error, spec, "")
+
+
+def build_components(
+    rig: RigSpec | ResolvedRig,
+    clock: Clock | None = None,
+    buses: Mapping[str, object] | None = None,
+    *,
+    auto_init: bool = True,
+) -> list[HALComponent]:
+    """The components of a rig, not yet entered; ``buses``: the opened bus objects by name
+    (needed when a component names a bus)."""
+    resolved = rig if isinstance(rig, ResolvedRig) else resolve_rig(rig)
+    built: dict[str, HALComponent] = {}
+    for c in resolved.spec.components:
+        cls = resolved.classes[c.name]
+        params = {k: _resolve(c, k, v, built) for k, v in c.params.items()}
+        if c.bus is not None:
+            if buses is None or c.bus not in buses:
+                raise BadParameterError(f"{c.name}.bus", c.bus, "an opened bus (open_rig)")
+            bus = resolved.buses[c.bus]
+            device_spec = SimulatedDevice(c.name, c.driver, c.device, dict(c.params))
+            params.update(bus.kind.device_arguments(buses[c.bus], bus.options, device_spec))
+        try:
+            device = cls(**params)
+        except TypeError as exc:
+            error = BadParameterError(
+                f"{c.name}.params", dict(c.params), f"the arguments of {cls.__name__} ({exc})"
+            )
+            raise _located(error, c, "") from None
+        hal_id = None
+        if c.hal_id is not None:
+            info = device.info
+            hal_id = HALId(
+                int(c.hal_id.get("device_kind_id", int(info.kind))),
+                int(c.hal_id.get("vendor_id", info.vendor_id)),
+                int(c.hal_id.get("product_id", info.product_id)),
+                int(c.hal_id.get("instance_id", len(built) + 1)),
+            )
+        # The HAL4RT class of the device: a Motor for motor devices (a SensingMotor for one
+        # with a sensor of its own), the kind's Sensor class (Encoder, GyroSensor,
+        # GPSSensor...) for sensors, so that the surface serves their HAL4RT operations.
+        try:
+            component_cls = component_class(device)
+        except BadParameterError:
+            raise BadParameterError(
+                f"{c.name}.device", c.device, "an actuator or sensor device class"
+            ) from None
+        built[c.name] = component_cls(
+            device, hal_id=hal_id, device_name=c.name, clock=clock, auto_init=auto_init
+        )
+    return list(built.values())
+
+
+def _resolve(spec: ComponentSpec, key: str, value: Any, built: Mapping[str, HALComponent]) -> Any:
+    if isinstance(value, Mapping) and set(value) == {"ref"}:
+        target = built.get(value["ref"])
+        if target is None:
+            error = BadParameterError(
+                f"{spec.name}.params.{key}",
+                value,
+                f"a reference to an earlier component among {sorted(built)}",
+            )
+            raise _located(error, spec, key)
+        return target.device
+    return value
