@@ -21,7 +21,8 @@ This module imports no driver and no app: apps are loaded by name when asked for
 
 from __future__ import annotations
 
-from collections.abc import Awaitable, Callable, Iterable, Sequence
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterable, Sequence
+from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -30,9 +31,12 @@ from typing import TYPE_CHECKING, TypeVar
 
 import structlog
 
+from ..errors import BadParameterError
+
 if TYPE_CHECKING:
     from ..clock import Clock
     from ..component import HALComponent
+    from ..rig import ResolvedRig, Rig
     from ..timer import EventTimer
 
 __all__ = [
@@ -118,9 +122,23 @@ class AppContext:
     under, and the registry of its clock, components and timers (passed on to the hooks)."""
 
     def __init__(
-        self, argv: Sequence[str] = (), *, prog: str = "app", hooks: Iterable[AppHook] = ()
+        self,
+        argv: Sequence[str] = (),
+        *,
+        prog: str = "app",
+        hooks: Iterable[AppHook] = (),
+        rig: ResolvedRig | None = None,
+        sim: bool = False,
     ) -> None:
         self.argv: list[str] = list(argv)
+        self.rig_spec: ResolvedRig | None = rig
+        """The rig of ``--rig FILE`` (checked against the drivers before the app runs), or
+        None: :meth:`open_rig` opens the app's own default."""
+        self.sim = sim
+        """``--sim``: the rig runs against simulated peers on simulated buses."""
+        self.rigs: list[Rig] = []
+        """The rigs the app opened (:meth:`open_rig`), kept after they closed for the
+        summary (:attr:`Rig.exit_report`)."""
         self.prog = prog
         """``openel-async demo``, ``openel-async run NAME`` or the app's own name."""
         self.hooks: list[AppHook] = list(hooks)
@@ -153,6 +171,46 @@ class AppContext:
             hook.timer_added(self, timer)
         return timer
 
+    @property
+    def rig(self) -> Rig:
+        """The rig the app opened last (:meth:`open_rig`)."""
+        if not self.rigs:
+            raise RuntimeError("no rig opened: use 'async with ctx.open_rig(...)' first")
+        return self.rigs[-1]
+
+    @asynccontextmanager
+    async def open_rig(
+        self,
+        default: str | Path | None = None,
+        *,
+        clock: Clock | None = None,
+        sim: bool | None = None,
+        init: bool = True,
+    ) -> AsyncIterator[Rig]:
+        """Open the rig of ``--rig FILE`` (else ``default``, the app's own rig file) with
+        ``--sim`` (``sim`` overrides it: an app's default rig may always be simulated), its
+        clock ``clock`` (default: :attr:`clock`); its components and timers are registered
+        (the hooks see them), SIGQUIT e-stops it, and at exit every actuator is left as its
+        ``safety.on_exit`` says. BadParameterError for a default rig file that is wrong."""
+        from ..rig import load_rig, open_rig, resolve_rig
+
+        spec = self.rig_spec
+        if spec is None:
+            if default is None:
+                raise BadParameterError("rig", None, "a rig file: give --rig FILE")
+            spec = resolve_rig(load_rig(default))
+        async with open_rig(
+            spec,
+            clock if clock is not None else self.clock,
+            sim=self.sim if sim is None else sim,
+            init=init,
+            on_component=self.add_component,
+            on_timer=self.add_timer,
+            handle_sigquit=True,
+        ) as rig:
+            self.rigs.append(rig)
+            yield rig
+
     def add_scene(self, source: object) -> None:
         """Hand a 3D scene of the rig over to the hooks (the live view draws it)."""
         for hook in self.hooks:
@@ -175,6 +233,9 @@ class AppInfo:
     main: Callable[[AppContext], Awaitable[int | None]] | None = None
     profile: Path | None = None
     demo_args: Callable[[DemoOptions], list[str]] | None = field(default=None, repr=False)
+    takes_rig: bool = False
+    """The app opens its hardware with :meth:`AppContext.open_rig`: ``--rig FILE`` and
+    ``--sim`` are allowed (refused for any other app)."""
 
     def __post_init__(self) -> None:
         if (self.main is None) == (self.profile is None):

@@ -7,6 +7,7 @@ import sys
 from collections.abc import Iterable, Sequence
 from contextlib import AsyncExitStack
 from functools import partial
+from pathlib import Path
 
 import anyio
 
@@ -36,6 +37,8 @@ def run_app(
     prog: str,
     hooks: Iterable[AppHook] = (),
     stop_label: str | None = None,
+    rig: str | Path | None = None,
+    sim: bool = False,
 ) -> int:
     """Run an app to its exit status (a synchronous entry point: it starts the event loop).
 
@@ -43,13 +46,39 @@ def run_app(
     interrupted)`` with what the app did so far, and gives 130 or 143; the stderr line is
     ``<stop_label>: interrupted by ...`` (default ``prog``). ``SystemExit`` raised by the app
     (its argparse: ``--help``, a bad option) gives its code. :class:`AppUnavailable`
-    propagates to the caller."""
+    propagates to the caller.
+
+    ``rig``: a rig file for an app that takes one (:attr:`AppInfo.takes_rig`), checked
+    against the drivers before anything runs (a mistake: its message and 2); ``sim``: run
+    the rig against simulated peers. The state each rig the app opened left its actuators
+    in is printed after the app's own summary."""
+    label = stop_label or prog
+    if (rig is not None or sim) and info.main is not None and not info.takes_rig:
+        print(f"{label}: --rig and --sim need an app that opens a rig ({info.name} does not)",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    resolved = None
+    if rig is not None:
+        from ..errors import BadParameterError
+        from ..rig import load_rig, resolve_rig
+
+        try:
+            resolved = resolve_rig(load_rig(rig))
+        except BadParameterError as exc:
+            print(f"{label}: {exc}", file=sys.stderr)
+            return 2
     if info.profile is not None:
         from ..rtc.runner import run_profile_cli
 
         return int(run_profile_cli(info.profile, list(argv)))
-    ctx = AppContext(argv, prog=prog, hooks=hooks)
-    result = anyio.run(run_interruptible, partial(_run_main, info, ctx), backend="asyncio")
+    ctx = AppContext(argv, prog=prog, hooks=hooks, rig=resolved, sim=sim)
+    try:
+        result = anyio.run(run_interruptible, partial(_run_main, info, ctx), backend="asyncio")
+    except BaseException:  # the app failed: still say how its rigs left the machine
+        for rig_ in ctx.rigs:
+            print(f"{label}: {rig_.exit_line()}", file=sys.stderr)
+        raise
+    exit_lines = [r.exit_line() for r in ctx.rigs]
     if isinstance(result, AppUnavailable):
         raise result
     if isinstance(result, SystemExit):  # the app's argparse: --help (0) or a bad option (2)
@@ -60,6 +89,7 @@ def run_app(
     if isinstance(result, Interrupted):
         print(f"\nsummary ({ctx.title or info.name}, interrupted)")
         lines = [*result.lines(), *(ctx.progress() if ctx.progress is not None else [])]
+        lines += exit_lines
         for line in lines:
             print("  " + line)
         sys.stdout.flush()
@@ -69,4 +99,6 @@ def run_app(
             file=sys.stderr,
         )
         return result.exit_code
+    for line in exit_lines:
+        print("  " + line)
     return int(result or 0)

@@ -21,6 +21,7 @@ from .options import HelpFormatter, add_global_options, log_level
 from .record_cmd import add_parser as add_record_parser
 from .record_cmd import add_tap_arguments
 from .replay_cmd import add_parser as add_replay_parser
+from .rig_cmd import add_rig_arguments
 
 PROG = "openel-async"
 SHELLS = ("bash", "zsh", "tcsh")
@@ -185,6 +186,7 @@ def _build_parser() -> argparse.ArgumentParser:
         description=RUN_DESCRIPTION,
     )
     add_tap_arguments(run)
+    add_rig_arguments(run)
     run.add_argument(
         "path", metavar="NAME|PATH", help="a registered app's name, an app file or folder, or "
         "an RTC Profile",
@@ -209,6 +211,9 @@ def _build_parser() -> argparse.ArgumentParser:
     add_profile_parser(sub)
     add_record_parser(sub)
     add_replay_parser(sub)
+    from .rig_cmd import add_parser as add_rig_parser
+
+    add_rig_parser(sub)
     from .hal4rt_cmd import add_parser as add_hal4rt_parser
 
     parents = {"hal4rt": add_hal4rt_parser(sub)}
@@ -288,6 +293,10 @@ def _main(argv: Sequence[str] | None) -> int:
         if cut >= 0 and raw[cut] == "--" and raw[cut + 1 :] == app_args:
             app_args.insert(0, "--")  # argparse drops a '--' right after the app's name
         return run(args.path, app_args, tap_args=args)
+    if args.command == "rig":
+        from .rig_cmd import run as run_rig_cmd
+
+        return run_rig_cmd(args)
     if args.command == "record":
         from .record_cmd import run as run_record_cmd
 

@@ -34,6 +34,7 @@ import anyio
 from ..app import AppInfo, AppUnavailable, Interrupted, find_app, run_app, run_interruptible
 from .options import EXIT_USAGE, no_such_file
 from .record_cmd import TAP_OPTIONS, add_tap_arguments, taps_from_args
+from .rig_cmd import RIG_OPTIONS, add_rig_arguments
 
 PROFILE_SUFFIXES = (".yaml", ".yml", ".xml")
 
@@ -69,7 +70,8 @@ def load_app(path: Path) -> ModuleType:
     return module
 
 
-_TAP_FLAGS = frozenset({"--foxglove"})  # the tap options that take no value
+_TAP_FLAGS = frozenset({"--foxglove", "--sim"})  # the options after the name with no value
+_PULLED = (*TAP_OPTIONS, *RIG_OPTIONS)
 
 
 class TapOptionError(Exception):
@@ -88,7 +90,7 @@ def split_tap_options(argv: list[str]) -> tuple[list[str], list[str]]:
             rest += tokens
             break
         name = token.split("=", 1)[0]
-        if name not in TAP_OPTIONS:
+        if name not in _PULLED:
             rest.append(token)
             continue
         taps.append(token)
@@ -110,6 +112,7 @@ def merge_tap_options(tap_args: argparse.Namespace, taps: list[str]) -> None:
 
     parser = _Parser(add_help=False, allow_abbrev=False)
     add_tap_arguments(parser)
+    add_rig_arguments(parser)
     for action in parser._actions:
         action.default = argparse.SUPPRESS
     parser.parse_args(taps, namespace=tap_args)
@@ -158,8 +161,19 @@ def _run_info(
     hooks = [] if tap_args is None else taps_from_args(tap_args, PROG)
     if hooks is None:
         return 2
+    rig = getattr(tap_args, "rig", None)
+    if rig is not None and no_such_file(PROG, rig):
+        return EXIT_USAGE
     try:
-        return run_app(info, argv, prog=prog, hooks=hooks, stop_label=label)
+        return run_app(
+            info,
+            argv,
+            prog=prog,
+            hooks=hooks,
+            stop_label=label,
+            rig=rig,
+            sim=bool(getattr(tap_args, "sim", False)),
+        )
     except AppUnavailable as exc:
         print(f"{label}: {exc}", file=sys.stderr)
         return 1
@@ -177,7 +191,7 @@ def run(path_text: str, argv: list[str], tap_args: argparse.Namespace | None = N
         except TapOptionError as exc:
             print(f"{PROG}: {exc}", file=sys.stderr)
             return EXIT_USAGE
-        pulled = {t.split("=", 1)[0] for t in taps} & set(TAP_OPTIONS)
+        pulled = {t.split("=", 1)[0] for t in taps} & set(_PULLED)
     with refuse_shadowed(pulled, f"{PROG} {path_text}"):
         return _run(path_text, argv, tap_args)
 
@@ -195,7 +209,14 @@ def _run(path_text: str, argv: list[str], tap_args: argparse.Namespace | None) -
         return EXIT_USAGE
     path = Path(path_text)
     tapped = tap_args is not None and (tap_args.record is not None or tap_args.foxglove)
+    rigged = tap_args is not None and (
+        getattr(tap_args, "rig", None) is not None or getattr(tap_args, "sim", False)
+    )
     if path.suffix.lower() in PROFILE_SUFFIXES:
+        if rigged:
+            print(f"{PROG}: --rig/--sim need an app that opens a rig (not a profile)",
+                  file=sys.stderr)  # fmt: skip
+            return EXIT_USAGE
         if tapped:
             print(f"{PROG}: --record/--foxglove need an app (not a profile)", file=sys.stderr)
             return EXIT_USAGE
@@ -210,6 +231,13 @@ def _run(path_text: str, argv: list[str], tap_args: argparse.Namespace | None) -
     if isinstance(app_info, AppInfo):
         prog = f"{PROG} {path}"
         return _run_info(app_info, argv, prog, f"{PROG}: {path}", tap_args)
+    if rigged:
+        print(
+            f"{PROG}: {path}: --rig/--sim need an app that opens a rig (an APP_INFO with "
+            "takes_rig=True, docs/apps.md), not a bare main(argv)",
+            file=sys.stderr,
+        )
+        return EXIT_USAGE
     if tapped:
         print(
             f"{PROG}: {path}: --record/--foxglove need an app that registers its "
