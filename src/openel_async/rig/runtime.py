@@ -8,7 +8,7 @@ import dataclasses
 import math
 import signal
 from collections.abc import AsyncIterator, Awaitable, Callable, Mapping
-from contextlib import AsyncExitStack, asynccontextmanager
+from contextlib import AbstractAsyncContextManager, AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field
 from typing import TypeVar
 
@@ -76,9 +76,8 @@ class Rig:
         try:
             return table[name]
         except KeyError:
-            hint = did_you_mean(name, table)
             raise BadParameterError(
-                what, name, f"a {what} of the rig: {', '.join(table) or 'none'}{hint}"
+                what, name, f"a {what} of the rig ({did_you_mean(name, table)})"
             ) from None
 
     def component(self, name: str) -> HALComponent:
@@ -301,7 +300,7 @@ async def open_rig(
             rig.timers[t.name] = timer
             if on_timer is not None:
                 on_timer(timer)
-            await stack.enter_async_context(timer)
+            await _enter(stack, timer)
         for g in rig_spec.groups:
             axes = [rig.actuator(a) for a in g.axes]
             limits = [
@@ -321,12 +320,25 @@ async def open_rig(
                 name=g.name,
             )
             rig.groups[g.name] = group
-            await stack.enter_async_context(group)
-        async with anyio.create_task_group() as tg:
-            if handle_sigquit and safety.estop_on_sigquit:
-                await tg.start(_estop_on_sigquit, rig)
-            yield rig
-            tg.cancel_scope.cancel()
+            await _enter(stack, group)
+        if handle_sigquit and safety.estop_on_sigquit:
+            tg = anyio.create_task_group()
+            await _enter(stack, tg)
+            stack.callback(tg.cancel_scope.cancel)
+            await tg.start(_estop_on_sigquit, rig)
+        yield rig
+
+
+async def _enter(stack: AsyncExitStack, cm: AbstractAsyncContextManager[object]) -> None:
+    """Enter ``cm`` on ``stack``, exiting it as if its block had ended normally: an
+    exception of the rig's user passes by it as it is, not wrapped in an exception group by
+    its task group (the exit path runs the same)."""
+    await cm.__aenter__()
+
+    async def leave() -> None:
+        await cm.__aexit__(None, None, None)
+
+    stack.push_async_callback(leave)
 
 
 def _first(*values: float | None) -> float:
