@@ -12,7 +12,7 @@ the demo refuses ``--inject-fault`` with ``--bus remote``.
 from __future__ import annotations
 
 from collections.abc import AsyncIterator
-from contextlib import asynccontextmanager
+from contextlib import AsyncExitStack, asynccontextmanager
 
 from openel_apps.twoaxis import Rig
 from openel_async import Actuator, Clock, Sensor
@@ -34,8 +34,8 @@ components:
 
 @asynccontextmanager
 async def remote_rig(clock: Clock) -> AsyncIterator[Rig]:
-    """The sim rig served by a child process, the remote devices not yet entered."""
-    async with served(RIG_YAML, NAMESPACE) as server:
+    """The sim rig served by a child process, the remote devices entered (not initialized)."""
+    async with served(RIG_YAML, NAMESPACE) as server, AsyncExitStack() as stack:
         remote = server.remote
         axes = (
             Actuator(RemoteActuator(remote, 0), device_name="MOTOR_1", clock=clock, auto_init=False),
@@ -45,6 +45,8 @@ async def remote_rig(clock: Clock) -> AsyncIterator[Rig]:
             Sensor(RemoteSensor(remote, 0, device_kind="Encoder"), device_name="ENCODER_1", clock=clock, auto_init=False),
             Sensor(RemoteSensor(remote, 0, device_kind="TemperatureSensor"), device_name="TEMP_2", clock=clock, auto_init=False),
         )  # fmt: skip
+        for component in (*axes, *sensors):
+            await stack.enter_async_context(component)
 
         def trip() -> None:
             raise NotImplementedError("no fault injection into a served rig")

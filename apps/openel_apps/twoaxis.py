@@ -12,10 +12,13 @@ that fails (a drive that stops answering: a CAN SDO timeout) is shown in the pro
 and the summary and survived: the sensor is re-initialized with bounded retries and a
 back-off on the demo's clock, and the demo goes on without it if it does not come back.
 
-The devices come from a rig: :func:`sim_rig` (``openel_sim`` motors),
-:func:`openel_apps.can_rig.can_rig` (simulated CAN drives) or
-:func:`openel_apps.remote_rig.remote_rig` (the sim devices served by ``openel-async serve``
-in another process, over Zenoh); the drivers are imported only when their rig is built.
+The devices come from a rig file (:func:`file_rig`: the first two actuators and the first
+two sensors): ``rigs/twoaxis-sim.yaml`` (``openel_sim`` motors, ``--bus sim``),
+``rigs/twoaxis-can.yaml`` (an ODrive and a CiA 402 drive on ``can0``; ``--bus can`` runs it
+with ``--sim``: simulated drives on a python-can virtual bus), any rig given with
+``openel-async run twoaxis --rig FILE [--sim]``, or :func:`openel_apps.remote_rig.remote_rig`
+(the sim devices served by ``openel-async serve`` in another process, over Zenoh). The rig
+leaves the axes as its ``safety.on_exit`` says, and the summary says how.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import sys
 from collections.abc import AsyncIterator, Callable, Mapping
 from contextlib import AbstractAsyncContextManager, AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import anyio
 import anyio.lowlevel
@@ -38,7 +42,6 @@ from openel_async import (
     EventTimer,
     HALComponent,
     HALError,
-    HALId,
     MonotonicClock,
     Request,
     Sensor,
@@ -47,8 +50,10 @@ from openel_async import (
 )
 from openel_async.app import AppContext, AppInfo, DemoOptions, LiveLine
 from openel_async.clock import NS_PER_S
-from openel_async.device import ErrorId
-from openel_async.ids import DeviceKind
+from openel_async.device import ActuatorDevice, ErrorId
+from openel_async.errors import BadParameterError
+from openel_async.rig import FaultInjection, ResolvedRig, load_rig, open_rig, resolve_rig
+from openel_async.rig import Rig as OpenedRig
 
 log = structlog.get_logger(__name__)
 
@@ -251,7 +256,8 @@ class Application:
 
 @dataclass
 class Rig:
-    """The devices of the demo: two actuators and two sensors, not yet entered."""
+    """The devices of the demo: two actuators and two sensors, entered (Initialized), not
+    yet initialized: the demo registers its observers and calls ``init`` (Fig. 7.6)."""
 
     name: str
     axes: tuple[Actuator, Actuator]
@@ -259,53 +265,88 @@ class Rig:
     trip_axis2: Callable[[], None]
     """Trip the second axis's drive (fault injection)."""
     peers: Mapping[str, object] = field(default_factory=dict)
-    """The rig's simulated devices by name, for fault injection in tests."""
+    """The rig's simulated devices by component name, for fault injection in tests."""
+    opened: OpenedRig | None = None
+    """The rig file's rig, when the devices come from one: it leaves them in its
+    ``safety.on_exit`` state when it closes."""
 
 
 RigFactory = Callable[[Clock], AbstractAsyncContextManager[Rig]]
 
+RIGS = Path(__file__).parent / "rigs"
+SIM_RIG = RIGS / "twoaxis-sim.yaml"
+"""The demo's rig of simulated devices (``--bus sim``)."""
+CAN_RIG = RIGS / "twoaxis-can.yaml"
+"""The demo's CAN rig: an ODrive and a CiA 402 drive on ``can0`` (``--bus can`` runs it with
+``--sim``)."""
 
-@asynccontextmanager
-async def sim_rig(clock: Clock) -> AsyncIterator[Rig]:
-    """Two SimMotors, an encoder on the first and a thermometer on the second."""
-    from openel_sim import SimEncoder, SimMotor, SimTemperature
 
-    motors = (
-        SimMotor(max_velocity=3.0, max_acceleration=40.0),
-        SimMotor(max_velocity=3.0, max_acceleration=40.0),
-    )
-    axes = (
-        Actuator(motors[0], hal_id=HALId(DeviceKind.MOTOR, 0xE1, 0x100, 1), device_name="MOTOR_1", clock=clock, auto_init=False),
-        Actuator(motors[1], hal_id=HALId(DeviceKind.MOTOR, 0xE1, 0x100, 2), device_name="MOTOR_2", clock=clock, auto_init=False),
-    )  # fmt: skip
-    sensors = (
-        Sensor(SimEncoder(motors[0]), hal_id=HALId(DeviceKind.ROTARY_ANGLE, 0xE1, 0x200, 1), device_name="ENCODER_1", clock=clock, auto_init=False),
-        Sensor(SimTemperature(motors[1], noise=0.05, seed=7), hal_id=HALId(DeviceKind.TEMPERATURE, 0xE1, 0x400, 1), device_name="TEMP_2", clock=clock, auto_init=False),
-    )  # fmt: skip
+def file_rig(
+    rig: str | Path | ResolvedRig, *, sim: bool = False, ctx: AppContext | None = None
+) -> RigFactory:
+    """The demo's devices from a rig file: its first two actuators and first two sensors,
+    in file order. ``sim``: against simulated peers. ``ctx``: the rig is registered with it
+    (its summary says how the rig left the actuators)."""
 
-    def trip() -> None:
-        # The id the CAN rig's drive reports for the same over-temperature trip.
-        motors[1].inject_fault(ErrorId.DEVICE_ERROR, "injected over-temperature trip")
+    @asynccontextmanager
+    async def factory(clock: Clock) -> AsyncIterator[Rig]:
+        spec = rig if isinstance(rig, ResolvedRig) else resolve_rig(load_rig(rig))
+        actuators = [
+            c.name for c in spec.spec.components if issubclass(spec.classes[c.name], ActuatorDevice)
+        ]
+        if len(actuators) < 2 or len(spec.spec.components) - len(actuators) < 2:
+            raise BadParameterError(
+                "rig", spec.spec.source, "a rig with at least two actuators and two sensors"
+            )
+        async with open_rig(
+            spec,
+            clock,
+            sim=sim,
+            init=False,
+            handle_sigquit=True,
+            on_component=None if ctx is None else ctx.add_component,
+            on_timer=None if ctx is None else ctx.add_timer,
+        ) as opened:
+            if ctx is not None:
+                ctx.rigs.append(opened)
+            first, second = opened.actuators[:2]
+            sensors = opened.sensors[:2]
+            peer = opened.peers.get(second.device_name)
 
-    yield Rig(
-        "simulated devices, openel_sim",
-        axes,
-        sensors,
-        trip,
-        peers={"motor_1": motors[0], "motor_2": motors[1]},
-    )
+            def trip() -> None:
+                reason = "injected over-temperature trip"
+                if isinstance(peer, FaultInjection):  # a simulated drive on a bus
+                    peer.inject_fault(reason)
+                elif (inject := getattr(second.device, "inject_fault", None)) is not None:
+                    # An openel_sim device: the id the CAN rig's drive reports for the same
+                    # over-temperature trip.
+                    inject(ErrorId.DEVICE_ERROR, reason)
+                else:
+                    raise NotImplementedError(f"{second.device_name} is not simulated")
+
+            name = spec.spec.description or Path(spec.spec.source).name
+            if sim and opened.bus_descriptions:
+                name += ", simulated: " + "; ".join(opened.bus_descriptions.values())
+            yield Rig(name, (first, second), (sensors[0], sensors[1]), trip, opened.peers, opened)
+
+    return factory
+
+
+sim_rig = file_rig(SIM_RIG)
+"""Two SimMotors, an encoder on the first and a thermometer on the second."""
 
 
 def rig_for(bus: str) -> RigFactory:
-    """The rig of ``--bus``: ``sim`` or ``can`` (ImportError when its driver cannot load)."""
+    """The rig of ``--bus``: ``sim``, ``can`` or ``remote`` (ImportError when its driver
+    cannot load)."""
     if bus == "sim":
         import openel_sim  # noqa: F401  (here, before anything runs, when it cannot load)
 
         return sim_rig
     if bus == "can":
-        from .can_rig import can_rig
+        import openel_can  # noqa: F401
 
-        return can_rig
+        return file_rig(CAN_RIG, sim=True)
     if bus == "remote":
         from .remote_rig import remote_rig
 
@@ -361,9 +402,10 @@ async def _scenario(
     timer = EventTimer(period_ms, clock=clock, name="sync")
     if ctx is not None:
         for component in (*axes, *sensors):
-            ctx.add_component(component)
+            if component not in ctx.components:  # (a rig file's registered them)
+                ctx.add_component(component)
         ctx.add_timer(timer)
-    async with axes[0], axes[1], sensors[0], sensors[1], timer:
+    async with timer:
         for component in (*axes, *sensors):
             await component.init()
         for component in (*axes, *sensors):
@@ -519,9 +561,11 @@ def build_parser(prog: str = NAME) -> argparse.ArgumentParser:
     parser.add_argument(
         "--bus",
         choices=("sim", "can", "remote"),
-        default="sim",
-        help="Device layer: openel_sim motors, simulated CAN drives, or the sim devices served "
-        "by another process over Zenoh (default sim).",
+        default=None,
+        help="Device layer: openel_sim motors (rigs/twoaxis-sim.yaml), simulated CAN drives "
+        "(rigs/twoaxis-can.yaml with --sim), or the sim devices served by another process "
+        "over Zenoh (default sim; openel-async's --rig FILE and --sim run the demo on any rig "
+        "with two actuators and two sensors instead).",
     )
     parser.add_argument(
         "--duration",
@@ -559,7 +603,7 @@ def build_parser(prog: str = NAME) -> argparse.ArgumentParser:
 def check_options(args: argparse.Namespace) -> str | None:
     """Every option, before anything runs: the problem, or None."""
     duration, period = args.duration, args.period_ms
-    if args.virtual and args.bus != "sim":
+    if args.virtual and (args.bus or "sim") != "sim":
         return f"--virtual needs --bus sim: --bus {args.bus} runs in real time"
     if args.inject_fault and args.bus == "remote":
         return (
@@ -592,11 +636,21 @@ async def main(ctx: AppContext) -> int:
     problem = check_options(args)
     if problem is not None:  # argparse's message and exit status 2
         parser.error(problem)
-    try:
-        rig = rig_for(args.bus)
-    except ImportError as exc:
-        print(f"{ctx.prog}: the {args.bus} rig is not available: {exc}", file=sys.stderr)
-        return 2
+    if ctx.rig_spec is not None or ctx.sim:
+        if args.bus is not None:
+            parser.error("--bus chooses one of the demo's own rigs: not with --rig or --sim")
+        if args.virtual and (ctx.sim or (ctx.rig_spec is not None and ctx.rig_spec.buses)):
+            parser.error("--virtual needs a rig without buses: buses run in real time")
+        rig = file_rig(ctx.rig_spec or resolve_rig(load_rig(CAN_RIG)), sim=ctx.sim, ctx=ctx)
+    else:
+        bus = args.bus or "sim"
+        try:
+            rig = rig_for(bus)
+        except ImportError as exc:
+            print(f"{ctx.prog}: the {bus} rig is not available: {exc}", file=sys.stderr)
+            return 2
+        if bus != "remote":
+            rig = file_rig(SIM_RIG if bus == "sim" else CAN_RIG, sim=bus == "can", ctx=ctx)
     summary = DemoSummary(duration_s=args.duration)
     ctx.progress = summary.partial_lines
     await run_demo(
@@ -621,7 +675,7 @@ def demo_args(options: DemoOptions) -> list[str]:
         raise ValueError("the two-axis demo runs on --bus sim or --bus can, not mujoco")
     if options.out is not None:
         raise ValueError("--out needs --bus mujoco (the sim and can demos write no files)")
-    argv = ["--bus", options.bus or "sim"]
+    argv = [] if options.bus is None else ["--bus", options.bus]
     if options.duration is not None:
         argv += ["--duration", repr(options.duration)]
     if options.period_ms is not None:
@@ -641,4 +695,5 @@ APP_INFO = AppInfo(
     "(spec Figs. 7.5-7.8), on openel_sim motors or simulated CAN drives",
     main=main,
     demo_args=demo_args,
+    takes_rig=True,
 )

@@ -65,7 +65,8 @@ def silent_sim_rig(
                 clock=clock,
                 auto_init=False,
             )
-            yield Rig(parts.name, parts.axes, (parts.sensors[0], silent), parts.trip_axis2)
+            async with silent:
+                yield Rig(parts.name, parts.axes, (parts.sensors[0], silent), parts.trip_axis2)
 
     return made, rig
 
@@ -109,7 +110,7 @@ async def test_the_can_demo_survives_a_drive_that_stops_answering_sdo() -> None:
     @asynccontextmanager
     async def rig(clock: Clock) -> AsyncIterator[Rig]:
         async with can_rig(clock) as parts:
-            drive = parts.peers["cia402"]
+            drive = parts.peers["MOTOR_2"]
             assert isinstance(drive, SimCia402Drive)
             drives.append(drive)
             ready.set()

@@ -63,8 +63,9 @@ def test_virtual_clock_demo_recording(tmp_path: Path, capsys: pytest.CaptureFixt
     assert counts["/timer/sync"] == ticks // 10 + 1  # from the first tick, and at the exit
     assert counts["/joint_states"] == ticks // 2
     kinds = Counter((topic, m.get("kind")) for topic, m in decoded)
-    # Every setpoint of the timer's observer, plus the two commands that bring the axes home.
-    assert kinds["/hal/MOTOR_1", "command"] + kinds["/hal/MOTOR_2", "command"] == setpoints + 2
+    # Every setpoint of the timer's observer, plus the two commands that bring the axes home
+    # and the two of the rig's safe stop at exit (on_exit: hold, a position hold each).
+    assert kinds["/hal/MOTOR_1", "command"] + kinds["/hal/MOTOR_2", "command"] == setpoints + 4
     assert kinds["/hal/ENCODER_1", "reading"] + kinds["/hal/TEMP_2", "reading"] == reads
     completions = kinds["/hal/MOTOR_1", "completion"] + kinds["/hal/MOTOR_2", "completion"]
     assert completions == completed  # the demo's own observer counted the same events

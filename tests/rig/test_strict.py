@@ -70,7 +70,7 @@ def test_an_unknown_key_is_refused_with_position_and_suggestion(
 def test_an_unknown_top_level_key_far_from_any_is_refused(tmp_path: Path) -> None:
     text = str(_refused(tmp_path, RIG + "colour: blue\n"))
     assert (
-        ":12:1: unknown key 'colour' in rig (allowed: buses, components, groups, namespace, safety, timers)"
+        ":12:1: unknown key 'colour' in rig (allowed: buses, components, description, groups, namespace, safety, timers)"
         in text
     )
 

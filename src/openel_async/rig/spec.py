@@ -162,6 +162,8 @@ class SafetyDoc(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
 class RigDoc(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     """A rig file."""
 
+    description: str = ""
+    """One line saying what the machine is (the summaries' title)."""
     namespace: str = "default"
     """The key-expression namespace (``openel/<namespace>/...``) of ``openel-async serve``."""
     buses: dict[str, dict[str, Any]] | None = None
@@ -260,6 +262,7 @@ class RigSpec:
     safety: SafetySpec = field(default_factory=SafetySpec)
     source: str = "rig"
     """The file it was read from (``rig`` for plain data)."""
+    description: str = ""
 
     def component(self, name: str) -> ComponentSpec:
         for c in self.components:
@@ -318,7 +321,9 @@ def parse_rig(data: object, source: str = "rig", doc: YamlDocument | None = None
     components = _components(r, rig, data, {b.name for b in buses})
     timers, groups = _timers_and_groups(r, rig, data, components)
     safety = _safety(r, rig, data)
-    return RigSpec(rig.namespace, components, buses, timers, groups, safety, source)
+    return RigSpec(
+        rig.namespace, components, buses, timers, groups, safety, source, rig.description
+    )
 
 
 def _buses(r: _Reader, rig: RigDoc, data: Mapping[str, Any]) -> tuple[BusSpec, ...]:
