@@ -22,9 +22,12 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from contextlib import AbstractAsyncContextManager
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import msgspec
+
+if TYPE_CHECKING:
+    from ..clock import Clock
 
 __all__ = ["BusKind", "FaultInjection", "SimulatedBus", "SimulatedDevice"]
 
@@ -75,6 +78,12 @@ class BusKind(ABC):
         """Refuse (BadParameterError naming the key) what the schema cannot express: two
         devices at one address, an address the protocol cannot carry, a device class that
         cannot be on this bus. Called by ``rig check``; opens nothing."""
+        return None
+
+    def clock(self, bus: object) -> Clock | None:
+        """The clock of a bus that is a simulation of its own (a MuJoCo model steps its own
+        time): the rig's components and timers use it unless the caller gives one. None
+        (the default): the bus follows the caller's clock."""
         return None
 
     @abstractmethod

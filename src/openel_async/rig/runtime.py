@@ -70,6 +70,8 @@ class Rig:
     """What each bus is (the simulated one with ``sim=True``)."""
     exit_report: list[SafeStopReport] = field(default_factory=list)
     """Filled when the rig closes: how each actuator was left."""
+    clock: Clock | None = None
+    """The clock the components and timers run on (None: the default clock)."""
 
     # -- lookups ---------------------------------------------------------------------------
     def _get(self, table: Mapping[str, T], what: str, name: str) -> T:
@@ -240,7 +242,8 @@ async def open_rig(
     handle_sigquit: bool = False,
 ) -> AsyncIterator[Rig]:
     """Open a rig: its buses (with ``sim=True``, against simulated peers at the same
-    addresses), its components (entered; initialized unless ``init=False``), its timers and
+    addresses), its components (on ``clock``; None: the clock of a bus that has one, such
+    as a MuJoCo simulation, else the default clock) (entered; initialized unless ``init=False``), its timers and
     axis groups. ``on_component``/``on_timer`` are told of each before it is entered or
     started (an app context registers them with its hooks). ``handle_sigquit``: SIGQUIT
     e-stops the rig (when the rig file's ``safety.estop_on_sigquit`` allows).
@@ -268,6 +271,8 @@ async def open_rig(
                 rig.bus_descriptions[name] = bus.kind.describe(options)
             opened_options[name] = options
             opened[name] = await stack.enter_async_context(bus.kind.open(name, options))
+            if clock is None:
+                clock = bus.kind.clock(opened[name])
         rig.buses = opened
         if sim:  # the devices are built with the options opened (a pty path, say)
             resolved = dataclasses.replace(
@@ -277,6 +282,7 @@ async def open_rig(
                     for n, b in resolved.buses.items()
                 },
             )
+        rig.clock = clock
         components = build_components(resolved, clock, opened, auto_init=False)
         for component in components:
             c_spec = rig_spec.component(component.device_name)
