@@ -159,3 +159,13 @@ async def test_a_cancellation_still_leaves_the_actuators_safe(tmp_path: Path) ->
                 await anyio.sleep_forever()
     assert [r.ok for r in opened[0].exit_report] == [True, True]
     assert opened[0].exit_report[0].how == "velocity 0"
+
+
+async def test_an_estopped_actuator_is_left_in_its_emergency_state(tmp_path: Path) -> None:
+    clock = VirtualClock()
+    async with clock.autojump():
+        async with open_rig(load_rig(_rig(tmp_path, "hold")), clock) as rig:
+            await rig.actuator("MOTOR_1").estop()
+        assert rig.exit_report[0].how.startswith("e-stopped")
+        assert rig.exit_report[1].how == "position hold"
+        assert rig.exit_line() == "on exit            hold: MOTOR_1 e-stopped, MOTOR_2 done"

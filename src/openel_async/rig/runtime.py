@@ -36,6 +36,10 @@ log = structlog.get_logger(__name__)
 T = TypeVar("T")
 
 
+ESTOPPED = "e-stopped: left in the emergency state"
+""":attr:`SafeStopReport.how` of an actuator whose e-stop was latched when the rig closed."""
+
+
 @dataclass(frozen=True)
 class SafeStopReport:
     """How one actuator was left when the rig closed."""
@@ -154,7 +158,9 @@ class Rig:
         if not self.exit_report:
             return f"on exit            {action}: no actuator"
         parts = [
-            f"{r.component} {'done' if r.ok else 'FAILED: ' + r.outcome}" for r in self.exit_report
+            f"{r.component} "
+            + ("e-stopped" if r.how == ESTOPPED else "done" if r.ok else f"FAILED: {r.outcome}")
+            for r in self.exit_report
         ]
         return f"on exit            {action}: {', '.join(parts)}"
 
@@ -211,6 +217,8 @@ async def _safe_stop(actuator: Actuator, safety: SafetySpec) -> SafeStopReport:
     device = actuator.device
     name = actuator.device_name
     how = ""
+    if actuator.estop_latched:  # the emergency state is the safest: nothing may undo it
+        return SafeStopReport(name, action, "done", ESTOPPED)
     try:
         with anyio.fail_after(safety.exit_timeout):
             if isinstance(device, EmergencyStop) and actuator.state.value in ("Active", "Error"):

@@ -1,0 +1,99 @@
+"""Issue 22, safe stop on every exit path: whether a run ends normally, by Ctrl-C, by SIGTERM or
+by an exception, every actuator of the rig is left in the state ``safety.on_exit`` names, on
+the simulated drives themselves, and the summary says so. The rig is the two-axis demo's CAN
+rig (an ODrive and a CiA 402 drive) with ``--sim``: the simulated peers on a virtual bus."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+APP = Path(__file__).with_name("exit_app.py")
+CAN_RIG = ROOT / "apps" / "openel_apps" / "rigs" / "twoaxis-can.yaml"
+
+HOLDING = ["peer MOTOR_1 axis_state=CLOSED_LOOP_CONTROL", "peer MOTOR_2 power_state=OPERATION_ENABLED"]  # fmt: skip
+TORQUE_OFF = ["peer MOTOR_1 axis_state=IDLE"]
+
+
+def _rig(tmp_path: Path, on_exit: str) -> Path:
+    path = tmp_path / f"rig-{on_exit}.yaml"
+    path.write_text(CAN_RIG.read_text().replace("on_exit: hold", f"on_exit: {on_exit}"))
+    return path
+
+
+def _start(rig: Path, then: str) -> subprocess.Popen[str]:
+    env = dict(os.environ, NO_COLOR="1")
+    return subprocess.Popen(
+        [sys.executable, "-m", "openel_async.cli", "run", str(APP), "--rig", str(rig), "--sim",
+         "--", "--then", then],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )  # fmt: skip
+
+
+def _wait_ready(proc: subprocess.Popen[str], timeout: float = 20.0) -> list[str]:
+    assert proc.stdout is not None
+    lines: list[str] = []
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if not select.select([proc.stdout], [], [], deadline - time.monotonic())[0]:
+            break
+        line = proc.stdout.readline()
+        if not line:
+            break
+        lines.append(line.rstrip("\n"))
+        if line.strip() == "ready":
+            return lines
+    proc.kill()
+    raise AssertionError(
+        f"the app never got ready: {lines} {proc.stderr.read() if proc.stderr else ''}"
+    )
+
+
+def _finish(proc: subprocess.Popen[str], timeout: float = 20.0) -> tuple[int, str, str]:
+    out, err = proc.communicate(timeout=timeout)
+    return proc.returncode, out, err
+
+
+def test_a_normal_end_holds(tmp_path: Path) -> None:
+    proc = _start(_rig(tmp_path, "hold"), "return")
+    _wait_ready(proc)
+    code, out, err = _finish(proc)
+    assert code == 0, err
+    assert "on exit            hold: MOTOR_1 done, MOTOR_2 done" in out
+    for line in HOLDING:
+        assert line in out
+
+
+@pytest.mark.parametrize(("signum", "status"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_leaves_the_drives_as_on_exit_says(
+    tmp_path: Path, signum: signal.Signals, status: int
+) -> None:
+    proc = _start(_rig(tmp_path, "hold"), "wait")
+    _wait_ready(proc)
+    proc.send_signal(signum)
+    code, out, err = _finish(proc)
+    assert code == status, err
+    assert "interrupted" in out
+    assert "on exit            hold: MOTOR_1 done, MOTOR_2 done" in out
+    for line in HOLDING:
+        assert line in out
+
+
+def test_an_exception_still_leaves_the_drives_safe(tmp_path: Path) -> None:
+    proc = _start(_rig(tmp_path, "torque_off"), "raise")
+    _wait_ready(proc)
+    code, out, err = _finish(proc)
+    assert code == 1
+    assert "RuntimeError: the app failed" in err
+    assert "on exit            torque_off: MOTOR_1 done, MOTOR_2 done" in err
+    for line in TORQUE_OFF:
+        assert line in out
+    assert "peer MOTOR_2 power_state=OPERATION_ENABLED" not in out
