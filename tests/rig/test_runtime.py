@@ -169,3 +169,12 @@ async def test_an_estopped_actuator_is_left_in_its_emergency_state(tmp_path: Pat
         assert rig.exit_report[0].how.startswith("e-stopped")
         assert rig.exit_report[1].how == "position hold"
         assert rig.exit_line() == "on exit            hold: MOTOR_1 e-stopped, MOTOR_2 done"
+
+
+async def test_a_group_cannot_stream_past_the_rig_limits(tmp_path: Path) -> None:
+    clock = VirtualClock()
+    async with clock.autojump(), open_rig(load_rig(_rig(tmp_path)), clock) as rig:
+        with pytest.raises(BadParameterError, match="MOTOR_1"):
+            await rig.group("arm").move_to([1.5, 0.0])
+        # the planning uses the rig's velocity limit: 2 rad/s, not the motor's 3
+        assert [lim.max_velocity for lim in rig.group("arm").limits] == [2.0, 2.0]
