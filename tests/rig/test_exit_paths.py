@@ -97,3 +97,18 @@ def test_an_exception_still_leaves_the_drives_safe(tmp_path: Path) -> None:
     for line in TORQUE_OFF:
         assert line in out
     assert "peer MOTOR_2 power_state=OPERATION_ENABLED" not in out
+
+
+def test_sigquit_estops_every_drive_and_the_exit_leaves_them_so(tmp_path: Path) -> None:
+    proc = _start(_rig(tmp_path, "hold"), "wait")
+    _wait_ready(proc)
+    proc.send_signal(signal.SIGQUIT)
+    time.sleep(0.5)  # the e-stop is one frame per drive; the exit below must not undo it
+    proc.send_signal(signal.SIGINT)
+    code, out, err = _finish(proc)
+    assert code == 130, err
+    assert "on exit            hold: MOTOR_1 e-stopped, MOTOR_2 e-stopped" in out
+    assert "peer MOTOR_1 axis_state=IDLE" in out  # ODrive Estop: disarmed
+    assert "peer MOTOR_2 power_state=QUICK_STOP_ACTIVE" in out or (
+        "peer MOTOR_2 power_state=SWITCH_ON_DISABLED" in out
+    )
