@@ -20,6 +20,16 @@ def _peer_state(peer: object) -> str:
     return "?"
 
 
+class ErrorPrinter:
+    """Prints ``error NAME ID`` for each notify_error (the test waits for these lines)."""
+
+    def notify_event(self, source: object, event_id: int) -> None:
+        pass
+
+    def notify_error(self, source: object, error_id: int) -> None:
+        print(f"error {getattr(source, 'device_name', '?')} {int(error_id)}", flush=True)
+
+
 async def main(ctx: AppContext) -> int:
     parser = argparse.ArgumentParser(prog=ctx.prog)
     parser.add_argument("--then", choices=("return", "raise", "wait"), default="return")
@@ -29,6 +39,8 @@ async def main(ctx: AppContext) -> int:
     try:
         async with ctx.open_rig(clock=clock) as rig:
             peers.update(rig.peers)
+            for actuator in rig.actuators:
+                actuator.add_observer(ErrorPrinter())
             first = rig.actuators[0]
             motion = await first.set_value(0.3, Request.POSITION)
             with anyio.fail_after(10):

@@ -38,23 +38,29 @@ def _start(rig: Path, then: str) -> subprocess.Popen[str]:
     )  # fmt: skip
 
 
-def _wait_ready(proc: subprocess.Popen[str], timeout: float = 20.0) -> list[str]:
+def _wait_for(proc: subprocess.Popen[str], wanted: set[str], timeout: float = 20.0) -> list[str]:
+    """Read lines until every one of ``wanted`` was printed (bounded)."""
     assert proc.stdout is not None
     lines: list[str] = []
+    missing = set(wanted)
     deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
+    while missing and time.monotonic() < deadline:
         if not select.select([proc.stdout], [], [], deadline - time.monotonic())[0]:
             break
         line = proc.stdout.readline()
         if not line:
             break
         lines.append(line.rstrip("\n"))
-        if line.strip() == "ready":
-            return lines
-    proc.kill()
-    raise AssertionError(
-        f"the app never got ready: {lines} {proc.stderr.read() if proc.stderr else ''}"
-    )
+        missing.discard(line.strip())
+    if missing:
+        proc.kill()
+        err = proc.stderr.read() if proc.stderr else ""
+        raise AssertionError(f"never printed {sorted(missing)}: {lines} {err}")
+    return lines
+
+
+def _wait_ready(proc: subprocess.Popen[str]) -> list[str]:
+    return _wait_for(proc, {"ready"})
 
 
 def _finish(proc: subprocess.Popen[str], timeout: float = 20.0) -> tuple[int, str, str]:
@@ -103,8 +109,8 @@ def test_sigquit_estops_every_drive_and_the_exit_leaves_them_so(tmp_path: Path) 
     proc = _start(_rig(tmp_path, "hold"), "wait")
     _wait_ready(proc)
     proc.send_signal(signal.SIGQUIT)
-    time.sleep(0.5)  # the e-stop is one frame per drive; the exit below must not undo it
-    proc.send_signal(signal.SIGINT)
+    _wait_for(proc, {"error MOTOR_1 8", "error MOTOR_2 8"})  # ErrorId.ESTOP on both
+    proc.send_signal(signal.SIGINT)  # the exit must not undo the e-stop
     code, out, err = _finish(proc)
     assert code == 130, err
     assert "on exit            hold: MOTOR_1 e-stopped, MOTOR_2 e-stopped" in out
