@@ -19,6 +19,7 @@ prints ``ready`` and serves until its stdin is closed; :class:`CanPeersProcess` 
 from __future__ import annotations
 
 import argparse
+import logging
 import select
 import socket
 import struct
@@ -31,6 +32,7 @@ from typing import Any
 
 import anyio
 import can
+import structlog
 
 from openel_can import CanBus
 from openel_can.sim.cia402 import SimCia402Drive
@@ -149,6 +151,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--odrive", type=_ids, default=[])
     parser.add_argument("--cia402", type=_ids, default=[])
     args = parser.parse_args(argv)
+    # The peers' buses go down when the benchmark closes its ends first: not worth a warning.
+    structlog.configure(
+        wrapper_class=structlog.make_filtering_bound_logger(logging.ERROR),
+        logger_factory=structlog.PrintLoggerFactory(sys.stderr),
+    )
     anyio.run(serve, args.odrive_fd, args.cia_fd, args.odrive, args.cia402, backend="asyncio")
 
 
