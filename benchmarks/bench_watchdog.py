@@ -569,7 +569,7 @@ this 2-vCPU virtual machine; a bare `asyncio.sleep(0.001)` loop uses about 70 µ
 iteration on it. The spread of the paired differences (their quartiles are in the notes) is
 tens of µs per window, so the 100 ms median alone resolves the overhead to about ten µs;
 the estimate from the 40 ms rounds is the sharper figure. What an extra event costs is mostly
-an extra wake-up of the loop (a feeder's deadline falls between two ticks): cheap on bare
-metal, dear here. The holding rows, where the watchdogs send frames, show what each feeding
+an extra wake-up of the loop (a feeder's deadline falls between two ticks), dear on this
+virtual machine (bare metal was not measured). The holding rows, where the watchdogs send frames, show what each feeding
 event costs on this machine.
 """
