@@ -2,7 +2,8 @@
 
 ``SurfaceServer`` serves a Surface; ``RemoteSurface`` uses one; ``RemoteActuator`` and
 ``RemoteSensor`` make a served component a local device. Key expressions: ``keys``;
-safe session configurations: ``config``.
+safe session configurations: ``config``; the e-stop of a served rig (``openel-async
+estop``): ``estop``.
 """
 
 from openel_async.registry import DriverInfo

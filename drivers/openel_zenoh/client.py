@@ -393,6 +393,14 @@ class RemoteSurface:
     async def components(self) -> list[wire.ComponentInfo]:
         return wire.components_decoder.decode(await self.query(self.keys.components, b""))
 
+    async def estop_rig(self, release: bool = False) -> wire.EstopReply:
+        """E-stop every component of the served rig at once (``release=True``: release the
+        e-stop, so that ``re_init`` recovers them): one query (``openel-async serve`` only;
+        openel_zenoh.estop). The reply's return_code is not checked: nonzero means some
+        component failed (every one was tried); ``components`` says how each was left."""
+        key = self.keys.rig_estop_release if release else self.keys.rig_estop
+        return wire.estop_decoder.decode(await self.query(key, b""))
+
     async def _answer(self, key: str, payload: bytes) -> wire.Answer:
         answer = wire.answer_decoder.decode(await self.query(key, payload))
         check_code(answer.return_code, answer.message)

@@ -5,6 +5,11 @@
   Zenoh until interrupted (Ctrl-C or SIGTERM). Safe by default: a peer listening on
   127.0.0.1 only (``--listen`` to change the endpoint, ``--config`` for a Zenoh JSON5 file of
   your own, e.g. TLS or access control for a LAN), no multicast or gossip scouting.
+  It also serves the rig's e-stop (``openel/<ns>/rig/estop``, ``.../release``:
+  openel_zenoh.estop), and SIGQUIT e-stops the rig (unless its ``safety.estop_on_sigquit``
+  is false).
+- ``openel-async estop``: e-stop every component of a served rig at once (``--release``:
+  release it), print one line per component.
 - ``openel-async hal4rt exec FILE.xml``: send a ``<Device>`` message to a running server and
   print the reply as XML.
 """
@@ -23,6 +28,8 @@ from openel_async.cli.commands import EXIT_USAGE, CliCommand, load_bytes, no_suc
 from openel_async.errors import BadParameterError, HALError
 from openel_async.surface import xml_psm
 from openel_async.surface.messages import Device
+
+from . import wire
 
 log = structlog.get_logger(__name__)
 
@@ -89,6 +96,7 @@ async def _serve(args: argparse.Namespace) -> int:
 
     from . import SurfaceServer, close_session, open_session
     from .config import DEFAULT_ENDPOINT, file_config, server_config
+    from .estop import RigEstopServer
 
     spec = load_rig(args.rig)
     namespace = args.namespace or spec.namespace
@@ -99,6 +107,7 @@ async def _serve(args: argparse.Namespace) -> int:
     try:
         async with (
             open_rig(spec, sim=args.sim, handle_sigquit=True) as rig,
+            RigEstopServer(rig, session, namespace),  # before the server's liveliness token
             Surface(list(rig.components.values())) as surface,
             SurfaceServer(surface, session, namespace),
         ):
@@ -137,6 +146,111 @@ async def _stop_on_eof(scope: anyio.CancelScope) -> None:
 
 SERVE = CliCommand("serve", add_serve_parser, run_serve)
 """``openel-async serve``."""
+
+
+# -- estop ----------------------------------------------------------------------------------------
+
+EXIT_NO_SERVER = 1
+"""``openel-async estop``: no rig served (or no reply) within the timeout."""
+EXIT_ESTOP_FAILED = 3
+"""``openel-async estop``: the server answered, but some component's e-stop failed."""
+
+
+def add_estop_parser(sub: SubParsers) -> argparse.ArgumentParser:
+    estop: argparse.ArgumentParser = sub.add_parser(
+        "estop",
+        help="e-stop every component of a rig served by 'openel-async serve' at once",
+        description="E-stop every component of a served rig at once, in one round trip: each "
+        "actuator goes into its protocol's emergency state and every component to Error with "
+        "error id 8 (ESTOP), latched: re_init is refused until the e-stop is released "
+        "(--release). Prints one line per component. Exit status: 0 done, 1 no rig served "
+        "(or no reply) within the timeout, 2 usage error, 3 some component's e-stop failed.",
+    )
+    estop.add_argument(
+        "--release",
+        action="store_true",
+        help="release the e-stop: re_init recovers the components again",
+    )
+    estop.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="server endpoint (default tcp/127.0.0.1:7447; repeatable)",
+    )
+    estop.add_argument(
+        "--config", metavar="FILE", help="Zenoh JSON5 configuration (replaces the safe defaults)"
+    )
+    estop.add_argument(
+        "--namespace",
+        default="default",
+        help="the server's key-expression namespace (default: default)",
+    )
+    estop.add_argument(
+        "--timeout",
+        type=float,
+        default=5.0,
+        help="seconds to wait for the server, then for its reply (default 5)",
+    )
+    return estop
+
+
+def run_estop(args: argparse.Namespace) -> int:
+    import zenoh
+
+    from .config import DEFAULT_ENDPOINT
+    from .estop import describe
+    from .keys import Keys
+
+    try:
+        Keys(args.namespace)
+        if not args.timeout > 0:
+            raise BadParameterError("--timeout", args.timeout, "a number of seconds > 0")
+    except BadParameterError as exc:
+        print(f"openel-async estop: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    where = args.config or ", ".join(args.connect or [DEFAULT_ENDPOINT])
+    try:
+        reply = anyio.run(_estop, args, backend="asyncio")
+    except BadParameterError as exc:  # a bad --config or endpoint
+        print(f"openel-async estop: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except zenoh.ZError as exc:
+        print(f"openel-async estop: no Zenoh session for {where}: {exc}", file=sys.stderr)
+        return EXIT_NO_SERVER
+    except (HALError, TimeoutError) as exc:
+        print(
+            f"openel-async estop: no rig served at {where}, namespace {args.namespace!r}: {exc}",
+            file=sys.stderr,
+        )
+        return EXIT_NO_SERVER
+    for state in reply.components:
+        print(describe(state, reply.release), flush=True)
+    if reply.return_code != 0:
+        what = "release" if reply.release else "e-stop"
+        print(f"openel-async estop: {what} failed: {reply.message}", file=sys.stderr)
+        return EXIT_ESTOP_FAILED
+    return 0
+
+
+async def _estop(args: argparse.Namespace) -> wire.EstopReply:
+    from . import close_session, open_session
+    from .config import DEFAULT_ENDPOINT, client_config, file_config
+    from .estop import estop_rig
+
+    config = (
+        file_config(args.config)
+        if args.config
+        else client_config(args.connect or [DEFAULT_ENDPOINT])
+    )
+    session = await open_session(config)
+    try:
+        return await estop_rig(session, args.namespace, release=args.release, timeout=args.timeout)
+    finally:
+        await close_session(session)
+
+
+ESTOP = CliCommand("estop", add_estop_parser, run_estop)
+"""``openel-async estop``."""
 
 
 # -- hal4rt exec --------------------------------------------------------------------------------

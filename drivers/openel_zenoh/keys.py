@@ -8,6 +8,8 @@
 | ``openel/<ns>/surface/event_detail``     | server, queryable  | get_event_detail(event_id)                |
 | ``openel/<ns>/surface/error_detail``     | server, queryable  | get_error_detail(error_id)                |
 | ``openel/<ns>/surface/components``       | server, queryable  | the components: kind, logical id, name    |
+| ``openel/<ns>/rig/estop``                | serve, queryable   | e-stop every component of the rig at once |
+| ``openel/<ns>/rig/estop/release``        | serve, queryable   | release the rig's e-stop                  |
 | ``openel/<ns>/client/<client>/notices``  | server, publisher  | completed, notify_event, notify_error of one client, numbered |
 | ``openel/<ns>/alive/server``             | server, liveliness | the server is up                          |
 | ``openel/<ns>/alive/client/<client>``    | client, liveliness | the client is up (its state is dropped when it goes) |
@@ -43,6 +45,8 @@ class Keys:
         self.event_detail = f"{root}/surface/event_detail"
         self.error_detail = f"{root}/surface/error_detail"
         self.components = f"{root}/surface/components"
+        self.rig_estop = f"{root}/rig/estop"
+        self.rig_estop_release = f"{root}/rig/estop/release"
         self.server_alive = f"{root}/alive/server"
         self.clients_alive = f"{root}/alive/client/*"
 

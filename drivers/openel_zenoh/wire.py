@@ -3,6 +3,10 @@
 ``execute`` carries a HAL4RT ``Device`` message, as XML (the standard PSM; a payload
 starting with '<') or compact MessagePack; the reply uses the request's encoding. The
 other queryables and the notice stream use the structures below.
+
+``rig/estop`` and ``rig/estop/release`` (``openel-async serve``) take an empty payload and
+reply with an :class:`EstopReply`: the return code of the e-stop (or release) and the state
+of every component of the rig after it.
 """
 
 from __future__ import annotations
@@ -31,6 +35,30 @@ class ComponentInfo(msgspec.Struct, array_like=True):
     logical_id: int
     device_name: str
     state: str
+
+
+class RigComponentState(msgspec.Struct, array_like=True):
+    """One component of a served rig, after an e-stop or its release."""
+
+    name: str
+    state: str
+    """``Error``, ``Active``...: the component's state (ComponentState's value)."""
+    error_id: int
+    """The error id of its last fault while in Error (``ErrorId.ESTOP`` = 8 after an
+    e-stop of an operating component), else 0."""
+    latched: bool
+    """The e-stop is latched: ``re_init`` is refused until it is released."""
+
+
+class EstopReply(msgspec.Struct, array_like=True):
+    """The reply of ``rig/estop`` and ``rig/estop/release``: return_code 0 (HAL_OK) when
+    every component was e-stopped (released), else the first failure's code and message
+    (every component was tried); ``components`` in the rig file's order."""
+
+    return_code: int
+    message: str
+    release: bool
+    components: list[RigComponentState]
 
 
 class CompletedNotice(msgspec.Struct, array_like=True, tag="C"):
@@ -66,3 +94,4 @@ batch_decoder = msgspec.msgpack.Decoder(NoticeBatch)
 answer_decoder = msgspec.msgpack.Decoder(Answer)
 subscribe_decoder = msgspec.msgpack.Decoder(SubscribeRequest)
 components_decoder = msgspec.msgpack.Decoder(list[ComponentInfo])
+estop_decoder = msgspec.msgpack.Decoder(EstopReply)
