@@ -182,12 +182,6 @@ async def test_estop_rig_in_process() -> None:
             await estop_rig(zc, "elsewhere", timeout=0.3)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="GetState of a component faulted with an ErrorId member (the e-stop's ErrorId.ESTOP) "
-    "is refused by ResultList.of (an IntEnum is not an int): surface/profiles.py _get_state "
-    "needs int(fault.error_id); RemoteActuator.re_init asks GetState first",
-)
 async def test_remote_actuator_re_init_after_a_released_estop() -> None:
     spec = parse_rig(
         {

@@ -227,7 +227,8 @@ async def _safe_stop(actuator: Actuator, safety: SafetySpec) -> SafeStopReport:
             elif actuator.state.value == "Active":
                 how = await _fallback_stop(actuator, action)
             else:
-                return SafeStopReport(name, action, f"not operating ({actuator.state.value})")
+                state = actuator.state.value
+                return SafeStopReport(name, action, f"{state}, nothing sent (left as it was)")
             if isinstance(device, Watchdog) and safety.watchdog_timeout is not None:
                 # The state asked for outlives the host: its watchdog must not undo it.
                 await device.disarm_watchdog()

@@ -537,7 +537,7 @@ def _get_state(component: HALComponent, command: CommandMessage) -> ResultList:
     fault = component.last_fault
     return ResultList.of(
         state=str(component.state),
-        error_id=0 if fault is None else fault.error_id,
+        error_id=0 if fault is None else int(fault.error_id),
         message="" if fault is None else str(fault),
     )
 
