@@ -14,6 +14,7 @@ from openel_async.registry import DriverInfo
 from .bus import BusState, BusStats, CanBus, NodePort, TxMessage
 from .drive402 import Cia402Drive, Cia402Temperature
 from .odrive import ODriveAxis, ODriveBusMonitor, ODriveEncoder, ODriveError, ODriveTemperature
+from .rigbus import CanBusKind, CanBusOptions
 from .sdo import SdoAbortError, SdoClient, SdoTimeoutError
 
 DRIVER = DriverInfo(
@@ -27,6 +28,7 @@ DRIVER = DriverInfo(
         "cia402_drive": Cia402Drive,
         "cia402_temperature": Cia402Temperature,
     },
+    buses={"can": CanBusKind()},
 )
 
 __all__ = [
@@ -34,6 +36,8 @@ __all__ = [
     "BusState",
     "BusStats",
     "CanBus",
+    "CanBusKind",
+    "CanBusOptions",
     "Cia402Drive",
     "Cia402Temperature",
     "NodePort",

@@ -656,6 +656,18 @@ class CanBus:
             return True
         return False
 
+    def _queue_nowait(self, msg: can.Message) -> None:
+        """Queue a producer's frame (heartbeat, SYNC) for the sender task, counted as pending
+        like any other (the sender counts it down); dropped and counted when the queue is
+        full."""
+        assert self._tx_send is not None
+        try:
+            self._tx_send.send_nowait(msg)
+        except anyio.WouldBlock:
+            self.stats.tx_dropped += 1
+        else:
+            self._tx_pending += 1
+
     async def _enqueue(self, msg: can.Message) -> None:
         """Queue ``msg`` for the sender task (waits at most ``send_timeout`` for room)."""
         tx = self._tx_send
@@ -786,10 +798,7 @@ class CanBus:
                     is_extended_id=False,
                 )
                 if self.state is BusState.UP and self._tx_send is not None:
-                    try:
-                        self._tx_send.send_nowait(msg)
-                    except anyio.WouldBlock:
-                        self.stats.tx_dropped += 1
+                    self._queue_nowait(msg)
                 period = min(self._hb_owners.values())
                 now = time.monotonic()
                 next_at = max(next_at + period, now)  # after a stall: no burst of late beats
@@ -805,10 +814,7 @@ class CanBus:
             next_at += period
             await anyio.sleep(max(0.0, next_at - time.monotonic()))
             if self.state is BusState.UP and self._tx_send is not None:
-                try:
-                    self._tx_send.send_nowait(sync)
-                except anyio.WouldBlock:
-                    self.stats.tx_dropped += 1
+                self._queue_nowait(sync)
 
     # -- receive --------------------------------------------------------------------------
     def _recv_batch(self, bus: can.BusABC) -> list[can.Message]:

@@ -282,3 +282,18 @@ class _SlowSendBus(can.BusABC):
     def shutdown(self) -> None:
         self._bus.shutdown()
         super().shutdown()
+
+
+async def test_produced_frames_count_as_pending_until_sent() -> None:
+    """A heartbeat producer's frames are counted in and out like any other (the count went
+    negative: inline sends were refused for good and the close logged a negative drop)."""
+    async with CanBus(interface="virtual", channel="pending-count-test") as bus:
+        owner = object()
+        bus.produce_heartbeat(127, 0.01, owner)
+        await anyio.sleep(0.1)
+        bus.release_heartbeat(owner)
+        with anyio.fail_after(2):
+            while bus._tx_pending:  # noqa: SLF001  (the counter under test)
+                await anyio.sleep(0.01)
+        assert bus._tx_pending == 0  # noqa: SLF001
+        assert bus.stats.tx_dropped == 0

@@ -241,6 +241,8 @@ class SimCia402Drive:
         self.emcy_sent: History[co.Emergency] = History(history)
         self._port: NodePort | None = None
         self._scope: anyio.CancelScope | None = None
+        self.fault_requested: str | None = None
+        """A fault asked for by :meth:`inject_fault`, not yet applied."""
         self._kicked = False
         self.od: dict[tuple[int, int], _Obj] = {}
         self._mappings: dict[int, tuple[co.PdoMapEntry, ...]] = {}
@@ -402,6 +404,13 @@ class SimCia402Drive:
         self._emcy(code, register)
         self._kick()
 
+    def inject_fault(self, reason: str) -> None:
+        """Trip on over-temperature (EMCY 0x4210, then Fault; ``openel_async.rig.
+        FaultInjection``), from any thread: the request is applied by the peer's own loop."""
+        self.fault_requested = reason
+        if self._scope is not None:  # wake the loop (a cancel is a flag: safe off-thread)
+            self._scope.cancel()
+
     def set_silent(self, silent: bool = True) -> None:
         """Stop (or resume) transmitting and receiving: a node cut off the bus."""
         self.silent = silent
@@ -480,6 +489,10 @@ class SimCia402Drive:
         while True:
             now = clock.now_ns()
             self._kicked = False
+            if self.fault_requested is not None:
+                self.log.warning("sim_fault_injected", reason=self.fault_requested)
+                self.fault_requested = None
+                self.trip(co.EmcyCode.DEVICE_OVER_TEMPERATURE, co.ErrorRegister.TEMPERATURE)
             self._advance(now)
             pending, self.pending = self.pending, []
             for msg in pending:

@@ -153,6 +153,8 @@ class SimODrive:
         self.clock: Clock = clock or default_clock()
         now = self.clock.now_ns()
         self.axis_state: cs.AxisState | int = cs.AxisState.IDLE
+        self.fault_requested: str | None = None
+        """A fault asked for by :meth:`inject_fault`, not yet applied."""
         self.control_mode = cs.ControlMode.POSITION
         self.input_mode = cs.InputMode.PASSTHROUGH
         self.active_errors = 0
@@ -224,6 +226,11 @@ class SimODrive:
         if disarm:
             self.disarm_reason |= int(error)
             self._set_state(cs.AxisState.IDLE)
+
+    def inject_fault(self, reason: str) -> None:
+        """Trip on motor over-temperature (``openel_async.rig.FaultInjection``), from any
+        thread: the request is applied by the peer's own loop within an encoder period."""
+        self.fault_requested = reason
 
     def set_silent(self, silent: bool = True) -> None:
         """Stop (or resume) transmitting and listening: a node cut off the bus."""
@@ -482,6 +489,10 @@ class SimODrive:
         enc_ns = round(self.encoder_period * 1e9)
         while True:
             now = clock.now_ns()
+            if self.fault_requested is not None:
+                self.log.warning("sim_fault_injected", reason=self.fault_requested)
+                self.fault_requested = None
+                self.inject_error(ODriveError.MOTOR_OVER_TEMP)
             if now >= next_hb:
                 next_hb = max(next_hb + hb_ns, now)
                 await self._send(self.reply(cs.CmdId.HEARTBEAT))
