@@ -201,6 +201,10 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
     """``Motor.set_speed(speed, tm_acc)``: profile velocity with 0x6083/0x6084 (see
     :meth:`command_velocity_ramp`)."""
 
+    left_safe: bool = False
+    """``safe_stop`` left the device in its exit state: ``close`` leaves it so (set until
+    the next ``init``)."""
+
     def __init__(
         self,
         bus: CanBus,
@@ -353,6 +357,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         await self._configure()
 
     async def init(self) -> None:
+        self.left_safe = False
         self._latched = False
         self._heartbeat_error = False
         await self._enable()
@@ -378,11 +383,18 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         self._engaged = True
 
     async def close(self) -> None:
+        # After safe_stop the device stays as it left it (a rig's safety.on_exit: hold
+        # must outlive the host); otherwise the axis is disabled.
         self._engaged = False
         self._pending = None
         self.bus.release_heartbeat(self)
         try:
-            if self.bus.is_up and self._port is not None and self._statusword is not None:
+            if (
+                not self.left_safe
+                and self.bus.is_up
+                and self._port is not None
+                and self._statusword is not None
+            ):
                 with anyio.move_on_after(self.state_timeout):
                     state = self.power_state
                     if state in (PS.OPERATION_ENABLED, PS.SWITCHED_ON):
@@ -773,6 +785,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         0x605A says: 1..4 Switch on disabled, 5..8 stay in Quick stop active holding);
         TORQUE_OFF: Disable voltage (Switch on disabled, power stage off)."""
         action = ExitAction(action)
+        self.left_safe = True
         async with self._lock:
             self._enabled_wanted = action is ExitAction.HOLD and self._enabled_wanted
             self._pending = None

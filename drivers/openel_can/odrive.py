@@ -315,6 +315,10 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
     """``Motor.set_speed(speed, tm_acc)``: input mode VEL_RAMP with ``vel_ramp_rate`` written
     by RxSdo (see :meth:`command_velocity_ramp`)."""
 
+    left_safe: bool = False
+    """``safe_stop`` left the device in its exit state: ``close`` leaves it so (set until
+    the next ``init``)."""
+
     def __init__(
         self,
         bus: CanBus,
@@ -475,6 +479,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         await self._fresh_heartbeat(timeout=max(self.engage_timeout, self.heartbeat_timeout))
 
     async def init(self) -> None:
+        self.left_safe = False
         heartbeat = await self._fresh_heartbeat(timeout=self.heartbeat_timeout)
         if heartbeat.axis_error:
             raise HALError(
@@ -524,10 +529,12 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         self._engaged = True
 
     async def close(self) -> None:
+        # After safe_stop the device stays as it left it (a rig's safety.on_exit: hold
+        # must outlive the host); otherwise the axis is disabled.
         self._engaged = False
         self._pending = None
         try:
-            if self.bus.is_up and self._link.port is not None:
+            if not self.left_safe and self.bus.is_up and self._link.port is not None:
                 with anyio.move_on_after(self.engage_timeout):
                     await self._link.send(cs.SetAxisState(self.node_id, cs.AxisState.IDLE))
         except Exception as exc:  # closing a broken link must not raise
@@ -769,6 +776,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         velocity control with VEL_RAMP to 0 (the ODrive's ``vel_ramp_rate``), then it holds
         zero velocity; TORQUE_OFF: IDLE."""
         action = ExitAction(action)
+        self.left_safe = True
         node = self.node_id
         async with self._lock:
             self._pending = None

@@ -98,6 +98,7 @@ class Interrupted:
 async def _watch(
     work: anyio.CancelScope,
     caught: list[signal.Signals],
+    before_cancel: Callable[[], Awaitable[None]] | None,
     *,
     task_status: TaskStatus[None] = anyio.TASK_STATUS_IGNORED,
 ) -> None:
@@ -109,17 +110,27 @@ async def _watch(
                 continue
             log.info("signal_received", signal=signum.name)
             caught.append(signum)
+            if before_cancel is not None:
+                try:
+                    await before_cancel()
+                except Exception as exc:  # the work is cancelled all the same
+                    log.error("before_cancel_failed", error=repr(exc))
             work.cancel()
 
 
-async def run_interruptible(work: Callable[[], Awaitable[T]]) -> T | Interrupted:
+async def run_interruptible(
+    work: Callable[[], Awaitable[T]],
+    before_cancel: Callable[[], Awaitable[None]] | None = None,
+) -> T | Interrupted:
     """Run ``work()`` until it returns or SIGINT/SIGTERM arrives (then cancel it and wait for
     its clean-up, bounded only by the work's own bounded waits).
 
     Returns the work's result, or :class:`Interrupted` when a signal stopped it.  The signal
     handlers are installed (through ``anyio.open_signal_receiver``) before the work starts and
     kept until its clean-up is over, so a second Ctrl-C cannot interrupt the clean-up; the
-    previous SIGTERM handler is restored afterwards.
+    previous SIGTERM handler is restored afterwards. ``before_cancel`` (bounded by its own
+    waits) runs when the signal arrives, before the work is cancelled: what needs the work's
+    tasks alive (a rig's safe stop, whose replies come through its buses' tasks).
     """
     previous_sigterm = signal.getsignal(signal.SIGTERM)
     caught: list[signal.Signals] = []
@@ -133,7 +144,7 @@ async def run_interruptible(work: Callable[[], Awaitable[T]]) -> T | Interrupted
     error: str | None = None
     try:
         async with anyio.create_task_group() as tg:
-            await tg.start(_watch, scope, caught)
+            await tg.start(_watch, scope, caught, before_cancel)
             try:
                 with scope:
                     results.append(await work())

@@ -30,6 +30,17 @@ async def _run_main(info: AppInfo, ctx: AppContext) -> int | AppUnavailable | Sy
         return exc
 
 
+async def _leave_rigs_safe(ctx: AppContext) -> None:
+    """On a stop signal, before the app is cancelled: its timers stop (no more setpoints from
+    their observers) and each open rig leaves its actuators as ``safety.on_exit`` says while
+    its buses still answer."""
+    for timer in ctx.timers:
+        if timer.state.value == "Running":
+            timer.stop_timer()
+    for rig in ctx.rigs:
+        await rig.leave_safe()
+
+
 def run_app(
     info: AppInfo,
     argv: Sequence[str],
@@ -73,7 +84,12 @@ def run_app(
         return int(run_profile_cli(info.profile, list(argv)))
     ctx = AppContext(argv, prog=prog, hooks=hooks, rig=resolved, sim=sim)
     try:
-        result = anyio.run(run_interruptible, partial(_run_main, info, ctx), backend="asyncio")
+        result = anyio.run(
+            run_interruptible,
+            partial(_run_main, info, ctx),
+            partial(_leave_rigs_safe, ctx),
+            backend="asyncio",
+        )
     except BaseException:  # the app failed: still say how its rigs left the machine
         for rig_ in ctx.rigs:
             print(f"{label}: {rig_.exit_line()}", file=sys.stderr)

@@ -25,7 +25,7 @@ from ..positioned import did_you_mean
 from ..requests import Request
 from ..safety import EmergencyStop, ExitAction, Watchdog
 from ..sensor import Sensor
-from ..timer import EventTimer
+from ..timer import EventTimer, TimerState
 from .build import ResolvedRig, build_components, resolve_rig
 from .spec import JointLimits, RigSpec, SafetySpec
 
@@ -76,6 +76,23 @@ class Rig:
     """Filled when the rig closes: how each actuator was left."""
     clock: Clock | None = None
     """The clock the components and timers run on (None: the default clock)."""
+    left: bool = False
+    """:meth:`leave_safe` ran: the actuators were left in their exit state."""
+
+    async def leave_safe(self) -> None:
+        """Leave every actuator as ``safety.on_exit`` says, now (at once, each bounded by
+        ``safety.exit_timeout``): the rig's timers stop and its groups hold first. Runs once;
+        the rig's exit calls it. A runner about to cancel the run (a signal) calls it before
+        cancelling, while the buses still answer (``openel_async.app.run_app`` does)."""
+        if self.left:
+            return
+        self.left = True
+        for group in self.groups.values():
+            group.hold()
+        for timer in self.timers.values():
+            if timer.state is TimerState.RUNNING:
+                timer.stop_timer()
+        await _leave_safe(self)
 
     # -- lookups ---------------------------------------------------------------------------
     def _get(self, table: Mapping[str, T], what: str, name: str) -> T:
@@ -304,7 +321,7 @@ async def open_rig(
                 on_component(component)
         for component in components:
             await stack.enter_async_context(component)
-        stack.push_async_callback(_leave_safe, rig)
+        stack.push_async_callback(rig.leave_safe)
         if init:
             for component in components:
                 await component.init()
