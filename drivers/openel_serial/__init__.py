@@ -21,6 +21,7 @@ from .errors import (
 )
 from .gps import GpsFix, NmeaGps
 from .port import DynamixelPort, PingInfo, PortStats, PresentState
+from .rigbus import SerialBusKind, SerialBusOptions
 from .servo import DynamixelServo, DynamixelXL430W250, DynamixelXM430W350
 
 DRIVER = DriverInfo(
@@ -32,6 +33,7 @@ DRIVER = DriverInfo(
         "dynamixel_xl430_w250": DynamixelXL430W250,
         "nmea_gps": NmeaGps,
     },
+    buses={"serial": SerialBusKind()},
 )
 
 __all__ = [
@@ -50,4 +52,6 @@ __all__ = [
     "PortDisconnectedError",
     "PortStats",
     "PresentState",
+    "SerialBusKind",
+    "SerialBusOptions",
 ]

@@ -417,6 +417,8 @@ class SimServo:
         self.reboots = 0
         self._last_instruction_ns = now
         self.watchdog_trips = 0
+        self.fault_requested: str | None = None
+        """A fault asked for by :meth:`inject_fault`, not yet applied."""
         self.watchdog_tripped_ns: int | None = None
         """When the Bus Watchdog last expired (the servo's clock), or None."""
 
@@ -716,7 +718,16 @@ class SimServo:
             return None
         return self._status(dx.ErrorNumber.CRC_ERROR)
 
+    def inject_fault(self, reason: str) -> None:
+        """Overheat (Hardware Error Status bit 2: torque off, alert in every status;
+        ``openel_async.rig.FaultInjection``), from any thread: applied when the servo
+        handles its next instruction."""
+        self.fault_requested = reason
+
     def handle(self, msg: dx.DynamixelMessage) -> dx.Status | None:
+        if self.fault_requested is not None:
+            self.fault_requested = None
+            self.inject_hardware_error(dx.HardwareError.OVERHEATING)
         """Execute one instruction; the status to send back, if any."""
         if not self.responsive or self.clock.now_ns() < self._booting_until:
             return None

@@ -68,3 +68,4 @@ async def test_a_stalled_loop_lets_every_device_watchdog_stop_its_drive(tmp_path
         peers: dict[str, Any] = dict(rig.peers)
         assert peers["ODRIVE"].axis_state.name == "IDLE"
         assert peers["CIA402"].power_state.name != "OPERATION_ENABLED"
+        assert peers["SERVO_1"].watchdog_tripped and peers["SERVO_2"].watchdog_tripped

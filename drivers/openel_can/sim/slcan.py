@@ -703,6 +703,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--bitrate", type=int, default=1_000_000, help="the bus's bit rate (default 1000000)")  # fmt: skip
     parser.add_argument("--channel", default=None, help="python-can virtual channel of the bus (default: a fresh one)")  # fmt: skip
     parser.add_argument("--odrive-heartbeat", type=float, default=0.1, metavar="S", help="ODrive heartbeat period (default 0.1 s)")  # fmt: skip
+    parser.add_argument("--report", action="store_true", help="after the port, print each drive's state when it changes: 'odrive 1 IDLE', 'cia402 5 OPERATION_ENABLED' (polled every 10 ms)")  # fmt: skip
     parser.add_argument("--log-level", choices=("debug", "info", "warning", "error"), default="warning", help="log level (stderr; default warning)")  # fmt: skip
     args = parser.parse_args(argv)
     # The framework logs through the standard logging module: on stderr, as stdout carries
@@ -732,9 +733,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     with adapter:
         sys.stdout.write(adapter.port + "\n")
         sys.stdout.flush()
-        while not stop.wait(1.0):
-            pass
+        shown: dict[int, str] = {}
+        while not stop.wait(0.01 if args.report else 1.0):
+            if args.report:
+                for i, peer in enumerate(peers):
+                    line = _state_line(peer)
+                    if shown.get(i) != line:
+                        shown[i] = line
+                        sys.stdout.write(line + "\n")
+                        sys.stdout.flush()
     return 0
+
+
+def _state_line(peer: SimPeer) -> str:
+    """``odrive 1 CLOSED_LOOP_CONTROL``, ``cia402 5 QUICK_STOP_ACTIVE`` (read from another
+    thread: a snapshot of one attribute)."""
+    node = getattr(peer, "node_id", "?")
+    state = getattr(peer, "axis_state", None)
+    if state is not None:
+        return f"odrive {node} {getattr(state, 'name', state)}"
+    state = getattr(peer, "power_state", None)
+    return f"cia402 {node} {getattr(state, 'name', state)}"
 
 
 if __name__ == "__main__":
