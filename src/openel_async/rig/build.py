@@ -92,10 +92,21 @@ def resolve_rig(spec: RigSpec) -> ResolvedRig:
             raise _bus_error(error, bus)
         driver_name, kind = found
         if bus.doc is not None:
+            # The entry as written (with its 'type'), so that a refusal names its position.
+            typed = msgspec.defstruct(
+                kind.options_type.__name__,
+                [("type", str)],
+                bases=(kind.options_type,),
+                kw_only=True,
+                forbid_unknown_fields=True,
+            )
             try:
-                options = convert(bus.doc, bus.options, kind.options_type, f"buses.{bus.name}")
+                entry = convert(bus.doc, bus.raw, typed, f"buses.{bus.name}")
             except DocumentError as exc:
                 raise relocate(BadParameterError(exc.path, None, exc.message), exc) from None
+            fields = msgspec.structs.asdict(entry)
+            fields.pop("type")
+            options = kind.options_type(**fields)
         else:
             try:
                 options = convert_plain(bus.options, kind.options_type)
