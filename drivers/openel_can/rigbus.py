@@ -105,6 +105,19 @@ def _canopen_ids(node: int) -> set[int]:
     }
 
 
+def _claim(used: dict[int, str], ids: set[int], name: str, owner: str, node: int) -> None:
+    """Take ``ids`` for ``owner``; BadParameterError on ``name``'s node id when one is taken
+    by another device."""
+    for cob_id in sorted(ids):
+        other = used.setdefault(cob_id, owner)
+        if other != owner:
+            raise BadParameterError(
+                f"{name}.params.node_id",
+                node,
+                f"a node whose CAN ids are free ({cob_id:#x} is {other}'s)",
+            )
+
+
 class CanBusKind(BusKind):
     """``type: can`` (see the module docstring)."""
 
@@ -134,24 +147,15 @@ class CanBusKind(BusKind):
         if drives:
             used[co.HEARTBEAT_BASE + DEFAULT_HOST_NODE_ID] = "the host's heartbeat"
         for node, name in sorted(drives.items()):
-            for cob_id in _canopen_ids(node):
-                other = used.setdefault(cob_id, f"{name} (CANopen node {node})")
-                if not other.startswith(name):
-                    raise BadParameterError(
-                        f"{name}.params.node_id",
-                        node,
-                        f"a node whose CAN ids are free ({cob_id:#x} is {other}'s)",
-                    )
+            _claim(used, _canopen_ids(node), name, f"{name} (CANopen node {node})", node)
         for node, name in sorted(odrives.items()):
-            for cmd in range(32):
-                cob_id = node << 5 | cmd
-                other = used.setdefault(cob_id, f"{name} (ODrive node {node})")
-                if not other.startswith(name):
-                    raise BadParameterError(
-                        f"{name}.params.node_id",
-                        node,
-                        f"a node whose CAN ids are free ({cob_id:#x} is {other}'s)",
-                    )
+            _claim(
+                used,
+                {node << 5 | cmd for cmd in range(32)},
+                name,
+                f"{name} (ODrive node {node})",
+                node,
+            )
 
     def describe(self, options: Any) -> str:
         assert isinstance(options, CanBusOptions)
