@@ -167,15 +167,15 @@ def check_duration(duration: float) -> float:
     return float(duration)
 
 
-def check_period_ms(period_ms: float) -> float:
-    """``--period-ms``: a whole multiple of the :data:`PHYSICS_STEP_MS` physics step, at most
-    :data:`MAX_PERIOD_MS`."""
+def check_period_ms(period_ms: float, name: str = "--period-ms") -> float:
+    """``--period-ms`` (or the period ``name`` of a rig's timer): a whole multiple of the
+    :data:`PHYSICS_STEP_MS` physics step, at most :data:`MAX_PERIOD_MS`."""
     steps = period_ms / PHYSICS_STEP_MS if math.isfinite(period_ms) else math.nan
     if not (math.isfinite(steps) and steps >= 1 and steps == round(steps)) or not (
         period_ms <= MAX_PERIOD_MS
     ):
         raise ValueError(
-            f"--period-ms {period_ms:g}: a whole multiple of the {PHYSICS_STEP_MS:g} ms physics "
+            f"{name} {period_ms:g}: a whole multiple of the {PHYSICS_STEP_MS:g} ms physics "
             f"step, from {PHYSICS_STEP_MS:g} to {MAX_PERIOD_MS:g} ms"
         )
     return float(period_ms)

@@ -169,10 +169,7 @@ def load_arm_rig(
     bus = str(next(iter(on)))
     timer = next(t for t in spec.timers if t.name == found.timer)
     if period_ms is None:
-        try:
-            check_period_ms(timer.period_ms)
-        except ValueError as exc:
-            raise ValueError(f"{where}, timer {timer.name}: {exc}") from None
+        check_period_ms(timer.period_ms, f"{where}: timer {timer.name} period_ms")
     else:
         timer = dataclasses.replace(timer, period_ms=period_ms)
     adjusted = dataclasses.replace(
