@@ -19,9 +19,13 @@
   at each corner both setpoints arrive on the same tick (checked from ``group.log``).
 - **Measurement**: the ``tip_pos`` framepos sensor, read through an OpenEL ``Sensor`` at every
   timer tick, gives the tip's deviation from the ideal square edges.
+- **Rig**: the hardware comes from ``rigs/arm2.yaml`` (or ``openel-async run arm2 --rig
+  FILE``): the MuJoCo bus of the model, the joints ``shoulder`` and ``elbow``, the sensor
+  ``tip_pos``, the timer ``arm2-sync`` and the group ``arm2`` (its limits are those of the
+  approach; the edges use :data:`EDGE_LIMITS`), taken by name (see :mod:`.arm_rig`).
 
-Pacing is real time by default, as ``openel-async demo``; lockstep (deterministic, as fast as
-the CPU allows) with ``--virtual``.  At the end the run writes a plot of commanded vs actual joint positions, a plot
+Pacing is the rig's (real time in the shipped rig, as ``openel-async demo``); lockstep
+(deterministic, as fast as the CPU allows) with ``--virtual``, real time with ``--realtime``.  At the end the run writes a plot of commanded vs actual joint positions, a plot
 of the tip path against the square, and a snapshot of the scene (when OpenGL is available).
 """
 
@@ -30,7 +34,6 @@ from __future__ import annotations
 import argparse
 import math
 from collections.abc import Sequence
-from contextlib import AsyncExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -59,7 +62,6 @@ from .arm_demo import (
     add_common_arguments,
     arm_demo_args,
     arrival_spread,
-    enter_arm,
     finish,
     fmt_mm,
     line_waypoints,
@@ -69,13 +71,13 @@ from .arm_demo import (
     preload_plotting,
     print_report,
     record_times,
-    register,
     run_reported,
     save_plot,
     save_snapshot,
     spread_text,
     times_text,
 )
+from .arm_rig import RIGS, ArmRigSpec, arm_group, load_arm_rig, open_arm_rig
 
 if TYPE_CHECKING:
     import mujoco
@@ -86,12 +88,14 @@ if TYPE_CHECKING:
 __all__ = [
     "APP",
     "APP_INFO",
+    "RIG",
     "CornerArrival",
     "LapTooFastError",
     "PlanarArm",
     "SquareOptions",
     "SquareResult",
     "UnreachableError",
+    "arm2_rig",
     "build_parser",
     "distance_to_polygon",
     "edge_waypoints",
@@ -99,6 +103,7 @@ __all__ = [
     "min_lap_s",
     "open_sim",
     "plan_square",
+    "planar_arm",
     "report",
     "run_app",
     "run_square",
@@ -108,19 +113,23 @@ __all__ = [
 log = structlog.get_logger(__name__)
 
 APP = "arm2_square"
+RIG = RIGS / "arm2.yaml"
+"""The app's rig: the shipped ``arm2`` model on a MuJoCo bus (``--rig FILE`` replaces it)."""
+GROUP = "arm2"
+"""The rig's axis group the app moves the joints with."""
 JOINTS = ("shoulder", "elbow")
+"""The rig's joint components (named after the model's joints), the group's axes in order."""
+TIP = "tip_pos"
+"""The rig's sensor of the tip's position (x, y, z in m)."""
 Elbow = Literal["up", "down"]
 
 DEFAULT_LAP_S = 5.0
 """Default ``--duration``: seconds per lap (also the lap of ``openel-async demo``)."""
-DEFAULT_PERIOD_MS = 2.0
 DEFAULT_SIDE_M = 0.15
 DEFAULT_CENTER_M = (0.35, 0.0)
 DEFAULT_POINTS = 16
 MAX_POINTS = 1000
 """Most IK waypoints per edge (``--points``)."""
-LIMITS = AxisLimits(max_velocity=2.5, max_acceleration=15.0, max_jerk=200.0)
-"""Group limits (rad, s) of the approach move."""
 EDGE_LIMITS = AxisLimits(max_velocity=3.0, max_acceleration=60.0, max_jerk=3000.0)
 """Limits of the edges.  The timing comes from the waypoints' times; the group chains one
 ruckig segment per waypoint with a through velocity that is only an estimate, so short
@@ -319,6 +328,8 @@ class SquareResult:
     timer_ticks: int = 0
     timer_missed: int = 0
     artifacts: Artifacts = field(default_factory=Artifacts)
+    rig: str = ""
+    """The rig file and the group's limits (the summary's ``rig`` line)."""
 
     @property
     def max_setpoint_spread_ticks(self) -> int:
@@ -331,6 +342,7 @@ class SquareResult:
         lines = [
             f"square             {laps} of a {self.side_m * 100:.0f} cm square, {self.lap_s:g} s "
             f"per lap, elbow {self.elbow}, AxisGroup period {self.period_ms:g} ms",
+            *([f"rig                {self.rig}"] if self.rig else []),
             f"corners reached    {sum(a.outcome == 'succeeded' for a in self.arrivals)}"
             f"/{len(self.arrivals)}, tip within "
             f"{fmt_mm(max((a.tip_error_m for a in self.arrivals), default=0.0))} of the corner",
@@ -395,10 +407,38 @@ class _TipMonitor:
             )
 
 
-def open_sim(*, realtime: bool, ctx: AppContext | None = None) -> MujocoSim:
-    """The ``arm2`` simulation; raises :class:`~openel_async.app.AppUnavailable` when
-    MuJoCo or the model cannot load."""
-    return open_arm_sim("arm2", realtime=realtime, ctx=ctx)
+def arm2_rig(ctx: AppContext | None = None, period_ms: float | None = None) -> ArmRigSpec:
+    """The app's rig: ``ctx``'s ``--rig FILE`` or :data:`RIG`, its timer at ``period_ms``
+    (None: the rig's); ValueError for a rig without what the app takes by name,
+    :class:`~openel_async.app.AppUnavailable` without MuJoCo."""
+    return load_arm_rig(
+        ctx if ctx is not None else AppContext(),
+        RIG,
+        group=GROUP,
+        joints=JOINTS,
+        sensors=(TIP,),
+        period_ms=period_ms,
+    )
+
+
+def open_sim(
+    *, realtime: bool | None = None, ctx: AppContext | None = None, rig: ArmRigSpec | None = None
+) -> MujocoSim:
+    """The simulation of the rig's MuJoCo bus (default: :func:`arm2_rig`), not running,
+    paced as ``realtime`` says (None: as the rig says); raises
+    :class:`~openel_async.app.AppUnavailable` when MuJoCo or the model cannot load."""
+    return open_arm_sim(rig if rig is not None else arm2_rig(ctx), realtime=realtime, ctx=ctx)
+
+
+def planar_arm(sim: MujocoSim, rig: ArmRigSpec) -> PlanarArm:
+    """The arm's kinematics from the model of ``sim``, each joint's range narrowed by the
+    rig's position limits."""
+    arm = PlanarArm.from_model(sim.model)
+    return replace(
+        arm,
+        shoulder_range=rig.position_range("shoulder", arm.shoulder_range),
+        elbow_range=rig.position_range("elbow", arm.elbow_range),
+    )
 
 
 async def run_square(
@@ -408,48 +448,47 @@ async def run_square(
     square: SquareOptions = SquareOptions(),
     live: LiveLine | None = None,
     ctx: AppContext | None = None,
+    rig: ArmRigSpec | None = None,
 ) -> SquareResult:
-    """Trace the square on ``sim`` (not running yet: this enters it) and write the files.
+    """Trace the square on ``sim`` (the simulation of ``rig``'s MuJoCo bus, not running yet:
+    the rig runs it while it is open; default rig: :func:`arm2_rig` at ``options``'
+    period) and write the files.
 
     Raises :class:`UnreachableError` or ``ValueError`` (see :func:`plan_square`) before
     anything moves.
     """
     from openel_mujoco import TrajectoryRecorder
 
-    arm = PlanarArm.from_model(sim.model)
+    rig = rig if rig is not None else arm2_rig(ctx, options.period_ms)
+    arm = planar_arm(sim, rig)
     corners = square_corners(square.center, square.side)
     edges = plan_square(arm, square)
     start = arm.inverse(*corners[0], square.elbow)
     result = SquareResult(
         pacing=sim.pacing,
-        period_ms=options.period_ms,
+        period_ms=rig.period_ms,
         lap_s=square.lap_s,
         laps=square.laps,
         side_m=square.side,
         elbow=square.elbow,
         corners=corners,
+        rig=f"{rig.source}, {rig.limits_text()}",
     )
-    recorder = TrajectoryRecorder(sim, list(JOINTS), every=max(1, round(options.period_ms)))
     out_dir = options.out_dir
-    await preload_plotting()
-    async with sim:  # outermost: the physics runs while the rest does
-        async with AsyncExitStack() as stack:
-            rig = await enter_arm(
-                stack,
-                sim,
-                JOINTS,
-                options=options,
-                name="arm2",
-                limits=LIMITS,
-                tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
-                planned_s=3.0 + square.laps * square.lap_s,
-                log_actual=True,
-                ctx=ctx,
-            )
-            timer, group = rig.timer, rig.group
-            tip = await stack.enter_async_context(
-                register(ctx, Sensor(sim.sensor("tip_pos"), device_name="tip_pos", clock=sim.clock))
-            )
+    await preload_plotting()  # before the physics runs: a lockstep run stays deterministic
+    async with open_arm_rig(rig, sim, ctx) as opened:  # the physics runs while it is open
+        # (on the rig's joints: the devices of the components)
+        recorder = TrajectoryRecorder(sim, list(JOINTS), every=max(1, round(rig.period_ms)))
+        group = arm_group(
+            opened,
+            rig,
+            tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
+            planned_s=3.0 + square.laps * square.lap_s,
+            log_actual=True,
+        )
+        timer = group.timer
+        tip = opened.sensor(TIP)
+        async with group:
             monitor = _TipMonitor(tip, arm, group, result, live, sim)
             timer.add_observer(monitor)
             recorder.attach()
@@ -467,8 +506,8 @@ async def run_square(
             max_deviation_mm=round(result.max_deviation_m * 1e3, 3),
             corners=len(result.arrivals),
         )
-        # The components are closed (the joints hold their last position): the snapshot shows
-        # the arm on the first corner, where the square ends.
+        # The group is closed (the joints hold their last position): the snapshot shows the
+        # arm on the first corner, where the square ends.
         out_dir.mkdir(parents=True, exist_ok=True)
         snapshot, skipped = await save_snapshot(sim, out_dir / f"{APP}_scene.png")
     result.artifacts = Artifacts(snapshot=snapshot, snapshot_skipped=skipped)
@@ -585,7 +624,6 @@ def build_parser(prog: str = "arm2_square") -> argparse.ArgumentParser:
         duration_help=f"Seconds per lap of the square, all laps together at most "
         f"{MAX_DURATION_S:g} (default {DEFAULT_LAP_S:g}).",
         default_duration=DEFAULT_LAP_S,
-        default_period_ms=DEFAULT_PERIOD_MS,
     )
     parser.add_argument(
         "--laps", type=int, default=1, metavar="N", help="Laps of the square (default 1)."
@@ -738,12 +776,16 @@ async def main(ctx: AppContext) -> int:
     except ValueError as exc:  # a bad option: argparse's message and exit status 2
         parser.error(str(exc))
     ctx.title = "MuJoCo arm2 demo"
-    sim = open_sim(realtime=options.realtime, ctx=ctx)
     try:
-        plan_square(PlanarArm.from_model(sim.model), square)
+        rig = arm2_rig(ctx, options.period_ms)
+    except ValueError as exc:  # a rig without what the app takes by name
+        parser.error(str(exc))
+    sim = open_sim(realtime=options.realtime, ctx=ctx, rig=rig)
+    try:
+        plan_square(planar_arm(sim, rig), square)
     except ValueError as exc:  # checked before anything runs
         parser.error(str(exc))
-    return await run_app(sim, options, square=square, prog=ctx.prog, ctx=ctx)
+    return await run_app(sim, options, square=square, prog=ctx.prog, ctx=ctx, rig=rig)
 
 
 async def run_app(
@@ -753,13 +795,16 @@ async def run_app(
     square: SquareOptions | None = None,
     prog: str = APP,
     ctx: AppContext | None = None,
+    rig: ArmRigSpec | None = None,
 ) -> int:
-    """Plan, run and report the square on ``sim`` (default: one lap of ``options.duration``);
-    returns the exit status (0: every corner reached; see :func:`~.arm_demo.run_reported`)."""
+    """Plan, run and report the square on ``sim`` (the simulation of ``rig``'s MuJoCo bus,
+    default :func:`arm2_rig`; default square: one lap of ``options.duration``); returns the
+    exit status (0: every corner reached; see :func:`~.arm_demo.run_reported`)."""
     square = square or SquareOptions(lap_s=options.duration)
+    rig = rig if rig is not None else arm2_rig(ctx, options.period_ms)
 
     async def run(live: LiveLine | None) -> SquareResult:
-        return await run_square(sim, options=options, square=square, live=live, ctx=ctx)
+        return await run_square(sim, options=options, square=square, live=live, ctx=ctx, rig=rig)
 
     def reported(result: SquareResult) -> bool:
         report(result)
@@ -767,7 +812,7 @@ async def run_app(
 
     return await run_reported(
         prog,
-        plan=lambda: plan_square(PlanarArm.from_model(sim.model), square),
+        plan=lambda: plan_square(planar_arm(sim, rig), square),
         run=run,
         report=reported,
         live=options.live,
@@ -792,5 +837,6 @@ APP_INFO = AppInfo(
     "AxisGroup); PNG plots and a snapshot",
     main=main,
     demo_args=demo_args,
+    takes_rig=True,
 )
 """The entry point ``arm2`` of the ``openel_async.apps`` group."""

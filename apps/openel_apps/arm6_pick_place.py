@@ -4,11 +4,13 @@
 The sequence: home -> above the box -> down onto it -> suction on -> lift -> move over the
 place location -> down -> suction off -> up -> home.
 
-- **Devices**: the simulation is built from a declarative description (:data:`DESCRIPTION`):
-  the six joints of ``arm6`` are Actuators of a ``MujocoSim``, and so is the model's ``suction``
-  adhesion actuator, a :class:`~openel_mujoco.effectors.MujocoEffector` (TORQUE = adhesion force
-  in N, NO_EXCITE = off; it posts ``HOLDING`` when the pad holds something).  The ``tool_pos``
-  and ``pad_touch`` sensors are Sensors.
+- **Devices**: they come from the rig ``rigs/arm6.yaml`` (or ``openel-async run arm6 --rig
+  FILE``), taken by name (see :mod:`.arm_rig`): the model ``arm6`` from its keyframe
+  ``home`` on a MuJoCo bus, its six joints as Actuators, the model's ``suction`` adhesion
+  actuator as the Actuator ``suction``, a :class:`~openel_mujoco.effectors.MujocoEffector`
+  (TORQUE = adhesion force in N, NO_EXCITE = off; it posts ``HOLDING`` when the pad holds
+  something), the ``tool_pos`` and ``pad_touch`` sensors as Sensors, the timer ``arm6-sync``
+  and the group ``arm6`` (its limits are those of the joint-space moves).
 - **Joints**: one :class:`~openel_async.motion.AxisGroup` moves the six joints together
   (setpoints streamed on an EventTimer of the simulation clock; every motion
   time-synchronized: all joints leave and arrive on the same tick).
@@ -30,17 +32,16 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Mapping, Sequence
-from contextlib import AsyncExitStack
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Final
 
 import anyio
 import structlog
 
 from openel_async import Actuator, EventTimer, HALError, Request, Sensor
-from openel_async.app import AppContext, AppInfo, AppUnavailable, DemoOptions, LiveLine
+from openel_async.app import AppContext, AppInfo, DemoOptions, LiveLine
 from openel_async.motion import (
     AxisGroup,
     AxisLimits,
@@ -59,23 +60,23 @@ from .arm_demo import (
     add_common_arguments,
     arm_demo_args,
     arrival_spread,
-    enter_arm,
     finish,
     fmt_mm,
     fmt_point,
     line_waypoints,
+    open_arm_sim,
     options_from,
     pacing_name,
     preload_plotting,
     print_report,
     record_times,
-    register,
     run_reported,
     save_plot,
     save_snapshot,
     spread_text,
     times_text,
 )
+from .arm_rig import RIGS, ArmRigSpec, arm_group, load_arm_rig, open_arm_rig
 
 if TYPE_CHECKING:
     import mujoco
@@ -85,13 +86,14 @@ if TYPE_CHECKING:
 __all__ = [
     "APP",
     "APP_INFO",
-    "DESCRIPTION",
+    "RIG",
     "Arm6Kinematics",
     "PickPlacePlan",
     "PickPlaceResult",
     "SequenceTooFastError",
     "StepRecord",
     "UnreachableError",
+    "arm6_rig",
     "build_parser",
     "main",
     "min_duration_s",
@@ -105,6 +107,16 @@ __all__ = [
 log = structlog.get_logger(__name__)
 
 APP: Final = "arm6_pick_place"
+RIG: Final = RIGS / "arm6.yaml"
+"""The app's rig: the shipped ``arm6`` model on a MuJoCo bus (``--rig FILE`` replaces it)."""
+GROUP: Final = "arm6"
+"""The rig's axis group the app moves the joints with."""
+SUCTION: Final = "suction"
+"""The rig's suction cup (an effector: TORQUE is the adhesion force)."""
+TOOL: Final = "tool_pos"
+"""The rig's sensor of the pad face's position (x, y, z in m)."""
+TOUCH: Final = "pad_touch"
+"""The rig's touch sensor of the pad (N)."""
 JOINTS: Final = (
     "base_yaw",
     "shoulder_pitch",
@@ -114,7 +126,6 @@ JOINTS: Final = (
     "flange_roll",
 )
 DEFAULT_DURATION_S: Final = 8.0
-DEFAULT_PERIOD_MS: Final = 2.0
 DEFAULT_PLACE_M: Final = (0.20, 0.40)
 APPROACH_HEIGHT_M: Final = 0.08
 """Height of the tool above the box's top face before descending and after lifting."""
@@ -127,6 +138,7 @@ SUCTION_FORCE_N: Final = 20.0
 DWELL_S: Final = 0.25
 """Simulated seconds the arm waits after switching the suction on or off."""
 MOVE_LIMITS: Final = AxisLimits(max_velocity=2.0, max_acceleration=8.0, max_jerk=80.0)
+"""The limits of the joint-space moves in the shipped rig (its group's): the planning's default."""
 LINE_LIMITS: Final = AxisLimits(max_velocity=2.0, max_acceleration=60.0, max_jerk=3000.0)
 """Limits of the vertical lines (timed waypoints: the timing comes from the waypoints; short
 segments need brief acceleration peaks, see apps/arm2_square.py)."""
@@ -213,36 +225,43 @@ class Arm6Kinematics:
         return q
 
 
-# -- the simulation ------------------------------------------------------------------------------
-
-DESCRIPTION: Final[Mapping[str, Any]] = {
-    "model": "arm6",
-    "keyframe": "home",
-    "joints": list(JOINTS),
-    "sensors": ["tool_pos", "pad_touch"],
-    "effectors": ["suction"],
-}
-"""The devices of the app as a ``SimDescription`` (the pacing is added by :func:`open_sim`)."""
+# -- the rig ---------------------------------------------------------------------------------------
 
 
-def open_sim(*, realtime: bool, ctx: AppContext | None = None) -> MujocoSim:
-    """The ``arm6`` simulation from :data:`DESCRIPTION` (its clock registered with ``ctx``);
-    raises :class:`~openel_async.app.AppUnavailable` when MuJoCo or the model cannot
-    load."""
-    try:
-        from openel_mujoco import MujocoSim
+def arm6_rig(ctx: AppContext | None = None, period_ms: float | None = None) -> ArmRigSpec:
+    """The app's rig: ``ctx``'s ``--rig FILE`` or :data:`RIG`, its timer at ``period_ms``
+    (None: the rig's); ValueError for a rig without what the app takes by name,
+    :class:`~openel_async.app.AppUnavailable` without MuJoCo."""
+    return load_arm_rig(
+        ctx if ctx is not None else AppContext(),
+        RIG,
+        group=GROUP,
+        joints=JOINTS,
+        actuators=(SUCTION,),
+        sensors=(TOOL, TOUCH),
+        period_ms=period_ms,
+    )
 
-        pacing = "realtime" if realtime else "lockstep"
-        sim = MujocoSim.from_description({**DESCRIPTION, "pacing": pacing})
-    except Exception as exc:  # ImportError, ModelLoadError, MuJoCo's own load errors
-        raise AppUnavailable("MuJoCo", f"{type(exc).__name__}: {exc}") from exc
-    if ctx is not None:
-        ctx.use_clock(sim.clock)
-        if ctx.hooks:  # a recorder or a live view: the arm's bodies for the 3D panel
-            from openel_mujoco.foxglove_scene import MujocoScene
 
-            ctx.add_scene(MujocoScene(sim))
-    return sim
+def open_sim(
+    *, realtime: bool | None = None, ctx: AppContext | None = None, rig: ArmRigSpec | None = None
+) -> MujocoSim:
+    """The simulation of the rig's MuJoCo bus (default: :func:`arm6_rig`), not running,
+    paced as ``realtime`` says (None: as the rig says); its clock (and scene, for a
+    recorder or a live view) registered with ``ctx``; raises
+    :class:`~openel_async.app.AppUnavailable` when MuJoCo or the model cannot load."""
+    return open_arm_sim(rig if rig is not None else arm6_rig(ctx), realtime=realtime, ctx=ctx)
+
+
+def kinematics(sim: MujocoSim, rig: ArmRigSpec | None = None) -> Arm6Kinematics:
+    """The arm's kinematics from the model of ``sim``, each joint's range narrowed by the
+    rig's position limits (none: the model's ranges)."""
+    kin = Arm6Kinematics.from_model(sim.model)
+    if rig is None:
+        return kin
+    return replace(
+        kin, ranges=tuple(rig.position_range(j, r) for j, r in zip(JOINTS, kin.ranges, strict=True))
+    )
 
 
 # -- the run --------------------------------------------------------------------------------------
@@ -278,6 +297,8 @@ class PickPlaceResult:
     timer_ticks: int = 0
     timer_missed: int = 0
     artifacts: Artifacts = field(default_factory=Artifacts)
+    rig: str = ""
+    """The rig file and the group's limits (the summary's ``rig`` line)."""
 
     @property
     def box_moved_m(self) -> float:
@@ -305,6 +326,7 @@ class PickPlaceResult:
             f"motions            {ok}/{len(motions)} succeeded (AxisGroup of 6 joints, "
             f"period {self.period_ms:g} ms), joint setpoints arrive "
             f"{spread_text(self.max_setpoint_spread_ticks, self.period_ms)}",
+            *([f"rig                {self.rig}"] if self.rig else []),
             f"box                {picked}; contact force {self.grip_force_n:.1f} N with the "
             f"suction on",
             f"box moved          from {fmt_point(self.box_start_m)} to "
@@ -378,20 +400,26 @@ class SequenceTooFastError(ValueError):
     """``--duration`` is too short for the arm's limits (the message names the shortest)."""
 
 
-def plan_pick_place(sim: MujocoSim, place: tuple[float, float], duration: float) -> PickPlacePlan:
+def plan_pick_place(
+    sim: MujocoSim,
+    place: tuple[float, float],
+    duration: float,
+    rig: ArmRigSpec | None = None,
+) -> PickPlacePlan:
     """Solve every target (the box's position comes from the simulation's initial state) and
-    plan every motion offline as the group will, from rest to rest.
+    plan every motion offline as the group will, from rest to rest, with ``rig``'s group
+    limits and joint ranges (none: :data:`MOVE_LIMITS`, the model's ranges).
 
     Raises :class:`UnreachableError` naming ``--place`` for a point out of reach and
     :class:`SequenceTooFastError` naming ``--duration`` and the shortest sequence when
     ``duration`` is too short for the group's limits.
     """
     try:
-        return _plan(sim, place, duration)
+        return _plan(sim, place, duration, rig)
     except UnreachableError as exc:
         raise UnreachableError(f"--place {place[0]:g} {place[1]:g}: {exc}") from exc
     except HALError as exc:
-        shortest = min_duration_s(sim, place)
+        shortest = min_duration_s(sim, place, rig=rig)
         if shortest is None:
             raise SequenceTooFastError(
                 f"--place {place[0]:g} {place[1]:g}: the arm cannot put the box there "
@@ -404,14 +432,19 @@ def plan_pick_place(sim: MujocoSim, place: tuple[float, float], duration: float)
 
 
 def min_duration_s(
-    sim: MujocoSim, place: tuple[float, float], *, resolution: float = 0.05
+    sim: MujocoSim,
+    place: tuple[float, float],
+    *,
+    resolution: float = 0.05,
+    rig: ArmRigSpec | None = None,
 ) -> float | None:
     """The shortest ``--duration`` (s, rounded up to ``resolution``) the arm's limits allow
-    for ``place``; None when none up to :data:`MAX_DURATION_S` does."""
+    for ``place`` (``rig``'s, see :func:`plan_pick_place`); None when none up to
+    :data:`MAX_DURATION_S` does."""
 
     def plans(duration: float) -> bool:
         try:
-            _plan(sim, place, duration)
+            _plan(sim, place, duration, rig)
         except HALError:
             return False
         return True
@@ -425,10 +458,13 @@ def min_duration_s(
     return math.ceil(high / resolution - 1e-9) * resolution
 
 
-def _plan(sim: MujocoSim, place: tuple[float, float], duration: float) -> PickPlacePlan:
+def _plan(
+    sim: MujocoSim, place: tuple[float, float], duration: float, rig: ArmRigSpec | None
+) -> PickPlacePlan:
     """:func:`plan_pick_place` without the messages: raises :class:`UnreachableError` and
     the planner's :class:`HALError`."""
-    kin = Arm6Kinematics.from_model(sim.model)
+    kin = kinematics(sim, rig)
+    move_limits = rig.limits if rig is not None else [MOVE_LIMITS] * len(JOINTS)
     box = _box_position(sim)
     half = float(sim.model.geom("box").size[2])
     top = box[2] + half
@@ -468,7 +504,7 @@ def _plan(sim: MujocoSim, place: tuple[float, float], duration: float) -> PickPl
         start = KinematicState(position, rest, rest)
         if name in moves:
             position = moves[name]
-            planner.move(0, start, position, [MOVE_LIMITS] * n, duration=d[name])
+            planner.move(0, start, position, move_limits, duration=d[name])
         else:
             points = [(list(w.positions), w.time) for w in paths[name]]
             planner.waypoints(0, start, points, [LINE_LIMITS] * n)
@@ -531,15 +567,19 @@ async def run_pick_place(
     place: tuple[float, float] = DEFAULT_PLACE_M,
     live: LiveLine | None = None,
     ctx: AppContext | None = None,
+    rig: ArmRigSpec | None = None,
 ) -> PickPlaceResult:
-    """Run the sequence on ``sim`` (an ``arm6`` simulation, not running yet) and write the files.
+    """Run the sequence on ``sim`` (the ``arm6`` simulation of ``rig``'s MuJoCo bus, not
+    running yet: the rig runs it while it is open; default rig: :func:`arm6_rig` at
+    ``options``' period) and write the files.
 
     Raises :class:`UnreachableError` or ``ValueError`` (see :func:`plan_pick_place`) before
     anything moves.
     """
-    from openel_mujoco import TrajectoryRecorder
+    from openel_mujoco import MujocoEffector, TrajectoryRecorder
 
-    plan = plan_pick_place(sim, place, options.duration)
+    rig = rig if rig is not None else arm6_rig(ctx, options.period_ms)
+    plan = plan_pick_place(sim, place, options.duration, rig)
     box = plan.box
     q_above_pick, q_above_place, home = plan.above_pick, plan.above_place, plan.home
     down, lift_path, place_down, up = plan.down, plan.lift, plan.place_down, plan.up
@@ -547,47 +587,38 @@ async def run_pick_place(
 
     result = PickPlaceResult(
         pacing=sim.pacing,
-        period_ms=options.period_ms,
+        period_ms=rig.period_ms,
         duration_s=options.duration,
         pick_m=plan.pick,
         place_m=(place[0], place[1], box[2]),
         box_start_m=box,
+        rig=f"{rig.source}, {rig.limits_text()}",
     )
-    clock = sim.clock
-    recorder = TrajectoryRecorder(sim, list(JOINTS), every=max(1, round(options.period_ms)))
     out_dir = options.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
-    await preload_plotting()
+    await preload_plotting()  # before the physics runs: a lockstep run stays deterministic
     # The scene before the run (also warms the renderer up before anything runs in real time).
     first, _ = await save_snapshot(sim, out_dir / f"{APP}_start.png")
     lift: Path | None = None
-    async with sim:  # outermost: the physics runs while the rest does
-        async with AsyncExitStack() as stack:
-            rig = await enter_arm(
-                stack,
-                sim,
-                JOINTS,
-                options=options,
-                name="arm6",
-                limits=MOVE_LIMITS,
-                tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
-                planned_s=options.duration + 10.0,  # the dwells and the final rest on top
-                ctx=ctx,
-            )
-            timer, group = rig.timer, rig.group
-            cup = sim.effector("suction")  # the adhesion actuator: a MujocoEffector
-            suction = await stack.enter_async_context(
-                register(ctx, Actuator(cup, device_name="suction", clock=clock))
-            )
-            tool = await stack.enter_async_context(
-                register(ctx, Sensor(sim.sensor("tool_pos"), device_name="tool_pos", clock=clock))
-            )
-            touch = await stack.enter_async_context(
-                register(ctx, Sensor(sim.sensor("pad_touch"), device_name="pad_touch", clock=clock))
-            )
+    async with open_arm_rig(rig, sim, ctx) as opened:  # the physics runs while it is open
+        # (on the rig's joints: the devices of the components)
+        recorder = TrajectoryRecorder(sim, list(JOINTS), every=max(1, round(rig.period_ms)))
+        group = arm_group(
+            opened,
+            rig,
+            tolerances=Tolerances(goal=GOAL_TOLERANCE_RAD, path=PATH_TOLERANCE_RAD),
+            planned_s=options.duration + 10.0,  # the dwells and the final rest on top
+        )
+        timer = group.timer
+        suction = opened.actuator(SUCTION)
+        cup = suction.device
+        if not isinstance(cup, MujocoEffector):
+            raise HALError(f"{SUCTION} of rig {rig.source} is not a MuJoCo effector: {cup!r}")
+        tool, touch = opened.sensor(TOOL), opened.sensor(TOUCH)
+        async with group:
             progress = None
             if live is not None:
-                every = max(1, round(50.0 / options.period_ms))  # every 50 ms of simulated time
+                every = max(1, round(50.0 / rig.period_ms))  # every 50 ms of simulated time
                 progress = _Progress(sim, tool, cup, live, every)
                 timer.add_observer(progress)
             app = _Sequence(sim, group, suction, tool, touch, progress, result)
@@ -604,7 +635,7 @@ async def run_pick_place(
                 await app.step("suction on")
                 await app.step("lift", await group.follow(lift_path, LINE_LIMITS))
                 result.carried = _box_position(sim)[2] - box[2] > 0.03
-                if not options.realtime:
+                if sim.pacing != "realtime":
                     # Rendering holds the GIL for ~0.2-0.3 s (MuJoCo's GL context and render
                     # calls), which would stall a real-time control loop holding the box.
                     lift, _ = await save_snapshot(sim, out_dir / f"{APP}_lift.png")
@@ -657,7 +688,6 @@ def build_parser(prog: str = APP) -> argparse.ArgumentParser:
         duration_help=f"Seconds of arm motion for the whole sequence, the suction dwells "
         f"not counted, at most {MAX_DURATION_S:g} (default {DEFAULT_DURATION_S:g}).",
         default_duration=DEFAULT_DURATION_S,
-        default_period_ms=DEFAULT_PERIOD_MS,
     )
     parser.add_argument(
         "--place",
@@ -683,13 +713,17 @@ async def main(ctx: AppContext) -> int:
     except ValueError as exc:  # a bad option: argparse's message and exit status 2
         parser.error(str(exc))
     ctx.title = "MuJoCo arm6 demo"
-    sim = open_sim(realtime=options.realtime, ctx=ctx)
+    try:
+        rig = arm6_rig(ctx, options.period_ms)
+    except ValueError as exc:  # a rig without what the app takes by name
+        parser.error(str(exc))
+    sim = open_sim(realtime=options.realtime, ctx=ctx, rig=rig)
     place = (float(args.place[0]), float(args.place[1]))
     try:
-        plan_pick_place(sim, place, options.duration)
+        plan_pick_place(sim, place, options.duration, rig)
     except ValueError as exc:  # checked before anything runs
         parser.error(str(exc))
-    return await run_app(sim, options, place=place, prog=ctx.prog, ctx=ctx)
+    return await run_app(sim, options, place=place, prog=ctx.prog, ctx=ctx, rig=rig)
 
 
 async def run_app(
@@ -699,12 +733,15 @@ async def run_app(
     place: tuple[float, float] = DEFAULT_PLACE_M,
     prog: str = APP,
     ctx: AppContext | None = None,
+    rig: ArmRigSpec | None = None,
 ) -> int:
-    """Plan, run and report the pick and place on ``sim``; returns the exit status (0: the box
-    was carried; see :func:`~.arm_demo.run_reported`)."""
+    """Plan, run and report the pick and place on ``sim`` (the simulation of ``rig``'s
+    MuJoCo bus, default :func:`arm6_rig`); returns the exit status (0: the box was carried;
+    see :func:`~.arm_demo.run_reported`)."""
+    rig = rig if rig is not None else arm6_rig(ctx, options.period_ms)
 
     async def run(live: LiveLine | None) -> PickPlaceResult:
-        return await run_pick_place(sim, options=options, place=place, live=live, ctx=ctx)
+        return await run_pick_place(sim, options=options, place=place, live=live, ctx=ctx, rig=rig)
 
     def reported(result: PickPlaceResult) -> bool:
         report(result)
@@ -712,7 +749,7 @@ async def run_app(
 
     return await run_reported(
         prog,
-        plan=lambda: plan_pick_place(sim, place, options.duration),
+        plan=lambda: plan_pick_place(sim, place, options.duration, rig),
         run=run,
         report=reported,
         live=options.live,
@@ -739,5 +776,6 @@ APP_INFO = AppInfo(
     "elsewhere; PNG plots and snapshots",
     main=main,
     demo_args=demo_args,
+    takes_rig=True,
 )
 """The entry point ``arm6`` of the ``openel_async.apps`` group."""

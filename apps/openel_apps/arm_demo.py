@@ -4,21 +4,22 @@
 The arm apps (:mod:`.arm2_square` and :mod:`.arm6_pick_place`) share:
 
 - the common command-line options (``--duration``, ``--virtual`` / ``--realtime``, ``--out``,
-  ``--no-live``, ``--period-ms``; real time by default, as ``openel-async demo``) and the output
-  directory (``out/<app>/`` under the current directory);
+  ``--no-live``, ``--period-ms``; the pacing and the period of the rig by default: real time
+  and 2 ms in the shipped rigs, as ``openel-async demo``) and the output directory
+  (``out/<app>/`` under the current directory);
 - the end-of-run files: a PNG plot of commanded vs actual joint positions and a PNG snapshot of
   the scene, rendered in a worker thread and skipped with a reason when OpenGL is unavailable;
 - timed straight-line paths in task space (:func:`line_waypoints`, minimum-jerk timing) for
   :meth:`AxisGroup.follow`, and :class:`UnreachableError` for the inverse kinematics;
 - the synchronization analysis of an :class:`~openel_async.motion.AxisGroup` motion (on which
   tick each axis' setpoints arrive at their target);
-- entering the joints' Actuators, the EventTimer and the AxisGroup of a run (:func:`enter_arm`),
-  its timing (:func:`record_times`, :func:`times_text`);
+- the timing of a run (:func:`record_times`, :func:`times_text`); its hardware comes from a
+  rig file (:mod:`.arm_rig`);
 - the flow of a run (:func:`run_reported`: plan, run, report, exit status), the summary printer
   and bounded waits on group motions;
-- loading the model (:func:`open_arm_sim`: :class:`~openel_async.app.AppUnavailable` when
-  MuJoCo or the model cannot load) and the ``openel-async demo`` options as an arm app's
-  command line (:func:`arm_demo_args`).
+- building the simulation of the rig's MuJoCo bus (:func:`open_arm_sim`:
+  :class:`~openel_async.app.AppUnavailable` when MuJoCo or the model cannot load) and the
+  ``openel-async demo`` options as an arm app's command line (:func:`arm_demo_args`).
 
 This module imports neither MuJoCo nor matplotlib: the simulation objects are passed in, so the
 apps can be discovered without paying for (or failing on) MuJoCo.
@@ -31,7 +32,6 @@ import math
 import os
 import sys
 from collections.abc import Awaitable, Callable, Sequence
-from contextlib import AsyncExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal, Protocol, TextIO, TypeVar
@@ -41,22 +41,15 @@ import anyio.to_thread
 import numpy as np
 import structlog
 
-from openel_async.actuator import Actuator
 from openel_async.app import AppContext, AppUnavailable, DemoOptions, LiveLine, atomic_output
-from openel_async.component import HALComponent
 from openel_async.errors import HALError
-from openel_async.motion import (
-    AxisGroup,
-    AxisLimits,
-    GroupMotion,
-    Tolerances,
-    TrajectorySamples,
-    Waypoint,
-)
+from openel_async.motion import GroupMotion, TrajectorySamples, Waypoint
 from openel_async.timer import EventTimer
 
 if TYPE_CHECKING:
     from openel_mujoco import MujocoSim, TrajectoryRecorder
+
+    from .arm_rig import ArmRigSpec
 
 log = structlog.get_logger(__name__)
 
@@ -86,14 +79,19 @@ class ArmOptions:
     """The options every arm app takes (see :func:`add_common_arguments`)."""
 
     duration: float
-    realtime: bool
+    realtime: bool | None
+    """``--realtime`` (True), ``--virtual`` (False: lockstep), or the pacing of the rig's
+    MuJoCo bus (None)."""
     out_dir: Path
     live: bool
-    period_ms: float
+    period_ms: float | None
+    """``--period-ms``, or the period of the rig's timer (None)."""
 
     @property
-    def pacing(self) -> Literal["lockstep", "realtime"]:
-        """The ``MujocoSim`` pacing the options ask for."""
+    def pacing(self) -> Literal["lockstep", "realtime"] | None:
+        """The ``MujocoSim`` pacing the options ask for (None: the rig's)."""
+        if self.realtime is None:
+            return None
         return "realtime" if self.realtime else "lockstep"
 
 
@@ -103,9 +101,9 @@ def add_common_arguments(
     *,
     duration_help: str,
     default_duration: float,
-    default_period_ms: float,
 ) -> None:
-    """The options every arm app takes; the defaults are those of ``openel-async demo``."""
+    """The options every arm app takes; the defaults are those of ``openel-async demo`` (the
+    pacing and the period: the rig's)."""
     parser.add_argument(
         "--duration", type=float, default=default_duration, metavar="S", help=duration_help
     )
@@ -121,16 +119,18 @@ def add_common_arguments(
     parser.add_argument(
         "--period-ms",
         type=float,
-        default=default_period_ms,
+        default=None,
         metavar="MS",
         help=f"EventTimer period of the axis group in ms, a whole number from "
-        f"{PHYSICS_STEP_MS:g} to {MAX_PERIOD_MS:g} (default {default_period_ms:g}).",
+        f"{PHYSICS_STEP_MS:g} to {MAX_PERIOD_MS:g} (default: the period of the rig's timer, "
+        "2 in the shipped rigs).",
     )
 
 
 def add_pacing_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--virtual`` and ``--realtime`` (mutually exclusive; real time by default), the same
-    two flags in every shipped app and in ``openel-async demo``."""
+    """``--virtual`` and ``--realtime`` (mutually exclusive; the pacing of the rig's MuJoCo
+    bus by default: real time in the shipped rigs), the same two flags in every shipped app
+    and in ``openel-async demo``."""
     pacing = parser.add_mutually_exclusive_group()
     pacing.add_argument(
         "--virtual",
@@ -140,7 +140,8 @@ def add_pacing_arguments(parser: argparse.ArgumentParser) -> None:
     pacing.add_argument(
         "--realtime",
         action="store_true",
-        help="Pace the simulation against the real clock (the default).",
+        help="Pace the simulation against the real clock (the default of the shipped rigs, "
+        "whose MuJoCo bus says pacing: realtime).",
     )
 
 
@@ -150,10 +151,10 @@ def options_from(args: argparse.Namespace, app: str) -> ArmOptions:
     check_out_dir(out_dir)
     return ArmOptions(
         duration=check_duration(args.duration),
-        realtime=not args.virtual,
+        realtime=True if args.realtime else (False if args.virtual else None),
         out_dir=out_dir,
         live=not args.no_live,
-        period_ms=check_period_ms(args.period_ms),
+        period_ms=None if args.period_ms is None else check_period_ms(args.period_ms),
     )
 
 
@@ -166,15 +167,15 @@ def check_duration(duration: float) -> float:
     return float(duration)
 
 
-def check_period_ms(period_ms: float) -> float:
-    """``--period-ms``: a whole multiple of the :data:`PHYSICS_STEP_MS` physics step, at most
-    :data:`MAX_PERIOD_MS`."""
+def check_period_ms(period_ms: float, name: str = "--period-ms") -> float:
+    """``--period-ms`` (or the period ``name`` of a rig's timer): a whole multiple of the
+    :data:`PHYSICS_STEP_MS` physics step, at most :data:`MAX_PERIOD_MS`."""
     steps = period_ms / PHYSICS_STEP_MS if math.isfinite(period_ms) else math.nan
     if not (math.isfinite(steps) and steps >= 1 and steps == round(steps)) or not (
         period_ms <= MAX_PERIOD_MS
     ):
         raise ValueError(
-            f"--period-ms {period_ms:g}: a whole multiple of the {PHYSICS_STEP_MS:g} ms physics "
+            f"{name} {period_ms:g}: a whole multiple of the {PHYSICS_STEP_MS:g} ms physics "
             f"step, from {PHYSICS_STEP_MS:g} to {MAX_PERIOD_MS:g} ms"
         )
     return float(period_ms)
@@ -397,59 +398,6 @@ async def finish(motion: GroupMotion, *, margin_s: float = 10.0) -> None:
 # -- the run ----------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
-class ArmRig:
-    """The joints of an arm as Actuators, moved together by an AxisGroup on an EventTimer."""
-
-    axes: list[Actuator]
-    timer: EventTimer
-    group: AxisGroup
-
-
-async def enter_arm(
-    stack: AsyncExitStack,
-    sim: MujocoSim,
-    joints: Sequence[str],
-    *,
-    options: ArmOptions,
-    name: str,
-    limits: AxisLimits,
-    tolerances: Tolerances,
-    planned_s: float,
-    log_actual: bool = False,
-    ctx: AppContext | None = None,
-) -> ArmRig:
-    """Enter on ``stack`` one Actuator per joint of ``sim`` (named after its joint), an
-    EventTimer of
-    ``options.period_ms`` on the simulation clock (``<name>-sync``) and the AxisGroup ``name``
-    over them (goal time 1 s); its log holds ``planned_s`` seconds of motion plus
-    :data:`LOG_MARGIN_S`. The Actuators and the timer are registered with ``ctx``."""
-    clock = sim.clock
-    axes = [
-        await stack.enter_async_context(
-            register(ctx, Actuator(sim.actuator(joint), device_name=joint, clock=clock))
-        )
-        for joint in joints
-    ]
-    timer = EventTimer(options.period_ms, clock=clock, name=f"{name}-sync")
-    if ctx is not None:
-        ctx.add_timer(timer)
-    timer = await stack.enter_async_context(timer)
-    group = await stack.enter_async_context(
-        AxisGroup(
-            axes,
-            timer=timer,
-            limits=limits,
-            tolerances=tolerances,
-            goal_time=1.0,
-            name=name,
-            log_capacity=int((planned_s + LOG_MARGIN_S) * 1000.0 / options.period_ms),
-            log_actual=log_actual,
-        )
-    )
-    return ArmRig(axes, timer, group)
-
-
 class RunTimes(Protocol):
     """The timing fields of an app's result (see :func:`record_times`)."""
 
@@ -493,21 +441,22 @@ def times_text(result: RunTimes) -> str:
 
 
 R = TypeVar("R")
-H = TypeVar("H", bound=HALComponent)
 
 
-def register(ctx: AppContext | None, component: H) -> H:
-    """``component``, registered with ``ctx`` when there is one."""
-    return component if ctx is None else ctx.add_component(component)
-
-
-def open_arm_sim(model: str, *, realtime: bool, ctx: AppContext | None = None) -> MujocoSim:
-    """The simulation of ``model`` (its clock registered with ``ctx``); raises
-    :class:`AppUnavailable` when MuJoCo, ``openel_mujoco`` or the model cannot load."""
+def open_arm_sim(
+    rig: ArmRigSpec, *, realtime: bool | None = None, ctx: AppContext | None = None
+) -> MujocoSim:
+    """The simulation of ``rig``'s MuJoCo bus, not running (the rig runs it:
+    :func:`~.arm_rig.open_arm_rig`), paced in real time (``realtime=True``), in lockstep
+    (False) or as the bus says (None); its clock and, for a recorder or a live view, its
+    scene are registered with ``ctx``. Raises :class:`AppUnavailable` when MuJoCo,
+    ``openel_mujoco`` or the model cannot load."""
+    options = rig.options
+    pacing = options.pacing if realtime is None else ("realtime" if realtime else "lockstep")
     try:
         from openel_mujoco import MujocoSim
 
-        sim = MujocoSim(model, pacing="realtime" if realtime else "lockstep")
+        sim = MujocoSim(options.model, pacing=pacing, **options.sim_arguments())
     except Exception as exc:  # ImportError, ModelLoadError, MuJoCo's own load errors
         raise AppUnavailable("MuJoCo", f"{type(exc).__name__}: {exc}") from exc
     if ctx is not None:

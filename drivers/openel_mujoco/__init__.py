@@ -42,7 +42,27 @@ from .models import (
 )
 from .recorder import TrajectoryRecorder
 from .render import render_snapshot
+from .rigbus import (
+    AttachedSimulation,
+    MujocoBusKind,
+    MujocoBusOptions,
+    mujoco_buses,
+    with_simulation,
+)
 from .sim import MujocoSim, PacingStats
+
+DEVICES: dict[str, type] = {
+    "joint": MujocoJoint,
+    "effector": MujocoEffector,
+    "sensor": MujocoSensor,
+    "encoder": MujocoEncoder,
+    "gyro": MujocoGyro,
+    "accelerometer": MujocoAccelerometer,
+    "force": MujocoForceSensor,
+    "torque": MujocoTorqueSensor,
+    "magnetometer": MujocoMagnetometer,
+}
+"""The driver's device classes by the name a rig file's ``device`` gives."""
 
 DRIVER = DriverInfo(
     name="mujoco",
@@ -50,22 +70,15 @@ DRIVER = DriverInfo(
     "tendon, site) as actuators, MuJoCo sensors as sensors: jointpos (Encoder), gyro, "
     "accelerometer, force, torque, magnetometer (Direction) and the others (lockstep or "
     "real-time pacing)",
-    devices={
-        "joint": MujocoJoint,
-        "effector": MujocoEffector,
-        "sensor": MujocoSensor,
-        "encoder": MujocoEncoder,
-        "gyro": MujocoGyro,
-        "accelerometer": MujocoAccelerometer,
-        "force": MujocoForceSensor,
-        "torque": MujocoTorqueSensor,
-        "magnetometer": MujocoMagnetometer,
-    },
+    devices=DEVICES,
+    buses={"mujoco": MujocoBusKind(DEVICES)},
 )
 
 __all__ = [
+    "DEVICES",
     "DRIVER",
     "SHIPPED_MODELS",
+    "AttachedSimulation",
     "ControlMode",
     "EffectorKind",
     "EffectorSpec",
@@ -73,6 +86,8 @@ __all__ = [
     "LockstepClock",
     "ModelLoadError",
     "MujocoAccelerometer",
+    "MujocoBusKind",
+    "MujocoBusOptions",
     "MujocoEffector",
     "MujocoEncoder",
     "MujocoEventId",
@@ -92,8 +107,10 @@ __all__ = [
     "effector_kind",
     "find_id",
     "load_model",
+    "mujoco_buses",
     "render_snapshot",
     "sensor_kind",
     "sensor_units",
     "set_control_mode",
+    "with_simulation",
 ]

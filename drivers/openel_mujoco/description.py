@@ -31,7 +31,7 @@ import math
 import os
 import pathlib
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Literal, TypeGuard, TypeVar, get_args
 
 from openel_async.errors import BadParameterError
@@ -54,6 +54,7 @@ __all__ = [
     "Pacing",
     "SensorSpec",
     "SimDescription",
+    "spec_of",
 ]
 
 Pacing = Literal["lockstep", "realtime"]
@@ -318,6 +319,36 @@ class EffectorSpec:
 
     def to_dict(self) -> dict[str, Any]:
         return _non_default(self, "actuator")
+
+
+_SpecT = TypeVar("_SpecT", JointSpec, SensorSpec, EffectorSpec)
+
+
+def spec_of(
+    cls: type[_SpecT],
+    spec: _SpecT | str | Mapping[str, Any] | None,
+    fields_: Mapping[str, Any],
+    key: str,
+) -> _SpecT:
+    """The spec a device is built with: ``spec`` (a spec, a name or a dict of fields), or the
+    fields given as keyword arguments -- a rig file's ``params``, ``name`` being the
+    component's: then ``key`` (``joint``, ``sensor``, ``actuator``) defaults to ``name``, so
+    a component named after its joint needs no params. ``spec`` with fields besides ``name``
+    is refused."""
+    if spec is None:
+        values = dict(fields_)
+        if key not in values and isinstance(values.get("name"), str):
+            values[key] = values["name"]
+        return cls.from_value(values)
+    built = cls.from_value(spec)
+    if not fields_:
+        return built
+    if set(fields_) == {"name"} and built.name in (None, fields_["name"]):
+        return replace(built, name=fields_["name"])
+    other = ([k for k in fields_ if k != "name"] or ["name"])[0]
+    raise BadParameterError(
+        other, fields_[other], f"no {other!r} besides spec (give either a spec or its fields)"
+    )
 
 
 @dataclass(frozen=True, slots=True)

@@ -40,7 +40,7 @@ from openel_async.errors import BadParameterError, HALError
 from openel_async.ids import DeviceKind
 from openel_async.requests import EventId, Request
 
-from .description import JointSpec, SensorSpec
+from .description import JointSpec, SensorSpec, spec_of
 from .models import ControlMode, ModelLoadError, find_id, names
 
 if TYPE_CHECKING:
@@ -277,11 +277,18 @@ class MujocoJoint(SimActuatorLifecycle, ActuatorDevice):
     setpoint advances before every physics step (:meth:`command_velocity_ramp`); False on a
     joint without VELOCITY."""
 
-    def __init__(self, sim: MujocoSim, spec: JointSpec | str | Mapping[str, Any]) -> None:
-        """The joint of ``spec`` (a spec, a joint name or a dict of JointSpec fields); it
-        registers itself in ``sim.joints`` (``BadParameterError`` when its name or joint is
-        mapped already). ``sim.actuator(name)`` is the usual way."""
-        spec = JointSpec.from_value(spec)
+    def __init__(
+        self,
+        sim: MujocoSim,
+        spec: JointSpec | str | Mapping[str, Any] | None = None,
+        **fields: Any,
+    ) -> None:
+        """The joint of ``spec`` (a spec, a joint name or a dict of JointSpec fields), or of
+        the JointSpec ``fields`` as keywords (a rig file's ``params``: ``joint`` defaults to
+        ``name``, see :func:`~openel_mujoco.description.spec_of`); it registers itself in
+        ``sim.joints`` (``BadParameterError`` when its name or joint is mapped already).
+        ``sim.actuator(name)`` is the usual way."""
+        spec = spec_of(JointSpec, spec, fields, "joint")
         sim._check_new_joint(spec)
         model = sim.model
         self.sim = sim
@@ -1321,11 +1328,17 @@ class MujocoSensor(SensorDevice):
     required_kind: ClassVar[int | None] = None
     """The kind a device class of one HAL4RT kind (MujocoGyro...) requires of its sensor."""
 
-    def __init__(self, sim: MujocoSim, spec: SensorSpec | str | Mapping[str, Any]) -> None:
-        """The sensor of ``spec`` (a spec, a sensor name or a dict of SensorSpec fields); it
-        registers itself in ``sim.sensors`` (``BadParameterError`` when its name is mapped
-        already). ``sim.sensor(name)`` is the usual way."""
-        spec = SensorSpec.from_value(spec)
+    def __init__(
+        self,
+        sim: MujocoSim,
+        spec: SensorSpec | str | Mapping[str, Any] | None = None,
+        **fields: Any,
+    ) -> None:
+        """The sensor of ``spec`` (a spec, a sensor name or a dict of SensorSpec fields), or
+        of the SensorSpec ``fields`` as keywords (a rig file's ``params``: ``sensor``
+        defaults to ``name``); it registers itself in ``sim.sensors`` (``BadParameterError``
+        when its name is mapped already). ``sim.sensor(name)`` is the usual way."""
+        spec = spec_of(SensorSpec, spec, fields, "sensor")
         sim._check_new_sensor(spec)
         model = sim.model
         self.sim = sim

@@ -78,7 +78,7 @@ from openel_async.errors import BadParameterError, HALError, NotImplementedHALEr
 from openel_async.ids import DeviceKind
 from openel_async.requests import Request
 
-from .description import EffectorSpec
+from .description import EffectorSpec, spec_of
 from .devices import (
     EFFECTOR_PRODUCT_ID,
     OTHER_KIND,
@@ -178,11 +178,18 @@ class MujocoEffector(SimActuatorLifecycle, ActuatorDevice):
         product_name="Effector",
     )
 
-    def __init__(self, sim: MujocoSim, spec: EffectorSpec | str | Mapping[str, Any]) -> None:
+    def __init__(
+        self,
+        sim: MujocoSim,
+        spec: EffectorSpec | str | Mapping[str, Any] | None = None,
+        **fields: Any,
+    ) -> None:
         """The effector of ``spec`` (a spec, an actuator name or a dict of EffectorSpec
-        fields); it registers itself in ``sim.effectors`` (``BadParameterError`` when its
-        name or actuator is mapped already). ``sim.effector(name)`` is the usual way."""
-        spec = EffectorSpec.from_value(spec)
+        fields), or of the EffectorSpec ``fields`` as keywords (a rig file's ``params``:
+        ``actuator`` defaults to ``name``); it registers itself in ``sim.effectors``
+        (``BadParameterError`` when its name or actuator is mapped already).
+        ``sim.effector(name)`` is the usual way."""
+        spec = spec_of(EffectorSpec, spec, fields, "actuator")
         sim._check_new_effector(spec)
         model = sim.model
         self.sim = sim

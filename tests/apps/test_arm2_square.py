@@ -12,11 +12,14 @@ import anyio
 import numpy as np
 import pytest
 import structlog
+from msgspec.structs import replace as replace_struct
 
 from openel_apps.arm2_square import (
+    RIG,
     LapTooFastError,
     PlanarArm,
     SquareOptions,
+    arm2_rig,
     min_lap_s,
     open_sim,
     plan_square,
@@ -229,3 +232,93 @@ def test_the_tip_plot_legend_covers_no_data() -> None:
     for line in ax.get_lines():
         for point in ax.transData.transform(line.get_xydata()):
             assert not legend.contains(*point), line.get_label()
+
+
+# -- the rig ------------------------------------------------------------------------------------
+
+RIG_TEXT = RIG.read_text()
+
+
+def _rig_copy(tmp_path: Path, old: str, new: str) -> Path:
+    """A copy of the shipped rig with ``old`` replaced by ``new``."""
+    assert old in RIG_TEXT
+    path = tmp_path / "my-arm2.yaml"
+    path.write_text(RIG_TEXT.replace(old, new))
+    return path
+
+
+@pytest.mark.parametrize("rig", ["arm2.yaml", "arm6.yaml"])
+def test_the_shipped_rigs_check(rig: str, capsys: pytest.CaptureFixture[str]) -> None:
+    path = RIG.parent / rig
+    assert cli_main(["rig", "check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{path}: ok (1 bus, ")
+    assert "1 timer, 1 group)" in out
+    assert cli_main(["rig", "show", str(path)]) == 0
+    assert "MuJoCo model arm" in capsys.readouterr().out
+
+
+def test_the_app_runs_on_the_rig_it_is_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A changed group limit and a lockstep bus: the run uses them (and --sim changes
+    nothing on a MuJoCo bus); --period-ms overrides the rig's timer."""
+    rig = _rig_copy(tmp_path, "max_velocity: 2.5", "max_velocity: 1.5")
+    rig.write_text(rig.read_text().replace("pacing: realtime", "pacing: lockstep"))
+    out_dir = tmp_path / "out"
+    argv = ["run", "--rig", str(rig), "--sim", "arm2", "--no-live", "--out", str(out_dir),
+            "--duration", "4", "--period-ms", "4"]  # fmt: skip
+    assert cli_main(argv) == 0  # no --virtual: the rig's lockstep
+    out = capsys.readouterr().out
+    assert "summary (MuJoCo arm2 square, lockstep)" in out
+    assert "  rig                my-arm2.yaml, AxisGroup arm2 at most 1.5 rad/s, 15 " in out
+    assert "AxisGroup period 4 ms" in out
+    assert "corners reached    4/4" in out
+    assert "  on exit            hold: shoulder done, elbow done" in out
+
+
+def test_the_rigs_joint_limits_narrow_the_plan(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rig = _rig_copy(
+        tmp_path,
+        "{name: shoulder, driver: mujoco, device: joint, bus: arm2}",
+        "{name: shoulder, driver: mujoco, device: joint, bus: arm2, limits: {position: [-0.1, 0.1]}}",
+    )
+    out_dir = tmp_path / "out"
+    assert cli_main(["run", "--rig", str(rig), "arm2", "--virtual", "--out", str(out_dir)]) == 2
+    err = capsys.readouterr().err
+    assert "the square leaves the arm's reach: " in err
+    assert "outside its range [-0.1000, +0.1000]" in err
+    assert not out_dir.exists()  # refused before anything ran
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        ("{name: tip_pos, driver: mujoco, device: sensor, bus: arm2}",
+         "{name: tip, driver: mujoco, device: sensor, bus: arm2, params: {sensor: tip_pos}}",
+         "rig my-arm2.yaml has no component 'tip_pos' (the app takes it by name)"),
+        ("  arm2:\n    axes", "  arm:\n    axes", "rig my-arm2.yaml has no group 'arm2'"),
+        ("[shoulder, elbow]", "[elbow, shoulder]", "group 'arm2' moves elbow, shoulder; the app "
+         "needs shoulder, elbow, in this order"),
+        ("period_ms: 2", "period_ms: 2.5", "rig my-arm2.yaml: timer arm2-sync period_ms 2.5: a "
+         "whole multiple of the 1 ms physics step"),
+    ],
+)  # fmt: skip
+def test_a_rig_without_what_the_app_takes_is_refused(
+    old: str, new: str, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rig = _rig_copy(tmp_path, old, new)
+    assert cli_main(["run", "--rig", str(rig), "arm2", "--virtual", "--out", str(tmp_path)]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_the_pacing_flags_override_the_rigs() -> None:
+    rig = arm2_rig()
+    assert rig.options.pacing == "realtime"  # the shipped rig: as openel-async demo
+    assert open_sim(rig=rig).pacing == "realtime"
+    assert open_sim(rig=rig, realtime=False).pacing == "lockstep"  # --virtual
+    lockstep = replace(rig, options=replace_struct(rig.options, pacing="lockstep"))
+    assert open_sim(rig=lockstep).pacing == "lockstep"
+    assert open_sim(rig=lockstep, realtime=True).pacing == "realtime"  # --realtime

@@ -12,6 +12,7 @@ import pytest
 
 from openel_apps import arm6_pick_place as app
 from openel_apps.arm_demo import ArmOptions
+from openel_apps.arm_rig import open_arm_rig
 from openel_async import Actuator, BadParameterError, NotImplementedHALError, Request
 from openel_async.app import AppContext, AppHook, LiveLine
 from openel_async.component import HALComponent
@@ -111,15 +112,21 @@ def test_the_apps_file_is_a_thin_wrapper_of_the_package() -> None:
 
 
 async def test_the_suction_cup_is_the_drivers_effector() -> None:
-    sim = app.open_sim(realtime=False)  # from the app's description
-    assert list(sim.joints) == list(app.JOINTS) and list(sim.sensors) == ["tool_pos", "pad_touch"]
-    cup = sim.effectors["suction"]
-    assert isinstance(cup, MujocoEffector) and cup.kind == "adhesion"
-    assert cup.limits.torque == pytest.approx(20.0)  # gain 20 N x ctrl 1
+    rig = app.arm6_rig()  # the app's rig file
+    sim = app.open_sim(realtime=False, rig=rig)
     events = EventRecorder(sim.clock)
-    async with sim, Actuator(cup, clock=sim.clock) as suction:
+    async with open_arm_rig(rig, sim) as opened:
+        assert list(opened.components) == [*app.JOINTS, "suction", "tool_pos", "pad_touch"]
+        assert list(sim.joints) == list(app.JOINTS) and list(sim.sensors) == [
+            "tool_pos",
+            "pad_touch",
+        ]
+        suction = opened.actuator("suction")
+        cup = suction.device
+        assert cup is sim.effectors["suction"]
+        assert isinstance(cup, MujocoEffector) and cup.kind == "adhesion"
+        assert cup.limits.torque == pytest.approx(20.0)  # gain 20 N x ctrl 1
         suction.add_observer(events)
-        assert suction.device_name == "HalKind128MuJoCoSuction"  # kind 0x80: not in the registry
         with anyio.fail_after(10):
             await (await suction.set_value(12.0, Request.TORQUE))
         assert cup.on and not cup.holding  # on, but the pad touches nothing at home
@@ -135,3 +142,6 @@ async def test_the_suction_cup_is_the_drivers_effector() -> None:
         await sim.sleep(0.01)
         assert math.isclose(await suction.get_value(Request.TORQUE_ACTUAL), 0.0)
     assert events.count("event", MujocoEventId.HOLDING) == 0
+    # Without a name (outside a rig), the component is named after the device's kind.
+    bare = Actuator(MujocoSim("arm6").effector("suction"), clock=sim.clock)
+    assert bare.device_name == "HalKind128MuJoCoSuction"  # kind 0x80: not in the registry
