@@ -163,8 +163,8 @@ def test_hooks_see_the_arm_apps_components(tmp_path: Path) -> None:
         "clock LockstepClock",
         "shoulder",
         "elbow",
+        "tip_pos",  # the rig's components in file order, then its timer
         "timer arm2-sync",
-        "tip_pos",
         "exit",
     ]
 
