@@ -232,7 +232,7 @@ def arm6_rig(ctx: AppContext | None = None, period_ms: float | None = None) -> A
     """The app's rig: ``ctx``'s ``--rig FILE`` or :data:`RIG`, its timer at ``period_ms``
     (None: the rig's); ValueError for a rig without what the app takes by name,
     :class:`~openel_async.app.AppUnavailable` without MuJoCo."""
-    return load_arm_rig(
+    rig = load_arm_rig(
         ctx if ctx is not None else AppContext(),
         RIG,
         group=GROUP,
@@ -241,6 +241,14 @@ def arm6_rig(ctx: AppContext | None = None, period_ms: float | None = None) -> A
         sensors=(TOOL, TOUCH),
         period_ms=period_ms,
     )
+    from openel_mujoco import MujocoEffector  # (loads: load_arm_rig imported the driver)
+
+    if not issubclass(rig.resolved.classes[SUCTION], MujocoEffector):
+        raise ValueError(
+            f"rig {rig.source}: the component {SUCTION!r} is not a MuJoCo effector "
+            "(device: effector): the app switches the suction with its adhesion force"
+        )
+    return rig
 
 
 def open_sim(
@@ -612,8 +620,7 @@ async def run_pick_place(
         timer = group.timer
         suction = opened.actuator(SUCTION)
         cup = suction.device
-        if not isinstance(cup, MujocoEffector):
-            raise HALError(f"{SUCTION} of rig {rig.source} is not a MuJoCo effector: {cup!r}")
+        assert isinstance(cup, MujocoEffector)  # (arm6_rig checks it)
         tool, touch = opened.sensor(TOOL), opened.sensor(TOUCH)
         async with group:
             progress = None

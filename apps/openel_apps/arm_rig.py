@@ -147,9 +147,9 @@ def load_arm_rig(
     for name in (*joints, *actuators, *sensors):
         if name not in names:
             raise ValueError(f"{where} has no component {name!r} (the app takes it by name)")
-        is_actuator = issubclass(resolved.classes[name], ActuatorDevice)
-        if is_actuator != (name not in sensors):
-            wanted = "a sensor" if name in sensors else "an actuator"
+        wants_sensor = name in sensors
+        if issubclass(resolved.classes[name], ActuatorDevice) == wants_sensor:
+            wanted = "a sensor" if wants_sensor else "an actuator"
             raise ValueError(f"{where}: the component {name!r} is not {wanted}")
     found = next((g for g in spec.groups if g.name == group), None)
     if found is None:
