@@ -13,6 +13,9 @@ from openel_async.app import AppContext, AppInfo
 
 
 def _peer_state(peer: object) -> str:
+    torque = getattr(peer, "torque_enabled", None)  # a simulated Dynamixel servo
+    if torque is not None:
+        return f"torque={'on' if torque else 'off'}"
     for name in ("axis_state", "power_state"):  # a simulated ODrive, a simulated CiA 402 drive
         value = getattr(peer, name, None)
         if value is not None:

@@ -120,3 +120,29 @@ def test_sigquit_estops_every_drive_and_the_exit_leaves_them_so(tmp_path: Path) 
     assert motor_2.split("=")[1] in {
         "QUICK_STOP_ACTIVE", "SWITCH_ON_DISABLED", "READY_TO_SWITCH_ON"
     }, motor_2  # fmt: skip
+
+
+SERVOS = """\
+description: two Dynamixel servos
+buses:
+  arm: {type: serial, protocol: dynamixel, device: /dev/ttyUSB0, baudrate: 1000000}
+components:
+  - {name: J1, driver: serial, device: dynamixel_xm430_w350, bus: arm, params: {dxl_id: 1}}
+  - {name: J2, driver: serial, device: dynamixel_xm430_w350, bus: arm, params: {dxl_id: 2}}
+safety: {watchdog_timeout: 0.5, on_exit: ON_EXIT}
+"""
+
+
+@pytest.mark.parametrize(("on_exit", "torque"), [("hold", "on"), ("torque_off", "off")])
+def test_dynamixel_servos_are_left_as_on_exit_says_on_ctrl_c(
+    tmp_path: Path, on_exit: str, torque: str
+) -> None:
+    rig = tmp_path / "servos.yaml"
+    rig.write_text(SERVOS.replace("ON_EXIT", on_exit))
+    proc = _start(rig, "wait")
+    _wait_ready(proc)
+    proc.send_signal(signal.SIGINT)
+    code, out, err = _finish(proc)
+    assert code == 130, err
+    assert f"on exit            {on_exit}: J1 done, J2 done" in out
+    assert f"peer J1 torque={torque}" in out and f"peer J2 torque={torque}" in out
