@@ -345,7 +345,7 @@ def test_profile_validate_show_convert(tmp_path: Path, capsys: pytest.CaptureFix
     assert cli(["profile", "validate", str(APP)]) == 0
     out = capsys.readouterr().out
     assert out.startswith(f"OK: {APP}: RTC:OpenEL:Demo:PanTilt:1.0.0")
-    assert "PERIODIC at 100 Hz, 4 configuration parameter(s)" in out
+    assert "PERIODIC at 100 Hz, 6 configuration parameter(s)" in out
     assert cli(["profile", "validate", str(APP), "--implementation"]) == 0
     assert "implementation PanTilt from" in capsys.readouterr().out
     assert cli(["profile", "show", str(APP)]) == 0
