@@ -145,3 +145,25 @@ def test_the_cli_names_a_missing_rig(capsys: pytest.CaptureFixture[str]) -> None
     assert run_profile_cli(PROFILE, argv) == 1
     err = capsys.readouterr().err
     assert "on_initialize failed" in err
+
+
+def test_run_pantilt_rig_option_becomes_its_rig_setting(tmp_path: Path) -> None:
+    """``openel-async run pantilt --rig FILE`` runs on that file (its configuration's
+    ``rig``), not the shipped one."""
+    import subprocess
+    import sys
+
+    shipped = (
+        Path(__file__).resolve().parents[2] / "apps" / "openel_apps" / "rigs" / "pantilt-sim.yaml"
+    )
+    rig = tmp_path / "narrow-head.yaml"
+    rig.write_text(
+        shipped.read_text().replace("description: pan-tilt head", "description: narrow head")
+    )
+    result = subprocess.run(
+        [sys.executable, "-m", "openel_async.cli", "run", "pantilt", "--rig", str(rig),
+         "--virtual", "--duration", "1"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "narrow-head.yaml (narrow head" in result.stdout

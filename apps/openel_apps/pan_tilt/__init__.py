@@ -21,7 +21,8 @@ SIM_RIG = RIGS / "pantilt-sim.yaml"
 APP_INFO = AppInfo(
     name="pantilt",
     description="an RT component from its RTC Profile: a Lissajous scan of a pan-tilt head on "
-    "two simulated motors (or any rig: --set rig=FILE), with scan and hold modes",
+    "two simulated motors (or any rig: --rig FILE), with scan and hold modes",
     profile=PROFILE,
+    takes_rig=True,
 )
 """The entry point ``pantilt`` of the ``openel_async.apps`` group."""

@@ -234,8 +234,9 @@ class AppInfo:
     profile: Path | None = None
     demo_args: Callable[[DemoOptions], list[str]] | None = field(default=None, repr=False)
     takes_rig: bool = False
-    """The app opens its hardware with :meth:`AppContext.open_rig`: ``--rig FILE`` and
-    ``--sim`` are allowed (refused for any other app)."""
+    """The app opens its hardware with :meth:`AppContext.open_rig` (a profile app: from its
+    configuration parameters ``rig`` and ``sim``): ``--rig FILE`` and ``--sim`` are allowed
+    (refused for any other app)."""
 
     def __post_init__(self) -> None:
         if (self.main is None) == (self.profile is None):

@@ -61,10 +61,11 @@ def run_app(
 
     ``rig``: a rig file for an app that takes one (:attr:`AppInfo.takes_rig`), checked
     against the drivers before anything runs (a mistake: its message and 2); ``sim``: run
-    the rig against simulated peers. The state each rig the app opened left its actuators
+    the rig against simulated peers. A profile app that takes a rig gets them as its
+    configuration settings ``rig`` and ``sim``. The state each rig the app opened left its actuators
     in is printed after the app's own summary."""
     label = stop_label or prog
-    if (rig is not None or sim) and info.main is not None and not info.takes_rig:
+    if (rig is not None or sim) and not info.takes_rig:
         print(f"{label}: --rig and --sim need an app that opens a rig ({info.name} does not)",
               file=sys.stderr)  # fmt: skip
         return 2
@@ -81,7 +82,11 @@ def run_app(
     if info.profile is not None:
         from ..rtc.runner import run_profile_cli
 
-        return int(run_profile_cli(info.profile, list(argv)))
+        # A profile app that takes a rig reads it from its configuration parameters
+        # ``rig`` and ``sim`` (pantilt): the options become their settings.
+        settings = [] if rig is None else ["--set", f"rig={Path(rig).resolve()}"]
+        settings += ["--set", "sim=true"] if sim else []
+        return int(run_profile_cli(info.profile, [*settings, *argv]))
     ctx = AppContext(argv, prog=prog, hooks=hooks, rig=resolved, sim=sim)
     try:
         result = anyio.run(
