@@ -120,7 +120,7 @@ def test_rig_check_builds_every_device_on_the_model(tmp_path: Path) -> None:
     text = _refused(tmp_path, "device: sensor", "device: gyro")
     assert "expected a gyro of MuJoCo model arm2" in text
     text = _refused(tmp_path, "params: {sensor: tip_pos}", "params: {sensor: tip_pos, name: x}")
-    assert "no 'name': the bus gives it" in text  # the component's name is the device's
+    assert "no 'name': the bus arm gives it" in text  # the component's name is the device's
     text = _refused(tmp_path, "{name: shoulder,", "{name: shoulder, params: {joint: elbow},")
     assert "a joint not mapped yet" in text  # two components on one joint
 

@@ -125,13 +125,14 @@ def resolve_rig(spec: RigSpec) -> ResolvedRig:
                 )
                 raise _located(error, c, "@bus")
             devices.append(SimulatedDevice(c.name, c.driver, c.device, dict(c.params)))
-        try:
-            kind.check(options, tuple(devices))
-        except BadParameterError as exc:
-            raise _bus_error(exc, bus) from None
         buses[bus.name] = ResolvedBus(bus, driver_name, kind, options, tuple(devices))
-    for c in spec.components:
+    for c in spec.components:  # each entry's own keys first, then what the buses refuse
         _check_params(c, classes[c.name], buses[c.bus] if c.bus is not None else None)
+    for resolved_bus in buses.values():
+        try:
+            resolved_bus.kind.check(resolved_bus.options, resolved_bus.devices)
+        except BadParameterError as exc:
+            raise _bus_error(exc, resolved_bus.spec) from None
     return ResolvedRig(spec, classes, buses)
 
 
