@@ -43,7 +43,7 @@ def test_the_two_axis_demo_runs_through_slcan_from_a_rig_file(tmp_path: Path) ->
         rig = _slcan_rig(tmp_path, adapter.port)
         result = subprocess.run(
             [sys.executable, "-m", "openel_async.cli", "run", "twoaxis", "--rig", str(rig),
-             "--duration", "1.5", "--no-live"],
+             "--duration", "1", "--no-live"],
             capture_output=True, text=True, timeout=60, env=dict(os.environ, NO_COLOR="1"),
         )  # fmt: skip
     assert result.returncode == 0, result.stderr
