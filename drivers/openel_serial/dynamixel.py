@@ -31,6 +31,7 @@ from openel_serial.errors import DynamixelCrcError, DynamixelDecodeError
 __all__ = [
     "ACCELERATION_UNIT_RPM2",
     "ALERT_BIT",
+    "BAUD_RATES",
     "BROADCAST_ID",
     "BUS_WATCHDOG_ERROR",
     "BUS_WATCHDOG_FIRMWARE",
@@ -42,6 +43,8 @@ __all__ = [
     "HEADER",
     "MAX_ID",
     "PWM_FULL_SCALE",
+    "RETURN_DELAY_MAX",
+    "RETURN_DELAY_UNIT_S",
     "TICKS_PER_REV",
     "VELOCITY_UNIT_RPM",
     "VOLTAGE_UNIT_V",
@@ -1011,6 +1014,12 @@ BUS_WATCHDOG_UNIT_S: Final = 0.020
 BUS_WATCHDOG_MAX: Final = 127
 BUS_WATCHDOG_ERROR: Final = -1
 BUS_WATCHDOG_FIRMWARE: Final = 38
+BAUD_RATES: Final = (9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+"""Baud Rate (8) setting -> bit/s: the X series' rates, in the order of the item's values 0..7
+(e-manual, "Baud Rate (8)")."""
+RETURN_DELAY_UNIT_S: Final = 2e-6
+"""Return Delay Time (9) unit; the largest setting is :data:`RETURN_DELAY_MAX`."""
+RETURN_DELAY_MAX: Final = 254
 _RAD_PER_TICK: Final = 2 * math.pi / TICKS_PER_REV
 _RAD_S_PER_UNIT: Final = VELOCITY_UNIT_RPM * 2 * math.pi / 60
 _RAD_S2_PER_UNIT: Final = ACCELERATION_UNIT_RPM2 * 2 * math.pi / 3600

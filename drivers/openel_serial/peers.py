@@ -23,22 +23,27 @@ loop is blocked, as a real device would.
   REBOOT, error 3 (CRC error) for an instruction received damaged, the Bus Watchdog
   (98: the servo stops by itself when no instruction reached it for the set time, reads
   -1 and refuses goal writes until 0 is written); injection of status
-  errors, hardware errors (alert bit), unresponsive servos, dropped and corrupted
-  replies, damaged instructions, garbage bytes; unplug/plug.
+  errors, hardware errors (alert bit; ``inject_fault``: overheating, from any thread),
+  unresponsive servos, dropped and corrupted replies, damaged instructions, garbage bytes;
+  unplug/plug; optionally, servos deaf to a driver whose tty is not at their Baud Rate (8).
 * :class:`SimGps`: GGA + RMC (``extended``: + GSA, GSV, GST) at ``rate_hz`` along a
   :class:`GpsPath`, answering MediaTek's ``$PMTK220`` rate command; injection of
-  checksum errors, garbage, silence (pause), loss of fix and unplug/plug.
+  checksum errors, garbage, silence (pause), loss of fix (``inject_fault``) and unplug/plug.
 """
 
 from __future__ import annotations
 
+import array
 import contextlib
 import datetime as dt
+import fcntl
 import math
 import os
 import shutil
 import struct
+import sys
 import tempfile
+import termios
 import threading
 import tty
 from collections.abc import Callable, Iterable
@@ -85,6 +90,18 @@ NS: Final = 1_000_000_000
 _GOALS: Final = (X.GOAL_PWM, X.GOAL_CURRENT, X.GOAL_VELOCITY, X.GOAL_POSITION)
 """The goal items, read-only after a Bus Watchdog Error (the profile items are not)."""
 _WATCHDOG_TRIPPED: Final = 0xFF
+_TCGETS2: Final = 0x802C542A if sys.platform.startswith("linux") else None
+"""Linux's ioctl reading ``struct termios2`` (any bit rate, as pyserial sets it)."""
+_TERMIOS2_WORDS: Final = 11
+"""``struct termios2`` in 32-bit words: 4 flags, c_line + c_cc[19], c_ispeed, c_ospeed."""
+_SPEEDS: Final = {
+    getattr(termios, f"B{rate}"): rate
+    for rate in (
+        *(1200, 2400, 4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800),
+        *(500_000, 921_600, 1_000_000, 2_000_000, 3_000_000, 4_000_000),
+    )
+    if hasattr(termios, f"B{rate}")
+}
 
 
 # -- the pty ------------------------------------------------------------------------------
@@ -129,6 +146,22 @@ class PtyPort:
             tmp_link.unlink()
         tmp_link.symlink_to(self.tty_name)
         os.replace(tmp_link, self.path)  # atomic: the path always names some pty
+
+    def baudrate(self) -> int | None:
+        """The bit rate the driver set on its end (the tty's termios settings, which a pty
+        keeps though it sends bytes at any speed); None when closed or unknown."""
+        fd = self._slave
+        if fd is None:
+            return None
+        try:
+            if _TCGETS2 is not None:
+                words = array.array("I", bytes(4 * _TERMIOS2_WORDS))
+                fcntl.ioctl(fd, _TCGETS2, words)
+                return int(words[-1])  # c_ospeed
+            speed = termios.tcgetattr(fd)[5]
+        except OSError:
+            return None
+        return _SPEEDS.get(speed)
 
     def close(self) -> None:
         """Close the pty (the driver's end sees EIO: the device is gone)."""
@@ -298,7 +331,8 @@ class PeerThread(Generic[P]):
         await anyio.to_thread.run_sync(self._exit)
 
     def _enter(self) -> None:
-        self._portal_cm = anyio.from_thread.start_blocking_portal()
+        name = f"sim-peer {type(self.peer).__name__} {self.peer.path}"
+        self._portal_cm = anyio.from_thread.start_blocking_portal(name=name)
         self._portal = self._portal_cm.__enter__()
         try:
             peer = cast("AbstractAsyncContextManager[P]", self.peer)
@@ -350,6 +384,10 @@ class SimServo:
     Profile Acceleration (0 = the velocity limit and an unbounded acceleration),
     velocity mode ramps at Profile Acceleration, current mode accelerates toward a
     speed proportional to Goal Current. Torque off lets the rotor coast to rest.
+
+    ``baud_rate`` and ``return_delay_time`` are the EEPROM items' values (Baud Rate (8): 3
+    is 1 Mbps, see :data:`~openel_serial.dynamixel.BAUD_RATES`; Return Delay Time (9): units
+    of 2 us).
     """
 
     def __init__(
@@ -360,6 +398,7 @@ class SimServo:
         firmware_version: int = 48,
         position: int = dx.CENTER_TICK,
         return_delay_time: int = 0,
+        baud_rate: int = 3,
         velocity_limit: int = 200,
         profile_velocity: int = 0,
         profile_acceleration: int = 0,
@@ -371,6 +410,12 @@ class SimServo:
         clock: Clock | None = None,
     ) -> None:
         dx.Ping(dxl_id)  # validates the id
+        if not 0 <= baud_rate < len(dx.BAUD_RATES):
+            raise ValueError(f"Baud Rate (8) {baud_rate} is not in 0..{len(dx.BAUD_RATES) - 1}")
+        if not 0 <= return_delay_time <= dx.RETURN_DELAY_MAX:
+            raise ValueError(
+                f"Return Delay Time (9) {return_delay_time} is not in 0..{dx.RETURN_DELAY_MAX}"
+            )
         self.id = dxl_id
         self.clock: Clock = clock or default_clock()
         self.model_number = model_number
@@ -381,7 +426,7 @@ class SimServo:
             X.MODEL_NUMBER: model_number,
             X.FIRMWARE_VERSION: firmware_version,
             X.ID: dxl_id,
-            X.BAUD_RATE: 3,  # 1 Mbps
+            X.BAUD_RATE: baud_rate,
             X.RETURN_DELAY_TIME: return_delay_time,
             X.OPERATING_MODE: dx.OperatingMode.POSITION,
             X.TEMPERATURE_LIMIT: 80,
@@ -419,6 +464,8 @@ class SimServo:
         self.watchdog_trips = 0
         self.fault_requested: str | None = None
         """A fault asked for by :meth:`inject_fault`, not yet applied."""
+        self.fault_reason: str | None = None
+        """The reason of the last fault :meth:`inject_fault` applied."""
         self.watchdog_tripped_ns: int | None = None
         """When the Bus Watchdog last expired (the servo's clock), or None."""
 
@@ -444,6 +491,11 @@ class SimServo:
     @property
     def torque_enabled(self) -> bool:
         return bool(self.table[X.TORQUE_ENABLE.address])
+
+    @property
+    def baudrate(self) -> int:
+        """The bit rate of Baud Rate (8): the only one at which the servo hears the host."""
+        return dx.BAUD_RATES[self.table[X.BAUD_RATE.address]]
 
     @property
     def mode(self) -> int:
@@ -704,6 +756,7 @@ class SimServo:
         Nothing is executed. Like any status, the reply obeys Status Return Level
         (judged from the instruction byte as received); broadcasts get no reply.
         """
+        self._apply_requested_fault()
         if not self.responsive or self.clock.now_ns() < self._booting_until:
             return None
         if packet.id != self.id or packet.instruction == dx.Instruction.STATUS:
@@ -719,16 +772,25 @@ class SimServo:
         return self._status(dx.ErrorNumber.CRC_ERROR)
 
     def inject_fault(self, reason: str) -> None:
-        """Overheat (Hardware Error Status bit 2: torque off, alert in every status;
-        ``openel_async.rig.FaultInjection``), from any thread: applied when the servo
-        handles its next instruction."""
+        """Overheat (``openel_async.rig.FaultInjection``): Hardware Error Status bit 2, the
+        torque shut down and the alert bit in every status until REBOOT, as the servo's
+        Shutdown (63) setting does. Callable from any thread: the request is applied by the
+        thread serving the servo when it handles its next instruction (the host's next
+        poll)."""
         self.fault_requested = reason
 
-    def handle(self, msg: dx.DynamixelMessage) -> dx.Status | None:
-        if self.fault_requested is not None:
+    def _apply_requested_fault(self) -> None:
+        reason = self.fault_requested
+        if reason is not None:
             self.fault_requested = None
+            self.fault_reason = reason
+            log.info("sim_dxl_fault_injected", id=self.id, reason=reason)
+            self._set(X.PRESENT_TEMPERATURE, self.get_raw(X.TEMPERATURE_LIMIT) + 1)
             self.inject_hardware_error(dx.HardwareError.OVERHEATING)
+
+    def handle(self, msg: dx.DynamixelMessage) -> dx.Status | None:
         """Execute one instruction; the status to send back, if any."""
+        self._apply_requested_fault()
         if not self.responsive or self.clock.now_ns() < self._booting_until:
             return None
         targeted = isinstance(msg, dx.SyncRead | dx.SyncWrite) or getattr(msg, "id", None) in (
@@ -778,6 +840,11 @@ class SimDynamixelBus(_PtyPeer):
     instruction (several for a SYNC READ, in the order of its id list) are sent together
     after the servos' Return Delay Times. Everything the driver sent is kept in
     ``received`` (raw bytes) and ``instructions`` (decoded).
+
+    ``check_baudrate``: a servo hears the driver only when the bit rate the driver set on
+    the tty (its termios settings, :meth:`PtyPort.baudrate`) is the servo's Baud Rate (8),
+    as on a real bus (``baud_mismatches`` counts the packets a servo missed so); off by
+    default (a pty carries bytes at any setting).
     """
 
     def __init__(
@@ -786,8 +853,13 @@ class SimDynamixelBus(_PtyPeer):
         *,
         path: str | Path | None = None,
         clock: Clock | None = None,
+        check_baudrate: bool = False,
     ) -> None:
         super().__init__(path, clock)
+        self.check_baudrate = check_baudrate
+        self.baud_mismatches = 0
+        """Packets a servo did not hear: the driver's tty was at another bit rate."""
+        self._tty_rate: int | None = None
         self.servos: dict[int, SimServo] = {}
         for servo in servos:
             if isinstance(servo, int):
@@ -824,6 +896,8 @@ class SimDynamixelBus(_PtyPeer):
             data = await self.pty.read()
             if self.keep_log:
                 self.received += data
+            if self.check_baudrate:
+                self._tty_rate = self.pty.baudrate()
             for msg in parser.feed_all(data):
                 if self.corrupt_requests and not isinstance(msg, dx.CorruptPacket):
                     self.corrupt_requests -= 1  # damaged on the wire: the CRC fails
@@ -846,6 +920,10 @@ class SimDynamixelBus(_PtyPeer):
         else:
             servo = self.servos.get(getattr(msg, "id", -1))
             order = [] if servo is None else [servo]
+        if self.check_baudrate:
+            heard = [s for s in order if s.baudrate == self._tty_rate]
+            self.baud_mismatches += len(order) - len(heard)
+            order = heard
         replies: list[bytes] = []
         delay_units = 0
         for servo in order:
@@ -867,7 +945,7 @@ class SimDynamixelBus(_PtyPeer):
             last[-1] ^= 0xFF
             replies[-1] = bytes(last)
         if delay_units:
-            await anyio.sleep(delay_units * 2e-6)
+            await anyio.sleep(delay_units * dx.RETURN_DELAY_UNIT_S)
         self.replies += len(replies)
         await self.pty.write(b"".join(replies))
 
@@ -952,6 +1030,8 @@ class SimGps(_PtyPeer):
         """Sentences still to be sent with a wrong checksum."""
         self.paused = False
         """True: the receiver is silent (epochs are skipped)."""
+        self.fault_reason: str | None = None
+        """The reason of the last :meth:`inject_fault`."""
         self.epochs = 0
         self.sentences = 0
         self.corrupted = 0
@@ -1089,3 +1169,13 @@ class SimGps(_PtyPeer):
     def inject_garbage(self, data: bytes = b"\x00\xff$GPG\x13garbage\r\n") -> None:
         """Send noise to the driver now."""
         self.pty.write_nowait(data)
+
+    def inject_fault(self, reason: str) -> None:
+        """Lose the fix (``openel_async.rig.FaultInjection``), as on an antenna fault: from
+        the next epoch on, GGA fix quality 0 and RMC status V, without a position; the
+        driver keeps the last fix and reports it stale. Callable from any thread (the
+        serving task reads the attributes at each epoch); ``fix_quality`` set back to 1
+        restores the fix."""
+        log.info("sim_gps_fault_injected", reason=reason)
+        self.fault_reason = reason
+        self.fix_quality = nmea.FixQuality.INVALID

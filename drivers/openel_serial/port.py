@@ -77,6 +77,7 @@ from openel_serial.errors import (
 from openel_serial.link import SerialLink
 
 __all__ = [
+    "DEFAULT_RETURN_DELAY",
     "POLL_ADDRESS",
     "POLL_LENGTH",
     "STATUS_OVERHEAD",
@@ -98,6 +99,8 @@ STATUS_OVERHEAD: Final = 11
 SYNC_READ_OVERHEAD: Final = 14
 """Bytes of a SYNC READ packet besides its id list: header 4, id, length 2, 0x82, address 2,
 data length 2, CRC 2 (without byte stuffing)."""
+DEFAULT_RETURN_DELAY: Final = 500e-6
+"""The X series' factory Return Delay Time (9): 250 x 2 us."""
 BITS_PER_BYTE: Final = 10  # 8N1: start + 8 data + stop
 SYNC_READ_CACHE: Final = 64
 """SYNC READ instruction packets kept per port, by (address, length, ids)."""
@@ -279,7 +282,7 @@ class DynamixelPort:
         url: str,
         *,
         baudrate: int = 57_600,
-        return_delay: float = 500e-6,
+        return_delay: float = DEFAULT_RETURN_DELAY,
         timeout_margin: float = 0.02,
         retries: int = 2,
         poll_period: float = 0.01,

@@ -8,74 +8,113 @@ buses:
   gps: {type: serial, protocol: nmea, device: /dev/ttyACM0, baudrate: 9600}
 ```
 
+``rig check`` (:meth:`SerialBusKind.check`) refuses a device of the other protocol on a
+port, a baud rate the protocol does not have (the X series' Baud Rate (8) table; the
+standard tty rates for NMEA), a servo id outside 0..252 or given twice, a second receiver
+on an NMEA port, and the Dynamixel tuning options on an NMEA port.
+
 With ``--sim`` the port is a pseudo-terminal with simulated servos
-(:class:`~openel_serial.peers.SimDynamixelBus`, the model of each device class, at the rig's
-ids) or a simulated receiver (:class:`~openel_serial.peers.SimGps`), served on a thread of its
-own (:class:`~openel_serial.peers.PeerThread`: it keeps running -- the servos' Bus Watchdog
-too -- while the host's event loop is blocked); the driver opens the pty at the rig's baud
-rate with the port's real termios settings.
+(:class:`~openel_serial.peers.SimDynamixelBus`: a :class:`~openel_serial.peers.SimServo` of
+each device class's model at the rig's ids, with the rig's baud rate as their Baud Rate (8)
+and its ``return_delay`` as their Return Delay Time (9)) or a simulated receiver
+(:class:`~openel_serial.peers.SimGps`), served on a thread of its own
+(:class:`~openel_serial.peers.PeerThread`: it keeps running -- the servos' Bus Watchdog
+too -- while the host's event loop is blocked, and stops at exit). The driver opens the pty
+at the rig's baud rate with the port's real termios settings, and the simulated servos hear
+it only at their own rate, as on a real bus.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import AsyncIterator, Mapping, Sequence
 from contextlib import AbstractAsyncContextManager, asynccontextmanager
-from typing import Any, Literal
+from typing import Annotated, Any, Final, Literal
 
 import msgspec
 
 from openel_async.errors import BadParameterError
 from openel_async.rig import BusKind, SimulatedBus, SimulatedDevice
+from openel_serial import dynamixel as dx
 
-from .port import DynamixelPort
+from .port import DEFAULT_RETURN_DELAY, DynamixelPort
 
-__all__ = ["SerialBusKind", "SerialBusOptions"]
+__all__ = [
+    "DYNAMIXEL_BAUDRATES",
+    "GPS_DEVICES",
+    "NMEA_BAUDRATES",
+    "SERVO_MODELS",
+    "SerialBusKind",
+    "SerialBusOptions",
+]
 
-SERVO_MODELS: Mapping[str, int] = {
+SERVO_MODELS: Final[Mapping[str, int]] = {
     "dynamixel": 1020,
     "dynamixel_xm430_w350": 1020,
     "dynamixel_xl430_w250": 1060,
 }
-"""The Dynamixel device classes and the model number a simulated servo of each reports."""
-GPS_DEVICES = frozenset({"nmea_gps"})
-DYNAMIXEL_BAUDRATES = (9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+"""The Dynamixel device classes and the model number a simulated servo of each reports (the
+generic ``dynamixel`` class: an XM430-W350)."""
+GPS_DEVICES: Final = frozenset({"nmea_gps"})
+DYNAMIXEL_BAUDRATES: Final = dx.BAUD_RATES
 """The X series' Baud Rate (8) settings, bit/s."""
+NMEA_BAUDRATES: Final = (4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600)
+"""The tty rates GPS receivers use (NMEA 0183 itself says 4800; most send at 9600)."""
+DYNAMIXEL_ONLY: Final = ("poll_period", "return_delay", "timeout_margin", "retries")
+"""The options of a Dynamixel port (None: the :class:`DynamixelPort` default)."""
+
+Seconds = Annotated[float, msgspec.Meta(ge=0)]
 
 
 class SerialBusOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """A serial port."""
+    """A serial port: its device, baud rate and protocol; for Dynamixel, the port's tuning."""
 
-    device: str
-    """The port: /dev/ttyUSB0, /dev/serial/by-id/... (stable across replugs), or a pyserial
-    URL."""
-    baudrate: int
-    """Bits per second: the servos' Baud Rate setting (Dynamixel X: 9600 .. 4500000) or the
-    receiver's (NMEA: usually 9600)."""
+    device: Annotated[str, msgspec.Meta(min_length=1)]
+    """The port: ``/dev/ttyUSB0``, ``/dev/serial/by-id/...`` (stable across replugs), or a
+    pyserial URL."""
+    baudrate: Annotated[int, msgspec.Meta(gt=0)]
+    """Bits per second: the servos' Baud Rate (8) (Dynamixel X: 9600, 57600, 115200, 1000000,
+    2000000, 3000000, 4000000 or 4500000) or the receiver's (NMEA: 4800 .. 921600, usually
+    9600)."""
     protocol: Literal["dynamixel", "nmea"]
-    """What the port carries: Dynamixel Protocol 2.0 servos, or an NMEA 0183 GPS receiver."""
-    poll_period: float = 0.01
-    """Dynamixel: seconds between the SYNC READs of every servo's present state (below half
-    the watchdog timeout)."""
-    return_delay: float = 500e-6
-    """Dynamixel: the servos' Return Delay Time, seconds."""
-    timeout_margin: float = 0.02
-    """Dynamixel: seconds added to a reply's transfer time before it counts as lost."""
-    retries: int = 2
-    """Dynamixel: resends of a lost exchange."""
+    """What the port carries: Dynamixel Protocol 2.0 servos (they share one port object and
+    its poller), or one NMEA 0183 GPS receiver (the ``nmea_gps`` device opens the port)."""
+    poll_period: Seconds | None = None
+    """Dynamixel only: seconds between the SYNC READs of every servo's present state, which
+    also feed their Bus Watchdogs (below half of ``safety.watchdog_timeout``); 0 polls back
+    to back. Default 0.01."""
+    return_delay: Annotated[float, msgspec.Meta(ge=0, le=508e-6)] | None = None
+    """Dynamixel only: the servos' Return Delay Time (9), in seconds (0 .. 508e-6, 2 us
+    units; the X series' factory setting is 500e-6). Default 500e-6."""
+    timeout_margin: Annotated[float, msgspec.Meta(gt=0)] | None = None
+    """Dynamixel only: seconds added to a reply's transfer time and the return delays before
+    it counts as lost (USB adapter latency: with an FTDI adapter at its 16 ms latency timer,
+    more than 0.016). Default 0.02."""
+    retries: Annotated[int, msgspec.Meta(ge=0)] | None = None
+    """Dynamixel only: how many times a request whose replies were lost is sent again before
+    the request fails. Default 2."""
 
 
 def _servo_ids(devices: Sequence[SimulatedDevice]) -> dict[int, SimulatedDevice]:
+    """The servos by id; BadParameterError on an id out of range or given twice."""
     ids: dict[int, SimulatedDevice] = {}
     for d in devices:
         dxl_id = d.params.get("dxl_id")
-        if not isinstance(dxl_id, int) or isinstance(dxl_id, bool) or not 0 <= dxl_id <= 252:
-            raise BadParameterError(f"{d.name}.params.dxl_id", dxl_id, "a servo id in 0..252")
+        if not isinstance(dxl_id, int) or isinstance(dxl_id, bool) or not 0 <= dxl_id <= dx.MAX_ID:
+            raise BadParameterError(
+                f"{d.name}.params.dxl_id", dxl_id, f"a servo id in 0..{dx.MAX_ID}"
+            )
         if dxl_id in ids:
             raise BadParameterError(
                 f"{d.name}.params.dxl_id", dxl_id, f"an id of its own ({ids[dxl_id].name} has it)"
             )
         ids[dxl_id] = d
     return ids
+
+
+def _port_arguments(options: SerialBusOptions) -> dict[str, Any]:
+    """The :class:`DynamixelPort` tuning the options give (the others keep its defaults)."""
+    return {k: v for k in DYNAMIXEL_ONLY if (v := getattr(options, k)) is not None}
 
 
 class SerialBusKind(BusKind):
@@ -85,26 +124,38 @@ class SerialBusKind(BusKind):
 
     def check(self, options: Any, devices: Sequence[SimulatedDevice]) -> None:
         assert isinstance(options, SerialBusOptions)
-        if options.baudrate <= 0:
-            raise BadParameterError("baudrate", options.baudrate, "bits per second > 0")
-        wanted = SERVO_MODELS if options.protocol == "dynamixel" else GPS_DEVICES
+        dynamixel = options.protocol == "dynamixel"
+        wanted = SERVO_MODELS if dynamixel else GPS_DEVICES
         for d in devices:
             if d.device not in wanted:
                 raise BadParameterError(
                     f"{d.name}.device",
                     d.device,
-                    f"a {options.protocol} device ({', '.join(sorted(wanted))})",
+                    f"a {options.protocol} device ({', '.join(sorted(wanted))}): the bus "
+                    f"carries {options.protocol}",
                 )
-        if options.protocol == "dynamixel":
-            if options.baudrate not in DYNAMIXEL_BAUDRATES:
-                raise BadParameterError(
-                    "baudrate", options.baudrate,
-                    f"a Dynamixel X baud rate: {', '.join(map(str, DYNAMIXEL_BAUDRATES))}",
-                )  # fmt: skip
+        rates = DYNAMIXEL_BAUDRATES if dynamixel else NMEA_BAUDRATES
+        if options.baudrate not in rates:
+            what = "a Dynamixel X baud rate" if dynamixel else "a GPS receiver's baud rate"
+            raise BadParameterError(
+                "baudrate", options.baudrate, f"{what}: {', '.join(map(str, rates))}"
+            )
+        for key in ("poll_period", "timeout_margin"):
+            value = getattr(options, key)
+            if value is not None and not math.isfinite(value):
+                raise BadParameterError(key, value, "a finite number of seconds")
+        if dynamixel:
             _servo_ids(devices)
-        elif len(devices) > 1:
+            return
+        for key in DYNAMIXEL_ONLY:
+            value = getattr(options, key)
+            if value is not None:
+                raise BadParameterError(key, value, "only with protocol: dynamixel")
+        if len(devices) > 1:
             names = ", ".join(d.name for d in devices)
-            raise BadParameterError("devices", names, "one GPS receiver per NMEA port")
+            raise BadParameterError(
+                f"{devices[1].name}.bus", names, "one GPS receiver per NMEA port"
+            )
 
     def describe(self, options: Any) -> str:
         assert isinstance(options, SerialBusOptions)
@@ -115,12 +166,7 @@ class SerialBusKind(BusKind):
         assert isinstance(options, SerialBusOptions)
         if options.protocol == "dynamixel":
             return DynamixelPort(
-                options.device,
-                baudrate=options.baudrate,
-                return_delay=options.return_delay,
-                timeout_margin=options.timeout_margin,
-                retries=options.retries,
-                poll_period=options.poll_period,
+                options.device, baudrate=options.baudrate, **_port_arguments(options)
             )
         return _nothing(options)  # the GPS device opens its port itself
 
@@ -136,6 +182,7 @@ class SerialBusKind(BusKind):
         self, name: str, options: Any, devices: Sequence[SimulatedDevice]
     ) -> AbstractAsyncContextManager[SimulatedBus]:
         assert isinstance(options, SerialBusOptions)
+        self.check(options, devices)
         return _simulated(options, devices)
 
 
@@ -150,10 +197,20 @@ async def _simulated(
 ) -> AsyncIterator[SimulatedBus]:
     from .peers import PeerThread, SimDynamixelBus, SimGps, SimServo
 
+    peer: SimDynamixelBus | SimGps
     if options.protocol == "dynamixel":
         ids = _servo_ids(devices)
-        servos = {i: SimServo(i, model_number=SERVO_MODELS[d.device]) for i, d in ids.items()}
-        peer: SimDynamixelBus | SimGps = SimDynamixelBus(servos.values())
+        return_delay = _port_arguments(options).get("return_delay", DEFAULT_RETURN_DELAY)
+        servos = {
+            i: SimServo(
+                i,
+                model_number=SERVO_MODELS[d.device],
+                baud_rate=DYNAMIXEL_BAUDRATES.index(options.baudrate),
+                return_delay_time=round(return_delay / dx.RETURN_DELAY_UNIT_S),
+            )
+            for i, d in ids.items()
+        }
+        peer = SimDynamixelBus(servos.values(), check_baudrate=True)
         by_name: dict[str, object] = {d.name: servos[i] for i, d in ids.items()}
         what = f"simulated Dynamixel servos {', '.join(map(str, sorted(ids)))}"
     else:

@@ -650,7 +650,7 @@ class DynamixelServo(ActuatorDevice):
         self._torque = bool(item(X.TORQUE_ENABLE))
         self._ack_writes = item(X.STATUS_RETURN_LEVEL) >= 2
         self._alert = item(X.HARDWARE_ERROR_STATUS) != 0
-        self.return_delay = item(X.RETURN_DELAY_TIME) * 2e-6
+        self.return_delay = item(X.RETURN_DELAY_TIME) * dx.RETURN_DELAY_UNIT_S
         if self.return_delay > self.port.return_delay:
             self._log.warning(
                 "dynamixel_return_delay_exceeds_port",
