@@ -7,16 +7,20 @@ itself within its Bus Watchdog timeout)."""
 
 from __future__ import annotations
 
+import contextlib
+import os
 import signal
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import AsyncIterator, Callable, Sequence
+from contextlib import asynccontextmanager
 from pathlib import Path
 from typing import Any
 
 import anyio
+import anyio.abc
 import msgspec
 import pytest
 
@@ -413,14 +417,42 @@ async def test_the_rig_leaves_every_servo_as_on_exit_says(tmp_path: Path, on_exi
             assert peer.state() == (goal, 0.0)  # holding there
 
 
-async def test_kill_9_of_an_app_streaming_goals_stops_every_servo_within_the_timeout(
-    tmp_path: Path,
-) -> None:
-    """The simulated servos run here (on a thread of their own); the app, a child process
-    run from a rig file that names their pty, arms their Bus Watchdogs (100 ms, from the
-    rig's safety) and streams goals; kill -9: every servo stops by itself within the
-    timeout, with nobody left to tell it."""
+async def test_a_stalled_loop_lets_every_servo_stop_by_itself(tmp_path: Path) -> None:
+    """Block the event loop for 3x the rig's watchdog timeout: the servos (on their own
+    thread and clock) stop by themselves during the stall, one timeout after the last poll;
+    each component reports ErrorId.WATCHDOG when the loop resumes; re_init recovers."""
+    recorder = EventRecorder(MonotonicClock())
     timeout_s = 0.1
+    async with open_rig(load_rig(servo_rig(tmp_path)), MonotonicClock(), sim=True) as rig:
+        servos = peers_of(rig.peers)
+        for actuator in rig.actuators:
+            actuator.add_observer(recorder)
+            await actuator.set_value(2.0, Request.VELOCITY)  # would turn for ever
+        stall_start = time.monotonic_ns()
+        time.sleep(3 * timeout_s)  # noqa: ASYNC251 - the stall under test: nothing feeds
+        stall_end = time.monotonic_ns()
+        for actuator in rig.actuators:
+            await recorder.wait_for("error", ErrorId.WATCHDOG, source=actuator, timeout=WAIT_S)
+            assert actuator.state is ComponentState.ERROR
+            assert "Bus Watchdog expired" in str(actuator.last_fault)
+        for peer in servos:
+            assert peer.watchdog_tripped_ns is not None
+            # (+20 ms: the last poll before the stall may reach the servos' thread late)
+            assert stall_start < peer.watchdog_tripped_ns <= stall_start + round(0.12 * NS)
+            assert peer.watchdog_tripped_ns < stall_end and peer.state()[1] == 0.0
+        for actuator in rig.actuators:
+            await actuator.re_init()
+        assert [s.get_raw(X.BUS_WATCHDOG) for s in servos] == [5, 5]  # cleared, armed again
+        with anyio.fail_after(WAIT_S):
+            await (await rig.actuator("J2").set_value(-0.2))
+        assert recorder.count("error", ErrorId.WATCHDOG) == 2
+
+
+@asynccontextmanager
+async def streaming_app(tmp_path: Path) -> AsyncIterator[tuple[anyio.abc.Process, list[SimServo]]]:
+    """Simulated servos served here (on a thread of their own) and the app streaming goals
+    to them: a child process run from a rig file that names their pty (no ``--sim``), whose
+    safety arms their Bus Watchdogs (100 ms) and leaves them holding at exit."""
     devices = [servo("J1", 1), servo("J2", 2, "dynamixel_xl430_w250")]
     async with KIND.simulate("servos", options(), devices) as sim:
         servos = peers_of(dict(sim.peers))
@@ -429,21 +461,46 @@ async def test_kill_9_of_an_app_streaming_goals_stops_every_servo_within_the_tim
             [sys.executable, "-m", "openel_async.cli", "run", str(APP), "--rig", str(rig)],
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
+            env=dict(os.environ, NO_COLOR="1"),
         ) as app:
             assert app.stdout is not None
             output = b""
             with anyio.fail_after(30):  # the child's start: imports, the rig's init
                 while b"ready\n" not in output:
-                    chunk = await app.stdout.receive()
-                    output += chunk
+                    output += await app.stdout.receive()
             assert [s.get_raw(X.BUS_WATCHDOG) for s in servos] == [5, 5]  # armed by the rig
             goals = [s.get_raw(X.GOAL_POSITION) for s in servos]
             # The stream goes on: the goals change.
             await wait_until(lambda: [s.get_raw(X.GOAL_POSITION) for s in servos] != goals)
-            killed_ns = time.monotonic_ns()
-            app.send_signal(signal.SIGKILL)
-            with anyio.fail_after(WAIT_S):
-                assert await app.wait() == -signal.SIGKILL
+            try:
+                yield app, servos
+            finally:
+                with contextlib.suppress(ProcessLookupError):  # ended already
+                    app.kill()
+
+
+async def rest_of(app: anyio.abc.Process) -> str:
+    """What the app prints until it ends (bounded)."""
+    assert app.stdout is not None
+    output = b""
+    with anyio.fail_after(20):
+        with contextlib.suppress(anyio.EndOfStream):
+            while True:
+                output += await app.stdout.receive()
+    return output.decode()
+
+
+async def test_kill_9_of_an_app_streaming_goals_stops_every_servo_within_the_timeout(
+    tmp_path: Path,
+) -> None:
+    """kill -9 of the app: every servo stops by itself within the timeout, with nobody left
+    to tell it."""
+    timeout_s = 0.1
+    async with streaming_app(tmp_path) as (app, servos):
+        killed_ns = time.monotonic_ns()
+        app.send_signal(signal.SIGKILL)
+        with anyio.fail_after(WAIT_S):
+            assert await app.wait() == -signal.SIGKILL
         # The servos' own clock decides; no instruction reaches them any more.
         deadline_ns = killed_ns + round((timeout_s + 0.02) * NS)
         await wait_until(lambda: all(s.watchdog_tripped for s in servos))
@@ -454,3 +511,33 @@ async def test_kill_9_of_an_app_streaming_goals_stops_every_servo_within_the_tim
             assert velocity == 0.0 and s.torque_enabled  # stopped, holding
             await anyio.sleep(0.03)
             assert s.state() == (position, 0.0)
+
+
+async def test_sigterm_of_an_app_streaming_goals_leaves_every_servo_holding(
+    tmp_path: Path,
+) -> None:
+    """SIGTERM: the run leaves every servo as ``safety.on_exit`` says (hold) and disarms its
+    Bus Watchdog, so that the hold outlives the app."""
+    async with streaming_app(tmp_path) as (app, servos):
+        app.send_signal(signal.SIGTERM)
+        out = await rest_of(app)
+        with anyio.fail_after(WAIT_S):
+            assert await app.wait() == 143, out
+        assert "on exit            hold: J1 done, J2 done" in out
+        await anyio.sleep(0.3)  # 3x the timeout with nobody on the bus
+        for s in servos:
+            assert s.get_raw(X.BUS_WATCHDOG) == 0 and not s.watchdog_tripped
+            assert s.torque_enabled and s.state()[1] == 0.0
+            assert s.state()[0] == s.get_raw(X.GOAL_POSITION)  # holding its goal
+
+
+async def test_sigquit_estops_every_servo_and_the_exit_leaves_them_so(tmp_path: Path) -> None:
+    async with streaming_app(tmp_path) as (app, servos):
+        app.send_signal(signal.SIGQUIT)
+        await wait_until(lambda: not any(s.torque_enabled for s in servos))
+        app.send_signal(signal.SIGINT)  # the exit must not undo the e-stop
+        out = await rest_of(app)
+        with anyio.fail_after(WAIT_S):
+            assert await app.wait() == 130, out
+        assert "on exit            hold: J1 e-stopped, J2 e-stopped" in out
+        assert not any(s.torque_enabled for s in servos)
