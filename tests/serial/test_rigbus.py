@@ -201,7 +201,9 @@ def test_check_refuses(
 
 def test_rig_check_refuses_a_servo_on_an_nmea_port(tmp_path: Path) -> None:
     path = write_rig(tmp_path, "protocol: nmea, device: /dev/ttyACM0, baudrate: 9600")
-    with pytest.raises(BadParameterError, match=r"rig.yaml:2:\d+: .*J1.device.*nmea"):
+    # The entry's own arguments are checked first (rig check): an NMEA port gives no 'port'.
+    # (The kind's own refusal, a servo on an NMEA port, is test_check_refuses's.)
+    with pytest.raises(BadParameterError, match=r"rig.yaml:4:\d+: J1.params.*with port"):
         resolve_rig(load_rig(path))
 
 
