@@ -170,7 +170,11 @@ async def test_a_failing_step_hook_is_dropped_not_fatal(stack: AsyncExitStack) -
         (b"model: arm2\nsensors: [{sensor: s, units: {a: b}}]\n", r"units=\{'a': 'b'\}"),
         (b"model: arm2\ntimestep: " + b"9" * 400 + b"\n", r"SimDescription\.timestep=9+ "),
         (b"model: arm2\nname: 5\n", r"name=5 .*non-empty string"),
-        (b"model: [arm2\n", r"^\S*rig\.yaml:2:1: path=.*a YAML file \(expected ','"),
+        (
+            b"model: [arm2\n",
+            r"^\S*rig\.yaml:2:1: path=.*a YAML file \(did not find expected ','.* "
+            r"flow sequence started at line 1, column 8\)",
+        ),
         (b"model: arm2\n  pacing: lockstep\n", r"^\S*rig\.yaml:2:9: path=.*a YAML file \(mapping"),
         (b"model: \xff\xfe\n", r"a UTF-8 text file \(byte 0xff at offset 7"),
         (b"model: arm2\nkeyframe: 2020-13-45\n", r"a YAML file \(month must be in 1\.\.12\)"),

@@ -318,7 +318,7 @@ async def test_loop_driven_writes_never_block_and_lose_nothing_untold(tmp_path: 
     capacity and the rest is dropped and counted; once the writer runs again everything
     held is written, and the file holds exactly what was not dropped."""
     path = tmp_path / "d.mcap"
-    recorder = Recorder(path, capacity=50_000)
+    recorder = Recorder(path, capacity=5_000)
     actuator = Actuator(SimMotor(), device_name="AXIS", clock=VirtualClock())
     produced = 0
     async with recorder:
@@ -330,7 +330,7 @@ async def test_loop_driven_writes_never_block_and_lose_nothing_untold(tmp_path: 
             os.kill(pid, signal.SIGSTOP)
             try:
                 started = time.monotonic()
-                for k in range(300):  # 300 000 commands: far more than the pipe and buffers
+                for k in range(150):  # 150 000 commands: far more than the pipe, frames and buffer
                     for _ in range(1000):
                         produced += 1
                         actuator.set_value_nowait(1e-6 * (k % 7), Request.POSITION)

@@ -352,7 +352,11 @@ def test_recursive_alias_is_refused() -> None:
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("rtcProfile: [unclosed", r"^<string>:1:22: <document>: invalid YAML: expected"),
+        (
+            "rtcProfile: [unclosed",
+            r"^<string>:2:1: <document>: invalid YAML: did not find expected ',' or '\]' "
+            r"\(while parsing a flow sequence started at line 1, column 13\)",
+        ),
         ("a: b\n  c: d", r"^<string>:2:4: <document>: invalid YAML: mapping values"),
         ("[" * 5000, "invalid YAML"),
         ("rtcProfile: !!int abc", "invalid YAML value"),

@@ -149,7 +149,7 @@ def test_blocking_cycle_graph() -> None:
             "system: {components: {a: {profile: x.yaml}}, connections: [{from: a, to: b.c}]}",
             "component.port",
         ),
-        ("system: [", r"s\.yaml:1:10: invalid YAML"),
+        ("system: [", r"s\.yaml:2:1: invalid YAML: did not find expected node content"),
     ],
 )
 def test_bad_yaml(tmp_path: Path, text: str, match: str) -> None:

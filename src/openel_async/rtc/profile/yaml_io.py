@@ -1,6 +1,6 @@
 """The YAML form of an RTC Profile (§3.2, §7, sample §9.3).
 
-Loading uses PyYAML's SafeLoader (no Python object construction: ``!!python/...``
+Loading uses PyYAML's safe loader (libyaml's parser where present; no Python object construction: ``!!python/...``
 tags are refused) with one change: plain scalars stay strings and only null is
 resolved implicitly, so ``version: 1.10`` or ``defaultValue: 010`` keep their text
 instead of becoming the numbers 1.1 and 8; typed fields are converted by the schema.
@@ -18,7 +18,15 @@ from datetime import datetime
 
 import yaml
 
-from ...positioned import DocumentError, Location, YamlDocument, did_you_mean, load_yaml
+from ...positioned import (
+    SAFE_DUMPER,
+    SAFE_LOADER,
+    DocumentError,
+    Location,
+    YamlDocument,
+    did_you_mean,
+    load_yaml,
+)
 from ..constraints import (
     Constraint,
     ConstraintError,
@@ -39,7 +47,7 @@ _PLURALS = {"transMethod": "transMethods"}
 the spec's singular key (and written under the singular key)."""
 
 
-class _ProfileLoader(yaml.SafeLoader):
+class _ProfileLoader(SAFE_LOADER):  # type: ignore[valid-type,misc]
     """SafeLoader that resolves nothing but null implicitly (see module docstring)."""
 
 
@@ -333,6 +341,11 @@ def dumps_yaml(profile: RtcProfile) -> str:
     body: dict[str, object] = {}
     write_profile(profile, _YamlSink(body, ROOT))
     _check_budget({ROOT: body})  # never write what loads_yaml would refuse
-    return yaml.safe_dump(
-        {ROOT: body}, sort_keys=False, allow_unicode=True, explicit_start=True, width=100
+    return yaml.dump(
+        {ROOT: body},
+        Dumper=SAFE_DUMPER,
+        sort_keys=False,
+        allow_unicode=True,
+        explicit_start=True,
+        width=100,
     )
