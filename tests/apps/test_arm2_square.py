@@ -39,6 +39,7 @@ def _reset_logging() -> object:
     structlog.reset_defaults()  # the CLI's main() configures structlog for the process
 
 
+@pytest.mark.render
 async def test_one_square_in_lockstep(tmp_path: Path) -> None:
     options = ArmOptions(duration=6.0, realtime=False, out_dir=tmp_path, live=False, period_ms=2.0)
     sim = open_sim(realtime=False)

@@ -30,6 +30,7 @@ class Names(AppHook):
         self.names.append(component.device_name)
 
 
+@pytest.mark.render
 async def test_pick_and_place_moves_the_box(tmp_path: Path) -> None:
     options = ArmOptions(duration=8.0, realtime=False, out_dir=tmp_path, live=False, period_ms=2.0)
     sim = MujocoSim("arm6", keyframe="home")

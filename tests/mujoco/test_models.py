@@ -426,6 +426,7 @@ def test_arm6_suction_picks_the_box_and_wrist_sensors_see_it() -> None:
 # --------------------------------------------------------------------------- rendering
 
 
+@pytest.mark.render
 def test_render_snapshot_writes_png_or_returns_none(tmp_path: pathlib.Path) -> None:
     from matplotlib import image as mpl_image
 

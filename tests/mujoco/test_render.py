@@ -20,6 +20,8 @@ from matplotlib import image as mpl_image
 from openel_mujoco import MujocoSim, load_model, render
 from openel_mujoco.render import RenderWorkerError, SnapshotRenderer, SnapshotRequest
 
+pytestmark = pytest.mark.render  # the module is about rendering
+
 NO_GL = {"MUJOCO_GL": "disable"}
 posix_only = pytest.mark.skipif(sys.platform == "win32", reason="SIGSTOP/SIGKILL (POSIX)")
 

@@ -529,6 +529,7 @@ def test_driver_entry_point() -> None:
     assert entries["mujoco"].info is DRIVER, entries["mujoco"].error
 
 
+@pytest.mark.render
 async def test_render_snapshot_pauses_lockstep_time(stack: AsyncExitStack, tmp_path) -> None:  # type: ignore[no-untyped-def]
     sim = MujocoSim("arm2")
     await start_rig(stack, sim, ("shoulder",))
