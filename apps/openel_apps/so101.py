@@ -514,7 +514,10 @@ def _summary(result: So101Result) -> str:
         f"  steps              {reached}/{len(SEQUENCE)} reached in {result.seconds:.2f} s "
         f"on the rig's clock ({result.wall_s:.2f} s of wall time)",
         "  joint ranges       "
-        + ", ".join(f"{n} [{lo:+.2f}, {hi:+.2f}]" for n, (lo, hi) in result.joint_ranges.items()),
+        + ", ".join(
+            f"{n} [{round(lo, 2) + 0.0:+.2f}, {round(hi, 2) + 0.0:+.2f}]"
+            for n, (lo, hi) in result.joint_ranges.items()
+        ),
     ]
     for label, path in result.snapshots:
         lines.append(f"  {label:<18} {display_path(path)}")
