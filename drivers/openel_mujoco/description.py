@@ -357,7 +357,7 @@ class SimDescription:
     docstring."""
 
     model: str
-    """Shipped model name (``arm2``, ``arm6``) or a path to an MJCF/MJB file."""
+    """Shipped model name (``arm2``, ``arm6``, ``so101``) or a path to an MJCF/MJB file."""
     joints: tuple[JointSpec, ...] = ()
     sensors: tuple[SensorSpec, ...] = ()
     pacing: Pacing = "lockstep"

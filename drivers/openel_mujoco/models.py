@@ -1,12 +1,14 @@
 """Shipped MuJoCo models and small model utilities for the openel_mujoco driver.
 
 The MJCF files live in the ``models/`` directory next to this module (inside the package, so
-hatchling ships them in the wheel).  Shipped names: ``arm2`` (planar 2-DoF arm) and ``arm6``
-(6-DoF arm with gravity); each file documents its joint, actuator, sensor and site names.
+hatchling ships them in the wheel).  Shipped names: ``arm2`` (planar 2-DoF arm), ``arm6``
+(6-DoF arm with gravity) and ``so101`` (the SO-101 arm of LeRobot: five STS3215-like joints and
+a gripper whose position servo acts on a tendon in opening units 0..1); each file documents
+its joint, actuator, sensor and site names.
 
 Control-mode switching
 ----------------------
-Every joint of the shipped models has three actuators, ``<joint>_pos`` (position servo),
+Every joint of the shipped models (so101: every arm joint) has three actuators, ``<joint>_pos`` (position servo),
 ``<joint>_vel`` (velocity servo) and ``<joint>_torque`` (motor).  Actuators on one joint add
 their forces, so exactly one of them may be active.  Each of the three is in its own actuator
 group (``3 * joint_index + mode``) and the active set is selected with the run-time bit field
@@ -46,7 +48,7 @@ __all__ = [
 MODELS_DIR: Final[pathlib.Path] = pathlib.Path(__file__).resolve().parent / "models"
 """Directory holding the shipped MJCF files."""
 
-SHIPPED_MODELS: Final[tuple[str, ...]] = ("arm2", "arm6")
+SHIPPED_MODELS: Final[tuple[str, ...]] = ("arm2", "arm6", "so101")
 """Names accepted by :func:`model_path` and :func:`load_model`."""
 
 ControlMode = Literal["position", "velocity", "torque"]
@@ -93,7 +95,8 @@ def model_path(name: str) -> pathlib.Path:
 
 
 def load_model(source: str | os.PathLike[str]) -> mujoco.MjModel:
-    """Compile a model from a shipped name (``"arm2"``, ``"arm6"``) or an MJCF/MJB file path.
+    """Compile a model from a shipped name (``"arm2"``, ``"arm6"``, ``"so101"``) or an MJCF/MJB
+    file path.
 
     Raises :class:`ModelLoadError` if the file does not exist or MuJoCo rejects it (the message
     then includes MuJoCo's own error text).

@@ -59,7 +59,7 @@ class MujocoBusOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True,
     """A MuJoCo simulation as a bus (the keys of a ``type: mujoco`` bus entry)."""
 
     model: str
-    """A shipped model (``arm2``, ``arm6``) or the path of an MJCF or MJB file (relative to
+    """A shipped model (``arm2``, ``arm6``, ``so101``) or the path of an MJCF or MJB file (relative to
     the current directory)."""
     pacing: Literal["lockstep", "realtime"] = "lockstep"
     """``lockstep``: the simulation is the clock, as fast as the CPU allows and

@@ -128,7 +128,7 @@ def _on_mujoco_warning(message: str) -> None:
 class MujocoSim:
     """A MuJoCo simulation as an OpenEL device layer; see the module docstring.
 
-    ``model`` is a shipped model name (``"arm2"``, ``"arm6"``), an MJCF/MJB path, or an
+    ``model`` is a shipped model name (``"arm2"``, ``"arm6"``, ``"so101"``), an MJCF/MJB path, or an
     ``MjModel`` the simulation then owns (it changes ``opt.disableactuator`` and
     ``opt.disableflags``).  ``keyframe`` names the initial state; ``timestep`` overrides
     ``opt.timestep`` (seconds).  ``clock`` is only for ``pacing="realtime"``.

@@ -14,7 +14,15 @@ RIGS = ROOT / "apps" / "openel_apps" / "rigs"
 
 
 @pytest.mark.parametrize(
-    "name", ["twoaxis-sim.yaml", "twoaxis-can.yaml", "arm2.yaml", "arm6.yaml", "pantilt-sim.yaml"]
+    "name",
+    [
+        "twoaxis-sim.yaml",
+        "twoaxis-can.yaml",
+        "arm2.yaml",
+        "arm6.yaml",
+        "pantilt-sim.yaml",
+        "so101-mujoco.yaml",
+    ],
 )
 def test_every_shipped_rig_checks(name: str, capsys: pytest.CaptureFixture[str]) -> None:
     assert cli_main(["rig", "check", str(RIGS / name)]) == 0
