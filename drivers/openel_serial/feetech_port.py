@@ -219,6 +219,8 @@ class HostWatchdog:
         """The trip's duration if it tripped since the last call (then clears it)."""
         with self._lock:
             tripped, self.tripped_after = self.tripped_after, None
+            if tripped is not None:
+                self._last_feed = time.monotonic()  # the loop that asks is running
             return tripped
 
     async def stop(self) -> None:
@@ -631,6 +633,10 @@ class FeetechPort:
         self.check_connected()
         self._transaction += 1
         self.stats.transactions += 1
+        # No delimiter but FF FF: a frame left incomplete by noise (a false header whose
+        # length byte promises more) would swallow the replies. Nothing else is in flight on
+        # a half-duplex bus when a request starts: drop it.
+        self.parser.reset()
         self._link.write(packet)
         loop = asyncio.get_running_loop()
         waiter: asyncio.Future[None] = loop.create_future()
@@ -723,6 +729,8 @@ class FeetechPort:
         period_ns = round(self.poll_period * 1e9)
         while True:
             self._check_watchdog_trip()
+            if self._link.is_open:
+                self.watchdog.feed()  # the event loop runs
             if not self._link.is_open or not self._poll_ids():
                 self._poll_wake = anyio.Event()
                 if not self._link.is_open or not self._poll_ids():
