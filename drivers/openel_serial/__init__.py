@@ -4,10 +4,14 @@
   servos sharing one half-duplex port, polled with one SYNC READ per cycle; the model
   classes :class:`DynamixelXM430W350`, :class:`DynamixelXL430W250` (product id = model
   number) are in the Device Kind ID registry.
+* :class:`FeetechPort` + :class:`FeetechServo`: Feetech STS servos (the SO-101's STS3215,
+  :class:`FeetechSTS3215`) sharing one port, polled with one SYNC READ per cycle.
 * :class:`NmeaGps`: an NMEA 0183 GPS receiver (GGA, RMC).
-* :mod:`openel_serial.peers`: simulated devices on pseudo-terminals for tests and demos.
+* :mod:`openel_serial.peers`, :mod:`openel_serial.feetech_peers`: simulated devices on
+  pseudo-terminals for tests and demos.
 
-Codecs: :mod:`openel_serial.dynamixel`, :mod:`openel_serial.nmea`. See docs/serial.md.
+Codecs: :mod:`openel_serial.dynamixel`, :mod:`openel_serial.feetech`, :mod:`openel_serial.nmea`.
+See docs/serial.md.
 """
 
 from openel_async.registry import DriverInfo
@@ -16,9 +20,13 @@ from .errors import (
     DynamixelHardwareAlert,
     DynamixelStatusError,
     DynamixelTimeoutError,
+    FeetechStatusError,
+    FeetechTimeoutError,
     NoFixError,
     PortDisconnectedError,
 )
+from .feetech_port import FeetechPort, FeetechPresentState
+from .feetech_servo import FeetechServo, FeetechSTS3215
 from .gps import GpsFix, NmeaGps
 from .port import DynamixelPort, PingInfo, PortStats, PresentState
 from .rigbus import SerialBusKind, SerialBusOptions
@@ -26,11 +34,16 @@ from .servo import DynamixelServo, DynamixelXL430W250, DynamixelXM430W350
 
 DRIVER = DriverInfo(
     name="serial",
-    description="Serial devices on pyserial-asyncio-fast: Dynamixel 2.0 servos, NMEA GPS",
+    description=(
+        "Serial devices on pyserial-asyncio-fast: Dynamixel 2.0 servos, Feetech STS servos, "
+        "NMEA GPS"
+    ),
     devices={
         "dynamixel": DynamixelServo,
         "dynamixel_xm430_w350": DynamixelXM430W350,
         "dynamixel_xl430_w250": DynamixelXL430W250,
+        "feetech": FeetechServo,
+        "feetech_sts3215": FeetechSTS3215,
         "nmea_gps": NmeaGps,
     },
     buses={"serial": SerialBusKind()},
@@ -45,6 +58,12 @@ __all__ = [
     "DynamixelTimeoutError",
     "DynamixelXL430W250",
     "DynamixelXM430W350",
+    "FeetechPort",
+    "FeetechPresentState",
+    "FeetechSTS3215",
+    "FeetechServo",
+    "FeetechStatusError",
+    "FeetechTimeoutError",
     "GpsFix",
     "NmeaGps",
     "NoFixError",

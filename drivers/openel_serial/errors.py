@@ -30,6 +30,10 @@ __all__ = [
     "DynamixelHardwareAlert",
     "DynamixelStatusError",
     "DynamixelTimeoutError",
+    "FeetechChecksumError",
+    "FeetechDecodeError",
+    "FeetechStatusError",
+    "FeetechTimeoutError",
     "NmeaChecksumError",
     "NmeaDecodeError",
     "NoFixError",
@@ -47,6 +51,14 @@ class DynamixelDecodeError(DecodeError):
 
 class DynamixelCrcError(DynamixelDecodeError):
     """Dynamixel packet whose CRC-16 does not match its contents."""
+
+
+class FeetechDecodeError(DecodeError):
+    """Invalid Feetech SCS/STS packet (:mod:`openel_serial.feetech`)."""
+
+
+class FeetechChecksumError(FeetechDecodeError):
+    """Feetech packet whose checksum does not match its contents."""
 
 
 class NmeaDecodeError(DecodeError):
@@ -117,6 +129,38 @@ class DynamixelTimeoutError(TimeoutError):
         id_text = ", ".join(str(i) for i in ids)
         super().__init__(
             f"{port}: no status from servo {id_text} to {request} "
+            f"({attempts} attempt(s), {timeout * 1e3:.1f} ms each)"
+        )
+        self.port = port
+        self.ids = tuple(ids)
+        self.request = request
+        self.timeout = timeout
+        self.attempts = attempts
+
+
+class FeetechStatusError(HALError):
+    """A Feetech servo reports alarms in its status (voltage, angle sensor, overheat,
+    overcurrent, overload: :class:`openel_serial.feetech.StatusError`); unlike Dynamixel 2.0
+    the instruction was executed, and the unloading condition (19) bits among them have turned
+    its torque off."""
+
+    def __init__(self, servo_id: int, error: int, request: str, detail: str = "") -> None:
+        from openel_serial.feetech import StatusError
+
+        text = f"servo {servo_id}: {request}: {StatusError(error).describe()} (error byte {error:#04x})"
+        super().__init__(text + (f"; {detail}" if detail else ""))
+        self.servo_id = servo_id
+        self.error = error
+        self.request = request
+
+
+class FeetechTimeoutError(TimeoutError):
+    """No (valid) status from ``ids`` within the timeout, after every attempt."""
+
+    def __init__(self, port: str, ids: Sequence[int], request: str, timeout: float, attempts: int):
+        id_text = ", ".join(str(i) for i in ids)
+        super().__init__(
+            f"{port}: no status from Feetech servo {id_text} to {request} "
             f"({attempts} attempt(s), {timeout * 1e3:.1f} ms each)"
         )
         self.port = port

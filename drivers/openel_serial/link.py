@@ -135,6 +135,13 @@ def _transport_for(
     return FdSerialTransport(loop, protocol, port)
 
 
+def _fileno_of(port: serial.Serial) -> int | None:
+    try:
+        return int(port.fileno())
+    except (AttributeError, OSError, ValueError, serial.SerialException):
+        return None
+
+
 class _Protocol(asyncio.Protocol):
     def __init__(self, link: SerialLink, generation: int, closed: anyio.Event) -> None:
         self._link = link
@@ -171,6 +178,7 @@ class SerialLink:
         self._on_data = on_data
         self._on_lost = on_lost
         self._transport: asyncio.Transport | None = None
+        self._fileno: int | None = None
         self._generation = 0
         self._closed: anyio.Event | None = None
         self.opens = 0
@@ -200,10 +208,23 @@ class SerialLink:
         loop = asyncio.get_running_loop()
         transport = _transport_for(loop, _Protocol(self, generation, closed), port)
         self._transport = transport
+        self._fileno = _fileno_of(port)
         self._closed = closed
         self.lost_reason = None
         self.opens += 1
         self._log.info("serial_port_opened", baudrate=self.baudrate, generation=generation)
+
+    def fileno(self) -> int | None:
+        """The open port's file descriptor (None when closed or when it has none).
+
+        For a writer that must not wait for the event loop (a host-side watchdog thread
+        sending a torque-off while the loop is stalled): ``os.write`` on it bypasses the
+        transport's buffer.
+        """
+        transport = self._transport
+        if transport is None or transport.is_closing():
+            return None
+        return self._fileno
 
     def write(self, data: bytes) -> None:
         """Queue ``data`` for sending (never blocks); raise if the port is not open."""
@@ -217,6 +238,7 @@ class SerialLink:
         """Close the port (pending output is dropped) and wait until it is released."""
         transport, closed = self._transport, self._closed
         self._transport = None
+        self._fileno = None
         if transport is None:
             return
         self._generation += 1  # callbacks of the old transport are ignored from now on
@@ -242,6 +264,7 @@ class SerialLink:
             return  # our own close()
         # The transport ended by itself: a read/write error or EOF.
         self._transport = None
+        self._fileno = None
         self._closed = None
         reason = f"port lost: {exc}" if exc is not None else "port closed by the transport"
         self.lost_reason = reason

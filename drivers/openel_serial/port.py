@@ -50,10 +50,8 @@ whose component goes to Error (``ErrorId.DISCONNECTED``, ``HAL_NO_CONNECTED``);
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import math
 import struct
-from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from contextlib import AsyncExitStack
 from dataclasses import dataclass
@@ -74,6 +72,7 @@ from openel_serial.errors import (
     DynamixelTimeoutError,
     PortDisconnectedError,
 )
+from openel_serial.halfduplex import BusLock, complete, positive, wire_time
 from openel_serial.link import SerialLink
 
 __all__ = [
@@ -101,16 +100,10 @@ SYNC_READ_OVERHEAD: Final = 14
 data length 2, CRC 2 (without byte stuffing)."""
 DEFAULT_RETURN_DELAY: Final = 500e-6
 """The X series' factory Return Delay Time (9): 250 x 2 us."""
-BITS_PER_BYTE: Final = 10  # 8N1: start + 8 data + stop
 SYNC_READ_CACHE: Final = 64
 """SYNC READ instruction packets kept per port, by (address, length, ids)."""
 _CRC_ERROR: Final = int(dx.ErrorNumber.CRC_ERROR)
 _ERROR_NUMBER: Final = 0x7F
-
-
-def wire_time(n_bytes: int, baudrate: int) -> float:
-    """Seconds to send ``n_bytes`` at ``baudrate`` (8N1)."""
-    return n_bytes * BITS_PER_BYTE / baudrate
 
 
 @dataclass(frozen=True, slots=True)
@@ -193,80 +186,6 @@ class PortClient(Protocol):
     def _estopped(self, reason: str) -> None: ...
 
 
-class _BusLock:
-    """The bus's FIFO lock: ``async with lock:`` around every transaction.
-
-    What ``anyio.Lock(fast_acquire=True)`` does, with less work per transaction: a
-    caller that finds it free takes it without yielding, after the same cancellation
-    check (``checkpoint_if_cancelled``: a cancelled caller is refused before anything is
-    sent); otherwise it waits on a future, in arrival order, and a release hands the
-    lock to the first waiter still waiting. Unlike anyio's, it does not look up the
-    current task to record or check an owner (the port is its only user and always
-    releases what it took, in ``__aexit__``).
-    """
-
-    __slots__ = ("_locked", "_waiters")
-
-    def __init__(self) -> None:
-        self._locked = False
-        self._waiters: deque[asyncio.Future[None]] = deque()
-
-    def locked(self) -> bool:
-        return self._locked
-
-    async def __aenter__(self) -> None:
-        await self.acquire()
-
-    async def acquire(self, *, first: bool = False) -> None:
-        """Take the lock; ``first``: ahead of every waiter (an e-stop), not in arrival order."""
-        if not self._locked:  # waiters only exist while it is held
-            await anyio.lowlevel.checkpoint_if_cancelled()
-            if not self._locked:
-                self._locked = True
-                return
-        waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        if first:
-            self._waiters.appendleft(waiter)
-        else:
-            self._waiters.append(waiter)
-        try:
-            await waiter
-        except BaseException:
-            if waiter.done() and not waiter.cancelled():
-                self._release()  # handed over, then cancelled: pass it on
-            else:
-                with contextlib.suppress(ValueError):
-                    self._waiters.remove(waiter)
-            raise
-
-    async def __aexit__(self, *exc_info: object) -> None:
-        self._release()
-
-    def _release(self) -> None:
-        waiters = self._waiters
-        while waiters:
-            waiter = waiters.popleft()
-            if not waiter.done():
-                waiter.set_result(None)  # the lock stays held: it is the waiter's now
-                return
-        self._locked = False
-
-
-def _complete(waiter: asyncio.Future[None]) -> None:
-    """Wake the task waiting on ``waiter`` (once; a cancelled wait stays cancelled)."""
-    if not waiter.done():
-        waiter.set_result(None)
-
-
-def _positive(name: str, value: float, *, allow_zero: bool = False) -> float:
-    allowed = "a finite number " + (">= 0" if allow_zero else "> 0")
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise BadParameterError(name, value, allowed)
-    if not (math.isfinite(value) and (value >= 0 if allow_zero else value > 0)):
-        raise BadParameterError(name, value, allowed)
-    return float(value)
-
-
 class DynamixelPort:
     """A serial port carrying Dynamixel Protocol 2.0 servos; ``async with`` opens it.
 
@@ -298,10 +217,10 @@ class DynamixelPort:
             raise BadParameterError("retries", retries, "an int >= 0")
         self.url = url
         self.baudrate = baudrate
-        self.return_delay = _positive("return_delay", return_delay, allow_zero=True)
-        self.timeout_margin = _positive("timeout_margin", timeout_margin)
+        self.return_delay = positive("return_delay", return_delay, allow_zero=True)
+        self.timeout_margin = positive("timeout_margin", timeout_margin)
         self.retries = retries
-        self.poll_period = _positive("poll_period", poll_period, allow_zero=True)
+        self.poll_period = positive("poll_period", poll_period, allow_zero=True)
         self.clock: Clock = clock or default_clock()
         self.stats = PortStats()
         self.parser = dx.PacketParser(max_length=max_packet)
@@ -315,7 +234,7 @@ class DynamixelPort:
         # An uncontended acquire does not yield (one event-loop pass less per
         # transaction); a contended one queues, and release hands the lock to the first
         # waiter (FIFO).
-        self._lock = _BusLock()
+        self._lock = BusLock()
         self._reconnect_lock = anyio.Lock()
         self._clients: dict[int, PortClient] = {}
         self._transaction = 0
@@ -511,7 +430,7 @@ class DynamixelPort:
                 self._link.write(packet)
                 self._log.warning("dxl_estop", ids=sorted(pending))
         finally:
-            self._lock._release()
+            self._lock.release()
         if ids is None:
             for dxl_id in targets:
                 client = self._clients.get(dxl_id)
@@ -819,7 +738,7 @@ class DynamixelPort:
         if waiter is None:
             return  # no exchange in flight: the timer is not needed any more
         if loop.time() >= self._deadline:
-            _complete(waiter)  # timed out: the exchange returns what arrived
+            complete(waiter)  # timed out: the exchange returns what arrived
         else:
             self._watchdog = loop.call_at(self._deadline, self._watchdog_fired, loop)
 
@@ -861,7 +780,7 @@ class DynamixelPort:
             replies[dxl_id] = other
         waiter = self._waiter
         if waiter is not None and len(replies) == len(expect):
-            _complete(waiter)
+            complete(waiter)
 
     def _stray(self, dxl_id: int) -> None:
         self.stats.stray += 1
@@ -870,7 +789,7 @@ class DynamixelPort:
     def _on_lost(self, reason: str) -> None:
         self.stats.losses += 1
         if self._waiter is not None:
-            _complete(self._waiter)  # the waiter sees the loss at once
+            complete(self._waiter)  # the waiter sees the loss at once
         for client in list(self._clients.values()):
             client._port_lost(f"{self.url}: {reason}")
 

@@ -1,12 +1,21 @@
 """The ``serial`` bus kind of rig files: a serial port carrying Dynamixel Protocol 2.0 servos
-(one :class:`~openel_serial.port.DynamixelPort` shared by the servos that name it) or an NMEA
-GPS receiver, and its simulation for ``--sim``.
+(one :class:`~openel_serial.port.DynamixelPort` shared by the servos that name it), Feetech
+STS servos (one :class:`~openel_serial.feetech_port.FeetechPort`) or an NMEA GPS receiver, and
+its simulation for ``--sim``.
 
 ```yaml
 buses:
   arm: {type: serial, protocol: dynamixel, device: /dev/ttyUSB0, baudrate: 1000000}
+  so101: {type: serial, protocol: feetech, device: /dev/ttyACM0, baudrate: 1000000}
   gps: {type: serial, protocol: nmea, device: /dev/ttyACM0, baudrate: 9600}
 ```
+
+Feetech servos are addressed by ``params.servo_id`` (0..253), Dynamixel ones by
+``params.dxl_id``; the Feetech baud rates are the STS's Baud Rate (6) table (1000000, 500000,
+250000, 128000, 115200, 76800, 57600, 38400); the port tuning options apply to both servo
+protocols. With ``--sim`` a Feetech port is a :class:`~openel_serial.feetech_peers.SimFeetechBus`
+of :class:`~openel_serial.feetech_peers.SimStsServo` s at the rig's ids, with the rig's baud
+rate as their Baud Rate (6) and its ``return_delay`` as their Return Delay (7).
 
 ``rig check`` (:meth:`SerialBusKind.check`) refuses a device of the other protocol on a
 port, a baud rate the protocol does not have (the X series' Baud Rate (8) table; the
@@ -36,11 +45,16 @@ import msgspec
 from openel_async.errors import BadParameterError
 from openel_async.rig import BusKind, SimulatedBus, SimulatedDevice
 from openel_serial import dynamixel as dx
+from openel_serial import feetech as ft
 
+from .feetech_port import DEFAULT_RETURN_DELAY as FEETECH_RETURN_DELAY
+from .feetech_port import FeetechPort
 from .port import DEFAULT_RETURN_DELAY, DynamixelPort
 
 __all__ = [
     "DYNAMIXEL_BAUDRATES",
+    "FEETECH_BAUDRATES",
+    "FEETECH_MODELS",
     "GPS_DEVICES",
     "NMEA_BAUDRATES",
     "SERVO_MODELS",
@@ -55,13 +69,22 @@ SERVO_MODELS: Final[Mapping[str, int]] = {
 }
 """The Dynamixel device classes and the model number a simulated servo of each reports (the
 generic ``dynamixel`` class: an XM430-W350)."""
+FEETECH_MODELS: Final[Mapping[str, int]] = {
+    "feetech": ft.STS3215_MODEL,
+    "feetech_sts3215": ft.STS3215_MODEL,
+}
+"""The Feetech device classes and the model number a simulated servo of each reports."""
+FEETECH_BAUDRATES: Final = ft.BAUD_RATES
+"""The STS's Baud Rate (6) settings, bit/s."""
 GPS_DEVICES: Final = frozenset({"nmea_gps"})
 DYNAMIXEL_BAUDRATES: Final = dx.BAUD_RATES
 """The X series' Baud Rate (8) settings, bit/s."""
 NMEA_BAUDRATES: Final = (4800, 9600, 19_200, 38_400, 57_600, 115_200, 230_400, 460_800, 921_600)
 """The tty rates GPS receivers use (NMEA 0183 itself says 4800; most send at 9600)."""
 DYNAMIXEL_ONLY: Final = ("poll_period", "return_delay", "timeout_margin", "retries")
-"""The options of a Dynamixel port (None: the :class:`DynamixelPort` default)."""
+"""The options of a servo port, Dynamixel or Feetech (None: the port class's default)."""
+_ADDRESS_KEY: Final = {"dynamixel": "dxl_id", "feetech": "servo_id"}
+_MAX_ID: Final = {"dynamixel": dx.MAX_ID, "feetech": ft.MAX_ID}
 
 Seconds = Annotated[float, msgspec.Meta(ge=0)]
 
@@ -76,16 +99,18 @@ class SerialBusOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True)
     """Bits per second: the servos' Baud Rate (8) (Dynamixel X: 9600, 57600, 115200, 1000000,
     2000000, 3000000, 4000000 or 4500000) or the receiver's (NMEA: 4800 .. 921600, usually
     9600)."""
-    protocol: Literal["dynamixel", "nmea"]
-    """What the port carries: Dynamixel Protocol 2.0 servos (they share one port object and
-    its poller), or one NMEA 0183 GPS receiver (the ``nmea_gps`` device opens the port)."""
+    protocol: Literal["dynamixel", "feetech", "nmea"]
+    """What the port carries: Dynamixel Protocol 2.0 servos or Feetech STS servos (they share
+    one port object and its poller), or one NMEA 0183 GPS receiver (the ``nmea_gps`` device
+    opens the port)."""
     poll_period: Seconds | None = None
-    """Dynamixel only: seconds between the SYNC READs of every servo's present state, which
-    also feed their Bus Watchdogs (below half of ``safety.watchdog_timeout``); 0 polls back
-    to back. Default 0.01."""
+    """Servo ports only: seconds between the SYNC READs of every servo's present state, which
+    also feed their Bus Watchdogs (Feetech: the port's host watchdog) -- below half of
+    ``safety.watchdog_timeout``; 0 polls back to back. Default 0.01."""
     return_delay: Annotated[float, msgspec.Meta(ge=0, le=508e-6)] | None = None
-    """Dynamixel only: the servos' Return Delay Time (9), in seconds (0 .. 508e-6, 2 us
-    units; the X series' factory setting is 500e-6). Default 500e-6."""
+    """Servo ports only: the servos' Return Delay Time (Dynamixel 9, Feetech 7), in seconds
+    (0 .. 508e-6, 2 us units; factory setting 500e-6 on both; LeRobot sets its STS3215s to
+    0). Default 500e-6."""
     timeout_margin: Annotated[float, msgspec.Meta(gt=0)] | None = None
     """Dynamixel only: seconds added to a reply's transfer time and the return delays before
     it counts as lost (USB adapter latency: with an FTDI adapter at its 16 ms latency timer,
@@ -95,20 +120,29 @@ class SerialBusOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True)
     the request fails. Default 2."""
 
 
-def _servo_ids(devices: Sequence[SimulatedDevice]) -> dict[int, SimulatedDevice]:
+def _servo_ids(
+    devices: Sequence[SimulatedDevice], protocol: str = "dynamixel"
+) -> dict[int, SimulatedDevice]:
     """The servos by id; BadParameterError on an id out of range or given twice."""
+    key, max_id = _ADDRESS_KEY[protocol], _MAX_ID[protocol]
     ids: dict[int, SimulatedDevice] = {}
     for d in devices:
-        dxl_id = d.params.get("dxl_id")
-        if not isinstance(dxl_id, int) or isinstance(dxl_id, bool) or not 0 <= dxl_id <= dx.MAX_ID:
+        servo_id = d.params.get(key)
+        if (
+            not isinstance(servo_id, int)
+            or isinstance(servo_id, bool)
+            or not 0 <= servo_id <= max_id
+        ):
             raise BadParameterError(
-                f"{d.name}.params.dxl_id", dxl_id, f"a servo id in 0..{dx.MAX_ID}"
+                f"{d.name}.params.{key}", servo_id, f"a servo id in 0..{max_id}"
             )
-        if dxl_id in ids:
+        if servo_id in ids:
             raise BadParameterError(
-                f"{d.name}.params.dxl_id", dxl_id, f"an id of its own ({ids[dxl_id].name} has it)"
+                f"{d.name}.params.{key}",
+                servo_id,
+                f"an id of its own ({ids[servo_id].name} has it)",
             )
-        ids[dxl_id] = d
+        ids[servo_id] = d
     return ids
 
 
@@ -124,8 +158,9 @@ class SerialBusKind(BusKind):
 
     def check(self, options: Any, devices: Sequence[SimulatedDevice]) -> None:
         assert isinstance(options, SerialBusOptions)
-        dynamixel = options.protocol == "dynamixel"
-        wanted = SERVO_MODELS if dynamixel else GPS_DEVICES
+        protocol = options.protocol
+        servos = protocol != "nmea"
+        wanted = {"dynamixel": SERVO_MODELS, "feetech": FEETECH_MODELS}.get(protocol, GPS_DEVICES)
         for d in devices:
             if d.device not in wanted:
                 raise BadParameterError(
@@ -134,9 +169,14 @@ class SerialBusKind(BusKind):
                     f"a {options.protocol} device ({', '.join(sorted(wanted))}): the bus "
                     f"carries {options.protocol}",
                 )
-        rates = DYNAMIXEL_BAUDRATES if dynamixel else NMEA_BAUDRATES
+        rates = {"dynamixel": DYNAMIXEL_BAUDRATES, "feetech": FEETECH_BAUDRATES}.get(
+            protocol, NMEA_BAUDRATES
+        )
         if options.baudrate not in rates:
-            what = "a Dynamixel X baud rate" if dynamixel else "a GPS receiver's baud rate"
+            what = {
+                "dynamixel": "a Dynamixel X baud rate",
+                "feetech": "a Feetech STS baud rate",
+            }.get(protocol, "a GPS receiver's baud rate")
             raise BadParameterError(
                 "baudrate", options.baudrate, f"{what}: {', '.join(map(str, rates))}"
             )
@@ -144,13 +184,13 @@ class SerialBusKind(BusKind):
             value = getattr(options, key)
             if value is not None and not math.isfinite(value):
                 raise BadParameterError(key, value, "a finite number of seconds")
-        if dynamixel:
-            _servo_ids(devices)
+        if servos:
+            _servo_ids(devices, protocol)
             return
         for key in DYNAMIXEL_ONLY:
             value = getattr(options, key)
             if value is not None:
-                raise BadParameterError(key, value, "only with protocol: dynamixel")
+                raise BadParameterError(key, value, "only with protocol: dynamixel or feetech")
         if len(devices) > 1:
             names = ", ".join(d.name for d in devices)
             raise BadParameterError(
@@ -159,7 +199,9 @@ class SerialBusKind(BusKind):
 
     def describe(self, options: Any) -> str:
         assert isinstance(options, SerialBusOptions)
-        what = "Dynamixel 2.0" if options.protocol == "dynamixel" else "NMEA 0183"
+        what = {"dynamixel": "Dynamixel 2.0", "feetech": "Feetech STS"}.get(
+            options.protocol, "NMEA 0183"
+        )
         return f"serial {options.device} at {options.baudrate} baud, {what}"
 
     def open(self, name: str, options: Any) -> AbstractAsyncContextManager[object]:
@@ -168,13 +210,17 @@ class SerialBusKind(BusKind):
             return DynamixelPort(
                 options.device, baudrate=options.baudrate, **_port_arguments(options)
             )
+        if options.protocol == "feetech":
+            return FeetechPort(
+                options.device, baudrate=options.baudrate, **_port_arguments(options)
+            )
         return _nothing(options)  # the GPS device opens its port itself
 
     def device_arguments(
         self, bus: object, options: Any, device: SimulatedDevice
     ) -> Mapping[str, Any]:
         assert isinstance(options, SerialBusOptions)
-        if options.protocol == "dynamixel":
+        if options.protocol != "nmea":
             return {"port": bus}
         return {"url": options.device, "baudrate": options.baudrate}
 
@@ -195,9 +241,10 @@ async def _nothing(options: SerialBusOptions) -> AsyncIterator[object]:
 async def _simulated(
     options: SerialBusOptions, devices: Sequence[SimulatedDevice]
 ) -> AsyncIterator[SimulatedBus]:
+    from .feetech_peers import SimFeetechBus, SimStsServo
     from .peers import PeerThread, SimDynamixelBus, SimGps, SimServo
 
-    peer: SimDynamixelBus | SimGps
+    peer: SimDynamixelBus | SimFeetechBus | SimGps
     if options.protocol == "dynamixel":
         ids = _servo_ids(devices)
         return_delay = _port_arguments(options).get("return_delay", DEFAULT_RETURN_DELAY)
@@ -213,6 +260,21 @@ async def _simulated(
         peer = SimDynamixelBus(servos.values(), check_baudrate=True)
         by_name: dict[str, object] = {d.name: servos[i] for i, d in ids.items()}
         what = f"simulated Dynamixel servos {', '.join(map(str, sorted(ids)))}"
+    elif options.protocol == "feetech":
+        ids = _servo_ids(devices, "feetech")
+        return_delay = _port_arguments(options).get("return_delay", FEETECH_RETURN_DELAY)
+        sts = {
+            i: SimStsServo(
+                i,
+                model_number=FEETECH_MODELS[d.device],
+                baud_rate=FEETECH_BAUDRATES.index(options.baudrate),
+                return_delay=round(return_delay / ft.RETURN_DELAY_UNIT_S),
+            )
+            for i, d in ids.items()
+        }
+        peer = SimFeetechBus(sts.values(), check_baudrate=True)
+        by_name = {d.name: sts[i] for i, d in ids.items()}
+        what = f"simulated Feetech STS3215 servos {', '.join(map(str, sorted(ids)))}"
     else:
         peer = SimGps()
         by_name = {d.name: peer for d in devices}
