@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import io
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -133,18 +131,16 @@ def test_every_option_is_checked_before_the_model_loads(
     assert not out_dir.exists()
 
 
-def test_a_lap_too_fast_names_the_option_and_the_shortest_lap(tmp_path: Path) -> None:
+def test_a_lap_too_fast_names_the_option_and_the_shortest_lap(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Issue 21 point 5: not the planner's ``waypoints[0].time=0.015625 is not allowed``."""
-    done = subprocess.run(
-        [sys.executable, "-m", "openel_async.cli", "run", "arm2", "--duration", "1", "--out",
-         str(tmp_path / "out")],
-        capture_output=True, text=True, timeout=60, check=False,
-    )  # fmt: skip
-    assert done.returncode == 2, done.stderr
-    last = done.stderr.strip().splitlines()[-1]
+    assert cli_main(["run", "arm2", "--duration", "1", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    last = err.strip().splitlines()[-1]
     assert last.startswith("openel-async run arm2: error: --duration 1: a lap takes at least ")
     shortest = float(last.split("at least ")[1].split(" s ")[0])
-    assert 2.0 < shortest < 4.0 and "waypoints" not in done.stderr
+    assert 2.0 < shortest < 4.0 and "waypoints" not in err
     assert not (tmp_path / "out").exists()  # nothing ran
 
 

@@ -4,7 +4,6 @@ positions on the sim rig."""
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -66,13 +65,12 @@ def test_replay_cli_on_the_demo(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert "--rig" in capsys.readouterr().err
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "openel_async.cli", *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
+def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> subprocess.CompletedProcess[str]:
+    """``openel-async ARGS`` run in this process: its exit status and what it printed."""
+    capsys.readouterr()
+    code = cli_main(list(args))
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(["openel-async", *args], code, out, err)
 
 
 @pytest.mark.parametrize(
@@ -97,23 +95,25 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
     ],
 )
 def test_replay_options_are_checked_before_anything_runs(
-    tmp_path: Path, option: str, message: str
+    tmp_path: Path, option: str, message: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A misspelt, mistyped, refused or malformed --option: one line naming --option, exit
     status 2, before the recording is read or anything is replayed (it printed a 56-line
     ExceptionGroup with status 1; a malformed one was reported as --rig)."""
     path = tmp_path / "run.mcap"
     path.write_bytes(b"not read: the options come first")
-    result = _cli("replay", str(path), "--option", option)
+    result = _cli(capsys, "replay", str(path), "--option", option)
     assert result.returncode == 2, result.stderr
     assert result.stderr.startswith(message), result.stderr
     assert len(result.stderr.splitlines()) == 1 and "Traceback" not in result.stderr
 
 
-def test_a_file_that_is_not_mcap_is_refused(tmp_path: Path) -> None:
+def test_a_file_that_is_not_mcap_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     path = tmp_path / "notes.mcap"
     path.write_text("hello\n")
-    result = _cli("record", "info", str(path))
+    result = _cli(capsys, "record", "info", str(path))
     assert result.returncode == 1
     assert result.stderr == (
         f"openel-async record info: {path}: not an MCAP file (it does not begin with the "
@@ -121,7 +121,7 @@ def test_a_file_that_is_not_mcap_is_refused(tmp_path: Path) -> None:
     )
     assert result.stdout == ""
     missing = tmp_path / "missing.mcap"
-    result = _cli("record", "plot", str(missing))
+    result = _cli(capsys, "record", "plot", str(missing))
     assert result.returncode == 2
     assert result.stderr == f"openel-async record plot: {missing}: no such file\n"
 
