@@ -16,6 +16,7 @@ does.
 
 from __future__ import annotations
 
+import math
 import uuid
 from collections.abc import AsyncIterator, Iterator, Mapping, Sequence
 from contextlib import AbstractAsyncContextManager, asynccontextmanager, contextmanager
@@ -26,11 +27,12 @@ import can
 import msgspec
 
 from openel_async.errors import BadParameterError
-from openel_async.rig import BusKind, SimulatedBus, SimulatedDevice
+from openel_async.rig import BusKind, BusLoad, SimulatedBus, SimulatedDevice
 
 from . import canopen as co
 from . import cansimple as cs
 from .bus import CanBus
+from .busload import Traffic, bus_load, frame_time
 from .drive402 import DEFAULT_HOST_NODE_ID
 
 __all__ = ["CanBusKind", "CanBusOptions"]
@@ -118,6 +120,78 @@ def _claim(used: dict[int, str], ids: set[int], name: str, owner: str, node: int
             )
 
 
+CYCLIC_MODES = frozenset({"csp", "csv", "cst"})
+"""The ``mode`` params of a CiA 402 drive that stream a set-point every SYNC."""
+
+
+def _param(d: SimulatedDevice, key: str, default: float) -> float:
+    value = d.params.get(key, default)
+    return (
+        float(value) if isinstance(value, int | float) and not isinstance(value, bool) else default
+    )
+
+
+def _traffic(
+    devices: Sequence[SimulatedDevice], cyclic: Sequence[SimulatedDevice], cycle_s: float | None
+) -> tuple[list[Traffic], list[Traffic], int]:
+    """The periodic frames of the bus's nodes: (background, per-cycle, streamed axes).
+    Background: heartbeats, event-driven TPDOs, an ODrive's encoder estimates. Per cycle
+    (``cycle_s``): each streamed axis's set-point frame and the TPDOs a SYNC triggers, and
+    the SYNC itself."""
+    background: list[Traffic] = []
+    per_cycle: list[Traffic] = []
+    streamed = {d.name for d in cyclic}
+    axes = 0
+    sync = False
+    seen: set[tuple[str, int]] = set()
+    for d in devices:
+        node = d.params.get("node_id")
+        if not isinstance(node, int):
+            continue
+        if d.device in CIA402_DEVICES:
+            if ("cia402", node) not in seen:
+                seen.add(("cia402", node))
+                heartbeat = _param(d, "heartbeat_ms", 1000) / 1000
+                background.append(Traffic(f"heartbeat of node {node}", 1, heartbeat))
+            if d.device != "cia402_drive":
+                continue
+            mode = d.params.get("mode")
+            on_sync = mode in CYCLIC_MODES or d.params.get("sync") is True
+            if on_sync and cycle_s is not None:
+                sync = True
+                per_cycle.append(Traffic(f"TPDO1 of node {node}", 8, cycle_s))
+                per_cycle.append(Traffic(f"TPDO2 of node {node}", 5, cycle_s))
+            else:
+                event = _param(d, "tpdo_event_ms", 10) / 1000
+                background.append(Traffic(f"TPDO1 of node {node}", 8, event))
+                background.append(Traffic(f"TPDO2 of node {node}", 5, event))
+            if d.name in streamed and cycle_s is not None:
+                axes += 1
+                payload = (
+                    4 if mode == "cst" else 6
+                )  # controlword + target torque / position, velocity
+                per_cycle.append(Traffic(f"RPDO of node {node}", payload, cycle_s))
+        elif d.device in ODRIVE_DEVICES:
+            if ("odrive", node) not in seen:
+                seen.add(("odrive", node))
+                background.append(
+                    Traffic(f"heartbeat of ODrive {node}", 8, _param(d, "heartbeat_period", 0.1))
+                )
+                background.append(
+                    Traffic(f"encoder of ODrive {node}", 8, _param(d, "encoder_period", 0.01))
+                )
+            if d.name in streamed and cycle_s is not None:
+                axes += 1
+                per_cycle.append(Traffic(f"set-point of ODrive {node}", 8, cycle_s))
+    if sync and cycle_s is not None:
+        per_cycle.append(Traffic("SYNC", 0, cycle_s))
+    return background, per_cycle, axes
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.3g} ms"
+
+
 class CanBusKind(BusKind):
     """``type: can`` (see the module docstring)."""
 
@@ -156,6 +230,56 @@ class CanBusKind(BusKind):
                 f"{name} (ODrive node {node})",
                 node,
             )
+
+    def load(
+        self,
+        options: Any,
+        devices: Sequence[SimulatedDevice],
+        cyclic: Sequence[SimulatedDevice],
+        cycle_s: float | None,
+    ) -> BusLoad | None:
+        assert isinstance(options, CanBusOptions)
+        if options.bitrate is None or not devices:
+            return None
+        bitrate, fd, data_bitrate = options.bitrate, options.fd, options.data_bitrate
+
+        def load_of(traffic: Sequence[Traffic]) -> float:
+            return bus_load(traffic, bitrate, fd=fd, data_bitrate=data_bitrate)
+
+        def cycle_time_of(traffic: Sequence[Traffic]) -> float:
+            return sum(
+                t.count * frame_time(t.payload, bitrate, fd=fd, data_bitrate=data_bitrate)
+                for t in traffic
+            )
+
+        background, per_cycle, axes = _traffic(devices, cyclic, cycle_s)
+        fraction = load_of([*background, *per_cycle])
+        rate = self.describe(options).rsplit(" at ", 1)[-1]
+        if cycle_s is None or not per_cycle:
+            detail = f"{len(background)} periodic frame streams, worst case at {rate}"
+            advice = "fewer or slower periodic frames (heartbeat_ms, tpdo_event_ms, encoder_period)"
+            return BusLoad(fraction, detail, advice if fraction > 1 else "", cycle_s)
+        cycle_time = cycle_time_of(per_cycle)
+        detail = (
+            f"{axes} axes streamed every {_ms(cycle_s)}: {len(per_cycle)} frames a cycle, "
+            f"{cycle_time * 1e6:.0f} us worst case at {rate}, "
+            f"{fraction:.0%} with the periodic frames"
+        )
+        advice = ""
+        spare = 1 - load_of(background)
+        if fraction > 1 and spare <= 0:
+            advice = "fewer or slower periodic frames first: they alone fill the bus"
+        elif fraction > 1:
+            sync_time = cycle_time_of([t for t in per_cycle if t.what == "SYNC"])
+            per_axis = (cycle_time - sync_time) / max(axes, 1)
+            fits = max(0, math.floor((spare * cycle_s - sync_time) / per_axis))
+            shortest = cycle_time / spare
+            advice = (
+                f"at most {fits} such axes every {_ms(cycle_s)}, or these {axes} every "
+                f"{_ms(math.ceil(shortest * 1e4) / 1e4)} or more (a faster bit rate, or "
+                "fewer PDOs per axis)"
+            )
+        return BusLoad(fraction, detail, advice, cycle_s)
 
     def describe(self, options: Any) -> str:
         assert isinstance(options, CanBusOptions)

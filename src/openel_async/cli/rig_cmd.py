@@ -106,6 +106,14 @@ def check_lines(resolved: Any) -> list[str]:
             f"note: {', '.join(no_estop)} have no emergency state of their own: an e-stop "
             "faults them on the host and sends them nothing more"
         )
+    for name, bus in resolved.buses.items():
+        if bus.load is not None:
+            lines.append(f"bus {name}: {bus.load.fraction:.0%} load ({bus.load.detail})")
+            if bus.load.fraction > 0.7:
+                lines.append(
+                    f"warning: bus {name} is {bus.load.fraction:.0%} loaded: little room for "
+                    "SDO, EMCY and retransmissions"
+                )
     unlimited = [c.name for c in actuators if c.limits.is_empty()]
     if unlimited and spec.buses:
         lines.append(f"note: no limits for {', '.join(unlimited)} (only the device's own)")
@@ -129,6 +137,8 @@ def show_lines(resolved: Any, *, sim: bool) -> list[str]:
             lines.append(f"    instead of {bus.kind.describe(bus.options)}")
         else:
             lines.append(f"  {name}: {bus.kind.describe(bus.options)}")
+        if bus.load is not None:
+            lines.append(f"    load {bus.load.fraction:.0%}: {bus.load.detail}")
     lines.append("components")
     for c in spec.components:
         cls = resolved.classes[c.name]

@@ -11,7 +11,7 @@ that speak the same protocols at the same addresses (docs/hardware.md).
 """
 
 from .build import ResolvedBus, ResolvedRig, build_components, resolve_rig
-from .buses import BusKind, FaultInjection, SimulatedBus, SimulatedDevice
+from .buses import BusKind, BusLoad, FaultInjection, SimulatedBus, SimulatedDevice
 from .runtime import Rig, SafeStopReport, open_rig
 from .spec import (
     BusSpec,
@@ -28,6 +28,7 @@ from .spec import (
 
 __all__ = [
     "BusKind",
+    "BusLoad",
     "BusSpec",
     "ComponentSpec",
     "FaultInjection",

@@ -3,8 +3,9 @@ building its components on opened buses."""
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -17,7 +18,7 @@ from ..errors import BadParameterError
 from ..ids import HALId
 from ..positioned import DocumentError, convert, relocate, unknown_key_message
 from ..registry import discover_drivers
-from .buses import BusKind, SimulatedDevice
+from .buses import BusKind, BusLoad, SimulatedDevice
 from .spec import BusSpec, ComponentSpec, RigSpec
 
 __all__ = ["ResolvedBus", "ResolvedRig", "build_components", "resolve_rig"]
@@ -32,6 +33,8 @@ class ResolvedBus:
     """An instance of ``kind.options_type``."""
     devices: tuple[SimulatedDevice, ...]
     """The rig's devices on this bus."""
+    load: BusLoad | None = None
+    """Its computed load (:meth:`BusKind.load`), if its kind computes one."""
 
 
 @dataclass(frozen=True)
@@ -128,12 +131,42 @@ def resolve_rig(spec: RigSpec) -> ResolvedRig:
         buses[bus.name] = ResolvedBus(bus, driver_name, kind, options, tuple(devices))
     for c in spec.components:  # each entry's own keys first, then what the buses refuse
         _check_params(c, classes[c.name], buses[c.bus] if c.bus is not None else None)
-    for resolved_bus in buses.values():
+    for name, resolved_bus in buses.items():
         try:
             resolved_bus.kind.check(resolved_bus.options, resolved_bus.devices)
         except BadParameterError as exc:
             raise _bus_error(exc, resolved_bus.spec) from None
+        cyclic, cycle_s = _cycle(spec, resolved_bus.devices)
+        load = resolved_bus.kind.load(resolved_bus.options, resolved_bus.devices, cyclic, cycle_s)
+        if load is not None and load.fraction > 1.0:
+            error = BadParameterError(
+                f"buses.{name}",
+                f"{load.fraction:.0%} bus load ({load.detail})",
+                f"at most 100 %: {load.advice}" if load.advice else "at most 100 %",
+            )
+            raise _bus_error(error, resolved_bus.spec)
+        buses[name] = dataclasses.replace(resolved_bus, load=load)
     return ResolvedRig(spec, classes, buses)
+
+
+def _cycle(
+    spec: RigSpec, devices: Sequence[SimulatedDevice]
+) -> tuple[tuple[SimulatedDevice, ...], float | None]:
+    """The devices of a bus an axis group streams set-points to, and the period of the
+    fastest timer driving the bus: its groups' timers, else (no group on the bus) the rig's
+    fastest timer; None without timers."""
+    periods = {t.name: t.period_ms / 1000 for t in spec.timers}
+    names = {d.name for d in devices}
+    grouped: set[str] = set()
+    cycle: float | None = None
+    for g in spec.groups:
+        on_bus = names.intersection(g.axes)
+        if on_bus and g.timer in periods:
+            grouped |= on_bus
+            cycle = periods[g.timer] if cycle is None else min(cycle, periods[g.timer])
+    if cycle is None and periods:
+        cycle = min(periods.values())
+    return tuple(d for d in devices if d.name in grouped), cycle
 
 
 def convert_plain(options: Mapping[str, Any], options_type: type[Any]) -> Any:

@@ -29,7 +29,7 @@ import msgspec
 if TYPE_CHECKING:
     from ..clock import Clock
 
-__all__ = ["BusKind", "FaultInjection", "SimulatedBus", "SimulatedDevice"]
+__all__ = ["BusKind", "BusLoad", "FaultInjection", "SimulatedBus", "SimulatedDevice"]
 
 
 @dataclass(frozen=True)
@@ -59,6 +59,21 @@ class SimulatedBus:
     one peer: an ODrive's axis and its encoder)."""
 
 
+@dataclass(frozen=True)
+class BusLoad:
+    """What a bus carries, computed (worst case) from its bit rate and its traffic: what
+    :meth:`BusKind.load` returns; ``rig check`` reports it and refuses a bus above 100 %."""
+
+    fraction: float
+    """The share of the bus's time the traffic takes (1.0 = the bus is full)."""
+    detail: str
+    """What was counted, in words (``4 axes in CSP: 4 RPDO + 4 TPDO + SYNC every 2 ms``)."""
+    advice: str = ""
+    """What fits, said when it does not (``at most 3 such axes every 2 ms, or 4 every 3 ms``)."""
+    cycle_s: float | None = None
+    """The cycle the traffic was counted for (the rig's timer driving the bus), if any."""
+
+
 @runtime_checkable
 class FaultInjection(Protocol):
     """A simulated peer that can trip on demand (a demo's ``--inject-fault``)."""
@@ -78,6 +93,19 @@ class BusKind(ABC):
         """Refuse (BadParameterError naming the key) what the schema cannot express: two
         devices at one address, an address the protocol cannot carry, a device class that
         cannot be on this bus. Called by ``rig check``; opens nothing."""
+        return None
+
+    def load(
+        self,
+        options: Any,
+        devices: Sequence[SimulatedDevice],
+        cyclic: Sequence[SimulatedDevice],
+        cycle_s: float | None,
+    ) -> BusLoad | None:
+        """The bus load of ``devices`` (``cyclic`` of them streamed a set-point every
+        ``cycle_s``, the period of the rig's fastest timer driving them; None when no timer
+        drives the bus), or None when the kind has no notion of it (a serial port's own
+        exchanges, a simulation). Called by ``rig check`` after :meth:`check`."""
         return None
 
     def clock(self, bus: object) -> Clock | None:
