@@ -17,11 +17,13 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 from typing import TYPE_CHECKING, TypeAlias
 
 import anyio
+import anyio.lowlevel
 import structlog
 
 from openel_async.cli.commands import EXIT_USAGE, CliCommand, load_bytes, no_such_file
@@ -65,6 +67,21 @@ def add_serve_parser(sub: SubParsers) -> argparse.ArgumentParser:
         "simulated devices at the same addresses",
     )
     serve.add_argument(
+        "--max-clients",
+        type=int,
+        default=256,
+        metavar="N",
+        help="clients the server keeps state for at once (default 256); a client without a "
+        "liveliness token is forgotten when idle, a new one beyond N live ones is refused",
+    )
+    serve.add_argument(
+        "--client-idle-timeout",
+        type=float,
+        default=60.0,
+        metavar="SECONDS",
+        help="forget a client without a liveliness token after this long idle (default 60)",
+    )
+    serve.add_argument(
         "--stop-on-eof",
         action="store_true",
         help="also stop when standard input reaches its end (a parent process that started "
@@ -77,6 +94,10 @@ def run_serve(args: argparse.Namespace) -> int:
     from .gate import GatedEventLoop
 
     if no_such_file("openel-async serve", args.rig):
+        return EXIT_USAGE
+    if args.max_clients < 1 or not 0 < args.client_idle_timeout < float("inf"):
+        bad = "--max-clients" if args.max_clients < 1 else "--client-idle-timeout"
+        print(f"openel-async serve: {bad}: expected a value > 0", file=sys.stderr)
         return EXIT_USAGE
     try:
         # A gated loop: plain reads are answered on Zenoh's thread while the loop is idle.
@@ -109,7 +130,13 @@ async def _serve(args: argparse.Namespace) -> int:
             open_rig(spec, sim=args.sim, handle_sigquit=True) as rig,
             RigEstopServer(rig, session, namespace),  # before the server's liveliness token
             Surface(list(rig.components.values())) as surface,
-            SurfaceServer(surface, session, namespace),
+            SurfaceServer(
+                surface,
+                session,
+                namespace,
+                max_clients=args.max_clients,
+                client_idle_timeout=args.client_idle_timeout,
+            ),
         ):
             opened.append(rig)
             for bus, description in rig.bus_descriptions.items():
@@ -139,9 +166,32 @@ async def _serve(args: argparse.Namespace) -> int:
 
 
 async def _stop_on_eof(scope: anyio.CancelScope) -> None:
-    await anyio.to_thread.run_sync(sys.stdin.buffer.read, abandon_on_cancel=True)
+    """Cancel ``scope`` at the end of standard input. Read in the event loop, not in a
+    thread: a thread blocked in read() would keep the process alive after a signal stopped
+    the server, until the parent closed the pipe."""
+    await read_to_eof(sys.stdin.fileno())
     log.info("serve_stopping", reason="end of standard input")
     scope.cancel()
+
+
+async def read_to_eof(fd: int) -> None:
+    """Return once ``fd`` reaches its end (what it reads is discarded); cancellable at any
+    time. What cannot be waited on (a regular file, /dev/null) is read straight: it never
+    blocks."""
+    pollable = True
+    while True:
+        if pollable:
+            try:
+                await anyio.wait_readable(fd)
+            except PermissionError:  # epoll refuses regular files and /dev/null
+                pollable = False
+        else:
+            await anyio.lowlevel.checkpoint()
+        try:
+            if not os.read(fd, 65536):
+                return
+        except BlockingIOError:  # a spurious wake-up
+            continue
 
 
 SERVE = CliCommand("serve", add_serve_parser, run_serve)

@@ -22,6 +22,13 @@ done, without waking the loop (docs/remote.md, "Threads").
 Notices for a client (completed, notify_event, notify_error) are numbered and published
 in batches, at most one batch per client per event-loop turn; the outbound buffer is
 bounded, and whatever it drops leaves a gap in the numbering that the client reports.
+
+Client state is bounded: a client is known by its liveliness token (a ``ZenohClient``
+declares one; its state goes when the token goes) or, without one, for as long as it is
+active -- a client that has sent nothing for ``client_idle_timeout`` and has nothing queued
+is forgotten (its subscriptions with it). At most ``max_clients`` are known at once: a new
+one first displaces the least recently active idle client without a token; when every slot
+is held by a live or busy client, it is refused with ``HAL_NO_MEMORY`` (``refused_clients``).
 """
 
 from __future__ import annotations
@@ -50,6 +57,10 @@ from .keys import Keys
 
 log = structlog.get_logger(__name__)
 
+MAX_CLIENTS = 256
+"""Clients a server keeps state for (a notice publisher, subscriptions, a queue) by default."""
+CLIENT_IDLE_TIMEOUT = 60.0
+"""Seconds after which an idle client without a liveliness token is forgotten (default)."""
 CLIENT_QUEUE = 32
 """Queries one client may have waiting; more are refused with HAL_NO_MEMORY."""
 INBOX_SIZE = 4096
@@ -86,6 +97,17 @@ class _Client:
     queue: deque[_Request] = field(default_factory=deque)
     busy: bool = False
     link: _ClientLink | None = None
+    alive: bool = False
+    """Its liveliness token is up (it is forgotten when the token goes, not when idle)."""
+    last_active: float = 0.0
+    """When it last sent a query (the loop's clock)."""
+
+    def idle(self) -> bool:
+        return not self.busy and not self.queue
+
+
+class _TooManyClientsError(Exception):
+    """Every client slot is held by a live or busy client."""
 
 
 class _ClientLink:
@@ -167,12 +189,28 @@ class SurfaceServer:
     """Serve ``surface`` on ``session`` under ``openel/<namespace>/`` (``async with``)."""
 
     def __init__(
-        self, surface: Surface, session: zenoh.Session, namespace: str = "default"
+        self,
+        surface: Surface,
+        session: zenoh.Session,
+        namespace: str = "default",
+        *,
+        max_clients: int = MAX_CLIENTS,
+        client_idle_timeout: float = CLIENT_IDLE_TIMEOUT,
     ) -> None:
+        if isinstance(max_clients, bool) or not isinstance(max_clients, int) or max_clients < 1:
+            raise BadParameterError("max_clients", max_clients, "an int >= 1")
+        if not client_idle_timeout > 0:
+            raise BadParameterError("client_idle_timeout", client_idle_timeout, "seconds > 0")
         self.surface = surface
         self.session = session
         self.keys = Keys(namespace)
+        self.max_clients = max_clients
+        self.client_idle_timeout = client_idle_timeout
         self.clients: dict[str, _Client] = {}
+        self.refused_clients = 0
+        """Queries refused because every client slot was taken (HAL_NO_MEMORY)."""
+        self.forgotten_clients = 0
+        """Clients without a token forgotten (idle too long, or displaced by a new one)."""
         self.refused_busy = 0
         self.refused_bad = 0
         self.served = 0
@@ -221,6 +259,7 @@ class SurfaceServer:
                 )
             )
             tg.start_soon(self._watch_clients)
+            tg.start_soon(self._expire_clients)
             for _ in range(WORKERS):
                 tg.start_soon(self._worker)
             self._token = self.session.liveliness().declare_token(self.keys.server_alive)
@@ -334,6 +373,7 @@ class SurfaceServer:
         client = self.clients.get(request.client)
         if client is None or client.busy or client.queue:
             return None
+        client.last_active = loop.time()  # the gate is held: the loop is not running
         enter_as_loop(loop)
         try:
             done = self.surface.execute_nowait(device, client.link)
@@ -379,8 +419,14 @@ class SurfaceServer:
 
     # -- the event loop ------------------------------------------------------------------------
     def _client(self, name: str) -> _Client:
+        """The state of client ``name``, made on its first query or token (displacing the
+        least recently active idle client without a token when every slot is taken);
+        _TooManyClientsError when no slot can be freed."""
+        now = self._now()
         client = self.clients.get(name)
         if client is None:
+            if len(self.clients) >= self.max_clients:
+                self._displace()
             client = self.clients[name] = _Client(name)
             if name != ANONYMOUS:
                 try:
@@ -388,32 +434,76 @@ class SurfaceServer:
                     self.surface.attach(client.link)
                 except (BadParameterError, zenoh.ZError) as exc:
                     log.warning("client_link_failed", client=name, error=str(exc))
+        client.last_active = now
         return client
+
+    def _now(self) -> float:
+        return self._loop.time() if self._loop is not None else 0.0
+
+    def _displace(self) -> None:
+        idle = [c for c in self.clients.values() if not c.alive and c.idle()]
+        if not idle:
+            self.refused_clients += 1
+            if self.refused_clients == 1 or self.refused_clients % 1000 == 0:
+                log.warning(
+                    "clients_full", max_clients=self.max_clients, refused=self.refused_clients
+                )
+            raise _TooManyClientsError
+        self._forget(min(idle, key=lambda c: c.last_active))
+
+    def _forget(self, client: _Client) -> None:
+        """Drop a client's state: its notice publisher, its subscriptions, its queue."""
+        self.clients.pop(client.name, None)
+        if client.link is not None:
+            client.link.close()
+            self.surface.detach(client.link)
+        for request in client.queue:
+            _drop(request.query)
+        client.queue.clear()
+        if not client.alive:
+            self.forgotten_clients += 1
+
+    async def _expire_clients(self) -> None:
+        """Forget, every half timeout, the clients without a token idle for the timeout."""
+        while True:
+            await anyio.sleep(self.client_idle_timeout / 2)
+            deadline = self._now() - self.client_idle_timeout
+            for client in list(self.clients.values()):
+                if not client.alive and client.idle() and client.last_active <= deadline:
+                    log.debug("client_expired", client=client.name)
+                    self._forget(client)
 
     async def _watch_clients(self) -> None:
         assert self._alive is not None
         while True:
             for name, alive in await self._alive.wait():
                 if alive:
-                    self._client(name)
+                    try:
+                        self._client(name).alive = True
+                    except _TooManyClientsError:
+                        log.warning("client_refused", client=name, max_clients=self.max_clients)
+                        continue
                     log.info("client_joined", client=name)
                     continue
-                client = self.clients.pop(name, None)
+                client = self.clients.get(name)
                 if client is not None:
                     log.info("client_left", client=name)
-                    if client.link is not None:
-                        client.link.close()
-                        self.surface.detach(client.link)
-                    for request in client.queue:
-                        _drop(request.query)
-                    client.queue.clear()
+                    self._forget(client)
 
     def _on_requests(self, requests: list[_Request]) -> None:
         """A batch of queries, in the loop callback that received it (never suspends)."""
         answered: set[str] = set()
         for request in requests:
             try:
-                client = self._client(request.client)
+                try:
+                    client = self._client(request.client)
+                except _TooManyClientsError:
+                    self._answer_error(
+                        request,
+                        ReturnCode.HAL_NO_MEMORY,
+                        f"server full: {self.max_clients} clients known, none idle",
+                    )
+                    continue
                 if (
                     not client.busy
                     and not client.queue
@@ -615,6 +705,25 @@ class SurfaceServer:
             ) from None
 
 
+_BOMS = (b"\xef\xbb\xbf", b"\xfe\xff", b"\xff\xfe", b"\x00\x00\xfe\xff")
+"""UTF-8, UTF-16 BE, UTF-16 LE (and UTF-32 LE: FF FE 00 00), UTF-32 BE byte order marks."""
+_WIDE = ("utf-16-le", "utf-16-be", "utf-32-le", "utf-32-be")
+
+
 def is_xml(payload: bytes) -> bool:
-    """Whether an execute payload is XML (it starts with '<', after a BOM or whitespace)."""
-    return payload.lstrip(b"\xef\xbb\xbf \t\r\n")[:1] == b"<"
+    """Whether an execute payload is XML rather than the compact (msgpack) form: a byte order
+    mark, or '<' as its first character after whitespace in UTF-8 or, without a mark, in
+    UTF-16 or UTF-32 (the detection of XML 1.0 Appendix F; a compact Device starts with a
+    msgpack array or map, never with these bytes)."""
+    if payload.startswith(_BOMS) or payload.lstrip(b" \t\r\n")[:1] == b"<":
+        return True
+    head = payload[:64]
+    for encoding in _WIDE:
+        width = 2 if "16" in encoding else 4
+        try:
+            text = head[: len(head) - len(head) % width].decode(encoding)
+        except UnicodeDecodeError:
+            continue
+        if text.lstrip(" \t\r\n")[:1] == "<":
+            return True
+    return False

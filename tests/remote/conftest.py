@@ -5,6 +5,7 @@ from __future__ import annotations
 import socket
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from typing import Any
 
 import zenoh
 
@@ -33,7 +34,7 @@ async def session(config: zenoh.Config) -> AsyncIterator[zenoh.Session]:
 
 @asynccontextmanager
 async def sim_server(
-    port: int, namespace: str = "test", motors: int = 2
+    port: int, namespace: str = "test", motors: int = 2, **server_options: Any
 ) -> AsyncIterator[tuple[SurfaceServer, list[SimMotor], list[HALComponent]]]:
     """A server of ``motors`` SimMotors and an encoder on the first, in this process."""
     devices = [SimMotor(max_velocity=4.0, max_acceleration=40.0) for _ in range(motors)]
@@ -46,7 +47,7 @@ async def sim_server(
                 entered.append(await c.__aenter__())
             async with (
                 Surface(components) as surface,
-                SurfaceServer(surface, zs, namespace) as server,
+                SurfaceServer(surface, zs, namespace, **server_options) as server,
             ):
                 yield server, devices, components
         finally:

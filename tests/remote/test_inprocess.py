@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import anyio
 import pytest
+from hypothesis import given, settings
 
 from openel_async import (
     Actuator,
@@ -21,9 +22,13 @@ from openel_async.surface import (
     Completed,
     Device,
     EventNotification,
+    compact,
+    xml_psm,
 )
 from openel_zenoh import RemoteActuator, RemoteSensor, RemoteSurface
+from openel_zenoh.server import is_xml
 
+from ..surface.test_messages import devices
 from .conftest import client_cfg, free_port, session, sim_server
 
 
@@ -113,3 +118,42 @@ async def test_events_and_completions_reach_the_right_applications() -> None:
         detail = await listener.get_event_detail(event.event_id)
         assert detail.value("logical_id") == 0
         assert len(cmd_app) == 0  # the commander did not subscribe
+
+
+@pytest.mark.parametrize("encoding", ["utf-16", "utf-16-le", "utf-16-be", "utf-8-sig"])
+async def test_xml_in_any_encoding_an_xml_parser_reads_is_executed(encoding: str) -> None:
+    """Issue 26 defect 3: a spec-valid document in UTF-16 was taken for the compact form and
+    refused, while the XML PSM reads the same bytes."""
+    port = free_port()
+    name = encoding.upper().removesuffix("-SIG").replace("-LE", "").replace("-BE", "")
+    text = (
+        f'<?xml version="1.0" encoding="{name}"?>\n'
+        "<Device><device_kind>Motor</device_kind><CommandMessage>"
+        "<function_name>GetPosition</function_name><command_id/><arguments><parameters>"
+        "<data_type_id>1</data_type_id><name>logical_id</name><value>0</value></parameters>"
+        "</arguments></CommandMessage></Device>"
+    )
+    payload = text.encode(encoding)
+    assert xml_psm.device_from_xml(payload).commands[0].function_name == "GetPosition"
+    async with (
+        sim_server(port) as (server, _, _),
+        session(client_cfg(port)) as zs,
+        RemoteSurface(zs, "test") as remote,
+    ):
+        reply = await remote.query(remote.keys.execute, payload)
+        done = xml_psm.device_from_xml(reply)  # answered in XML, as the request was
+        assert done.commands[0].results is not None
+        assert done.commands[0].results.value("return_code") == 0
+        assert server.refused_bad == 0
+
+
+@pytest.mark.parametrize("encoding", ["utf-32", "utf-32-le", "utf-32-be", "utf-16-le"])
+def test_xml_is_told_from_the_compact_form_by_its_first_character(encoding: str) -> None:
+    # (expat reads no UTF-32: such a document is answered as XML the PSM refuses)
+    assert is_xml(" \n<Device/>".encode(encoding))
+
+
+@settings(max_examples=200)
+@given(devices)
+def test_no_compact_device_is_taken_for_xml(device: Device) -> None:
+    assert not is_xml(compact.encode(device))

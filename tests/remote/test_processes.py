@@ -298,6 +298,45 @@ def test_hal4rt_exec_sends_a_message_to_a_running_server(tmp_path: Path) -> None
 
 
 @pytest.mark.timeout(60)
+def test_serve_with_stop_on_eof_obeys_signals_while_its_input_stays_open(tmp_path: Path) -> None:
+    """Issue 26 defect 2: with --stop-on-eof and the pipe kept open, SIGTERM and SIGINT
+    stopped the components and then hung (a thread blocked reading standard input was
+    joined at exit) until the parent closed the pipe. Both servers run at once."""
+    procs: dict[signal.Signals, subprocess.Popen[str]] = {}
+    try:
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            rig = tmp_path / f"rig-{signum.name}.yaml"
+            rig.write_text(RIG.replace("namespace: proc", f"namespace: eof{int(signum)}"))
+            procs[signum] = subprocess.Popen(
+                [sys.executable, "-m", "openel_async.cli", "--log-level", "info", "serve",
+                 str(rig), "--listen", f"tcp/127.0.0.1:{free_port()}", "--stop-on-eof"],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+            )  # fmt: skip
+        deadline = time.monotonic() + 30
+        for proc in procs.values():
+            assert proc.stdout is not None
+            while not proc.stdout.readline().startswith("serving"):
+                assert proc.poll() is None and time.monotonic() < deadline
+        for signum, proc in procs.items():
+            proc.send_signal(signum)
+        for signum, proc in procs.items():
+            code = proc.wait(10)  # the pipe is still open
+            assert code in (0, 130), (signum, code)
+            assert proc.stdout is not None
+            output = proc.stdout.read()
+            assert "Traceback" not in output and "end of standard input" not in output
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(5)
+            for stream in (proc.stdin, proc.stdout):
+                if stream is not None:
+                    stream.close()
+
+
+@pytest.mark.timeout(60)
 def test_serve_stops_at_the_end_of_its_input_with_stop_on_eof(tmp_path: Path) -> None:
     rig = tmp_path / "rig.yaml"
     rig.write_text(RIG.replace("namespace: proc", "namespace: eof"))
