@@ -42,10 +42,10 @@ from typing import TYPE_CHECKING
 
 import anyio
 import anyio.to_thread
-import structlog
 
 from openel_async import EventTimer, HALError, Sensor
 from openel_async.app import AppContext, AppInfo, DemoOptions, LiveLine, atomic_output
+from openel_async.logs import get_logger
 from openel_async.motion import (
     AxisGroup,
     AxisLimits,
@@ -120,7 +120,7 @@ __all__ = [
     "square_corners",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 APP = "arm2_square"
 RIG = RIGS / "arm2.yaml"

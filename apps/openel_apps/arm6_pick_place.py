@@ -38,10 +38,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
 import anyio
-import structlog
 
 from openel_async import Actuator, EventTimer, HALError, Request, Sensor
 from openel_async.app import AppContext, AppInfo, DemoOptions, LiveLine
+from openel_async.logs import get_logger
 from openel_async.motion import (
     AxisGroup,
     AxisLimits,
@@ -104,7 +104,7 @@ __all__ = [
     "run_pick_place",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 APP: Final = "arm6_pick_place"
 RIG: Final = RIGS / "arm6.yaml"

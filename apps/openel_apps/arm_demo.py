@@ -39,10 +39,10 @@ from typing import TYPE_CHECKING, Literal, Protocol, TextIO, TypeVar
 import anyio
 import anyio.to_thread
 import numpy as np
-import structlog
 
 from openel_async.app import AppContext, AppUnavailable, DemoOptions, LiveLine, atomic_output
 from openel_async.errors import HALError
+from openel_async.logs import get_logger
 from openel_async.motion import GroupMotion, TrajectorySamples, Waypoint
 from openel_async.timer import EventTimer
 
@@ -51,7 +51,7 @@ if TYPE_CHECKING:
 
     from .arm_rig import ArmRigSpec
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 OUT_ROOT = "out"
 """Default output root, relative to the current directory: files go to ``out/<app>/``."""

@@ -32,11 +32,11 @@ from typing import TYPE_CHECKING, Final
 
 import anyio
 import msgspec
-import structlog
 
 from openel_async import Actuator, EventTimer, HALError, Request
 from openel_async.app import AppContext, AppInfo, AppUnavailable, DemoOptions
 from openel_async.device import ActuatorDevice
+from openel_async.logs import get_logger
 from openel_async.motion import AxisGroup, AxisLimits, Tolerances
 from openel_async.rig import ResolvedRig, Rig, load_rig, resolve_rig
 
@@ -63,7 +63,7 @@ __all__ = [
     "so101_rig",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 APP: Final = "so101"
 RIG: Final = Path(__file__).parent / "rigs" / "so101-mujoco.yaml"

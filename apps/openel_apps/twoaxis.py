@@ -33,7 +33,6 @@ from pathlib import Path
 
 import anyio
 import anyio.lowlevel
-import structlog
 
 from openel_async import (
     Actuator,
@@ -52,10 +51,11 @@ from openel_async.app import AppContext, AppInfo, DemoOptions, LiveLine
 from openel_async.clock import NS_PER_S
 from openel_async.device import ActuatorDevice, ErrorId
 from openel_async.errors import BadParameterError
+from openel_async.logs import get_logger
 from openel_async.rig import FaultInjection, ResolvedRig, load_rig, open_rig, resolve_rig
 from openel_async.rig import Rig as OpenedRig
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 NAME = "twoaxis"
 DURATION_S = 5.0

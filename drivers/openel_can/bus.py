@@ -76,17 +76,17 @@ import anyio
 import anyio.abc
 import anyio.lowlevel
 import can
-import structlog
 from anyio.streams.memory import MemoryObjectReceiveStream, MemoryObjectSendStream
 
 from openel_async.clock import run_in_thread
 from openel_async.errors import BadParameterError, NotConnectedError
+from openel_async.logs import get_logger
 
 from .virtual_rx import WakingQueue, hook_virtual_bus
 
 __all__ = ["BusState", "BusStats", "CanBus", "NodePort", "SendMode", "TxMessage"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 _T = TypeVar("_T")
 SendMode = Literal["auto", "inline", "thread"]

@@ -72,7 +72,6 @@ from typing import Final
 
 import anyio
 import can
-import structlog
 
 from openel_async.device import (
     ActuatorDevice,
@@ -86,6 +85,7 @@ from openel_async.device import (
 )
 from openel_async.errors import BadParameterError, HALError, ReturnCode
 from openel_async.ids import DeviceKind
+from openel_async.logs import get_logger
 from openel_async.requests import Request
 from openel_async.safety import ExitAction
 
@@ -98,7 +98,7 @@ from .sdo import SdoClient
 
 __all__ = ["RPDO_MAPS", "TPDO_MAPS", "Cia402Drive", "Cia402Temperature"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 PS = ds.PowerState
 Mode = ds.ModeOfOperation

@@ -47,7 +47,6 @@ from enum import IntFlag
 from typing import Final, TypeVar
 
 import anyio
-import structlog
 
 from openel_async.device import (
     ActuatorDevice,
@@ -61,6 +60,7 @@ from openel_async.device import (
 )
 from openel_async.errors import BadParameterError, HALError, NotConnectedError, ReturnCode
 from openel_async.ids import DeviceKind
+from openel_async.logs import get_logger
 from openel_async.requests import Request
 from openel_async.safety import ExitAction
 
@@ -79,7 +79,7 @@ __all__ = [
     "turns_to_rad",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 TAU: Final = math.tau
 KELVIN_OFFSET: Final = 273.15

@@ -32,9 +32,9 @@ from typing import Final, NoReturn
 
 import anyio
 import can
-import structlog
 
 from openel_async.errors import BadParameterError, HALError
+from openel_async.logs import get_logger
 
 from . import canopen as co
 from .bus import CanBus, NodePort
@@ -42,7 +42,7 @@ from .errors import DecodeError
 
 __all__ = ["DEFAULT_MAX_SIZE", "SdoAbortError", "SdoClient", "SdoTimeoutError"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 
 def _abort_name(code: int) -> str:

@@ -34,14 +34,14 @@ import math
 from collections.abc import Callable
 
 import anyio.lowlevel
-import structlog
 
 from openel_async.clock import NS_PER_S, DeadlineSleeper, Sleeper, wait_idle
 from openel_async.errors import BadParameterError
+from openel_async.logs import get_logger
 
 __all__ = ["LockstepClock"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 _heappop = heapq.heappop  # module names: read once per inline tick, not as attributes
 _heappush = heapq.heappush

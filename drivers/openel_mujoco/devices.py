@@ -21,7 +21,6 @@ from typing import TYPE_CHECKING, Any, ClassVar, Final, Protocol, cast
 
 import mujoco
 import numpy as np
-import structlog
 
 from openel_async.device import (
     ActuatorDevice,
@@ -38,6 +37,7 @@ from openel_async.device import (
 from openel_async.direction import MagneticField
 from openel_async.errors import BadParameterError, HALError
 from openel_async.ids import DeviceKind
+from openel_async.logs import get_logger
 from openel_async.requests import EventId, Request
 
 from .description import JointSpec, SensorSpec, spec_of
@@ -68,7 +68,7 @@ __all__ = [
     "set_geomagnetic_field",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 VENDOR_ID: Final = 0x4D4A  # "MJ"
 VENDOR_NAME: Final = "MuJoCo"

@@ -80,6 +80,8 @@ import numpy.typing as npt
 import structlog
 from anyio.streams.buffered import BufferedByteReceiveStream
 
+from openel_async.logs import get_logger
+
 __all__ = [
     "RenderWorkerError",
     "SnapshotRenderer",
@@ -91,7 +93,7 @@ __all__ = [
     "renderer_for",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 _DISABLED: Final = frozenset({"disable", "disabled", "off", "false", "0"})
 _MODULES: Final = {

@@ -57,11 +57,11 @@ import anyio
 import anyio.abc
 import mujoco
 import numpy as np
-import structlog
 
 from openel_async.clock import Clock, MonotonicClock
 from openel_async.device import DeviceContext
 from openel_async.errors import BadParameterError, HALError, StateError
+from openel_async.logs import get_logger
 from openel_async.stats import LatenessRecorder, LatenessSummary
 
 from . import render
@@ -73,7 +73,7 @@ from .models import find_id, load_model
 
 __all__ = ["MujocoSim", "PacingStats"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 _UNSTABLE: Final = (
     mujoco.mjtWarning.mjWARN_BADQPOS,

@@ -45,9 +45,9 @@ from pathlib import Path
 from typing import Final
 
 import anyio
-import structlog
 
 from openel_async.clock import Clock, default_clock
+from openel_async.logs import get_logger
 from openel_serial import feetech as ft
 from openel_sim import profile as prof
 
@@ -55,7 +55,7 @@ from .ptypeer import PtyPeer
 
 __all__ = ["SimFeetechBus", "SimStsServo"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 S = ft.STS
 NS: Final = 1_000_000_000

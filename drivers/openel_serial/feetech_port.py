@@ -52,10 +52,10 @@ from typing import Any, Final, Protocol, Self
 import anyio
 import anyio.lowlevel
 import anyio.to_thread
-import structlog
 
 from openel_async.clock import Clock, default_clock
 from openel_async.errors import BadParameterError, HALError
+from openel_async.logs import get_logger
 from openel_serial import feetech as ft
 from openel_serial.errors import (
     FeetechTimeoutError,
@@ -74,7 +74,7 @@ __all__ = [
     "FeetechPresentState",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 S = ft.STS
 POLL_ADDRESS: Final = S.PRESENT_POSITION.address  # 56

@@ -45,7 +45,6 @@ from dataclasses import dataclass
 from typing import ClassVar, Final
 
 import anyio
-import structlog
 
 from openel_async.device import (
     ActuatorDevice,
@@ -62,6 +61,7 @@ from openel_async.errors import (
     ReturnCode,
 )
 from openel_async.ids import DeviceKind
+from openel_async.logs import get_logger
 from openel_async.requests import Request
 from openel_async.safety import ExitAction
 from openel_serial import feetech as ft
@@ -75,7 +75,7 @@ from openel_serial.feetech_port import (
 
 __all__ = ["FEETECH_VENDOR_ID", "FeetechSTS3215", "FeetechServo"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 S = ft.STS
 RAD_PER_TICK: Final = 2 * math.pi / ft.TICKS_PER_REV

@@ -59,19 +59,19 @@ from dataclasses import dataclass, replace
 from typing import Any, Final, Literal
 
 import anyio
-import structlog
 
 from openel_async.device import DeviceContext, DeviceInfo, ErrorId
 from openel_async.errors import BadParameterError, HALError, NotImplementedHALError, ReturnCode
 from openel_async.gps import GPSData, GPSDevice
 from openel_async.ids import DeviceKind
+from openel_async.logs import get_logger
 from openel_serial import nmea
 from openel_serial.errors import NoFixError, PortDisconnectedError
 from openel_serial.link import SerialLink
 
 __all__ = ["DEFAULT_UERE_M", "GpsFix", "NmeaGps", "pmtk_set_period"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 DEFAULT_UERE_M: Final = 5.0
 """User equivalent range error (1 sigma, m) of a single-frequency GPS receiver without

@@ -30,14 +30,14 @@ from typing import Any
 import anyio
 import serial
 import serial_asyncio_fast
-import structlog
 
 from openel_async.clock import run_in_thread
+from openel_async.logs import get_logger
 from openel_serial.errors import PortDisconnectedError
 
 __all__ = ["FdSerialTransport", "QuietSerialTransport", "SerialLink"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 READ_SIZE = 4096
 """Bytes asked for per read (the library's default is 1024): the replies to a SYNC READ

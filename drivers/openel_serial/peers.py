@@ -45,9 +45,9 @@ import anyio
 import anyio.abc
 import anyio.from_thread
 import anyio.to_thread
-import structlog
 
 from openel_async.clock import Clock, default_clock
+from openel_async.logs import get_logger
 from openel_serial import dynamixel as dx
 from openel_serial import nmea
 from openel_sim import profile as prof
@@ -63,7 +63,7 @@ __all__ = [
     "SimServo",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 X = dx.XSeries
 TICKS_PER_S_PER_VELOCITY_UNIT: Final = dx.VELOCITY_UNIT_RPM / 60 * dx.TICKS_PER_REV

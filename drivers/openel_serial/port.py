@@ -61,10 +61,10 @@ from typing import Any, Final, Protocol, Self
 import anyio
 import anyio.abc
 import anyio.lowlevel
-import structlog
 
 from openel_async.clock import Clock, default_clock
 from openel_async.errors import BadParameterError, HALError
+from openel_async.logs import get_logger
 from openel_serial import dynamixel as dx
 from openel_serial.errors import (
     DynamixelHardwareAlert,
@@ -88,7 +88,7 @@ __all__ = [
     "wire_time",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 X = dx.XSeries
 POLL_ADDRESS: Final = X.MOVING.address  # 122

@@ -66,7 +66,6 @@ from dataclasses import dataclass
 from typing import ClassVar, Final
 
 import anyio
-import structlog
 
 from openel_async.device import (
     ActuatorDevice,
@@ -84,6 +83,7 @@ from openel_async.errors import (
     ReturnCode,
 )
 from openel_async.ids import DeviceKind
+from openel_async.logs import get_logger
 from openel_async.requests import Request
 from openel_async.safety import ExitAction
 from openel_serial import dynamixel as dx
@@ -103,7 +103,7 @@ __all__ = [
     "profile_acceleration_for",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 X = dx.XSeries
 RAD_PER_TICK: Final = 2 * math.pi / dx.TICKS_PER_REV

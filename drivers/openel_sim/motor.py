@@ -14,7 +14,6 @@ import random
 from collections.abc import Sequence
 
 import anyio
-import structlog
 
 from openel_async.device import (
     ActuatorDevice,
@@ -27,11 +26,12 @@ from openel_async.device import (
 )
 from openel_async.errors import BadParameterError, NotConnectedError, ReturnCode
 from openel_async.ids import DeviceKind
+from openel_async.logs import get_logger
 from openel_async.requests import EventId, Request
 
 from . import profile as prof
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 TORQUE_RISE_NS = 2_000_000
 """Current-loop response: the commanded torque is reached this long after the command."""

@@ -6,19 +6,61 @@ safe session configurations: ``config``; the e-stop of a served rig (``openel-as
 estop``): ``estop``.
 """
 
-from openel_async.registry import DriverInfo
+from __future__ import annotations
 
-from .client import RemoteSurface, close_session, open_session
-from .config import client_config, file_config, safe_config, server_config
-from .device import RemoteActuator, RemoteSensor
-from .keys import Keys
-from .server import SurfaceServer
+import importlib
+from typing import TYPE_CHECKING, Any
 
-DRIVER = DriverInfo(
-    name="zenoh",
-    description="Remote devices: components served by 'openel-async serve' over Zenoh",
-    devices={"actuator": RemoteActuator, "sensor": RemoteSensor},
-)
+if TYPE_CHECKING:
+    from openel_async.registry import DriverInfo
+
+    from .client import RemoteSurface, close_session, open_session
+    from .config import client_config, file_config, safe_config, server_config
+    from .device import RemoteActuator, RemoteSensor
+    from .keys import Keys
+    from .server import SurfaceServer
+
+# The names below load their module (and zenoh) on first use: a command contributed by this
+# package (openel-async serve, estop ...) is listed by 'openel-async --help' without them.
+_LAZY = {
+    "RemoteSurface": "client",
+    "close_session": "client",
+    "open_session": "client",
+    "client_config": "config",
+    "file_config": "config",
+    "safe_config": "config",
+    "server_config": "config",
+    "RemoteActuator": "device",
+    "RemoteSensor": "device",
+    "Keys": "keys",
+    "SurfaceServer": "server",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name == "DRIVER":
+        return _driver()
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def _driver() -> DriverInfo:
+    from openel_async.registry import DriverInfo
+
+    from .device import RemoteActuator, RemoteSensor
+
+    driver = DriverInfo(
+        name="zenoh",
+        description="Remote devices: components served by 'openel-async serve' over Zenoh",
+        devices={"actuator": RemoteActuator, "sensor": RemoteSensor},
+    )
+    globals()["DRIVER"] = driver
+    return driver
+
 
 __all__ = [
     "DRIVER",

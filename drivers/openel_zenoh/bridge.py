@@ -18,11 +18,12 @@ from collections.abc import Callable
 from typing import Generic, TypeVar
 
 import anyio
-import structlog
+
+from openel_async.logs import get_logger
 
 T = TypeVar("T")
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 
 class ThreadInbox(Generic[T]):

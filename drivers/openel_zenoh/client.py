@@ -42,11 +42,11 @@ from typing import Any, Literal, Self, cast
 import anyio
 import anyio.abc
 import msgspec
-import structlog
 import zenoh
 
 from openel_async.clock import run_in_thread
 from openel_async.errors import BadParameterError, NotConnectedError, ReturnCode, check_code
+from openel_async.logs import get_logger
 from openel_async.surface import compact, xml_psm
 from openel_async.surface.application import Delivery
 from openel_async.surface.messages import CommandMessage, Device, ResultList
@@ -56,7 +56,7 @@ from . import wire
 from .bridge import ThreadInbox
 from .keys import Keys
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 DEFAULT_TIMEOUT_S = 2.0
 DEFAULT_BUSY_WAIT_S = 0.0005

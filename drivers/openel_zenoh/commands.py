@@ -24,16 +24,16 @@ from typing import TYPE_CHECKING, TypeAlias
 
 import anyio
 import anyio.lowlevel
-import structlog
 
 from openel_async.cli.commands import EXIT_USAGE, CliCommand, load_bytes, no_such_file
 from openel_async.errors import BadParameterError, HALError
+from openel_async.logs import get_logger
 from openel_async.surface import xml_psm
 from openel_async.surface.messages import Device
 
 from . import wire
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 if TYPE_CHECKING:
     SubParsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]

@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import asyncio
 
-import structlog
-
 from openel_async.device import (
     ActuatorDevice,
     ActuatorLimits,
@@ -26,13 +24,14 @@ from openel_async.device import (
 )
 from openel_async.errors import BadParameterError, NotConnectedError, ReturnCode, check_code
 from openel_async.ids import DeviceKind
+from openel_async.logs import get_logger
 from openel_async.requests import EventId, Request
 from openel_async.surface import compact
 from openel_async.surface.messages import CommandMessage, Device, ResultList
 
 from .client import RemoteSurface
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 _SET = {
     Request.POSITION: ("SetPosition", "position"),

@@ -29,11 +29,11 @@ from typing import TYPE_CHECKING, Any, Self, cast
 
 import anyio
 import anyio.abc
-import structlog
 import zenoh
 
 from openel_async.component import ComponentState, HALComponent
 from openel_async.errors import BadParameterError, HALError, NotConnectedError, ReturnCode
+from openel_async.logs import get_logger
 
 from . import wire
 from .bridge import ThreadInbox
@@ -42,7 +42,7 @@ from .keys import Keys
 if TYPE_CHECKING:
     from openel_async.rig import Rig
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 DEFAULT_TIMEOUT_S = 5.0
 """How long :func:`estop_rig` waits for the server, then for its reply (a rig's e-stop

@@ -43,10 +43,10 @@ from typing import Any, Self, cast
 import anyio
 import anyio.abc
 import msgspec
-import structlog
 import zenoh
 
 from openel_async.errors import BadParameterError, HALError, ReturnCode, WouldBlockError
+from openel_async.logs import get_logger
 from openel_async.surface import Surface, compact, xml_psm
 from openel_async.surface.messages import CommandMessage, DataType, Device, Parameter, ResultList
 
@@ -55,7 +55,7 @@ from .bridge import ThreadInbox
 from .gate import LoopGate, enter_as_loop, exit_loop, gate_of, needs_wake, work_marker
 from .keys import Keys
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 MAX_CLIENTS = 256
 """Clients a server keeps state for (a notice publisher, subscriptions, a queue) by default."""

@@ -24,13 +24,14 @@ from pathlib import Path
 
 import anyio
 import anyio.abc
-import structlog
+
+from openel_async.logs import get_logger
 
 from .client import RemoteSurface, close_session, open_session
 from .config import client_config, endpoint
 from .keys import check_chunk
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 READY_TIMEOUT_S = 30.0
 """Longest wait for the server process to serve (it imports its drivers first)."""

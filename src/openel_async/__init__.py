@@ -4,7 +4,10 @@ Components are async objects: ``await actuator.set_value(...)`` returns once the
 device accepted the target, and reaching it is posted as event 1 (COMPLETED).
 """
 
-from . import _logging  # noqa: F401  (first: structlog to logging, unless the app configured it)
+import sys as _sys
+
+if "structlog" in _sys.modules:  # the application uses structlog: route it to logging now,
+    from . import _logging  # noqa: F401  unless it configured it (else: at the first log)
 from .actuator import Actuator, CompletionPolicy
 from .banks import ActuatorBank, SensorBank
 from .clock import Clock, MonotonicClock, VirtualClock, default_clock

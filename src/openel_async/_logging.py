@@ -1,6 +1,6 @@
 """The library's logging default: silent until the application configures logging.
 
-Every module logs through structlog (``structlog.get_logger(__name__)``). Unconfigured,
+Every module logs through structlog (``get_logger(__name__)``). Unconfigured,
 structlog prints every event to stdout, which a library must not do. So, when
 ``openel_async`` is imported and structlog is not configured yet, :func:`configure_default`
 routes every event to the standard :mod:`logging` module, through the logger named after the
@@ -78,4 +78,4 @@ def configure_default() -> None:
     )
 
 
-configure_default()  # at the import of openel_async (its __init__ imports this module first)
+configure_default()  # at the first use of a framework logger (openel_async.logs)

@@ -40,7 +40,8 @@ from typing import Protocol, TypeVar, TypeVarTuple, runtime_checkable
 import anyio
 import anyio.abc
 import anyio.to_thread
-import structlog
+
+from openel_async.logs import get_logger
 
 from . import timerfd
 from .errors import BadParameterError, StateError, VirtualClockStalledError
@@ -59,7 +60,7 @@ after which the sleepers of a clock that nothing drives get a VirtualClockStalle
 _STALL_SAMPLE_S = 0.1
 """Real seconds between two looks of a manual clock's stall watchdog (at most)."""
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 T = TypeVar("T")
 PosArgsT = TypeVarTuple("PosArgsT")

@@ -17,7 +17,8 @@ from typing import Any, ClassVar, Self
 
 import anyio
 import anyio.abc
-import structlog
+
+from openel_async.logs import get_logger
 
 from .clock import Clock, default_clock
 from .device import Device, ErrorId
@@ -37,7 +38,7 @@ from .observers import ErrorNotice, EventNotice
 from .safety import EmergencyStop
 from .stats import ObserverStats
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 
 class ComponentState(Enum):

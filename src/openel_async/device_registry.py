@@ -14,7 +14,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import structlog
+from openel_async.logs import get_logger
 
 from .actuator import Actuator
 from .component import HALComponent
@@ -27,7 +27,7 @@ from .registry import DriverEntry, discover_drivers
 from .sensing import SensingActuatorDevice, SensingMotor
 from .sensor_kinds import sensor_class
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 Key = tuple[int, int, int]
 

@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING, Any
 
 import anyio
 import anyio.abc
-import structlog
+
+from openel_async.logs import get_logger
 
 from .errors import BadParameterError
 from .observers import Notice, Route, observer_routes
@@ -36,7 +37,7 @@ from .stats import MailboxStats, ObserverStats
 if TYPE_CHECKING:
     from .listeners import ComponentListener
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 # What a mailbox holds per notification: (kind, spec arguments, notice or None). One
 # tuple per publish, shared by every mailbox that receives it.

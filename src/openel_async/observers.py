@@ -29,7 +29,8 @@ from typing import (
 )
 
 import anyio
-import structlog
+
+from openel_async.logs import get_logger
 
 from .errors import BadParameterError
 
@@ -37,7 +38,7 @@ if TYPE_CHECKING:
     from .component import HALComponent
     from .timer import EventTimer
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 
 @runtime_checkable

@@ -22,12 +22,12 @@ from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field
 from typing import Any
 
-import structlog
+from openel_async.logs import get_logger
 
 from .clock import Clock
 from .completion import Motion, Outcome
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 RAMP_PERIOD_NS = 1_000_000
 """The streaming period of framework ramps: 1 ms (1 kHz)."""

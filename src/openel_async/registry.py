@@ -7,12 +7,12 @@ from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING
 
-import structlog
+from openel_async.logs import get_logger
 
 if TYPE_CHECKING:
     from .rig.buses import BusKind
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 ENTRY_POINT_GROUP = "openel_async.drivers"
 

@@ -17,7 +17,8 @@ from typing import Self
 
 import anyio
 import anyio.abc
-import structlog
+
+from openel_async.logs import get_logger
 
 from .clock import NS_PER_MS, NS_PER_S, Clock, InlineScheduler, ScheduledCall, default_clock
 from .errors import BadParameterError, StateError
@@ -25,7 +26,7 @@ from .fanout import Fanout
 from .observers import ObserverQueue, TimerTick
 from .stats import LatenessRecorder, LatenessSummary, ObserverStats
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 EXIT_DRAIN_S = 1.0
 """How long leaving ``async with timer`` waits for async observers (real seconds)."""

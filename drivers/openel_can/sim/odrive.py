@@ -50,9 +50,9 @@ from typing import Final
 import anyio
 import anyio.abc
 import can
-import structlog
 
 from openel_async.clock import Clock, default_clock
+from openel_async.logs import get_logger
 from openel_sim import profile as prof
 
 from .. import cansimple as cs
@@ -68,7 +68,7 @@ from .history import DEFAULT_HISTORY, History
 
 __all__ = ["SimODrive"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 NS: Final = 1e-9
 _HOST_CMDS: Final = (

@@ -92,10 +92,10 @@ import anyio
 import anyio.abc
 import anyio.from_thread
 import can
-import structlog
 
 from openel_async.clock import VirtualClock
 from openel_async.errors import BadParameterError
+from openel_async.logs import get_logger
 
 from ..errors import DecodeError
 
@@ -113,7 +113,7 @@ __all__ = [
     "main",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 T = TypeVar("T")
 
 OK: Final = b"\r"

@@ -29,7 +29,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, TypeVar
 
-import structlog
+from openel_async.logs import get_logger
 
 from ..errors import BadParameterError
 
@@ -51,7 +51,7 @@ __all__ = [
     "find_app",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 ENTRY_POINT_GROUP = "openel_async.apps"
 

@@ -30,8 +30,9 @@ from types import FrameType
 from typing import TypeVar
 
 import anyio
-import structlog
 from anyio.abc import TaskStatus
+
+from openel_async.logs import get_logger
 
 __all__ = [
     "EXIT_SIGINT",
@@ -46,7 +47,7 @@ __all__ = [
     "run_interruptible",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 EXIT_SIGINT = 128 + signal.SIGINT  # 130
 EXIT_SIGTERM = 128 + signal.SIGTERM  # 143

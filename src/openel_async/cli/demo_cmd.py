@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-import structlog
+from openel_async.logs import get_logger
 
 from ..app import AppInfo, AppUnavailable, DemoOptions, discover_apps, find_app, run_app
 from .record_cmd import taps_from_args
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         if args.app is not None:  # asked for by name: no fallback
             print(f"{PROG}: {exc.needs} cannot run --app {name}: {exc.reason}", file=sys.stderr)
             return 1
-        structlog.get_logger(__name__).warning(
+        get_logger(__name__).warning(
             "mujoco_unavailable" if exc.needs == "MuJoCo" else "app_unavailable",
             app=name,
             reason=exc.reason,

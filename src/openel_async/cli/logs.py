@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import logging
 import sys
-
-import structlog
+from typing import TYPE_CHECKING
 
 from .options import DEFAULT_LEVEL, LEVELS
+
+if TYPE_CHECKING:
+    import structlog
 
 __all__ = ["LEVELS", "configure_logging"]
 
@@ -37,6 +39,8 @@ class _StderrHandler(logging.Handler):
 def configure_logging(log_format: str = "console", level: str = DEFAULT_LEVEL) -> None:
     """Console (human) or JSON lines on stderr, filtered at ``level``; calling it again
     replaces the previous configuration."""
+    import structlog  # here, not at import: a command that parses only (--help) never loads it
+
     shown = getattr(logging, level.upper())
     # Events from INFO up run through the processors whatever is shown: a recording's /log
     # channel (openel_async.recording.Tap inserts itself before the last processor) keeps them.
@@ -81,6 +85,8 @@ def configure_logging(log_format: str = "console", level: str = DEFAULT_LEVEL) -
 def reset_logging() -> None:
     """Undo :func:`configure_logging` (tests that call the CLI in-process): the library's
     default again."""
+    import structlog
+
     from .._logging import configure_default
 
     root = logging.getLogger()

@@ -20,7 +20,8 @@ from typing import Self
 import anyio
 import anyio.abc
 import anyio.lowlevel
-import structlog
+
+from openel_async.logs import get_logger
 
 from ..actuator import Actuator
 from ..banks import ActuatorBank
@@ -53,7 +54,7 @@ from .params import (
 )
 from .planner import KinematicState, Plan, Planner
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 S = ComponentState
 POSITION = Request.POSITION

@@ -13,14 +13,15 @@ import os
 from pathlib import Path
 
 import foxglove
-import structlog
+
+from openel_async.logs import get_logger
 
 from .pipeline import PipelineStats
 from .tap import Tap
 
 __all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "LAYOUT_PATH", "FoxgloveSink", "LiveView"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8765

@@ -47,7 +47,8 @@ from itertools import repeat, starmap
 from typing import Any, Protocol
 
 import msgspec
-import structlog
+
+from openel_async.logs import get_logger
 
 from .columns import Columns, column_messages_count
 from .records import BATCH, CHANNEL, COLUMNS, HEADER, STATS
@@ -59,7 +60,7 @@ PIPE_SIZE = 1 << 20
 """Bytes of the pipe to the writer process where Linux lets a process set it
 (``F_SETPIPE_SZ``, up to ``/proc/sys/fs/pipe-max-size``): frames wait there, not in the app."""
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 WRITER_BOOTSTRAP = (
     "import signal as s; s.signal(s.SIGINT, s.SIG_IGN); s.signal(s.SIGTERM, s.SIG_IGN)\n"

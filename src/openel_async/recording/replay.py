@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import anyio
-import structlog
+
+from openel_async.logs import get_logger
 
 from ..actuator import Actuator
 from ..clock import Clock, MonotonicClock, VirtualClock
@@ -44,7 +45,7 @@ __all__ = [
     "sim_rig",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 
 @dataclass(frozen=True, slots=True)

@@ -27,6 +27,8 @@ from typing import Any, cast
 import anyio
 import structlog
 
+from openel_async.logs import get_logger
+
 from ..actuator import Actuator
 from ..app import AppContext, AppHook
 from ..clock import Clock, InlineScheduler, ScheduledCall, run_in_thread
@@ -72,7 +74,7 @@ from .schemas import (
 
 __all__ = ["Tap"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 _ACTIVE = ComponentState.ACTIVE
 _COMPLETED = int(EventId.COMPLETED)

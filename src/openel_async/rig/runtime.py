@@ -13,7 +13,8 @@ from dataclasses import dataclass, field
 from typing import TypeVar
 
 import anyio
-import structlog
+
+from openel_async.logs import get_logger
 
 from ..actuator import Actuator
 from ..clock import Clock
@@ -31,7 +32,7 @@ from .spec import JointLimits, RigSpec, SafetySpec
 
 __all__ = ["Rig", "SafeStopReport", "open_rig"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 T = TypeVar("T")
 

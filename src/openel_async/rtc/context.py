@@ -37,7 +37,8 @@ from typing import ClassVar, Self, TypeVar
 
 import anyio
 import anyio.abc
-import structlog
+
+from openel_async.logs import get_logger
 
 from ..clock import NS_PER_S, Clock, default_clock
 from ..stats import LatenessRecorder, LatenessSummary
@@ -68,7 +69,7 @@ __all__ = [
     "SporadicExecutionContext",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 T = TypeVar("T")
 _instances = itertools.count(1)

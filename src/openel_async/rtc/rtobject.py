@@ -15,7 +15,8 @@ from enum import Enum
 from typing import TYPE_CHECKING, TypeVar
 
 import anyio
-import structlog
+
+from openel_async.logs import get_logger
 
 from ..clock import Clock, default_clock
 from ._callbacks import Outcome, invoke
@@ -36,7 +37,7 @@ P = TypeVar("P", bound="PortBase")
 
 __all__ = ["ECOTHER_OFFSET", "CallbackResult", "ObjectState", "RTObject"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 ECOTHER_OFFSET = 1000
 """Handles of contexts the RTC does not own start here (owned ones start at 0), as in

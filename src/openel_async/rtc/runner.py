@@ -43,8 +43,9 @@ from types import ModuleType
 
 import anyio
 import anyio.to_thread
-import structlog
 from anyio.abc import TaskStatus
+
+from openel_async.logs import get_logger
 
 from ..clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
 from .configuration import Configuration, ConfigurationError
@@ -84,7 +85,7 @@ __all__ = [
     "ticks",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 IMPLEMENTATION_PARAMETER = "implementation"
 RATE_PARAMETER = "exec_ctxt.periodic.rate"

@@ -16,12 +16,13 @@ from typing import Any, Protocol, TypeAlias, runtime_checkable
 
 import anyio
 import anyio.abc
-import structlog
+
+from openel_async.logs import get_logger
 
 from ..errors import BadParameterError, ReturnCode
 from ..observers import NoticeQueue
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 APPLICATION_METHODS = ("completed", "notify_event", "notify_error")
 

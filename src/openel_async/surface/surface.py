@@ -25,7 +25,8 @@ from typing import Any, Self
 
 import anyio
 import anyio.abc
-import structlog
+
+from openel_async.logs import get_logger
 
 from ..completion import Motion
 from ..component import ComponentState, HALComponent
@@ -45,7 +46,7 @@ from .application import Delivery
 from .messages import CommandMessage, DataType, Device, Parameter, ResultList
 from .profiles import DEFAULT_PROFILES, KindProfile, Operation, argument, kind_of, normalize_kind
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 LOGICAL_ID = "logical_id"
 """The argument that selects the component among those of a device kind (INT)."""

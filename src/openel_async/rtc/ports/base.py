@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-import structlog
+from openel_async.logs import get_logger
 
 from ...clock import Clock, default_clock
 from ..errors import PreconditionNotMetError, RTCBadParameterError
@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Listener", "PortBase"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 Listener = Callable[[PortEvent], None]
 """A port listener: called inline with each event; exceptions are logged."""

@@ -32,7 +32,8 @@ from types import TracebackType
 from typing import Any, Protocol, Self
 
 import anyio
-import structlog
+
+from openel_async.logs import get_logger
 
 from ...clock import NS_PER_S, Clock
 from ..errors import PreconditionNotMetError, RTCBadParameterError
@@ -46,7 +47,7 @@ from .transport import PullSource, PushSink, Transport, transport_for
 
 __all__ = ["Connector", "ConnectorInfo", "ConnectorStats", "InHalf", "OutHalf", "connect"]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 _ids = itertools.count(1)
 
 

@@ -45,7 +45,8 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 import msgspec
-import structlog
+
+from openel_async.logs import get_logger
 
 from ...positioned import DocumentError, Location, YamlDocument, convert, load_yaml, relocate
 from ..ports.profile import KNOWN_KEYS
@@ -70,7 +71,7 @@ __all__ = [
     "loads_system_yaml",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 PROFILE_PROPERTY = "openel.profile"
 _CONTEXT_TYPES = {

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import anyio
 import anyio.to_thread
-import structlog
+
+from openel_async.logs import get_logger
 
 from ...clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
 from ..context import ExecutionContext, ExecutionKind, LifeCycleState
@@ -44,7 +45,7 @@ __all__ = [
     "run_system_file",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 MAX_VIRTUAL_CYCLES = 1_000_000
 
 
