@@ -391,7 +391,16 @@ class RemoteSurface:
         return reply.commands[0]
 
     async def components(self) -> list[wire.ComponentInfo]:
-        return wire.components_decoder.decode(await self.query(self.keys.components, b""))
+        """The served components. The query carries this client's protocol version: a server
+        that speaks another refuses it (BadParameterError naming both versions)."""
+        payload = await self.query(self.keys.components, wire.encoder.encode(wire.PROTOCOL_VERSION))
+        try:
+            reply = wire.components_decoder.decode(payload)
+        except (msgspec.ValidationError, msgspec.DecodeError):
+            answer = wire.answer_decoder.decode(payload)  # a refusal
+            check_code(answer.return_code, answer.message)
+            raise
+        return reply.components
 
     async def estop_rig(self, release: bool = False) -> wire.EstopReply:
         """E-stop every component of the served rig at once (``release=True``: release the

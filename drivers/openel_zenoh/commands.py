@@ -146,14 +146,16 @@ async def _serve(args: argparse.Namespace) -> int:
                 f"{e.device_kind}[{e.logical_id}]={e.component.device_name}"
                 for e in surface.entries
             )
-            print(
-                f"serving {len(rig.components)} components on {where}, namespace {namespace!r}: {names}",
-                flush=True,
-            )
             async with anyio.create_task_group() as tg:
                 if getattr(args, "stop_on_eof", False):
                     tg.start_soon(_stop_on_eof, tg.cancel_scope)
                 with anyio.open_signal_receiver(signal.SIGINT, signal.SIGTERM) as signals:
+                    # ready once a signal stops it cleanly: the line a parent waits for
+                    print(
+                        f"serving {len(rig.components)} components on {where}, "
+                        f"namespace {namespace!r}: {names}",
+                        flush=True,
+                    )
                     async for signum in signals:
                         log.info("serve_stopping", signal=signal.Signals(signum).name)
                         break

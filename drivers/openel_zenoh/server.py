@@ -673,12 +673,26 @@ class SurfaceServer:
         client = self.clients.get(request.client)
         try:
             if request.kind == "components":
-                return [
-                    wire.ComponentInfo(
-                        e.device_kind, e.logical_id, e.component.device_name, str(e.component.state)
-                    )
-                    for e in surface.entries
-                ]
+                if request.payload:  # the client's protocol version
+                    version = wire.protocol_decoder.decode(request.payload)
+                    if version != wire.PROTOCOL_VERSION:
+                        raise BadParameterError(
+                            "protocol",
+                            version,
+                            f"protocol version {wire.PROTOCOL_VERSION} (this server's)",
+                        )
+                return wire.ComponentsReply(
+                    wire.PROTOCOL_VERSION,
+                    [
+                        wire.ComponentInfo(
+                            e.device_kind,
+                            e.logical_id,
+                            e.component.device_name,
+                            str(e.component.state),
+                        )
+                        for e in surface.entries
+                    ],
+                )
             if request.kind == "subscribe":
                 if client is None or client.link is None:
                     raise BadParameterError(

@@ -1,4 +1,5 @@
-"""Payloads of the Zenoh transport other than HAL4RT messages (MessagePack, msgspec).
+"""Payloads of the Zenoh transport other than HAL4RT messages (MessagePack, msgspec); the
+specification, field by field with examples, is docs/wire.md.
 
 ``execute`` carries a HAL4RT ``Device`` message, as XML (the standard PSM; a payload
 starting with '<') or compact MessagePack; the reply uses the request's encoding. The
@@ -14,6 +15,10 @@ from __future__ import annotations
 import msgspec
 
 from openel_async.surface.messages import ResultList
+
+PROTOCOL_VERSION = 1
+"""The version of the wire protocol (docs/wire.md): in every ``components`` reply; a client
+that sends its own in the ``components`` query is refused when they differ."""
 
 
 class SubscribeRequest(msgspec.Struct, array_like=True):
@@ -35,6 +40,13 @@ class ComponentInfo(msgspec.Struct, array_like=True):
     logical_id: int
     device_name: str
     state: str
+
+
+class ComponentsReply(msgspec.Struct, array_like=True):
+    """The reply of ``surface/components``: the server's protocol version and its components."""
+
+    protocol: int
+    components: list[ComponentInfo]
 
 
 class RigComponentState(msgspec.Struct, array_like=True):
@@ -93,5 +105,6 @@ encoder = msgspec.msgpack.Encoder()
 batch_decoder = msgspec.msgpack.Decoder(NoticeBatch)
 answer_decoder = msgspec.msgpack.Decoder(Answer)
 subscribe_decoder = msgspec.msgpack.Decoder(SubscribeRequest)
-components_decoder = msgspec.msgpack.Decoder(list[ComponentInfo])
+components_decoder = msgspec.msgpack.Decoder(ComponentsReply)
+protocol_decoder = msgspec.msgpack.Decoder(int)
 estop_decoder = msgspec.msgpack.Decoder(EstopReply)

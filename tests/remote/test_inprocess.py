@@ -25,7 +25,7 @@ from openel_async.surface import (
     compact,
     xml_psm,
 )
-from openel_zenoh import RemoteActuator, RemoteSensor, RemoteSurface
+from openel_zenoh import RemoteActuator, RemoteSensor, RemoteSurface, wire
 from openel_zenoh.server import is_xml
 
 from ..surface.test_messages import devices
@@ -157,3 +157,22 @@ def test_xml_is_told_from_the_compact_form_by_its_first_character(encoding: str)
 @given(devices)
 def test_no_compact_device_is_taken_for_xml(device: Device) -> None:
     assert not is_xml(compact.encode(device))
+
+
+async def test_the_protocol_version_is_in_the_components_reply_and_a_mismatch_is_refused() -> None:
+    port = free_port()
+    async with (
+        sim_server(port) as (_, _, _),
+        session(client_cfg(port)) as zs,
+        RemoteSurface(zs, "test") as remote,
+    ):
+        assert [c.device_kind for c in await remote.components()] == ["Motor", "Motor", "Encoder"]
+        reply = wire.components_decoder.decode(await remote.query(remote.keys.components, b""))
+        assert reply.protocol == wire.PROTOCOL_VERSION == 1
+        refused = wire.answer_decoder.decode(
+            await remote.query(remote.keys.components, wire.encoder.encode(2))
+        )
+        assert refused.return_code == ReturnCode.HAL_BAD_PARAMETER
+        assert refused.message == (
+            "protocol=2 is not allowed: expected protocol version 1 (this server's)"
+        )
