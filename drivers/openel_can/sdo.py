@@ -22,13 +22,22 @@ bounded by ``timeout``:
   alternate, more data than announced or than ``max_size``) -> the client aborts the
   transfer itself (0x05040001, 0x05030000, 0x06070010, 0x05040005) and raises
   :class:`SdoAbortError` with ``by_client`` True.
+
+Typed access: :meth:`SdoClient.read` / :meth:`SdoClient.write` take an
+:class:`~openel_can.canopen.ObjectEntry` (an int value), or an
+:class:`~openel_can.od.OdEntry` or any key of the client's object dictionary ``od`` (a
+name such as ``"Target position"``, ``"0x1018:1"``, ``(index, subindex)``): the value is
+encoded by the entry's data type and checked against its range and the file's limits,
+and a write to an object that is not writable (a read of one that is not readable) is
+refused before anything is sent -- ``BadParameterError`` naming the object.
 """
 
 from __future__ import annotations
 
 import asyncio
 import math
-from typing import Final, NoReturn
+import struct
+from typing import Final, NoReturn, overload
 
 import anyio
 import can
@@ -39,6 +48,7 @@ from openel_async.logs import get_logger
 from . import canopen as co
 from .bus import CanBus, NodePort
 from .errors import DecodeError
+from .od import ObjectDictionary, ObjectKey, OdEntry, OdValue
 
 __all__ = ["DEFAULT_MAX_SIZE", "SdoAbortError", "SdoClient", "SdoTimeoutError"]
 
@@ -94,6 +104,7 @@ class SdoClient:
         *,
         timeout: float = 0.1,
         max_size: int = DEFAULT_MAX_SIZE,
+        od: ObjectDictionary | None = None,
     ) -> None:
         if isinstance(node_id, bool) or not isinstance(node_id, int) or not 1 <= node_id <= 127:
             raise BadParameterError("node_id", node_id, "a CANopen node id in 1..127")
@@ -105,6 +116,8 @@ class SdoClient:
         self.node_id = node_id
         self.timeout = timeout
         self.max_size = max_size
+        self.od = od
+        """The node's object dictionary: objects by name in :meth:`read`/:meth:`write`."""
         self.transfers = 0
         self.segments = 0
         self.aborts = 0
@@ -152,29 +165,80 @@ class SdoClient:
                 return
 
     # -- typed access ---------------------------------------------------------------------
-    async def read(self, entry: co.ObjectEntry, *, timeout: float | None = None) -> int:  # noqa: ASYNC109
-        data = await self.upload(entry.index, entry.subindex, timeout=timeout)
+    def entry(self, key: ObjectKey) -> OdEntry:
+        """The entry of :attr:`od` that ``key`` names (``BadParameterError`` when the
+        client has no dictionary, :class:`~openel_can.od.ObjectNotFoundError` when the
+        dictionary has no such object)."""
+        if isinstance(key, OdEntry):
+            return key
+        if self.od is None:
+            raise BadParameterError(
+                "object",
+                key,
+                f"an OdEntry or an ObjectEntry: node {self.node_id}'s SDO client has no object "
+                "dictionary to look names up in (SdoClient.od = openel_can.od.load_od(...))",
+            )
+        return self.od.entry(key)
+
+    @overload
+    async def read(self, entry: co.ObjectEntry, *, timeout: float | None = None) -> int: ...  # noqa: ASYNC109
+
+    @overload
+    async def read(
+        self,
+        entry: OdEntry | str | int | tuple[int, int],
+        *,
+        timeout: float | None = None,  # noqa: ASYNC109
+    ) -> OdValue: ...
+
+    async def read(self, entry: ObjectKey, *, timeout: float | None = None) -> OdValue:  # noqa: ASYNC109
+        """The object's value: an int for an ObjectEntry, else as its data type says."""
+        if isinstance(entry, co.ObjectEntry):
+            data = await self.upload(entry.index, entry.subindex, timeout=timeout)
+            try:
+                return entry.decode(data)
+            except DecodeError as exc:
+                raise HALError(
+                    f"node {self.node_id}: bad SDO value for {entry.index:#06x}:"
+                    f"{entry.subindex}: {exc}"
+                ) from exc
+        od_entry = self.entry(entry)
+        if not od_entry.readable:
+            raise BadParameterError(
+                od_entry.label, "read", f"a readable object: its access is {od_entry.access}"
+            )
+        data = await self.upload(od_entry.index, od_entry.subindex, timeout=timeout)
         try:
-            return entry.decode(data)
+            return od_entry.decode(data)
         except DecodeError as exc:
             raise HALError(
-                f"node {self.node_id}: bad SDO value for {entry.index:#06x}:{entry.subindex}: {exc}"
+                f"node {self.node_id}: bad SDO value for {od_entry.label}: {exc}"
             ) from exc
 
     async def write(
         self,
-        entry: co.ObjectEntry,
-        value: int,
+        entry: ObjectKey,
+        value: object,
         *,
         timeout: float | None = None,  # noqa: ASYNC109
     ) -> None:
-        try:
-            data = entry.encode(value)
-        except (ValueError, TypeError) as exc:
+        """Write ``value`` encoded by the entry's data type (checked before sending)."""
+        if isinstance(entry, co.ObjectEntry):
+            try:
+                data = entry.encode(value)  # type: ignore[arg-type]
+            except (ValueError, TypeError, struct.error) as exc:
+                raise BadParameterError(
+                    f"{entry.index:#06x}:{entry.subindex}", value, f"a {entry.data_type.name}"
+                ) from exc
+            await self.download(entry.index, entry.subindex, data, timeout=timeout)
+            return
+        od_entry = self.entry(entry)
+        if not od_entry.writable:
             raise BadParameterError(
-                f"{entry.index:#06x}:{entry.subindex}", value, f"a {entry.data_type.name}"
-            ) from exc
-        await self.download(entry.index, entry.subindex, data, timeout=timeout)
+                od_entry.label, value, f"a writable object: its access is {od_entry.access}"
+            )
+        data = od_entry.encode(value)
+        await self.download(od_entry.index, od_entry.subindex, data, timeout=timeout)
 
     # -- raw transfers --------------------------------------------------------------------
     async def upload(self, index: int, subindex: int, *, timeout: float | None = None) -> bytes:  # noqa: ASYNC109

@@ -6,10 +6,16 @@ given :class:`~openel_can.bus.CanBus`) implements:
 * **NMT**: boot-up message, then Pre-operational; start/stop/pre-operational, reset
   node (every object back to its default) and reset communication (0x1000-0x1FFF).
   Heartbeat producer every 0x1017 ms (default 1000 ms; 0 disables it).
-* **SDO server** over the object dictionary below, with CiA 301 abort codes:
+* **Object dictionary** from an EDS file (``eds=``, default the shipped
+  :data:`~openel_can.od.SHIPPED_EDS`): data types, access rights, PDO mappability and
+  defaults are the file's (:mod:`openel_can.sim.objects`, which also names the model
+  parameters that override a few defaults); ``object_dictionary`` is the parsed file.
+* **SDO server** over that dictionary, with CiA 301 abort codes:
   object/sub-index does not exist, read-only, write-only, length mismatch, value
   range, PDO mapping rules (mapping and COB-ID may change only while the PDO is
-  invalid, bit 31; only mappable objects; at most 64 bits). Expedited transfers (a
+  invalid, bit 31; only objects the file marks PDO-mappable, writable ones in RPDOs
+  and readable ones in TPDOs as its access type says; at most 64 bits). Objects
+  that are not integers (strings, domains) are served as their bytes. Expedited transfers (a
   download without size indication writes the object's own size) and segmented upload
   and download (one transfer at a time; toggle bit and length checked; a new initiate or
   a client abort ends the transfer in progress). Block transfers, unknown command
@@ -56,6 +62,7 @@ rest; logged when the peer stops).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -72,6 +79,7 @@ from .. import cia402 as ds
 from ..bus import CanBus, NodePort
 from ..errors import DecodeError
 from .history import DEFAULT_HISTORY, History
+from .objects import SimObject, build_dictionary, load_sim_od
 
 __all__ = ["DRIVE_TEMPERATURE", "ENERGY_LIMIT", "OPERATING_TIME", "SimCia402Drive"]
 
@@ -93,89 +101,6 @@ download; only stored)."""
 _DISCRETE: Final = frozenset({0x6041, 0x6061, 0x603F, 0x1001})
 _SUPPORTED_MODES: Final = {Mode.PROFILE_POSITION, Mode.PROFILE_VELOCITY, Mode.PROFILE_TORQUE}
 _AMBIENT_C: Final = 25.0
-
-
-@dataclass
-class _Obj:
-    data_type: co.DataType
-    default: int
-    access: str = "rw"  # "ro", "rw", "wo", "const"
-    mappable: bool = False
-    value: int = field(init=False)
-
-    def __post_init__(self) -> None:
-        self.value = self.default
-
-
-def _dictionary(
-    node_id: int, counts_per_rev: int, rated_torque_mnm: int
-) -> dict[tuple[int, int], _Obj]:
-    od: dict[tuple[int, int], _Obj] = {
-        (0x1000, 0): _Obj(DT.UNSIGNED32, 0x0002_0192, "ro"),  # CiA 402 servo drive
-        (0x1001, 0): _Obj(DT.UNSIGNED8, 0, "ro", True),
-        (0x1017, 0): _Obj(DT.UNSIGNED16, 1000),
-        (0x1018, 0): _Obj(DT.UNSIGNED8, 4, "const"),
-        (0x1018, 1): _Obj(DT.UNSIGNED32, 0x0000_0E1A, "ro"),
-        (0x1018, 2): _Obj(DT.UNSIGNED32, 0x0000_0402, "ro"),
-        (0x1018, 3): _Obj(DT.UNSIGNED32, 0x0001_0000, "ro"),
-        (0x1018, 4): _Obj(DT.UNSIGNED32, 0x1234_0000 + node_id, "ro"),
-        (0x603F, 0): _Obj(DT.UNSIGNED16, 0, "ro", True),
-        (0x6040, 0): _Obj(DT.UNSIGNED16, 0, "rw", True),
-        (0x6041, 0): _Obj(DT.UNSIGNED16, 0, "ro", True),
-        (0x1016, 0): _Obj(DT.UNSIGNED8, 1, "const"),
-        (0x1016, 1): _Obj(DT.UNSIGNED32, 0),
-        (0x6007, 0): _Obj(DT.INTEGER16, 1),
-        (0x605A, 0): _Obj(DT.INTEGER16, 2),
-        (0x6060, 0): _Obj(DT.INTEGER8, int(Mode.PROFILE_POSITION), "rw", True),
-        (0x6061, 0): _Obj(DT.INTEGER8, int(Mode.PROFILE_POSITION), "ro", True),
-        (0x6064, 0): _Obj(DT.INTEGER32, 0, "ro", True),
-        (0x606C, 0): _Obj(DT.INTEGER32, 0, "ro", True),
-        (0x6071, 0): _Obj(DT.INTEGER16, 0, "rw", True),
-        (0x6072, 0): _Obj(DT.UNSIGNED16, 3000),
-        (0x6076, 0): _Obj(DT.UNSIGNED32, rated_torque_mnm, "ro"),
-        (0x6077, 0): _Obj(DT.INTEGER16, 0, "ro", True),
-        (0x607A, 0): _Obj(DT.INTEGER32, 0, "rw", True),
-        (0x607D, 0): _Obj(DT.UNSIGNED8, 2, "const"),
-        (0x607D, 1): _Obj(DT.INTEGER32, -(2**31)),
-        (0x607D, 2): _Obj(DT.INTEGER32, 2**31 - 1),
-        (0x6080, 0): _Obj(DT.UNSIGNED32, 3 * counts_per_rev),
-        (0x6081, 0): _Obj(DT.UNSIGNED32, counts_per_rev, "rw", True),
-        (0x6083, 0): _Obj(DT.UNSIGNED32, 10 * counts_per_rev),
-        (0x6084, 0): _Obj(DT.UNSIGNED32, 10 * counts_per_rev),
-        (0x6085, 0): _Obj(DT.UNSIGNED32, 40 * counts_per_rev),
-        (0x6087, 0): _Obj(DT.UNSIGNED32, 100_000),
-        (0x608F, 0): _Obj(DT.UNSIGNED8, 2, "const"),
-        (0x608F, 1): _Obj(DT.UNSIGNED32, counts_per_rev, "ro"),
-        (0x608F, 2): _Obj(DT.UNSIGNED32, 1, "ro"),
-        (0x60FF, 0): _Obj(DT.INTEGER32, 0, "rw", True),
-        (0x6502, 0): _Obj(DT.UNSIGNED32, 0b1101, "ro"),  # pp, pv, tq
-        (0x2022, 0): _Obj(DT.INTEGER16, round(_AMBIENT_C * 10), "ro", True),
-        (0x2030, 0): _Obj(DT.UNSIGNED64, 0, "ro"),
-        (0x2031, 0): _Obj(DT.INTEGER64, 2**40),
-    }
-    for n in range(3):  # RPDO1..3
-        valid = n == 0
-        od[(0x1400 + n, 0)] = _Obj(DT.UNSIGNED8, 2, "const")
-        od[(0x1400 + n, 1)] = _Obj(
-            DT.UNSIGNED32, co.RPDO_BASES[n] + node_id + (0 if valid else co.PDO_COB_ID_INVALID)
-        )
-        od[(0x1400 + n, 2)] = _Obj(DT.UNSIGNED8, 0xFF)
-        od[(0x1600 + n, 0)] = _Obj(DT.UNSIGNED8, 1 if valid else 0)
-        for sub in range(1, 9):
-            od[(0x1600 + n, sub)] = _Obj(DT.UNSIGNED32, 0x6040_0010 if valid and sub == 1 else 0)
-    for n in range(4):  # TPDO1..4
-        valid = n == 0
-        od[(0x1800 + n, 0)] = _Obj(DT.UNSIGNED8, 5, "const")
-        od[(0x1800 + n, 1)] = _Obj(
-            DT.UNSIGNED32, co.TPDO_BASES[n] + node_id + (0 if valid else co.PDO_COB_ID_INVALID)
-        )
-        od[(0x1800 + n, 2)] = _Obj(DT.UNSIGNED8, 0xFF)
-        od[(0x1800 + n, 3)] = _Obj(DT.UNSIGNED16, 0)
-        od[(0x1800 + n, 5)] = _Obj(DT.UNSIGNED16, 0)
-        od[(0x1A00 + n, 0)] = _Obj(DT.UNSIGNED8, 1 if valid else 0)
-        for sub in range(1, 9):
-            od[(0x1A00 + n, sub)] = _Obj(DT.UNSIGNED32, 0x6041_0010 if valid and sub == 1 else 0)
-    return od
 
 
 @dataclass
@@ -219,10 +144,13 @@ class SimCia402Drive:
         setpoint_ack_delay: float = 0.0,
         history: int = DEFAULT_HISTORY,
         clock: Clock | None = None,
+        eds: str | os.PathLike[str] | None = None,
     ) -> None:
         if not 1 <= node_id <= co.MAX_NODE_ID:
             raise ValueError(f"node_id {node_id} outside 1..{co.MAX_NODE_ID}")
         self.node_id = node_id
+        self.object_dictionary = load_sim_od(eds, node_id)
+        """The EDS the objects come from (default :data:`~openel_can.od.SHIPPED_EDS`)."""
         self.counts_per_rev = counts_per_rev
         self.rated_torque = rated_torque  # Nm
         self.inertia = inertia  # kg m^2
@@ -244,7 +172,7 @@ class SimCia402Drive:
         self.fault_requested: str | None = None
         """A fault asked for by :meth:`inject_fault`, not yet applied."""
         self._kicked = False
-        self.od: dict[tuple[int, int], _Obj] = {}
+        self.od: dict[tuple[int, int], SimObject] = {}
         self._mappings: dict[int, tuple[co.PdoMapEntry, ...]] = {}
         self._transfer: _Transfer | None = None
         self.segments = prof.hold(self.clock.now_ns(), 0.0)
@@ -257,8 +185,7 @@ class SimCia402Drive:
     # -- boot and state ---------------------------------------------------------------------
     def _boot(self, *, communication_only: bool = False) -> None:
         self._mappings.clear()
-        fresh = _dictionary(self.node_id, self.counts_per_rev, round(self.rated_torque * 1000))
-        fresh[(0x1017, 0)].value = fresh[(0x1017, 0)].default = self.default_heartbeat_ms
+        fresh = self._fresh_objects()
         if communication_only:
             for key, obj in fresh.items():
                 if 0x1000 <= key[0] <= 0x1FFF and key[0] not in (0x1001,):
@@ -290,6 +217,17 @@ class SimCia402Drive:
         self.next_heartbeat_ns = self.clock.now_ns()
         self.pending: list[co.CanOpenMessage] = [co.Heartbeat(self.node_id, co.NmtState.BOOT_UP)]
         self.consumer_heard_ns = None
+
+    def _fresh_objects(self) -> dict[tuple[int, int], SimObject]:
+        """Every object at its default, from the EDS (see :mod:`openel_can.sim.objects`)."""
+        return build_dictionary(
+            self.object_dictionary,
+            node_id=self.node_id,
+            counts_per_rev=self.counts_per_rev,
+            rated_torque_mnm=round(self.rated_torque * 1000),
+            heartbeat_ms=self.default_heartbeat_ms,
+            supported_modes=_SUPPORTED_MODES,
+        )
 
     def _get(self, index: int, sub: int = 0) -> int:
         return self.od[(index, sub)].value
@@ -637,7 +575,8 @@ class SimCia402Drive:
             for sub in range(1, self._get(index, 0) + 1):
                 raw = self._get(index, sub)
                 target = self.od[(raw >> 16, (raw >> 8) & 0xFF)]
-                entries.append(co.PdoMapEntry.from_u32(raw, signed=target.data_type.signed))
+                signed = target.data_type is not None and target.data_type.signed
+                entries.append(co.PdoMapEntry.from_u32(raw, signed=signed))
             cached = self._mappings[index] = tuple(entries)
         return cached
 
@@ -739,11 +678,10 @@ class SimCia402Drive:
                 raise _SdoAbort(co.SdoAbortCode.INVALID_COMMAND_SPECIFIER)  # block transfer
             obj = self._object(msg.index, msg.subindex)
             if isinstance(msg, co.SdoUploadRequest):
-                if obj.access == "wo":
+                if not obj.readable:
                     raise _SdoAbort(co.SdoAbortCode.WRITE_ONLY)
                 self._refresh_actuals(now)
-                entry = co.ObjectEntry(msg.index, msg.subindex, obj.data_type)
-                data = entry.encode(obj.value)
+                data = self._encoded(msg.index, msg.subindex, obj)
                 if len(data) <= 4:
                     return co.SdoUploadResponse(self.node_id, msg.index, msg.subindex, data)
                 self._transfer = _Transfer(
@@ -752,16 +690,16 @@ class SimCia402Drive:
                 return co.SdoSegmentedUploadResponse(
                     self.node_id, msg.index, msg.subindex, len(data)
                 )
-            if obj.access in ("ro", "const"):
+            if not obj.writable:
                 raise _SdoAbort(co.SdoAbortCode.READ_ONLY)
-            size = obj.data_type.size
+            size = obj.size
             if isinstance(msg, co.SdoSegmentedDownloadRequest):
-                if msg.size is not None:
+                if msg.size is not None and size is not None:
                     self._check_length(msg.size, size)
                 self._transfer = _Transfer(msg.index, msg.subindex, upload=False, size=msg.size)
                 return co.SdoDownloadResponse(self.node_id, msg.index, msg.subindex)
             data = msg.data
-            if not msg.size_indicated:
+            if not msg.size_indicated and size is not None:
                 # CiA 301: without a size indication the object's own size applies.
                 if size > len(data):
                     raise _SdoAbort(co.SdoAbortCode.LENGTH_TOO_LOW)
@@ -792,7 +730,9 @@ class SimCia402Drive:
                 return co.SdoUploadSegment(self.node_id, msg.toggle, chunk, last)
             transfer.data += msg.data
             obj = self._object(index, sub)
-            if len(transfer.data) > obj.data_type.size:
+            if len(transfer.data) > (
+                co.SDO_SEGMENT_SIZE * 0x10000 if obj.size is None else obj.size
+            ):
                 raise _SdoAbort(co.SdoAbortCode.LENGTH_TOO_HIGH)
             if msg.last:
                 self._transfer = None
@@ -804,7 +744,7 @@ class SimCia402Drive:
             self._transfer = None
             return co.SdoAbort(self.node_id, index, sub, abort.code)
 
-    def _object(self, index: int, sub: int) -> _Obj:
+    def _object(self, index: int, sub: int) -> SimObject:
         obj = self.od.get((index, sub))
         if obj is None:
             exists = any(i == index for i, _ in self.od)
@@ -822,8 +762,18 @@ class SimCia402Drive:
                 co.SdoAbortCode.LENGTH_TOO_HIGH if length > size else co.SdoAbortCode.LENGTH_TOO_LOW
             )
 
-    def _write(self, index: int, sub: int, obj: _Obj, data: bytes, now: int) -> None:
-        self._check_length(len(data), obj.data_type.size)
+    @staticmethod
+    def _encoded(index: int, sub: int, obj: SimObject) -> bytes:
+        if obj.data_type is None:
+            return obj.data
+        return co.ObjectEntry(index, sub, obj.data_type).encode(obj.value)
+
+    def _write(self, index: int, sub: int, obj: SimObject, data: bytes, now: int) -> None:
+        if obj.size is not None:
+            self._check_length(len(data), obj.size)
+        if obj.data_type is None:
+            obj.data = data  # a string, domain or other non-integer object: its bytes
+            return
         value = co.ObjectEntry(index, sub, obj.data_type).decode(data)
         self._check_write(index, sub, value)
         obj.value = value
@@ -854,8 +804,15 @@ class SimCia402Drive:
                 for s in range(1, value + 1):
                     raw = self._get(index, s)
                     target = self.od.get((raw >> 16, (raw >> 8) & 0xFF))
-                    if target is None or not target.mappable:
+                    # The file's PDOMapping and access: RPDOs write, TPDOs read.
+                    allowed = (
+                        target is not None
+                        and target.data_type is not None
+                        and (target.rpdo_mappable if comm == 0x1600 else target.tpdo_mappable)
+                    )
+                    if not allowed:
                         raise _SdoAbort(co.SdoAbortCode.CANNOT_BE_MAPPED)
+                    assert target is not None and target.data_type is not None
                     if raw & 0xFF != target.data_type.size * 8:
                         raise _SdoAbort(co.SdoAbortCode.GENERAL_PARAMETER_INCOMPATIBILITY)
                     bits += raw & 0xFF
