@@ -42,10 +42,10 @@ from enum import StrEnum
 from pathlib import Path
 from typing import TYPE_CHECKING, Final, TypeAlias
 
-import structlog
 from canopen import objectdictionary as cod
 
 from openel_async.errors import BadParameterError
+from openel_async.logs import get_logger
 
 from . import canopen as co
 from .errors import CanOpenDecodeError
@@ -66,7 +66,7 @@ __all__ = [
     "write_parameter_values",
 ]
 
-log = structlog.get_logger(__name__)
+log = get_logger(__name__)
 
 SHIPPED_EDS: Final = Path(__file__).parent / "eds" / "openel_servo402.eds"
 """The EDS of the simulated CiA 402 servo drive (see ``openel_can/eds/README.md``)."""

@@ -21,3 +21,20 @@ def test_help_imports_none_of_the_heavy_libraries() -> None:
     assert "openel_async.cli" in imported  # (the output is what this test reads)
     top = {name.split(".")[0] for name in imported}
     assert not top.intersection(HEAVY), sorted(top.intersection(HEAVY))
+
+
+def test_every_module_logs_through_the_lazy_logger() -> None:
+    """``structlog.get_logger`` at module level would import structlog (and rich) with the
+    module: every module takes ``openel_async.logs.get_logger`` instead."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    offenders = [
+        f"{path.relative_to(root)}:{n}"
+        for folder in ("src", "drivers", "apps", "examples")
+        for path in sorted((root / folder).rglob("*.py"))
+        if path.name != "logs.py"
+        for n, line in enumerate(path.read_text().splitlines(), 1)
+        if "structlog.get_logger(" in line
+    ]
+    assert offenders == []
