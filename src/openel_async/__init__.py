@@ -4,69 +4,160 @@ Components are async objects: ``await actuator.set_value(...)`` returns once the
 device accepted the target, and reaching it is posted as event 1 (COMPLETED).
 """
 
+import importlib
 import sys as _sys
+from typing import TYPE_CHECKING, Any
 
 if "structlog" in _sys.modules:  # the application uses structlog: route it to logging now,
     from . import _logging  # noqa: F401  unless it configured it (else: at the first log)
-from .actuator import Actuator, CompletionPolicy
-from .banks import ActuatorBank, SensorBank
-from .clock import Clock, MonotonicClock, VirtualClock, default_clock
-from .completion import Motion, Outcome
-from .component import ComponentState, HALComponent
-from .device import (
-    ActuatorDevice,
-    ActuatorLimits,
-    Device,
-    DeviceContext,
-    DeviceInfo,
-    ErrorId,
-    Reading,
-    SensorDevice,
-    ValueSource,
-    VelocityRamp,
-)
-from .direction import DirectionSensor
-from .errors import (
-    BadParameterError,
-    DeviceFaultError,
-    HALError,
-    MotionCancelledError,
-    NotConnectedError,
-    NotImplementedHALError,
-    NullParameterError,
-    OutOfMemoryError,
-    ReturnCode,
-    StateError,
-    SupersededError,
-    VirtualClockStalledError,
-    WouldBlockError,
-)
-from .gps import GPSSensor
-from .ids import EXTENSION_KIND_IDS, DeviceKind, HALId, Property, component_name
-from .motor import Motor, MotorControlMode
-from .observers import (
-    ErrorNotice,
-    EventNotice,
-    HALObserver,
-    Notice,
-    ObserverQueue,
-    TimerObserver,
-    TimerTick,
-)
-from .registry import DriverInfo
-from .requests import EventId, Request
-from .sensing import SensingActuatorDevice, SensingMotor
-from .sensor import Sensor, TimedValue
-from .sensor_kinds import (
-    AccelerationSensor,
-    Encoder,
-    ForceSensor,
-    GyroSensor,
-    HumiditySensor,
-    TemperatureSensor,
-    TorqueSensor,
-)
-from .timer import EventTimer, TimerState, TimerStats
+if TYPE_CHECKING:
+    from .actuator import Actuator, CompletionPolicy
+    from .banks import ActuatorBank, SensorBank
+    from .clock import Clock, MonotonicClock, VirtualClock, default_clock
+    from .completion import Motion, Outcome
+    from .component import ComponentState, HALComponent
+    from .device import (
+        ActuatorDevice,
+        ActuatorLimits,
+        Device,
+        DeviceContext,
+        DeviceInfo,
+        ErrorId,
+        Reading,
+        SensorDevice,
+        ValueSource,
+        VelocityRamp,
+    )
+    from .direction import DirectionSensor
+    from .errors import (
+        BadParameterError,
+        DeviceFaultError,
+        HALError,
+        MotionCancelledError,
+        NotConnectedError,
+        NotImplementedHALError,
+        NullParameterError,
+        OutOfMemoryError,
+        ReturnCode,
+        StateError,
+        SupersededError,
+        VirtualClockStalledError,
+        WouldBlockError,
+    )
+    from .gps import GPSSensor
+    from .ids import EXTENSION_KIND_IDS, DeviceKind, HALId, Property, component_name
+    from .motor import Motor, MotorControlMode
+    from .observers import (
+        ErrorNotice,
+        EventNotice,
+        HALObserver,
+        Notice,
+        ObserverQueue,
+        TimerObserver,
+        TimerTick,
+    )
+    from .registry import DriverInfo
+    from .requests import EventId, Request
+    from .sensing import SensingActuatorDevice, SensingMotor
+    from .sensor import Sensor, TimedValue
+    from .sensor_kinds import (
+        AccelerationSensor,
+        Encoder,
+        ForceSensor,
+        GyroSensor,
+        HumiditySensor,
+        TemperatureSensor,
+        TorqueSensor,
+    )
+    from .timer import EventTimer, TimerState, TimerStats
+
+# Each name loads its module on first use (PEP 562): ``import openel_async`` costs nothing,
+# and a process that uses a few modules (the CLI parsing its options, the recorder's writer
+# process) loads only those.
+_LAZY = {
+    "Actuator": "actuator",
+    "CompletionPolicy": "actuator",
+    "ActuatorBank": "banks",
+    "SensorBank": "banks",
+    "Clock": "clock",
+    "MonotonicClock": "clock",
+    "VirtualClock": "clock",
+    "default_clock": "clock",
+    "Motion": "completion",
+    "Outcome": "completion",
+    "ComponentState": "component",
+    "HALComponent": "component",
+    "ActuatorDevice": "device",
+    "ActuatorLimits": "device",
+    "Device": "device",
+    "DeviceContext": "device",
+    "DeviceInfo": "device",
+    "ErrorId": "device",
+    "Reading": "device",
+    "SensorDevice": "device",
+    "ValueSource": "device",
+    "VelocityRamp": "device",
+    "DirectionSensor": "direction",
+    "BadParameterError": "errors",
+    "DeviceFaultError": "errors",
+    "HALError": "errors",
+    "MotionCancelledError": "errors",
+    "NotConnectedError": "errors",
+    "NotImplementedHALError": "errors",
+    "NullParameterError": "errors",
+    "OutOfMemoryError": "errors",
+    "ReturnCode": "errors",
+    "StateError": "errors",
+    "SupersededError": "errors",
+    "VirtualClockStalledError": "errors",
+    "WouldBlockError": "errors",
+    "GPSSensor": "gps",
+    "EXTENSION_KIND_IDS": "ids",
+    "DeviceKind": "ids",
+    "HALId": "ids",
+    "Property": "ids",
+    "component_name": "ids",
+    "Motor": "motor",
+    "MotorControlMode": "motor",
+    "ErrorNotice": "observers",
+    "EventNotice": "observers",
+    "HALObserver": "observers",
+    "Notice": "observers",
+    "ObserverQueue": "observers",
+    "TimerObserver": "observers",
+    "TimerTick": "observers",
+    "DriverInfo": "registry",
+    "EventId": "requests",
+    "Request": "requests",
+    "SensingActuatorDevice": "sensing",
+    "SensingMotor": "sensing",
+    "Sensor": "sensor",
+    "TimedValue": "sensor",
+    "AccelerationSensor": "sensor_kinds",
+    "Encoder": "sensor_kinds",
+    "ForceSensor": "sensor_kinds",
+    "GyroSensor": "sensor_kinds",
+    "HumiditySensor": "sensor_kinds",
+    "TemperatureSensor": "sensor_kinds",
+    "TorqueSensor": "sensor_kinds",
+    "EventTimer": "timer",
+    "TimerState": "timer",
+    "TimerStats": "timer",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_LAZY})
+
 
 __all__ = [
     "EXTENSION_KIND_IDS",

@@ -13,12 +13,50 @@ Both are :class:`~openel_async.app.AppHook` objects: ``openel-async demo --recor
 FILE.mcap --foxglove`` attaches them to any app. docs/recording.md has the details.
 """
 
-from .live import LAYOUT_PATH, FoxgloveSink, LiveView
-from .pipeline import Pipeline, PipelineStats, Sink, SinkStartError
-from .reader import Recording, info_lines, read_recording
-from .recorder import McapSink, Recorder
-from .scene import PoseBytesSource, PoseSource, Primitive, SceneSource, Transform
-from .tap import Tap
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .live import LAYOUT_PATH, FoxgloveSink, LiveView
+    from .mcap_sink import McapSink
+    from .pipeline import Pipeline, PipelineStats, Sink, SinkStartError
+    from .reader import Recording, info_lines, read_recording
+    from .recorder import Recorder
+    from .scene import PoseBytesSource, PoseSource, Primitive, SceneSource, Transform
+    from .tap import Tap
+
+# Each name loads its module on first use: the writer process (sink_process) and a command
+# that records without --foxglove do not import the Foxglove SDK's live server.
+_LAZY = {
+    "LAYOUT_PATH": "live",
+    "FoxgloveSink": "live",
+    "LiveView": "live",
+    "Pipeline": "pipeline",
+    "PipelineStats": "pipeline",
+    "Sink": "pipeline",
+    "SinkStartError": "pipeline",
+    "Recording": "reader",
+    "info_lines": "reader",
+    "read_recording": "reader",
+    "McapSink": "mcap_sink",
+    "Recorder": "recorder",
+    "PoseBytesSource": "scene",
+    "PoseSource": "scene",
+    "Primitive": "scene",
+    "SceneSource": "scene",
+    "Transform": "scene",
+    "Tap": "tap",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "LAYOUT_PATH",

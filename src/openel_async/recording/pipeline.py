@@ -73,7 +73,7 @@ Ctrl-C meanwhile would end it with a traceback); the writer ends when its input 
 
 
 class Sink(Protocol):
-    """What the writer process opens on its Foxglove SDK context (:class:`~.recorder.McapSink`,
+    """What the writer process opens on its Foxglove SDK context (:class:`~.mcap_sink.McapSink`,
     :class:`~.live.FoxgloveSink`); closed with the final statistics."""
 
     def close(self, stats: PipelineStats) -> None: ...

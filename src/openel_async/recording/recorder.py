@@ -13,52 +13,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import foxglove
-from foxglove.mcap import MCAPWriteOptions
-
-from .pipeline import PipelineStats
+from .mcap_sink import PROFILE, McapSink
 from .tap import Tap
 
 __all__ = ["PROFILE", "McapSink", "Recorder"]
-
-PROFILE = "openel_async"
-
-
-class McapSink:
-    """An MCAP file written from every channel of ``context`` (opened at once: an unwritable
-    path fails here, not later)."""
-
-    def __init__(
-        self,
-        path: str | os.PathLike[str],
-        *,
-        context: foxglove.Context,
-        chunk_size: int = 64 * 1024,
-        metadata: dict[str, str] | None = None,
-    ) -> None:
-        self.path = Path(path)
-        options = MCAPWriteOptions(
-            chunk_size=chunk_size, profile=PROFILE, compression_threads=0
-        )  # compression in this thread: the writer process is the recorder's one core
-        self._writer = foxglove.open_mcap(
-            self.path, allow_overwrite=True, context=context, writer_options=options
-        )
-        if metadata:
-            self._writer.write_metadata("openel_async.run", metadata)
-
-    def close(self, stats: PipelineStats) -> None:
-        try:
-            self._writer.write_metadata(
-                "openel_async.recorder",
-                {
-                    "queued": str(stats.queued),
-                    "written": str(stats.written),
-                    "dropped": str(stats.dropped),
-                    "capacity": str(stats.capacity),
-                },
-            )
-        finally:
-            self._writer.close()
 
 
 class Recorder(Tap):

@@ -1,6 +1,6 @@
 """The writer process of the recorder and the live view: it reads the control loop's records
 from its stdin, encodes them as JSON messages (msgspec) and logs each once on a channel of a
-Foxglove SDK context, whose sinks -- the SDK's MCAP writer (:class:`~.recorder.McapSink`,
+Foxglove SDK context, whose sinks -- the SDK's MCAP writer (:class:`~.mcap_sink.McapSink`,
 Rust, zstd chunks) and/or its WebSocket server (:class:`~.live.FoxgloveSink`) -- write and
 publish it.
 
@@ -39,7 +39,6 @@ from typing import Any, BinaryIO
 
 import foxglove
 import msgspec
-import structlog
 
 from .columns import column_messages
 from .pipeline import PipelineStats, Sink
@@ -171,16 +170,15 @@ def main(argv: list[str] | None = None) -> int:
         os.sched_setaffinity(0, {args.cpu})
     # stdout carries the ready line: the log goes to stderr, warnings and errors only (the
     # parent says where the file and the live view are; this process shares its terminal).
-    structlog.configure(
-        logger_factory=structlog.PrintLoggerFactory(sys.stderr),
-        wrapper_class=structlog.make_filtering_bound_logger(logging.WARNING),
-    )
+    # (plain logging: the framework's loggers reach it through openel_async._logging when
+    # they are first used; structlog is not imported unless something logs)
+    logging.basicConfig(stream=sys.stderr, level=logging.WARNING, format="%(name)s: %(message)s")
     context = foxglove.Context()
     sinks: list[Sink] = []
     info: dict[str, Any] = {}
     try:
         if args.mcap is not None:
-            from .recorder import McapSink
+            from .mcap_sink import McapSink
 
             sinks.append(McapSink(args.mcap, context=context, chunk_size=args.chunk_size))
         if args.foxglove is not None:
