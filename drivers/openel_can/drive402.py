@@ -68,7 +68,7 @@ way, torques in per mille of the rated torque (Nm at the API).
 from __future__ import annotations
 
 import math
-from typing import Final
+from typing import Any, Final
 
 import structlog
 
@@ -135,7 +135,17 @@ _PP_BASE: Final = ENABLE_OPERATION | int(CB.CHANGE_SET_IMMEDIATELY)
 
 
 class Cia402Drive(Cia402Node):
-    """A CiA 402 servo drive on a CAN bus (CANopen); see the module docstring."""
+    """A CiA 402 servo drive on a CAN bus (CANopen); see the module docstring.
+
+    ``mode="csp" | "csv" | "cst"`` makes a
+    :class:`~openel_can.cyclic402.Cia402CyclicDrive` (a subclass) instead."""
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> Cia402Drive:
+        if cls is Cia402Drive and kwargs.get("mode", "pp") != "pp":
+            from .cyclic402 import Cia402CyclicDrive  # (it imports this module)
+
+            return super().__new__(Cia402CyclicDrive)
+        return super().__new__(cls)
 
     info = DeviceInfo(
         kind=DeviceKind.MOTOR,

@@ -70,10 +70,14 @@ __all__ = [
     "CIA402_VENDOR_ID",
     "CONSUMER_HEARTBEAT_TIME_1",
     "DEFAULT_HOST_NODE_ID",
+    "DRIVE_MODES",
     "ENABLE_OPERATION",
     "QUICK_STOP_ON_ABORT",
+    "RPDO_CODECS",
     "RPDO_MAPS",
+    "RPDO_OF_MODE",
     "TARGET_REACHED",
+    "TPDO1_CODEC",
     "TPDO_MAPS",
     "WATCHDOG_FEED_FRACTION",
     "Cia402Node",
@@ -100,12 +104,22 @@ TPDO_MAPS: Final = (
     (ds.STATUSWORD, ds.POSITION_ACTUAL_VALUE, ds.TORQUE_ACTUAL_VALUE),
     (ds.VELOCITY_ACTUAL_VALUE, ds.MODES_OF_OPERATION_DISPLAY),
 )
-_RPDO_OF_MODE: Final = {Mode.PROFILE_POSITION: 0, Mode.PROFILE_VELOCITY: 1, Mode.PROFILE_TORQUE: 2}
+RPDO_OF_MODE: Final = {
+    Mode.PROFILE_POSITION: 0,
+    Mode.PROFILE_VELOCITY: 1,
+    Mode.PROFILE_TORQUE: 2,
+    # The cyclic synchronous modes use the same RPDOs (controlword + the mode's target).
+    Mode.CYCLIC_SYNC_POSITION: 0,
+    Mode.CYCLIC_SYNC_VELOCITY: 1,
+    Mode.CYCLIC_SYNC_TORQUE: 2,
+}
+"""The RPDO (0-based: RPDO1..3) carrying the target of each mode."""
 _TPDO1_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[0])
 _TPDO2_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[1])
 _RPDO_MAP_ENTRIES: Final = tuple(tuple(e.map_entry() for e in mapping) for mapping in RPDO_MAPS)
-_RPDO_CODECS: Final = tuple(co.PdoCodec(entries) for entries in _RPDO_MAP_ENTRIES)
-_TPDO1_CODEC: Final = co.PdoCodec(_TPDO1_MAP)
+RPDO_CODECS: Final = tuple(co.PdoCodec(entries) for entries in _RPDO_MAP_ENTRIES)
+"""The codec of RPDO1..3 (controlword, target)."""
+TPDO1_CODEC: Final = co.PdoCodec(_TPDO1_MAP)
 _TPDO2_CODEC: Final = co.PdoCodec(_TPDO2_MAP)
 ENABLE_OPERATION: Final = int(ds.Command.ENABLE_OPERATION)
 """The controlword Enable operation as a plain int (IntFlag arithmetic is Python code)."""
@@ -113,6 +127,9 @@ TARGET_REACHED: Final = int(SB.TARGET_REACHED)
 """Statusword bit 10 as a plain int."""
 
 
+DRIVE_MODES: Final = ("pp", "csp", "csv", "cst")
+"""The ``mode`` parameter: ``pp`` the profile modes (position, velocity, torque as commanded),
+``csp``/``csv``/``cst`` cyclic synchronous position/velocity/torque on the bus's SYNC."""
 DEFAULT_HOST_NODE_ID: Final = 127
 """The host's CANopen node id for its heartbeat (0x77F): give another one when a drive uses 127."""
 CONSUMER_HEARTBEAT_TIME_1: Final = co.ObjectEntry(0x1016, 1, co.DataType.UNSIGNED32)
@@ -190,10 +207,13 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         state_timeout: float = 0.5,
         feedback_max_age: float | None = None,
         host_node_id: int = DEFAULT_HOST_NODE_ID,
+        mode: str = "pp",
     ) -> None:
         if not isinstance(bus, CanBus):
             raise BadParameterError("bus", bus, "an openel_can.CanBus")
         check_node(node_id)
+        if mode not in DRIVE_MODES:
+            raise BadParameterError("mode", mode, f"one of {', '.join(DRIVE_MODES)}")
         if (
             isinstance(host_node_id, bool)
             or not isinstance(host_node_id, int)
@@ -226,6 +246,8 @@ class Cia402Node(NodeFaults, ActuatorDevice):
                 raise BadParameterError(name, ms, "milliseconds in 1..65535")
         self.bus = bus
         self.node_id = node_id
+        self.mode = mode
+        """``pp`` (profile modes, chosen by each command) or a cyclic synchronous mode."""
         self.counts_per_rev = counts_per_rev
         self.rated_torque = rated_torque
         if limits is not None:
@@ -264,7 +286,8 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         self.nmt_state: co.NmtState | int | None = None
         self._mode: Mode | None = None
         self._controlword = 0
-        self._targets = {Mode.PROFILE_POSITION: 0, Mode.PROFILE_VELOCITY: 0, Mode.PROFILE_TORQUE: 0}
+        self._targets = dict.fromkeys(RPDO_OF_MODE, 0)
+        """The target each mode's RPDO carries with the next controlword."""
         self._pending: Setpoint | None = None
         self._enabled_wanted = False
         self._engaged = False
@@ -396,6 +419,26 @@ class Cia402Node(NodeFaults, ActuatorDevice):
             if rated_mnm < 1:
                 raise HALError(f"CiA 402 node {n}: rated torque 0x6076 is {rated_mnm} mNm")
             self.rated_torque = rated_mnm / 1000
+        await self._map_pdos()
+        cpr = self._cpr()
+        if self.profile_velocity is not None:
+            await sdo.write(
+                ds.PROFILE_VELOCITY, round(self.profile_velocity * cpr / math.tau), timeout=timeout
+            )
+        if self.profile_acceleration is not None:
+            accel = round(self.profile_acceleration * cpr / math.tau)
+            await sdo.write(ds.PROFILE_ACCELERATION, accel, timeout=timeout)
+            await sdo.write(ds.PROFILE_DECELERATION, accel, timeout=timeout)
+        await self._select_initial_mode()
+        started = self._now()
+        await self._nmt(co.NmtCommand.START)
+        self.nmt_state = co.NmtState.OPERATIONAL
+        await self._wait_first_feedback(started)
+        self._needs_config = False
+
+    async def _map_pdos(self) -> None:
+        """The fixed mapping of the module docstring (a subclass maps its own)."""
+        n = self.node_id
         for number, entries in enumerate(_RPDO_MAP_ENTRIES, start=1):
             await self._map_pdo(
                 co.RPDO_COMM_BASE + number - 1,
@@ -414,25 +457,19 @@ class Cia402Node(NodeFaults, ActuatorDevice):
                 transmission=1 if self.sync else 0xFF,
                 event_ms=0 if self.sync else self.tpdo_event_ms,
             )
-        cpr = self._cpr()
-        if self.profile_velocity is not None:
-            await sdo.write(
-                ds.PROFILE_VELOCITY, round(self.profile_velocity * cpr / math.tau), timeout=timeout
-            )
-        if self.profile_acceleration is not None:
-            accel = round(self.profile_acceleration * cpr / math.tau)
-            await sdo.write(ds.PROFILE_ACCELERATION, accel, timeout=timeout)
-            await sdo.write(ds.PROFILE_DECELERATION, accel, timeout=timeout)
-        await sdo.write(ds.MODES_OF_OPERATION, int(Mode.PROFILE_POSITION), timeout=timeout)
+
+    async def _select_initial_mode(self) -> None:
+        """0x6060 at configuration (pre-operational): profile position."""
+        await self.sdo.write(
+            ds.MODES_OF_OPERATION, int(Mode.PROFILE_POSITION), timeout=self.sdo_timeout
+        )
         self._mode = Mode.PROFILE_POSITION
-        started = self._now()
-        await self._nmt(co.NmtCommand.START)
-        self.nmt_state = co.NmtState.OPERATIONAL
-        # First feedback: TPDO1 (event-driven: sent at once) or, on SYNC, the next SYNC.
+
+    async def _wait_first_feedback(self, started: int) -> None:
+        """After NMT start: TPDO1 (event-driven: sent at once) or, on SYNC, the next SYNC."""
         await self._wait_tpdo(
             started, timeout=max(self.state_timeout, 3 * self.tpdo_event_ms / 1000)
         )
-        self._needs_config = False
 
     async def _map_pdo(
         self,
@@ -523,9 +560,9 @@ class Cia402Node(NodeFaults, ActuatorDevice):
 
     async def _send_rpdo(self, mode: Mode, controlword: int, target: int) -> None:
         assert self._port is not None
-        number = _RPDO_OF_MODE[mode]
+        number = RPDO_OF_MODE[mode]
         try:
-            data = _RPDO_CODECS[number].pack((controlword, target))
+            data = RPDO_CODECS[number].pack((controlword, target))
         except ValueError as exc:
             raise BadParameterError(
                 "value", target, f"a target that fits {RPDO_MAPS[number][1].data_type.name}"
@@ -697,8 +734,7 @@ class Cia402Node(NodeFaults, ActuatorDevice):
                 if arb == tpdo1:
                     self._on_tpdo1(frame, now)
                 elif arb == tpdo2:
-                    self._velocity, self._mode_display = _TPDO2_CODEC.unpack(frame.data)
-                    self._tpdo2_ns = now
+                    self._on_tpdo2(frame, now)
                 elif arb == emcy:
                     self._on_emcy(frame)
                 elif arb == heartbeat:
@@ -727,12 +763,16 @@ class Cia402Node(NodeFaults, ActuatorDevice):
                 waiter.set_result(True)
 
     def _on_tpdo1(self, frame: can.Message, now: int) -> None:
-        statusword, position, torque = _TPDO1_CODEC.unpack(frame.data)
+        statusword, position, torque = TPDO1_CODEC.unpack(frame.data)
         # A statusword matching no state is malformed: nothing of this TPDO is kept.
         state = ds.state_from_statusword(statusword)
         self._position, self._torque = position, torque
         self._tpdo1_ns = now
         self._set_statusword(statusword, now, state)
+
+    def _on_tpdo2(self, frame: can.Message, now: int) -> None:
+        self._velocity, self._mode_display = _TPDO2_CODEC.unpack(frame.data)
+        self._tpdo2_ns = now
 
     def _set_statusword(
         self, statusword: int, now: int, state: ds.PowerState | None = None
