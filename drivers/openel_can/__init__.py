@@ -4,7 +4,9 @@
   reader, one sender and bus-failure recovery, shared by every node on it;
 - ODrive axes over CANSimple: :class:`ODriveAxis`, :class:`ODriveEncoder`,
   :class:`ODriveTemperature`, :class:`ODriveBusMonitor`;
-- CiA 402 drives over CANopen: :class:`Cia402Drive`, :class:`Cia402Temperature`;
+- CiA 402 drives over CANopen: :class:`Cia402Drive`, :class:`Cia402Temperature`; in the
+  cyclic synchronous modes :class:`Cia402CyclicDrive` on the SYNC of :class:`CanSync`, an
+  EventTimer's observer;
 - the pure codecs :mod:`openel_can.cansimple`, :mod:`openel_can.canopen`,
   :mod:`openel_can.cia402`, and simulated peers in :mod:`openel_can.sim`.
 """
@@ -12,10 +14,12 @@
 from openel_async.registry import DriverInfo
 
 from .bus import BusState, BusStats, CanBus, NodePort, TxMessage
+from .cyclic402 import Cia402CyclicDrive
 from .drive402 import Cia402Drive, Cia402Temperature
 from .odrive import ODriveAxis, ODriveBusMonitor, ODriveEncoder, ODriveError, ODriveTemperature
 from .rigbus import CanBusKind, CanBusOptions
 from .sdo import SdoAbortError, SdoClient, SdoTimeoutError
+from .sync import CanSync, SyncStats
 
 DRIVER = DriverInfo(
     name="can",
@@ -38,6 +42,8 @@ __all__ = [
     "CanBus",
     "CanBusKind",
     "CanBusOptions",
+    "CanSync",
+    "Cia402CyclicDrive",
     "Cia402Drive",
     "Cia402Temperature",
     "NodePort",
@@ -49,5 +55,6 @@ __all__ = [
     "SdoAbortError",
     "SdoClient",
     "SdoTimeoutError",
+    "SyncStats",
     "TxMessage",
 ]

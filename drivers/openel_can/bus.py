@@ -302,6 +302,20 @@ class NodePort:
             return
         await bus._enqueue(msg)
 
+    def send_nowait(
+        self, arbitration_id: int, data: bytes = b"", *, extended: bool = False
+    ) -> bool:
+        """Send one frame without suspending, for synchronous code (a timer observer): inline
+        when possible, else queued for the sender task behind the frames already queued
+        (frames leave in call order). Returns False when the queue is full: the frame is
+        dropped and counted (``stats.tx_dropped``). Raises :class:`NotConnectedError`
+        while the bus is down."""
+        msg = TxMessage.frame(arbitration_id, data, extended, False)
+        bus = self.bus
+        if bus._try_inline(msg):
+            return True
+        return bus._queue_nowait(msg)
+
     def close(self) -> None:
         """Detach from the bus (same as ``bus.detach(port)``)."""
         self.bus.detach(self)
@@ -656,17 +670,18 @@ class CanBus:
             return True
         return False
 
-    def _queue_nowait(self, msg: can.Message) -> None:
+    def _queue_nowait(self, msg: can.Message) -> bool:
         """Queue a producer's frame (heartbeat, SYNC) for the sender task, counted as pending
         like any other (the sender counts it down); dropped and counted when the queue is
-        full."""
+        full (False)."""
         assert self._tx_send is not None
         try:
             self._tx_send.send_nowait(msg)
         except anyio.WouldBlock:
             self.stats.tx_dropped += 1
-        else:
-            self._tx_pending += 1
+            return False
+        self._tx_pending += 1
+        return True
 
     async def _enqueue(self, msg: can.Message) -> None:
         """Queue ``msg`` for the sender task (waits at most ``send_timeout`` for room)."""

@@ -1,5 +1,8 @@
 """A CiA 402 drive over CANopen: :class:`Cia402Drive` (actuator), :class:`Cia402Temperature`.
 
+The node itself (configuration, power state machine, feedback, faults, watchdog) is
+:class:`~openel_can.node402.Cia402Node`; this module adds the profile set-point modes.
+
 Opening the drive (``open``): NMT Enter pre-operational, then by expedited SDO the
 heartbeat producer time (0x1017), the encoder resolution (0x608F, unless given) and the
 rated torque (0x6076, unless given), the PDO mapping (disable, clear, map, count,
@@ -64,18 +67,10 @@ way, torques in per mille of the rated torque (Nm at the API).
 
 from __future__ import annotations
 
-import asyncio
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Final
-
-import anyio
-import can
+from typing import Any, Final
 
 from openel_async.device import (
-    ActuatorDevice,
-    ActuatorLimits,
     DeviceContext,
     DeviceInfo,
     ErrorId,
@@ -83,20 +78,43 @@ from openel_async.device import (
     SensorDevice,
     VelocityRamp,
 )
-from openel_async.errors import BadParameterError, HALError, ReturnCode
+from openel_async.errors import BadParameterError, ReturnCode
 from openel_async.ids import DeviceKind
 from openel_async.logs import get_logger
 from openel_async.requests import Request
-from openel_async.safety import ExitAction
 
 from . import canopen as co
 from . import cia402 as ds
 from .bus import CanBus, NodePort
-from .errors import DecodeError
-from .node_faults import NodeFaults
+from .node402 import (
+    CIA402_VENDOR_ID,
+    CONSUMER_HEARTBEAT_TIME_1,
+    DEFAULT_HOST_NODE_ID,
+    ENABLE_OPERATION,
+    QUICK_STOP_ON_ABORT,
+    RPDO_MAPS,
+    TARGET_REACHED,
+    TPDO_MAPS,
+    WATCHDOG_FEED_FRACTION,
+    Cia402Node,
+    FaultedError,
+    Setpoint,
+    check_node,
+    check_positive,
+)
 from .sdo import SdoClient
 
-__all__ = ["RPDO_MAPS", "TPDO_MAPS", "Cia402Drive", "Cia402Temperature"]
+__all__ = [
+    "CIA402_VENDOR_ID",
+    "CONSUMER_HEARTBEAT_TIME_1",
+    "DEFAULT_HOST_NODE_ID",
+    "QUICK_STOP_ON_ABORT",
+    "RPDO_MAPS",
+    "TPDO_MAPS",
+    "WATCHDOG_FEED_FRACTION",
+    "Cia402Drive",
+    "Cia402Temperature",
+]
 
 log = get_logger(__name__)
 
@@ -104,89 +122,29 @@ PS = ds.PowerState
 Mode = ds.ModeOfOperation
 SB = ds.StatusBit
 CB = ds.ControlBit
-CIA402_VENDOR_ID: Final = 0x0402
-
-RPDO_MAPS: Final = (
-    (ds.CONTROLWORD, ds.TARGET_POSITION),
-    (ds.CONTROLWORD, ds.TARGET_VELOCITY),
-    (ds.CONTROLWORD, ds.TARGET_TORQUE),
-)
-TPDO_MAPS: Final = (
-    (ds.STATUSWORD, ds.POSITION_ACTUAL_VALUE, ds.TORQUE_ACTUAL_VALUE),
-    (ds.VELOCITY_ACTUAL_VALUE, ds.MODES_OF_OPERATION_DISPLAY),
-)
-_RPDO_OF_MODE: Final = {Mode.PROFILE_POSITION: 0, Mode.PROFILE_VELOCITY: 1, Mode.PROFILE_TORQUE: 2}
 _MODE_OF_REQUEST: Final = {
     Request.POSITION: Mode.PROFILE_POSITION,
     Request.VELOCITY: Mode.PROFILE_VELOCITY,
     Request.TORQUE: Mode.PROFILE_TORQUE,
 }
-_TPDO1_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[0])
-_TPDO2_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[1])
-_RPDO_MAP_ENTRIES: Final = tuple(tuple(e.map_entry() for e in mapping) for mapping in RPDO_MAPS)
-_RPDO_CODECS: Final = tuple(co.PdoCodec(entries) for entries in _RPDO_MAP_ENTRIES)
-_TPDO1_CODEC: Final = co.PdoCodec(_TPDO1_MAP)
-_TPDO2_CODEC: Final = co.PdoCodec(_TPDO2_MAP)
-_ENABLE: Final = int(ds.Command.ENABLE_OPERATION)
 # Plain ints of the bits tested on every set-point (IntFlag arithmetic is Python code).
 _ACK: Final = int(SB.SETPOINT_ACKNOWLEDGE)
-_REACHED: Final = int(SB.TARGET_REACHED)
 _NEW_SETPOINT: Final = int(CB.NEW_SETPOINT)
-_PP_BASE: Final = _ENABLE | int(CB.CHANGE_SET_IMMEDIATELY)
+_PP_BASE: Final = ENABLE_OPERATION | int(CB.CHANGE_SET_IMMEDIATELY)
 
 
-DEFAULT_HOST_NODE_ID: Final = 127
-"""The host's CANopen node id for its heartbeat (0x77F): give another one when a drive uses 127."""
-CONSUMER_HEARTBEAT_TIME_1: Final = co.ObjectEntry(0x1016, 1, co.DataType.UNSIGNED32)
-QUICK_STOP_ON_ABORT: Final = 3
-"""0x6007 value: quick stop on a lost connection."""
-WATCHDOG_FEED_FRACTION: Final = 4
-"""The host heartbeat period is ``timeout / WATCHDOG_FEED_FRACTION``."""
+class Cia402Drive(Cia402Node):
+    """A CiA 402 servo drive on a CAN bus (CANopen); see the module docstring.
 
+    ``mode="csp" | "csv" | "cst"`` makes a
+    :class:`~openel_can.cyclic402.Cia402CyclicDrive` (a subclass) instead."""
 
-def _emcy_name(code: int) -> str:
-    try:
-        return co.EmcyCode(code).name
-    except ValueError:
-        return f"{code:#06x}"
+    def __new__(cls, *args: Any, **kwargs: Any) -> Cia402Drive:
+        if cls is Cia402Drive and kwargs.get("mode", "pp") != "pp":
+            from .cyclic402 import Cia402CyclicDrive  # (it imports this module)
 
-
-def _check_node(node_id: int) -> None:
-    if (
-        isinstance(node_id, bool)
-        or not isinstance(node_id, int)
-        or not 1 <= node_id <= co.MAX_NODE_ID
-    ):
-        raise BadParameterError("node_id", node_id, f"a CANopen node id in 1..{co.MAX_NODE_ID}")
-
-
-def _positive(name: str, value: float | None, *, optional: bool = True) -> None:
-    if value is None and optional:
-        return
-    if value is None or not (math.isfinite(value) and value > 0):
-        raise BadParameterError(name, value, "a finite value > 0")
-
-
-class _FaultedError(Exception):
-    """The component faulted while a command waited for the drive (internal)."""
-
-
-def _expire(waiter: asyncio.Future[bool]) -> None:
-    """Timer callback of a statusword wait: the wait ends unsatisfied."""
-    if not waiter.done():
-        waiter.set_result(False)
-
-
-@dataclass
-class _Setpoint:
-    request: Request
-    reported: bool = False
-
-
-class Cia402Drive(NodeFaults, ActuatorDevice):
-    """A CiA 402 servo drive on a CAN bus (CANopen); see the module docstring."""
-
-    node_label = "CiA 402"
+            return super().__new__(Cia402CyclicDrive)
+        return super().__new__(cls)
 
     info = DeviceInfo(
         kind=DeviceKind.MOTOR,
@@ -205,419 +163,11 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
     """``safe_stop`` left the device in its exit state: ``close`` leaves it so (set until
     the next ``init``)."""
 
-    def __init__(
-        self,
-        bus: CanBus,
-        node_id: int,
-        *,
-        counts_per_rev: int | None = None,
-        rated_torque: float | None = None,
-        limits: ActuatorLimits | None = None,
-        profile_velocity: float | None = None,
-        profile_acceleration: float | None = None,
-        heartbeat_ms: int = 1000,
-        heartbeat_timeout: float | None = None,
-        tpdo_event_ms: int = 10,
-        sync: bool = False,
-        sdo_timeout: float = 0.1,
-        state_timeout: float = 0.5,
-        feedback_max_age: float | None = None,
-        host_node_id: int = DEFAULT_HOST_NODE_ID,
-    ) -> None:
-        if not isinstance(bus, CanBus):
-            raise BadParameterError("bus", bus, "an openel_can.CanBus")
-        _check_node(node_id)
-        if (
-            isinstance(host_node_id, bool)
-            or not isinstance(host_node_id, int)
-            or not 1 <= host_node_id <= co.MAX_NODE_ID
-            or host_node_id == node_id
-        ):
-            raise BadParameterError(
-                "host_node_id",
-                host_node_id,
-                f"a CANopen node id in 1..{co.MAX_NODE_ID} other than the drive's ({node_id})",
-            )
-        if counts_per_rev is not None and (
-            isinstance(counts_per_rev, bool)
-            or not isinstance(counts_per_rev, int)
-            or counts_per_rev < 1
-        ):
-            raise BadParameterError("counts_per_rev", counts_per_rev, "None or an int >= 1")
-        for name, value in (
-            ("rated_torque", rated_torque),
-            ("profile_velocity", profile_velocity),
-            ("profile_acceleration", profile_acceleration),
-            ("heartbeat_timeout", heartbeat_timeout),
-            ("feedback_max_age", feedback_max_age),
-        ):
-            _positive(name, value)
-        for name, value in (("sdo_timeout", sdo_timeout), ("state_timeout", state_timeout)):
-            _positive(name, value, optional=False)
-        for name, ms in (("heartbeat_ms", heartbeat_ms), ("tpdo_event_ms", tpdo_event_ms)):
-            if isinstance(ms, bool) or not isinstance(ms, int) or not 1 <= ms <= 0xFFFF:
-                raise BadParameterError(name, ms, "milliseconds in 1..65535")
-        self.bus = bus
-        self.node_id = node_id
-        self.counts_per_rev = counts_per_rev
-        self.rated_torque = rated_torque
-        if limits is not None:
-            self.limits = limits
-        self.profile_velocity = profile_velocity
-        self.profile_acceleration = profile_acceleration
-        self.heartbeat_ms = heartbeat_ms
-        self.heartbeat_timeout = heartbeat_timeout or 3 * heartbeat_ms / 1000
-        self.tpdo_event_ms = tpdo_event_ms
-        self.sync = sync
-        self.sdo_timeout = sdo_timeout
-        self.state_timeout = state_timeout
-        self.feedback_max_age = feedback_max_age or max(0.05, 3 * tpdo_event_ms / 1000)
-        self.host_node_id = host_node_id
-        self.watchdog_timeout: float | None = None
-        """The armed heartbeat consumer time in seconds (None: not armed by this driver)."""
-        self._heartbeat_error = False
-        """EMCY 0x8130 (the drive's consumer missed the host's heartbeat) this episode."""
-        self.sdo = SdoClient.for_node(bus, node_id, timeout=sdo_timeout)
-        self._ctx: DeviceContext | None = None
-        self._port: NodePort | None = None
-        self._lock = anyio.Lock(fast_acquire=True)
-        self._changed: anyio.Event | None = None
-        """Set (and dropped) after each received batch; created only when awaited."""
-        self._status_waiters: list[tuple[Callable[[int], bool], asyncio.Future[bool]]] = []
-        """Statusword waits: each future is resolved by the batch that satisfies its
-        predicate (True), by a fault latch (True: the waiter re-checks), or by its timer."""
-        self._statusword: int | None = None
-        self._position = 0
-        self._torque = 0
-        self._velocity = 0
-        self._mode_display: int | None = None
-        self._tpdo1_ns: int | None = None
-        self._tpdo2_ns: int | None = None
-        self._heartbeat_ns: int | None = None
-        self.nmt_state: co.NmtState | int | None = None
-        self._mode: Mode | None = None
-        self._controlword = 0
-        self._targets = {Mode.PROFILE_POSITION: 0, Mode.PROFILE_VELOCITY: 0, Mode.PROFILE_TORQUE: 0}
-        self._pending: _Setpoint | None = None
-        self._enabled_wanted = False
-        self._engaged = False
-        self._latched = False
-        self._needs_config = True
-        self._saved_profile_accel: tuple[int, int] | None = None
-        """(0x6083, 0x6084) before the first tm_acc ramp overwrote them."""
-        self._ramp_accel_written = False
-        self.last_emcy: co.Emergency | None = None
-        self.emcy_count = 0
-        self._emcy_unreported = False
-        """An EMCY came since the last statusword (reported with the next one)."""
-        self.log = log.bind(node=node_id)
-
-    # -- units ----------------------------------------------------------------------------
-    def _cpr(self) -> float:
-        assert self.counts_per_rev is not None, "encoder resolution not known before open()"
-        return float(self.counts_per_rev)
-
-    def counts_to_rad(self, counts: float) -> float:
-        return counts * math.tau / self._cpr()
-
-    def rad_to_counts(self, rad: float) -> int:
-        return round(rad * self._cpr() / math.tau)
-
-    def _torque_nm(self, permille: float) -> float:
-        assert self.rated_torque is not None
-        return permille / 1000 * self.rated_torque
-
-    def _torque_permille(self, nm: float) -> int:
-        assert self.rated_torque is not None
-        return round(nm / self.rated_torque * 1000)
-
-    @property
-    def statusword(self) -> int | None:
-        """The latest statusword received (TPDO1 or SDO)."""
-        return self._statusword
-
-    @property
-    def power_state(self) -> ds.PowerState | None:
-        return ds.state_from_statusword(self._statusword) if self._statusword is not None else None
-
-    @property
-    def malformed_frames(self) -> int:
-        return (self._port.malformed if self._port is not None else 0) + self.sdo.malformed
-
-    # -- lifecycle ------------------------------------------------------------------------
-    async def open(self, ctx: DeviceContext) -> None:
-        self._ctx = ctx
-        self.log = self.log.bind(component=ctx.name)
-        n = self.node_id
-        ids = (co.EMCY_BASE + n, co.TPDO_BASES[0] + n, co.TPDO_BASES[1] + n, co.HEARTBEAT_BASE + n)
-        self._port = self.bus.attach(
-            ids, name=ctx.name, on_bus_error=self._on_bus_error, handler=self._on_frames
-        )
-        ctx.start_soon(self._watchdog)
-        await self._configure()
-
-    async def init(self) -> None:
-        self.left_safe = False
-        self._latched = False
-        self._heartbeat_error = False
-        await self._enable()
-        self._heartbeat_ns = self._now()
-        self._engaged = True
-
-    async def reset(self) -> None:
-        # Not engaged while resetting: nothing the drive says now is a new fault.
-        self._engaged = False
-        self._latched = False
-        self._heartbeat_error = False
-        self._pending = None
-        await self.bus.wait_up(self.state_timeout)
-        # The node answers (an SDO timeout here means it is still gone).
-        self._set_statusword(
-            await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout), self._now()
-        )
-        if self._needs_config or self.nmt_state is not co.NmtState.OPERATIONAL:
-            await self._configure()
-        await self._enable()
-        # The node just answered: the heartbeat consumer counts from now.
-        self._heartbeat_ns = self._now()
-        self._engaged = True
-
-    async def close(self) -> None:
-        # After safe_stop the device stays as it left it (a rig's safety.on_exit: hold
-        # must outlive the host); otherwise the axis is disabled.
-        self._engaged = False
-        self._pending = None
-        self.bus.release_heartbeat(self)
-        try:
-            if (
-                not self.left_safe
-                and self.bus.is_up
-                and self._port is not None
-                and self._statusword is not None
-            ):
-                with anyio.move_on_after(self.state_timeout):
-                    state = self.power_state
-                    if state in (PS.OPERATION_ENABLED, PS.SWITCHED_ON):
-                        await self._send_control(int(ds.Command.SHUTDOWN))
-        except Exception as exc:  # closing a broken link must not raise
-            self.log.debug("cia402_shutdown_not_sent", error=repr(exc))
-        finally:
-            if self._port is not None:
-                self._port.close()
-
-    async def _configure(self) -> None:
-        """NMT pre-operational, SDO configuration, PDO mapping, NMT start, first TPDO."""
-        n = self.node_id
-        sdo = self.sdo
-        timeout = self.sdo_timeout
-        await self._nmt(co.NmtCommand.ENTER_PRE_OPERATIONAL)
-        await sdo.write(
-            co.ObjectEntry(co.PRODUCER_HEARTBEAT_TIME, 0, co.DataType.UNSIGNED16),
-            self.heartbeat_ms,
-            timeout=timeout,
-        )
-        if self.counts_per_rev is None:
-            increments = await sdo.read(ds.POSITION_ENCODER_INCREMENTS, timeout=timeout)
-            revolutions = await sdo.read(ds.POSITION_ENCODER_MOTOR_REVOLUTIONS, timeout=timeout)
-            if increments < 1 or revolutions < 1:
-                raise HALError(
-                    f"CiA 402 node {n}: bad encoder resolution {increments}/{revolutions}"
-                )
-            self.counts_per_rev = round(increments / revolutions)
-        if self.rated_torque is None:
-            rated_mnm = await sdo.read(ds.MOTOR_RATED_TORQUE, timeout=timeout)
-            if rated_mnm < 1:
-                raise HALError(f"CiA 402 node {n}: rated torque 0x6076 is {rated_mnm} mNm")
-            self.rated_torque = rated_mnm / 1000
-        for number, entries in enumerate(_RPDO_MAP_ENTRIES, start=1):
-            await self._map_pdo(
-                co.RPDO_COMM_BASE + number - 1,
-                co.RPDO_MAPPING_BASE + number - 1,
-                co.rpdo_cob_id(number, n),
-                entries,
-                transmission=0xFF,
-            )
-        for number, tentries in enumerate((_TPDO1_MAP, _TPDO2_MAP), start=1):
-            comm = co.TPDO_COMM_BASE + number - 1
-            await self._map_pdo(
-                comm,
-                co.TPDO_MAPPING_BASE + number - 1,
-                co.tpdo_cob_id(number, n),
-                tentries,
-                transmission=1 if self.sync else 0xFF,
-                event_ms=0 if self.sync else self.tpdo_event_ms,
-            )
-        cpr = self._cpr()
-        if self.profile_velocity is not None:
-            await sdo.write(
-                ds.PROFILE_VELOCITY, round(self.profile_velocity * cpr / math.tau), timeout=timeout
-            )
-        if self.profile_acceleration is not None:
-            accel = round(self.profile_acceleration * cpr / math.tau)
-            await sdo.write(ds.PROFILE_ACCELERATION, accel, timeout=timeout)
-            await sdo.write(ds.PROFILE_DECELERATION, accel, timeout=timeout)
-        await sdo.write(ds.MODES_OF_OPERATION, int(Mode.PROFILE_POSITION), timeout=timeout)
-        self._mode = Mode.PROFILE_POSITION
-        started = self._now()
-        await self._nmt(co.NmtCommand.START)
-        self.nmt_state = co.NmtState.OPERATIONAL
-        # First feedback: TPDO1 (event-driven: sent at once) or, on SYNC, the next SYNC.
-        await self._wait_tpdo(
-            started, timeout=max(self.state_timeout, 3 * self.tpdo_event_ms / 1000)
-        )
-        self._needs_config = False
-
-    async def _map_pdo(
-        self,
-        comm: int,
-        mapping: int,
-        cob_id: int,
-        entries: tuple[co.PdoMapEntry, ...],
-        *,
-        transmission: int,
-        event_ms: int | None = None,
-    ) -> None:
-        sdo = self.sdo
-        timeout = self.sdo_timeout
-        u8, u16, u32 = co.DataType.UNSIGNED8, co.DataType.UNSIGNED16, co.DataType.UNSIGNED32
-        await sdo.write(
-            co.ObjectEntry(comm, 1, u32), cob_id | co.PDO_COB_ID_INVALID, timeout=timeout
-        )
-        await sdo.write(co.ObjectEntry(mapping, 0, u8), 0, timeout=timeout)
-        for sub, entry in enumerate(entries, start=1):
-            await sdo.write(co.ObjectEntry(mapping, sub, u32), entry.to_u32(), timeout=timeout)
-        await sdo.write(co.ObjectEntry(mapping, 0, u8), len(entries), timeout=timeout)
-        await sdo.write(co.ObjectEntry(comm, 2, u8), transmission, timeout=timeout)
-        if event_ms is not None:
-            await sdo.write(co.ObjectEntry(comm, 5, u16), event_ms, timeout=timeout)
-        await sdo.write(co.ObjectEntry(comm, 1, u32), cob_id, timeout=timeout)
-
-    async def _nmt(self, command: co.NmtCommand) -> None:
-        assert self._port is not None
-        cob_id, data = co.encode(co.NmtControl(command, self.node_id))
-        await self._port.send(cob_id, data)
-
-    async def _wait_tpdo(self, after_ns: int, timeout: float) -> None:  # noqa: ASYNC109
-        with anyio.move_on_after(timeout):
-            while self._tpdo1_ns is None or self._tpdo1_ns < after_ns:
-                await self._change_event().wait()
-            return
-        raise TimeoutError(f"CiA 402 node {self.node_id}: no TPDO1 within {timeout * 1000:.0f} ms")
-
-    # -- power state machine ---------------------------------------------------------------
-    async def _current_state(self) -> ds.PowerState:
-        if self._statusword is None:
-            self._set_statusword(
-                await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout), self._now()
-            )
-        state = self.power_state
-        assert state is not None
-        return state
-
-    async def _drive_to(self, target: ds.PowerState) -> None:
-        """Walk the power state machine to ``target``, one confirmed transition at a time."""
-        for _ in range(12):
-            state = await self._current_state()
-            if state is target:
-                return
-            if state is PS.FAULT:
-                self.log.warning(
-                    "cia402_fault_reset",
-                    emcy=_emcy_name(self.last_emcy.error_code) if self.last_emcy else None,
-                )
-            word = ds.next_controlword(state, target, previous_controlword=self._controlword)
-
-            def left(sw: int, state: ds.PowerState = state) -> bool:
-                return ds.state_from_statusword(sw) is not state
-
-            if word is None:  # the drive is changing state by itself
-                await self._wait_status(left, "leave " + state.name)
-                continue
-            expected = ds.apply_controlword(state, word, previous_controlword=self._controlword)
-            await self._send_control(word)
-            if expected is not state:
-                await self._wait_status(left, f"{state.name} -> {expected.name}")
-        raise HALError(
-            f"CiA 402 node {self.node_id}: could not reach {target.name} (in {self.power_state})"
-        )
-
-    async def _enable(self) -> None:
-        self._enabled_wanted = False
-        self._targets[Mode.PROFILE_POSITION] = self._position
-        self._targets[Mode.PROFILE_VELOCITY] = 0
-        self._targets[Mode.PROFILE_TORQUE] = 0
-        await self._drive_to(PS.OPERATION_ENABLED)
-        self._enabled_wanted = True
-
-    async def _send_control(self, controlword: int) -> None:
-        """The controlword in the RPDO of the current mode, with that mode's target."""
-        mode = self._mode or Mode.PROFILE_POSITION
-        await self._send_rpdo(mode, controlword, self._targets[mode])
-
-    async def _send_rpdo(self, mode: Mode, controlword: int, target: int) -> None:
-        assert self._port is not None
-        number = _RPDO_OF_MODE[mode]
-        try:
-            data = _RPDO_CODECS[number].pack((controlword, target))
-        except ValueError as exc:
-            raise BadParameterError(
-                "value", target, f"a target that fits {RPDO_MAPS[number][1].data_type.name}"
-            ) from exc
-        self._controlword = controlword
-        await self._port.send(co.RPDO_BASES[number] + self.node_id, data)
-
-    async def _wait_status(self, predicate: Callable[[int], bool], what: str) -> int:
-        if self._latched:
-            raise _FaultedError(what)
-        sw = self._statusword
-        if sw is not None and predicate(sw):  # already there: no timer needed
-            return sw
-        # A future resolved by the batch that satisfies the predicate (see _on_frames) and a
-        # loop timer bounding the wait: no cancel scope, no wake-up per unrelated frame.
-        # Cancellation from outside cancels the future; the finally clause cleans up.
-        loop = asyncio.get_running_loop()
-        deadline = loop.time() + self.state_timeout
-        waiters = self._status_waiters
-        while True:
-            waiter: asyncio.Future[bool] = loop.create_future()
-            entry = (predicate, waiter)
-            timer = loop.call_at(deadline, _expire, waiter)
-            waiters.append(entry)
-            try:
-                satisfied = await waiter
-            finally:
-                timer.cancel()
-                waiters.remove(entry)
-            if self._latched:
-                raise _FaultedError(what)
-            sw = self._statusword
-            if sw is not None and predicate(sw):
-                return sw
-            if not satisfied:
-                break
-        raise TimeoutError(
-            f"CiA 402 node {self.node_id}: no statusword for {what} within {self.state_timeout * 1000:.0f} ms"
-            + (f" (statusword {self._statusword:#06x})" if self._statusword is not None else "")
-        )
-
-    async def _set_mode(self, mode: Mode) -> None:
-        if mode is self._mode:
-            return
-        self._mode = None
-        await self.sdo.write(ds.MODES_OF_OPERATION, int(mode), timeout=self.sdo_timeout)
-        display = await self.sdo.read(ds.MODES_OF_OPERATION_DISPLAY, timeout=self.sdo_timeout)
-        if display != mode:
-            raise HALError(
-                f"CiA 402 node {self.node_id}: mode display {display} after selecting {mode.name}"
-            )
-        self._mode = mode
-        self._mode_display = display
-
     # -- commands -------------------------------------------------------------------------
     async def command(self, request: Request, value: float) -> None:
         try:
             await self._command(request, value)
-        except _FaultedError:
+        except FaultedError:
             # The drive faulted meanwhile: the component is in Error already and the
             # Actuator fails the new Motion with that fault.
             self.log.debug("cia402_command_interrupted_by_fault")
@@ -640,7 +190,7 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
             )
         try:
             await self._command(Request.VELOCITY, ramp.target, accel if accel > 0 else None)
-        except _FaultedError:
+        except FaultedError:
             self.log.debug("cia402_command_interrupted_by_fault")
 
     async def _write_profile_accel(self, accel: int, decel: int) -> None:
@@ -684,15 +234,15 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
                     else self._torque_permille(value)
                 )
                 self._targets[mode] = raw
-                await self._send_rpdo(mode, _ENABLE, raw)
+                await self._send_rpdo(mode, ENABLE_OPERATION, raw)
                 # No handshake in pv/tq: the SDO answer comes after the RPDO was processed.
                 self._set_statusword(
                     await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout), self._now()
                 )
-            setpoint = _Setpoint(request)
+            setpoint = Setpoint(request)
             self._pending = setpoint  # armed right before returning (see ODriveAxis.command)
             sw = self._statusword
-            if sw is not None and sw & _REACHED and self._ctx is not None:
+            if sw is not None and sw & TARGET_REACHED and self._ctx is not None:
                 # Already there: report once the Actuator has installed the new Motion.
                 self._ctx.start_soon(self._report_later, setpoint)
 
@@ -706,102 +256,6 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
         await self._send_rpdo(mode, base | _NEW_SETPOINT, counts)
         await self._wait_status(lambda sw: bool(sw & _ACK), "set-point acknowledge")
         await self._send_rpdo(mode, base, counts)
-
-    async def _report_later(self, setpoint: _Setpoint) -> None:
-        """Report a target already reached at command time, once the Motion exists."""
-        self._report(setpoint)
-
-    def _report(self, setpoint: _Setpoint) -> None:
-        if (
-            setpoint is self._pending
-            and not setpoint.reported
-            and self._engaged
-            and self._ctx is not None
-        ):
-            setpoint.reported = True
-            self._ctx.target_reached()
-
-    # -- heartbeat watchdog ---------------------------------------------------------------
-    async def arm_watchdog(self, timeout_s: float) -> None:
-        """Host heartbeat every ``timeout_s / 4`` (the bus's producer), 0x6007 = 3 (quick
-        stop) and 0x1016:1 = ``host_node_id << 16 | ms`` by SDO.
-
-        ``timeout_s``: a whole number of milliseconds in 4..65535 (the consumer time is an
-        UNSIGNED16 in ms; the heartbeat period, a quarter of it, at least 1 ms).
-        """
-        ok = (
-            not isinstance(timeout_s, bool)
-            and isinstance(timeout_s, int | float)
-            and math.isfinite(timeout_s)
-        )
-        ms = round(timeout_s * 1000) if ok else 0
-        if not (
-            ok and WATCHDOG_FEED_FRACTION <= ms <= 0xFFFF and abs(timeout_s * 1000 - ms) < 1e-6
-        ):
-            raise BadParameterError(
-                "timeout_s",
-                timeout_s,
-                "a whole number of milliseconds in 0.004..65.535 s "
-                "(0x1016 heartbeat consumer time, UNSIGNED16 ms)",
-            )
-        if self._ctx is None:
-            raise HALError(f"CiA 402 node {self.node_id}: arm_watchdog before open")
-        self.bus.produce_heartbeat(self.host_node_id, timeout_s / WATCHDOG_FEED_FRACTION, self)
-        try:
-            await self.sdo.write(
-                ds.ABORT_CONNECTION_OPTION_CODE, QUICK_STOP_ON_ABORT, timeout=self.sdo_timeout
-            )
-            await self.sdo.write(
-                CONSUMER_HEARTBEAT_TIME_1, self.host_node_id << 16 | ms, timeout=self.sdo_timeout
-            )
-        except BaseException:
-            self.bus.release_heartbeat(self)
-            raise
-        self.watchdog_timeout = ms / 1000
-        self.log.info("cia402_watchdog_armed", timeout_ms=ms, host_node_id=self.host_node_id)
-
-    async def disarm_watchdog(self) -> None:
-        """0x1016:1 = 0 (consumer off) by SDO, then stop producing the host heartbeat."""
-        if self.watchdog_timeout is None:
-            return
-        try:
-            if self.bus.is_up:
-                await self.sdo.write(CONSUMER_HEARTBEAT_TIME_1, 0, timeout=self.sdo_timeout)
-        finally:
-            self.bus.release_heartbeat(self)
-            self.watchdog_timeout = None
-
-    async def estop(self) -> None:
-        """Controlword Quick stop (the drive ramps down with 0x6085, then acts as 0x605A
-        says) and ``fault(ESTOP)`` at once; ``re_init`` enables the drive again."""
-        try:
-            await self.quick_stop()
-        finally:
-            self._fault(ErrorId.ESTOP, f"CiA 402 node {self.node_id}: e-stop (quick stop)")
-
-    async def safe_stop(self, action: ExitAction) -> None:
-        """HOLD: Operation enabled with Halt (bit 8): ramps down with the profile
-        deceleration 0x6084 and holds, loop closed; STOP: Quick stop (0x6085, then as
-        0x605A says: 1..4 Switch on disabled, 5..8 stay in Quick stop active holding);
-        TORQUE_OFF: Disable voltage (Switch on disabled, power stage off)."""
-        action = ExitAction(action)
-        self.left_safe = True
-        async with self._lock:
-            self._enabled_wanted = action is ExitAction.HOLD and self._enabled_wanted
-            self._pending = None
-            if action is ExitAction.HOLD:
-                await self._send_control(_ENABLE | int(CB.HALT))
-            elif action is ExitAction.STOP:
-                await self._send_control(int(ds.Command.QUICK_STOP))
-            else:
-                await self._send_control(int(ds.Command.DISABLE_VOLTAGE))
-
-    async def quick_stop(self) -> None:
-        """Controlword quick stop: the drive ramps down (next command re-enables it)."""
-        async with self._lock:
-            self._enabled_wanted = False
-            self._pending = None
-            await self._send_control(int(ds.Command.QUICK_STOP))
 
     async def read(self, request: Request) -> float:
         now = self._now()
@@ -833,150 +287,6 @@ class Cia402Drive(NodeFaults, ActuatorDevice):
             "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
         )
 
-    # -- receive side -----------------------------------------------------------------------
-    def _now(self) -> int:
-        assert self._ctx is not None, "used before open()"
-        return self._ctx.clock.now_ns()
-
-    def _on_frames(self, batch: list[can.Message]) -> None:
-        """Port handler (event loop, as each batch is dispatched): decode, then wake waiters."""
-        port = self._port
-        assert port is not None
-        n = self.node_id
-        tpdo1, tpdo2 = co.TPDO_BASES[0] + n, co.TPDO_BASES[1] + n
-        emcy, heartbeat = co.EMCY_BASE + n, co.HEARTBEAT_BASE + n
-        now = self._now()
-        for frame in batch:
-            if frame.is_remote_frame:
-                continue
-            try:
-                arb = frame.arbitration_id
-                if arb == tpdo1:
-                    self._on_tpdo1(frame, now)
-                elif arb == tpdo2:
-                    self._velocity, self._mode_display = _TPDO2_CODEC.unpack(frame.data)
-                    self._tpdo2_ns = now
-                elif arb == emcy:
-                    self._on_emcy(frame)
-                elif arb == heartbeat:
-                    self._on_heartbeat(frame, now)
-            except DecodeError:
-                port.malformed += 1
-        changed = self._changed
-        if changed is not None:
-            self._changed = None
-            changed.set()
-        if self._status_waiters:
-            self._wake_status_waiters()
-
-    def _change_event(self) -> anyio.Event:
-        """The event set after the next received batch."""
-        changed = self._changed
-        if changed is None:
-            changed = self._changed = anyio.Event()
-        return changed
-
-    def _wake_status_waiters(self) -> None:
-        """Resolve the statusword waits the latest statusword (or a fault latch) ends."""
-        sw, latched = self._statusword, self._latched
-        for predicate, waiter in self._status_waiters:
-            if not waiter.done() and (latched or (sw is not None and predicate(sw))):
-                waiter.set_result(True)
-
-    def _on_tpdo1(self, frame: can.Message, now: int) -> None:
-        statusword, position, torque = _TPDO1_CODEC.unpack(frame.data)
-        # A statusword matching no state is malformed: nothing of this TPDO is kept.
-        state = ds.state_from_statusword(statusword)
-        self._position, self._torque = position, torque
-        self._tpdo1_ns = now
-        self._set_statusword(statusword, now, state)
-
-    def _set_statusword(
-        self, statusword: int, now: int, state: ds.PowerState | None = None
-    ) -> None:
-        if state is None:
-            state = ds.state_from_statusword(statusword)
-        self._statusword = statusword
-        faulted = state in (PS.FAULT, PS.FAULT_REACTION_ACTIVE)
-        tripped = (
-            self._heartbeat_error
-            and state is not PS.OPERATION_ENABLED
-            and (self._enabled_wanted or faulted)
-        )
-        if self._emcy_unreported:
-            self._emcy_unreported = False
-            # An EMCY with a fault is reported once, by the fault below (or by the fault
-            # of this episode already latched); without one it is a warning.
-            if not ((faulted or tripped) and self._engaged) and self._ctx is not None:
-                self._ctx.post_error(ErrorId.DEVICE_ERROR)
-        if not self._engaged or self._latched:
-            return
-        if tripped:
-            self._fault(
-                ErrorId.WATCHDOG,
-                f"CiA 402 node {self.node_id}: heartbeat consumer timeout (EMCY 0x8130: no host "
-                f"heartbeat within {self.watchdog_timeout} s), drive in {state.name}",
-            )
-            return
-        if faulted:
-            emcy = self.last_emcy
-            detail = f", EMCY {_emcy_name(emcy.error_code)}" if emcy and emcy.error_code else ""
-            self._fault(
-                ErrorId.DEVICE_ERROR, f"CiA 402 node {self.node_id} in {state.name}{detail}"
-            )
-            return
-        if self._enabled_wanted and state is not PS.OPERATION_ENABLED:
-            self._fault(
-                ErrorId.DEVICE_ERROR,
-                f"CiA 402 node {self.node_id} left Operation enabled ({state.name})",
-            )
-            return
-        setpoint = self._pending
-        if setpoint is not None and statusword & _REACHED:
-            self._report(setpoint)
-
-    def _on_emcy(self, frame: can.Message) -> None:
-        msg = co.decode(frame.arbitration_id, frame.data)
-        assert isinstance(msg, co.Emergency)
-        self.last_emcy = msg
-        if msg.error_code == co.EmcyCode.NO_ERROR:
-            self.log.info("cia402_emcy_reset")
-            return
-        self.emcy_count += 1
-        if msg.error_code == co.EmcyCode.LIFE_GUARD_OR_HEARTBEAT:
-            self._heartbeat_error = True
-        self.log.warning(
-            "cia402_emcy", code=_emcy_name(msg.error_code), register=f"{msg.error_register:#04x}"
-        )
-        self._emcy_unreported = True  # with the next statusword: a fault, or a warning
-
-    def _on_heartbeat(self, frame: can.Message, now: int) -> None:
-        msg = co.decode(frame.arbitration_id, frame.data)
-        assert isinstance(msg, co.Heartbeat)
-        if not isinstance(msg.state, co.NmtState):
-            # The codec keeps the value; CiA 301 defines no other state: counted as malformed.
-            raise co.CanOpenDecodeError(f"unknown NMT state {msg.state:#04x}")
-        self._heartbeat_ns = now
-        previous, self.nmt_state = self.nmt_state, msg.state
-        if msg.state is co.NmtState.BOOT_UP:
-            self._needs_config = True
-            self._fault(
-                ErrorId.DEVICE_ERROR, f"CiA 402 node {self.node_id} rebooted (boot-up message)"
-            )
-        elif msg.state is not co.NmtState.OPERATIONAL and previous is co.NmtState.OPERATIONAL:
-            self._fault(
-                ErrorId.DEVICE_ERROR,
-                f"CiA 402 node {self.node_id} left NMT Operational ({msg.state.name})",
-            )
-
-    # -- faults ---------------------------------------------------------------------------
-    def _on_latch(self) -> None:
-        self._pending = None
-        self._enabled_wanted = False
-        # A statusword wait ends now (it raises _FaultedError), not at its timeout.
-        if self._status_waiters:
-            self._wake_status_waiters()
-
 
 class Cia402Temperature(SensorDevice):
     """A drive temperature read by SDO (default: manufacturer object 0x2022, 0.1 °C), in K."""
@@ -995,9 +305,9 @@ class Cia402Temperature(SensorDevice):
     ) -> None:
         if not isinstance(bus, CanBus):
             raise BadParameterError("bus", bus, "an openel_can.CanBus")
-        _check_node(node_id)
-        _positive("celsius_per_unit", celsius_per_unit, optional=False)
-        _positive("sdo_timeout", sdo_timeout, optional=False)
+        check_node(node_id)
+        check_positive("celsius_per_unit", celsius_per_unit, optional=False)
+        check_positive("sdo_timeout", sdo_timeout, optional=False)
         self.bus = bus
         self.node_id = node_id
         self.entry = entry

@@ -156,8 +156,11 @@ def _traffic(
             if d.device != "cia402_drive":
                 continue
             mode = d.params.get("mode")
-            on_sync = mode in CYCLIC_MODES or d.params.get("sync") is True
-            if on_sync and cycle_s is not None:
+            if mode in CYCLIC_MODES and cycle_s is not None:
+                # Cia402CyclicDrive: TPDO1 after every SYNC, TPDO2 (status, mode) on change only
+                sync = True
+                per_cycle.append(Traffic(f"TPDO1 of node {node}", 8, cycle_s))
+            elif d.params.get("sync") is True and cycle_s is not None:
                 sync = True
                 per_cycle.append(Traffic(f"TPDO1 of node {node}", 8, cycle_s))
                 per_cycle.append(Traffic(f"TPDO2 of node {node}", 5, cycle_s))

@@ -256,7 +256,7 @@ async def test_sdo_client_reads_and_writes_by_name(peers: Peers, host_bus: CanBu
             await sdo.write("Modes of operation", 300)
         with pytest.raises(ObjectNotFoundError, match="closest: 'Target position'"):
             await sdo.read("Target positon")
-        assert await sdo.read("Supported drive modes") == 0b1101  # what the sim implements
+        assert await sdo.read("Supported drive modes") == 0b11_1000_1101  # pp pv tq csp csv cst
     assert sim.od[(0x607A, 0)].value == -1234
     assert sdo.transfers == 8  # refusals send nothing
     with pytest.raises(BadParameterError, match="no object dictionary"):

@@ -71,7 +71,7 @@ def test_demo_list_without_any_driver() -> None:
     result = _blocked("demo", "--list")
     assert result.returncode == 0, result.stderr
     names = [line.split()[0] for line in result.stdout.splitlines()[:-1]]
-    assert names == ["arm2", "arm6", "pantilt", "so101", "twoaxis"]
+    assert names == ["arm2", "arm6", "csp4", "pantilt", "so101", "twoaxis"]
     assert "unavailable" not in result.stdout
     assert "DRIVER MODULES: []" in result.stdout
 

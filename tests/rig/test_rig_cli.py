@@ -22,6 +22,7 @@ RIGS = ROOT / "apps" / "openel_apps" / "rigs"
         "arm6.yaml",
         "pantilt-sim.yaml",
         "so101-mujoco.yaml",
+        "csp4.yaml",
     ],
 )
 def test_every_shipped_rig_checks(name: str, capsys: pytest.CaptureFixture[str]) -> None:

@@ -32,7 +32,12 @@ given :class:`~openel_can.bus.CanBus`) implements:
   and fault reaction ramps), modes 0x6060 profile position (new set-point bit 4 /
   set-point acknowledge bit 12, change set immediately bit 5 or a one-slot buffer,
   halt bit 8), profile velocity and profile torque (torque slope 0x6087), and
-  statusword bit 10 (target reached).
+  statusword bit 10 (target reached); the cyclic synchronous modes CSP (8), CSV (9) and
+  CST (10): at each SYNC the drive latches the target received before it (0x607A, 0x60FF,
+  0x6071) and follows it over the interpolation time period 0x60C2 (sub1 x 10^sub2 s):
+  CSP linearly in position, CSV linearly in velocity, CST the torque at once; without
+  SYNC it keeps the last target. Statusword bit 12 in those modes: the drive follows the
+  command value (Operation enabled, no halt).
 * **EMCY** on faults (error code 0x603F, error register 0x1001) and 0x0000 on fault
   reset; :meth:`warn` sends an EMCY without faulting.
 * **Heartbeat consumer** (CiA 301 0x1016, one entry: sub 1 = producer node id << 16 |
@@ -99,7 +104,16 @@ ENERGY_LIMIT: Final = co.ObjectEntry(0x2031, 0, DT.INTEGER64)
 """Manufacturer-specific, read-write 64-bit parameter in mJ (written by segmented SDO
 download; only stored)."""
 _DISCRETE: Final = frozenset({0x6041, 0x6061, 0x603F, 0x1001})
-_SUPPORTED_MODES: Final = {Mode.PROFILE_POSITION, Mode.PROFILE_VELOCITY, Mode.PROFILE_TORQUE}
+_CYCLIC_MODES: Final = frozenset(
+    {Mode.CYCLIC_SYNC_POSITION, Mode.CYCLIC_SYNC_VELOCITY, Mode.CYCLIC_SYNC_TORQUE}
+)
+_TORQUE_MODES: Final = frozenset({Mode.PROFILE_TORQUE, Mode.CYCLIC_SYNC_TORQUE})
+_SUPPORTED_MODES: Final = {
+    Mode.PROFILE_POSITION,
+    Mode.PROFILE_VELOCITY,
+    Mode.PROFILE_TORQUE,
+    *_CYCLIC_MODES,
+}
 _AMBIENT_C: Final = 25.0
 
 
@@ -179,6 +193,8 @@ class SimCia402Drive:
         self.consumer_heard_ns: int | None = None
         """When the consumed heartbeat (0x1016:1) was last received (None: not monitoring)."""
         self.heartbeat_errors = 0
+        self.syncs = 0
+        """SYNC messages received in Operational."""
         self._boot()
         self.log = log.bind(sim_cia402=node_id)
 
@@ -204,6 +220,9 @@ class SimCia402Drive:
             self.stop_until_ns: int | None = None
             self.target_reached = True
             self.torque_target = 0.0  # per mille
+            self.cyclic_target = 0
+            """The target latched at the last SYNC in a cyclic mode (increments, increments/s
+            or per mille)."""
             self.torque_from = 0.0
             self.torque_since_ns = now
             self.fault_reaction_end_ns: int | None = None
@@ -263,7 +282,14 @@ class SimCia402Drive:
             state,
             voltage_enabled=enabled or state is PS.FAULT_REACTION_ACTIVE,
             target_reached=self.target_reached,
-            setpoint_acknowledge=self.setpoint_ack and self.mode == Mode.PROFILE_POSITION,
+            setpoint_acknowledge=(
+                self.setpoint_ack
+                if self.mode == Mode.PROFILE_POSITION
+                # cyclic modes: bit 12 "drive follows the command value"
+                else self.mode in _CYCLIC_MODES
+                and state is PS.OPERATION_ENABLED
+                and not self.halted
+            ),
         ).raw
         if state is PS.QUICK_STOP_ACTIVE:
             return word  # bit 5 (quick stop) low
@@ -281,7 +307,7 @@ class SimCia402Drive:
         ):
             return 0.0
         _, v, a = self.state_at(now)
-        if self.mode == Mode.PROFILE_TORQUE and self.power_state is PS.OPERATION_ENABLED:
+        if self.mode in _TORQUE_MODES and self.power_state is PS.OPERATION_ENABLED:
             if abs(v) >= self._get(0x6080) - 1e-6 and a == 0:
                 return 0.0
             return self._torque_ramp(now)
@@ -607,6 +633,8 @@ class SimCia402Drive:
                 self._nmt(msg.command)
         elif isinstance(msg, co.Sync):
             if self.nmt_state is co.NmtState.OPERATIONAL:
+                self.syncs += 1
+                self._cyclic_sync(now)
                 for n, state in enumerate(self.tpdo_state):
                     ttype = self._get(0x1800 + n, 2)
                     if ttype <= 240:
@@ -958,7 +986,7 @@ class SimCia402Drive:
     def _plan_torque(self, now: int) -> None:
         if self.halted:
             return
-        self.torque_from = self._torque_ramp(now) if self.mode == Mode.PROFILE_TORQUE else 0.0
+        self.torque_from = self._torque_ramp(now) if self.mode in _TORQUE_MODES else 0.0
         self.torque_since_ns = now
         max_torque = self._get(0x6072)
         self.torque_target = float(max(-max_torque, min(max_torque, self._get(0x6071))))
@@ -968,6 +996,53 @@ class SimCia402Drive:
         accel = torque_nm / self.inertia * self._counts_per_rad()
         self.segments = prof.accelerate(now, p, v, accel, float(self._get(0x6080)))
         self.arrival_ns = None
+
+    # -- cyclic synchronous modes (CSP 8, CSV 9, CST 10) -----------------------------------
+    def interpolation_period_ns(self) -> int:
+        """0x60C2: sub1 x 10^sub2 seconds, in ns (0: a set-point applies at once)."""
+        value, index = self._get(0x60C2, 1), self._get(0x60C2, 2)
+        return max(0, round(value * 10.0**index * 1e9))
+
+    def _cyclic_sync(self, now: int) -> None:
+        """SYNC in a cyclic mode: latch the target received before it and follow it over
+        one interpolation period (CSP: linear position; CSV: linear velocity; CST: the
+        torque at once). Without SYNC the drive keeps the last latched target."""
+        mode = self.mode
+        if mode not in _CYCLIC_MODES or self.power_state is not PS.OPERATION_ENABLED or self.halted:
+            return
+        period = self.interpolation_period_ns()
+        p, v, _ = self.state_at(now)
+        if mode == Mode.CYCLIC_SYNC_POSITION:
+            low, high = self._limits()
+            target = max(low, min(high, float(self._get(0x607A))))
+            self.cyclic_target = round(target)
+            if period:
+                rate = (target - p) / (period * NS)
+                self.segments = [
+                    prof.Segment(now, p, rate, 0.0, now + period),
+                    prof.Segment(now + period, target, 0.0, 0.0, None),
+                ]
+            else:
+                self.segments = prof.hold(now, target)
+            end = now + period
+        elif mode == Mode.CYCLIC_SYNC_VELOCITY:
+            vmax = self._get(0x6080)
+            target = float(max(-vmax, min(vmax, self._get(0x60FF))))
+            self.cyclic_target = round(target)
+            accel = abs(target - v) / (period * NS) if period else 1e12  # 0: a step
+            self.segments = prof.ramp(now, p, v, target, max(1.0, accel))
+            end = prof.end_time(self.segments)
+        else:
+            max_torque = self._get(0x6072)
+            self.torque_target = float(max(-max_torque, min(max_torque, self._get(0x6071))))
+            self.cyclic_target = round(self.torque_target)
+            self.torque_from, self.torque_since_ns = self.torque_target, now
+            torque_nm = self.torque_target / 1000 * self.rated_torque
+            accel = torque_nm / self.inertia * self._counts_per_rad()
+            self.segments = prof.accelerate(now, p, v, accel, float(self._get(0x6080)))
+            end = now
+        self.arrival_ns = end if end > now else None
+        self.target_reached = self.arrival_ns is None
 
 
 def frame_of(msg: co.CanOpenMessage) -> can.Message:

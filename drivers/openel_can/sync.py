@@ -1,0 +1,251 @@
+"""SYNC from an EventTimer: :class:`CanSync`, the CANopen SYNC producer of one bus.
+
+The framework's :class:`~openel_async.EventTimer` drives the axes (an
+:class:`~openel_async.motion.AxisGroup` streams its setpoints on it); :class:`CanSync`
+observes the same timer and, at every tick, in the tick itself (a plain ``notify_timer``,
+no task hop):
+
+1. sends the RPDO each cyclic drive staged since the last tick (its latest set-point:
+   :meth:`stage`, called by :class:`~openel_can.cyclic402.Cia402CyclicDrive` from its
+   synchronous command path; a newer set-point of the same drive replaces the older);
+2. then the SYNC (COB-ID 0x080; with ``counter_overflow`` (CiA 301 0x1019, 2..240) one data
+   byte counting 1..overflow, else none), which latches them.
+
+Every RPDO of a cycle therefore goes out before the SYNC that latches it, in one burst at
+the tick's deadline. The synchronous TPDOs the drives send in answer to SYNC number ``k``
+(:attr:`CanSync.cycle` = ``k`` while they arrive) are taken by each drive as cycle
+``k``'s actual values (``Cia402CyclicDrive.feedback_cycle``). An AxisGroup computes the
+setpoints of tick ``k`` in its own task after the tick was delivered, so they leave with
+SYNC ``k + 1``: one period of transport delay, and a SYNC whose timing does not depend on
+how long the computation took.
+
+Missed cycles are counted, never burst: a tick the timer skipped (it woke a whole period
+late: ``TimerTick.missed_ticks``) sends nothing for the cycles it skipped, and a SYNC the bus
+could not take (down, transmit queue full) counts as missed too; both are in :attr:`stats`
+and logged (at most once a second). One SYNC producer per bus: a ``CanBus(sync_period=...)``
+with its own is refused.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Final, Protocol
+
+from openel_async.errors import BadParameterError, NotConnectedError, StateError
+from openel_async.logs import get_logger
+from openel_async.timer import EventTimer
+
+from . import canopen as co
+from .bus import CanBus, NodePort
+
+__all__ = ["CanSync", "SyncConsumer", "SyncStats"]
+
+log = get_logger(__name__)
+
+_NS_PER_S: Final = 1_000_000_000
+
+
+class SyncConsumer(Protocol):
+    """A drive that answers every SYNC with a TPDO (checked by :class:`CanSync`)."""
+
+    @property
+    def feedback_cycle(self) -> int:
+        """The SYNC (:attr:`CanSync.cycle`) of the last synchronous TPDO received."""
+        ...
+
+    async def set_cycle(self, period_ns: int) -> None:
+        """The cycle is ``period_ns`` from now on (a drive writes its 0x60C2)."""
+        ...
+
+
+@dataclass(frozen=True, slots=True)
+class SyncStats:
+    cycles: int
+    """SYNC messages sent."""
+    missed: int
+    """Cycles without a SYNC: ticks the timer skipped, SYNCs the bus could not take."""
+    rpdos: int
+    """RPDOs sent before a SYNC."""
+    dropped_rpdos: int
+    """Staged RPDOs the bus could not take (down, transmit queue full)."""
+    late_feedback: int
+    """Cycles in which a consumer's TPDO answering the previous SYNC had not arrived when
+    the next tick came."""
+
+
+class CanSync:
+    """The SYNC producer of one :class:`CanBus` on an :class:`EventTimer` (module docstring).
+
+    ``CanSync.of(bus)`` is the bus's one instance (shared by the drives on it);
+    :meth:`start` ties it to a timer, :meth:`stop` unties it.
+    """
+
+    def __init__(self, bus: CanBus) -> None:
+        if not isinstance(bus, CanBus):
+            raise BadParameterError("bus", bus, "an openel_can.CanBus")
+        self.bus = bus
+        self.timer: EventTimer | None = None
+        self.counter_overflow = 0
+        self.cycle = 0
+        """SYNC messages sent so far (the number of the latest)."""
+        self._counter = 0
+        self._staged: dict[int, bytes] = {}
+        self._consumers: list[SyncConsumer] = []
+        self._port: NodePort | None = None
+        self._missed = 0
+        self._rpdos = 0
+        self._dropped = 0
+        self._late = 0
+        self._last_warning_ns: int | None = None
+        self.log = log.bind(bus=bus.name)
+
+    @classmethod
+    def of(cls, bus: CanBus) -> CanSync:
+        """The bus's SYNC producer (one per bus, made on first use)."""
+        return bus.shared(CanSync, lambda: cls(bus))
+
+    # -- configuration ----------------------------------------------------------------------
+    @property
+    def running(self) -> bool:
+        """Tied to a timer (:meth:`start`)."""
+        return self.timer is not None
+
+    @property
+    def period_ns(self) -> int | None:
+        """The cycle: the timer's period (None before :meth:`start`)."""
+        return None if self.timer is None else self.timer.period_ns
+
+    def add_consumer(self, consumer: SyncConsumer) -> None:
+        """A drive answering every SYNC (its feedback is checked at each tick)."""
+        if consumer not in self._consumers:
+            self._consumers.append(consumer)
+
+    def remove_consumer(self, consumer: SyncConsumer) -> None:
+        if consumer in self._consumers:
+            self._consumers.remove(consumer)
+
+    async def start(self, timer: EventTimer, *, counter_overflow: int = 0) -> None:
+        """Produce SYNC on every tick of ``timer`` (it may be running; before or after the
+        timer's other observers: the RPDOs staged by the tick are sent first either way).
+        Each consumer is told the cycle first (``set_cycle``: a drive writes its 0x60C2 by
+        SDO), before the first SYNC.
+
+        ``counter_overflow``: 0 (no counter, an empty SYNC) or 2..240 (CiA 301 0x1019: the
+        counter runs 1..overflow; give the drives the same 0x1019)."""
+        if not isinstance(timer, EventTimer):
+            raise BadParameterError("timer", timer, "an EventTimer")
+        if (
+            isinstance(counter_overflow, bool)
+            or not isinstance(counter_overflow, int)
+            or not (counter_overflow == 0 or 2 <= counter_overflow <= 240)
+        ):
+            raise BadParameterError(
+                "counter_overflow", counter_overflow, "0 (no counter) or 2..240 (0x1019)"
+            )
+        if self.bus.sync_period is not None:
+            raise BadParameterError(
+                "bus",
+                self.bus.name,
+                f"a bus without its own SYNC producer (sync_period={self.bus.sync_period})",
+            )
+        if self.timer is not None:
+            raise StateError("start", f"driven by timer {self.timer.name!r}", ["stopped"])
+        for consumer in list(self._consumers):
+            await consumer.set_cycle(timer.period_ns)
+        if self.timer is not None:
+            raise StateError("start", f"driven by timer {self.timer.name!r}", ["stopped"])
+        self._port = self.bus.attach((), name="sync")
+        self.counter_overflow = counter_overflow
+        self._counter = 0
+        self.timer = timer
+        timer.add_observer(self)
+        self.log.info(
+            "can_sync_started",
+            timer=timer.name,
+            period_ms=timer.period_ms,
+            counter_overflow=counter_overflow,
+        )
+
+    def stop(self) -> None:
+        """No more SYNC (staged RPDOs are dropped): the drives hold their last target."""
+        timer, self.timer = self.timer, None
+        if timer is not None and self in timer.observers:
+            timer.remove_observer(self)
+        if self._port is not None:
+            self._port.close()
+            self._port = None
+        self._staged.clear()
+        if timer is not None:
+            self.log.info("can_sync_stopped", **self._stats_dict())
+
+    # -- the cycle --------------------------------------------------------------------------
+    def stage(self, cob_id: int, data: bytes) -> None:
+        """The RPDO to send before the next SYNC (replaces the one staged for ``cob_id``)."""
+        if self.timer is None:
+            raise StateError("stage", "no SYNC producer", ["CanSync.of(bus).start(timer) first"])
+        self._staged[cob_id] = data
+
+    def unstage(self, cob_id: int) -> None:
+        """Drop the RPDO staged for ``cob_id`` (its drive left the cyclic mode)."""
+        self._staged.pop(cob_id, None)
+
+    def notify_timer(self, timer: EventTimer) -> None:
+        """TimerObserver: the staged RPDOs, then SYNC (module docstring)."""
+        port = self._port
+        if port is None or timer is not self.timer:
+            return
+        fields = timer.last_tick_fields
+        if fields is not None and fields[3]:
+            self._count_missed(fields[3], fields[2], "timer skipped ticks")
+        if self.cycle:
+            for consumer in self._consumers:
+                if consumer.feedback_cycle < self.cycle:
+                    self._late += 1
+        staged, self._staged = self._staged, {}
+        try:
+            for cob_id, data in staged.items():
+                if port.send_nowait(cob_id, data):
+                    self._rpdos += 1
+                else:
+                    self._dropped += 1
+            sync = self._sync_data()
+            sent = port.send_nowait(co.SYNC_COB_ID, sync)
+        except NotConnectedError:
+            self._dropped += len(staged)
+            sent = False
+        if sent:
+            self.cycle += 1
+        else:
+            self._count_missed(1, timer.clock.now_ns(), "bus did not take the SYNC")
+
+    def _sync_data(self) -> bytes:
+        if not self.counter_overflow:
+            return b""
+        self._counter = self._counter % self.counter_overflow + 1
+        return bytes((self._counter,))
+
+    def _count_missed(self, cycles: int, now_ns: int, why: str) -> None:
+        self._missed += cycles
+        last = self._last_warning_ns
+        if last is None or now_ns - last >= _NS_PER_S:
+            self._last_warning_ns = now_ns
+            self.log.warning("can_sync_missed_cycles", cycles=cycles, why=why, total=self._missed)
+
+    # -- statistics -------------------------------------------------------------------------
+    @property
+    def stats(self) -> SyncStats:
+        return SyncStats(self.cycle, self._missed, self._rpdos, self._dropped, self._late)
+
+    def _stats_dict(self) -> dict[str, int]:
+        stats = self.stats
+        return {
+            "cycles": stats.cycles,
+            "missed": stats.missed,
+            "rpdos": stats.rpdos,
+            "dropped_rpdos": stats.dropped_rpdos,
+            "late_feedback": stats.late_feedback,
+        }
+
+    def __repr__(self) -> str:
+        timer = self.timer.name if self.timer is not None else None
+        return f"CanSync({self.bus.name!r}, timer={timer!r}, cycle={self.cycle})"
