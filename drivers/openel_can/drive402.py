@@ -43,23 +43,9 @@ SDO to |target - start| / tmAcc in increments/s², then the target velocity 0x60
 values in force before the first ramp (read once by SDO) are written back by the next
 plain velocity command, so ``tm_acc = 0`` keeps the drive's own acceleration.
 
-Faults: one report per fault. An EMCY is posted with the next statusword: when that
-statusword shows Fault or Fault reaction active, the ``fault(DEVICE_ERROR)`` it causes is
-the report (its reason names the EMCY), else ``post_error(DEVICE_ERROR)`` (a warning; code
-0x0000, "error reset", is only logged); a statusword in Fault or Fault reaction active, a
-heartbeat in another NMT state than Operational, a boot-up message -> ``fault(DEVICE_ERROR)``; no heartbeat for
-``heartbeat_timeout`` -> ``fault(DISCONNECTED)``; SDO timeout -> ``TimeoutError`` (a link
-fault: Error, ``ErrorId.TIMEOUT``); SDO abort -> :class:`~openel_can.sdo.SdoAbortError`
-(the state does not change); bus failure -> ``fault(BUS_ERROR)``.
-
-Heartbeat watchdog (:class:`~openel_async.safety.Watchdog`): :meth:`Cia402Drive.arm_watchdog`
-makes the bus produce the host's heartbeat (0x700 + ``host_node_id``, every timeout / 4, a
-task of the bus in the event loop: :meth:`~openel_can.bus.CanBus.produce_heartbeat`), then
-writes by SDO the abort connection option code 0x6007 = 3 (quick stop) and the drive's
-heartbeat consumer 0x1016:1 = ``host_node_id << 16 | timeout in ms`` (4..65535 ms). When
-the host's heartbeat stops (the loop stalls, the process dies) the drive raises EMCY 0x8130
-and quick-stops; the driver reports that episode as ``fault(WATCHDOG)``.
-:meth:`Cia402Drive.disarm_watchdog` writes 0x1016:1 = 0, then releases the producer.
+Faults (one report per fault: EMCY, statusword, heartbeat, boot-up, SDO, bus) and the
+heartbeat watchdog (``arm_watchdog``/``disarm_watchdog``: the drive quick-stops when the
+host's heartbeat stops) are the node's: see :mod:`openel_can.node402`.
 
 Units: positions ``rad = counts * 2π / counts_per_rev``, velocities in counts/s the same
 way, torques in per mille of the rated torque (Nm at the API).
