@@ -9,8 +9,10 @@
     tooling: reads the dictionary by SDO, remaps and saves the PDOs, starts the node,
     produces SYNC, receives TPDOs and drives the CiA 402 state machine through a
     profile-position move by its RPDO -- on ``virtual`` and
-(c) through python-can's ``slcan`` interface on a pty, against our simulated slcan
-    adapter (:class:`~openel_can.sim.slcan.SlcanAdapter`) hosting the drive.
+(c) (a) and (b) through python-can's ``slcan`` interface on a pty, against our
+    simulated slcan adapter (:class:`~openel_can.sim.slcan.SlcanAdapter`): our host bus
+    on the pty and canopen's LocalNode on the adapter's CAN side; canopen's master on the
+    pty and our drive hosted by the adapter.
 
 canopen runs its own bus and notifier thread; its blocking calls run in a worker thread.
 Every wait is bounded (canopen's SDO response timeout, ``wait_for_reception`` timeouts,
@@ -98,6 +100,29 @@ class _LocalDrive:
 async def test_our_master_maps_and_starts_a_canopen_local_node(
     network: canopen.Network, host_bus: CanBus
 ) -> None:
+    await _our_master(network, host_bus)
+
+
+async def test_our_master_through_slcan_maps_and_starts_a_canopen_local_node() -> None:
+    with SlcanAdapter() as adapter:
+        net = canopen.Network()
+        net.connect(interface="virtual", channel=adapter.channel, receive_own_messages=False)
+        try:
+            async with CanBus(
+                interface="slcan",
+                channel=adapter.port,
+                bitrate=1_000_000,
+                sleep_after_open=0,
+                poll_interval=0.01,
+                name="host-slcan",
+            ) as bus:
+                await _our_master(net, bus)
+        finally:
+            net.disconnect()
+    assert adapter.stats.errors == 0
+
+
+async def _our_master(network: canopen.Network, host_bus: CanBus) -> None:
     local = canopen.LocalNode(NODE, str(SHIPPED_EDS))
     network.add_node(local)
     local.nmt.state = "PRE-OPERATIONAL"
