@@ -1,340 +1,559 @@
-"""PDO maps: which objects each RPDO and TPDO of a node carries, how it is transmitted, and
-their configuration by SDO as CiA 301 prescribes, read back and verified.
+"""PDO maps: which objects each RPDO/TPDO carries, how it is sent, written and verified.
 
-A :class:`PdoMap` names its PDO (``rpdo`` or ``tpdo`` and its number, 1..512), the objects it
-carries (by name, index text or ``(index, subindex)``, as :mod:`openel_can.od` finds them),
-its COB-ID (default: the predefined connection set for PDOs 1..4) and its transmission:
+A :class:`PdoSpec` describes one PDO as a rig file does (msgspec: :func:`parse_pdos`
+reads the ``pdos:`` entry of a device's params, :func:`dump_pdos` writes it back)::
 
-* ``transmission`` 1..240: synchronous, sent (TPDO) or applied (RPDO) every n-th SYNC;
-* 0: synchronous acyclic (a TPDO on the SYNC after a change);
-* 254 / 255: event-driven (manufacturer / device profile specific), with a TPDO's
-  ``inhibit_time`` (0x18xx:3, in 100 us) and ``event_timer`` (0x18xx:5, in ms).
+    pdos:
+      - {pdo: rpdo1, objects: [Controlword, Target position], trigger: sync}
+      - {pdo: tpdo1, objects: [Statusword, "0x6064"], trigger: sync, every: 1}
+      - {pdo: tpdo2, objects: [Velocity actual value], trigger: event,
+         inhibit_us: 500, event_ms: 10}
 
-:func:`resolve_maps` checks maps against a node's object dictionary before anything is
-sent: an object that is not there, not PDO-mappable, not writable for an RPDO or readable
-for a TPDO, not of a fixed size, or more than 64 bits in one PDO is refused with a
-``BadParameterError`` naming the object (or the PDO) and what is allowed.
-:func:`configure_pdos` writes them by SDO (the node in PRE-OPERATIONAL) in the order of
-CiA 301 §7.5.2.36: the COB-ID with bit 31 set (PDO invalid), the transmission type, inhibit
-time and event timer, the number of mapped objects 0, each mapping entry, the number of
-entries, the COB-ID without bit 31; then reads every written entry back and refuses
-(``PdoMappingError``) a node that holds another value. A node that refuses to map an object
-(abort 0x06040041, not mappable; 0x06040042, the mapping too long) raises ``PdoMappingError``
-naming the PDO, the object and the abort.
+* ``pdo``: ``rpdo1`` .. ``rpdo512`` (master -> node) or ``tpdo1`` .. ``tpdo512``;
+* ``objects``: by name or index text (:data:`openel_can.od.ObjectKey`), in frame order;
+* ``trigger``: ``sync`` -- transmission type ``every`` (1..240): a TPDO is sent on every
+  ``every``-th SYNC, an RPDO is applied at the next SYNC -- or ``event`` (type 0xFF, the
+  device profile's event: a TPDO when its data changes and every ``event_ms``, never
+  closer than ``inhibit_us``; an RPDO applied at once);
+* ``cob_id``: the 11-bit CAN id (default: the CiA 301 predefined set for PDOs 1..4,
+  0x180/0x200 + 0x100 * (n - 1) + node id); ``enabled`` False disables the PDO.
 
-:func:`cia402_maps` gives the CiA 402 maps of each mode of operation: profile modes
-(event-driven feedback) and the cyclic synchronous ones (every SYNC). :class:`PdoSpec` is the
-strict form of a map in a rig file (``params: {pdos: [...]}``).
+:func:`resolve_pdos` checks specs against the node's object dictionary
+(:class:`openel_can.od.ObjectDictionary`) and gives :class:`ResolvedPdo` items (the
+mapping entries, COB-ID, transmission type, a codec to pack RPDOs and unpack TPDOs). A
+spec the node would refuse is a :class:`PdoMapError` (a ``BadParameterError``) naming the
+PDO and the object: an unknown object, an object the file does not mark PDO-mappable,
+an object mapped twice in one PDO, one of the wrong direction (an RPDO writes: ``wo``/``rw``/``rww``; a TPDO reads:
+``ro``/``const``/``rw``/``rwr``), more than 64 bits, more objects than the mapping
+record holds, a PDO number the file does not have, timers on a PDO whose communication
+record has no such entry, two PDOs on one COB-ID.
+
+:func:`configure_pdos` writes them by SDO with the CiA 301 sequence, for each PDO:
+
+1. COB-ID (comm sub 1) with bit 31 set: the PDO is invalid while it changes;
+2. mapping sub 0 = 0: the mapping is cleared;
+3. mapping sub 1..n = ``index << 16 | subindex << 8 | bits``;
+4. mapping sub 0 = n;
+5. transmission type (sub 2), inhibit time (sub 3, 100 µs) and event timer (sub 5, ms)
+   where the record has them;
+6. COB-ID without bit 31: the PDO is valid again (a disabled spec keeps it set).
+
+PDOs of the dictionary that no spec names are disabled (``disable_unused``). Then every
+written entry is read back: a value that differs raises :class:`PdoVerifyError` naming
+the PDO, the entry and both values; a refusal by the node (an SDO abort) raises
+:class:`PdoConfigError` naming the PDO, the entry and the mapped object. The node must be
+in PRE-OPERATIONAL (the caller sends NMT enter pre-operational before and NMT start
+after). :func:`default_pdos` gives sensible CiA 402 maps per mode, :func:`maps_from_od`
+the PDOs a DCF configures.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Annotated, Final, Literal
 
 import msgspec
 
 from openel_async.errors import BadParameterError, HALError
+from openel_async.logs import get_logger
 
 from . import canopen as co
-from .od import ObjectDictionary, ObjectKey, OdEntry
+from . import cia402 as ds
+from .od import ObjectDictionary, ObjectNotFoundError, OdEntry
 from .sdo import SdoAbortError, SdoClient
 
 __all__ = [
     "MAX_PDO_BITS",
-    "PdoMap",
-    "PdoMappingError",
+    "PdoConfigError",
+    "PdoMapError",
     "PdoSpec",
+    "PdoVerifyError",
     "ResolvedPdo",
-    "cia402_maps",
     "configure_pdos",
-    "read_pdo",
-    "resolve_maps",
+    "default_pdos",
+    "dump_pdos",
+    "maps_from_od",
+    "parse_pdos",
+    "resolve_pdos",
 ]
 
-MAX_PDO_BITS = 64
-"""The data of a classical CAN frame."""
+log = get_logger(__name__)
 
-Direction = Literal["rpdo", "tpdo"]
-_U8, _U16, _U32 = co.DataType.UNSIGNED8, co.DataType.UNSIGNED16, co.DataType.UNSIGNED32
+MAX_PDO_BITS: Final = 64
+_PDO_NAME: Final = re.compile(r"^(rpdo|tpdo)([1-9][0-9]{0,2})$", re.IGNORECASE)
+_RTR_NOT_ALLOWED: Final = 0x4000_0000
+_EVENT: Final = 0xFF
+
+ObjectName = str | tuple[int, int]
 
 
-class PdoMappingError(HALError):
-    """The node holds another PDO configuration than the one written."""
+class PdoSpec(
+    msgspec.Struct, frozen=True, forbid_unknown_fields=True, kw_only=True, omit_defaults=True
+):
+    """One PDO as a rig file or a program says it (see the module docstring)."""
+
+    pdo: Annotated[str, msgspec.Meta(pattern=r"^(?i:rpdo|tpdo)[1-9][0-9]{0,2}$")]
+    objects: tuple[ObjectName, ...] = ()
+    trigger: Literal["sync", "event"] = "event"
+    every: Annotated[int, msgspec.Meta(ge=1, le=240)] = 1
+    inhibit_us: Annotated[int, msgspec.Meta(ge=0, le=6_553_500, multiple_of=100)] = 0
+    event_ms: Annotated[int, msgspec.Meta(ge=0, le=0xFFFF)] = 0
+    cob_id: Annotated[int, msgspec.Meta(ge=1, le=0x7FF)] | None = None
+    enabled: bool = True
 
 
-@dataclass(frozen=True)
-class PdoMap:
-    """One PDO of a node: see the module docstring."""
+def parse_pdos(raw: object, *, where: str = "pdos") -> tuple[PdoSpec, ...]:
+    """The specs of a rig file's ``pdos:`` entry (a list of mappings);
+    ``BadParameterError`` naming the position of a bad one."""
+    try:
+        return msgspec.convert(raw, tuple[PdoSpec, ...], strict=True)
+    except msgspec.ValidationError as exc:
+        raise BadParameterError(where, raw, f"a list of PDO maps ({exc})") from None
 
-    direction: Direction
-    number: int
-    objects: tuple[ObjectKey, ...]
-    transmission: int = 1
-    cob_id: int | None = None
-    inhibit_time: int | None = None
-    """TPDO only: the minimum time between two transmissions, in 100 us."""
-    event_timer: int | None = None
-    """TPDO only: ms between event-driven transmissions (0: none)."""
 
-    @property
-    def name(self) -> str:
-        return f"{self.direction.upper()}{self.number}"
+def dump_pdos(specs: Sequence[PdoSpec]) -> list[dict[str, object]]:
+    """Plain data of ``specs`` (defaults omitted): what a rig file's ``pdos:`` holds."""
+    out: list[dict[str, object]] = msgspec.json.decode(msgspec.json.encode(tuple(specs)))
+    return out
+
+
+class PdoMapError(BadParameterError):
+    """A PDO map the node would refuse; the message names the PDO and the object."""
+
+
+class PdoConfigError(HALError):
+    """The node refused a write of the PDO configuration (an SDO abort)."""
+
+
+class PdoVerifyError(HALError):
+    """A PDO configuration entry read back differs from what was written."""
 
 
 @dataclass(frozen=True)
 class ResolvedPdo:
-    """A map checked against a node's dictionary: its objects' entries and where it lives."""
+    """A spec checked against an object dictionary: what is written and how frames are
+    packed (RPDO) or unpacked (TPDO)."""
 
-    map: PdoMap
-    entries: tuple[OdEntry, ...]
+    spec: PdoSpec
+    transmit: bool
+    """True for a TPDO (node -> master)."""
+    number: int
     cob_id: int
-    communication: int
-    """The communication parameter's index (0x1400 + n - 1, 0x1800 + n - 1)."""
-    mapping: int
-    """The mapping parameter's index (0x1600 + n - 1, 0x1A00 + n - 1)."""
+    transmission_type: int
+    inhibit: int
+    """Inhibit time in 100 µs units."""
+    event_ms: int
+    entries: tuple[OdEntry, ...]
+    comm: Mapping[int, OdEntry]
+    """The communication record's entries by sub-index (1, 2 and 3/5 where present)."""
+    mapping: Mapping[int, OdEntry]
+    """The mapping record's entries by sub-index (0 .. highest)."""
+
+    @property
+    def name(self) -> str:
+        return f"{'TPDO' if self.transmit else 'RPDO'}{self.number}"
+
+    @property
+    def comm_index(self) -> int:
+        return (co.TPDO_COMM_BASE if self.transmit else co.RPDO_COMM_BASE) + self.number - 1
+
+    @property
+    def map_index(self) -> int:
+        return (co.TPDO_MAPPING_BASE if self.transmit else co.RPDO_MAPPING_BASE) + self.number - 1
 
     @property
     def map_entries(self) -> tuple[co.PdoMapEntry, ...]:
-        return tuple(entry.map_entry() for entry in self.entries)
+        return tuple(e.map_entry() for e in self.entries)
 
     @property
     def bits(self) -> int:
-        return sum(e.bit_length for e in self.map_entries)
+        return sum(e.bit_length or 0 for e in self.entries)
 
+    @property
     def codec(self) -> co.PdoCodec:
-        """Packs and unpacks this PDO's data."""
         return co.PdoCodec(self.map_entries)
 
+    def pack(self, values: Mapping[str, int] | Sequence[int]) -> bytes:
+        """The frame data of ``values`` (by object name, or in map order)."""
+        if isinstance(values, Mapping):
+            missing = [e.name for e in self.entries if e.name not in values]
+            if missing:
+                raise BadParameterError(
+                    "values", dict(values), f"a value for each of {[e.name for e in self.entries]}"
+                )
+            ordered = [int(values[e.name]) for e in self.entries]
+        else:
+            ordered = [int(v) for v in values]
+        try:
+            return self.codec.pack(ordered)
+        except ValueError as exc:
+            raise BadParameterError(f"{self.name} values", ordered, str(exc)) from None
 
-def _check_map(m: PdoMap) -> None:
-    if m.direction not in ("rpdo", "tpdo"):
-        raise BadParameterError("direction", m.direction, "'rpdo' or 'tpdo'")
-    if isinstance(m.number, bool) or not isinstance(m.number, int) or not 1 <= m.number <= 512:
-        raise BadParameterError(f"{m.name}.number", m.number, "a PDO number in 1..512")
-    if not m.objects:
-        raise BadParameterError(f"{m.name}.objects", [], "at least one object")
-    if len(m.objects) > 8:  # one mapping entry per sub-index 1..8 is all a frame can carry
-        raise BadParameterError(f"{m.name}.objects", list(m.objects), "at most 8 objects")
-    t = m.transmission
-    if isinstance(t, bool) or not isinstance(t, int) or not (0 <= t <= 240 or t in (254, 255)):
-        raise BadParameterError(
-            f"{m.name}.transmission", t, "0 (acyclic), 1..240 (every n SYNCs), 254 or 255"
-        )
-    for key, value, bits in (
-        ("inhibit_time", m.inhibit_time, 16),
-        ("event_timer", m.event_timer, 16),
-    ):
-        if value is None:
-            continue
-        if m.direction == "rpdo":
-            raise BadParameterError(f"{m.name}.{key}", value, "a TPDO's parameter (not an RPDO's)")
-        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 1 << bits:
-            raise BadParameterError(f"{m.name}.{key}", value, f"0..{(1 << bits) - 1}")
-    if m.cob_id is not None and (
-        isinstance(m.cob_id, bool)
-        or not isinstance(m.cob_id, int)
-        or not 0x001 <= m.cob_id <= 0x7FF
-    ):
-        raise BadParameterError(f"{m.name}.cob_id", m.cob_id, "an 11-bit CAN id in 0x001..0x7FF")
+    def unpack(self, data: bytes | bytearray) -> dict[str, int]:
+        """The values in a received frame, by object name (``CanOpenDecodeError`` when it
+        is too short)."""
+        return dict(zip((e.name for e in self.entries), self.codec.unpack(data), strict=True))
 
 
-def resolve_maps(
-    maps: Sequence[PdoMap], od: ObjectDictionary, node_id: int
+def _pdo_number(text: str, where: str) -> tuple[bool, int]:
+    match = _PDO_NAME.match(text.strip())
+    if match is None or not 1 <= int(match.group(2)) <= 512:
+        raise PdoMapError(f"{where}.pdo", text, "rpdo1..rpdo512 or tpdo1..tpdo512")
+    return match.group(1).lower() == "tpdo", int(match.group(2))
+
+
+def _record(od: ObjectDictionary, index: int) -> dict[int, OdEntry]:
+    return {e.subindex: e for e in od.subentries(index)}
+
+
+def resolve_pdos(
+    specs: Sequence[PdoSpec], od: ObjectDictionary, *, node_id: int | None = None
 ) -> tuple[ResolvedPdo, ...]:
-    """``maps`` checked against ``od`` (see the module docstring); nothing is sent."""
-    seen: set[tuple[str, int]] = set()
-    resolved = []
-    for m in maps:
-        _check_map(m)
-        if (m.direction, m.number) in seen:
-            raise BadParameterError(m.name, list(m.objects), "one map per PDO")
-        seen.add((m.direction, m.number))
-        entries = []
-        for key in m.objects:
-            entry = od.entry(key)
-            mappable = entry.rpdo_mappable if m.direction == "rpdo" else entry.tpdo_mappable
-            if not mappable:
-                why = (
-                    "not PDO-mappable"
-                    if not entry.pdo_mappable
-                    else f"access {entry.access}: not {'writable' if m.direction == 'rpdo' else 'readable'} by a PDO"
+    """Check ``specs`` against ``od`` (see the module docstring); ``node_id`` (default the
+    dictionary's) gives the predefined COB-IDs."""
+    node = od.node_id if node_id is None else node_id
+    resolved: list[ResolvedPdo] = []
+    seen: dict[tuple[bool, int], str] = {}
+    cob_ids: dict[int, str] = {}
+    for i, spec in enumerate(specs):
+        where = f"pdos[{i}]"
+        if not isinstance(spec, PdoSpec):
+            raise PdoMapError(where, spec, "a PdoSpec")
+        transmit, number = _pdo_number(spec.pdo, where)
+        kind = "TPDO" if transmit else "RPDO"
+        name = f"{kind}{number}"
+        if (transmit, number) in seen:
+            raise PdoMapError(
+                f"{where}.pdo", spec.pdo, f"each PDO once ({name} is also {seen[transmit, number]})"
+            )
+        seen[transmit, number] = where
+        comm_index = (co.TPDO_COMM_BASE if transmit else co.RPDO_COMM_BASE) + number - 1
+        map_index = (co.TPDO_MAPPING_BASE if transmit else co.RPDO_MAPPING_BASE) + number - 1
+        comm, mapping = _record(od, comm_index), _record(od, map_index)
+        if 1 not in comm or 2 not in comm or 0 not in mapping:
+            have = sorted(
+                n + 1
+                for n in range(512)
+                if od.find(((co.TPDO_COMM_BASE if transmit else co.RPDO_COMM_BASE) + n, 1))
+            )
+            raise PdoMapError(
+                f"{where}.pdo",
+                spec.pdo,
+                f"a {kind} of {od.source} ({kind}s {_ranges(have) or 'none'}: {comm_index:#06x}/"
+                f"{map_index:#06x} are not in the file)",
+            )
+        slots = max(mapping) if mapping else 0
+        if len(spec.objects) > slots:
+            raise PdoMapError(
+                f"{where}.objects",
+                list(spec.objects),
+                f"at most {slots} objects: {name}'s mapping {map_index:#06x} has sub-indices 1..{slots}",
+            )
+        entries: list[OdEntry] = []
+        bits = 0
+        for j, key in enumerate(spec.objects):
+            at = f"{where}.objects[{j}]"
+            try:
+                entry = od.entry(key)
+            except ObjectNotFoundError as exc:
+                raise PdoMapError(at, key, f"an object of {od.source}: {exc.allowed}") from None
+            if entry in entries:
+                raise PdoMapError(
+                    at, key, f"each object once per PDO: {entry.label} is mapped twice"
                 )
-                raise BadParameterError(
-                    f"{m.name}.objects",
-                    entry.label,
-                    f"an object {'an RPDO writes' if m.direction == 'rpdo' else 'a TPDO reads'} "
-                    f"({entry.label} is {why} in {od.source})",
+            if not entry.pdo_mappable:
+                raise PdoMapError(
+                    at,
+                    key,
+                    f"a PDO-mappable object: {entry.label} is not (PDOMapping=0 in {od.source})",
                 )
-            if entry.bit_length is None:
-                raise BadParameterError(
-                    f"{m.name}.objects", entry.label, "an object of a fixed size"
+            if not (entry.tpdo_mappable if transmit else entry.rpdo_mappable):
+                need = (
+                    "readable by the node (ro, const, rw, rwr)"
+                    if transmit
+                    else "written by the master (wo, rw, rww)"
+                )
+                raise PdoMapError(
+                    at,
+                    key,
+                    f"an object a {kind} can carry, {need}: {entry.label} is {entry.access}",
+                )
+            if not entry.is_integer or entry.bit_length is None:
+                raise PdoMapError(at, key, f"an integer object: {entry.label} is {entry.type_name}")
+            bits += entry.bit_length
+            if bits > MAX_PDO_BITS:
+                raise PdoMapError(
+                    at,
+                    key,
+                    f"at most {MAX_PDO_BITS} bits in {name}: {entry.label} ({entry.bit_length} "
+                    f"bits) makes {bits}",
                 )
             entries.append(entry)
-        bits = sum(e.bit_length or 0 for e in entries)
-        if bits > MAX_PDO_BITS:
-            raise BadParameterError(
-                f"{m.name}.objects",
-                " + ".join(f"{e.name} ({e.bit_length})" for e in entries),
-                f"at most {MAX_PDO_BITS} bits in one PDO ({bits} given)",
-            )
-        n = m.number
-        if m.cob_id is not None:
-            cob_id = m.cob_id
-        elif n <= 4:
-            cob_id = (
-                co.rpdo_cob_id(n, node_id) if m.direction == "rpdo" else co.tpdo_cob_id(n, node_id)
-            )
-        else:
-            raise BadParameterError(
-                f"{m.name}.cob_id", None, "a COB-ID (PDOs above 4 have no default)"
-            )
-        base = (
-            (co.RPDO_COMM_BASE, co.RPDO_MAPPING_BASE)
-            if m.direction == "rpdo"
-            else (
-                co.TPDO_COMM_BASE,
-                co.TPDO_MAPPING_BASE,
+        if spec.trigger == "event" and spec.every != 1:
+            raise PdoMapError(f"{where}.every", spec.every, "1: 'every' applies to trigger sync")
+        for sub, field, value in (
+            (3, "inhibit_us", spec.inhibit_us),
+            (5, "event_ms", spec.event_ms),
+        ):
+            if value and spec.trigger == "sync":
+                raise PdoMapError(
+                    f"{where}.{field}", value, "0: a synchronous PDO has no timers (trigger event)"
+                )
+            if value and sub not in comm:
+                raise PdoMapError(
+                    f"{where}.{field}",
+                    value,
+                    f"0: {name}'s communication record {comm_index:#06x} has no sub-index {sub}",
+                )
+        cob_id = spec.cob_id
+        if cob_id is None:
+            if number > 4 or node is None:
+                raise PdoMapError(
+                    f"{where}.cob_id",
+                    None,
+                    "a COB-ID: the predefined set covers PDOs 1..4 of a known node id"
+                    if number > 4
+                    else "a COB-ID, or a node id to derive it (the dictionary has none)",
+                )
+            cob_id = co.tpdo_cob_id(number, node) if transmit else co.rpdo_cob_id(number, node)
+        if spec.enabled:
+            if cob_id in cob_ids:
+                raise PdoMapError(
+                    f"{where}.cob_id",
+                    hex(cob_id),
+                    f"a COB-ID of its own ({cob_ids[cob_id]} uses it)",
+                )
+            cob_ids[cob_id] = name
+        resolved.append(
+            ResolvedPdo(
+                spec=spec,
+                transmit=transmit,
+                number=number,
+                cob_id=cob_id,
+                transmission_type=spec.every if spec.trigger == "sync" else _EVENT,
+                inhibit=spec.inhibit_us // 100,
+                event_ms=spec.event_ms,
+                entries=tuple(entries),
+                comm={s: e for s, e in comm.items() if s in (1, 2, 3, 5)},
+                mapping=mapping,
             )
         )
-        resolved.append(ResolvedPdo(m, tuple(entries), cob_id, base[0] + n - 1, base[1] + n - 1))
     return tuple(resolved)
 
 
-def _writes(p: ResolvedPdo) -> list[tuple[co.ObjectEntry, int]]:
-    """The SDO writes that configure ``p``, in CiA 301's order."""
-    comm, mapping, m = p.communication, p.mapping, p.map
-    writes = [(co.ObjectEntry(comm, 1, _U32), p.cob_id | co.PDO_COB_ID_INVALID)]
-    writes.append((co.ObjectEntry(comm, 2, _U8), m.transmission))
-    if m.inhibit_time is not None:
-        writes.append((co.ObjectEntry(comm, 3, _U16), m.inhibit_time))
-    if m.event_timer is not None:
-        writes.append((co.ObjectEntry(comm, 5, _U16), m.event_timer))
-    writes.append((co.ObjectEntry(mapping, 0, _U8), 0))
-    for sub, entry in enumerate(p.map_entries, start=1):
-        writes.append((co.ObjectEntry(mapping, sub, _U32), entry.to_u32()))
-    writes.append((co.ObjectEntry(mapping, 0, _U8), len(p.entries)))
-    writes.append((co.ObjectEntry(comm, 1, _U32), p.cob_id))
-    return writes
+def _ranges(numbers: Sequence[int]) -> str:
+    if not numbers:
+        return ""
+    return f"{numbers[0]}..{numbers[-1]}" if len(numbers) > 1 else str(numbers[0])
 
 
-async def configure_pdos(
-    sdo: SdoClient,
-    pdos: Sequence[ResolvedPdo],
-    *,
-    timeout: float | None = None,  # noqa: ASYNC109
-) -> None:
-    """Write ``pdos`` to the node (in PRE-OPERATIONAL) and verify them by reading back."""
-    for p in pdos:
-        for entry, value in _writes(p):
-            try:
-                await sdo.write(entry, value, timeout=timeout)
-            except SdoAbortError as exc:
-                if entry.index != p.mapping or value == 0:
-                    raise
-                # an entry (sub 1..8), or the count (sub 0), where a node checks the whole map
-                refused = [p.entries[entry.subindex - 1]] if entry.subindex else p.entries
-                raise PdoMappingError(
-                    f"node {sdo.node_id} {p.map.name}: the node refused to map "
-                    f"{', '.join(e.label for e in refused)} ({exc})"
-                ) from exc
-    for p in pdos:
-        held = await read_pdo(sdo, p.map.direction, p.map.number, timeout=timeout)
-        expected = (p.cob_id, p.map.transmission, tuple(e.to_u32() for e in p.map_entries))
-        if held != expected:
-            raise PdoMappingError(
-                f"node {sdo.node_id} {p.map.name}: holds COB-ID {held[0]:#x}, transmission "
-                f"{held[1]}, mapping {[f'{v:#010x}' for v in held[2]]} after it was written "
-                f"{expected[0]:#x}, {expected[1]}, {[f'{v:#010x}' for v in expected[2]]}"
-            )
-
-
-async def read_pdo(
-    sdo: SdoClient,
-    direction: Direction,
-    number: int,
-    *,
-    timeout: float | None = None,  # noqa: ASYNC109
-) -> tuple[int, int, tuple[int, ...]]:
-    """A PDO as the node holds it: (COB-ID, transmission type, mapping entries as u32)."""
-    comm = (co.RPDO_COMM_BASE if direction == "rpdo" else co.TPDO_COMM_BASE) + number - 1
-    mapping = (co.RPDO_MAPPING_BASE if direction == "rpdo" else co.TPDO_MAPPING_BASE) + number - 1
-    cob_id = await sdo.read(co.ObjectEntry(comm, 1, _U32), timeout=timeout)
-    transmission = await sdo.read(co.ObjectEntry(comm, 2, _U8), timeout=timeout)
-    count = await sdo.read(co.ObjectEntry(mapping, 0, _U8), timeout=timeout)
-    entries = [
-        await sdo.read(co.ObjectEntry(mapping, sub, _U32), timeout=timeout)
-        for sub in range(1, count + 1)
-    ]
-    return cob_id, transmission, tuple(entries)
-
-
-Mode = Literal["pp", "pv", "tq", "csp", "csv", "cst"]
-_TARGETS: dict[str, str] = {
-    "pp": "Target position",
-    "csp": "Target position",
-    "pv": "Target velocity",
-    "csv": "Target velocity",
-    "tq": "Target torque",
-    "cst": "Target torque",
+# -- defaults ---------------------------------------------------------------------------------
+_MODE_NAMES: Final[dict[str, int]] = {
+    "pp": ds.ModeOfOperation.PROFILE_POSITION,
+    "pv": ds.ModeOfOperation.PROFILE_VELOCITY,
+    "tq": ds.ModeOfOperation.PROFILE_TORQUE,
+    "csp": ds.ModeOfOperation.CYCLIC_SYNC_POSITION,
+    "csv": ds.ModeOfOperation.CYCLIC_SYNC_VELOCITY,
+    "cst": ds.ModeOfOperation.CYCLIC_SYNC_TORQUE,
 }
+_TARGETS: Final[dict[int, str]] = {
+    ds.ModeOfOperation.PROFILE_POSITION: "0x607A",
+    ds.ModeOfOperation.PROFILE_VELOCITY: "0x60FF",
+    ds.ModeOfOperation.PROFILE_TORQUE: "0x6071",
+    ds.ModeOfOperation.CYCLIC_SYNC_POSITION: "0x607A",
+    ds.ModeOfOperation.CYCLIC_SYNC_VELOCITY: "0x60FF",
+    ds.ModeOfOperation.CYCLIC_SYNC_TORQUE: "0x6071",
+}
+_CYCLIC: Final = frozenset(
+    (
+        ds.ModeOfOperation.CYCLIC_SYNC_POSITION,
+        ds.ModeOfOperation.CYCLIC_SYNC_VELOCITY,
+        ds.ModeOfOperation.CYCLIC_SYNC_TORQUE,
+    )
+)
 
 
-def cia402_maps(mode: Mode, *, event_timer: int = 10) -> tuple[PdoMap, ...]:
-    """The CiA 402 maps of a mode: RPDO1 controlword and the mode's target; TPDO1 statusword,
-    position and torque actual; TPDO2 velocity actual and the mode display. Cyclic
-    synchronous modes (csp, csv, cst) send and apply them every SYNC; profile modes (pp,
-    pv, tq) apply the RPDO at once and send the TPDOs on change and every ``event_timer``
-    ms."""
-    if mode not in _TARGETS:
-        raise BadParameterError("mode", mode, f"one of {', '.join(_TARGETS)}")
-    cyclic = mode.startswith("cs")
-    rx = 1 if cyclic else 255
-    tx_timer = None if cyclic else event_timer
+def default_pdos(mode: str | int, *, every: int = 1, event_ms: int = 10) -> tuple[PdoSpec, ...]:
+    """Sensible CiA 402 maps for ``mode`` (``pp``/``pv``/``tq``/``csp``/``csv``/``cst`` or
+    its 0x6060 value), objects by index so any vendor's EDS names them:
+
+    ========  ===============================================  ==========================
+    RPDO1     controlword 0x6040 + the mode's target:          cyclic modes: sync
+              0x607A (pp, csp), 0x60FF (pv, csv), 0x6071       (``every``); profile
+              (tq, cst)                                        modes: event
+    TPDO1     statusword 0x6041, position actual 0x6064,       cyclic: on every
+              torque actual 0x6077                             ``every``-th SYNC;
+    TPDO2     velocity actual 0x606C, mode display 0x6061      profile: event, timer
+                                                               ``event_ms``
+    ========  ===============================================  ==========================
+
+    Other PDOs are left out (:func:`configure_pdos` disables them).
+    """
+    value = _MODE_NAMES.get(mode.lower()) if isinstance(mode, str) else mode
+    if value not in _TARGETS:
+        raise BadParameterError(
+            "mode", mode, "one of " + ", ".join(_MODE_NAMES) + " (or 1, 3, 4, 8, 9, 10)"
+        )
+    assert value is not None
+    tpdos = (("0x6041", "0x6064", "0x6077"), ("0x606C", "0x6061"))
+    if value in _CYCLIC:
+        return (
+            PdoSpec(pdo="rpdo1", objects=("0x6040", _TARGETS[value]), trigger="sync", every=every),
+            *(
+                PdoSpec(pdo=f"tpdo{n}", objects=objs, trigger="sync", every=every)
+                for n, objs in enumerate(tpdos, start=1)
+            ),
+        )
     return (
-        PdoMap("rpdo", 1, ("Controlword", _TARGETS[mode]), transmission=rx),
-        PdoMap(
-            "tpdo",
-            1,
-            ("Statusword", "Position actual value", "Torque actual value"),
-            transmission=rx,
-            event_timer=tx_timer,
-        ),
-        PdoMap(
-            "tpdo",
-            2,
-            ("Velocity actual value", "Modes of operation display"),
-            transmission=rx,
-            event_timer=tx_timer,
+        PdoSpec(pdo="rpdo1", objects=("0x6040", _TARGETS[value])),
+        *(
+            PdoSpec(pdo=f"tpdo{n}", objects=objs, event_ms=event_ms)
+            for n, objs in enumerate(tpdos, start=1)
         ),
     )
 
 
-class PdoSpec(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
-    """A PDO map in a rig file (a drive's ``params: {pdos: [...]}``)."""
+def maps_from_od(od: ObjectDictionary, *, configured_only: bool = True) -> tuple[PdoSpec, ...]:
+    """The PDOs a DCF configures (``configured_only``: those with a ParameterValue in
+    their communication or mapping record; else every PDO of the file), from their
+    values (parameter value, else default): objects as index texts, COB-ID, trigger
+    (types 1..240 sync, 0xFE/0xFF event; type 0, acyclic synchronous, is refused),
+    inhibit time, event timer, enabled (bit 31 clear)."""
+    specs: list[PdoSpec] = []
+    for transmit in (False, True):
+        comm_base = co.TPDO_COMM_BASE if transmit else co.RPDO_COMM_BASE
+        map_base = co.TPDO_MAPPING_BASE if transmit else co.RPDO_MAPPING_BASE
+        for n in range(512):
+            comm, mapping = _record(od, comm_base + n), _record(od, map_base + n)
+            if 1 not in comm or 2 not in comm or 0 not in mapping:
+                continue
+            records = (*comm.values(), *mapping.values())
+            if configured_only and all(e.parameter_value is None for e in records):
+                continue
+            name = f"{'tpdo' if transmit else 'rpdo'}{n + 1}"
+            cob = _int(comm[1])
+            ttype = _int(comm[2])
+            count = _int(mapping[0])
+            objects: list[ObjectName] = []
+            for sub in range(1, count + 1):
+                raw = _int(mapping[sub]) if sub in mapping else 0
+                objects.append(f"0x{raw >> 16:04X}:{(raw >> 8) & 0xFF:X}")
+            if ttype == 0 or 240 < ttype < 0xFE:
+                raise PdoMapError(
+                    f"{od.source} {name} transmission type", ttype, "1..240, 0xFE or 0xFF"
+                )
+            sync = ttype <= 240
+            specs.append(
+                PdoSpec(
+                    pdo=name,
+                    objects=tuple(objects),
+                    trigger="sync" if sync else "event",
+                    every=ttype if sync else 1,
+                    inhibit_us=0 if sync or 3 not in comm else _int(comm[3]) * 100,
+                    event_ms=0 if sync or 5 not in comm else _int(comm[5]),
+                    cob_id=cob & 0x7FF,
+                    enabled=not cob & co.PDO_COB_ID_INVALID,
+                )
+            )
+    return tuple(specs)
 
-    pdo: str
-    """``rpdo1`` .. ``rpdo512``, ``tpdo1`` .. ``tpdo512``."""
-    objects: list[str | int]
-    """The objects it carries, by name (``Controlword``) or index text (``0x607A``)."""
-    transmission: int = 1
-    """1..240: every n SYNCs; 0: acyclic synchronous; 254/255: event-driven."""
-    cob_id: int | None = None
-    inhibit_time: int | None = None
-    event_timer: int | None = None
 
-    def to_map(self) -> PdoMap:
-        text = self.pdo.lower()
-        direction = text[:4]
-        if direction not in ("rpdo", "tpdo") or not text[4:].isdigit():
-            raise BadParameterError("pdo", self.pdo, "rpdoN or tpdoN (N in 1..512)")
-        return PdoMap(
-            direction,  # type: ignore[arg-type]
-            int(text[4:]),
-            tuple(self.objects),
-            transmission=self.transmission,
-            cob_id=self.cob_id,
-            inhibit_time=self.inhibit_time,
-            event_timer=self.event_timer,
+def _int(entry: OdEntry) -> int:
+    value = entry.value
+    if not isinstance(value, int):
+        raise PdoMapError(
+            entry.label, value, "an integer value (a $NODEID default needs a node id)"
         )
+    return value
+
+
+# -- configuration by SDO ---------------------------------------------------------------------
+async def configure_pdos(
+    sdo: SdoClient,
+    maps: Sequence[PdoSpec | ResolvedPdo],
+    *,
+    od: ObjectDictionary | None = None,
+    disable_unused: bool = True,
+    timeout: float | None = None,  # noqa: ASYNC109
+) -> tuple[ResolvedPdo, ...]:
+    """Write ``maps`` to the node by SDO and verify them (see the module docstring);
+    return them resolved. ``od`` defaults to the SDO client's dictionary; the node must
+    be in PRE-OPERATIONAL."""
+    od = od if od is not None else sdo.od
+    if od is None:
+        raise BadParameterError(
+            "od", None, "the node's object dictionary (configure_pdos(..., od=) or SdoClient.od)"
+        )
+    specs = [m for m in maps if isinstance(m, PdoSpec)]
+    given = iter(resolve_pdos(specs, od, node_id=sdo.node_id))
+    resolved = tuple(m if isinstance(m, ResolvedPdo) else next(given) for m in maps)
+    written: list[tuple[str, OdEntry, int]] = []
+
+    async def put(pdo: str, entry: OdEntry, value: int, what: str = "") -> None:
+        try:
+            await sdo.write(entry, value, timeout=timeout)
+        except SdoAbortError as exc:
+            raise PdoConfigError(
+                f"{pdo} of node {sdo.node_id}: writing {entry.label} = {value:#x}{what} "
+                f"was refused: {exc}"
+            ) from exc
+        written.append((pdo, entry, value))
+
+    if disable_unused:
+        used = {(p.transmit, p.number) for p in resolved}
+        for transmit in (False, True):
+            base = co.TPDO_COMM_BASE if transmit else co.RPDO_COMM_BASE
+            for n in range(512):
+                entry = od.find((base + n, 1))
+                if entry is None or (transmit, n + 1) in used:
+                    continue
+                current = await sdo.read(entry, timeout=timeout)
+                assert isinstance(current, int)
+                if not current & co.PDO_COB_ID_INVALID:
+                    await put(
+                        f"{'TPDO' if transmit else 'RPDO'}{n + 1}",
+                        entry,
+                        current | co.PDO_COB_ID_INVALID,
+                    )
+    for pdo in resolved:
+        name = pdo.name
+        await put(name, pdo.comm[1], pdo.cob_id | co.PDO_COB_ID_INVALID, " (disable)")
+        if pdo.spec.enabled:
+            await put(name, pdo.mapping[0], 0, " (clear)")
+            for sub, entry in enumerate(pdo.entries, start=1):
+                raw = entry.map_entry().to_u32()
+                await put(name, pdo.mapping[sub], raw, f" (maps {entry.label})")
+            objects = ", ".join(e.label for e in pdo.entries)
+            await put(name, pdo.mapping[0], len(pdo.entries), f" (count of {objects or 'nothing'})")
+            await put(name, pdo.comm[2], pdo.transmission_type, " (transmission type)")
+            if 3 in pdo.comm and pdo.comm[3].writable:
+                await put(name, pdo.comm[3], pdo.inhibit, " (inhibit time, 100 µs)")
+            if 5 in pdo.comm and pdo.comm[5].writable:
+                await put(name, pdo.comm[5], pdo.event_ms, " (event timer, ms)")
+            await put(name, pdo.comm[1], pdo.cob_id, " (enable)")
+    # Verify: the last value written to each entry, read back.
+    final: dict[tuple[int, int], tuple[str, OdEntry, int]] = {}
+    for pdo_name, entry, value in written:
+        final[entry.key] = (pdo_name, entry, value)
+    for pdo_name, entry, value in final.values():
+        got = await sdo.read(entry, timeout=timeout)
+        mask = ~_RTR_NOT_ALLOWED if entry.subindex == 1 and entry.index < 0x1600 else -1
+        if not isinstance(got, int) or got & mask != value & mask:
+            mapped = ""
+            if 0x1600 <= entry.index < 0x1800 or 0x1A00 <= entry.index < 0x1C00:
+                mapped = f" (mapping {_describe(od, value)})" if entry.subindex else ""
+            raise PdoVerifyError(
+                f"{pdo_name} of node {sdo.node_id}: {entry.label} reads back "
+                f"{hex(got) if isinstance(got, int) else repr(got)}, written {value:#x}{mapped}"
+            )
+    log.debug(
+        "pdos_configured", node=sdo.node_id, pdos=[p.name for p in resolved], writes=len(written)
+    )
+    return resolved
+
+
+def _describe(od: ObjectDictionary, raw: int) -> str:
+    entry = od.find((raw >> 16, (raw >> 8) & 0xFF))
+    return entry.label if entry is not None else f"{raw >> 16:#06x}:{(raw >> 8) & 0xFF}"

@@ -338,3 +338,11 @@ async def test_dcf_parameter_values_are_written_to_the_drive(
     assert sim.od[(0x1017, 0)].value == 200 and sim.od[(0x2031, 0)].value == -7
     assert sim.od[(0x1600, 1)].value == 0x6040_0010  # PDO mapping untouched
     assert struct.pack("<H", 200) == dcf["0x1017"].encode(200)
+
+
+def test_shipped_eds_is_package_data() -> None:
+    from importlib.resources import files
+
+    assert SHIPPED_EDS.is_file()
+    assert files("openel_can").joinpath("eds/openel_servo402.eds").is_file()
+    assert files("openel_can").joinpath("eds/README.md").is_file()
