@@ -290,7 +290,7 @@ def run(quick: bool) -> BenchResult:
         f"{sum(r.failures for r in thread) + sum(r.failures for r in blocking)}.",
         f"On a real bus at 1 Mbaud a cycle's {request_bytes() + reply_bytes()} bytes take "
         f"{wire_cycle_us():.0f} µs on the wire (Return Delay 0), plus the USB adapter's "
-        "latency (1 ms timer on an FTDI/CH340 set low; 16 ms by default): the pty measures the "
+        "latency (an FTDI adapter's latency timer: 16 ms by default, set it to 1 ms): the pty measures the "
         "clients, not a bus.",
         f"Median of {rounds} interleaved round(s) of {cycles:,} cycles after {WARMUP} "
         "warm-up cycles; CPU: `time.process_time_ns()` of the benchmark process over a "
