@@ -12,6 +12,16 @@ not kept at power-off since Lock stays 1):
   ``acceleration``.
 * ``NO_EXCITE`` -> Torque Enable (40) = 0; the next command enables it again.
 
+``calibration`` (a :class:`~openel_serial.feetech_calibration.JointCalibration`, the entry
+of a calibration file written by ``openel-async calibrate``; a serial bus with
+``calibration: FILE`` gives it): at open the servo's Homing Offset (31) and Min/Max Angle Limits
+(9, 11) are compared with the entry and, when they differ, written to its EEPROM (behind the
+lock) -- only while its torque is off (a servo holding the arm is refused with
+:class:`HALError` rather than let go or jump); the entry's range (in radians, intersected with
+``position_limits`` when both are given) becomes the component's position limits, and
+``drive_mode`` 1 reverses the direction (positions, speeds and load change sign about step
+2048). The entry's ``id`` must be the ``servo_id``.
+
 ``gripper=True``: POSITION and POSITION_ACTUAL are the opening 0 (closed, the Min Angle Limit
 or ``position_limits[0]``) .. 1 (open, the Max Angle Limit or ``position_limits[1]``), linear in
 the angle, as the SO-101 model's gripper reads; VELOCITY is in openings per second.
@@ -66,6 +76,7 @@ from openel_async.requests import Request
 from openel_async.safety import ExitAction
 from openel_serial import feetech as ft
 from openel_serial.errors import FeetechStatusError, FeetechTimeoutError
+from openel_serial.feetech_calibration import JointCalibration
 from openel_serial.feetech_port import (
     POLL_ADDRESS,
     POLL_LENGTH,
@@ -133,6 +144,7 @@ class FeetechServo(ActuatorDevice):
         acceleration: float | None = None,
         stall_torque: float | None = None,
         gripper: bool = False,
+        calibration: JointCalibration | None = None,
         position_tolerance: float = 8 * RAD_PER_TICK,
         velocity_tolerance: float = 0.1,
         torque_off_on_close: bool = False,
@@ -155,6 +167,19 @@ class FeetechServo(ActuatorDevice):
                 raise BadParameterError(
                     "position_limits", position_limits, "a finite (low, high) pair, low < high"
                 )
+        if calibration is not None:
+            if not isinstance(calibration, JointCalibration):
+                raise BadParameterError(
+                    "calibration",
+                    calibration,
+                    "a JointCalibration (an entry of a calibration file)",
+                )
+            if calibration.id != servo_id:
+                raise BadParameterError(
+                    "calibration", calibration, f"the calibration of servo {servo_id}"
+                )
+        self.calibration = calibration
+        self._sign = -1 if calibration is not None and calibration.drive_mode else 1
         self.port = port
         self._servo_id = servo_id
         self.position_limits = position_limits
@@ -231,10 +256,10 @@ class FeetechServo(ActuatorDevice):
         if self.gripper:
             low, high = self._span
             value = low + value * (high - low)
-        return ft.rad_to_ticks(value)
+        return ft.rad_to_ticks(self._sign * value)
 
     def _from_ticks(self, ticks: int) -> float:
-        rad = ft.ticks_to_rad(ticks)
+        rad = self._sign * ft.ticks_to_rad(ticks)
         if self.gripper:
             low, high = self._span
             return (rad - low) / (high - low)
@@ -244,8 +269,8 @@ class FeetechServo(ActuatorDevice):
         """rad/s (or openings/s for a gripper) per step/s."""
         if self.gripper:
             low, high = self._span
-            return RAD_PER_TICK / (high - low)
-        return RAD_PER_TICK
+            return self._sign * RAD_PER_TICK / (high - low)
+        return self._sign * RAD_PER_TICK
 
     # -- lifecycle -------------------------------------------------------------------
     async def open(self, ctx: DeviceContext) -> None:
@@ -305,7 +330,22 @@ class FeetechServo(ActuatorDevice):
                 port_s=self.port.return_delay,
             )
         low_ticks, high_ticks = item(S.MIN_ANGLE_LIMIT), item(S.MAX_ANGLE_LIMIT)
-        if self.position_limits is not None:
+        cal = self.calibration
+        if cal is not None:
+            await self._apply_calibration(cal, table)
+            span = cal.radians()
+            if self.position_limits is not None:
+                span = (
+                    max(span[0], self.position_limits[0]),
+                    min(span[1], self.position_limits[1]),
+                )
+                if span[0] >= span[1]:
+                    raise BadParameterError(
+                        "position_limits",
+                        self.position_limits,
+                        f"limits that overlap the calibrated range {cal.radians()}",
+                    )
+        elif self.position_limits is not None:
             span = self.position_limits
         elif low_ticks < high_ticks:
             span = (ft.ticks_to_rad(low_ticks), ft.ticks_to_rad(high_ticks))
@@ -319,6 +359,30 @@ class FeetechServo(ActuatorDevice):
             self.limits = ActuatorLimits((0.0, 1.0), velocity / width, torque)
         else:
             self.limits = ActuatorLimits(self._span, velocity, torque)
+
+    async def _apply_calibration(self, cal: JointCalibration, table: bytes) -> None:
+        """Write the entry's homing offset and angle limits where the servo's differ (torque
+        off only)."""
+        writes = [
+            (it, value)
+            for it, value in (
+                (S.HOMING_OFFSET, cal.homing_offset),
+                (S.MIN_ANGLE_LIMIT, cal.range_min),
+                (S.MAX_ANGLE_LIMIT, cal.range_max),
+            )
+            if it.of(table, 0) != value
+        ]
+        if not writes:
+            return
+        differ = ", ".join(f"{it.address}: {it.of(table, 0)} -> {v}" for it, v in writes)
+        if self._torque:
+            raise HALError(
+                f"servo {self._servo_id}: its calibration differs from the file's ({differ}) "
+                "and its torque is on: turn it off (power cycle) to have it written, or run "
+                "openel-async calibrate"
+            )
+        await self.port.write_eeprom(self._servo_id, writes)
+        self._log.warning("feetech_calibration_written", registers=differ)
 
     async def _refresh_state(self) -> FeetechPresentState:
         data = await self.port.read(self._servo_id, POLL_ADDRESS, POLL_LENGTH)
@@ -418,7 +482,7 @@ class FeetechServo(ActuatorDevice):
                 raise NotImplementedHALError(
                     f"servo {self._servo_id}: TORQUE_ACTUAL needs a stall_torque (N m)"
                 )
-            return state.load * ft.LOAD_UNIT * self.stall_torque
+            return self._sign * state.load * ft.LOAD_UNIT * self.stall_torque
         raise BadParameterError(
             "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
         )

@@ -17,6 +17,16 @@ protocols. With ``--sim`` a Feetech port is a :class:`~openel_serial.feetech_pee
 of :class:`~openel_serial.feetech_peers.SimStsServo` s at the rig's ids, with the rig's baud
 rate as their Baud Rate (6) and its ``return_delay`` as their Return Delay (7).
 
+A Feetech port's ``calibration: FILE`` (a file ``openel-async calibrate`` writes, path
+relative to the current directory, as a MuJoCo bus's model path) gives each servo its entry
+(:class:`~openel_serial.feetech_calibration.JointCalibration`, by component name):
+``rig check`` refuses a file it cannot read as a calibration file (with its ``FILE:LINE:COL``),
+a servo without an entry or with another id; a missing file passes ``rig check`` (calibrate
+writes it) but opening the real port refuses it. With ``--sim`` the simulated servos are the
+calibrated arm (the file's homing offsets and angle limits in their EEPROM, each at the
+middle of its range) when the file exists, else factory-fresh servos at step 2048 (the bus
+then opens without the calibration).
+
 ``rig check`` (:meth:`SerialBusKind.check`) refuses a device of the other protocol on a
 port, a baud rate the protocol does not have (the X series' Baud Rate (8) table; the
 standard tty rates for NMEA), a servo id outside 0..252 or given twice, a second receiver
@@ -38,15 +48,18 @@ from __future__ import annotations
 import math
 from collections.abc import AsyncIterator, Mapping, Sequence
 from contextlib import AbstractAsyncContextManager, asynccontextmanager
+from pathlib import Path
 from typing import Annotated, Any, Final, Literal
 
 import msgspec
 
 from openel_async.errors import BadParameterError
+from openel_async.positioned import DocumentError, relocate
 from openel_async.rig import BusKind, SimulatedBus, SimulatedDevice
 from openel_serial import dynamixel as dx
 from openel_serial import feetech as ft
 
+from .feetech_calibration import CalibrationFile, JointCalibration, load_calibration
 from .feetech_port import DEFAULT_RETURN_DELAY as FEETECH_RETURN_DELAY
 from .feetech_port import FeetechPort
 from .port import DEFAULT_RETURN_DELAY, DynamixelPort
@@ -118,6 +131,42 @@ class SerialBusOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True)
     retries: Annotated[int, msgspec.Meta(ge=0)] | None = None
     """Dynamixel only: how many times a request whose replies were lost is sent again before
     the request fails. Default 2."""
+    calibration: Annotated[str, msgspec.Meta(min_length=1)] | None = None
+    """Feetech only: the calibration file ``openel-async calibrate`` writes (relative to the
+    current directory): each servo's homing offset, range and drive mode, by component name."""
+
+
+def read_calibration(path: str) -> CalibrationFile:
+    """The calibration file at ``path``; BadParameterError (located in the file) when refused."""
+    try:
+        return load_calibration(path)
+    except DocumentError as exc:
+        raise relocate(BadParameterError("calibration", path, exc.message), exc) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise BadParameterError(
+            "calibration", path, f"a readable calibration file ({exc})"
+        ) from None
+
+
+def _calibration_of(
+    calibration: CalibrationFile, path: str, device: SimulatedDevice
+) -> JointCalibration:
+    entry = calibration.joints.get(device.name)
+    if entry is None:
+        raise BadParameterError(
+            "calibration",
+            path,
+            f"a calibration file with an entry for {device.name} (run openel-async calibrate)",
+        )
+    servo_id = device.params.get("servo_id")
+    if entry.id != servo_id:
+        raise BadParameterError(
+            "calibration",
+            path,
+            f"the calibration of {device.name}'s servo {servo_id} (the file's is of servo "
+            f"{entry.id}: run openel-async calibrate)",
+        )
+    return entry
 
 
 def _servo_ids(
@@ -184,6 +233,15 @@ class SerialBusKind(BusKind):
             value = getattr(options, key)
             if value is not None and not math.isfinite(value):
                 raise BadParameterError(key, value, "a finite number of seconds")
+        if options.calibration is not None:
+            if protocol != "feetech":
+                raise BadParameterError(
+                    "calibration", options.calibration, "only with protocol: feetech"
+                )
+            if Path(options.calibration).exists():
+                calibration = read_calibration(options.calibration)
+                for d in devices:
+                    _calibration_of(calibration, options.calibration, d)
         if servos:
             _servo_ids(devices, protocol)
             return
@@ -211,6 +269,12 @@ class SerialBusKind(BusKind):
                 options.device, baudrate=options.baudrate, **_port_arguments(options)
             )
         if options.protocol == "feetech":
+            if options.calibration is not None and not Path(options.calibration).exists():
+                raise BadParameterError(
+                    "calibration",
+                    options.calibration,
+                    "a calibration file: run 'openel-async calibrate RIG.yaml' first",
+                )
             return FeetechPort(
                 options.device, baudrate=options.baudrate, **_port_arguments(options)
             )
@@ -220,6 +284,15 @@ class SerialBusKind(BusKind):
         self, bus: object, options: Any, device: SimulatedDevice
     ) -> Mapping[str, Any]:
         assert isinstance(options, SerialBusOptions)
+        if options.protocol == "feetech" and options.calibration is not None:
+            # rig check asks with a placeholder bus (the file may not be written yet)
+            path = options.calibration
+            entry = (
+                _calibration_of(read_calibration(path), path, device)
+                if Path(path).exists()
+                else None
+            )
+            return {"port": bus, "calibration": entry}
         if options.protocol != "nmea":
             return {"port": bus}
         return {"url": options.device, "baudrate": options.baudrate}
@@ -229,7 +302,18 @@ class SerialBusKind(BusKind):
     ) -> AbstractAsyncContextManager[SimulatedBus]:
         assert isinstance(options, SerialBusOptions)
         self.check(options, devices)
-        return _simulated(options, devices)
+        entries: dict[int, JointCalibration] = {}
+        note = ""
+        path = options.calibration
+        if path is not None and Path(path).exists():
+            calibration = read_calibration(path)
+            for d in devices:
+                entries[d.params["servo_id"]] = _calibration_of(calibration, path, d)
+            note = f", calibrated as {path}"
+        elif path is not None:
+            options = msgspec.structs.replace(options, calibration=None)
+            note = f" ({path} absent: uncalibrated)"
+        return _simulated(options, devices, entries, note)
 
 
 @asynccontextmanager
@@ -239,7 +323,10 @@ async def _nothing(options: SerialBusOptions) -> AsyncIterator[object]:
 
 @asynccontextmanager
 async def _simulated(
-    options: SerialBusOptions, devices: Sequence[SimulatedDevice]
+    options: SerialBusOptions,
+    devices: Sequence[SimulatedDevice],
+    entries: Mapping[int, JointCalibration],
+    note: str,
 ) -> AsyncIterator[SimulatedBus]:
     from .feetech_peers import SimFeetechBus, SimStsServo
     from .peers import PeerThread, SimDynamixelBus, SimGps, SimServo
@@ -269,12 +356,14 @@ async def _simulated(
                 model_number=FEETECH_MODELS[d.device],
                 baud_rate=FEETECH_BAUDRATES.index(options.baudrate),
                 return_delay=round(return_delay / ft.RETURN_DELAY_UNIT_S),
+                **_sim_calibration(entries.get(i)),
             )
             for i, d in ids.items()
         }
         peer = SimFeetechBus(sts.values(), check_baudrate=True)
         by_name = {d.name: sts[i] for i, d in ids.items()}
         what = f"simulated Feetech STS3215 servos {', '.join(map(str, sorted(ids)))}"
+        what += note
     else:
         peer = SimGps()
         by_name = {d.name: peer for d in devices}
@@ -285,3 +374,16 @@ async def _simulated(
             f"pty {peer.path} at {options.baudrate} baud with {what}",
             by_name,
         )
+
+
+def _sim_calibration(entry: JointCalibration | None) -> dict[str, Any]:
+    """A simulated servo calibrated as ``entry``: its EEPROM, its rotor in the middle."""
+    if entry is None:
+        return {}
+    middle = (entry.range_min + entry.range_max) // 2
+    return {
+        "homing_offset": entry.homing_offset,
+        "min_angle": entry.range_min,
+        "max_angle": entry.range_max,
+        "position": middle + entry.homing_offset,
+    }
