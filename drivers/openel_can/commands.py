@@ -273,3 +273,134 @@ def report_scan(
 
 SCAN_CAN = CliCommand("can", add_scan_can_parser, run_scan_can, parent="scan")
 """``openel-async scan can``."""
+
+
+# -- bus monitor --------------------------------------------------------------------------------
+
+MONITOR_DESCRIPTION = """\
+Watch a CAN bus: every frame on one line, decoded by what the rig knows -- ODrive messages
+(CANSimple) of its ODrive nodes, CANopen (NMT, SYNC, heartbeats, EMCY with its class, SDO
+transfers with index and subindex, PDOs raw) -- with a summary of per-id rates and error
+counters every --summary seconds and at the end. --json: one JSON object a line.
+
+The monitor is passive: it sends nothing. With --sim the rig's simulated peers run and send
+what they send unprompted (heartbeats, an ODrive's encoder estimates); run an app on the real
+bus in another terminal to see its commands. --log FILE also writes every frame in a format
+python-can reads back (can.player, can.logger, can.LogReader), chosen by the extension:
+.asc, .blf, .trc, .log or .csv.
+
+Exit status: 0 done (after --duration seconds), 2 usage error, 130 Ctrl-C.
+"""
+
+
+def add_monitor_parser(sub: SubParsers) -> argparse.ArgumentParser:
+    parser: argparse.ArgumentParser = sub.add_parser(
+        "monitor",
+        help="print the frames of a CAN bus decoded, with rates and error counters",
+        description=MONITOR_DESCRIPTION,
+        allow_abbrev=False,
+    )
+    parser.add_argument("rig_file", nargs="?", metavar="RIG.yaml", help="a rig file")
+    parser.add_argument("bus_name", nargs="?", metavar="BUS", help="its CAN bus")
+    add_bus_arguments(parser)
+    parser.add_argument(
+        "--odrive",
+        metavar="NODES",
+        default="",
+        help="ODrive node ids to decode as CANSimple, e.g. 1,2 (a rig says its own)",
+    )
+    parser.add_argument(
+        "--duration", type=float, default=10.0, metavar="S", help="seconds to watch (default 10)"
+    )
+    parser.add_argument(
+        "--summary",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="seconds between summaries (default 1)",
+    )
+    parser.add_argument("--json", action="store_true", help="one JSON object a line")
+    parser.add_argument(
+        "--log", metavar="FILE", help="also write the frames to FILE (.asc, .blf, .trc, .log, .csv)"
+    )
+    return parser
+
+
+def _node_list(text: str) -> frozenset[int] | None:
+    try:
+        nodes = frozenset(int(part, 0) for part in text.split(",") if part.strip())
+    except ValueError:
+        return None
+    return nodes if all(0 <= n < 0x3F for n in nodes) else None
+
+
+def run_monitor(args: argparse.Namespace) -> int:
+    from .monitor import check_log_path
+
+    prog = "openel-async bus monitor"
+
+    def refuse(message: str) -> int:
+        print(f"{prog}: {message}", file=sys.stderr)
+        return EXIT_USAGE
+
+    if args.rig_file is not None:
+        if args.rig is not None or args.bus is not None:
+            return refuse("give the rig and its bus as RIG.yaml BUS or --rig/--bus, not both")
+        args.rig, args.bus = args.rig_file, args.bus_name
+    if not (
+        check_seconds(prog, "--duration", args.duration, 0.001, 86400.0)
+        and check_seconds(prog, "--summary", args.summary, 0.1, 3600.0)
+    ):
+        return EXIT_USAGE
+    odrives = _node_list(args.odrive)
+    if odrives is None:
+        return refuse(f"--odrive {args.odrive}: node ids 0..62, separated by commas")
+    if args.log is not None and (why := check_log_path(args.log)) is not None:
+        return refuse(f"--log {args.log}: {why}")
+    source = bus_source(prog, args)
+    if source is None:
+        return EXIT_USAGE
+    from .rigbus import ODRIVE_DEVICES
+
+    odrives |= {d.params["node_id"] for d in source.devices if d.device in ODRIVE_DEVICES}
+    anyio.run(_monitor, source, odrives, args)
+    return 0
+
+
+async def _monitor(source: BusSource, odrives: frozenset[int], args: argparse.Namespace) -> None:
+    from .monitor import Decoded, Decoder, MonitorStats, monitor
+
+    first: list[float] = []
+
+    def frame_line(decoded: Decoded) -> None:
+        if args.json:
+            print(json.dumps(decoded.to_dict()), flush=True)
+        else:
+            first[:] = first or [decoded.timestamp]
+            print(decoded.line(first[0]), flush=True)
+
+    def summary(stats: MonitorStats) -> None:
+        if args.json:
+            print(json.dumps({"summary": stats.to_dict()}), flush=True)
+        else:
+            print(stats.summary(), flush=True)
+
+    async with open_bus(source) as (bus, description):
+        if not args.json:
+            print(f"monitoring {description} for {args.duration:g} s", flush=True)
+        stats = await monitor(
+            bus,
+            Decoder(odrives),
+            duration=args.duration,
+            on_frame=frame_line,
+            on_summary=summary,
+            summary_every=args.summary,
+            log=args.log,
+        )
+    summary(stats)
+    if args.log is not None and not args.json:
+        print(f"wrote {args.log} ({stats.frames} frames)", flush=True)
+
+
+BUS_MONITOR = CliCommand("monitor", add_monitor_parser, run_monitor, parent="bus")
+"""``openel-async bus monitor``."""

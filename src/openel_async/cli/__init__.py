@@ -92,7 +92,7 @@ def _parent(
     description: str,
 ) -> argparse._SubParsersAction[argparse.ArgumentParser]:
     """A command whose actions the drivers contribute (``scan can``, ``bus monitor``)."""
-    parser = _subcommand(sub, name, help=help, description=description)
+    parser = _subcommand(sub, name, help=help, description=description, allow_abbrev=False)
     actions = parser.add_subparsers(
         title="actions (from the installed drivers)",
         dest=f"{name}_command",
@@ -119,7 +119,11 @@ def _finish(parser: argparse.ArgumentParser, depth: int) -> None:
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog=PROG, description=__doc__, formatter_class=HelpFormatter)
+    # No abbreviations at the top: it would refuse a command's own option that is the prefix
+    # of a global one (bus monitor --log, against --log-format and --log-level).
+    parser = argparse.ArgumentParser(
+        prog=PROG, description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False
+    )
     parser.add_argument(
         "--version", action="version", version=f"%(prog)s {_version()}",
         help="print the version and exit",
