@@ -130,10 +130,13 @@ class SimODrive:
         vel_ramp_rate_endpoint: int = VEL_RAMP_RATE_ENDPOINT,
         watchdog_timeout_endpoint: int = WATCHDOG_TIMEOUT_ENDPOINT,
         enable_watchdog_endpoint: int = ENABLE_WATCHDOG_ENDPOINT,
+        serial_number: int | None = None,
     ) -> None:
         if not 0 <= node_id < cs.MAX_NODE_ID:
             raise ValueError(f"node_id {node_id} outside 0..{cs.MAX_NODE_ID - 1}")
         self.node_id = node_id
+        self.serial_number = 0x3A5F_2000_0000 + node_id if serial_number is None else serial_number
+        """48 bits, sent in the Address reply (firmware 0.6.9+) to a broadcast request."""
         self.heartbeat_period = heartbeat_period
         self.encoder_period = encoder_period
         self.vel_limit = vel_limit
@@ -203,6 +206,7 @@ class SimODrive:
         self, bus: CanBus, *, task_status: anyio.abc.TaskStatus[None] = anyio.TASK_STATUS_IGNORED
     ) -> None:
         ids = [cs.arbitration_id(self.node_id, cmd) for cmd in (*_HOST_CMDS, *_POLLED)]
+        ids.append(cs.arbitration_id(cs.BROADCAST_NODE_ID, cs.CmdId.ADDRESS))  # discovery
         port = self._port = bus.attach(ids, name=f"sim-odrive-{self.node_id}")
         try:
             async with anyio.create_task_group() as tg:
@@ -382,6 +386,8 @@ class SimODrive:
             return cs.Powers(node, electrical, mechanical)
         if cmd is cs.CmdId.GET_VERSION:
             return cs.Version(node, 2, 4, 4, 58, 0, 6, 10, 0)
+        if cmd is cs.CmdId.ADDRESS:  # to a broadcast request: who is on the bus
+            return cs.Address(node, node, self.serial_number)
         return None
 
     def _sdo_read(self, endpoint: int) -> cs.TxSdo | None:

@@ -70,6 +70,38 @@ def _subcommand(
     return parser
 
 
+SCAN_HELP = "find the devices on a bus (CAN, serial) before writing a rig"
+SCAN_DESCRIPTION = """\
+Find the devices on a bus before writing a rig: each kind of bus is scanned by its driver
+('openel-async scan BUS --help'). Prints a table (--json for scripts) and, with --rig-out, a
+rig file to edit. Every option is checked before anything is opened (exit status 2); Ctrl-C
+stops the scan with exit status 130.
+"""
+BUS_HELP = "watch a bus: its frames decoded, rates and errors"
+BUS_DESCRIPTION = """\
+Watch a bus: 'monitor' prints its frames decoded by what the drivers know, with per-id
+rates and error counters ('openel-async bus monitor --help'). Contributed by the drivers.
+"""
+
+
+def _parent(
+    sub: argparse._SubParsersAction[argparse.ArgumentParser],
+    name: str,
+    metavar: str,
+    help: str,
+    description: str,
+) -> argparse._SubParsersAction[argparse.ArgumentParser]:
+    """A command whose actions the drivers contribute (``scan can``, ``bus monitor``)."""
+    parser = _subcommand(sub, name, help=help, description=description, allow_abbrev=False)
+    actions = parser.add_subparsers(
+        title="actions (from the installed drivers)",
+        dest=f"{name}_command",
+        required=True,
+        metavar=metavar,
+    )
+    return actions
+
+
 def _finish(parser: argparse.ArgumentParser, depth: int) -> None:
     """Give every subcommand below ``parser`` the formatter and the global options."""
     for action in parser._actions:
@@ -87,7 +119,11 @@ def _finish(parser: argparse.ArgumentParser, depth: int) -> None:
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog=PROG, description=__doc__, formatter_class=HelpFormatter)
+    # No abbreviations at the top: it would refuse a command's own option that is the prefix
+    # of a global one (bus monitor --log, against --log-format and --log-level).
+    parser = argparse.ArgumentParser(
+        prog=PROG, description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False
+    )
     parser.add_argument(
         "--version", action="version", version=f"%(prog)s {_version()}",
         help="print the version and exit",
@@ -216,7 +252,11 @@ def _build_parser() -> argparse.ArgumentParser:
     add_rig_parser(sub)
     from .hal4rt_cmd import add_parser as add_hal4rt_parser
 
-    parents = {"hal4rt": add_hal4rt_parser(sub)}
+    parents = {
+        "hal4rt": add_hal4rt_parser(sub),
+        "scan": _parent(sub, "scan", "BUS", SCAN_HELP, SCAN_DESCRIPTION),
+        "bus": _parent(sub, "bus", "ACTION", BUS_HELP, BUS_DESCRIPTION),
+    }
     completion = _subcommand(
         sub,
         "completion",

@@ -7,8 +7,10 @@ driver's ``serve``, ``hal4rt exec``) registers a :class:`CliCommand`::
     [project.entry-points."openel_async.commands"]
     serve = "openel_zenoh.commands:SERVE"
 
-``parent`` None adds a top-level subcommand (``openel-async serve``); ``"hal4rt"`` adds an
-action under ``openel-async hal4rt``. A contributed command whose package cannot be imported
+``parent`` None adds a top-level subcommand (``openel-async serve``); ``"hal4rt"``, ``"scan"``
+or ``"bus"`` adds an action under that command (``openel-async hal4rt exec``, ``openel-async scan
+can``, ``openel-async bus monitor``): the framework owns ``scan`` and ``bus``, each driver
+contributes the kinds of bus it knows. A contributed command whose package cannot be imported
 is left out of the command line, silently (the parser is built before logging is configured;
 ``openel-async devices`` reports a driver that fails to load): the rest works without it.
 """
@@ -49,7 +51,8 @@ class CliCommand:
     add_parser: Callable[[SubParsers], argparse.ArgumentParser]
     run: Callable[[argparse.Namespace], int]
     parent: str | None = None
-    """None: ``openel-async NAME``; ``"hal4rt"``: ``openel-async hal4rt NAME``."""
+    """None: ``openel-async NAME``; ``"hal4rt"``, ``"scan"``, ``"bus"``: ``openel-async PARENT
+    NAME``."""
 
 
 def discover_commands() -> list[CliCommand]:
