@@ -29,7 +29,7 @@ from .conftest import client_cfg, free_port, session
 RIG = """\
 namespace: estop
 components:
-  - {name: MOTOR_1, driver: sim, device: motor, params: {max_velocity: 1.0, max_acceleration: 10.0}}
+  - {name: MOTOR_1, driver: sim, device: motor, params: {max_velocity: 0.25, max_acceleration: 10.0}}
   - {name: MOTOR_2, driver: sim, device: motor, params: {max_velocity: 1.0, max_acceleration: 10.0}}
   - {name: ENCODER_1, driver: sim, device: encoder, params: {motor: {ref: MOTOR_1}}}
 """
@@ -61,7 +61,9 @@ async def test_estop_command_latches_every_component_until_released() -> None:
         async with Actuator(RemoteActuator(remote, 0)) as axis:
             notices = ObserverQueue()
             axis.add_observer(notices)
-            motion = await axis.set_value(2.0)  # moving (2 rad at 1 rad/s) when the e-stop comes
+            # moving when the e-stop comes: 2 rad at 0.25 rad/s take 8 s (the estop command's
+            # process may take seconds to start on a loaded machine)
+            motion = await axis.set_value(2.0)
 
             done = await estop_command(*where)
             assert done.returncode == 0, done
