@@ -11,29 +11,72 @@
   :mod:`openel_can.cia402`, and simulated peers in :mod:`openel_can.sim`.
 """
 
-from openel_async.registry import DriverInfo
+from __future__ import annotations
 
-from .bus import BusState, BusStats, CanBus, NodePort, TxMessage
-from .cyclic402 import Cia402CyclicDrive
-from .drive402 import Cia402Drive, Cia402Temperature
-from .odrive import ODriveAxis, ODriveBusMonitor, ODriveEncoder, ODriveError, ODriveTemperature
-from .rigbus import CanBusKind, CanBusOptions
-from .sdo import SdoAbortError, SdoClient, SdoTimeoutError
-from .sync import CanSync, SyncStats
+from typing import TYPE_CHECKING
 
-DRIVER = DriverInfo(
-    name="can",
-    description="CAN buses via python-can: ODrive (CANSimple) and CiA 402 (CANopen) drives",
-    devices={
-        "odrive_axis": ODriveAxis,
-        "odrive_encoder": ODriveEncoder,
-        "odrive_temperature": ODriveTemperature,
-        "odrive_bus_monitor": ODriveBusMonitor,
-        "cia402_drive": Cia402Drive,
-        "cia402_temperature": Cia402Temperature,
-    },
-    buses={"can": CanBusKind()},
-)
+from openel_async.lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from openel_async.registry import DriverInfo
+
+    from .bus import BusState, BusStats, CanBus, NodePort, TxMessage
+    from .cyclic402 import Cia402CyclicDrive
+    from .drive402 import Cia402Drive, Cia402Temperature
+    from .odrive import ODriveAxis, ODriveBusMonitor, ODriveEncoder, ODriveError, ODriveTemperature
+    from .rigbus import CanBusKind, CanBusOptions
+    from .sdo import SdoAbortError, SdoClient, SdoTimeoutError
+    from .sync import CanSync, SyncStats
+
+# The names below load their module on first use: a command this package contributes
+# (openel-async scan can ...) is listed by 'openel-async --help' without loading its dependencies.
+_LAZY = {
+    "BusState": "bus",
+    "BusStats": "bus",
+    "CanBus": "bus",
+    "NodePort": "bus",
+    "TxMessage": "bus",
+    "Cia402CyclicDrive": "cyclic402",
+    "Cia402Drive": "drive402",
+    "Cia402Temperature": "drive402",
+    "ODriveAxis": "odrive",
+    "ODriveBusMonitor": "odrive",
+    "ODriveEncoder": "odrive",
+    "ODriveError": "odrive",
+    "ODriveTemperature": "odrive",
+    "CanBusKind": "rigbus",
+    "CanBusOptions": "rigbus",
+    "SdoAbortError": "sdo",
+    "SdoClient": "sdo",
+    "SdoTimeoutError": "sdo",
+    "CanSync": "sync",
+    "SyncStats": "sync",
+}
+
+
+def _driver() -> DriverInfo:
+    from openel_async.registry import DriverInfo
+
+    from .drive402 import Cia402Drive, Cia402Temperature
+    from .odrive import ODriveAxis, ODriveBusMonitor, ODriveEncoder, ODriveTemperature
+    from .rigbus import CanBusKind
+
+    return DriverInfo(
+        name="can",
+        description="CAN buses via python-can: ODrive (CANSimple) and CiA 402 (CANopen) drives",
+        devices={
+            "odrive_axis": ODriveAxis,
+            "odrive_encoder": ODriveEncoder,
+            "odrive_temperature": ODriveTemperature,
+            "odrive_bus_monitor": ODriveBusMonitor,
+            "cia402_drive": Cia402Drive,
+            "cia402_temperature": Cia402Temperature,
+        },
+        buses={"can": CanBusKind()},
+    )
+
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, {"DRIVER": _driver})
 
 __all__ = [
     "DRIVER",

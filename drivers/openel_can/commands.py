@@ -22,14 +22,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias
 
-import anyio
-
 from openel_async.cli.commands import EXIT_USAGE, CliCommand, no_such_file
 from openel_async.errors import BadParameterError
 
-from .bus import CanBus
-
 if TYPE_CHECKING:
+    from .bus import CanBus
     from .scan import CanScan
 
     SubParsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
@@ -134,6 +131,8 @@ def bus_source(prog: str, args: argparse.Namespace) -> BusSource | None:
 async def open_bus(source: BusSource) -> AsyncIterator[tuple[CanBus, str]]:
     """The bus open (its simulated peers running with ``--sim``), and what it is in words."""
     options = source.options
+    from .bus import CanBus
+
     description = source.kind.describe(options)
     async with _simulated(source) as simulated:
         if simulated is not None:
@@ -215,6 +214,8 @@ def add_scan_can_parser(sub: SubParsers) -> argparse.ArgumentParser:
 
 
 def run_scan_can(args: argparse.Namespace) -> int:
+    import anyio
+
     prog = "openel-async scan can"
     if not (
         check_seconds(prog, "--listen", args.listen, 0.0, 60.0)
@@ -335,6 +336,8 @@ def _node_list(text: str) -> frozenset[int] | None:
 
 
 def run_monitor(args: argparse.Namespace) -> int:
+    import anyio
+
     from .monitor import check_log_path
 
     prog = "openel-async bus monitor"

@@ -14,40 +14,86 @@ Codecs: :mod:`openel_serial.dynamixel`, :mod:`openel_serial.feetech`, :mod:`open
 See docs/serial.md.
 """
 
-from openel_async.registry import DriverInfo
+from __future__ import annotations
 
-from .errors import (
-    DynamixelHardwareAlert,
-    DynamixelStatusError,
-    DynamixelTimeoutError,
-    FeetechStatusError,
-    FeetechTimeoutError,
-    NoFixError,
-    PortDisconnectedError,
-)
-from .feetech_port import FeetechPort, FeetechPresentState
-from .feetech_servo import FeetechServo, FeetechSTS3215
-from .gps import GpsFix, NmeaGps
-from .port import DynamixelPort, PingInfo, PortStats, PresentState
-from .rigbus import SerialBusKind, SerialBusOptions
-from .servo import DynamixelServo, DynamixelXL430W250, DynamixelXM430W350
+from typing import TYPE_CHECKING
 
-DRIVER = DriverInfo(
-    name="serial",
-    description=(
-        "Serial devices on pyserial-asyncio-fast: Dynamixel 2.0 servos, Feetech STS servos, "
-        "NMEA GPS"
-    ),
-    devices={
-        "dynamixel": DynamixelServo,
-        "dynamixel_xm430_w350": DynamixelXM430W350,
-        "dynamixel_xl430_w250": DynamixelXL430W250,
-        "feetech": FeetechServo,
-        "feetech_sts3215": FeetechSTS3215,
-        "nmea_gps": NmeaGps,
-    },
-    buses={"serial": SerialBusKind()},
-)
+from openel_async.lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from openel_async.registry import DriverInfo
+
+    from .errors import (
+        DynamixelHardwareAlert,
+        DynamixelStatusError,
+        DynamixelTimeoutError,
+        FeetechStatusError,
+        FeetechTimeoutError,
+        NoFixError,
+        PortDisconnectedError,
+    )
+    from .feetech_port import FeetechPort, FeetechPresentState
+    from .feetech_servo import FeetechServo, FeetechSTS3215
+    from .gps import GpsFix, NmeaGps
+    from .port import DynamixelPort, PingInfo, PortStats, PresentState
+    from .rigbus import SerialBusKind, SerialBusOptions
+    from .servo import DynamixelServo, DynamixelXL430W250, DynamixelXM430W350
+
+# The names below load their module on first use: a command this package contributes
+# (openel-async calibrate) is listed by 'openel-async --help' without loading its dependencies.
+_LAZY = {
+    "DynamixelHardwareAlert": "errors",
+    "DynamixelStatusError": "errors",
+    "DynamixelTimeoutError": "errors",
+    "FeetechStatusError": "errors",
+    "FeetechTimeoutError": "errors",
+    "NoFixError": "errors",
+    "PortDisconnectedError": "errors",
+    "FeetechPort": "feetech_port",
+    "FeetechPresentState": "feetech_port",
+    "FeetechServo": "feetech_servo",
+    "FeetechSTS3215": "feetech_servo",
+    "GpsFix": "gps",
+    "NmeaGps": "gps",
+    "DynamixelPort": "port",
+    "PingInfo": "port",
+    "PortStats": "port",
+    "PresentState": "port",
+    "SerialBusKind": "rigbus",
+    "SerialBusOptions": "rigbus",
+    "DynamixelServo": "servo",
+    "DynamixelXL430W250": "servo",
+    "DynamixelXM430W350": "servo",
+}
+
+
+def _driver() -> DriverInfo:
+    from openel_async.registry import DriverInfo
+
+    from .feetech_servo import FeetechServo, FeetechSTS3215
+    from .gps import NmeaGps
+    from .rigbus import SerialBusKind
+    from .servo import DynamixelServo, DynamixelXL430W250, DynamixelXM430W350
+
+    return DriverInfo(
+        name="serial",
+        description=(
+            "Serial devices on pyserial-asyncio-fast: Dynamixel 2.0 servos, Feetech STS servos, "
+            "NMEA GPS"
+        ),
+        devices={
+            "dynamixel": DynamixelServo,
+            "dynamixel_xm430_w350": DynamixelXM430W350,
+            "dynamixel_xl430_w250": DynamixelXL430W250,
+            "feetech": FeetechServo,
+            "feetech_sts3215": FeetechSTS3215,
+            "nmea_gps": NmeaGps,
+        },
+        buses={"serial": SerialBusKind()},
+    )
+
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, {"DRIVER": _driver})
 
 __all__ = [
     "DRIVER",

@@ -8,8 +8,9 @@ estop``): ``estop``.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from openel_async.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from openel_async.registry import DriverInfo
@@ -37,17 +38,6 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name == "DRIVER":
-        return _driver()
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
 def _driver() -> DriverInfo:
     from openel_async.registry import DriverInfo
 
@@ -58,8 +48,10 @@ def _driver() -> DriverInfo:
         description="Remote devices: components served by 'openel-async serve' over Zenoh",
         devices={"actuator": RemoteActuator, "sensor": RemoteSensor},
     )
-    globals()["DRIVER"] = driver
     return driver
+
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, {"DRIVER": _driver})
 
 
 __all__ = [

@@ -22,20 +22,19 @@ import signal
 import sys
 from typing import TYPE_CHECKING, TypeAlias
 
-import anyio
-import anyio.lowlevel
-
 from openel_async.cli.commands import EXIT_USAGE, CliCommand, load_bytes, no_such_file
 from openel_async.errors import BadParameterError, HALError
 from openel_async.logs import get_logger
-from openel_async.surface import xml_psm
-from openel_async.surface.messages import Device
-
-from . import wire
 
 log = get_logger(__name__)
 
 if TYPE_CHECKING:
+    import anyio
+
+    from openel_async.surface.messages import Device
+
+    from . import wire
+
     SubParsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
 
 
@@ -91,6 +90,8 @@ def add_serve_parser(sub: SubParsers) -> argparse.ArgumentParser:
 
 
 def run_serve(args: argparse.Namespace) -> int:
+    import anyio
+
     from .gate import GatedEventLoop
 
     if no_such_file("openel-async serve", args.rig):
@@ -112,6 +113,8 @@ def run_serve(args: argparse.Namespace) -> int:
 
 
 async def _serve(args: argparse.Namespace) -> int:
+    import anyio
+
     from openel_async.rig import Rig, load_rig, open_rig
     from openel_async.surface import Surface
 
@@ -180,6 +183,9 @@ async def read_to_eof(fd: int) -> None:
     """Return once ``fd`` reaches its end (what it reads is discarded); cancellable at any
     time. What cannot be waited on (a regular file, /dev/null) is read straight: it never
     blocks."""
+    import anyio
+    import anyio.lowlevel
+
     pollable = True
     while True:
         if pollable:
@@ -247,6 +253,7 @@ def add_estop_parser(sub: SubParsers) -> argparse.ArgumentParser:
 
 
 def run_estop(args: argparse.Namespace) -> int:
+    import anyio
     import zenoh
 
     from .config import DEFAULT_ENDPOINT
@@ -332,6 +339,10 @@ def add_exec_parser(actions: SubParsers) -> argparse.ArgumentParser:
 
 
 def run_exec(args: argparse.Namespace) -> int:
+    import anyio
+
+    from openel_async.surface import xml_psm
+
     if no_such_file("openel-async hal4rt exec", args.file):
         return EXIT_USAGE
     try:

@@ -4,9 +4,10 @@ Components are async objects: ``await actuator.set_value(...)`` returns once the
 device accepted the target, and reaching it is posted as event 1 (COMPLETED).
 """
 
-import importlib
 import sys as _sys
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from .lazy import lazy_exports
 
 if "structlog" in _sys.modules:  # the application uses structlog: route it to logging now,
     from . import _logging  # noqa: F401  unless it configured it (else: at the first log)
@@ -146,17 +147,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    module = _LAZY.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_LAZY})
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 
 __all__ = [

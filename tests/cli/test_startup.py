@@ -9,7 +9,22 @@ import sys
 
 # (python-can and pyserial are still loaded by the can and serial drivers' contributed
 # commands: their packages import their modules at once)
-HEAVY = ("structlog", "mujoco", "matplotlib", "zenoh", "foxglove", "textual")
+HEAVY = (
+    "structlog",
+    "mujoco",
+    "matplotlib",
+    "numpy",
+    "zenoh",
+    "foxglove",
+    "textual",
+    "rich",
+    "can",  # python-can
+    "canopen",
+    "serial",  # pyserial
+    "msgspec",
+    "yaml",
+    "anyio",
+)
 
 
 def test_help_imports_none_of_the_heavy_libraries() -> None:

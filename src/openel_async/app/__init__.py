@@ -19,30 +19,65 @@ docs/apps.md shows how to write, register and test an app. This package imports 
 no app: apps are loaded by name when asked for.
 """
 
-from ._context import (
-    ENTRY_POINT_GROUP,
-    AppContext,
-    AppEntry,
-    AppHook,
-    AppInfo,
-    AppUnavailable,
-    DemoOptions,
-    discover_apps,
-    find_app,
-)
-from ._interrupt import (
-    EXIT_SIGINT,
-    EXIT_SIGTERM,
-    Interrupted,
-    atomic_output,
-    collect_written,
-    exit_code,
-    install_sigterm_handler,
-    interrupt_code,
-    run_interruptible,
-)
-from ._progress import LiveLine
-from ._runner import run_app
+from typing import TYPE_CHECKING
+
+from ..lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from ._context import (
+        ENTRY_POINT_GROUP,
+        AppContext,
+        AppEntry,
+        AppHook,
+        AppInfo,
+        AppUnavailable,
+        DemoOptions,
+        discover_apps,
+        find_app,
+    )
+    from ._interrupt import (
+        Interrupted,
+        atomic_output,
+        collect_written,
+        note_written,
+        run_interruptible,
+    )
+    from ._progress import LiveLine
+    from ._runner import run_app
+    from ._signals import (
+        EXIT_SIGINT,
+        EXIT_SIGTERM,
+        exit_code,
+        install_sigterm_handler,
+        interrupt_code,
+    )
+
+# Each name loads its module on first use (a command line's parser imports this package's light modules only).
+_LAZY = {
+    "ENTRY_POINT_GROUP": "_context",
+    "AppContext": "_context",
+    "AppEntry": "_context",
+    "AppHook": "_context",
+    "AppInfo": "_context",
+    "AppUnavailable": "_context",
+    "DemoOptions": "_context",
+    "discover_apps": "_context",
+    "find_app": "_context",
+    "EXIT_SIGINT": "_signals",
+    "EXIT_SIGTERM": "_signals",
+    "Interrupted": "_interrupt",
+    "atomic_output": "_interrupt",
+    "note_written": "_interrupt",
+    "collect_written": "_interrupt",
+    "exit_code": "_signals",
+    "install_sigterm_handler": "_signals",
+    "interrupt_code": "_signals",
+    "run_interruptible": "_interrupt",
+    "LiveLine": "_progress",
+    "run_app": "_runner",
+}
+
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY)
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -63,6 +98,7 @@ __all__ = [
     "find_app",
     "install_sigterm_handler",
     "interrupt_code",
+    "note_written",
     "run_app",
     "run_interruptible",
 ]

@@ -26,7 +26,6 @@ from collections.abc import Awaitable, Callable, Iterator
 from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import FrameType
 from typing import TypeVar
 
 import anyio
@@ -34,34 +33,22 @@ from anyio.abc import TaskStatus
 
 from openel_async.logs import get_logger
 
+from ._signals import STOP_SIGNALS, exit_code
+
 __all__ = [
-    "EXIT_SIGINT",
-    "EXIT_SIGTERM",
     "Interrupted",
     "atomic_output",
     "collect_written",
-    "exit_code",
-    "install_sigterm_handler",
-    "interrupt_code",
     "note_written",
     "run_interruptible",
 ]
 
 log = get_logger(__name__)
 
-EXIT_SIGINT = 128 + signal.SIGINT  # 130
-EXIT_SIGTERM = 128 + signal.SIGTERM  # 143
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-
 T = TypeVar("T")
 
 _written: ContextVar[list[Path] | None] = ContextVar("openel_cli_written", default=None)
 _details: ContextVar[dict[Path, str] | None] = ContextVar("openel_cli_details", default=None)
-
-
-def exit_code(signum: int) -> int:
-    """The exit status of a command stopped by ``signum``: 128 + its number (130, 143)."""
-    return 128 + int(signum)
 
 
 @dataclass(frozen=True, slots=True)
@@ -164,29 +151,6 @@ async def run_interruptible(
         return results[0]
     # Not finished: cancelled by the signal caught (the work cannot return without a result).
     return Interrupted(caught[0], time.monotonic() - start, error, written, details)
-
-
-def _raise_terminated(signum: int, frame: FrameType | None) -> None:
-    raise SystemExit(exit_code(signum))
-
-
-def install_sigterm_handler() -> None:
-    """SIGTERM outside :func:`run_interruptible` raises ``SystemExit(143)`` (clean-ups run,
-    no traceback) instead of killing the process on the spot."""
-    with contextlib.suppress(ValueError):  # not the main thread: leave it alone
-        signal.signal(signal.SIGTERM, _raise_terminated)
-
-
-def interrupt_code(exc: BaseException) -> int | None:
-    """The exit status of a ``KeyboardInterrupt`` or ``SystemExit`` from a signal, also inside
-    (nested) exception groups of task groups; None for anything else."""
-    while isinstance(exc, BaseExceptionGroup) and len(exc.exceptions) == 1:
-        exc = exc.exceptions[0]
-    if isinstance(exc, KeyboardInterrupt):
-        return EXIT_SIGINT
-    if isinstance(exc, SystemExit) and exc.code in (EXIT_SIGINT, EXIT_SIGTERM):
-        return int(exc.code)
-    return None
 
 
 @contextlib.contextmanager

@@ -12,20 +12,15 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
-from ..errors import BadParameterError
-from ..surface import xml_psm
-from ..surface.messages import (
-    ArgumentList,
-    CommandMessage,
-    DataType,
-    Device,
-    Message,
-    Parameter,
-    ResultList,
-)
 from .commands import load_bytes
 from .options import EXIT_USAGE, no_such_file
+
+if TYPE_CHECKING:
+    from ..surface.messages import Message, Parameter
+
+# The surface layer is imported when an action runs: 'openel-async --help' does not load it.
 
 
 def add_parser(
@@ -51,6 +46,8 @@ def run(args: argparse.Namespace) -> int:
     if command == "validate":
         return _validate(args.files)
     if command == "schema":
+        from ..surface import xml_psm
+
         print(xml_psm.schema_text(), end="")
         return 0
     if command == "show":
@@ -65,6 +62,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _read(name: str) -> Message | None:
+    from ..errors import BadParameterError
+    from ..surface import xml_psm
+
     try:
         return xml_psm.from_xml(load_bytes(name))
     except (OSError, BadParameterError) as exc:
@@ -88,6 +88,8 @@ def _validate(files: list[str]) -> int:
 
 
 def _parameter(p: Parameter) -> str:
+    from ..surface.messages import DataType
+
     try:
         kind = DataType(p.data_type_id).name
     except ValueError:
@@ -98,6 +100,8 @@ def _parameter(p: Parameter) -> str:
 
 def describe(message: Message, indent: str = "") -> list[str]:
     """A readable outline of a message."""
+    from ..surface.messages import ArgumentList, CommandMessage, Device, ResultList
+
     if isinstance(message, Device):
         lines = [f"{indent}Device {message.device_kind}"]
         for command in message.commands:

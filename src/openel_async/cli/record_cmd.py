@@ -124,7 +124,7 @@ def _command_tap(record: str | None, server: tuple[str, int] | None) -> Tap:
     docstring); a class made here, so that importing this module imports no recorder."""
     import anyio
 
-    from ..app._interrupt import note_written
+    from ..app import note_written
     from ..recording import Tap
 
     path = None if record is None else Path(record).absolute()

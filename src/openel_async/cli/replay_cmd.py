@@ -10,8 +10,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import anyio
-
 __all__ = ["add_parser", "run"]
 
 
@@ -73,6 +71,8 @@ class _OptionError(Exception):
 
 
 def run(args: argparse.Namespace) -> int:
+    import anyio
+
     from ..recording import read_recording
     from ..recording.reader import NotMcapError
     from ..recording.replay import replay
