@@ -54,6 +54,7 @@ async def _in_thread(fn: Callable[[], T], limit: float = 10) -> T:
 @pytest.fixture
 def network(channel: str) -> Iterator[canopen.Network]:
     net = canopen.Network()
+    net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
     net.connect(interface="virtual", channel=channel, receive_own_messages=False)
     try:
         yield net
@@ -106,6 +107,7 @@ async def test_our_master_maps_and_starts_a_canopen_local_node(
 async def test_our_master_through_slcan_maps_and_starts_a_canopen_local_node() -> None:
     with SlcanAdapter() as adapter:
         net = canopen.Network()
+        net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
         net.connect(interface="virtual", channel=adapter.channel, receive_own_messages=False)
         try:
             async with CanBus(
@@ -291,6 +293,7 @@ async def test_canopen_master_through_slcan_runs_our_simulated_drive() -> None:
     sim = SimCia402Drive(NODE, heartbeat_ms=0)
     with SlcanAdapter(peers=[sim]) as adapter:
         net = canopen.Network()
+        net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
         net.connect(interface="slcan", channel=adapter.port, bitrate=1_000_000, sleep_after_open=0)
         try:
             remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))

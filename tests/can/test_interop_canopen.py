@@ -47,6 +47,7 @@ def _var(name: str, index: int, data_type: int, default: Any) -> cod.ODVariable:
 @pytest.fixture
 def network(channel: str) -> Iterator[canopen.Network]:
     net = canopen.Network()
+    net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
     net.connect(interface="virtual", channel=channel, receive_own_messages=False)
     try:
         yield net

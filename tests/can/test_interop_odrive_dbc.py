@@ -240,7 +240,7 @@ def dbc_frames(draw: st.DrawFn) -> tuple[Message, bytes]:
     return message, data
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(dbc_frames())
 def test_every_dbc_message_decodes_with_our_codec(frame: tuple[Message, bytes]) -> None:
     message, data = frame

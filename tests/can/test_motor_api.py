@@ -331,6 +331,7 @@ async def test_canopen_reads_back_what_the_ramp_wrote(
     with anyio.fail_after(3):
         await motor.set_speed(2.0, tm_acc=0.4)  # 5 rad/s^2
     network = canopen.Network()
+    network.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
     network.connect(interface="virtual", channel=channel, receive_own_messages=False)
     try:
         node = canopen.RemoteNode(CIA_NODE, _cia_od())

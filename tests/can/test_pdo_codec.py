@@ -33,7 +33,7 @@ def _mapping_and_values(draw: st.DrawFn) -> tuple[list[co.PdoMapEntry], list[int
     return mapping, [draw(_value(entry)) for entry in mapping]
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(_mapping_and_values())
 def test_pack_matches_pack_pdo(case: tuple[list[co.PdoMapEntry], list[int]]) -> None:
     mapping, values = case
@@ -48,7 +48,7 @@ def test_pack_matches_pack_pdo(case: tuple[list[co.PdoMapEntry], list[int]]) -> 
     assert codec.pack(values) == expected
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(_MAPPING, st.binary(max_size=10))
 def test_unpack_matches_unpack_pdo(mapping: list[co.PdoMapEntry], data: bytes) -> None:
     codec = co.PdoCodec(mapping)

@@ -21,7 +21,7 @@ u8 = st.integers(0, 0xFF)
 expedited = st.binary(min_size=1, max_size=4)
 u32 = st.integers(0, 0xFFFF_FFFF)
 segment = st.binary(max_size=7)
-FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 MESSAGES: st.SearchStrategy[co.CanOpenMessage] = st.one_of(
     st.builds(co.NmtControl, st.sampled_from(co.NmtCommand), st.integers(0, co.MAX_NODE_ID)),

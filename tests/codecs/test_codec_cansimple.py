@@ -16,7 +16,7 @@ f32 = st.floats(width=32, allow_nan=False)
 u8 = st.integers(0, 0xFF)
 u32 = st.integers(0, 0xFFFF_FFFF)
 ff = st.integers(-32768, 32767).map(lambda k: k * cs.FF_SCALE)
-FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 REQUESTABLE = [

@@ -10,7 +10,7 @@ from openel_can import cia402 as ds
 from openel_can.errors import Cia402DecodeError
 
 S = ds.PowerState
-FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 @pytest.mark.parametrize(

@@ -421,7 +421,7 @@ def _parse_in_pieces(
     return got, counters
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.lists(segments, max_size=12).map(b"".join), st.data(), st.sampled_from([16, 64, 1024]))
 def test_fuzz_parser_split_anywhere_parses_as_whole(
     stream: bytes, data: st.DataObject, max_length: int
@@ -439,7 +439,7 @@ def test_fuzz_parser_split_anywhere_parses_as_whole(
     assert whole_counters[6] <= 7 + max_length
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.binary(max_size=64) | st.lists(segments, max_size=3).map(b"".join))
 def test_fuzz_decode_raises_only_decode_errors(data: bytes) -> None:
     try:

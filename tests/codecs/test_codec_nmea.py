@@ -370,7 +370,7 @@ nmea_segments = st.one_of(
 )
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(
     st.lists(nmea_segments, max_size=12).map(b"".join),
     st.data(),
@@ -410,7 +410,7 @@ def test_garbage_before_a_sentence_is_counted_byte_for_byte() -> None:
     assert parser.garbage_bytes == len(noise) + len(b"$GPRMC,1234") and parser.buffered == 0
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.lists(nmea_segments, max_size=4).map(b"".join) | st.binary(max_size=120))
 def test_fuzz_decode_raises_only_nmea_decode_error(line: bytes) -> None:
     try:

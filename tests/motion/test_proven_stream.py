@@ -291,7 +291,7 @@ _LIMITS = st.builds(
 )
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=80, deadline=None)
 @given(
     start=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
     velocity=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),

@@ -213,7 +213,7 @@ def test_an_unreadable_file_names_its_path(tmp_path: pathlib.Path) -> None:
 # -- fuzzing the loader: only a description or BadParameterError ever comes out ------------
 
 FUZZ = settings(
-    max_examples=200,
+    max_examples=80,
     deadline=None,
     derandomize=True,
     database=None,

@@ -17,6 +17,7 @@ import pytest
 
 from openel_async import Actuator, Request, VirtualClock
 from openel_async.recording import Pipeline, PipelineStats, Recorder, SinkStartError, read_recording
+from openel_async.recording import pipeline as pipeline_module
 from openel_async.recording.records import BATCH, COMMAND, READING
 from openel_async.recording.schemas import HAL_RECORD
 from openel_sim import SimMotor
@@ -312,11 +313,14 @@ async def test_a_loop_without_a_timer_hands_its_columns_over(tmp_path: Path) -> 
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="Unix signals")
-async def test_loop_driven_writes_never_block_and_lose_nothing_untold(tmp_path: Path) -> None:
+async def test_loop_driven_writes_never_block_and_lose_nothing_untold(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Driven by the loop, the pipeline writes without blocking: with the writer process
     stopped, the frames wait (the pipe, then ``max_frames``), the column buffer fills to its
     capacity and the rest is dropped and counted; once the writer runs again everything
     held is written, and the file holds exactly what was not dropped."""
+    monkeypatch.setattr(pipeline_module, "PIPE_SIZE", 1 << 16)  # (1 MiB holds ~100 000 commands)
     path = tmp_path / "d.mcap"
     recorder = Recorder(path, capacity=5_000)
     actuator = Actuator(SimMotor(), device_name="AXIS", clock=VirtualClock())
@@ -330,13 +334,18 @@ async def test_loop_driven_writes_never_block_and_lose_nothing_untold(tmp_path: 
             os.kill(pid, signal.SIGSTOP)
             try:
                 started = time.monotonic()
-                for k in range(150):  # 150 000 commands: far more than the pipe, frames and buffer
+                # until the pipe, the frames and the buffer are full and 5 000 more were
+                # dropped (values that do not compress: the pipe holds fewer of them)
+                k = 0
+                while pipeline.dropped < 5_000 and k < 300:
+                    k += 1
                     for _ in range(1000):
                         produced += 1
-                        actuator.set_value_nowait(1e-6 * (k % 7), Request.POSITION)
+                        noise = produced * 2_654_435_761 % 1_000_003
+                        actuator.set_value_nowait(1e-9 * noise, Request.POSITION)
                     pipeline.flush_due()
                 elapsed = time.monotonic() - started
-                assert pipeline.dropped > 0
+                assert pipeline.dropped >= 5_000
             finally:
                 os.kill(pid, signal.SIGCONT)
             assert elapsed < 20  # (a blocking write would never have returned)

@@ -153,7 +153,7 @@ def test_xml_is_told_from_the_compact_form_by_its_first_character(encoding: str)
     assert is_xml(" \n<Device/>".encode(encoding))
 
 
-@settings(max_examples=200)
+@settings(max_examples=100)
 @given(devices)
 def test_no_compact_device_is_taken_for_xml(device: Device) -> None:
     assert not is_xml(compact.encode(device))

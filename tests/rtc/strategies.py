@@ -49,7 +49,7 @@ from openel_async.rtc.profile import (
 _T = TypeVar("_T")
 
 # Deterministic: a fixed seed per test and no example database on disk.
-SETTINGS = settings(derandomize=True, database=None, deadline=None, max_examples=150)
+SETTINGS = settings(derandomize=True, database=None, deadline=None, max_examples=60)
 
 # Text both formats can carry: no surrogates and no C0 controls except \t \n \r.
 TEXT = st.text(

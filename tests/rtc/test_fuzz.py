@@ -28,7 +28,7 @@ YAML_SEEDS = [p.read_text() for p in sorted(REAL.glob("*.yaml"))] + [
     p.read_text() for p in sorted((REAL / "constraints").glob("*.yaml"))
 ]
 FUZZ = settings(
-    max_examples=200,
+    max_examples=100,
     deadline=None,
     derandomize=True,
     database=None,

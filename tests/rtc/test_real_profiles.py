@@ -461,10 +461,15 @@ def _many_parameters(count: int) -> RtcProfile:
     )
 
 
-def test_a_large_xml_converts_to_a_yaml_that_loads(tmp_path: Path) -> None:
-    # Was: 20 000 parameters converted to a YAML file refused for its node count.
+def test_a_large_xml_converts_to_a_yaml_that_loads(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Was: 20 000 parameters converted to a YAML file refused for its node count. Scaled down
+    # for speed (4 000 parameters, a 40 000-node limit): both forms count against one limit.
+    monkeypatch.setattr(yaml_io, "MAX_NODES", 40_000)
+    monkeypatch.setattr(xml_io, "MAX_NODES", 40_000)
     xml_path = tmp_path / "RTC.xml"
-    xml_path.write_text(dumps_xml(_many_parameters(20_000)))
+    xml_path.write_text(dumps_xml(_many_parameters(4_000)))
     yaml_path = tmp_path / "RTC.yaml"
     assert cli(["profile", "convert", str(xml_path), str(yaml_path)]) == 0
     assert load_profile(yaml_path) == load_profile(xml_path)

@@ -431,7 +431,7 @@ def test_response_timeout_follows_baud_rate_and_packet_size() -> None:
     assert slow.response_timeout(10, 1, 3) == pytest.approx(24 * 10 / 57_600 + 500e-6 + 0.01)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.lists(st.binary(max_size=64), max_size=20))
 def test_reader_never_raises_on_garbage(chunks: list[bytes]) -> None:
     port = DynamixelPort("/dev/null")

@@ -51,7 +51,7 @@ def test_fastcrc_check_value_is_the_sdk_one() -> None:
     assert dx.crc16(check) == 0xFEE8
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.binary(max_size=300), st.binary(max_size=64))
 def test_fastcrc_umts_matches_sdk_update_crc(data: bytes, more: bytes) -> None:
     sdk_crc = PH.updateCRC(0, list(data), len(data))
@@ -78,7 +78,7 @@ def _params(size: int) -> st.SearchStrategy[bytes]:
 STATUSES = st.builds(dx.Status, STATUS_IDS, st.integers(0, 255), st.binary(max_size=40))
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(STATUSES)
 def test_status_fast_path_equals_the_full_decode(status: dx.Status) -> None:
     packet = dx.encode(status)
@@ -134,7 +134,7 @@ def _counters(parser: dx.PacketParser) -> tuple[int, ...]:
     )
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.integers(0, 20), st.data())
 def test_feed_statuses_is_feed_split_in_two(param_length: int, data: st.DataObject) -> None:
     stream = b"".join(data.draw(st.lists(_segments(param_length), max_size=40)))

@@ -68,7 +68,7 @@ class RecordingPort:
 # -- packet level ----------------------------------------------------------------------------
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=80, deadline=None)
 @given(st.binary(max_size=300))
 def test_crc_matches_sdk_update_crc(data: bytes) -> None:
     assert dx.crc16(data) == PH.updateCRC(0, list(data), len(data))
@@ -153,7 +153,7 @@ def _sdk_write_packet(dxl_id: int, address: int, data: bytes) -> list[int]:
     return packet
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=80, deadline=None)
 @given(st.integers(0, dx.MAX_ID), st.integers(0, 0xFFFF), payload.filter(bool))
 def test_write_with_stuffing_matches_sdk(dxl_id: int, address: int, data: bytes) -> None:
     ours = dx.encode(dx.Write(dxl_id, address, data))
@@ -201,7 +201,7 @@ def _sdk_reads(wire: bytes) -> tuple[list[int], int]:
     return result
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=80, deadline=None)
 @given(st.integers(0, dx.MAX_ID), st.integers(0, 0x7F), payload)
 def test_sdk_parses_our_status_packets(dxl_id: int, error: int, params: bytes) -> None:
     ours = dx.encode(dx.Status(dxl_id, error, params))

@@ -82,7 +82,7 @@ instructions = st.one_of(
 statuses = st.builds(ft.Status, ids, st.integers(0, 255), st.binary(max_size=80))
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(instructions)
 def test_instruction_round_trip(msg: ft.FeetechMessage) -> None:
     packet = ft.encode(msg)
@@ -90,13 +90,13 @@ def test_instruction_round_trip(msg: ft.FeetechMessage) -> None:
     assert ft.PacketParser(status=False).feed(packet) == [msg]
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(statuses)
 def test_status_round_trip(msg: ft.Status) -> None:
     assert ft.decode(ft.encode(msg), status=True) == msg
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.one_of(instructions, statuses), st.data())
 def test_a_corrupted_byte_is_detected(msg: ft.FeetechMessage, data: st.DataObject) -> None:
     packet = bytearray(ft.encode(msg))
@@ -119,7 +119,7 @@ def test_a_wrong_length_byte_is_a_decode_error() -> None:
         ft.decode(bytes(packet), status=False)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.integers(0, 15), st.data())
 def test_sign_magnitude_round_trip(bit: int, data: st.DataObject) -> None:
     value = data.draw(st.integers(-(2**bit) + 1, 2**bit - 1))
@@ -143,7 +143,7 @@ def test_sign_magnitude_of_the_sts_registers() -> None:
     assert ft.SCS.GOAL_SPEED.encode(-1) == b"\x04\x01"
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(
     st.lists(st.one_of(instructions, st.binary(max_size=8)), max_size=12),
     st.lists(st.integers(1, 40), max_size=6),

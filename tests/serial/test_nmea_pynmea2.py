@@ -222,7 +222,7 @@ def test_real_stream_parses_like_pynmea2_stream_reader() -> None:
                 assert other.sentence_type == mine.sentence_type
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.sampled_from(REAL), st.data())
 def test_both_reject_the_same_corruptions(sentence: str, data: st.DataObject) -> None:
     star = sentence.index("*")
@@ -251,7 +251,7 @@ times = st.builds(
 )
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=80, deadline=None)
 @given(
     talkers,
     times,
@@ -316,7 +316,7 @@ def test_simulated_gps_sentences_parse_with_pynmea2(talker: str, fix_quality: in
             assert abs(rmc.longitude - lon) <= 1e-5 / 60 + 1e-12
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=80, deadline=None)
 @given(
     talkers,
     times,

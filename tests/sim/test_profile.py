@@ -30,7 +30,7 @@ QUANTUM_S = 1e-9
 """Allowance for phase boundaries rounded to whole nanoseconds."""
 TOL = 1e-6
 
-PROPERTY = settings(max_examples=250, derandomize=True, database=None, deadline=None)
+PROPERTY = settings(max_examples=100, derandomize=True, database=None, deadline=None)
 
 starts = st.integers(min_value=0, max_value=10**15)
 positions = st.floats(min_value=-50.0, max_value=50.0, allow_nan=False, allow_infinity=False)

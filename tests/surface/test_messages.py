@@ -82,7 +82,7 @@ def same(a: object, b: object) -> bool:
     return a == b
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(messages)
 def test_xml_round_trip_is_exact_and_valid(message: Message) -> None:
     data = xml_psm.to_xml(message)
@@ -92,7 +92,7 @@ def test_xml_round_trip_is_exact_and_valid(message: Message) -> None:
     assert xml_psm.to_xml(back) == data
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(messages)
 def test_compact_round_trip_is_exact(message: Message) -> None:
     back = compact.decode(compact.encode(message), type(message))
