@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING
@@ -37,10 +37,14 @@ class DriverEntry:
     error: str | None = None
 
 
-def discover_drivers() -> list[DriverEntry]:
-    """Load every registered driver; a driver that fails to import is reported, not raised."""
+def discover_drivers(names: Collection[str] | None = None) -> list[DriverEntry]:
+    """Load every registered driver (``names``: only those of these names, so that a rig
+    that uses two drivers does not import the others); a driver that fails to import is
+    reported, not raised."""
     found: list[DriverEntry] = []
     for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+        if names is not None and ep.name not in names:
+            continue
         try:
             info = ep.load()
         except Exception as exc:  # a broken optional driver must not hide the others

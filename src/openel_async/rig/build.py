@@ -17,7 +17,7 @@ from ..device_registry import component_class
 from ..errors import BadParameterError
 from ..ids import HALId
 from ..positioned import DocumentError, convert, relocate, unknown_key_message
-from ..registry import discover_drivers
+from ..registry import DriverInfo, discover_drivers
 from .buses import BusKind, BusLoad, SimulatedDevice
 from .spec import BusSpec, ComponentSpec, RigSpec
 
@@ -61,15 +61,29 @@ def _bus_error(error: BadParameterError, bus: BusSpec) -> BadParameterError:
     return relocate(error, DocumentError(str(error), path=error.parameter, location=bus.location))
 
 
+def _drivers_of(spec: RigSpec) -> tuple[dict[str, DriverInfo], dict[str, tuple[str, BusKind]]]:
+    """The drivers a rig names and the bus kinds they offer. Only the drivers its components
+    name and those named as its bus types are loaded (a bus type is first looked for in the
+    driver of its name, as the shipped drivers name theirs); every installed driver when
+    something is not found there, so that a refusal lists what exists."""
+    named = {c.driver for c in spec.components}
+    types = {b.type for b in spec.buses}
+    for names in (named | types, None):
+        drivers = {e.name: e.info for e in discover_drivers(names) if e.info is not None}
+        kinds: dict[str, tuple[str, BusKind]] = {}
+        for driver_name, info in drivers.items():
+            for type_name, kind in info.buses.items():
+                kinds[type_name] = (driver_name, kind)
+        if named <= drivers.keys() and types <= kinds.keys():
+            break
+    return drivers, kinds
+
+
 def resolve_rig(spec: RigSpec) -> ResolvedRig:
     """Check a rig against the installed drivers without opening anything: drivers, device
     classes, ``params`` keys, bus types and their options, devices on buses (their kind's
     ``check``). BadParameterError at the first mistake, with its position."""
-    drivers = {e.name: e.info for e in discover_drivers() if e.info is not None}
-    kinds: dict[str, tuple[str, BusKind]] = {}
-    for driver_name, info in drivers.items():
-        for type_name, kind in info.buses.items():
-            kinds[type_name] = (driver_name, kind)
+    drivers, kinds = _drivers_of(spec)
     classes: dict[str, type] = {}
     for c in spec.components:
         driver = drivers.get(c.driver)
