@@ -27,7 +27,7 @@ from openel_async.cli.commands import CliCommand
 if TYPE_CHECKING:
     SubParsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
 
-__all__ = ["CALIBRATE"]
+__all__ = ["CALIBRATE", "SCAN_SERIAL"]
 
 
 def add_calibrate_parser(sub: SubParsers) -> argparse.ArgumentParser:
@@ -70,3 +70,78 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 CALIBRATE = CliCommand("calibrate", add_calibrate_parser, run_calibrate)
+
+
+SCAN_DESCRIPTION = """\
+Find what is on a serial port before writing a rig: Dynamixel Protocol 2.0 or Feetech STS
+servos (a PING of every id of --ids at each baud rate of --baud, each bounded by the status
+time plus --timeout, through the driver's own port) or an NMEA 0183 receiver (the port
+listened to for --listen seconds at each baud rate: whole, checksummed sentences come only at
+the receiver's rate).
+
+The port: --port DEVICE --protocol P, or a rig file's serial bus (--rig RIG.yaml [--bus
+NAME]; --sim: its simulated servos or receiver on a pty). Default rates: the rig's; without a
+rig Dynamixel 57600 and 1000000, Feetech 1000000, NMEA 9600, 4800, 38400 and 115200 (--baud
+all: every rate of the protocol). A servo answers only at its own rate.
+
+Prints a table (--json: one JSON document); --rig-out FILE writes a rig file naming what was
+found, to edit and check with 'openel-async rig check FILE'. Exit status: 0 something found,
+1 nothing found (or the port failed), 2 usage error, 130 Ctrl-C.
+"""
+
+
+def add_scan_serial_parser(sub: SubParsers) -> argparse.ArgumentParser:
+    parser: argparse.ArgumentParser = sub.add_parser(
+        "serial",
+        help="find the Dynamixel or Feetech servos or the NMEA receiver on a serial port",
+        description=SCAN_DESCRIPTION,
+    )
+    port = parser.add_argument_group("the port (a device and a protocol, or a rig file's bus)")
+    port.add_argument("--port", metavar="DEVICE", help="/dev/ttyUSB0, /dev/ttyACM0, a URL...")
+    port.add_argument(
+        "--protocol", choices=("dynamixel", "feetech", "nmea"), help="what it carries"
+    )
+    port.add_argument("--rig", metavar="RIG.yaml", help="take the port from this rig file")
+    port.add_argument("--bus", metavar="NAME", help="the rig's serial bus (default: its only one)")
+    port.add_argument(
+        "--sim",
+        action="store_true",
+        help="the rig's bus simulated: a pty with the rig's servos or receiver",
+    )
+    parser.add_argument(
+        "--baud",
+        metavar="RATES",
+        help="baud rates to try, separated by commas, or 'all' (default: see above)",
+    )
+    parser.add_argument(
+        "--ids", default="0-252", metavar="IDS", help="servo ids to ping: 1-6,10 (default 0-252)"
+    )
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=0.005,
+        metavar="S",
+        help="seconds added to each PING's status time before the id counts as absent "
+        "(default 0.005; more behind a USB adapter with a long latency timer)",
+    )
+    parser.add_argument(
+        "--listen",
+        type=float,
+        default=1.5,
+        metavar="S",
+        help="NMEA: seconds to listen at each rate (default 1.5: a 1 Hz receiver is heard)",
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON document")
+    parser.add_argument("--rig-out", metavar="FILE", help="write a rig file naming what was found")
+    return parser
+
+
+def run_scan_serial(args: argparse.Namespace) -> int:
+    """Scan (:mod:`openel_serial.scan_cmd`, loaded only when the command runs)."""
+    from .scan_cmd import run
+
+    return run(args)
+
+
+SCAN_SERIAL = CliCommand("serial", add_scan_serial_parser, run_scan_serial, parent="scan")
+"""``openel-async scan serial``."""

@@ -723,6 +723,7 @@ class SimGps(PtyPeer):
         snr: tuple[int, ...] = (45, 42, 40, 38, 36, 33, 30, 28, 25),
         sigma: tuple[float, float] | None = (1.5, 2.0),
         pmtk: bool = True,
+        baudrate: int | None = None,
         path: str | Path | None = None,
         clock: Clock | None = None,
     ) -> None:
@@ -730,6 +731,9 @@ class SimGps(PtyPeer):
             raise ValueError(f"rate_hz {rate_hz} must be > 0")
         super().__init__(path, clock)
         self.rate_hz = rate_hz
+        self.baudrate = baudrate
+        """The receiver's UART rate: a host whose tty is set to another rate reads garbage
+        (no whole sentence), as on a real port; None: any rate (a pty has none)."""
         self.track = track or GpsPath()
         self.start_utc = start_utc or dt.datetime(2024, 5, 1, 12, 0, 0, tzinfo=dt.UTC)
         self.talker = talker
@@ -841,7 +845,7 @@ class SimGps(PtyPeer):
                         body, _, given = sentence.rstrip("\r\n").rpartition("*")
                         sentence = f"{body}*{int(given, 16) ^ 0x5A:02X}\r\n"
                     out.append(sentence)
-                self.pty.write_nowait("".join(out).encode("ascii"))
+                self.pty.write_nowait(self._on_the_wire("".join(out).encode("ascii")))
                 self.epochs += 1
                 self.sentences += len(out)
             self._epoch += 1
@@ -857,6 +861,14 @@ class SimGps(PtyPeer):
                 next_ns = sent_ns + round(NS / self.rate_hz)
                 if next_ns > clock.now_ns():
                     await clock.sleep_until(next_ns)
+
+    def _on_the_wire(self, data: bytes) -> bytes:
+        """``data`` as the host's UART decodes it: garbage at another rate than the
+        receiver's (framing errors: no ``$`` survives, nor a line end)."""
+        host = self.pty.baudrate()
+        if self.baudrate is None or host is None or host == self.baudrate:
+            return data
+        return bytes(0x80 | (b * 7 + host) & 0x7F for b in data)
 
     async def _listen(self) -> None:
         parser = nmea.NmeaParser()

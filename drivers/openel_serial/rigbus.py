@@ -365,7 +365,7 @@ async def _simulated(
         what = f"simulated Feetech STS3215 servos {', '.join(map(str, sorted(ids)))}"
         what += note
     else:
-        peer = SimGps()
+        peer = SimGps(baudrate=options.baudrate)
         by_name = {d.name: peer for d in devices}
         what = "a simulated NMEA receiver"
     async with PeerThread(peer):
