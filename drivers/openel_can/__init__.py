@@ -55,24 +55,22 @@ _LAZY = {
 
 
 def _driver() -> DriverInfo:
-    from openel_async.registry import DriverInfo
-
-    from .drive402 import Cia402Drive, Cia402Temperature
-    from .odrive import ODriveAxis, ODriveBusMonitor, ODriveEncoder, ODriveTemperature
-    from .rigbus import CanBusKind
+    from openel_async.registry import DriverInfo, lazy_bus_kinds, lazy_classes
 
     return DriverInfo(
         name="can",
         description="CAN buses via python-can: ODrive (CANSimple) and CiA 402 (CANopen) drives",
-        devices={
-            "odrive_axis": ODriveAxis,
-            "odrive_encoder": ODriveEncoder,
-            "odrive_temperature": ODriveTemperature,
-            "odrive_bus_monitor": ODriveBusMonitor,
-            "cia402_drive": Cia402Drive,
-            "cia402_temperature": Cia402Temperature,
-        },
-        buses={"can": CanBusKind()},
+        devices=lazy_classes(
+            {
+                "odrive_axis": "openel_can.odrive:ODriveAxis",
+                "odrive_encoder": "openel_can.odrive:ODriveEncoder",
+                "odrive_temperature": "openel_can.odrive:ODriveTemperature",
+                "odrive_bus_monitor": "openel_can.odrive:ODriveBusMonitor",
+                "cia402_drive": "openel_can.drive402:Cia402Drive",
+                "cia402_temperature": "openel_can.drive402:Cia402Temperature",
+            }
+        ),
+        buses=lazy_bus_kinds({"can": "openel_can.rigbus:CanBusKind"}),
     )
 
 

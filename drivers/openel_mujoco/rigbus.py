@@ -221,3 +221,11 @@ def with_simulation(rig: ResolvedRig, sim: MujocoSim, bus: str | None = None) ->
         raise BadParameterError("sim", sim, "a simulation not running yet")
     attached = dataclasses.replace(rig.buses[bus], options=AttachedSimulation(buses[bus], sim))
     return dataclasses.replace(rig, buses={**rig.buses, bus: attached})
+
+
+def bus_kind() -> MujocoBusKind:
+    """The driver's ``mujoco`` bus kind, with its device classes (the driver's registry entry
+    builds it on first use)."""
+    from . import DEVICES
+
+    return MujocoBusKind(DEVICES)

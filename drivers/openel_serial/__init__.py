@@ -68,12 +68,7 @@ _LAZY = {
 
 
 def _driver() -> DriverInfo:
-    from openel_async.registry import DriverInfo
-
-    from .feetech_servo import FeetechServo, FeetechSTS3215
-    from .gps import NmeaGps
-    from .rigbus import SerialBusKind
-    from .servo import DynamixelServo, DynamixelXL430W250, DynamixelXM430W350
+    from openel_async.registry import DriverInfo, lazy_bus_kinds, lazy_classes
 
     return DriverInfo(
         name="serial",
@@ -81,15 +76,17 @@ def _driver() -> DriverInfo:
             "Serial devices on pyserial-asyncio-fast: Dynamixel 2.0 servos, Feetech STS servos, "
             "NMEA GPS"
         ),
-        devices={
-            "dynamixel": DynamixelServo,
-            "dynamixel_xm430_w350": DynamixelXM430W350,
-            "dynamixel_xl430_w250": DynamixelXL430W250,
-            "feetech": FeetechServo,
-            "feetech_sts3215": FeetechSTS3215,
-            "nmea_gps": NmeaGps,
-        },
-        buses={"serial": SerialBusKind()},
+        devices=lazy_classes(
+            {
+                "dynamixel": "openel_serial.servo:DynamixelServo",
+                "dynamixel_xm430_w350": "openel_serial.servo:DynamixelXM430W350",
+                "dynamixel_xl430_w250": "openel_serial.servo:DynamixelXL430W250",
+                "feetech": "openel_serial.feetech_servo:FeetechServo",
+                "feetech_sts3215": "openel_serial.feetech_servo:FeetechSTS3215",
+                "nmea_gps": "openel_serial.gps:NmeaGps",
+            }
+        ),
+        buses=lazy_bus_kinds({"serial": "openel_serial.rigbus:SerialBusKind"}),
     )
 
 

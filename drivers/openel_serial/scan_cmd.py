@@ -17,8 +17,7 @@ from typing import Any
 
 import anyio
 
-from openel_async.cli.commands import EXIT_USAGE, no_such_file
-from openel_async.cli.options import log_level
+from openel_async.cli.commands import EXIT_USAGE, log_level, no_such_file
 from openel_async.errors import BadParameterError, HALError
 
 from . import dynamixel as dx

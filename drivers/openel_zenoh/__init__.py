@@ -39,16 +39,18 @@ _LAZY = {
 
 
 def _driver() -> DriverInfo:
-    from openel_async.registry import DriverInfo
+    from openel_async.registry import DriverInfo, lazy_classes
 
-    from .device import RemoteActuator, RemoteSensor
-
-    driver = DriverInfo(
+    return DriverInfo(
         name="zenoh",
         description="Remote devices: components served by 'openel-async serve' over Zenoh",
-        devices={"actuator": RemoteActuator, "sensor": RemoteSensor},
+        devices=lazy_classes(
+            {
+                "actuator": "openel_zenoh.device:RemoteActuator",
+                "sensor": "openel_zenoh.device:RemoteSensor",
+            }
+        ),
     )
-    return driver
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _LAZY, {"DRIVER": _driver})

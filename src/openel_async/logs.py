@@ -9,9 +9,26 @@ logs -- ``openel-async --help``, a short script -- never pays for it.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
-__all__ = ["get_logger"]
+__all__ = ["configure_on_first_use", "ensure_configured", "get_logger"]
+
+_pending: list[Callable[[], None]] = []
+
+
+def configure_on_first_use(configure: Callable[[], None] | None) -> None:
+    """Run ``configure`` (an application's structlog configuration) just before the first
+    logger is used, instead of now -- a command that never logs never imports structlog.
+    None forgets a pending one."""
+    _pending[:] = [] if configure is None else [configure]
+
+
+def ensure_configured() -> None:
+    """Run the pending configuration now, if any (before reading or changing structlog's
+    configuration from outside a logger)."""
+    while _pending:
+        _pending.pop()()
 
 
 class LazyLogger:
@@ -26,6 +43,7 @@ class LazyLogger:
     def __getattr__(self, attribute: str) -> Any:
         logger = self._logger
         if logger is None:
+            ensure_configured()
             import structlog
 
             from . import _logging  # noqa: F401  (imports structlog; the library's default)

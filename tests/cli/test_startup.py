@@ -7,6 +7,8 @@ import re
 import subprocess
 import sys
 
+import pytest
+
 # (python-can and pyserial are still loaded by the can and serial drivers' contributed
 # commands: their packages import their modules at once)
 HEAVY = (
@@ -55,3 +57,40 @@ def test_every_module_logs_through_the_lazy_logger() -> None:
         if "structlog.get_logger(" in line
     ]
     assert offenders == []
+
+
+def test_devices_lists_every_driver_without_importing_them() -> None:
+    """The drivers give their device classes as ``module:Class`` paths: listing them imports
+    no device module, and logging (structlog) is configured only if something logs."""
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "openel_async.cli", "devices"],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    for line in ("sim ", "mujoco ", "can ", "serial ", "zenoh "):
+        assert any(row.startswith(line) for row in done.stdout.splitlines()), line
+    assert "openel_mujoco.devices.MujocoJoint" in done.stdout
+    assert "openel_can.drive402.Cia402Drive" in done.stdout
+    imported = set(re.findall(r"^import time:\s+\d+ \|\s+\d+ \| +(\S+)$", done.stderr, re.M))
+    top = {name.split(".")[0] for name in imported}
+    assert not top.intersection(HEAVY), sorted(top.intersection(HEAVY))
+    assert "openel_sim.motor" not in imported and "openel_can.odrive" not in imported
+
+
+def test_a_deferred_configuration_applies_at_the_first_log_line(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from openel_async.cli.logs import configure_logging, reset_logging
+    from openel_async.logs import get_logger
+
+    try:
+        configure_logging("json", "info", defer=True)
+        get_logger("openel_async.test_startup").info("deferred_event", answer=42)
+        line = capsys.readouterr().err.strip().splitlines()[-1]
+    finally:
+        reset_logging()
+    import json
+
+    record = json.loads(line)
+    assert record["event"] == "deferred_event" and record["answer"] == 42
+    assert record["level"] == "info" and "timestamp" in record

@@ -24,6 +24,8 @@ from .replay_cmd import add_parser as add_replay_parser
 from .rig_cmd import add_rig_arguments
 
 PROG = "openel-async"
+QUIET_START = frozenset({"devices", "rig", "hal4rt", "completion", "scan", "bus"})
+"""Commands that run no application code: structlog is loaded only if something logs."""
 SHELLS = ("bash", "zsh", "tcsh")
 
 DEMO_DESCRIPTION = """\
@@ -302,7 +304,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _main(argv: Sequence[str] | None) -> int:
     parser = _build_parser()
     args = parser.parse_args(argv)
-    configure_logging(args.log_format, log_level(args))
+    # Commands that run no application code configure structlog when it is first used.
+    configure_logging(args.log_format, log_level(args), defer=args.command in QUIET_START)
     contributed = getattr(args, "contributed", None)
     if contributed is not None:
         code: int = contributed.run(args)

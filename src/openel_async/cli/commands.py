@@ -25,7 +25,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
-from .options import EXIT_USAGE, no_such_file
+from .options import EXIT_USAGE, log_level, no_such_file
 
 __all__ = [
     "ENTRY_POINT_GROUP",
@@ -33,6 +33,7 @@ __all__ = [
     "CliCommand",
     "discover_commands",
     "load_bytes",
+    "log_level",
     "no_such_file",
 ]
 

@@ -5,12 +5,11 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from ..device_registry import DeviceRegistry
-
 
 def profiles_document() -> dict[str, Any]:
     """Every registered device's profile, keyed by ``driver.device``, and the devices the
     Device Kind ID registry refused (with the reason)."""
+    from ..device_registry import DeviceRegistry
     from ..registry import discover_drivers
 
     entries = discover_drivers()
@@ -40,7 +39,7 @@ def print_devices() -> int:
     that implements each; a driver that cannot load says why."""
     import textwrap
 
-    from ..registry import discover_drivers
+    from ..registry import class_path, discover_drivers
 
     entries = discover_drivers()
     name_width = max((len(e.name) for e in entries), default=0) + 2
@@ -57,6 +56,6 @@ def print_devices() -> int:
             )
         )
         width = max((len(name) for name in entry.info.devices), default=0) + 2
-        for device_name, cls in entry.info.devices.items():
-            print(f"  {device_name:{width}}{cls.__module__}.{cls.__qualname__}")
+        for device_name in entry.info.devices:
+            print(f"  {device_name:{width}}{class_path(entry.info.devices, device_name)}")
     return 0

@@ -27,7 +27,7 @@ from typing import Any, cast
 import anyio
 import structlog
 
-from openel_async.logs import get_logger
+from openel_async.logs import ensure_configured, get_logger
 
 from ..actuator import Actuator
 from ..app import AppContext, AppHook
@@ -983,6 +983,7 @@ class Tap(AppHook):
 
     # -- log lines -------------------------------------------------------------------
     def _install_log_forwarder(self) -> None:
+        ensure_configured()  # an application's configuration first, then the forwarder in it
         config = structlog.get_config()
         processors = list(config.get("processors", ()))
         self._processors = processors
