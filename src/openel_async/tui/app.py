@@ -16,6 +16,7 @@ from typing import ClassVar
 import anyio
 from textual.app import App, ComposeResult
 from textual.binding import Binding, BindingType
+from textual.css.query import NoMatches
 from textual.widgets import DataTable, Footer, Header
 
 from .jogger import Jogger, LogEntry
@@ -23,7 +24,7 @@ from .widgets import ComponentTable, EventLog, PlotPanel, StatusLine
 
 __all__ = ["EXIT_INTERRUPTED", "REFRESH_S", "JogApp"]
 
-REFRESH_S = 0.1
+REFRESH_S = 0.25
 """How often the values are read and the screen refreshed."""
 EXIT_INTERRUPTED = 130
 """The app's return code when Ctrl-C ends it (as a SIGINT would)."""
@@ -35,11 +36,11 @@ class JogApp(App[None]):
     TITLE = "openel-async jog"
     CSS = """
     ComponentTable { height: auto; max-height: 45%; }
-    StatusLine { height: 1; background: $boost; }
+    StatusLine { height: 1; width: 100%; background: $boost; }
     PlotPanel { height: auto; max-height: 50%; }
     .plot { height: 2; }
-    .plot-label { height: 1; color: $text-muted; }
-    Sparkline { height: 1; }
+    .plot-label { height: 1; width: 100%; color: $text-muted; }
+    Sparkline { height: 1; width: 100%; }
     EventLog { height: 1fr; min-height: 4; border-top: solid $primary; }
     """
     BINDINGS: ClassVar[list[BindingType]] = [
@@ -100,9 +101,15 @@ class JogApp(App[None]):
         await self.show()
 
     async def show(self) -> None:
-        self.query_one(ComponentTable).show(self.jogger)
-        self.query_one(StatusLine).show(self.jogger)
-        await self.query_one(PlotPanel).show(self.jogger)
+        try:
+            table = self.query_one(ComponentTable)
+            status = self.query_one(StatusLine)
+            plots = self.query_one(PlotPanel)
+        except NoMatches:  # the app is closing: its widgets are gone
+            return
+        table.show(self.jogger)
+        status.show(self.jogger)
+        await plots.show(self.jogger)
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         self.jogger.select(event.cursor_row)

@@ -35,7 +35,7 @@ from ..actuator import Actuator
 from ..component import ComponentState, HALComponent
 from ..device import ErrorId
 from ..errors import HALError
-from ..motion import AxisGroup
+from ..motion import AxisGroup, PreemptedError
 from ..requests import EventId, Request
 from ..rig import Rig
 from ..sensor import Sensor
@@ -57,8 +57,8 @@ CALL_TIMEOUT_S = 1.0
 """The bound of every device call the jogger makes (a read, a command, an e-stop)."""
 JOG_PERIOD_S = 0.02
 """The period of the position setpoints streamed to an axis outside a group."""
-HISTORY = 200
-"""Values kept per component for its plot."""
+HISTORY = 240
+"""Values kept per component for its plot (a minute at the UI's 4 reads a second)."""
 STEPS = (0.001, 0.005, 0.01, 0.05, 0.1, 0.25, 0.5, 1.0)
 """The jog steps ``[`` and ``]`` choose from (rad or m)."""
 VELOCITIES = (0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 5.0)
@@ -302,6 +302,7 @@ class Jogger:
         reason = f": {fault}" if state is _ERROR and fault is not None else ""
         level = "error" if state is _ERROR else "info"
         self.note(level, f"{row.name}: {old} -> {state}{reason}")
+        row.target = None  # the next jog starts from where the axis is
         if state is _ACTIVE:
             self._observe(row.component)
 
@@ -342,8 +343,7 @@ class Jogger:
             self.note("warning", f"{row.name} is {axis.state}: not jogged{hint}")
             return None
         low, high = axis.device.limits.position
-        streaming = row.name in self._streams or self.group_of(row.name) is not None
-        if streaming and row.target is not None:
+        if row.target is not None:  # where the last jog went (or is going)
             base = row.target
         elif row.values:
             base = row.values[0]
@@ -396,12 +396,14 @@ class Jogger:
                     if i < steps and delay > 0:
                         await anyio.sleep(delay)
             except (HALError, TimeoutError, OSError) as exc:
+                row.target = None
                 self.note("error", f"{row.name}: jog failed: {exc or type(exc).__name__}")
         if self._streams.get(row.name) is scope:
             del self._streams[row.name]
 
     async def _group_jog(self, row: Row, group: AxisGroup, index: int, target: float) -> None:
         targets = list(group.commanded)
+        distance = abs(target - targets[index])
         targets[index] = target
         limits = [
             dataclasses.replace(lim, max_velocity=min(lim.max_velocity, self.velocity))
@@ -410,11 +412,16 @@ class Jogger:
         try:
             with anyio.fail_after(self.call_timeout):
                 motion = await group.move_to(targets, limits)
-            await motion
+            # the move takes distance / velocity and its ramps; its goal check is the group's
+            with anyio.fail_after(2.0 * distance / self.velocity + 5.0 + self.call_timeout):
+                await motion
+        except PreemptedError:  # the next jog took over
+            pass
         except HALError as exc:
-            if type(exc).__name__ != "PreemptedError":  # the next jog took over
-                self.note("error", f"{row.name}: jog failed ({group.name}): {exc}")
+            row.target = None
+            self.note("error", f"{row.name}: jog failed ({group.name}): {exc}")
         except TimeoutError:
+            row.target = None
             self.note("error", f"{row.name}: jog failed ({group.name}): no answer")
 
     async def stop(self) -> None:

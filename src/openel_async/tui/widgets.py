@@ -14,14 +14,14 @@ from .jogger import Jogger, LogEntry, Row
 
 __all__ = ["ComponentTable", "EventLog", "PlotPanel", "StatusLine", "format_values"]
 
-COLUMNS = (
-    ("plot", "plot"),
-    ("name", "component"),
-    ("kind", "kind"),
-    ("state", "state"),
-    ("value", "value"),
-    ("target", "target"),
-    ("limits", "limits"),
+COLUMNS = (  # key, label, width (None: the widest cell at start)
+    ("plot", "plot", 4),
+    ("name", "component", None),
+    ("kind", "kind", 8),
+    ("state", "state", 12),
+    ("value", "value", 22),
+    ("target", "target", 9),
+    ("limits", "limits", None),
 )
 STATE_STYLES = {
     "Active": "green",
@@ -58,10 +58,13 @@ class ComponentTable(DataTable[Text | str]):
     def setup(self, jogger: Jogger) -> None:
         self.cursor_type = "row"
         self.zebra_stripes = True
-        for key, label in COLUMNS:
-            self.add_column(label, key=key)
+        for key, label, width in COLUMNS:
+            self.add_column(label, key=key, width=width)
+        self._shown: dict[str, list[Text | str]] = {}
         for row in jogger.rows:
-            self.add_row(*self._cells(row), key=row.name)
+            cells = self._cells(row)
+            self.add_row(*cells, key=row.name)
+            self._shown[row.name] = cells
         self.move_cursor(row=jogger.selected)
 
     def _cells(self, row: Row) -> list[Text | str]:
@@ -76,9 +79,13 @@ class ComponentTable(DataTable[Text | str]):
         ]
 
     def show(self, jogger: Jogger) -> None:
+        """Update the cells that changed (a redraw of the table costs)."""
         for row in jogger.rows:
-            for (key, _), cell in zip(COLUMNS, self._cells(row), strict=True):
-                self.update_cell(row.name, key, cell, update_width=key in ("value", "target"))
+            shown = self._shown[row.name]
+            for i, ((key, _, _), cell) in enumerate(zip(COLUMNS, self._cells(row), strict=True)):
+                if cell != shown[i]:
+                    self.update_cell(row.name, key, cell)
+                    shown[i] = cell
 
 
 class PlotRow(Vertical):
@@ -87,6 +94,7 @@ class PlotRow(Vertical):
     def __init__(self, row: Row) -> None:
         super().__init__(classes="plot")
         self.row = row
+        self._data: list[float] | None = None
 
     def compose(self) -> ComposeResult:
         yield Label(self.row.name, classes="plot-label")
@@ -94,6 +102,9 @@ class PlotRow(Vertical):
 
     def show(self) -> None:
         data = list(self.row.history)
+        if data == self._data:
+            return
+        self._data = data
         label = self.row.name
         if data:
             label += f"  {_number(data[-1])}  (min {_number(min(data))}, max {_number(max(data))})"
@@ -121,6 +132,8 @@ class PlotPanel(Vertical):
 class StatusLine(Static):
     """The selected axis, the step and velocity, the e-stop."""
 
+    shown: Text | None = None
+
     def show(self, jogger: Jogger) -> None:
         row = jogger.row
         text = Text()
@@ -132,7 +145,9 @@ class StatusLine(Static):
         text.append(f"  completed {jogger.completed}", style="dim")
         if jogger.rig.estopped:
             text.append("   E-STOP (r releases)", style="bold white on red")
-        self.update(text)
+        if text != self.shown:
+            self.shown = text
+            self.update(text)
 
 
 class EventLog(RichLog):
