@@ -46,6 +46,7 @@ class JogApp(App[None]):
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("up,k", "select(-1)", "select", show=False, priority=True),
         Binding("down,j", "select(1)", "select", show=False, priority=True),
+        Binding("x", "estop", "E-STOP", priority=True),
         Binding("left,h", "jog(-1)", "jog -", priority=True),
         Binding("right,l", "jog(1)", "jog +", priority=True),
         Binding("left_square_bracket", "step(-1)", "step -"),
@@ -55,7 +56,6 @@ class JogApp(App[None]):
         Binding("space", "stop", "stop"),
         Binding("e", "enable", "enable"),
         Binding("d", "disable", "disable"),
-        Binding("x", "estop", "E-STOP", priority=True),
         Binding("r", "release", "release"),
         Binding("p", "plot", "plot"),
         Binding("q", "quit_jog", "quit"),
