@@ -252,6 +252,9 @@ def _build_parser() -> argparse.ArgumentParser:
     from .rig_cmd import add_parser as add_rig_parser
 
     add_rig_parser(sub)
+    from .jog_cmd import add_parser as add_jog_parser
+
+    add_jog_parser(sub)
     from .hal4rt_cmd import add_parser as add_hal4rt_parser
 
     parents = {
@@ -340,6 +343,10 @@ def _main(argv: Sequence[str] | None) -> int:
         from .rig_cmd import run as run_rig_cmd
 
         return run_rig_cmd(args)
+    if args.command == "jog":
+        from .jog_cmd import run as run_jog_cmd
+
+        return run_jog_cmd(args)
     if args.command == "record":
         from .record_cmd import run as run_record_cmd
 
