@@ -418,11 +418,11 @@ class SimStsServo:
                 return self._status(now)
             case ft.Read():
                 return None if broadcast else self._read(now, msg.address, msg.length)
+            case ft.RegWrite():  # before Write: a RegWrite is one
+                self._registered = (msg.address, msg.data)
+                status = self._status(now)
             case ft.Write():
                 self._write(now, msg.address, msg.data)
-                status = self._status(now)
-            case ft.RegWrite():
-                self._registered = (msg.address, msg.data)
                 status = self._status(now)
             case ft.Action():
                 registered, self._registered = self._registered, None
