@@ -48,7 +48,7 @@ from openel_async.clock import Clock
 from openel_async.errors import BadParameterError, HALError
 from openel_async.logs import get_logger
 from openel_serial import feetech as ft
-from openel_serial.busport import BusStats, PolledBusPort
+from openel_serial.busport import BusClient, BusStats, PolledBusPort
 from openel_serial.errors import FeetechTimeoutError
 from openel_serial.feetech_watchdog import TORQUE_OFF_BROADCAST, HostWatchdog
 
@@ -137,24 +137,13 @@ class FeetechPortStats(BusStats):
     watchdog_trips: int = 0
 
 
-class FeetechClient(Protocol):
+class FeetechClient(BusClient, Protocol):
     """What a servo attached to the port implements (see :class:`FeetechServo`)."""
 
     @property
     def servo_id(self) -> int: ...
 
-    @property
-    def polled(self) -> bool: ...
-
     def _poll_update(self, state: FeetechPresentState) -> None: ...
-
-    def _poll_missed(self, error: FeetechTimeoutError) -> None: ...
-
-    def _port_lost(self, reason: str) -> None: ...
-
-    def _watchdog_tripped(self, reason: str) -> None: ...
-
-    def _estopped(self, reason: str) -> None: ...
 
 
 class FeetechPort(PolledBusPort[ft.Status, FeetechClient]):

@@ -59,7 +59,7 @@ from openel_async.clock import Clock
 from openel_async.errors import BadParameterError
 from openel_async.logs import get_logger
 from openel_serial import dynamixel as dx
-from openel_serial.busport import BusStats, PolledBusPort
+from openel_serial.busport import BusClient, BusStats, PolledBusPort
 from openel_serial.errors import (
     DynamixelHardwareAlert,
     DynamixelStatusError,
@@ -144,28 +144,17 @@ class PortStats(BusStats):
     """Statuses with CRC_ERROR: a servo received the instruction damaged (it was resent)."""
 
 
-class PortClient(Protocol):
+class PortClient(BusClient, Protocol):
     """What a servo attached to the port implements (see :class:`DynamixelServo`)."""
 
     @property
     def dxl_id(self) -> int: ...
 
-    @property
-    def polled(self) -> bool: ...
-
     def _poll_update(self, state: PresentState) -> None: ...
-
-    def _poll_missed(self, error: DynamixelTimeoutError) -> None: ...
 
     def _poll_status_error(self, error: DynamixelStatusError) -> None: ...
 
     def _hardware_alert(self, error: DynamixelHardwareAlert) -> None: ...
-
-    def _port_lost(self, reason: str) -> None: ...
-
-    def _watchdog_tripped(self, reason: str) -> None: ...
-
-    def _estopped(self, reason: str) -> None: ...
 
 
 class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
