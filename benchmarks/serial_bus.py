@@ -6,6 +6,9 @@ open on one line of stdout, and serves until its stdin is closed (EOF). Running 
 in another process keeps its CPU time out of the benchmark process, so the
 ``time.process_time`` of the benchmark process is the client's alone, whichever client
 (ours or dynamixel-sdk) is measured.
+
+:func:`serve_bus` and :class:`BusProcess` are the scaffold every simulated-bus child process
+shares (:mod:`benchmarks.feetech_bus` too).
 """
 
 from __future__ import annotations
@@ -13,16 +16,18 @@ from __future__ import annotations
 import subprocess
 import sys
 from types import TracebackType
+from typing import Any, ClassVar
 
 import anyio
 
+from openel_serial.buspeer import SimServoBus
 from openel_serial.peers import SimDynamixelBus, SimServo
 
 START_TIMEOUT_S = 20.0
 
 
-async def serve(servos: int) -> None:
-    bus = SimDynamixelBus([SimServo(i, return_delay_time=0) for i in range(1, servos + 1)])
+async def serve_bus(bus: SimServoBus[Any, Any]) -> None:
+    """Serve ``bus`` (no packet log), print its tty path, return at EOF on stdin."""
     bus.keep_log = False
     async with bus:
         print(bus.path, flush=True)
@@ -30,8 +35,17 @@ async def serve(servos: int) -> None:
         await anyio.wait_readable(stdin)  # EOF (or any byte): the benchmark is done
 
 
+async def serve(servos: int) -> None:
+    await serve_bus(
+        SimDynamixelBus([SimServo(i, return_delay_time=0) for i in range(1, servos + 1)])
+    )
+
+
 class BusProcess:
-    """``with BusProcess(n) as path:`` a simulated bus of ``n`` servos in a child process."""
+    """``with BusProcess(n) as path:`` a simulated bus of ``n`` servos in a child process
+    (``python -m`` :attr:`module` ``n``)."""
+
+    module: ClassVar[str] = "benchmarks.serial_bus"
 
     def __init__(self, servos: int) -> None:
         self.servos = servos
@@ -39,7 +53,7 @@ class BusProcess:
 
     def __enter__(self) -> str:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "benchmarks.serial_bus", str(self.servos)],
+            [sys.executable, "-m", self.module, str(self.servos)],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
@@ -49,7 +63,7 @@ class BusProcess:
         line = proc.stdout.readline().strip()  # the child prints its path once it serves
         if not line:
             self.__exit__(None, None, None)
-            raise RuntimeError(f"simulated bus process exited with {proc.poll()}")
+            raise RuntimeError(f"simulated bus process {self.module} exited with {proc.poll()}")
         return line
 
     def __exit__(
@@ -72,7 +86,7 @@ class BusProcess:
             proc.stdout.close()
 
     def __repr__(self) -> str:
-        return f"BusProcess({self.servos})"
+        return f"{type(self).__name__}({self.servos})"
 
 
 if __name__ == "__main__":

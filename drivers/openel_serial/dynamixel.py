@@ -27,6 +27,14 @@ from typing import Final, TypeAlias
 from fastcrc.crc16 import umts as _umts
 
 from openel_serial.errors import DynamixelCrcError, DynamixelDecodeError
+from openel_serial.servocodec import (
+    CENTER_TICK,
+    TICKS_PER_REV,
+    DescribedFlag,
+    check_item_lengths,
+    rad_to_ticks,
+    ticks_to_rad,
+)
 
 __all__ = [
     "ACCELERATION_UNIT_RPM2",
@@ -332,9 +340,7 @@ class SyncWrite:
     def __post_init__(self) -> None:
         _check_u16(self.address, "address")
         _check_u16(self.length, "length")
-        for item in self.items:
-            if len(item.data) != self.length:
-                raise ValueError(f"id {item.id}: {len(item.data)} bytes, expected {self.length}")
+        check_item_lengths(self.length, self.items)
 
 
 @dataclass(frozen=True)
@@ -956,7 +962,7 @@ class XSeries:
     PRESENT_TEMPERATURE: Final = ControlItem(146, 1)
 
 
-class HardwareError(IntFlag):
+class HardwareError(DescribedFlag):
     """Bits of Hardware Error Status (address 70); any of them sets the status alert bit.
 
     The servo disables its torque (Shutdown, address 63 selects which bits do) and keeps
@@ -968,14 +974,6 @@ class HardwareError(IntFlag):
     MOTOR_ENCODER = 0x08
     ELECTRICAL_SHOCK = 0x10
     OVERLOAD = 0x20
-
-    def describe(self) -> str:
-        """``"OVERHEATING|OVERLOAD"``, or the hex value for bits without a name."""
-        names = [flag.name for flag in HardwareError if flag in self and flag.name]
-        unknown = int(self) & ~sum(int(flag) for flag in HardwareError)
-        if unknown:
-            names.append(f"{unknown:#04x}")
-        return "|".join(names) or "none"
 
 
 class MovingStatus(IntFlag):
@@ -999,9 +997,6 @@ class OperatingMode(IntEnum):
     PWM = 16
 
 
-TICKS_PER_REV: Final = 4096
-#: Convention: tick 2048 (the middle of the 0..4095 range) is 0 rad.
-CENTER_TICK: Final = 2048
 VELOCITY_UNIT_RPM: Final = 0.229
 #: Profile Acceleration (108) unit, rev/min^2.
 ACCELERATION_UNIT_RPM2: Final = 214.577
@@ -1020,18 +1015,8 @@ BAUD_RATES: Final = (9600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_0
 RETURN_DELAY_UNIT_S: Final = 2e-6
 """Return Delay Time (9) unit; the largest setting is :data:`RETURN_DELAY_MAX`."""
 RETURN_DELAY_MAX: Final = 254
-_RAD_PER_TICK: Final = 2 * math.pi / TICKS_PER_REV
 _RAD_S_PER_UNIT: Final = VELOCITY_UNIT_RPM * 2 * math.pi / 60
 _RAD_S2_PER_UNIT: Final = ACCELERATION_UNIT_RPM2 * 2 * math.pi / 3600
-
-
-def ticks_to_rad(ticks: int) -> float:
-    return (ticks - CENTER_TICK) * _RAD_PER_TICK
-
-
-def rad_to_ticks(rad: float) -> int:
-    """Nearest tick (±half a tick, 0.77 mrad)."""
-    return round(rad / _RAD_PER_TICK) + CENTER_TICK
 
 
 def velocity_to_rad_s(units: int) -> float:

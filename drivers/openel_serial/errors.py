@@ -38,6 +38,7 @@ __all__ = [
     "NmeaDecodeError",
     "NoFixError",
     "PortDisconnectedError",
+    "ServoTimeoutError",
 ]
 
 
@@ -122,13 +123,16 @@ class DynamixelHardwareAlert(DynamixelStatusError):
         self.hardware_error = hardware_error
 
 
-class DynamixelTimeoutError(TimeoutError):
-    """No (valid) status packet from ``ids`` within the timeout, after every attempt."""
+class ServoTimeoutError(TimeoutError):
+    """No (valid) status packet from ``ids`` within the timeout, after every attempt (any
+    servo protocol; ``servo`` names its servos in the message)."""
+
+    servo: str = "servo"
 
     def __init__(self, port: str, ids: Sequence[int], request: str, timeout: float, attempts: int):
         id_text = ", ".join(str(i) for i in ids)
         super().__init__(
-            f"{port}: no status from servo {id_text} to {request} "
+            f"{port}: no status from {self.servo} {id_text} to {request} "
             f"({attempts} attempt(s), {timeout * 1e3:.1f} ms each)"
         )
         self.port = port
@@ -136,6 +140,10 @@ class DynamixelTimeoutError(TimeoutError):
         self.request = request
         self.timeout = timeout
         self.attempts = attempts
+
+
+class DynamixelTimeoutError(ServoTimeoutError):
+    """No (valid) status packet from ``ids`` within the timeout, after every attempt."""
 
 
 class FeetechStatusError(HALError):
@@ -154,20 +162,10 @@ class FeetechStatusError(HALError):
         self.request = request
 
 
-class FeetechTimeoutError(TimeoutError):
+class FeetechTimeoutError(ServoTimeoutError):
     """No (valid) status from ``ids`` within the timeout, after every attempt."""
 
-    def __init__(self, port: str, ids: Sequence[int], request: str, timeout: float, attempts: int):
-        id_text = ", ".join(str(i) for i in ids)
-        super().__init__(
-            f"{port}: no status from Feetech servo {id_text} to {request} "
-            f"({attempts} attempt(s), {timeout * 1e3:.1f} ms each)"
-        )
-        self.port = port
-        self.ids = tuple(ids)
-        self.request = request
-        self.timeout = timeout
-        self.attempts = attempts
+    servo = "Feetech servo"
 
 
 class PortDisconnectedError(NotConnectedError):

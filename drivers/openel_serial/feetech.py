@@ -42,10 +42,19 @@ model numbers).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import IntEnum, IntFlag
+from enum import IntEnum
 from typing import Final, TypeAlias
 
 from openel_serial.errors import FeetechChecksumError, FeetechDecodeError
+from openel_serial.servocodec import (
+    CENTER_TICK,
+    RAD_PER_TICK,
+    TICKS_PER_REV,
+    DescribedFlag,
+    check_item_lengths,
+    rad_to_ticks,
+    ticks_to_rad,
+)
 
 __all__ = [
     "ACCELERATION_UNIT_STEPS_S2",
@@ -117,7 +126,7 @@ class Instruction(IntEnum):
     SYNC_WRITE = 0x83
 
 
-class StatusError(IntFlag):
+class StatusError(DescribedFlag):
     """Bits of a status packet's error byte (the SDK's ERRBIT_*): the servo's alarms."""
 
     VOLTAGE = 0x01
@@ -126,14 +135,6 @@ class StatusError(IntFlag):
     OVERCURRENT = 0x08
     """The SDK's "OverEle"."""
     OVERLOAD = 0x20
-
-    def describe(self) -> str:
-        """``"OVERHEAT|OVERLOAD"``, or the hex value of bits without a name, or ``none``."""
-        names = [flag.name for flag in StatusError if flag in self and flag.name]
-        unknown = int(self) & ~sum(int(flag) for flag in StatusError)
-        if unknown:
-            names.append(f"{unknown:#04x}")
-        return "|".join(names) or "none"
 
 
 class OperatingMode(IntEnum):
@@ -214,16 +215,8 @@ class Write:
 
 
 @dataclass(frozen=True, slots=True)
-class RegWrite:
-    """Like :class:`Write`, applied at the next :class:`Action`."""
-
-    id: int
-    address: int
-    data: bytes
-
-    def __post_init__(self) -> None:
-        _check_id(self.id)
-        _check_byte(self.address, "address")
+class RegWrite(Write):
+    """Like :class:`Write`, applied at the next :class:`Action` (a subclass: match it first)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -277,9 +270,7 @@ class SyncWrite:
     def __post_init__(self) -> None:
         _check_byte(self.address, "address")
         _check_byte(self.length, "length")
-        for item in self.items:
-            if len(item.data) != self.length:
-                raise ValueError(f"id {item.id}: {len(item.data)} bytes, expected {self.length}")
+        check_item_lengths(self.length, self.items)
 
 
 @dataclass(frozen=True, slots=True)
@@ -329,10 +320,10 @@ def encode(msg: FeetechMessage) -> bytes:
             return _frame(msg.id, Instruction.PING, b"")
         case Read():
             return _frame(msg.id, Instruction.READ, bytes((msg.address, msg.length)))
-        case Write():
-            return _frame(msg.id, Instruction.WRITE, bytes((msg.address,)) + msg.data)
         case RegWrite():
             return _frame(msg.id, Instruction.REG_WRITE, bytes((msg.address,)) + msg.data)
+        case Write():
+            return _frame(msg.id, Instruction.WRITE, bytes((msg.address,)) + msg.data)
         case Action():
             return _frame(msg.id, Instruction.ACTION, b"")
         case Reset():
@@ -651,9 +642,6 @@ class SCS:
 
 STS3215_MODEL: Final = 777
 """Model Number (3) of the STS3215 (LeRobot's MODEL_NUMBER_TABLE)."""
-TICKS_PER_REV: Final = 4096
-CENTER_TICK: Final = 2048
-"""Convention: step 2048 (mid-range) is 0 rad."""
 ACCELERATION_UNIT_STEPS_S2: Final = 100
 LOAD_UNIT: Final = 0.001
 """Present Load (60) unit: 0.1 % of the stall torque."""
@@ -664,21 +652,11 @@ RETURN_DELAY_MAX: Final = 254
 BAUD_RATES: Final = (1_000_000, 500_000, 250_000, 128_000, 115_200, 76_800, 57_600, 38_400)
 """Baud Rate (6) setting -> bit/s, settings 0..7 (the vendor's SMS_STS.h; LeRobot's table
 has 57600, 38400, 19200 at 5..7 instead)."""
-_RAD_PER_TICK: Final = 2 * 3.141592653589793 / TICKS_PER_REV
-
-
-def ticks_to_rad(ticks: int | float) -> float:
-    return (ticks - CENTER_TICK) * _RAD_PER_TICK
-
-
-def rad_to_ticks(rad: float) -> int:
-    """Nearest step (+-half a step, 0.77 mrad)."""
-    return round(rad / _RAD_PER_TICK) + CENTER_TICK
 
 
 def speed_to_rad_s(steps_s: int | float) -> float:
-    return steps_s * _RAD_PER_TICK
+    return steps_s * RAD_PER_TICK
 
 
 def rad_s_to_speed(rad_s: float) -> int:
-    return round(rad_s / _RAD_PER_TICK)
+    return round(rad_s / RAD_PER_TICK)

@@ -42,16 +42,14 @@ import math
 import threading
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Final
-
-import anyio
+from typing import Any, ClassVar, Final
 
 from openel_async.clock import Clock, default_clock
 from openel_async.logs import get_logger
 from openel_serial import feetech as ft
 from openel_sim import profile as prof
 
-from .ptypeer import PtyPeer
+from .buspeer import SimServoBus
 
 __all__ = ["SimFeetechBus", "SimStsServo"]
 
@@ -418,11 +416,11 @@ class SimStsServo:
                 return self._status(now)
             case ft.Read():
                 return None if broadcast else self._read(now, msg.address, msg.length)
+            case ft.RegWrite():  # before Write: a RegWrite is one
+                self._registered = (msg.address, msg.data)
+                status = self._status(now)
             case ft.Write():
                 self._write(now, msg.address, msg.data)
-                status = self._status(now)
-            case ft.RegWrite():
-                self._registered = (msg.address, msg.data)
                 status = self._status(now)
             case ft.Action():
                 registered, self._registered = self._registered, None
@@ -448,13 +446,17 @@ def _writable(address: int) -> bool:
     return not S.PRESENT_POSITION.address <= address < S.TABLE_SIZE
 
 
-class SimFeetechBus(PtyPeer):
+class SimFeetechBus(SimServoBus[SimStsServo, ft.FeetechMessage]):
     """A Feetech bus behind a pty: the servos answer the driver's instruction packets.
 
     ``servos``: :class:`SimStsServo` s or ids. The statuses to one instruction (several for a
     SYNC READ, in the order of its ids) are sent together after the servos' Return Delays.
-    What the driver sent is kept in ``received``/``instructions`` (``keep_log``).
+    What the driver sent is kept in ``received``/``instructions`` (``keep_log``); a packet
+    whose checksum failed is dropped unanswered (``corrupt_instructions``).
     """
+
+    return_delay_address: ClassVar[int] = S.RETURN_DELAY.address
+    return_delay_unit_s: ClassVar[float] = ft.RETURN_DELAY_UNIT_S
 
     def __init__(
         self,
@@ -464,11 +466,7 @@ class SimFeetechBus(PtyPeer):
         clock: Clock | None = None,
         check_baudrate: bool = False,
     ) -> None:
-        super().__init__(path, clock)
-        self.clock = clock or default_clock()
-        self.check_baudrate = check_baudrate
-        self.baud_mismatches = 0
-        self._tty_rate: int | None = None
+        super().__init__(path=path, clock=clock, check_baudrate=check_baudrate)
         self.servos: list[SimStsServo] = []
         for servo in servos:
             if isinstance(servo, int):
@@ -476,17 +474,6 @@ class SimFeetechBus(PtyPeer):
             if any(s.id == servo.id for s in self.servos):
                 raise ValueError(f"two simulated servos with id {servo.id}")
             self.servos.append(servo)
-        self.parser = ft.PacketParser(status=False)
-        self.received = bytearray()
-        self.instructions: list[ft.FeetechMessage] = []
-        self.keep_log = True
-        self.drop_replies = 0
-        """Instructions whose replies are lost on the wire."""
-        self.corrupt_replies = 0
-        """Replies sent with a damaged checksum."""
-        self.corrupt_instructions = 0
-        """Packets from the driver whose checksum failed (dropped unanswered)."""
-        self.replies = 0
 
     def __getitem__(self, servo_id: int) -> SimStsServo:
         for servo in self.servos:
@@ -496,55 +483,24 @@ class SimFeetechBus(PtyPeer):
 
     def inject_garbage(self, data: bytes = b"\x00\xff\xff\xff\x13\xaa") -> None:
         """Send noise to the driver now (a glitch on the line)."""
-        self.pty.write_nowait(data)
+        super().inject_garbage(data)
 
-    async def _serve(self) -> None:
-        parser = ft.PacketParser(status=False)
-        self.parser = parser
-        while True:
-            data = await self.pty.read()
-            if self.keep_log:
-                self.received += data
-            if self.check_baudrate:
-                self._tty_rate = self.pty.baudrate()
-            for msg in parser.feed_all(data):
-                if isinstance(msg, ft.CorruptPacket):
-                    self.corrupt_instructions += 1
-                    for servo in self.servos:
-                        if servo.id == msg.id:
-                            servo.checksum_errors += 1
-                    continue
-                if self.keep_log:
-                    self.instructions.append(msg)
-                await self._answer(msg)
+    def new_parser(self) -> ft.PacketParser:
+        return ft.PacketParser(status=False)
 
-    async def _answer(self, msg: ft.FeetechMessage) -> None:
+    def encode_status(self, status: Any) -> bytes:
+        return ft.encode(status)
+
+    async def receive(self, msg: ft.FeetechMessage | ft.CorruptPacket) -> None:
+        if isinstance(msg, ft.CorruptPacket):
+            self.corrupt_instructions += 1
+            for servo in self.servos:
+                if servo.id == msg.id:
+                    servo.checksum_errors += 1
+            return
+        self.log_instruction(msg)
         if isinstance(msg, ft.SyncRead):
             order = [s for i in msg.ids for s in self.servos if s.id == i]
         else:
             order = sorted(self.servos, key=lambda s: s.id)
-        if self.check_baudrate:
-            heard = [s for s in order if s.baudrate == self._tty_rate]
-            self.baud_mismatches += len(order) - len(heard)
-            order = heard
-        replies: list[bytes] = []
-        delay_units = 0
-        for servo in order:
-            status = servo.handle(msg)
-            if status is not None:
-                replies.append(ft.encode(status))
-                delay_units += servo.table[S.RETURN_DELAY.address]
-        if not replies:
-            return
-        if self.drop_replies:
-            self.drop_replies -= 1
-            return
-        if self.corrupt_replies:
-            self.corrupt_replies -= 1
-            last = bytearray(replies[-1])
-            last[-1] ^= 0xFF
-            replies[-1] = bytes(last)
-        if delay_units:
-            await anyio.sleep(delay_units * ft.RETURN_DELAY_UNIT_S)
-        self.replies += len(replies)
-        await self.pty.write(b"".join(replies))
+        await self.send_replies(order, lambda servo: servo.handle(msg))

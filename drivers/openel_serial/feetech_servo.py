@@ -51,31 +51,15 @@ mode: Goal Speed 0), ``TORQUE_OFF`` turns the torque off; an e-stopped servo kee
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import ClassVar, Final
 
-import anyio
-
-from openel_async.device import (
-    ActuatorDevice,
-    ActuatorLimits,
-    DeviceContext,
-    DeviceInfo,
-    ErrorId,
-)
-from openel_async.errors import (
-    BadParameterError,
-    HALError,
-    NotConnectedError,
-    NotImplementedHALError,
-    ReturnCode,
-)
+from openel_async.device import ActuatorLimits, DeviceInfo, ErrorId
+from openel_async.errors import BadParameterError, HALError, NotImplementedHALError
 from openel_async.ids import DeviceKind
-from openel_async.logs import get_logger
 from openel_async.requests import Request
 from openel_async.safety import ExitAction
 from openel_serial import feetech as ft
-from openel_serial.errors import FeetechStatusError, FeetechTimeoutError
+from openel_serial.errors import FeetechStatusError
 from openel_serial.feetech_calibration import JointCalibration
 from openel_serial.feetech_port import (
     POLL_ADDRESS,
@@ -83,10 +67,16 @@ from openel_serial.feetech_port import (
     FeetechPort,
     FeetechPresentState,
 )
+from openel_serial.halfduplex import positive_or_none
+from openel_serial.servobase import (
+    LINK_ERRORS,
+    BusServo,
+    Pending,
+    check_position_limits,
+    check_servo_id,
+)
 
 __all__ = ["FEETECH_VENDOR_ID", "FeetechSTS3215", "FeetechServo"]
-
-log = get_logger(__name__)
 
 S = ft.STS
 RAD_PER_TICK: Final = 2 * math.pi / ft.TICKS_PER_REV
@@ -95,27 +85,9 @@ FEETECH_VENDOR_ID: Final = 0x4654
 TABLE_LENGTH: Final = S.LOCK.address + 1  # 0..55 in one READ
 STS3215_TOP_SPEED: Final = 3073 * RAD_PER_TICK
 """rad/s of an unloaded STS3215 at 7.4 V (0.222 s / 60 deg)."""
-_LINK_ERRORS: Final = (TimeoutError, NotConnectedError, OSError, anyio.BrokenResourceError)
 
 
-@dataclass(frozen=True, slots=True)
-class _Pending:
-    request: Request
-    goal: int
-    after: int
-
-
-def _si_or_none(name: str, value: float | None) -> float | None:
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise BadParameterError(name, value, "a finite number > 0")
-    if not (math.isfinite(value) and value > 0):
-        raise BadParameterError(name, value, "a finite number > 0")
-    return float(value)
-
-
-class FeetechServo(ActuatorDevice):
+class FeetechServo(BusServo[FeetechPort, FeetechPresentState]):
     """A Feetech STS/SMS servo on a shared :class:`FeetechPort` (see the module docstring).
 
     ``port`` must be entered before the component is. ``position_limits`` (rad) override the
@@ -128,7 +100,7 @@ class FeetechServo(ActuatorDevice):
         vendor_name="Feetech",
         product_name="STS",
     )
-    reports_completion = True
+    log_prefix: ClassVar[str] = "feetech"
     model_number: ClassVar[int] = 0
     """The Model Number (3) the class requires (0: any)."""
     top_speed: ClassVar[float] = STS3215_TOP_SPEED
@@ -151,22 +123,8 @@ class FeetechServo(ActuatorDevice):
     ) -> None:
         if not isinstance(port, FeetechPort):
             raise BadParameterError("port", port, "a FeetechPort")
-        if (
-            isinstance(servo_id, bool)
-            or not isinstance(servo_id, int)
-            or not 0 <= servo_id <= ft.MAX_ID
-        ):
-            raise BadParameterError("servo_id", servo_id, f"a servo id in 0..{ft.MAX_ID}")
-        if position_limits is not None:
-            try:
-                low, high = (float(v) for v in position_limits)
-                ok = math.isfinite(low) and math.isfinite(high) and low < high
-            except (TypeError, ValueError):
-                ok = False
-            if not ok:
-                raise BadParameterError(
-                    "position_limits", position_limits, "a finite (low, high) pair, low < high"
-                )
+        check_servo_id("servo_id", servo_id, ft.MAX_ID)
+        check_position_limits(position_limits)
         if calibration is not None:
             if not isinstance(calibration, JointCalibration):
                 raise BadParameterError(
@@ -178,19 +136,21 @@ class FeetechServo(ActuatorDevice):
                 raise BadParameterError(
                     "calibration", calibration, f"the calibration of servo {servo_id}"
                 )
+        super().__init__(port, servo_id, torque_off_on_close=torque_off_on_close)
         self.calibration = calibration
         self._sign = -1 if calibration is not None and calibration.drive_mode else 1
-        self.port = port
-        self._servo_id = servo_id
         self.position_limits = position_limits
-        self.velocity_limit = _si_or_none("velocity_limit", velocity_limit)
-        self.speed = _si_or_none("speed", speed)
-        self.acceleration = _si_or_none("acceleration", acceleration)
-        self.stall_torque = _si_or_none("stall_torque", stall_torque)
+        self.velocity_limit = positive_or_none("velocity_limit", velocity_limit)
+        self.speed = positive_or_none("speed", speed)
+        self.acceleration = positive_or_none("acceleration", acceleration)
+        self.stall_torque = positive_or_none("stall_torque", stall_torque)
         self.gripper = bool(gripper)
-        self.position_tolerance = float(_si_or_none("position_tolerance", position_tolerance) or 0)
-        self.velocity_tolerance = float(_si_or_none("velocity_tolerance", velocity_tolerance) or 0)
-        self.torque_off_on_close = torque_off_on_close
+        self.position_tolerance = float(
+            positive_or_none("position_tolerance", position_tolerance) or 0
+        )
+        self.velocity_tolerance = float(
+            positive_or_none("velocity_tolerance", velocity_tolerance) or 0
+        )
         self.supported_requests = frozenset({Request.NO_EXCITE, Request.POSITION, Request.VELOCITY})
         self._speed_units = 0 if self.speed is None else max(1, ft.rad_s_to_speed(self.speed))
         acc = self.acceleration
@@ -201,55 +161,14 @@ class FeetechServo(ActuatorDevice):
         )
         self._span: tuple[float, float] = (-math.pi, math.pi)
         """The angle range (rad) the gripper's opening 0..1 maps onto."""
-        self._ctx: DeviceContext | None = None
-        self._polled = False
-        self._pending: _Pending | None = None
-        self._state: FeetechPresentState | None = None
-        self._mode = -1
-        self._torque = False
-        self._ack_writes = True
         self._unloading = 0
         self._alarm_reported = False
-        self._estop_active = False
         self._watchdog_timeout: float | None = None
         self.present_model: int | None = None
-        self.return_delay: float | None = None
-        self.completions = 0
-        self.watchdog_trips = 0
-        self._log = log.bind(port=port.url, servo_id=servo_id)
-
-    # -- identity --------------------------------------------------------------------
-    @property
-    def servo_id(self) -> int:
-        return self._servo_id
-
-    @property
-    def polled(self) -> bool:
-        return self._polled
-
-    @property
-    def state(self) -> FeetechPresentState | None:
-        """The latest present values (raw units, sign-magnitude decoded), from the poller."""
-        return self._state
-
-    @property
-    def operating_mode(self) -> int:
-        return self._mode
-
-    @property
-    def torque_enabled(self) -> bool:
-        return self._torque
-
-    @property
-    def estopped(self) -> bool:
-        return self._estop_active
 
     @property
     def watchdog_timeout(self) -> float | None:
         return self._watchdog_timeout
-
-    def __repr__(self) -> str:
-        return f"{type(self).__name__}(id={self._servo_id}, port={self.port.url!r})"
 
     # -- units -----------------------------------------------------------------------
     def _to_ticks(self, value: float) -> int:
@@ -273,46 +192,22 @@ class FeetechServo(ActuatorDevice):
         return self._sign * RAD_PER_TICK
 
     # -- lifecycle -------------------------------------------------------------------
-    async def open(self, ctx: DeviceContext) -> None:
-        self._ctx = ctx
-        self._log = self._log.bind(component=ctx.name)
-        self.port.check_connected()
-        self.port.attach(self)
-        try:
-            info = await self.port.ping(self._servo_id)
-            self.present_model = info.model_number
-            if self.model_number and info.model_number != self.model_number:
-                raise HALError(
-                    f"servo {self._servo_id} is model {info.model_number}, not the "
-                    f"{self.info.product_name} (model number {self.model_number})"
-                )
-            await self._load_table()
-            await self._refresh_state()
-        except BaseException:
-            self.port.detach(self)
-            raise
-        self._log.info("feetech_opened", model=self.present_model, mode=self._mode)
+    async def identify(self) -> None:
+        info = await self.port.ping(self._servo_id)
+        self.present_model = info.model_number
+        if self.model_number and info.model_number != self.model_number:
+            raise HALError(
+                f"servo {self._servo_id} is model {info.model_number}, not the "
+                f"{self.info.product_name} (model number {self.model_number})"
+            )
 
-    async def init(self) -> None:
-        await self._make_operational()
+    def opened_fields(self) -> dict[str, object]:
+        return {"model": self.present_model, "mode": self._mode}
 
-    async def reset(self) -> None:
-        self._polled = False
-        self._pending = None
-        await self.port.reconnect()
-        await self.port.ping(self._servo_id)
-        await self._load_table()
-        await self._make_operational()
+    async def torque_off(self) -> None:
+        await self._write(S.TORQUE_ENABLE, 0)
 
-    async def close(self) -> None:
-        self._polled = False
-        self._pending = None
-        self.port.detach(self)
-        if self.torque_off_on_close and self.port.connected:
-            await self._write(S.TORQUE_ENABLE, 0)
-            self._torque = False
-
-    async def _load_table(self) -> None:
+    async def load_table(self) -> None:
         table = await self.port.read(self._servo_id, 0, TABLE_LENGTH)
 
         def item(it: ft.ControlItem) -> int:
@@ -322,13 +217,7 @@ class FeetechServo(ActuatorDevice):
         self._torque = bool(item(S.TORQUE_ENABLE))
         self._ack_writes = item(S.RESPONSE_STATUS_LEVEL) >= 1
         self._unloading = item(S.UNLOADING_CONDITION)
-        self.return_delay = item(S.RETURN_DELAY) * ft.RETURN_DELAY_UNIT_S
-        if self.return_delay > self.port.return_delay:
-            self._log.warning(
-                "feetech_return_delay_exceeds_port",
-                servo_s=self.return_delay,
-                port_s=self.port.return_delay,
-            )
+        self.check_return_delay(item(S.RETURN_DELAY) * ft.RETURN_DELAY_UNIT_S)
         low_ticks, high_ticks = item(S.MIN_ANGLE_LIMIT), item(S.MAX_ANGLE_LIMIT)
         cal = self.calibration
         if cal is not None:
@@ -384,17 +273,17 @@ class FeetechServo(ActuatorDevice):
         await self.port.write_eeprom(self._servo_id, writes)
         self._log.warning("feetech_calibration_written", registers=differ)
 
-    async def _refresh_state(self) -> FeetechPresentState:
+    async def refresh_state(self) -> FeetechPresentState:
         data = await self.port.read(self._servo_id, POLL_ADDRESS, POLL_LENGTH)
         state = FeetechPresentState.decode(data, self.port.transactions, self.port.clock.now_ns())
         self._state = state
         return state
 
-    async def _make_operational(self) -> None:
+    async def make_operational(self) -> None:
         """Hold the present position in position mode with the torque on (refused while an
         unloading alarm is in force)."""
         await self.port.reconnect()
-        state = await self._refresh_state()
+        state = await self.refresh_state()
         alarms = state.status & self._unloading
         if alarms:
             raise FeetechStatusError(
@@ -402,10 +291,8 @@ class FeetechServo(ActuatorDevice):
             )
         self._pending = None
         await self._apply_position(state.position)
-        self._estop_active = False
         self._alarm_reported = False
-        self._polled = True
-        self.port.wake_poller()
+        self.resume_polling()
 
     # -- commands --------------------------------------------------------------------
     async def _write(self, item: ft.ControlItem, value: int) -> None:
@@ -463,16 +350,13 @@ class FeetechServo(ActuatorDevice):
                 raise NotImplementedHALError(
                     f"servo {self._servo_id} does not support {request.name}"
                 )
-        except _LINK_ERRORS:
-            self._polled = False
+        except LINK_ERRORS:
+            self.stop_polling()
             raise
-        self._pending = _Pending(request, raw, self.port.transactions)
+        self._pending = Pending(request, raw, self.port.transactions)
 
     async def read(self, request: Request) -> float:
-        self.port.check_connected()
-        state = self._state
-        if state is None:
-            state = await self._refresh_state()
+        state = await self.present()
         if request is Request.POSITION_ACTUAL:
             return self._from_ticks(state.position)
         if request is Request.VELOCITY_ACTUAL:
@@ -500,12 +384,6 @@ class FeetechServo(ActuatorDevice):
         self._watchdog_timeout = None
         self.port.disarm_host_watchdog(self._servo_id)
 
-    async def estop(self) -> None:
-        try:
-            await self.port.estop([self._servo_id])
-        finally:
-            self._estopped_now(f"servo {self._servo_id}: e-stop: torque off")
-
     async def safe_stop(self, action: ExitAction) -> None:
         action = ExitAction(action)
         self._pending = None
@@ -517,32 +395,17 @@ class FeetechServo(ActuatorDevice):
         elif action is ExitAction.STOP and self._mode == ft.OperatingMode.WHEEL:
             await self._apply_speed(0)
         else:
-            state = await self._refresh_state()
+            state = await self.refresh_state()
             await self._apply_position(state.position)
         self._log.info("feetech_safe_stop", action=str(action), torque=self._torque)
 
-    def _estopped_now(self, reason: str) -> None:
-        self._estop_active = True
-        self._torque = False
-        self._polled = False
-        self._pending = None
-        if self._ctx is not None:
-            self._ctx.fault(ErrorId.ESTOP, reason)
-
     # -- poller callbacks --------------------------------------------------------------
-    def _context(self) -> DeviceContext:
-        if self._ctx is None:
-            raise HALError(f"servo {self._servo_id} used before open()")
-        return self._ctx
-
     def _poll_update(self, state: FeetechPresentState) -> None:
         self._state = state
         alarms = state.error | state.status
         if alarms & self._unloading and self._polled:
-            self._polled = False
-            self._pending = None
             self._torque = False
-            self._context().fault(
+            self.fault(
                 ErrorId.DEVICE_ERROR,
                 str(FeetechStatusError(self._servo_id, alarms, "poll", "torque unloaded")),
             )
@@ -550,47 +413,17 @@ class FeetechServo(ActuatorDevice):
         if alarms and not self._alarm_reported:
             self._alarm_reported = True
             self._log.warning("feetech_alarm", alarms=ft.StatusError(alarms).describe())
-            self._context().post_error(ErrorId.DEVICE_ERROR)
+            self.context().post_error(ErrorId.DEVICE_ERROR)
         elif not alarms:
             self._alarm_reported = False
-        pending = self._pending
-        if pending is None or state.transaction <= pending.after:
-            return
+        self.complete_if_reached(state)
+
+    def reached(self, pending: Pending, state: FeetechPresentState) -> bool:
         if pending.request is Request.POSITION:
-            reached = not state.moving and abs(state.position - pending.goal) <= (
+            return not state.moving and abs(state.position - pending.goal) <= (
                 self.position_tolerance / RAD_PER_TICK
             )
-        else:
-            reached = abs(state.speed - pending.goal) <= (
-                self.velocity_tolerance / self._speed_scale()
-            )
-        if reached:
-            self._pending = None
-            self.completions += 1
-            self._context().target_reached()
-
-    def _poll_missed(self, error: FeetechTimeoutError) -> None:
-        if self._polled:
-            self._polled = False
-            self._pending = None
-            self._context().fault(ErrorId.TIMEOUT, str(error))
-
-    def _watchdog_tripped(self, reason: str) -> None:
-        self.watchdog_trips += 1
-        self._torque = False
-        if self._polled:
-            self._polled = False
-            self._pending = None
-            self._context().fault(ErrorId.WATCHDOG, reason)
-
-    def _estopped(self, reason: str) -> None:
-        self._estopped_now(reason)
-
-    def _port_lost(self, reason: str) -> None:
-        if self._polled:
-            self._polled = False
-            self._pending = None
-            self._context().fault(ErrorId.DISCONNECTED, reason, ReturnCode.HAL_NO_CONNECTED)
+        return abs(state.speed - pending.goal) <= self.velocity_tolerance / self._speed_scale()
 
 
 class FeetechSTS3215(FeetechServo):

@@ -22,7 +22,7 @@ import anyio.lowlevel
 
 from openel_async.errors import BadParameterError
 
-__all__ = ["BITS_PER_BYTE", "BusLock", "complete", "positive", "wire_time"]
+__all__ = ["BITS_PER_BYTE", "BusLock", "complete", "positive", "positive_or_none", "wire_time"]
 
 BITS_PER_BYTE: Final = 10  # 8N1: start + 8 data + stop
 
@@ -104,3 +104,8 @@ def positive(name: str, value: float, *, allow_zero: bool = False) -> float:
     if not (math.isfinite(value) and (value >= 0 if allow_zero else value > 0)):
         raise BadParameterError(name, value, allowed)
     return float(value)
+
+
+def positive_or_none(name: str, value: float | None) -> float | None:
+    """None, or :func:`positive` (a finite number > 0, else BadParameterError naming ``name``)."""
+    return None if value is None else positive(name, value)

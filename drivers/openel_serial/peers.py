@@ -39,7 +39,7 @@ import struct
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Final
+from typing import Any, ClassVar, Final
 
 import anyio
 import anyio.abc
@@ -52,6 +52,7 @@ from openel_serial import dynamixel as dx
 from openel_serial import nmea
 from openel_sim import profile as prof
 
+from .buspeer import SimServoBus
 from .ptypeer import PeerThread, PtyPeer, PtyPort
 
 __all__ = [
@@ -550,7 +551,7 @@ class SimServo:
         return status if answers else None
 
 
-class SimDynamixelBus(PtyPeer):
+class SimDynamixelBus(SimServoBus[SimServo, dx.DynamixelMessage]):
     """A Dynamixel bus behind a pty: the servos answer the driver's instruction packets.
 
     ``servos`` are :class:`SimServo` s or ids (default servos). Replies to one
@@ -564,6 +565,9 @@ class SimDynamixelBus(PtyPeer):
     default (a pty carries bytes at any setting).
     """
 
+    return_delay_address: ClassVar[int] = X.RETURN_DELAY_TIME.address
+    return_delay_unit_s: ClassVar[float] = dx.RETURN_DELAY_UNIT_S
+
     def __init__(
         self,
         servos: Iterable[SimServo | int],
@@ -572,11 +576,7 @@ class SimDynamixelBus(PtyPeer):
         clock: Clock | None = None,
         check_baudrate: bool = False,
     ) -> None:
-        super().__init__(path, clock)
-        self.check_baudrate = check_baudrate
-        self.baud_mismatches = 0
-        """Packets a servo did not hear: the driver's tty was at another bit rate."""
-        self._tty_rate: int | None = None
+        super().__init__(path=path, clock=clock, check_baudrate=check_baudrate)
         self.servos: dict[int, SimServo] = {}
         for servo in servos:
             if isinstance(servo, int):
@@ -584,47 +584,33 @@ class SimDynamixelBus(PtyPeer):
             if servo.id in self.servos:
                 raise ValueError(f"two simulated servos with id {servo.id}")
             self.servos[servo.id] = servo
-        self.parser = dx.PacketParser()
-        self.received = bytearray()
-        self.instructions: list[dx.DynamixelMessage] = []
-        self.keep_log = True
-        self.drop_replies = 0
-        """Instructions whose replies are dropped (lost on the wire)."""
-        self.corrupt_replies = 0
-        """Replies sent with a corrupted CRC byte."""
         self.corrupt_requests = 0
         """Instruction packets still to be received as if damaged on the wire (CRC fails)."""
-        self.corrupt_instructions = 0
-        """Packets from the driver that failed their CRC (answered with CRC_ERROR when
-        addressed to a servo)."""
-        self.replies = 0
 
     def __getitem__(self, dxl_id: int) -> SimServo:
         return self.servos[dxl_id]
 
     def inject_garbage(self, data: bytes = b"\x00\x13\xff\xff\xfd\x00\xaa\x55\xff") -> None:
         """Send noise to the driver now (a glitch on the line)."""
-        self.pty.write_nowait(data)
+        super().inject_garbage(data)
 
-    async def _serve(self) -> None:
-        parser = dx.PacketParser()
-        self.parser = parser
-        while True:
-            data = await self.pty.read()
-            if self.keep_log:
-                self.received += data
-            if self.check_baudrate:
-                self._tty_rate = self.pty.baudrate()
-            for msg in parser.feed_all(data):
-                if self.corrupt_requests and not isinstance(msg, dx.CorruptPacket):
-                    self.corrupt_requests -= 1  # damaged on the wire: the CRC fails
-                    packet = dx.encode(msg)
-                    msg = dx.CorruptPacket(packet[4], packet[7], len(packet) - 7)
-                if isinstance(msg, dx.CorruptPacket):
-                    self.corrupt_instructions += 1
-                elif self.keep_log:
-                    self.instructions.append(msg)
-                await self._answer(msg)
+    def new_parser(self) -> dx.PacketParser:
+        return dx.PacketParser()
+
+    def encode_status(self, status: Any) -> bytes:
+        return dx.encode(status)
+
+    async def receive(self, msg: dx.DynamixelMessage | dx.CorruptPacket) -> None:
+        """A packet whose CRC failed is answered with CRC_ERROR when addressed to a servo."""
+        if self.corrupt_requests and not isinstance(msg, dx.CorruptPacket):
+            self.corrupt_requests -= 1  # damaged on the wire: the CRC fails
+            packet = dx.encode(msg)
+            msg = dx.CorruptPacket(packet[4], packet[7], len(packet) - 7)
+        if isinstance(msg, dx.CorruptPacket):
+            self.corrupt_instructions += 1
+        else:
+            self.log_instruction(msg)
+        await self._answer(msg)
 
     async def _answer(self, msg: dx.DynamixelMessage | dx.CorruptPacket) -> None:
         if isinstance(msg, dx.CorruptPacket):
@@ -637,34 +623,12 @@ class SimDynamixelBus(PtyPeer):
         else:
             servo = self.servos.get(getattr(msg, "id", -1))
             order = [] if servo is None else [servo]
-        if self.check_baudrate:
-            heard = [s for s in order if s.baudrate == self._tty_rate]
-            self.baud_mismatches += len(order) - len(heard)
-            order = heard
-        replies: list[bytes] = []
-        delay_units = 0
-        for servo in order:
-            if isinstance(msg, dx.CorruptPacket):
-                status = servo.handle_corrupt(msg)
-            else:
-                status = servo.handle(msg)
-            if status is not None:
-                replies.append(dx.encode(status))
-                delay_units += servo.table[X.RETURN_DELAY_TIME.address]
-        if not replies:
-            return
-        if self.drop_replies:
-            self.drop_replies -= 1
-            return
-        if self.corrupt_replies:
-            self.corrupt_replies -= 1
-            last = bytearray(replies[-1])
-            last[-1] ^= 0xFF
-            replies[-1] = bytes(last)
-        if delay_units:
-            await anyio.sleep(delay_units * dx.RETURN_DELAY_UNIT_S)
-        self.replies += len(replies)
-        await self.pty.write(b"".join(replies))
+        if isinstance(msg, dx.CorruptPacket):
+            corrupt = msg
+            await self.send_replies(order, lambda servo: servo.handle_corrupt(corrupt))
+        else:
+            message = msg
+            await self.send_replies(order, lambda servo: servo.handle(message))
 
 
 # -- NMEA GPS ------------------------------------------------------------------------------

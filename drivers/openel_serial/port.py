@@ -49,31 +49,24 @@ whose component goes to Error (``ErrorId.DISCONNECTED``, ``HAL_NO_CONNECTED``);
 
 from __future__ import annotations
 
-import asyncio
 import math
 import struct
-from collections.abc import Callable, Mapping, Sequence
-from contextlib import AsyncExitStack
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from types import TracebackType
-from typing import Any, Final, Protocol, Self
+from typing import Any, ClassVar, Final, Protocol, Self
 
-import anyio
-import anyio.abc
-import anyio.lowlevel
-
-from openel_async.clock import Clock, default_clock
-from openel_async.errors import BadParameterError, HALError
+from openel_async.clock import Clock
+from openel_async.errors import BadParameterError
 from openel_async.logs import get_logger
 from openel_serial import dynamixel as dx
+from openel_serial.busport import BusClient, BusStats, PolledBusPort
 from openel_serial.errors import (
     DynamixelHardwareAlert,
     DynamixelStatusError,
     DynamixelTimeoutError,
     PortDisconnectedError,
 )
-from openel_serial.halfduplex import BusLock, complete, positive, wire_time
-from openel_serial.link import SerialLink
+from openel_serial.halfduplex import wire_time
 
 __all__ = [
     "DEFAULT_RETURN_DELAY",
@@ -100,8 +93,6 @@ SYNC_READ_OVERHEAD: Final = 14
 data length 2, CRC 2 (without byte stuffing)."""
 DEFAULT_RETURN_DELAY: Final = 500e-6
 """The X series' factory Return Delay Time (9): 250 x 2 us."""
-SYNC_READ_CACHE: Final = 64
-"""SYNC READ instruction packets kept per port, by (address, length, ids)."""
 _CRC_ERROR: Final = int(dx.ErrorNumber.CRC_ERROR)
 _ERROR_NUMBER: Final = 0x7F
 
@@ -144,49 +135,29 @@ class PresentState:
 
 
 @dataclass(slots=True)
-class PortStats:
+class PortStats(BusStats):
     """Counters of one port (the parser's are read live from it)."""
 
-    transactions: int = 0
-    retries: int = 0
-    timeouts: int = 0
     status_errors: int = 0
     alerts: int = 0
-    stray: int = 0
-    """Status packets nobody waited for (late answers), dropped."""
-    poll_cycles: int = 0
-    poll_misses: int = 0
-    reconnects: int = 0
-    losses: int = 0
     crc_rejected: int = 0
     """Statuses with CRC_ERROR: a servo received the instruction damaged (it was resent)."""
 
 
-class PortClient(Protocol):
+class PortClient(BusClient, Protocol):
     """What a servo attached to the port implements (see :class:`DynamixelServo`)."""
 
     @property
     def dxl_id(self) -> int: ...
 
-    @property
-    def polled(self) -> bool: ...
-
     def _poll_update(self, state: PresentState) -> None: ...
-
-    def _poll_missed(self, error: DynamixelTimeoutError) -> None: ...
 
     def _poll_status_error(self, error: DynamixelStatusError) -> None: ...
 
     def _hardware_alert(self, error: DynamixelHardwareAlert) -> None: ...
 
-    def _port_lost(self, reason: str) -> None: ...
 
-    def _watchdog_tripped(self, reason: str) -> None: ...
-
-    def _estopped(self, reason: str) -> None: ...
-
-
-class DynamixelPort:
+class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
     """A serial port carrying Dynamixel Protocol 2.0 servos; ``async with`` opens it.
 
     ``url`` is a device path (``/dev/ttyUSB0``, ``/dev/serial/by-id/...``) or a pyserial
@@ -195,6 +166,20 @@ class DynamixelPort:
     back to back. Time for the poll schedule and the states' timestamps comes from
     ``clock`` (the real clock by default: a serial bus runs in real time).
     """
+
+    name: ClassVar[str] = "DynamixelPort"
+    log_prefix: ClassVar[str] = "dxl"
+    id_param: ClassVar[str] = "dxl_id"
+    max_id: ClassVar[int] = dx.MAX_ID
+    status_overhead: ClassVar[int] = STATUS_OVERHEAD
+    sync_read_overhead: ClassVar[int] = SYNC_READ_OVERHEAD
+    poll_address: ClassVar[int] = POLL_ADDRESS
+    poll_length: ClassVar[int] = POLL_LENGTH
+    status_type: ClassVar[type[Any]] = dx.Status
+    timeout_error = DynamixelTimeoutError
+
+    stats: PortStats
+    parser: dx.PacketParser
 
     def __init__(
         self,
@@ -209,140 +194,50 @@ class DynamixelPort:
         serial_options: Mapping[str, Any] | None = None,
         max_packet: int = 1024,
     ) -> None:
-        if not isinstance(url, str) or not url:
-            raise BadParameterError("url", url, "a serial device path or pyserial URL")
-        if isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0:
-            raise BadParameterError("baudrate", baudrate, "an int > 0 (bit/s)")
-        if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
-            raise BadParameterError("retries", retries, "an int >= 0")
-        self.url = url
-        self.baudrate = baudrate
-        self.return_delay = positive("return_delay", return_delay, allow_zero=True)
-        self.timeout_margin = positive("timeout_margin", timeout_margin)
-        self.retries = retries
-        self.poll_period = positive("poll_period", poll_period, allow_zero=True)
-        self.clock: Clock = clock or default_clock()
         self.stats = PortStats()
         self.parser = dx.PacketParser(max_length=max_packet)
-        self._link = SerialLink(
+        super().__init__(
             url,
             baudrate=baudrate,
-            on_data=self._on_data,
-            on_lost=self._on_lost,
+            return_delay=return_delay,
+            timeout_margin=timeout_margin,
+            retries=retries,
+            poll_period=poll_period,
+            clock=clock,
             serial_options=serial_options,
         )
-        # An uncontended acquire does not yield (one event-loop pass less per
-        # transaction); a contended one queues, and release hands the lock to the first
-        # waiter (FIFO).
-        self._lock = BusLock()
-        self._reconnect_lock = anyio.Lock()
-        self._clients: dict[int, PortClient] = {}
-        self._transaction = 0
-        # The exchange in flight: ids expected (and their param length), what arrived,
-        # how many of those are CRC_ERROR statuses, and the future its task waits on.
-        self._expect: set[int] | None = None
-        self._replies: dict[int, dx.Status] = {}
-        self._garbled = 0
-        self._param_length = 0
-        self._waiter: asyncio.Future[None] | None = None
-        self._deadline = 0.0
-        self._watchdog: asyncio.TimerHandle | None = None
-        self._sync_read_packets: dict[tuple[int, int, tuple[int, ...]], bytes] = {}
-        self._last_sync_read: tuple[object, int, int, bytes] = ((), -1, -1, b"")
-        self._poll_wake: anyio.Event | None = None
         self._bus_watchdogs: dict[int, float] = {}
         """Servos whose Bus Watchdog is armed: id -> timeout (s)."""
         self._last_poll_ns: int | None = None
-        self._estop_ids: set[int] = set()
-        self._stack: AsyncExitStack | None = None
-        self._entered = False
-        self._log = log.bind(port=url)
+        self._poll_start_ns = 0
 
-    # -- lifecycle -----------------------------------------------------------------
-    async def __aenter__(self) -> Self:
-        if self._entered:
-            raise HALError(f"DynamixelPort {self.url} is already entered")
-        self._entered = True
-        stack = AsyncExitStack()
-        try:
-            await self._link.open()
-            stack.push_async_callback(self._link.close)
-            tg = await stack.enter_async_context(anyio.create_task_group())
-            stack.callback(tg.cancel_scope.cancel)  # runs first on exit: stop the poller
-            tg.start_soon(self._poll_loop)
-        except BaseException:
-            await stack.aclose()
-            self._entered = False
-            raise
-        self._stack = stack
-        return self
+    # -- protocol ------------------------------------------------------------------
+    def client_id(self, client: PortClient) -> int:
+        return client.dxl_id
 
-    async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        stack, self._stack = self._stack, None
-        self._entered = False
-        if self._watchdog is not None:
-            self._watchdog.cancel()
-            self._watchdog = None
-        if stack is not None:
-            await stack.aclose()
+    def encode_sync_read(self, address: int, length: int, ids: tuple[int, ...]) -> bytes:
+        return dx.encode(dx.SyncRead(address, length, ids))
 
-    @property
-    def connected(self) -> bool:
-        return self._link.is_open
+    def encode_sync_write(self, address: int, length: int, data: Mapping[int, bytes]) -> bytes:
+        items = tuple(dx.SyncWriteItem(dxl_id, bytes(d)) for dxl_id, d in data.items())
+        return dx.encode(dx.SyncWrite(address, length, items))
 
-    @property
-    def transactions(self) -> int:
-        """Transactions started so far; a poll with a larger number was sent later."""
-        return self._transaction
+    def estop_packet(self, every: bool, listed: Sequence[int]) -> bytes:
+        item = X.TORQUE_ENABLE
+        off = item.encode(0)
+        items = tuple(dx.SyncWriteItem(i, off) for i in listed)
+        return dx.encode(dx.SyncWrite(item.address, item.size, items))
 
-    @property
-    def link(self) -> SerialLink:
-        return self._link
+    def refused(self, status: dx.Status) -> bool:
+        return bool(status.error & _ERROR_NUMBER)
 
-    def check_connected(self) -> None:
-        if not self._link.is_open:
-            reason = self._link.lost_reason or ("not open" if self._entered else "not entered")
-            raise PortDisconnectedError(self.url, reason)
+    def garbled(self, status: dx.Status) -> bool:
+        return status.error & _ERROR_NUMBER == _CRC_ERROR
 
-    async def reconnect(self) -> None:
-        """Reopen the port if it was lost (once, however many servos ask)."""
-        if not self._entered:
-            raise PortDisconnectedError(self.url, "enter 'async with port' first")
-        async with self._reconnect_lock:
-            if self._link.is_open:
-                return
-            async with self._lock:
-                self.parser.reset()
-                await self._link.open()
-            self.stats.reconnects += 1
-            self.wake_poller()
+    def count_garbled(self, count: int) -> None:
+        self.stats.crc_rejected += count
 
-    # -- clients -------------------------------------------------------------------
-    def attach(self, client: PortClient) -> None:
-        """Register a servo for polling and fault reports; its id must be free."""
-        dxl_id = client.dxl_id
-        other = self._clients.get(dxl_id)
-        if other is not None and other is not client:
-            raise BadParameterError(
-                "dxl_id", dxl_id, f"an id not already used on {self.url} by {other!r}"
-            )
-        self._clients[dxl_id] = client
-        self.wake_poller()
-
-    def detach(self, client: PortClient) -> None:
-        if self._clients.get(client.dxl_id) is client:
-            del self._clients[client.dxl_id]
-
-    @property
-    def clients(self) -> Mapping[int, PortClient]:
-        return dict(self._clients)
-
-    # -- Bus Watchdog and e-stop -------------------------------------------------------
+    # -- Bus Watchdog --------------------------------------------------------------
     def arm_bus_watchdog(self, dxl_id: int, timeout_s: float) -> None:
         """Record that servo ``dxl_id``'s Bus Watchdog is armed with ``timeout_s``.
 
@@ -395,62 +290,6 @@ class DynamixelPort:
                 )
         return tripped
 
-    async def estop(self, ids: Sequence[int] | None = None) -> None:
-        """Torque Enable (64) = 0 on ``ids`` (default: every attached servo) in one SYNC
-        WRITE, sent before any transaction waiting for the bus; with the default, every
-        attached servo is told (its component goes to Error with ``ErrorId.ESTOP``).
-
-        Calls made together (an e-stop of every component) share one packet.
-        """
-        targets = sorted(self._clients) if ids is None else list(ids)
-        if not targets:
-            return
-        for dxl_id in targets:
-            if isinstance(dxl_id, bool) or not isinstance(dxl_id, int):
-                raise BadParameterError("ids", ids, f"servo ids in 0..{dx.MAX_ID}")
-            if not 0 <= dxl_id <= dx.MAX_ID:
-                raise BadParameterError("ids", ids, f"servo ids in 0..{dx.MAX_ID}")
-        self._estop_ids.update(targets)
-        await anyio.lowlevel.checkpoint()  # let the other e-stops of this instant join
-        await self._lock.acquire(first=True)
-        try:
-            pending, self._estop_ids = self._estop_ids, set()
-            if pending:
-                self.check_connected()
-                item = X.TORQUE_ENABLE
-                packet = dx.encode(
-                    dx.SyncWrite(
-                        item.address,
-                        item.size,
-                        tuple(dx.SyncWriteItem(i, item.encode(0)) for i in sorted(pending)),
-                    )
-                )
-                self._transaction += 1
-                self.stats.transactions += 1
-                self._link.write(packet)
-                self._log.warning("dxl_estop", ids=sorted(pending))
-        finally:
-            self._lock.release()
-        if ids is None:
-            for dxl_id in targets:
-                client = self._clients.get(dxl_id)
-                if client is not None:
-                    client._estopped(f"e-stop on {self.url}: torque off")
-
-    def wake_poller(self) -> None:
-        if self._poll_wake is not None:
-            self._poll_wake.set()
-
-    # -- timing --------------------------------------------------------------------
-    def response_timeout(self, request_bytes: int, statuses: int, param_length: int) -> float:
-        """The wait for ``statuses`` status packets of ``param_length`` params each."""
-        reply_bytes = statuses * (STATUS_OVERHEAD + param_length)
-        return (
-            wire_time(request_bytes + reply_bytes, self.baudrate)
-            + statuses * self.return_delay
-            + self.timeout_margin
-        )
-
     # -- public requests -----------------------------------------------------------
     async def ping(self, dxl_id: int, *, check_alert: bool = False) -> PingInfo:
         """PING: model number, firmware and the error byte (alerts not raised by default)."""
@@ -487,7 +326,7 @@ class DynamixelPort:
         """WRITE ``data`` at ``address``; ``ack=False`` for Status Return Level < 2."""
         packet = dx.encode(dx.Write(dxl_id, address, bytes(data)))
         if not ack:
-            await self._send_only(packet)
+            await self.send_only(packet)
             return
         await self._unicast(packet, dxl_id, f"WRITE {address}+{len(data)}", 0, check_alert)
 
@@ -504,14 +343,7 @@ class DynamixelPort:
         self, ids: Sequence[int], address: int, length: int, *, check_alert: bool = True
     ) -> dict[int, bytes]:
         """SYNC READ: ``{id: data}`` for every id, or raise (timeout, status error)."""
-        ids = tuple(ids)
-        statuses = await self._sync_read(ids, address, length)
-        if len(statuses) != len(ids):  # statuses holds only ids asked for
-            missing = [i for i in ids if i not in statuses]
-            timeout = self.response_timeout(SYNC_READ_OVERHEAD + len(ids), len(ids), length)
-            raise DynamixelTimeoutError(
-                self.url, missing, f"SYNC READ {address}+{length}", timeout, self.retries + 1
-            )
+        ids, statuses = await self.sync_read_all(ids, address, length)
         refused = 0xFF if check_alert else _ERROR_NUMBER  # the alert bit is bit 7
         out: dict[int, bytes] = {}
         for dxl_id in ids:
@@ -521,91 +353,19 @@ class DynamixelPort:
             out[dxl_id] = status.params
         return out
 
-    def sync_read_packet(self, ids: Sequence[int], address: int, length: int) -> bytes:
-        """The SYNC READ instruction packet, built once per (address, length, ids).
-
-        Raises :class:`BadParameterError` for an empty or repeated id list and
-        :class:`ValueError` for an address, length or id out of range (nothing is cached
-        then). At most ``SYNC_READ_CACHE`` packets are kept (the oldest are forgotten).
-        """
-        last = self._last_sync_read
-        if ids is last[0] and address == last[1] and length == last[2]:
-            return last[3]  # the same id tuple as last time (the usual polling loop)
-        key = (address, length, ids if type(ids) is tuple else tuple(ids))
-        packet = self._sync_read_packets.get(key)
-        if packet is None:
-            ids = key[2]
-            if not ids or len(set(ids)) != len(ids):
-                raise BadParameterError("ids", ids, "a non-empty sequence of distinct servo ids")
-            packet = dx.encode(dx.SyncRead(address, length, ids))
-            cache = self._sync_read_packets
-            if len(cache) >= SYNC_READ_CACHE:
-                del cache[next(iter(cache))]
-            cache[key] = packet
-        if type(ids) is tuple:
-            self._last_sync_read = (ids, address, length, packet)
-        return packet
-
-    async def sync_read_statuses(
-        self, ids: Sequence[int], address: int, length: int
-    ) -> dict[int, dx.Status]:
-        """SYNC READ returning the statuses that arrived (missing ones retried, not raised)."""
-        return await self._sync_read(tuple(ids), address, length)
-
-    async def _sync_read(
-        self, ids: tuple[int, ...], address: int, length: int
-    ) -> dict[int, dx.Status]:
-        packet = self.sync_read_packet(ids, address, length)  # validates
-        async with self._lock:
-            got = await self._exchange(packet, ids, length)
-            if len(got) == len(ids) and not self._garbled:
-                return got  # the usual case, without the retry machinery
-
-            def make(remaining: Sequence[int]) -> bytes:
-                return self.sync_read_packet(remaining, address, length)
-
-            what = f"SYNC READ {address}+{length}"
-            return await self._retry(got, make, ids, what, length)
-
-    async def sync_write(self, address: int, length: int, data: Mapping[int, bytes]) -> None:
-        """SYNC WRITE ``{id: data}`` (no status packets: it is a broadcast)."""
-        items = tuple(dx.SyncWriteItem(dxl_id, bytes(d)) for dxl_id, d in data.items())
-        if not items:
-            raise BadParameterError("data", data, "at least one {id: bytes} item")
-        await self._send_only(dx.encode(dx.SyncWrite(address, length, items)))
-
     async def sync_write_item(self, item: dx.ControlItem, values: Mapping[int, int]) -> None:
         await self.sync_write(
             item.address, item.size, {i: item.encode(v) for i, v in values.items()}
         )
 
     # -- transactions --------------------------------------------------------------
-    async def _send_only(self, packet: bytes) -> None:
-        async with self._lock:
-            self.check_connected()
-            self._transaction += 1
-            self.stats.transactions += 1
-            self._link.write(packet)
-            self._log.debug("dxl_tx", size=len(packet))
-            # The next request may follow at once: the port sends bytes in order.
-            await anyio.lowlevel.checkpoint()
-
     async def _unicast(
         self, packet: bytes, dxl_id: int, what: str, param_length: int, check_alert: bool
     ) -> dx.Status:
         if dxl_id == dx.BROADCAST_ID:
             raise BadParameterError("dxl_id", dxl_id, "a servo id (0..252), not broadcast")
         async with self._lock:
-            statuses = await self._transact(lambda _: packet, (dxl_id,), what, param_length)
-            status = statuses.get(dxl_id)
-            if status is None:
-                raise DynamixelTimeoutError(
-                    self.url,
-                    (dxl_id,),
-                    what,
-                    self.response_timeout(len(packet), 1, param_length),
-                    self.retries + 1,
-                )
+            status = await self.unicast_locked(packet, dxl_id, what, param_length)
             if status.error_number:
                 self.stats.status_errors += 1
                 if status.alert:
@@ -623,7 +383,7 @@ class DynamixelPort:
         packet = dx.encode(item.read(dxl_id))
         hardware: int | None = None
         try:
-            got = await self._transact(lambda _: packet, (dxl_id,), "READ 70+1", item.size)
+            got = await self.transact(lambda _: packet, (dxl_id,), "READ 70+1", item.size)
         except PortDisconnectedError:
             got = {}
         status = got.get(dxl_id)
@@ -631,124 +391,13 @@ class DynamixelPort:
             hardware = item.decode(status.params)
         return DynamixelHardwareAlert(dxl_id, error, what, hardware)
 
-    async def _transact(
-        self,
-        make_packet: Callable[[Sequence[int]], bytes],
-        ids: Sequence[int],
-        what: str,
-        param_length: int,
-    ) -> dict[int, dx.Status]:
-        """Send, collect a status per id, retry the missing ones (the lock is held)."""
-        got = await self._exchange(make_packet(ids), ids, param_length)
-        if len(got) == len(ids) and not self._garbled:
-            return got  # every status arrived, none says the instruction was damaged
-        return await self._retry(got, make_packet, ids, what, param_length)
-
-    async def _retry(
-        self,
-        got: dict[int, dx.Status],
-        make_packet: Callable[[Sequence[int]], bytes],
-        ids: Sequence[int],
-        what: str,
-        param_length: int,
-    ) -> dict[int, dx.Status]:
-        """The rest of a transaction whose first attempt ``got`` these statuses."""
-        result = got
-        remaining = list(ids)
-        for attempt in range(self.retries + 1):
-            if attempt:
-                self.stats.retries += 1
-                self._log.debug("dxl_retry", request=what, ids=remaining, attempt=attempt)
-                got = await self._exchange(make_packet(remaining), remaining, param_length)
-                result.update(got)
-            # CRC_ERROR: the instruction was damaged on the wire and not executed: resend it.
-            garbled = [i for i, s in got.items() if s.error & _ERROR_NUMBER == _CRC_ERROR]
-            if garbled:
-                self.stats.crc_rejected += len(garbled)
-                self._log.debug("dxl_crc_rejected", request=what, ids=garbled)
-            remaining = [i for i in remaining if i not in got or i in garbled]
-            if not remaining:
-                break
-        else:
-            missing = [i for i in remaining if i not in result]
-            if missing:
-                self.stats.timeouts += 1
-            self._log.warning(
-                "dxl_no_status" if missing else "dxl_crc_rejected_every_attempt",
-                request=what,
-                ids=remaining,
-                attempts=self.retries + 1,
-            )
-        return result
-
-    async def _exchange(
-        self, packet: bytes, ids: Sequence[int], param_length: int
-    ) -> dict[int, dx.Status]:
-        """One attempt: write ``packet`` and wait for a status from each id or the timeout.
-
-        The wait is one future, completed by the reception callback when the last status
-        arrived, by the port's watchdog timer at the deadline, or by a loss of the port;
-        a cancellation of the caller ends it too. No cancel scope, no extra event-loop
-        pass, and no timer per exchange (see :meth:`_arm_watchdog`).
-        """
-        self.check_connected()
-        self._transaction += 1
-        self.stats.transactions += 1
-        # Written first: what follows overlaps with the servos' processing, and no reply
-        # can be handled before this task yields (the reception runs in this thread).
-        self._link.write(packet)
-        loop = asyncio.get_running_loop()
-        waiter: asyncio.Future[None] = loop.create_future()
-        replies: dict[int, dx.Status] = {}
-        self._replies = replies
-        self._garbled = 0
-        expect = self._expect = set(ids)
-        self._param_length = param_length
-        self._waiter = waiter
-        try:
-            timeout = self.response_timeout(len(packet), len(ids), param_length)
-            self._arm_watchdog(loop, loop.time() + timeout)
-            await waiter
-        finally:
-            self._expect = None
-            self._waiter = None
-        if len(replies) != len(expect):
-            self.check_connected()  # lost while waiting: raise, not a timeout
-        return replies
-
-    def _arm_watchdog(self, loop: asyncio.AbstractEventLoop, deadline: float) -> None:
-        """Make the exchange in flight time out at ``deadline`` (loop time).
-
-        One timer serves every exchange: it is re-armed only when it would fire after
-        ``deadline`` (then it is replaced) or when it fires before it (then it is set
-        again for ``deadline``); so back-to-back exchanges with similar timeouts cost
-        no timer each, and the wait still ends at its own deadline.
-        """
-        self._deadline = deadline
-        watchdog = self._watchdog
-        if watchdog is not None:
-            if watchdog.when() <= deadline:
-                return
-            watchdog.cancel()
-        self._watchdog = loop.call_at(deadline, self._watchdog_fired, loop)
-
-    def _watchdog_fired(self, loop: asyncio.AbstractEventLoop) -> None:
-        self._watchdog = None
-        waiter = self._waiter
-        if waiter is None:
-            return  # no exchange in flight: the timer is not needed any more
-        if loop.time() >= self._deadline:
-            complete(waiter)  # timed out: the exchange returns what arrived
-        else:
-            self._watchdog = loop.call_at(self._deadline, self._watchdog_fired, loop)
-
     # -- reception (transport callback) ----------------------------------------------
     def _on_data(self, data: bytes) -> None:
         expect = self._expect
         if expect is None:  # nobody waits: every status is stray
             for msg in self.parser.feed(data):
                 if isinstance(msg, dx.Status):
-                    self._stray(msg.id)
+                    self.stray(msg.id)
             return
         # The statuses we wait for, decoded in bulk when they come back to back: each a
         # Status with the expected param length, so only its id and error are checked.
@@ -761,92 +410,17 @@ class DynamixelPort:
                 if msg.error & _ERROR_NUMBER == _CRC_ERROR:
                     self._garbled += 1
             else:
-                self._stray(dxl_id)
-        length = self._param_length
+                self.stray(dxl_id)
         for other in others:
-            if not isinstance(other, dx.Status):
-                continue  # an echo of an instruction (some half-duplex adapters)
-            dxl_id = other.id
-            if dxl_id not in expect or dxl_id in replies:
-                self._stray(dxl_id)
-                continue
-            error_number = other.error & _ERROR_NUMBER
-            if error_number:
-                if error_number == _CRC_ERROR:
-                    self._garbled += 1
-            elif len(other.params) != length:
-                self.stats.stray += 1  # an answer to another request
-                continue
-            replies[dxl_id] = other
-        waiter = self._waiter
-        if waiter is not None and len(replies) == len(expect):
-            complete(waiter)
-
-    def _stray(self, dxl_id: int) -> None:
-        self.stats.stray += 1
-        self._log.debug("dxl_stray_status", id=dxl_id)
-
-    def _on_lost(self, reason: str) -> None:
-        self.stats.losses += 1
-        if self._waiter is not None:
-            complete(self._waiter)  # the waiter sees the loss at once
-        for client in list(self._clients.values()):
-            client._port_lost(f"{self.url}: {reason}")
+            if isinstance(other, dx.Status):  # not an echo of an instruction
+                self.take_status(other)
+        self.complete_if_done()
 
     # -- poller --------------------------------------------------------------------
-    def _poll_ids(self) -> list[int]:
-        return sorted(i for i, c in self._clients.items() if c.polled)
-
-    async def poll_once(self) -> None:
-        """One poll cycle: SYNC READ 122..135 of every polled servo, then dispatch."""
-        ids = self._poll_ids()
-        if not ids:
-            return
-        start = self.clock.now_ns()
-        late = self._feeding_late(ids, start)
-        statuses = await self.sync_read_statuses(ids, POLL_ADDRESS, POLL_LENGTH)
-        self._last_poll_ns = start
-        transaction = self._transaction
-        now = self.clock.now_ns()
-        self.stats.poll_cycles += 1
-        alerts: list[tuple[int, int]] = []
-        for dxl_id in ids:
-            client = self._clients.get(dxl_id)
-            if client is None:
-                continue
-            status = statuses.get(dxl_id)
-            what = f"SYNC READ {POLL_ADDRESS}+{POLL_LENGTH}"
-            if status is None:
-                self.stats.poll_misses += 1
-                timeout = self.response_timeout(
-                    SYNC_READ_OVERHEAD + len(ids), len(ids), POLL_LENGTH
-                )
-                client._poll_missed(
-                    DynamixelTimeoutError(self.url, (dxl_id,), what, timeout, self.retries + 1)
-                )
-                continue
-            if status.alert:
-                alerts.append((dxl_id, status.error))
-            elif status.error_number:
-                self.stats.status_errors += 1
-                client._poll_status_error(DynamixelStatusError(dxl_id, status.error, what))
-            if status.error_number == 0 and len(status.params) == POLL_LENGTH:
-                client._poll_update(
-                    PresentState.decode(status.params, transaction, now, status.error)
-                )
-        for dxl_id, error in alerts:
-            self.stats.alerts += 1
-            async with self._lock:
-                alert = await self._alert(dxl_id, error, f"SYNC READ {POLL_ADDRESS}")
-            client = self._clients.get(dxl_id)
-            if client is not None:
-                client._hardware_alert(alert)
-        if late:
-            await self.check_bus_watchdogs(ids)
-
-    def _feeding_late(self, ids: Sequence[int], start_ns: int) -> bool:
+    def poll_started(self, ids: Sequence[int]) -> bool:
         """Whether this poll comes more than half an armed Bus Watchdog timeout after the
         previous one (a servo may have stopped by itself meanwhile)."""
+        start_ns = self._poll_start_ns = self.clock.now_ns()
         if not self._bus_watchdogs:
             return False
         last = self._last_poll_ns
@@ -861,29 +435,32 @@ class DynamixelPort:
         self._log.warning("dxl_bus_watchdog_feed_late", gap_s=gap_s, timeout_s=min(timeouts))
         return True
 
-    async def _poll_loop(self) -> None:
-        clock = self.clock
-        next_ns = clock.now_ns()
-        period_ns = round(self.poll_period * 1e9)
-        while True:
-            if not self._link.is_open or not self._poll_ids():
-                self._poll_wake = anyio.Event()
-                if not self._link.is_open or not self._poll_ids():
-                    await self._poll_wake.wait()
-                self._poll_wake = None
-                next_ns = clock.now_ns()
-                continue
-            try:
-                await self.poll_once()
-            except (HALError, OSError) as exc:  # one failed cycle never stops the loop
-                if self._link.is_open:
-                    self._log.warning("dxl_poll_failed", error=str(exc))
-            next_ns += period_ns
-            now = clock.now_ns()
-            if next_ns < now:
-                next_ns = now  # overran: restart the schedule rather than burst
-            await clock.sleep_until(next_ns)
+    def poll_done(self) -> None:
+        self._last_poll_ns = self._poll_start_ns
 
-    def __repr__(self) -> str:
-        state = "open" if self.connected else "closed"
-        return f"DynamixelPort({self.url!r}, {self.baudrate} bd, {state})"
+    def deliver(
+        self, client: PortClient, status: dx.Status, transaction: int, now_ns: int, later: list[Any]
+    ) -> None:
+        if status.alert:
+            later.append((status.id, status.error))
+        elif status.error_number:
+            self.stats.status_errors += 1
+            what = f"SYNC READ {POLL_ADDRESS}+{POLL_LENGTH}"
+            client._poll_status_error(DynamixelStatusError(status.id, status.error, what))
+        if status.error_number == 0 and len(status.params) == POLL_LENGTH:
+            client._poll_update(
+                PresentState.decode(status.params, transaction, now_ns, status.error)
+            )
+
+    async def after_poll(self, ids: Sequence[int], later: list[Any], started: Any) -> None:
+        """Hardware alerts (Hardware Error Status read), then the Bus Watchdogs when the
+        poll came late."""
+        for dxl_id, error in later:
+            self.stats.alerts += 1
+            async with self._lock:
+                alert = await self._alert(dxl_id, error, f"SYNC READ {POLL_ADDRESS}")
+            client = self._clients.get(dxl_id)
+            if client is not None:
+                client._hardware_alert(alert)
+        if started:
+            await self.check_bus_watchdogs(ids)

@@ -62,28 +62,17 @@ Safety (:mod:`openel_async.safety`; a servo is a ``Watchdog`` and an ``Emergency
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import ClassVar, Final
 
 import anyio
 
-from openel_async.device import (
-    ActuatorDevice,
-    ActuatorLimits,
-    DeviceContext,
-    DeviceInfo,
-    ErrorId,
-    VelocityRamp,
-)
+from openel_async.device import ActuatorLimits, DeviceInfo, ErrorId, VelocityRamp
 from openel_async.errors import (
     BadParameterError,
     HALError,
-    NotConnectedError,
     NotImplementedHALError,
-    ReturnCode,
 )
 from openel_async.ids import DeviceKind
-from openel_async.logs import get_logger
 from openel_async.requests import Request
 from openel_async.safety import ExitAction
 from openel_serial import dynamixel as dx
@@ -92,7 +81,15 @@ from openel_serial.errors import (
     DynamixelStatusError,
     DynamixelTimeoutError,
 )
+from openel_serial.halfduplex import positive, positive_or_none
 from openel_serial.port import POLL_ADDRESS, POLL_LENGTH, DynamixelPort, PresentState
+from openel_serial.servobase import (
+    LINK_ERRORS,
+    BusServo,
+    Pending,
+    check_position_limits,
+    check_servo_id,
+)
 
 __all__ = [
     "MAX_PROFILE_ACCELERATION",
@@ -102,8 +99,6 @@ __all__ = [
     "DynamixelXM430W350",
     "profile_acceleration_for",
 ]
-
-log = get_logger(__name__)
 
 X = dx.XSeries
 RAD_PER_TICK: Final = 2 * math.pi / dx.TICKS_PER_REV
@@ -120,30 +115,6 @@ _POSITION_MODES: Final = (
     dx.OperatingMode.EXTENDED_POSITION,
     dx.OperatingMode.CURRENT_BASED_POSITION,
 )
-_LINK_ERRORS: Final = (TimeoutError, NotConnectedError, OSError, anyio.BrokenResourceError)
-
-
-@dataclass(frozen=True, slots=True)
-class _Pending:
-    """The goal whose arrival the poller watches, in raw units."""
-
-    request: Request
-    goal: int
-    after: int
-    """Transaction number at the goal write's acknowledgement: only later polls count."""
-
-
-def _si(name: str, value: float) -> float:
-    """A finite value > 0 or BadParameterError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise BadParameterError(name, value, "a finite number > 0")
-    if not (math.isfinite(value) and value > 0):
-        raise BadParameterError(name, value, "a finite number > 0")
-    return float(value)
-
-
-def _si_or_none(name: str, value: float | None) -> float | None:
-    return None if value is None else _si(name, value)
 
 
 def profile_acceleration_for(ramp: VelocityRamp) -> int:
@@ -158,7 +129,7 @@ def profile_acceleration_for(ramp: VelocityRamp) -> int:
     return max(1, round(units))
 
 
-class DynamixelServo(ActuatorDevice):
+class DynamixelServo(BusServo[DynamixelPort, PresentState]):
     """A Dynamixel Protocol 2.0 X-series servo (XM430, XL430, ...) on a shared port.
 
     ``port`` must be entered (``async with port``) before the component is. Options
@@ -179,7 +150,8 @@ class DynamixelServo(ActuatorDevice):
     """Product id 0: any X-series model (the model number is known after PING). The
     model classes (:class:`DynamixelXM430W350`...) carry the model number as product id
     and are the ones in the Device Kind ID registry."""
-    reports_completion = True
+    log_prefix: ClassVar[str] = "dynamixel"
+    watchdog_keeps_torque: ClassVar[bool] = True
     velocity_ramp = True
     """Profile Acceleration in velocity mode; False on an instance whose servo uses a
     time-based profile (Drive Mode bit 2): the framework streams the ramp then."""
@@ -207,45 +179,33 @@ class DynamixelServo(ActuatorDevice):
     ) -> None:
         if not isinstance(port, DynamixelPort):
             raise BadParameterError("port", port, "a DynamixelPort")
-        if isinstance(dxl_id, bool) or not isinstance(dxl_id, int) or not 0 <= dxl_id <= dx.MAX_ID:
-            raise BadParameterError("dxl_id", dxl_id, f"a servo id in 0..{dx.MAX_ID}")
+        check_servo_id("dxl_id", dxl_id, dx.MAX_ID)
         if position_mode not in _POSITION_MODES:
             raise BadParameterError(
                 "position_mode",
                 position_mode,
                 "POSITION, EXTENDED_POSITION or CURRENT_BASED_POSITION",
             )
-        if position_limits is not None:
-            try:
-                low, high = (float(v) for v in position_limits)
-                ok = math.isfinite(low) and math.isfinite(high) and low < high
-            except (TypeError, ValueError):
-                ok = False
-            if not ok:
-                raise BadParameterError(
-                    "position_limits", position_limits, "a finite (low, high) pair, low < high"
-                )
+        check_position_limits(position_limits)
         if torque_constant is not None and not self.has_current:
             raise BadParameterError(
                 "torque_constant",
                 torque_constant,
                 f"None: the {self.info.product_name} has no current control mode",
             )
-        self.port = port
-        self._dxl_id = dxl_id
+        super().__init__(port, dxl_id, torque_off_on_close=torque_off_on_close)
         self.position_limits = position_limits
-        self.velocity_limit = _si_or_none("velocity_limit", velocity_limit)
-        self.torque_constant = _si_or_none("torque_constant", torque_constant)
-        self.current_unit = _si("current_unit", current_unit)
-        self.profile_velocity = _si_or_none("profile_velocity", profile_velocity)
-        self.profile_acceleration = _si_or_none("profile_acceleration", profile_acceleration)
-        self.position_tolerance = _si("position_tolerance", position_tolerance)
-        self.velocity_tolerance = _si("velocity_tolerance", velocity_tolerance)
-        self.torque_tolerance = _si("torque_tolerance", torque_tolerance)
+        self.velocity_limit = positive_or_none("velocity_limit", velocity_limit)
+        self.torque_constant = positive_or_none("torque_constant", torque_constant)
+        self.current_unit = positive("current_unit", current_unit)
+        self.profile_velocity = positive_or_none("profile_velocity", profile_velocity)
+        self.profile_acceleration = positive_or_none("profile_acceleration", profile_acceleration)
+        self.position_tolerance = positive("position_tolerance", position_tolerance)
+        self.velocity_tolerance = positive("velocity_tolerance", velocity_tolerance)
+        self.torque_tolerance = positive("torque_tolerance", torque_tolerance)
         self.position_mode = dx.OperatingMode(position_mode)
         self.reboot_on_alert = reboot_on_alert
-        self.reboot_timeout = _si("reboot_timeout", reboot_timeout)
-        self.torque_off_on_close = torque_off_on_close
+        self.reboot_timeout = positive("reboot_timeout", reboot_timeout)
         requests = {Request.NO_EXCITE, Request.POSITION, Request.VELOCITY}
         if self.torque_constant is not None:
             requests.add(Request.TORQUE)
@@ -256,12 +216,6 @@ class DynamixelServo(ActuatorDevice):
         kt = self.torque_constant
         self._tol_current = self.torque_tolerance / (kt * self.current_unit) if kt else math.inf
         # Device state.
-        self._ctx: DeviceContext | None = None
-        self._polled = False
-        self._pending: _Pending | None = None
-        self._state: PresentState | None = None
-        self._mode: int = -1
-        self._torque = False
         self._drive_mode = 0
         self._profile_acc: int | None = None
         """Profile Acceleration on the servo as last written (None: unknown)."""
@@ -270,93 +224,40 @@ class DynamixelServo(ActuatorDevice):
         """The configured Profile Acceleration (``profile_acceleration``, or the servo's at
         the first init): restored after a mode change and after a ramp."""
         self._base_vel: int | None = None
-        self._ack_writes = True
         self._alert = False
         self._status_error_reported = False
         self.model_number: int | None = None
         self.firmware_version: int | None = None
-        self.return_delay: float | None = None
-        """The servo's Return Delay Time in seconds, read at open."""
-        self.completions = 0
         self._watchdog_units: int | None = None
         """Bus Watchdog (98) setting while armed (None: not armed by us)."""
-        self._estop_active = False
-        self.watchdog_trips = 0
-        self._log = log.bind(port=port.url, dxl_id=dxl_id)
 
     # -- identity --------------------------------------------------------------------
     @property
     def dxl_id(self) -> int:
-        return self._dxl_id
-
-    @property
-    def polled(self) -> bool:
-        """Whether the port's poller reads this servo (False while faulted or closed)."""
-        return self._polled
-
-    @property
-    def state(self) -> PresentState | None:
-        """The latest present values (raw units), from the poller."""
-        return self._state
-
-    @property
-    def operating_mode(self) -> int:
-        return self._mode
-
-    @property
-    def torque_enabled(self) -> bool:
-        return self._torque
-
-    def __repr__(self) -> str:
-        return f"DynamixelServo(id={self._dxl_id}, port={self.port.url!r})"
+        return self._servo_id
 
     # -- lifecycle -------------------------------------------------------------------
-    async def open(self, ctx: DeviceContext) -> None:
-        self._ctx = ctx
-        self._log = self._log.bind(component=ctx.name)
-        self.port.check_connected()
-        self.port.attach(self)
-        try:
-            info = await self.port.ping(self._dxl_id)
-            self.model_number, self.firmware_version = info.model_number, info.firmware_version
-            expected = self.info.product_id
-            if expected and info.model_number != expected:
-                raise HALError(
-                    f"servo {self._dxl_id} is model {info.model_number}, not the "
-                    f"{self.info.product_name} (model number {expected})"
-                )
-            await self._load_table()
-            await self._refresh_state()
-        except BaseException:
-            self.port.detach(self)
-            raise
-        self._log.info(
-            "dynamixel_opened",
-            model=self.model_number,
-            firmware=self.firmware_version,
-            mode=self._mode,
-            torque=self._torque,
-            alert=self._alert,
-        )
+    async def identify(self) -> None:
+        info = await self.port.ping(self._servo_id)
+        self.model_number, self.firmware_version = info.model_number, info.firmware_version
+        expected = self.info.product_id
+        if expected and info.model_number != expected:
+            raise HALError(
+                f"servo {self._servo_id} is model {info.model_number}, not the "
+                f"{self.info.product_name} (model number {expected})"
+            )
 
-    async def init(self) -> None:
-        await self._make_operational()
+    def opened_fields(self) -> dict[str, object]:
+        return {
+            "model": self.model_number,
+            "firmware": self.firmware_version,
+            "mode": self._mode,
+            "torque": self._torque,
+            "alert": self._alert,
+        }
 
-    async def reset(self) -> None:
-        self._polled = False
-        self._pending = None
-        await self.port.reconnect()
-        await self.port.ping(self._dxl_id)
-        await self._load_table()
-        await self._make_operational()
-
-    async def close(self) -> None:
-        self._polled = False
-        self._pending = None
-        self.port.detach(self)
-        if self.torque_off_on_close and self.port.connected:
-            await self._write(X.TORQUE_ENABLE, 0)
-            self._torque = False
+    async def torque_off(self) -> None:
+        await self._write(X.TORQUE_ENABLE, 0)
 
     async def reboot(self) -> None:
         """REBOOT the servo (clears a hardware error) and wait until it answers PING.
@@ -367,16 +268,16 @@ class DynamixelServo(ActuatorDevice):
         """
         polled, self._polled = self._polled, False
         self._pending = None
-        await self.port.reboot(self._dxl_id)
+        await self.port.reboot(self._servo_id)
         with anyio.fail_after(self.reboot_timeout):
             while True:
                 try:
-                    await self.port.ping(self._dxl_id)
+                    await self.port.ping(self._servo_id)
                     break
                 except DynamixelTimeoutError:
                     continue  # still booting (each PING waited its timeout)
-        await self._load_table()
-        await self._refresh_state()
+        await self.load_table()
+        await self.refresh_state()
         if self._watchdog_units is not None:  # RAM reset: arm it again
             await self._write(X.BUS_WATCHDOG, self._watchdog_units)
         if polled and not self._alert:
@@ -403,12 +304,12 @@ class DynamixelServo(ActuatorDevice):
             if (self._mode, self._torque) == (mode_before, torque_before):
                 self._pending = previous  # nothing changed on the servo
             self._log.warning("dynamixel_command_refused", error=str(exc))
-            self._context().post_error(ErrorId.PROTOCOL_ERROR)
+            self.context().post_error(ErrorId.PROTOCOL_ERROR)
             raise
-        except _LINK_ERRORS:
-            self._polled = False  # the component faults; stop polling until reset
+        except LINK_ERRORS:
+            self.stop_polling()  # the component faults; stop polling until reset
             raise
-        self._pending = _Pending(request, raw, self.port.transactions)
+        self._pending = Pending(request, raw, self.port.transactions)
 
     async def command_velocity_ramp(self, ramp: VelocityRamp) -> None:
         """The servo's own ramp: velocity mode, Profile Acceleration from ``ramp.rate``
@@ -416,7 +317,7 @@ class DynamixelServo(ActuatorDevice):
         present velocity. Completion: the present velocity within tolerance of the goal."""
         if not self.velocity_ramp:
             raise NotImplementedHALError(
-                f"servo {self._dxl_id} uses a time-based profile: no velocity ramp of its own"
+                f"servo {self._servo_id} uses a time-based profile: no velocity ramp of its own"
             )
         item, raw, mode = self._goal(Request.VELOCITY, ramp.target)
         acceleration = profile_acceleration_for(ramp)
@@ -430,22 +331,20 @@ class DynamixelServo(ActuatorDevice):
             if await self._refused_by_watchdog(exc):
                 raise
             self._log.warning("dynamixel_command_refused", error=str(exc))
-            self._context().post_error(ErrorId.PROTOCOL_ERROR)
+            self.context().post_error(ErrorId.PROTOCOL_ERROR)
             raise
-        except _LINK_ERRORS:
-            self._polled = False
+        except LINK_ERRORS:
+            self.stop_polling()
             raise
-        self._pending = _Pending(Request.VELOCITY, raw, self.port.transactions)
+        self._pending = Pending(Request.VELOCITY, raw, self.port.transactions)
 
     async def read(self, request: Request) -> float:
         self.port.check_connected()
         if request is Request.TORQUE_ACTUAL and self.torque_constant is None:
             raise NotImplementedHALError(
-                f"servo {self._dxl_id}: TORQUE_ACTUAL needs a torque_constant (Nm/A)"
+                f"servo {self._servo_id}: TORQUE_ACTUAL needs a torque_constant (Nm/A)"
             )
-        state = self._state
-        if state is None:
-            state = await self._refresh_state()
+        state = await self.present()
         if request is Request.POSITION_ACTUAL:
             return dx.ticks_to_rad(state.position)
         if request is Request.VELOCITY_ACTUAL:
@@ -463,11 +362,6 @@ class DynamixelServo(ActuatorDevice):
         """The armed Bus Watchdog timeout (s), or None."""
         units = self._watchdog_units
         return None if units is None else units * dx.BUS_WATCHDOG_UNIT_S
-
-    @property
-    def estopped(self) -> bool:
-        """Whether the servo was e-stopped (torque off) and not made operational since."""
-        return self._estop_active
 
     async def arm_watchdog(self, timeout_s: float) -> None:
         """Bus Watchdog (98) = ``timeout_s`` / 20 ms, fed by the port's poller.
@@ -489,14 +383,14 @@ class DynamixelServo(ActuatorDevice):
         firmware = self.firmware_version
         if firmware is not None and firmware < dx.BUS_WATCHDOG_FIRMWARE:
             raise NotImplementedHALError(
-                f"servo {self._dxl_id}: firmware v{firmware} has no Bus Watchdog "
+                f"servo {self._servo_id}: firmware v{firmware} has no Bus Watchdog "
                 f"(v{dx.BUS_WATCHDOG_FIRMWARE} and later)"
             )
-        self.port.arm_bus_watchdog(self._dxl_id, units * dx.BUS_WATCHDOG_UNIT_S)
+        self.port.arm_bus_watchdog(self._servo_id, units * dx.BUS_WATCHDOG_UNIT_S)
         try:
             await self._write(X.BUS_WATCHDOG, units)
         except BaseException:
-            self.port.disarm_bus_watchdog(self._dxl_id)
+            self.port.disarm_bus_watchdog(self._servo_id)
             raise
         self._watchdog_units = units
         self._log.info("dynamixel_bus_watchdog_armed", timeout_s=units * dx.BUS_WATCHDOG_UNIT_S)
@@ -504,16 +398,9 @@ class DynamixelServo(ActuatorDevice):
     async def disarm_watchdog(self) -> None:
         """Bus Watchdog (98) = 0 (off; also clears a Bus Watchdog Error)."""
         self._watchdog_units = None
-        self.port.disarm_bus_watchdog(self._dxl_id)
+        self.port.disarm_bus_watchdog(self._servo_id)
         if self.port.connected:
             await self._write(X.BUS_WATCHDOG, 0)
-
-    async def estop(self) -> None:
-        """Torque Enable (64) = 0 now, component to Error with ``ErrorId.ESTOP``."""
-        try:
-            await self.port.estop([self._dxl_id])
-        finally:
-            self._estopped_now(f"servo {self._dxl_id}: e-stop: torque off")
 
     async def safe_stop(self, action: ExitAction) -> None:
         """Leave the servo in ``action``'s state (see the module docstring)."""
@@ -529,20 +416,12 @@ class DynamixelServo(ActuatorDevice):
         elif action is ExitAction.STOP and self._mode == dx.OperatingMode.VELOCITY:
             await self._write(X.GOAL_VELOCITY, 0)
         else:
-            state = await self._refresh_state()
+            state = await self.refresh_state()
             await self._apply(self.position_mode, X.GOAL_POSITION, state.position)
         self._log.info("dynamixel_safe_stop", action=str(action), torque=self._torque)
 
-    def _estopped_now(self, reason: str) -> None:
-        self._estop_active = True
-        self._torque = False
-        self._polled = False
-        self._pending = None
-        if self._ctx is not None:
-            self._ctx.fault(ErrorId.ESTOP, reason)
-
     async def _read_watchdog(self) -> int:
-        return await self.port.read_item(self._dxl_id, X.BUS_WATCHDOG, check_alert=False)
+        return await self.port.read_item(self._servo_id, X.BUS_WATCHDOG, check_alert=False)
 
     async def _refused_by_watchdog(self, exc: DynamixelStatusError) -> bool:
         """Whether a refused goal write was refused because the Bus Watchdog expired
@@ -551,11 +430,11 @@ class DynamixelServo(ActuatorDevice):
             return False
         try:
             tripped = await self._read_watchdog() == dx.BUS_WATCHDOG_ERROR
-        except (HALError, *_LINK_ERRORS):
+        except (HALError, *LINK_ERRORS):
             return False
         if tripped:
             self._watchdog_tripped(
-                f"servo {self._dxl_id}: Bus Watchdog expired (goal refused: {exc}): "
+                f"servo {self._servo_id}: Bus Watchdog expired (goal refused: {exc}): "
                 "the servo stopped by itself"
             )
         return tripped
@@ -564,73 +443,39 @@ class DynamixelServo(ActuatorDevice):
     def _poll_update(self, state: PresentState) -> None:
         self._state = state
         self._status_error_reported = False
-        pending = self._pending
-        if pending is None or state.transaction <= pending.after:
-            return
-        if pending.request is Request.POSITION:
-            reached = not state.moving and abs(state.position - pending.goal) <= self._tol_ticks
-        elif pending.request is Request.VELOCITY:
-            reached = abs(state.velocity - pending.goal) <= self._tol_velocity
-        else:
-            reached = abs(state.current - pending.goal) <= self._tol_current
-        if reached:
-            self._pending = None
-            self.completions += 1
-            self._log.debug("dynamixel_target_reached", request=pending.request.name)
-            self._context().target_reached()
+        self.complete_if_reached(state)
 
-    def _poll_missed(self, error: DynamixelTimeoutError) -> None:
-        if self._polled:
-            self._polled = False
-            self._pending = None
-            self._context().fault(ErrorId.TIMEOUT, str(error))
+    def reached(self, pending: Pending, state: PresentState) -> bool:
+        if pending.request is Request.POSITION:
+            return not state.moving and abs(state.position - pending.goal) <= self._tol_ticks
+        if pending.request is Request.VELOCITY:
+            return abs(state.velocity - pending.goal) <= self._tol_velocity
+        return abs(state.current - pending.goal) <= self._tol_current
 
     def _poll_status_error(self, error: DynamixelStatusError) -> None:
         if not self._status_error_reported:  # once per run of refused polls
             self._status_error_reported = True
             self._log.warning("dynamixel_poll_refused", error=str(error))
-            self._context().post_error(ErrorId.PROTOCOL_ERROR)
+            self.context().post_error(ErrorId.PROTOCOL_ERROR)
 
     def _hardware_alert(self, error: DynamixelHardwareAlert) -> None:
         if self._polled:
             self._fault_alert(error)
-
-    def _watchdog_tripped(self, reason: str) -> None:
-        self.watchdog_trips += 1
-        if self._polled:
-            self._polled = False
-            self._pending = None
-            self._context().fault(ErrorId.WATCHDOG, reason)
-
-    def _estopped(self, reason: str) -> None:
-        self._estopped_now(reason)
-
-    def _port_lost(self, reason: str) -> None:
-        if self._polled:
-            self._polled = False
-            self._pending = None
-            self._context().fault(ErrorId.DISCONNECTED, reason, ReturnCode.HAL_NO_CONNECTED)
-
-    # -- internals -------------------------------------------------------------------
-    def _context(self) -> DeviceContext:
-        if self._ctx is None:
-            raise HALError(f"servo {self._dxl_id} used before open()")
-        return self._ctx
 
     def _fault_alert(self, error: DynamixelHardwareAlert) -> None:
         self._alert = True
         self._polled = False
         self._pending = None
         self._torque = False  # the servo shut its torque down
-        self._context().fault(ErrorId.DEVICE_ERROR, str(error))
+        self.context().fault(ErrorId.DEVICE_ERROR, str(error))
 
     async def _write(self, item: dx.ControlItem, value: int) -> None:
-        await self.port.write_item(self._dxl_id, item, value, ack=self._ack_writes)
+        await self.port.write_item(self._servo_id, item, value, ack=self._ack_writes)
 
-    async def _load_table(self) -> None:
+    async def load_table(self) -> None:
         """Read addresses 0..70 (EEPROM, torque, status return level, hardware error)."""
         try:
-            table = await self.port.read(self._dxl_id, 0, TABLE_LENGTH, check_alert=False)
+            table = await self.port.read(self._servo_id, 0, TABLE_LENGTH, check_alert=False)
         except DynamixelTimeoutError as exc:
             raise DynamixelTimeoutError(
                 exc.port,
@@ -650,13 +495,7 @@ class DynamixelServo(ActuatorDevice):
         self._torque = bool(item(X.TORQUE_ENABLE))
         self._ack_writes = item(X.STATUS_RETURN_LEVEL) >= 2
         self._alert = item(X.HARDWARE_ERROR_STATUS) != 0
-        self.return_delay = item(X.RETURN_DELAY_TIME) * dx.RETURN_DELAY_UNIT_S
-        if self.return_delay > self.port.return_delay:
-            self._log.warning(
-                "dynamixel_return_delay_exceeds_port",
-                servo_s=self.return_delay,
-                port_s=self.port.return_delay,
-            )
+        self.check_return_delay(item(X.RETURN_DELAY_TIME) * dx.RETURN_DELAY_UNIT_S)
         if self.position_limits is not None:
             position = self.position_limits
         elif self.position_mode is dx.OperatingMode.EXTENDED_POSITION:
@@ -676,26 +515,26 @@ class DynamixelServo(ActuatorDevice):
             torque = item(X.CURRENT_LIMIT) * self.current_unit * self.torque_constant or math.inf
         self.limits = ActuatorLimits(position, velocity, torque)
 
-    async def _refresh_state(self) -> PresentState:
-        data = await self.port.read(self._dxl_id, POLL_ADDRESS, POLL_LENGTH, check_alert=False)
+    async def refresh_state(self) -> PresentState:
+        data = await self.port.read(self._servo_id, POLL_ADDRESS, POLL_LENGTH, check_alert=False)
         state = PresentState.decode(data, self.port.transactions, self.port.clock.now_ns())
         self._state = state
         return state
 
-    async def _make_operational(self) -> None:
+    async def make_operational(self) -> None:
         """Clear a hardware error and a Bus Watchdog Error, write the profile, hold the
         present position, torque on, arm the Bus Watchdog again if it was armed."""
         await self.port.reconnect()
         if self._alert:
             if not self.reboot_on_alert:
                 hardware = await self.port.read_item(
-                    self._dxl_id, X.HARDWARE_ERROR_STATUS, check_alert=False
+                    self._servo_id, X.HARDWARE_ERROR_STATUS, check_alert=False
                 )
-                raise DynamixelHardwareAlert(self._dxl_id, dx.ALERT_BIT, "init", hardware)
+                raise DynamixelHardwareAlert(self._servo_id, dx.ALERT_BIT, "init", hardware)
             self._log.warning("dynamixel_rebooting_after_alert")
             await self.reboot()
             if self._alert:
-                raise DynamixelHardwareAlert(self._dxl_id, dx.ALERT_BIT, "reboot", None)
+                raise DynamixelHardwareAlert(self._servo_id, dx.ALERT_BIT, "reboot", None)
         firmware = self.firmware_version
         has_watchdog = firmware is None or firmware >= dx.BUS_WATCHDOG_FIRMWARE
         watchdog = await self._read_watchdog() if has_watchdog else 0
@@ -705,7 +544,7 @@ class DynamixelServo(ActuatorDevice):
             await self._write(X.BUS_WATCHDOG, 0)
             watchdog = 0
         if self._base_acc is None or self._base_vel is None:
-            data = await self.port.read(self._dxl_id, X.PROFILE_ACCELERATION.address, 8)
+            data = await self.port.read(self._servo_id, X.PROFILE_ACCELERATION.address, 8)
             self._profile_acc = X.PROFILE_ACCELERATION.decode(data[:4])
             self._profile_vel = X.PROFILE_VELOCITY.decode(data[4:])
             self._base_acc, self._base_vel = self._profile_acc, self._profile_vel
@@ -713,15 +552,14 @@ class DynamixelServo(ActuatorDevice):
             self._base_vel = dx.rad_s_to_velocity(self.profile_velocity)
         if self.profile_acceleration is not None:
             self._base_acc = dx.rad_s2_to_acceleration(self.profile_acceleration)
-        state = await self._refresh_state()
+        state = await self.refresh_state()
         self._pending = None
         # Writes the profile too (and again after a mode change, which resets it).
         await self._apply(self.position_mode, X.GOAL_POSITION, state.position)
         self._estop_active = False
         if self._watchdog_units is not None and watchdog != self._watchdog_units:
             await self._write(X.BUS_WATCHDOG, self._watchdog_units)
-        self._polled = True
-        self.port.wake_poller()
+        self.resume_polling()
 
     def _goal(self, request: Request, value: float) -> tuple[dx.ControlItem, int, int]:
         if request is Request.POSITION:
@@ -736,7 +574,7 @@ class DynamixelServo(ActuatorDevice):
             raw = round(value / self.torque_constant / self.current_unit)
             item, mode = X.GOAL_CURRENT, int(dx.OperatingMode.CURRENT)
         else:
-            raise NotImplementedHALError(f"servo {self._dxl_id} does not support {request.name}")
+            raise NotImplementedHALError(f"servo {self._servo_id} does not support {request.name}")
         try:
             item.encode(raw)
         except ValueError:

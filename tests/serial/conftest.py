@@ -25,6 +25,43 @@ WAIT_S = 3.0
 T = TypeVar("T")
 
 
+class RecordingPort:
+    """The part of a vendor SDK's PortHandler (dynamixel-sdk, scservo_sdk) that its packet
+    handler uses, without a serial port.
+
+    ``written`` collects every packet sent; ``rx`` holds the bytes the SDK will read.
+    """
+
+    def __init__(self, rx: bytes = b"") -> None:
+        self.is_using = False
+        self.written: list[bytes] = []
+        self.rx = bytearray(rx)
+
+    def clearPort(self) -> None:
+        pass
+
+    def writePort(self, packet: list[int]) -> int:
+        self.written.append(bytes(packet))
+        return len(packet)
+
+    def readPort(self, length: int) -> bytes:
+        data = bytes(self.rx[:length])
+        del self.rx[:length]
+        return data
+
+    def setPacketTimeout(self, packet_length: int) -> None:
+        pass
+
+    def setPacketTimeoutMillis(self, msec: float) -> None:
+        pass
+
+    def isPacketTimeout(self) -> bool:
+        return not self.rx  # nothing more will arrive
+
+    def getBaudRate(self) -> int:
+        return BAUD
+
+
 def make_servo(dxl_id: int, **kwargs: Any) -> SimServo:
     # Profile: 400 x 0.229 rpm = 9.6 rad/s, 400 x 214.6 rev/min^2 = 150 rad/s^2: moves of
     # a fraction of a radian last ~0.1-0.2 s.

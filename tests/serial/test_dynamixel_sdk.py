@@ -21,48 +21,12 @@ from hypothesis import strategies as st
 from openel_serial import dynamixel as dx
 from openel_serial.peers import SimDynamixelBus
 
-from .conftest import BAUD, in_thread, make_servo
+from .conftest import BAUD, RecordingPort, in_thread, make_servo
 
 pytestmark = pytest.mark.timeout(30)
 
 X = dx.XSeries
 PH = sdk.PacketHandler(2.0)
-
-
-class RecordingPort:
-    """The part of the SDK's PortHandler that PacketHandler uses, without a serial port.
-
-    ``written`` collects every packet sent; ``rx`` holds the bytes the SDK will read.
-    """
-
-    def __init__(self, rx: bytes = b"") -> None:
-        self.is_using = False
-        self.written: list[bytes] = []
-        self.rx = bytearray(rx)
-
-    def clearPort(self) -> None:
-        pass
-
-    def writePort(self, packet: list[int]) -> int:
-        self.written.append(bytes(packet))
-        return len(packet)
-
-    def readPort(self, length: int) -> bytes:
-        data = bytes(self.rx[:length])
-        del self.rx[:length]
-        return data
-
-    def setPacketTimeout(self, packet_length: int) -> None:
-        pass
-
-    def setPacketTimeoutMillis(self, msec: float) -> None:
-        pass
-
-    def isPacketTimeout(self) -> bool:
-        return not self.rx  # nothing more will arrive
-
-    def getBaudRate(self) -> int:
-        return BAUD
 
 
 # -- packet level ----------------------------------------------------------------------------

@@ -30,40 +30,12 @@ from openel_serial.feetech_peers import SimFeetechBus, SimStsServo
 from openel_serial.feetech_port import FeetechPort
 from openel_serial.ptypeer import PtyPort
 
-from .conftest import in_thread
+from .conftest import BAUD, RecordingPort, in_thread
 
 pytestmark = pytest.mark.timeout(60)
 
 S = ft.STS
-BAUD = 1_000_000
 PH = sdk.PacketHandler(0)  # STS/SMS: little-endian (SCS_END = 0)
-
-
-class RecordingPort:
-    """What the SDK's packet handler uses of a PortHandler, recording what it sends."""
-
-    def __init__(self, rx: bytes = b"") -> None:
-        self.is_using = False
-        self.written: list[bytes] = []
-        self.rx = bytearray(rx)
-
-    def clearPort(self) -> None:
-        pass
-
-    def writePort(self, packet: list[int]) -> int:
-        self.written.append(bytes(packet))
-        return len(packet)
-
-    def readPort(self, length: int) -> bytes:
-        data = bytes(self.rx[:length])
-        del self.rx[:length]
-        return data
-
-    def setPacketTimeout(self, packet_length: int) -> None:
-        pass
-
-    def isPacketTimeout(self) -> bool:
-        return not self.rx
 
 
 # -- packet level ----------------------------------------------------------------------------
