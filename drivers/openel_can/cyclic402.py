@@ -9,7 +9,9 @@ mode's RPDO, then SYNC latches it; the drive follows it over the interpolation t
 staged without I/O (``command_nowait``: an :class:`~openel_async.motion.AxisGroup` streams
 through it without suspending), actual values come from TPDO1.
 
-PDO mapping (fixed; replaceable by a configured map later):
+PDO mapping without ``eds``/``dcf`` (with them: ``default_pdos(mode)`` or the rig's
+``pdos``, :mod:`openel_can.layout402`; the set-point RPDO is then the one carrying the
+controlword and the mode's target, the cycle's feedback any synchronous TPDO):
 
 =========  ===============================================  ==============================
 PDO        objects                                          transmission
@@ -119,7 +121,12 @@ class Cia402CyclicDrive(Cia402Drive):
         """The one request the drive takes."""
         self.supported_requests = frozenset({self.request})
         self._rpdo = RPDO_OF_MODE[self.cyclic_mode]
-        self.rpdo_cob_id = co.RPDO_BASES[self._rpdo] + node_id
+        self.rpdo_cob_id = (
+            co.RPDO_BASES[self._rpdo] + node_id
+            if self.layout is None
+            else self.layout.rpdo_of_mode[self.cyclic_mode].pdo.cob_id
+        )
+        """The COB-ID of the set-point RPDO staged every cycle."""
         self.sync_source = CanSync.of(bus)
         self.feedback_cycle = 0
         """The SYNC (:attr:`CanSync.cycle`) the last TPDO1 answered."""
@@ -127,7 +134,7 @@ class Cia402CyclicDrive(Cia402Drive):
         """0x60C2 as last written (value, index)."""
 
     # -- configuration ----------------------------------------------------------------------
-    async def _map_pdos(self) -> None:
+    async def _map_fixed_pdos(self) -> None:
         n = self.node_id
         for number, entries in enumerate(RPDO_MAPS, start=1):
             await self._map_pdo(
@@ -154,7 +161,10 @@ class Cia402CyclicDrive(Cia402Drive):
         await self._select_cyclic(await self._read_actual())
 
     async def _wait_first_feedback(self, started: int) -> None:
-        """TPDO2 (event-driven: sent at once on NMT start)."""
+        """TPDO2 (event-driven: sent at once on NMT start); with a layout, its statusword."""
+        if self.layout is not None:
+            await super()._wait_first_feedback(started)
+            return
         with anyio.move_on_after(self.state_timeout):
             while self._tpdo2_ns is None or self._tpdo2_ns < started:
                 await self._change_event().wait()
@@ -200,7 +210,8 @@ class Cia402CyclicDrive(Cia402Drive):
         if self._mode is not self.cyclic_mode:
             await self._select_cyclic(actual)
         else:
-            self._targets[self.cyclic_mode] = actual if self._rpdo == 0 else 0
+            position = self.cyclic_mode is Mode.CYCLIC_SYNC_POSITION
+            self._targets[self.cyclic_mode] = actual if position else 0
         await self._drive_to(PS.OPERATION_ENABLED)
         await self._wait_status(lambda sw: bool(sw & _FOLLOWS), "drive follows (bit 12)")
         self._enabled_wanted = True
@@ -258,12 +269,15 @@ class Cia402CyclicDrive(Cia402Drive):
             raw = self._torque_permille(value)
         else:
             raw = self.rad_to_counts(value)
-        try:
-            data = RPDO_CODECS[self._rpdo].pack((ENABLE_OPERATION, raw))
-        except ValueError as exc:
-            raise BadParameterError(
-                "value", value, f"a target that fits {RPDO_MAPS[self._rpdo][1].data_type.name}"
-            ) from exc
+        if self.layout is None:
+            try:
+                data = RPDO_CODECS[self._rpdo].pack((ENABLE_OPERATION, raw))
+            except ValueError as exc:
+                raise BadParameterError(
+                    "value", value, f"a target that fits {RPDO_MAPS[self._rpdo][1].data_type.name}"
+                ) from exc
+        else:
+            data = self.rpdo_frame(self.cyclic_mode, ENABLE_OPERATION, raw)[1]
         self._targets[self.cyclic_mode] = raw
         self._controlword = ENABLE_OPERATION
         self.sync_source.stage(self.rpdo_cob_id, data)
@@ -275,7 +289,9 @@ class Cia402CyclicDrive(Cia402Drive):
         raise HALError(f"CiA 402 node {self.node_id}: no velocity ramp in {self.mode}")
 
     async def read(self, request: Request) -> float:
-        if request is Request.VELOCITY_ACTUAL:  # not in a PDO here: by SDO
+        if request is Request.VELOCITY_ACTUAL and (
+            self.layout is None or not self.layout.carries(0x606C)
+        ):  # not in a PDO: by SDO
             counts = await self.sdo.read(ds.VELOCITY_ACTUAL_VALUE, timeout=self.sdo_timeout)
             return self.counts_to_rad(counts)
         return await super().read(request)
@@ -283,6 +299,9 @@ class Cia402CyclicDrive(Cia402Drive):
     # -- receive side -----------------------------------------------------------------------
     def _on_tpdo1(self, frame: can.Message, now: int) -> None:
         super()._on_tpdo1(frame, now)
+        self.feedback_cycle = self.sync_source.cycle
+
+    def _on_sync_tpdo(self, now: int) -> None:
         self.feedback_cycle = self.sync_source.cycle
 
     def _on_tpdo2(self, frame: can.Message, now: int) -> None:
