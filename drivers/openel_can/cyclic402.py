@@ -36,6 +36,10 @@ written from the timer's period when the bus's CanSync starts, and at every conf
 while it runs. Leaving (:meth:`Cia402CyclicDrive.leave_cyclic`, also at ``close`` unless a
 safe stop left the drive as it is): Halt (bit 8: the drive stops with 0x6084), then profile
 position with target = actual, still enabled.
+
+An EMCY (other than 0x0000, error reset) faults the component at once, with the code's
+class in words (:func:`openel_can.emcy.describe_emcy`): the staged set-point is dropped and
+a quick stop sent.
 """
 
 from __future__ import annotations
@@ -45,7 +49,7 @@ from typing import Any, Final
 import anyio
 import can
 
-from openel_async.device import VelocityRamp
+from openel_async.device import ErrorId, VelocityRamp
 from openel_async.errors import BadParameterError, HALError, StateError
 from openel_async.logs import get_logger
 from openel_async.requests import Request
@@ -53,6 +57,7 @@ from openel_async.requests import Request
 from . import canopen as co
 from . import cia402 as ds
 from .drive402 import Cia402Drive
+from .emcy import describe_emcy
 from .node402 import (
     ENABLE_OPERATION,
     RPDO_CODECS,
@@ -300,6 +305,35 @@ class Cia402CyclicDrive(Cia402Drive):
     def _on_tpdo1(self, frame: can.Message, now: int) -> None:
         super()._on_tpdo1(frame, now)
         self.feedback_cycle = self.sync_source.cycle
+
+    def _on_emcy(self, frame: can.Message) -> None:
+        """An EMCY (other than error reset) faults the component at once, in the cyclic
+        modes: a drive streaming set-points must not wait for the next statusword. The
+        staged set-point is dropped and a quick stop sent (a drive in Fault ignores it)."""
+        super()._on_emcy(frame)
+        emcy = self.last_emcy
+        if emcy is None or emcy.error_code == co.EmcyCode.NO_ERROR:
+            return
+        if not self._engaged or self._latched:
+            return
+        self._emcy_unreported = False  # reported here, once
+        self.sync_source.unstage(self.rpdo_cob_id)
+        heartbeat = emcy.error_code == co.EmcyCode.LIFE_GUARD_OR_HEARTBEAT
+        self._fault(
+            ErrorId.WATCHDOG if heartbeat else ErrorId.DEVICE_ERROR,
+            f"CiA 402 node {self.node_id} in {self.mode}: EMCY {describe_emcy(emcy.error_code)}, "
+            f"error register {emcy.error_register:#04x}",
+        )
+        if self._ctx is not None:
+            self._ctx.start_soon(self._stop_after_emcy)
+
+    async def _stop_after_emcy(self) -> None:
+        """Quick stop after an EMCY fault (bounded; a broken link is only logged)."""
+        try:
+            with anyio.move_on_after(self.state_timeout):
+                await self.quick_stop()
+        except Exception as exc:
+            self.log.warning("cia402_quick_stop_after_emcy_failed", error=repr(exc))
 
     def _on_sync_tpdo(self, now: int) -> None:
         self.feedback_cycle = self.sync_source.cycle

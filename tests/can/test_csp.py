@@ -12,8 +12,11 @@ import can
 import pytest
 
 from openel_async import Actuator, BadParameterError, EventTimer, Request
+from openel_async.clock import default_clock
+from openel_async.device import ErrorId
 from openel_async.motion import AxisGroup, AxisLimits
 from openel_async.observers import TimerTick
+from openel_async.testing import EventRecorder
 from openel_can import CanBus, CanSync, Cia402CyclicDrive, Cia402Drive
 from openel_can import canopen as co
 from openel_can import cia402 as ds
@@ -196,3 +199,40 @@ async def test_one_sync_producer_per_bus(channel: str) -> None:
             await CanSync.of(bus).start(timer)
         with pytest.raises(BadParameterError, match="counter_overflow"):
             await CanSync.of(bus).start(timer, counter_overflow=1)
+
+
+async def test_an_emcy_in_csp_faults_the_component_at_once(
+    channel: str, peers: Peers, host_bus: CanBus, raw_bus: can.BusABC
+) -> None:
+    """A warning EMCY (the drive stays enabled): the component faults on the EMCY itself,
+    one error event naming the code's class, the set-point stream stops and the drive
+    gets a quick stop."""
+    sim = await peers.start(SimCia402Drive(6))
+    recorder = EventRecorder(default_clock())
+    async with Actuator(_drive(host_bus, 6)) as axis, EventTimer(PERIOD_MS) as timer:
+        axis.add_observer(recorder)
+        drive = axis.device
+        assert isinstance(drive, Cia402CyclicDrive)
+        sync = CanSync.of(host_bus)
+        await sync.start(timer)
+        try:
+            timer.start_timer()
+            await axis.set_value(0.2)
+            await wait_until(lambda: drive.feedback_cycle > 2)
+            sim.warn(0x8611, co.ErrorRegister.GENERIC)
+            error = await recorder.wait_for("error", source=axis, timeout=1)
+            assert error.id == ErrorId.DEVICE_ERROR
+            assert axis.state.value == "Error"
+            assert "in csp: EMCY 0x8611 following error (monitoring: control)" in str(
+                axis.last_fault
+            )
+            stopped = (ds.PowerState.QUICK_STOP_ACTIVE, ds.PowerState.SWITCH_ON_DISABLED)
+            await wait_until(lambda: sim.power_state in stopped)  # quick stop, 0x605A
+            with pytest.raises(Exception, match="Error"):
+                await axis.set_value(0.3)
+            drain(raw_bus)
+            await anyio.sleep(0.02)  # SYNCs go on; no set-point for the faulted drive
+            assert 0x206 not in {f.arbitration_id for f in drain(raw_bus)}
+            assert [r.id for r in recorder.errors] == [ErrorId.DEVICE_ERROR]  # once
+        finally:
+            sync.stop()
