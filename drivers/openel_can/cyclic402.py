@@ -66,6 +66,7 @@ from .node402 import (
     TARGET_REACHED,
     TPDO_MAPS,
 )
+from .sdo import SdoAbortError
 from .sync import CanSync
 
 __all__ = ["CYCLIC_MODES", "STATUS_TPDO_MAP", "Cia402CyclicDrive", "interpolation_period"]
@@ -92,6 +93,7 @@ _FOLLOWS: Final = int(ds.StatusBit.SETPOINT_ACKNOWLEDGE)
 _HALT: Final = int(ds.ControlBit.HALT)
 INTERPOLATION_PERIOD_VALUE: Final = co.ObjectEntry(0x60C2, 1, co.DataType.UNSIGNED8)
 INTERPOLATION_PERIOD_INDEX: Final = co.ObjectEntry(0x60C2, 2, co.DataType.INTEGER8)
+SYNC_COUNTER_OVERFLOW: Final = co.ObjectEntry(0x1019, 0, co.DataType.UNSIGNED8)
 
 
 def interpolation_period(period_ns: int) -> tuple[int, int]:
@@ -137,6 +139,8 @@ class Cia402CyclicDrive(Cia402Drive):
         """The SYNC (:attr:`CanSync.cycle`) the last TPDO1 answered."""
         self.interpolation: tuple[int, int] | None = None
         """0x60C2 as last written (value, index)."""
+        self.sync_counter = 0
+        """0x1019 (SYNC counter overflow) as last written (0: not written, or no counter)."""
 
     # -- configuration ----------------------------------------------------------------------
     async def _map_fixed_pdos(self) -> None:
@@ -162,7 +166,7 @@ class Cia402CyclicDrive(Cia402Drive):
     async def _select_initial_mode(self) -> None:
         period = self.sync_source.period_ns
         if period is not None:
-            await self.set_cycle(period)
+            await self.set_cycle(period, self.sync_source.counter_overflow)
         await self._select_cyclic(await self._read_actual())
 
     async def _wait_first_feedback(self, started: int) -> None:
@@ -178,13 +182,26 @@ class Cia402CyclicDrive(Cia402Drive):
             f"CiA 402 node {self.node_id}: no TPDO2 within {self.state_timeout * 1000:.0f} ms"
         )
 
-    async def set_cycle(self, period_ns: int) -> None:
-        """0x60C2 = the cycle (by SDO; :meth:`CanSync.start` calls it before the first SYNC)."""
+    async def set_cycle(self, period_ns: int, counter_overflow: int = 0) -> None:
+        """0x60C2 = the cycle and 0x1019 = the SYNC counter overflow (by SDO;
+        :meth:`CanSync.start` calls it before the first SYNC). 0x1019 is written when the
+        SYNC counts (``counter_overflow`` 2..240) or the drive's counter is set; a drive
+        without 0x1019 (an SDO abort) only gets a warning: the counter is then informative."""
         value, index = interpolation_period(period_ns)
         await self.sdo.write(INTERPOLATION_PERIOD_VALUE, value, timeout=self.sdo_timeout)
         await self.sdo.write(INTERPOLATION_PERIOD_INDEX, index, timeout=self.sdo_timeout)
         self.interpolation = (value, index)
-        self.log.info("cia402_interpolation_period", value=value, index=index)
+        if counter_overflow or self.sync_counter:
+            try:
+                await self.sdo.write(
+                    SYNC_COUNTER_OVERFLOW, counter_overflow, timeout=self.sdo_timeout
+                )
+                self.sync_counter = counter_overflow
+            except SdoAbortError as exc:
+                self.log.warning("cia402_sync_counter_not_written", error=str(exc))
+        self.log.info(
+            "cia402_interpolation_period", value=value, index=index, counter=counter_overflow
+        )
 
     async def _read_actual(self) -> int:
         actual: int = await self.sdo.read(ds.POSITION_ACTUAL_VALUE, timeout=self.sdo_timeout)
