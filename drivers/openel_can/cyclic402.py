@@ -9,7 +9,9 @@ mode's RPDO, then SYNC latches it; the drive follows it over the interpolation t
 staged without I/O (``command_nowait``: an :class:`~openel_async.motion.AxisGroup` streams
 through it without suspending), actual values come from TPDO1.
 
-PDO mapping (fixed; replaceable by a configured map later):
+PDO mapping without ``eds``/``dcf`` (with them: ``default_pdos(mode)`` or the rig's
+``pdos``, :mod:`openel_can.layout402`; the set-point RPDO is then the one carrying the
+controlword and the mode's target, the cycle's feedback any synchronous TPDO):
 
 =========  ===============================================  ==============================
 PDO        objects                                          transmission
@@ -34,6 +36,10 @@ written from the timer's period when the bus's CanSync starts, and at every conf
 while it runs. Leaving (:meth:`Cia402CyclicDrive.leave_cyclic`, also at ``close`` unless a
 safe stop left the drive as it is): Halt (bit 8: the drive stops with 0x6084), then profile
 position with target = actual, still enabled.
+
+An EMCY (other than 0x0000, error reset) faults the component at once, with the code's
+class in words (:func:`openel_can.emcy.describe_emcy`): the staged set-point is dropped and
+a quick stop sent.
 """
 
 from __future__ import annotations
@@ -43,7 +49,7 @@ from typing import Any, Final
 import anyio
 import can
 
-from openel_async.device import VelocityRamp
+from openel_async.device import ErrorId, VelocityRamp
 from openel_async.errors import BadParameterError, HALError, StateError
 from openel_async.logs import get_logger
 from openel_async.requests import Request
@@ -51,6 +57,7 @@ from openel_async.requests import Request
 from . import canopen as co
 from . import cia402 as ds
 from .drive402 import Cia402Drive
+from .emcy import describe_emcy
 from .node402 import (
     ENABLE_OPERATION,
     RPDO_CODECS,
@@ -59,6 +66,7 @@ from .node402 import (
     TARGET_REACHED,
     TPDO_MAPS,
 )
+from .sdo import SdoAbortError
 from .sync import CanSync
 
 __all__ = ["CYCLIC_MODES", "STATUS_TPDO_MAP", "Cia402CyclicDrive", "interpolation_period"]
@@ -85,6 +93,7 @@ _FOLLOWS: Final = int(ds.StatusBit.SETPOINT_ACKNOWLEDGE)
 _HALT: Final = int(ds.ControlBit.HALT)
 INTERPOLATION_PERIOD_VALUE: Final = co.ObjectEntry(0x60C2, 1, co.DataType.UNSIGNED8)
 INTERPOLATION_PERIOD_INDEX: Final = co.ObjectEntry(0x60C2, 2, co.DataType.INTEGER8)
+SYNC_COUNTER_OVERFLOW: Final = co.ObjectEntry(0x1019, 0, co.DataType.UNSIGNED8)
 
 
 def interpolation_period(period_ns: int) -> tuple[int, int]:
@@ -119,15 +128,22 @@ class Cia402CyclicDrive(Cia402Drive):
         """The one request the drive takes."""
         self.supported_requests = frozenset({self.request})
         self._rpdo = RPDO_OF_MODE[self.cyclic_mode]
-        self.rpdo_cob_id = co.RPDO_BASES[self._rpdo] + node_id
+        self.rpdo_cob_id = (
+            co.RPDO_BASES[self._rpdo] + node_id
+            if self.layout is None
+            else self.layout.rpdo_of_mode[self.cyclic_mode].pdo.cob_id
+        )
+        """The COB-ID of the set-point RPDO staged every cycle."""
         self.sync_source = CanSync.of(bus)
         self.feedback_cycle = 0
         """The SYNC (:attr:`CanSync.cycle`) the last TPDO1 answered."""
         self.interpolation: tuple[int, int] | None = None
         """0x60C2 as last written (value, index)."""
+        self.sync_counter = 0
+        """0x1019 (SYNC counter overflow) as last written (0: not written, or no counter)."""
 
     # -- configuration ----------------------------------------------------------------------
-    async def _map_pdos(self) -> None:
+    async def _map_fixed_pdos(self) -> None:
         n = self.node_id
         for number, entries in enumerate(RPDO_MAPS, start=1):
             await self._map_pdo(
@@ -150,11 +166,14 @@ class Cia402CyclicDrive(Cia402Drive):
     async def _select_initial_mode(self) -> None:
         period = self.sync_source.period_ns
         if period is not None:
-            await self.set_cycle(period)
+            await self.set_cycle(period, self.sync_source.counter_overflow)
         await self._select_cyclic(await self._read_actual())
 
     async def _wait_first_feedback(self, started: int) -> None:
-        """TPDO2 (event-driven: sent at once on NMT start)."""
+        """TPDO2 (event-driven: sent at once on NMT start); with a layout, its statusword."""
+        if self.layout is not None:
+            await super()._wait_first_feedback(started)
+            return
         with anyio.move_on_after(self.state_timeout):
             while self._tpdo2_ns is None or self._tpdo2_ns < started:
                 await self._change_event().wait()
@@ -163,13 +182,26 @@ class Cia402CyclicDrive(Cia402Drive):
             f"CiA 402 node {self.node_id}: no TPDO2 within {self.state_timeout * 1000:.0f} ms"
         )
 
-    async def set_cycle(self, period_ns: int) -> None:
-        """0x60C2 = the cycle (by SDO; :meth:`CanSync.start` calls it before the first SYNC)."""
+    async def set_cycle(self, period_ns: int, counter_overflow: int = 0) -> None:
+        """0x60C2 = the cycle and 0x1019 = the SYNC counter overflow (by SDO;
+        :meth:`CanSync.start` calls it before the first SYNC). 0x1019 is written when the
+        SYNC counts (``counter_overflow`` 2..240) or the drive's counter is set; a drive
+        without 0x1019 (an SDO abort) only gets a warning: the counter is then informative."""
         value, index = interpolation_period(period_ns)
         await self.sdo.write(INTERPOLATION_PERIOD_VALUE, value, timeout=self.sdo_timeout)
         await self.sdo.write(INTERPOLATION_PERIOD_INDEX, index, timeout=self.sdo_timeout)
         self.interpolation = (value, index)
-        self.log.info("cia402_interpolation_period", value=value, index=index)
+        if counter_overflow or self.sync_counter:
+            try:
+                await self.sdo.write(
+                    SYNC_COUNTER_OVERFLOW, counter_overflow, timeout=self.sdo_timeout
+                )
+                self.sync_counter = counter_overflow
+            except SdoAbortError as exc:
+                self.log.warning("cia402_sync_counter_not_written", error=str(exc))
+        self.log.info(
+            "cia402_interpolation_period", value=value, index=index, counter=counter_overflow
+        )
 
     async def _read_actual(self) -> int:
         actual: int = await self.sdo.read(ds.POSITION_ACTUAL_VALUE, timeout=self.sdo_timeout)
@@ -200,7 +232,8 @@ class Cia402CyclicDrive(Cia402Drive):
         if self._mode is not self.cyclic_mode:
             await self._select_cyclic(actual)
         else:
-            self._targets[self.cyclic_mode] = actual if self._rpdo == 0 else 0
+            position = self.cyclic_mode is Mode.CYCLIC_SYNC_POSITION
+            self._targets[self.cyclic_mode] = actual if position else 0
         await self._drive_to(PS.OPERATION_ENABLED)
         await self._wait_status(lambda sw: bool(sw & _FOLLOWS), "drive follows (bit 12)")
         self._enabled_wanted = True
@@ -258,12 +291,15 @@ class Cia402CyclicDrive(Cia402Drive):
             raw = self._torque_permille(value)
         else:
             raw = self.rad_to_counts(value)
-        try:
-            data = RPDO_CODECS[self._rpdo].pack((ENABLE_OPERATION, raw))
-        except ValueError as exc:
-            raise BadParameterError(
-                "value", value, f"a target that fits {RPDO_MAPS[self._rpdo][1].data_type.name}"
-            ) from exc
+        if self.layout is None:
+            try:
+                data = RPDO_CODECS[self._rpdo].pack((ENABLE_OPERATION, raw))
+            except ValueError as exc:
+                raise BadParameterError(
+                    "value", value, f"a target that fits {RPDO_MAPS[self._rpdo][1].data_type.name}"
+                ) from exc
+        else:
+            data = self.rpdo_frame(self.cyclic_mode, ENABLE_OPERATION, raw)[1]
         self._targets[self.cyclic_mode] = raw
         self._controlword = ENABLE_OPERATION
         self.sync_source.stage(self.rpdo_cob_id, data)
@@ -275,7 +311,9 @@ class Cia402CyclicDrive(Cia402Drive):
         raise HALError(f"CiA 402 node {self.node_id}: no velocity ramp in {self.mode}")
 
     async def read(self, request: Request) -> float:
-        if request is Request.VELOCITY_ACTUAL:  # not in a PDO here: by SDO
+        if request is Request.VELOCITY_ACTUAL and (
+            self.layout is None or not self.layout.carries(0x606C)
+        ):  # not in a PDO: by SDO
             counts = await self.sdo.read(ds.VELOCITY_ACTUAL_VALUE, timeout=self.sdo_timeout)
             return self.counts_to_rad(counts)
         return await super().read(request)
@@ -283,6 +321,38 @@ class Cia402CyclicDrive(Cia402Drive):
     # -- receive side -----------------------------------------------------------------------
     def _on_tpdo1(self, frame: can.Message, now: int) -> None:
         super()._on_tpdo1(frame, now)
+        self.feedback_cycle = self.sync_source.cycle
+
+    def _on_emcy(self, frame: can.Message) -> None:
+        """An EMCY (other than error reset) faults the component at once, in the cyclic
+        modes: a drive streaming set-points must not wait for the next statusword. The
+        staged set-point is dropped and a quick stop sent (a drive in Fault ignores it)."""
+        super()._on_emcy(frame)
+        emcy = self.last_emcy
+        if emcy is None or emcy.error_code == co.EmcyCode.NO_ERROR:
+            return
+        if not self._engaged or self._latched:
+            return
+        self._emcy_unreported = False  # reported here, once
+        self.sync_source.unstage(self.rpdo_cob_id)
+        heartbeat = emcy.error_code == co.EmcyCode.LIFE_GUARD_OR_HEARTBEAT
+        self._fault(
+            ErrorId.WATCHDOG if heartbeat else ErrorId.DEVICE_ERROR,
+            f"CiA 402 node {self.node_id} in {self.mode}: EMCY {describe_emcy(emcy.error_code)}, "
+            f"error register {emcy.error_register:#04x}",
+        )
+        if self._ctx is not None:
+            self._ctx.start_soon(self._stop_after_emcy)
+
+    async def _stop_after_emcy(self) -> None:
+        """Quick stop after an EMCY fault (bounded; a broken link is only logged)."""
+        try:
+            with anyio.move_on_after(self.state_timeout):
+                await self.quick_stop()
+        except Exception as exc:
+            self.log.warning("cia402_quick_stop_after_emcy_failed", error=repr(exc))
+
+    def _on_sync_tpdo(self, now: int) -> None:
         self.feedback_cycle = self.sync_source.cycle
 
     def _on_tpdo2(self, frame: can.Message, now: int) -> None:

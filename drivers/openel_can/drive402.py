@@ -53,6 +53,7 @@ way, torques in per mille of the rated torque (Nm at the API).
 
 from __future__ import annotations
 
+import inspect
 import math
 from typing import Any, Final
 
@@ -246,32 +247,45 @@ class Cia402Drive(Cia402Node):
     async def read(self, request: Request) -> float:
         now = self._now()
         max_age = round(self.feedback_max_age * 1e9)
-        fresh1 = self._tpdo1_ns is not None and now - self._tpdo1_ns <= max_age
+
+        def fresh(index: int) -> bool:
+            seen = self.feedback_ns(index)
+            return seen is not None and now - seen <= max_age
+
         if request is Request.POSITION_ACTUAL:
             counts = (
                 self._position
-                if fresh1
+                if fresh(0x6064)
                 else await self.sdo.read(ds.POSITION_ACTUAL_VALUE, timeout=self.sdo_timeout)
             )
             return self.counts_to_rad(counts)
         if request is Request.VELOCITY_ACTUAL:
-            fresh2 = self._tpdo2_ns is not None and now - self._tpdo2_ns <= max_age
             counts = (
                 self._velocity
-                if fresh2
+                if fresh(0x606C)
                 else await self.sdo.read(ds.VELOCITY_ACTUAL_VALUE, timeout=self.sdo_timeout)
             )
             return self.counts_to_rad(counts)
         if request is Request.TORQUE_ACTUAL:
             permille = (
                 self._torque
-                if fresh1
+                if fresh(0x6077)
                 else await self.sdo.read(ds.TORQUE_ACTUAL_VALUE, timeout=self.sdo_timeout)
             )
             return self._torque_nm(permille)
         raise BadParameterError(
             "request", request, "POSITION_ACTUAL, VELOCITY_ACTUAL or TORQUE_ACTUAL"
         )
+
+
+def _signature() -> inspect.Signature:
+    """Cia402Drive's arguments are Cia402Node's (``__new__`` takes ``**kwargs`` only to pick
+    the cyclic subclass): a rig's unknown params key is refused naming the close ones."""
+    signature = inspect.signature(Cia402Node.__init__)
+    return signature.replace(parameters=list(signature.parameters.values())[1:])
+
+
+Cia402Drive.__signature__ = _signature()  # type: ignore[attr-defined]
 
 
 class Cia402Temperature(SensorDevice):

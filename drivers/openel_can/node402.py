@@ -4,7 +4,9 @@ state machine, feedback, faults and the heartbeat watchdog (:class:`Cia402Node`)
 Opening the drive (``open``): NMT Enter pre-operational, then by expedited SDO the
 heartbeat producer time (0x1017), the encoder resolution (0x608F, unless given) and the
 rated torque (0x6076, unless given), the PDO mapping (disable, clear, map, count,
-enable, as CiA 301 prescribes: :meth:`Cia402Node._map_pdo`) and the profile parameters,
+enable, as CiA 301 prescribes: :meth:`Cia402Node._map_pdo`; or, for a drive given its
+``eds``/``dcf``, its DCF's parameter values first and the maps of
+:mod:`openel_can.layout402` through :func:`openel_can.pdomap.configure_pdos`) and the profile parameters,
 then NMT Start and the first TPDO. The set-point modes (profile position/velocity/torque in
 :mod:`openel_can.drive402`, the cyclic synchronous modes in :mod:`openel_can.cyclic402`) are
 subclasses.
@@ -41,9 +43,11 @@ from __future__ import annotations
 
 import asyncio
 import math
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Final
+from pathlib import Path
+from typing import Any, Final
 
 import anyio
 import can
@@ -63,7 +67,19 @@ from . import canopen as co
 from . import cia402 as ds
 from .bus import CanBus, NodePort
 from .errors import DecodeError
+from .layout402 import (
+    FEEDBACK_OBJECTS,
+    STATUSWORD,
+    TARGET_OF_MODE,
+    DriveFiles,
+    DriveLayout,
+    LayoutTpdo,
+    load_drive_files,
+    plan_layout,
+)
 from .node_faults import NodeFaults
+from .od import write_parameter_values
+from .pdomap import configure_pdos
 from .sdo import SdoClient
 
 __all__ = [
@@ -127,6 +143,11 @@ TARGET_REACHED: Final = int(SB.TARGET_REACHED)
 """Statusword bit 10 as a plain int."""
 
 
+_PROFILE_REQUESTS: Final = {
+    Request.POSITION: Mode.PROFILE_POSITION,
+    Request.VELOCITY: Mode.PROFILE_VELOCITY,
+    Request.TORQUE: Mode.PROFILE_TORQUE,
+}
 DRIVE_MODES: Final = ("pp", "csp", "csv", "cst")
 """The ``mode`` parameter: ``pp`` the profile modes (position, velocity, torque as commanded),
 ``csp``/``csv``/``cst`` cyclic synchronous position/velocity/torque on the bus's SYNC."""
@@ -208,6 +229,10 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         feedback_max_age: float | None = None,
         host_node_id: int = DEFAULT_HOST_NODE_ID,
         mode: str = "pp",
+        eds: str | os.PathLike[str] | None = None,
+        dcf: str | os.PathLike[str] | None = None,
+        pdos: Any = None,
+        files_dir: str | os.PathLike[str] | None = None,
     ) -> None:
         if not isinstance(bus, CanBus):
             raise BadParameterError("bus", bus, "an openel_can.CanBus")
@@ -267,6 +292,33 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         self._heartbeat_error = False
         """EMCY 0x8130 (the drive's consumer missed the host's heartbeat) this episode."""
         self.sdo = SdoClient.for_node(bus, node_id, timeout=sdo_timeout)
+        self.files: DriveFiles | None = load_drive_files(
+            node_id,
+            mode,
+            eds=eds,
+            dcf=dcf,
+            pdos=pdos,
+            files_dir=None if files_dir is None else Path(files_dir),
+            sync=sync,
+            tpdo_event_ms=tpdo_event_ms,
+        )
+        """The drive's EDS/DCF and PDO maps (None: the fixed maps; :mod:`openel_can.layout402`)."""
+        self.layout: DriveLayout | None = None
+        """The maps the driver runs with when :attr:`files` are given."""
+        if self.files is not None:
+            self.layout = plan_layout(self.files, node_id, mode)
+            self.sdo.od = self.files.od
+            if mode == "pp":
+                self.supported_requests = frozenset(
+                    {Request.NO_EXCITE}
+                    | {r for r, m in _PROFILE_REQUESTS.items() if m in self.layout.rpdo_of_mode}
+                )
+        self.pdo_values: dict[str, int] = {}
+        """TPDO objects the driver does not follow itself, by name (with :attr:`layout`)."""
+        self._seen_ns: dict[int, int] = {}
+        """When each TPDO object (by index) last arrived (with :attr:`layout`)."""
+        self._status_pdo_ns: int | None = None
+        """When a statusword last arrived by PDO (with :attr:`layout`)."""
         self._ctx: DeviceContext | None = None
         self._port: NodePort | None = None
         self._lock = anyio.Lock(fast_acquire=True)
@@ -339,7 +391,12 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         self._ctx = ctx
         self.log = self.log.bind(component=ctx.name)
         n = self.node_id
-        ids = (co.EMCY_BASE + n, co.TPDO_BASES[0] + n, co.TPDO_BASES[1] + n, co.HEARTBEAT_BASE + n)
+        tpdos = (
+            tuple(self.layout.tpdos)
+            if self.layout is not None
+            else (co.TPDO_BASES[0] + n, co.TPDO_BASES[1] + n)
+        )
+        ids = (co.EMCY_BASE + n, *tpdos, co.HEARTBEAT_BASE + n)
         self._port = self.bus.attach(
             ids, name=ctx.name, on_bus_error=self._on_bus_error, handler=self._on_frames
         )
@@ -401,6 +458,9 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         sdo = self.sdo
         timeout = self.sdo_timeout
         await self._nmt(co.NmtCommand.ENTER_PRE_OPERATIONAL)
+        if self.files is not None and self.files.dcf is not None:
+            # The DCF's parameters first: the driver's own objects below have the last word.
+            await write_parameter_values(sdo, self.files.dcf, timeout=timeout)
         await sdo.write(
             co.ObjectEntry(co.PRODUCER_HEARTBEAT_TIME, 0, co.DataType.UNSIGNED16),
             self.heartbeat_ms,
@@ -437,6 +497,13 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         self._needs_config = False
 
     async def _map_pdos(self) -> None:
+        """The rig's maps (:attr:`layout`: configured and verified), else the fixed ones."""
+        if self.layout is not None:
+            await configure_pdos(self.sdo, self.layout.pdos, timeout=self.sdo_timeout)
+            return
+        await self._map_fixed_pdos()
+
+    async def _map_fixed_pdos(self) -> None:
         """The fixed mapping of the module docstring (a subclass maps its own)."""
         n = self.node_id
         for number, entries in enumerate(_RPDO_MAP_ENTRIES, start=1):
@@ -467,6 +534,9 @@ class Cia402Node(NodeFaults, ActuatorDevice):
 
     async def _wait_first_feedback(self, started: int) -> None:
         """After NMT start: TPDO1 (event-driven: sent at once) or, on SYNC, the next SYNC."""
+        if self.layout is not None:
+            await self._wait_layout_status(started)
+            return
         await self._wait_tpdo(
             started, timeout=max(self.state_timeout, 3 * self.tpdo_event_ms / 1000)
         )
@@ -500,6 +570,25 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         assert self._port is not None
         cob_id, data = co.encode(co.NmtControl(command, self.node_id))
         await self._port.send(cob_id, data)
+
+    async def _wait_layout_status(self, started: int) -> None:
+        """After NMT start with :attr:`layout`: the event-driven statusword TPDO, else the
+        statusword by SDO (a synchronous one waits for SYNC)."""
+        layout = self.layout
+        assert layout is not None
+        if not layout.status_on_event:
+            self._set_statusword(
+                await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout), self._now()
+            )
+            return
+        with anyio.move_on_after(self.state_timeout):
+            while self._status_pdo_ns is None or self._status_pdo_ns < started:
+                await self._change_event().wait()
+            return
+        raise TimeoutError(
+            f"CiA 402 node {self.node_id}: no statusword TPDO within "
+            f"{self.state_timeout * 1000:.0f} ms"
+        )
 
     async def _wait_tpdo(self, after_ns: int, timeout: float) -> None:  # noqa: ASYNC109
         with anyio.move_on_after(timeout):
@@ -558,8 +647,67 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         mode = self._mode or Mode.PROFILE_POSITION
         await self._send_rpdo(mode, controlword, self._targets[mode])
 
+    def _sync_running(self) -> bool:
+        """A SYNC producer runs on the bus (the bus's own, or a timer's CanSync)."""
+        if self.bus.sync_period is not None:
+            return True
+        from .sync import CanSync  # (it imports nothing of this module)
+
+        return CanSync.of(self.bus).running
+
+    def rpdo_frame(self, mode: Mode, controlword: int, target: int) -> tuple[int, bytes]:
+        """(COB-ID, data) of the RPDO of ``mode`` (:attr:`layout`'s or the fixed one)
+        carrying ``controlword`` and ``target``; ``BadParameterError`` for a target that
+        does not fit, ``HALError`` when no RPDO carries the mode's target."""
+        layout = self.layout
+        if layout is None:
+            number = RPDO_OF_MODE[mode]
+            try:
+                data = RPDO_CODECS[number].pack((controlword, target))
+            except ValueError as exc:
+                raise BadParameterError(
+                    "value", target, f"a target that fits {RPDO_MAPS[number][1].data_type.name}"
+                ) from exc
+            return co.RPDO_BASES[number] + self.node_id, data
+        rpdo = layout.rpdo_of_mode.get(mode)
+        if rpdo is None:
+            raise HALError(
+                f"CiA 402 node {self.node_id}: no RPDO of its pdos carries the controlword "
+                f"and {TARGET_OF_MODE[mode]:#06x} ({mode.name})"
+            )
+        own = TARGET_OF_MODE[mode]
+        values = []
+        for index in rpdo.slots:
+            if index == 0x6040:
+                values.append(controlword)
+            elif index == own:
+                values.append(target)
+            elif index == 0x6060:
+                values.append(int(mode))
+            else:  # another mode's target: its latest
+                values.append(
+                    next(self._targets[m] for m, t in TARGET_OF_MODE.items() if t == index)
+                )
+        try:
+            return rpdo.pdo.cob_id, rpdo.codec.pack(values)
+        except ValueError as exc:
+            raise BadParameterError("value", target, f"a target that fits {rpdo.pdo.name}") from exc
+
     async def _send_rpdo(self, mode: Mode, controlword: int, target: int) -> None:
         assert self._port is not None
+        layout = self.layout
+        if layout is not None:
+            rpdo = layout.rpdo_of_mode.get(mode)
+            if rpdo is None or (rpdo.synchronous and not self._sync_running()):
+                # No RPDO of this mode (a state transition), or a synchronous one waiting
+                # for a SYNC none sends: the controlword by SDO.
+                self._controlword = controlword
+                await self.sdo.write(ds.CONTROLWORD, controlword, timeout=self.sdo_timeout)
+                return
+            cob_id, data = self.rpdo_frame(mode, controlword, target)
+            self._controlword = controlword
+            await self._port.send(cob_id, data)
+            return
         number = RPDO_OF_MODE[mode]
         try:
             data = RPDO_CODECS[number].pack((controlword, target))
@@ -576,6 +724,8 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         sw = self._statusword
         if sw is not None and predicate(sw):  # already there: no timer needed
             return sw
+        if self.layout is not None and not self.layout.status_on_event:
+            return await self._poll_status(predicate, what)
         # A future resolved by the batch that satisfies the predicate (see _on_frames) and a
         # loop timer bounding the wait: no cancel scope, no wake-up per unrelated frame.
         # Cancellation from outside cancels the future; the finally clause cleans up.
@@ -602,6 +752,22 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         raise TimeoutError(
             f"CiA 402 node {self.node_id}: no statusword for {what} within {self.state_timeout * 1000:.0f} ms"
             + (f" (statusword {self._statusword:#06x})" if self._statusword is not None else "")
+        )
+
+    async def _poll_status(self, predicate: Callable[[int], bool], what: str) -> int:
+        """:meth:`_wait_status` when no TPDO sends the statusword on event: read by SDO."""
+        with anyio.move_on_after(self.state_timeout):
+            while True:
+                sw = await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout)
+                self._set_statusword(sw, self._now())
+                if self._latched:
+                    raise FaultedError(what)
+                if predicate(sw):
+                    return sw
+                await anyio.sleep(0.002)
+        raise TimeoutError(
+            f"CiA 402 node {self.node_id}: no statusword for {what} within "
+            f"{self.state_timeout * 1000:.0f} ms (statusword {self._statusword or 0:#06x}, by SDO)"
         )
 
     async def _set_mode(self, mode: Mode) -> None:
@@ -726,14 +892,20 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         tpdo1, tpdo2 = co.TPDO_BASES[0] + n, co.TPDO_BASES[1] + n
         emcy, heartbeat = co.EMCY_BASE + n, co.HEARTBEAT_BASE + n
         now = self._now()
+        layout = self.layout
         for frame in batch:
             if frame.is_remote_frame:
                 continue
             try:
                 arb = frame.arbitration_id
-                if arb == tpdo1:
+                if layout is not None:
+                    tpdo = layout.tpdos.get(arb)
+                    if tpdo is not None:
+                        self._on_layout_tpdo(tpdo, frame, now)
+                        continue
+                if arb == tpdo1 and layout is None:
                     self._on_tpdo1(frame, now)
-                elif arb == tpdo2:
+                elif arb == tpdo2 and layout is None:
                     self._on_tpdo2(frame, now)
                 elif arb == emcy:
                     self._on_emcy(frame)
@@ -773,6 +945,48 @@ class Cia402Node(NodeFaults, ActuatorDevice):
     def _on_tpdo2(self, frame: can.Message, now: int) -> None:
         self._velocity, self._mode_display = _TPDO2_CODEC.unpack(frame.data)
         self._tpdo2_ns = now
+
+    def _on_layout_tpdo(self, tpdo: LayoutTpdo, frame: can.Message, now: int) -> None:
+        """A TPDO of :attr:`layout`: the objects the driver follows, the others by name."""
+        values = tpdo.codec.unpack(frame.data)
+        statusword: int | None = None
+        state: ds.PowerState | None = None
+        if tpdo.status_at is not None:
+            statusword = values[tpdo.status_at]
+            # A statusword matching no state is malformed: nothing of this TPDO is kept.
+            state = ds.state_from_statusword(statusword)
+        seen = self._seen_ns
+        for index, name, value in zip(tpdo.slots, tpdo.names, values, strict=True):
+            if index == STATUSWORD:
+                pass
+            elif index == 0x6064:
+                self._position = value
+            elif index == 0x6077:
+                self._torque = value
+            elif index == 0x606C:
+                self._velocity = value
+            elif index == 0x6061:
+                self._mode_display = value
+            elif index not in FEEDBACK_OBJECTS:
+                self.pdo_values[name] = value
+            seen[index] = now
+        if tpdo.synchronous:
+            self._on_sync_tpdo(now)
+        if statusword is not None:
+            self._status_pdo_ns = now
+            self._set_statusword(statusword, now, state)
+
+    def _on_sync_tpdo(self, now: int) -> None:
+        """A synchronous TPDO of :attr:`layout` arrived (a cyclic drive notes the cycle)."""
+
+    def feedback_ns(self, index: int) -> int | None:
+        """When the TPDO value of object ``index`` (0x6064, 0x606C, 0x6077) last arrived
+        (None: never, or no TPDO carries it)."""
+        if self.layout is not None:
+            return self._seen_ns.get(index)
+        if index in (0x6064, 0x6077):
+            return self._tpdo1_ns
+        return self._tpdo2_ns if index == 0x606C else None
 
     def _set_statusword(
         self, statusword: int, now: int, state: ds.PowerState | None = None

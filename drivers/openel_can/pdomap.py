@@ -385,11 +385,17 @@ def default_pdos(mode: str | int, *, every: int = 1, event_ms: int = 10) -> tupl
               (tq, cst)                                        modes: event
     TPDO1     statusword 0x6041, position actual 0x6064,       cyclic: on every
               torque actual 0x6077                             ``every``-th SYNC;
-    TPDO2     velocity actual 0x606C, mode display 0x6061      profile: event, timer
+                                                               profile: event, timer
                                                                ``event_ms``
+    TPDO2     profile: velocity actual 0x606C, mode display    profile: event, timer
+              0x6061; cyclic: statusword 0x6041, mode          ``event_ms``; cyclic:
+              display 0x6061                                   event, no timer (on change)
     ========  ===============================================  ==========================
 
-    Other PDOs are left out (:func:`configure_pdos` disables them).
+    In the cyclic modes TPDO2 carries every statusword change at once, so the power state
+    machine runs before SYNC does (a drive is enabled before its timer starts); the
+    velocity is then read by SDO. Other PDOs are left out (:func:`configure_pdos`
+    disables them).
     """
     value = _MODE_NAMES.get(mode.lower()) if isinstance(mode, str) else mode
     if value not in _TARGETS:
@@ -401,10 +407,8 @@ def default_pdos(mode: str | int, *, every: int = 1, event_ms: int = 10) -> tupl
     if value in _CYCLIC:
         return (
             PdoSpec(pdo="rpdo1", objects=("0x6040", _TARGETS[value]), trigger="sync", every=every),
-            *(
-                PdoSpec(pdo=f"tpdo{n}", objects=objs, trigger="sync", every=every)
-                for n, objs in enumerate(tpdos, start=1)
-            ),
+            PdoSpec(pdo="tpdo1", objects=tpdos[0], trigger="sync", every=every),
+            PdoSpec(pdo="tpdo2", objects=("0x6041", "0x6061")),
         )
     return (
         PdoSpec(pdo="rpdo1", objects=("0x6040", _TARGETS[value])),

@@ -34,6 +34,7 @@ from . import cansimple as cs
 from .bus import CanBus
 from .busload import Traffic, bus_load, frame_time
 from .drive402 import DEFAULT_HOST_NODE_ID
+from .layout402 import DriveLayout, drive_file, load_drive_files, plan_layout
 
 __all__ = ["CanBusKind", "CanBusOptions"]
 
@@ -122,6 +123,37 @@ def _claim(used: dict[int, str], ids: set[int], name: str, owner: str, node: int
 
 CYCLIC_MODES = frozenset({"csp", "csv", "cst"})
 """The ``mode`` params of a CiA 402 drive that stream a set-point every SYNC."""
+_FILE_PARAMS = ("eds", "dcf", "pdos")
+
+
+def _layout(d: SimulatedDevice) -> DriveLayout | None:
+    """The PDO maps of a CiA 402 drive that names its files (``eds``, ``dcf``, ``pdos``),
+    checked as the driver will (BadParameterError naming ``<component>.params.<key>``)."""
+    if d.device != "cia402_drive" or not any(k in d.params for k in _FILE_PARAMS):
+        return None
+    node = d.params.get("node_id")
+    mode = d.params.get("mode", "pp")
+    sync = d.params.get("sync", False)
+    event_ms = d.params.get("tpdo_event_ms", 10)
+    try:
+        if mode not in ("pp", *CYCLIC_MODES):
+            raise BadParameterError("mode", mode, "one of pp, csp, csv, cst")
+        assert isinstance(node, int)
+        files = load_drive_files(
+            node,
+            mode,
+            eds=d.params.get("eds"),
+            dcf=d.params.get("dcf"),
+            pdos=d.params.get("pdos"),
+            files_dir=d.rig_dir,
+            sync=sync is True,
+            tpdo_event_ms=event_ms if isinstance(event_ms, int) else 10,
+        )
+        return None if files is None else plan_layout(files, node, mode)
+    except BadParameterError as exc:
+        raise BadParameterError(
+            f"{d.name}.params.{exc.parameter}", exc.value, exc.allowed
+        ) from None
 
 
 def _param(d: SimulatedDevice, key: str, default: float) -> float:
@@ -156,6 +188,16 @@ def _traffic(
             if d.device != "cia402_drive":
                 continue
             mode = d.params.get("mode")
+            layout = _layout(d)
+            if layout is not None:
+                sync = (
+                    _layout_traffic(
+                        layout, node, d.name in streamed, cycle_s, background, per_cycle
+                    )
+                    or sync
+                )
+                axes += d.name in streamed and cycle_s is not None
+                continue
             if mode in CYCLIC_MODES and cycle_s is not None:
                 # Cia402CyclicDrive: TPDO1 after every SYNC, TPDO2 (status, mode) on change only
                 sync = True
@@ -191,6 +233,36 @@ def _traffic(
     return background, per_cycle, axes
 
 
+def _layout_traffic(
+    layout: DriveLayout,
+    node: int,
+    streamed: bool,
+    cycle_s: float | None,
+    background: list[Traffic],
+    per_cycle: list[Traffic],
+) -> bool:
+    """The frames of a drive's configured PDOs (True when some run on SYNC): synchronous
+    TPDOs every ``every`` cycles, event TPDOs at their event timer (on change only: not
+    counted), the set-point RPDO of a streamed axis every cycle."""
+    on_sync = False
+    for tpdo in layout.tpdos.values():
+        pdo = tpdo.pdo
+        if tpdo.synchronous:
+            if cycle_s is not None:
+                on_sync = True
+                what = f"{pdo.name} of node {node}"
+                per_cycle.append(Traffic(what, tpdo.codec.size, cycle_s * pdo.transmission_type))
+        elif pdo.event_ms:
+            background.append(
+                Traffic(f"{pdo.name} of node {node}", tpdo.codec.size, pdo.event_ms / 1000)
+            )
+    if streamed and cycle_s is not None and layout.rpdo_of_mode:
+        rpdo = next(iter(layout.rpdo_of_mode.values()))
+        on_sync = on_sync or rpdo.synchronous
+        per_cycle.append(Traffic(f"{rpdo.pdo.name} of node {node}", rpdo.codec.size, cycle_s))
+    return on_sync
+
+
 def _ms(seconds: float) -> str:
     return f"{seconds * 1e3:.3g} ms"
 
@@ -218,13 +290,17 @@ class CanBusKind(BusKind):
                 "sleep_after_open", options.sleep_after_open, "only with interface: slcan"
             )
         odrives, drives = _node_ids(devices)
+        layouts = {d.params.get("node_id"): layout for d in devices if (layout := _layout(d))}
         # Arbitration ids in use: an ODrive node takes node << 5 | 0..31, a CANopen node its
         # EMCY, PDO, SDO and heartbeat ids (and the host its heartbeat 0x77F).
         used: dict[int, str] = {co.NMT_COB_ID: "NMT", co.SYNC_COB_ID: "SYNC"}
         if drives:
             used[co.HEARTBEAT_BASE + DEFAULT_HOST_NODE_ID] = "the host's heartbeat"
         for node, name in sorted(drives.items()):
-            _claim(used, _canopen_ids(node), name, f"{name} (CANopen node {node})", node)
+            ids = _canopen_ids(node)
+            if node in layouts:
+                ids |= {p.cob_id for p in layouts[node].pdos if p.spec.enabled}
+            _claim(used, ids, name, f"{name} (CANopen node {node})", node)
         for node, name in sorted(odrives.items()):
             _claim(
                 used,
@@ -316,6 +392,9 @@ class CanBusKind(BusKind):
     def device_arguments(
         self, bus: object, options: Any, device: SimulatedDevice
     ) -> Mapping[str, Any]:
+        if device.rig_dir is not None and device.device == "cia402_drive":
+            # eds/dcf paths are relative to the rig file
+            return {"bus": bus, "files_dir": device.rig_dir}
         return {"bus": bus}
 
     def simulate(
@@ -334,7 +413,7 @@ async def _simulated(name: str, devices: Sequence[SimulatedDevice]) -> AsyncIter
     by_name: dict[str, object] = {}
     for node in odrives:
         peers[node] = SimODrive(node, traj_vel_limit=2.0, traj_accel_limit=20.0)
-    cia402 = {node: SimCia402Drive(node) for node in drives}
+    cia402 = {node: SimCia402Drive(node, eds=_sim_eds(devices, node)) for node in drives}
     for d in devices:
         node = d.params["node_id"]
         by_name[d.name] = peers[node] if d.device in ODRIVE_DEVICES else cia402[node]
@@ -354,6 +433,18 @@ async def _simulated(name: str, devices: Sequence[SimulatedDevice]) -> AsyncIter
     finally:
         with anyio.CancelScope(shield=True):
             await anyio.to_thread.run_sync(cm.__exit__, None, None, None)
+
+
+def _sim_eds(devices: Sequence[SimulatedDevice], node: int) -> str | None:
+    """The EDS (else the DCF) a rig's drive at ``node`` names: the simulated drive's
+    dictionary is the same file's."""
+    for d in devices:
+        if d.device == "cia402_drive" and d.params.get("node_id") == node:
+            for key in ("eds", "dcf"):
+                value = d.params.get(key)
+                if isinstance(value, str) and value:
+                    return drive_file(key, value, d.rig_dir)
+    return None
 
 
 @contextmanager

@@ -9,7 +9,8 @@ no task hop):
    :meth:`stage`, called by :class:`~openel_can.cyclic402.Cia402CyclicDrive` from its
    synchronous command path; a newer set-point of the same drive replaces the older);
 2. then the SYNC (COB-ID 0x080; with ``counter_overflow`` (CiA 301 0x1019, 2..240) one data
-   byte counting 1..overflow, else none), which latches them.
+   byte counting the SYNCs sent 1..overflow, 1 again after overflow, else none), which
+   latches them.
 
 Every RPDO of a cycle therefore goes out before the SYNC that latches it, in one burst at
 the tick's deadline. The synchronous TPDOs the drives send in answer to SYNC number ``k``
@@ -21,7 +22,8 @@ how long the computation took.
 
 Missed cycles are counted, never burst: a tick the timer skipped (it woke a whole period
 late: ``TimerTick.missed_ticks``) sends nothing for the cycles it skipped, and a SYNC the bus
-could not take (down, transmit queue full) counts as missed too; both are in :attr:`stats`
+could not take (down, transmit queue full) counts as missed too (the counter does not advance
+for it: the next SYNC sent carries the next value); both are in :attr:`stats`
 and logged (at most once a second). One SYNC producer per bus: a ``CanBus(sync_period=...)``
 with its own is refused.
 """
@@ -53,8 +55,9 @@ class SyncConsumer(Protocol):
         """The SYNC (:attr:`CanSync.cycle`) of the last synchronous TPDO received."""
         ...
 
-    async def set_cycle(self, period_ns: int) -> None:
-        """The cycle is ``period_ns`` from now on (a drive writes its 0x60C2)."""
+    async def set_cycle(self, period_ns: int, counter_overflow: int = 0) -> None:
+        """The cycle is ``period_ns`` from now on (a drive writes its 0x60C2), its SYNC
+        counting 1..``counter_overflow`` (0: no counter; a drive writes its 0x1019)."""
         ...
 
 
@@ -127,8 +130,8 @@ class CanSync:
     async def start(self, timer: EventTimer, *, counter_overflow: int = 0) -> None:
         """Produce SYNC on every tick of ``timer`` (it may be running; before or after the
         timer's other observers: the RPDOs staged by the tick are sent first either way).
-        Each consumer is told the cycle first (``set_cycle``: a drive writes its 0x60C2 by
-        SDO), before the first SYNC.
+        Each consumer is told the cycle and the counter first (``set_cycle``: a drive
+        writes its 0x60C2 and 0x1019 by SDO), before the first SYNC.
 
         ``counter_overflow``: 0 (no counter, an empty SYNC) or 2..240 (CiA 301 0x1019: the
         counter runs 1..overflow; give the drives the same 0x1019)."""
@@ -151,7 +154,7 @@ class CanSync:
         if self.timer is not None:
             raise StateError("start", f"driven by timer {self.timer.name!r}", ["stopped"])
         for consumer in list(self._consumers):
-            await consumer.set_cycle(timer.period_ns)
+            await consumer.set_cycle(timer.period_ns, counter_overflow)
         if self.timer is not None:
             raise StateError("start", f"driven by timer {self.timer.name!r}", ["stopped"])
         self._port = self.bus.attach((), name="sync")
@@ -208,21 +211,22 @@ class CanSync:
                     self._rpdos += 1
                 else:
                     self._dropped += 1
-            sync = self._sync_data()
-            sent = port.send_nowait(co.SYNC_COB_ID, sync)
+            sent = port.send_nowait(co.SYNC_COB_ID, self._sync_data())
         except NotConnectedError:
             self._dropped += len(staged)
             sent = False
         if sent:
             self.cycle += 1
+            if self.counter_overflow:  # the counter counts the SYNCs sent (CiA 301)
+                self._counter = self._counter % self.counter_overflow + 1
         else:
             self._count_missed(1, timer.clock.now_ns(), "bus did not take the SYNC")
 
     def _sync_data(self) -> bytes:
+        """The next SYNC's data: empty, or the counter it will carry when sent."""
         if not self.counter_overflow:
             return b""
-        self._counter = self._counter % self.counter_overflow + 1
-        return bytes((self._counter,))
+        return bytes((self._counter % self.counter_overflow + 1,))
 
     def _count_missed(self, cycles: int, now_ns: int, why: str) -> None:
         self._missed += cycles

@@ -160,7 +160,7 @@ async def _our_master(network: canopen.Network, host_bus: CanBus) -> None:
         got: dict[int, dict[str, int]] = {}
         with anyio.fail_after(2):
             await port.send(*co.encode(co.Sync()))
-            while len(got) < 2:
+            while len(got) < 1:
                 for frame in await port.receive():
                     pdo = tpdo1 if frame.arbitration_id == tpdo1.cob_id else tpdo2
                     got[frame.arbitration_id] = pdo.unpack(frame.data)
@@ -169,7 +169,9 @@ async def _our_master(network: canopen.Network, host_bus: CanBus) -> None:
             "Position actual value": -123_456,
             "Torque actual value": -17,
         }
-        assert got[0x285] == {"Velocity actual value": 4321, "Modes of operation display": 8}
+        # TPDO2 (statusword, mode display) is event-driven in the cyclic modes.
+        assert [e.name for e in tpdo2.entries] == ["Statusword", "Modes of operation display"]
+        assert local.sdo[0x1801][2].raw == 0xFF and tpdo2.transmission_type == 0xFF
         # Our RPDO1 (controlword + target position) lands in canopen's object dictionary.
         await port.send(
             rpdo1.cob_id, rpdo1.pack({"Controlword": 0x000F, "Target position": -987_654})

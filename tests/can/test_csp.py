@@ -12,9 +12,12 @@ import can
 import pytest
 
 from openel_async import Actuator, BadParameterError, EventTimer, Request
+from openel_async.clock import default_clock
+from openel_async.device import ErrorId
 from openel_async.motion import AxisGroup, AxisLimits
 from openel_async.observers import TimerTick
-from openel_can import CanBus, CanSync, Cia402CyclicDrive, Cia402Drive
+from openel_async.testing import EventRecorder
+from openel_can import CanBus, CanSync, Cia402CyclicDrive, Cia402Drive, NodePort
 from openel_can import canopen as co
 from openel_can import cia402 as ds
 from openel_can.cyclic402 import interpolation_period
@@ -196,3 +199,74 @@ async def test_one_sync_producer_per_bus(channel: str) -> None:
             await CanSync.of(bus).start(timer)
         with pytest.raises(BadParameterError, match="counter_overflow"):
             await CanSync.of(bus).start(timer, counter_overflow=1)
+
+
+async def test_an_emcy_in_csp_faults_the_component_at_once(
+    channel: str, peers: Peers, host_bus: CanBus, raw_bus: can.BusABC
+) -> None:
+    """A warning EMCY (the drive stays enabled): the component faults on the EMCY itself,
+    one error event naming the code's class, the set-point stream stops and the drive
+    gets a quick stop."""
+    sim = await peers.start(SimCia402Drive(6))
+    recorder = EventRecorder(default_clock())
+    async with Actuator(_drive(host_bus, 6)) as axis, EventTimer(PERIOD_MS) as timer:
+        axis.add_observer(recorder)
+        drive = axis.device
+        assert isinstance(drive, Cia402CyclicDrive)
+        sync = CanSync.of(host_bus)
+        await sync.start(timer)
+        try:
+            timer.start_timer()
+            await axis.set_value(0.2)
+            await wait_until(lambda: drive.feedback_cycle > 2)
+            sim.warn(0x8611, co.ErrorRegister.GENERIC)
+            error = await recorder.wait_for("error", source=axis, timeout=1)
+            assert error.id == ErrorId.DEVICE_ERROR
+            assert axis.state.value == "Error"
+            assert "in csp: EMCY 0x8611 following error (monitoring: control)" in str(
+                axis.last_fault
+            )
+            stopped = (ds.PowerState.QUICK_STOP_ACTIVE, ds.PowerState.SWITCH_ON_DISABLED)
+            await wait_until(lambda: sim.power_state in stopped)  # quick stop, 0x605A
+            with pytest.raises(Exception, match="Error"):
+                await axis.set_value(0.3)
+            drain(raw_bus)
+            await anyio.sleep(0.02)  # SYNCs go on; no set-point for the faulted drive
+            assert 0x206 not in {f.arbitration_id for f in drain(raw_bus)}
+            assert [r.id for r in recorder.errors] == [ErrorId.DEVICE_ERROR]  # once
+        finally:
+            sync.stop()
+
+
+async def test_the_sync_counter_wraps_at_its_overflow_and_a_missed_sync_skips_no_value(
+    channel: str,
+    peers: Peers,
+    host_bus: CanBus,
+    raw_bus: can.BusABC,
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """0x1019 written to the drive before the first SYNC; the counter runs 1..3 over the
+    SYNCs sent: one the bus refuses is missed, counted, and the next SYNC carries the value
+    it would have carried (ticks delivered by hand: the timer is not started)."""
+    sim = await peers.start(SimCia402Drive(7))
+    async with Actuator(_drive(host_bus, 7)) as axis, EventTimer(PERIOD_MS) as timer:
+        drive = axis.device
+        assert isinstance(drive, Cia402CyclicDrive)
+        sync = CanSync.of(host_bus)
+        await sync.start(timer, counter_overflow=3)
+        try:
+            assert sim.od[(0x1019, 0)].value == 3 and drive.sync_counter == 3
+            drain(raw_bus)
+            for _ in range(5):
+                sync.notify_timer(timer)
+            with monkeypatch.context() as patch:
+                patch.setattr(NodePort, "send_nowait", lambda *args, **kwargs: False)
+                sync.notify_timer(timer)  # the bus does not take it
+            sync.notify_timer(timer)
+            assert sync.stats.cycles == 6 and sync.stats.missed == 1
+            await wait_until(lambda: len(sim.sync_counters) == 6)
+            assert list(sim.sync_counters) == [1, 2, 3, 1, 2, 3]
+            sent = [f.data[0] for f in drain(raw_bus) if f.arbitration_id == co.SYNC_COB_ID]
+            assert sent == [1, 2, 3, 1, 2, 3]
+        finally:
+            sync.stop()

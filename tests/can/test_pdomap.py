@@ -53,7 +53,9 @@ def test_default_maps_per_mode(mode: str | int, target: int, ttype: int) -> None
     rpdo1, tpdo1, tpdo2 = resolve_pdos(default_pdos(mode), OD)
     assert [e.index for e in rpdo1.entries] == [0x6040, target]
     assert [e.index for e in tpdo1.entries] == [0x6041, 0x6064, 0x6077]
-    assert [e.index for e in tpdo2.entries] == [0x606C, 0x6061]
+    cyclic = ttype != 0xFF
+    assert [e.index for e in tpdo2.entries] == ([0x6041, 0x6061] if cyclic else [0x606C, 0x6061])
+    assert tpdo2.transmission_type == 0xFF and tpdo2.event_ms == (0 if cyclic else 10)
     assert (rpdo1.cob_id, tpdo1.cob_id, tpdo2.cob_id) == (0x205, 0x185, 0x285)
     assert rpdo1.transmission_type == tpdo1.transmission_type == ttype
     assert tpdo1.event_ms == (10 if ttype == 0xFF else 0) and tpdo1.bits == 64
@@ -197,12 +199,13 @@ async def test_configure_writes_the_cia301_sequence_and_verifies(
     od = sim.od
     assert [od[(0x1600, s)].value for s in range(3)] == [2, 0x6040_0010, 0x607A_0020]
     assert [od[(0x1A00, s)].value for s in range(4)] == [3, 0x6041_0010, 0x6064_0020, 0x6077_0010]
-    assert [od[(0x1A01, s)].value for s in range(3)] == [2, 0x606C_0020, 0x6061_0008]
+    assert [od[(0x1A01, s)].value for s in range(3)] == [2, 0x6041_0010, 0x6061_0008]
     assert od[(0x1400, 1)].value == 0x205 and od[(0x1800, 1)].value == 0x185
     assert od[(0x1801, 1)].value == 0x285 and od[(0x1800, 2)].value == od[(0x1400, 2)].value == 1
+    assert od[(0x1801, 2)].value == 0xFF  # TPDO2 (statusword, mode display) on change
     for comm in (0x1401, 0x1402, 0x1403, 0x1802, 0x1803):
         assert od[(comm, 1)].value & co.PDO_COB_ID_INVALID, hex(comm)  # unused: disabled
-    # Started, the drive answers a SYNC with TPDO1 and TPDO2, which our codecs read.
+    # Started, the drive sends TPDO2 (event) and answers a SYNC with TPDO1; our codecs read them.
     tpdo1, tpdo2 = resolved[1], resolved[2]
     port = host_bus.attach([tpdo1.cob_id, tpdo2.cob_id], name="test-tpdos")
     try:

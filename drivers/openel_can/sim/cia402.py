@@ -194,6 +194,8 @@ class SimCia402Drive:
         """When the consumed heartbeat (0x1016:1) was last received (None: not monitoring)."""
         self.heartbeat_errors = 0
         self.syncs = 0
+        self.sync_counters: History[int | None] = History(history)
+        """The counter of each SYNC received in Operational (None: a SYNC without one)."""
         """SYNC messages received in Operational."""
         self._boot()
         self.log = log.bind(sim_cia402=node_id)
@@ -634,6 +636,7 @@ class SimCia402Drive:
         elif isinstance(msg, co.Sync):
             if self.nmt_state is co.NmtState.OPERATIONAL:
                 self.syncs += 1
+                self.sync_counters.append(msg.counter)
                 self._cyclic_sync(now)
                 for n, state in enumerate(self.tpdo_state):
                     ttype = self._get(0x1800 + n, 2)

@@ -7,6 +7,7 @@ import dataclasses
 import inspect
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import msgspec
@@ -141,10 +142,14 @@ def resolve_rig(spec: RigSpec) -> ResolvedRig:
                     f"{driver_name})",
                 )
                 raise _located(error, c, "@bus")
-            devices.append(SimulatedDevice(c.name, c.driver, c.device, dict(c.params)))
+            devices.append(
+                SimulatedDevice(c.name, c.driver, c.device, dict(c.params), _rig_dir(spec))
+            )
         buses[bus.name] = ResolvedBus(bus, driver_name, kind, options, tuple(devices))
     for c in spec.components:  # each entry's own keys first, then what the buses refuse
-        _check_params(c, classes[c.name], buses[c.bus] if c.bus is not None else None)
+        _check_params(
+            c, classes[c.name], buses[c.bus] if c.bus is not None else None, _rig_dir(spec)
+        )
     for name, resolved_bus in buses.items():
         try:
             resolved_bus.kind.check(resolved_bus.options, resolved_bus.devices)
@@ -191,18 +196,27 @@ def convert_plain(options: Mapping[str, Any], options_type: type[Any]) -> Any:
         raise ValueError(str(exc)) from None
 
 
-def _bus_arguments(bus: ResolvedBus | None, spec: ComponentSpec) -> set[str]:
+def _rig_dir(spec: RigSpec) -> Path | None:
+    """The directory of the rig's file (None: the rig was given as plain data)."""
+    return None if spec.source == "rig" else Path(spec.source).parent
+
+
+def _bus_arguments(
+    bus: ResolvedBus | None, spec: ComponentSpec, directory: Path | None
+) -> set[str]:
     """The argument names the bus gives the device (asked with a placeholder bus object)."""
     if bus is None:
         return set()
-    device = SimulatedDevice(spec.name, spec.driver, spec.device, dict(spec.params))
+    device = SimulatedDevice(spec.name, spec.driver, spec.device, dict(spec.params), directory)
     return set(bus.kind.device_arguments(object(), bus.options, device))
 
 
-def _check_params(spec: ComponentSpec, cls: type, bus: ResolvedBus | None) -> None:
+def _check_params(
+    spec: ComponentSpec, cls: type, bus: ResolvedBus | None, directory: Path | None
+) -> None:
     """Refuse a params key the device class does not take (naming the close ones), or one
     the bus gives."""
-    given_by_bus = _bus_arguments(bus, spec)
+    given_by_bus = _bus_arguments(bus, spec, directory)
     for key in spec.params:
         if key in given_by_bus:
             error = BadParameterError(
@@ -265,7 +279,9 @@ def build_components(
             if buses is None or c.bus not in buses:
                 raise BadParameterError(f"{c.name}.bus", c.bus, "an opened bus (open_rig)")
             bus = resolved.buses[c.bus]
-            device_spec = SimulatedDevice(c.name, c.driver, c.device, dict(c.params))
+            device_spec = SimulatedDevice(
+                c.name, c.driver, c.device, dict(c.params), _rig_dir(resolved.spec)
+            )
             params.update(bus.kind.device_arguments(buses[c.bus], bus.options, device_spec))
         try:
             device = cls(**params)

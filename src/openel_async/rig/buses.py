@@ -22,6 +22,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from contextlib import AbstractAsyncContextManager
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import msgspec
@@ -43,6 +44,9 @@ class SimulatedDevice:
     """The device class's name in its driver (``odrive_axis``, ``dynamixel``)."""
     params: Mapping[str, Any]
     """The entry's ``params`` as written (addresses: ``node_id``, ``dxl_id``...)."""
+    rig_dir: Path | None = None
+    """The directory of the rig file (None: a rig given as plain data); a driver takes the
+    file paths of ``params`` relative to it."""
 
 
 @dataclass
