@@ -18,12 +18,12 @@ import asyncio
 import contextlib
 import re
 from collections.abc import Mapping
-from contextlib import AsyncExitStack
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Any, Self, cast
 
 import anyio
+import anyio.abc
 import zenoh
 
 from openel_async.errors import BadParameterError, HALError, NotConnectedError, ReturnCode
@@ -71,9 +71,9 @@ async def discover(
     wanted: str | None = None,
 ) -> list[str]:
     """The namespaces served on ``session``, sorted: waits up to ``timeout`` s for a first
-    server token (for ``wanted``'s when given), then, unless ``wanted`` is already seen,
-    makes one liveliness query for the complete set (bounded by ``timeout`` too). An empty
-    list: no server within the timeout."""
+    server token, then, unless it is ``wanted``'s, makes one liveliness query for the
+    complete set (bounded by ``timeout`` too), so that a namespace nobody serves is told
+    without waiting for the timeout. An empty list: no server within the timeout."""
     loop = asyncio.get_running_loop()
     seen: set[str] = set()
     changed = anyio.Event()
@@ -93,7 +93,7 @@ async def discover(
     )
     try:
         with anyio.move_on_after(timeout):
-            while not seen if wanted is None else wanted not in seen:
+            while not seen:  # connected to a server at least
                 await changed.wait()
                 changed = anyio.Event()
         if not seen or (wanted is not None and wanted in seen):
@@ -241,12 +241,16 @@ class RigShell:
         self.where = where
         """The endpoints, for messages."""
         self.session: zenoh.Session | None = None
-        self._stack = AsyncExitStack()
+        self._tg: anyio.abc.TaskGroup | None = None
+        self._closing = anyio.Event()
         self._remotes: dict[str, RemoteSurface] = {}
         self._namespaces: list[str] | None = None
 
     async def __aenter__(self) -> Self:
         self.session = await open_session(self.config)
+        tg = anyio.create_task_group()
+        await tg.__aenter__()
+        self._tg = tg
         return self
 
     async def __aexit__(
@@ -256,7 +260,10 @@ class RigShell:
         tb: TracebackType | None,
     ) -> None:
         try:
-            await self._stack.aclose()  # the RemoteSurfaces (never suspends for long)
+            self._closing.set()  # the RemoteSurfaces close, each in its task
+            if self._tg is not None:
+                await self._tg.__aexit__(exc_type, exc, tb)
+                self._tg = None
         finally:
             if self.session is not None:
                 with anyio.CancelScope(shield=True):
@@ -289,14 +296,23 @@ class RigShell:
         return self._namespaces
 
     async def remote(self, namespace: str) -> RemoteSurface:
-        """The RemoteSurface of ``namespace`` (opened on first use, which must be in the
-        task that entered the shell: :meth:`listing` opens every one)."""
+        """The RemoteSurface of ``namespace`` (opened on first use, in a task of the
+        shell's, so that any task may ask for it)."""
         found = self._remotes.get(namespace)
         if found is None:
+            if self._tg is None:
+                raise BadParameterError("RigShell", "closed", "inside 'async with'")
             found = RemoteSurface(self._session(), namespace, timeout=self.timeout)
-            await self._stack.enter_async_context(found)
+            await self._tg.start(self._hold, found)
             self._remotes[namespace] = found
         return found
+
+    async def _hold(
+        self, remote: RemoteSurface, *, task_status: anyio.abc.TaskStatus[None]
+    ) -> None:
+        async with remote:
+            task_status.started()
+            await self._closing.wait()
 
     async def listing(self) -> dict[str, list[wire.ComponentInfo]]:
         """namespace -> its components (the server's ``components``), the namespaces
