@@ -261,8 +261,8 @@ class RigShell:
     ) -> None:
         try:
             self._closing.set()  # the RemoteSurfaces close, each in its task
-            if self._tg is not None:
-                await self._tg.__aexit__(exc_type, exc, tb)
+            if self._tg is not None:  # whatever ends the block propagates unwrapped
+                await self._tg.__aexit__(None, None, None)
                 self._tg = None
         finally:
             if self.session is not None:
