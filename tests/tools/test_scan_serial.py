@@ -39,7 +39,9 @@ async def test_dynamixel_servos_answer_only_at_their_baud_rate() -> None:
     ]
     peer = SimDynamixelBus(servos, check_baudrate=True)  # Baud Rate (8) 3: 1 Mbit/s
     async with PeerThread(peer):
-        result = await scan(peer.path, "dynamixel", (57_600, 1_000_000), range(0, 12))
+        result = await scan(
+            peer.path, "dynamixel", (57_600, 1_000_000), range(0, 12), timeout_margin=0.05
+        )
     assert [(s.servo_id, s.baudrate) for s in result.servos] == [(3, 1_000_000), (7, 1_000_000)]
     assert [s.model for s in result.servos] == ["XM430-W350", "XL430-W250"]
     assert [s.device for s in result.servos] == ["dynamixel_xm430_w350", "dynamixel_xl430_w250"]
@@ -68,7 +70,7 @@ def test_feetech_servos_of_the_so101_rig_table_and_rig_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "scanned.yaml"
-    code = main(["scan", "serial", "--rig", str(SO101), "--sim", "--ids", "0-8", "--rig-out", str(out)])  # fmt: skip
+    code = main(["scan", "serial", "--rig", str(SO101), "--sim", "--ids", "0-8", "--timeout", "0.05", "--rig-out", str(out)])  # fmt: skip
     printed = capsys.readouterr().out
     assert code == 0, printed
     assert "Feetech servos" in printed and "STS3215 (777)" in printed
@@ -81,7 +83,7 @@ def test_feetech_servos_of_the_so101_rig_table_and_rig_file(
 def test_json_and_nothing_found(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     rig = tmp_path / "dxl.yaml"
     rig.write_text(DXL_RIG)
-    assert main(["scan", "serial", "--rig", str(rig), "--bus", "arm", "--sim", "--ids", "1-8", "--json"]) == 0  # fmt: skip
+    assert main(["scan", "serial", "--rig", str(rig), "--bus", "arm", "--sim", "--ids", "1-8", "--timeout", "0.05", "--json"]) == 0  # fmt: skip
     found = json.loads(capsys.readouterr().out)
     assert [s["servo_id"] for s in found["servos"]] == [3, 7]
     assert found["protocol"] == "dynamixel" and found["baudrates"] == [1_000_000]
@@ -116,7 +118,7 @@ def test_usage_errors_exit_2_before_anything_is_opened(
 def test_the_command_line_in_a_process() -> None:
     done = subprocess.run(
         [sys.executable, "-m", "openel_async.cli", "scan", "serial", "--rig", str(SO101), "--sim",
-         "--ids", "1-6", "--json"],
+         "--ids", "1-6", "--timeout", "0.05", "--json"],
         capture_output=True, text=True, timeout=60, env=dict(os.environ, NO_COLOR="1"),
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
