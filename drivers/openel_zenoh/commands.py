@@ -240,8 +240,8 @@ def add_estop_parser(sub: SubParsers) -> argparse.ArgumentParser:
     )
     estop.add_argument(
         "--namespace",
-        default="default",
-        help="the server's key-expression namespace (default: default)",
+        help="the server's key-expression namespace (default: the one rig served, "
+        "discovered from its liveliness token)",
     )
     estop.add_argument(
         "--timeout",
@@ -261,7 +261,8 @@ def run_estop(args: argparse.Namespace) -> int:
     from .keys import Keys
 
     try:
-        Keys(args.namespace)
+        if args.namespace is not None:
+            Keys(args.namespace)
         if not args.timeout > 0:
             raise BadParameterError("--timeout", args.timeout, "a number of seconds > 0")
     except BadParameterError as exc:
@@ -277,10 +278,8 @@ def run_estop(args: argparse.Namespace) -> int:
         print(f"openel-async estop: no Zenoh session for {where}: {exc}", file=sys.stderr)
         return EXIT_NO_SERVER
     except (HALError, TimeoutError) as exc:
-        print(
-            f"openel-async estop: no rig served at {where}, namespace {args.namespace!r}: {exc}",
-            file=sys.stderr,
-        )
+        namespace = f", namespace {args.namespace!r}" if args.namespace else ""
+        print(f"openel-async estop: no rig served at {where}{namespace}: {exc}", file=sys.stderr)
         return EXIT_NO_SERVER
     for state in reply.components:
         print(describe(state, reply.release), flush=True)
@@ -303,7 +302,20 @@ async def _estop(args: argparse.Namespace) -> wire.EstopReply:
     )
     session = await open_session(config)
     try:
-        return await estop_rig(session, args.namespace, release=args.release, timeout=args.timeout)
+        namespace = args.namespace
+        if namespace is None:  # the one rig served
+            from .shell import NoRigError, discover
+
+            served = await discover(session, timeout=args.timeout)
+            if len(served) != 1:
+                raise NoRigError(
+                    f"several rigs served: {', '.join(served)}; give --namespace"
+                    if served
+                    else f"none within {args.timeout:g} s",
+                    served,
+                )
+            namespace = served[0]
+        return await estop_rig(session, namespace, release=args.release, timeout=args.timeout)
     finally:
         await close_session(session)
 

@@ -284,9 +284,9 @@ class RigShell:
             if self.namespace is not None:
                 if self.namespace not in served:
                     others = f"; served: {', '.join(served)}" if served else ""
+                    waited = "" if served else f" (waited {self.timeout:g} s)"
                     raise NoRigError(
-                        f"no rig served{at} in namespace {self.namespace!r} "
-                        f"(waited {self.timeout:g} s){others}",
+                        f"no rig served{at} in namespace {self.namespace!r}{waited}{others}",
                         served,
                     )
                 served = [self.namespace]

@@ -103,7 +103,7 @@ async def test_namespaces_are_discovered_and_a_wrong_one_names_those_served() ->
         assert await discover(zc, timeout=5.0) == ["bench", "lab"]
         assert "lab" in await discover(zc, timeout=5.0, wanted="lab")
         async with shell(port, "lba") as wrong:
-            with pytest.raises(NoRigError, match=r"namespace 'lba' .*; served: bench, lab"):
+            with pytest.raises(NoRigError, match=r"namespace 'lba'; served: bench, lab"):
                 await wrong.listing()
         async with shell(port) as both:
             with pytest.raises(BadParameterError, match="one of bench/MOTOR_1, lab/MOTOR_1"):
