@@ -42,8 +42,8 @@ def test_demo_remote_runs_the_two_axis_demo_on_a_served_rig() -> None:
     output = done.stdout + done.stderr
     assert done.returncode == 0, output
     assert "summary (simulated devices served by 'openel-async serve' (pid" in output
-    # 50 ticks x 2 axes on an idle machine; a loaded one skips the ticks whose previous
-    # remote set-point is still on its way
+    # 50 ticks x 2 axes on an idle machine; on a loaded one some ticks find the observer
+    # still awaiting the previous tick's remote calls
     sent = re.search(r"setpoints sent\s+(\d+)\b", output)
     assert sent is not None and 50 <= int(sent.group(1)) <= 100, output
     assert re.search(r"errors\s+0\b", output), output
