@@ -23,6 +23,12 @@ Notices for a client (completed, notify_event, notify_error) are numbered and pu
 in batches, at most one batch per client per event-loop turn; the outbound buffer is
 bounded, and whatever it drops leaves a gap in the numbering that the client reports.
 
+An execute may carry its send time and a time to live (the selector parameters ``sent_us``
+and ``ttl_us``, docs/wire.md "Freshness"): the server estimates how late it arrived against
+the fastest query of that client seen so far (so the two clocks need not agree) and refuses
+it, executing nothing, when it is older than its time to live -- a command held up by a
+partition and retransmitted after the client gave up on it never moves anything.
+
 Client state is bounded: a client is known by its liveliness token (a ``ZenohClient``
 declares one; its state goes when the token goes) or, without one, for as long as it is
 active -- a client that has sent nothing for ``client_idle_timeout`` and has nothing queued
@@ -35,6 +41,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
+import time
 from collections import deque
 from dataclasses import dataclass, field
 from types import TracebackType
@@ -74,6 +82,10 @@ THREAD_READS = frozenset(
 """The execute functions a GatedEventLoop's server may answer on Zenoh's thread."""
 THREAD_READ_MAX_BYTES = 1024
 """Larger execute payloads (and XML ones) are never decoded on Zenoh's thread."""
+CLOCK_DRIFT = 1e-3
+"""How fast (s/s) a client's delay baseline may rise: the rate at which its clock may run
+slower than this one (1000 ppm; real clocks drift < 100 ppm) before fresh commands would be
+taken for late ones."""
 
 
 def _nothing() -> None:
@@ -89,6 +101,14 @@ class _Request:
     device: Device | None = None
     """The execute payload, once decoded."""
     xml: bool = False
+    received: float = 0.0
+    """When it arrived (time.monotonic, on Zenoh's thread)."""
+    sent: float | None = None
+    """When the client sent it, on the client's clock (seconds; the ``sent_us`` parameter)."""
+    ttl: float = 0.0
+    """How long after ``sent`` it may still be executed (the ``ttl_us`` parameter)."""
+    deadline: float = math.inf
+    """When it becomes stale, on this server's clock (set once its client is known)."""
 
 
 @dataclass
@@ -101,6 +121,10 @@ class _Client:
     """Its liveliness token is up (it is forgotten when the token goes, not when idle)."""
     last_active: float = 0.0
     """When it last sent a query (the loop's clock)."""
+    delay_base: float | None = None
+    """The smallest (arrival - send time) of its queries so far: one-way delay plus the
+    offset between the clocks, allowed to rise by CLOCK_DRIFT a second."""
+    delay_at: float = 0.0
 
     def idle(self) -> bool:
         return not self.busy and not self.queue
@@ -213,6 +237,8 @@ class SurfaceServer:
         """Clients without a token forgotten (idle too long, or displaced by a new one)."""
         self.refused_busy = 0
         self.refused_bad = 0
+        self.refused_stale = 0
+        """Executes refused because they arrived older than their time to live."""
         self.served = 0
         self.served_on_zenoh_thread = 0
         """Reads answered on Zenoh's thread through the loop's gate (a GatedEventLoop)."""
@@ -311,7 +337,17 @@ class SurfaceServer:
             payload = query.payload
             attachment = query.attachment
             client = attachment.to_bytes().decode("utf-8", "replace") if attachment else ANONYMOUS
-            request = _Request(kind, client, payload.to_bytes() if payload else b"", query)
+            request = _Request(
+                kind,
+                client,
+                payload.to_bytes() if payload else b"",
+                query,
+                received=time.monotonic(),
+            )
+            if kind == "execute":
+                parameters = query.parameters
+                if not parameters.is_empty():
+                    request.sent, request.ttl = freshness(parameters)
             if here is not None:
                 try:
                     if here(request):
@@ -374,6 +410,11 @@ class SurfaceServer:
         if client is None or client.busy or client.queue:
             return None
         client.last_active = loop.time()  # the gate is held: the loop is not running
+        if self._stale(client, request):
+            self.served += 1
+            self.refused_stale += 1
+            log.warning("stale_command_refused", client=request.client, kind=request.kind)
+            return ReturnCode.HAL_NO_CONNECTED, self._stale_message(request)
         enter_as_loop(loop)
         try:
             done = self.surface.execute_nowait(device, client.link)
@@ -503,6 +544,9 @@ class SurfaceServer:
                         ReturnCode.HAL_NO_MEMORY,
                         f"server full: {self.max_clients} clients known, none idle",
                     )
+                    continue
+                if self._stale(client, request):
+                    self._refuse_stale(request)
                     continue
                 if (
                     not client.busy
@@ -654,6 +698,9 @@ class SurfaceServer:
         self._answer_error(request, ReturnCode(code), message)
 
     async def _serve(self, request: _Request) -> None:
+        if time.monotonic() > request.deadline:  # it waited in its client's queue too long
+            self._refuse_stale(request)
+            return
         try:
             if request.kind == "execute":
                 device = self._decoded(request)
@@ -667,6 +714,45 @@ class SurfaceServer:
             return
         self.served += 1
         self._reply(request, payload)
+
+    def _stale(self, client: _Client, request: _Request) -> bool:
+        """Whether ``request`` (an execute with a send time) arrived later than its time to
+        live allows; sets its ``deadline`` and updates the client's delay baseline.
+
+        The clocks of client and server differ by an unknown offset, so the age of a query
+        is measured against the fastest query of that client so far: age = (arrival - send
+        time) - the smallest such difference seen (raised by CLOCK_DRIFT a second, so a
+        client clock slower than this one is not taken for growing delays). The first query
+        of a client is its own baseline: a client's first execute cannot be judged."""
+        if request.sent is None:
+            return False
+        if not (request.sent == request.sent and request.ttl > 0):  # NaN or no ttl
+            return False
+        delay = request.received - request.sent
+        base = client.delay_base
+        if base is not None:
+            base += CLOCK_DRIFT * max(0.0, request.received - client.delay_at)
+        if base is None or delay < base:
+            base = delay
+        client.delay_base = base
+        client.delay_at = max(client.delay_at, request.received)
+        age = delay - base
+        request.deadline = request.received + request.ttl - age
+        return age > request.ttl
+
+    def _stale_message(self, request: _Request) -> str:
+        late = time.monotonic() - request.deadline + request.ttl
+        return (
+            f"stale command: {late:.3f} s old, over its time to live of {request.ttl:.3f} s "
+            "(delayed on the way or in the queue); not executed"
+        )
+
+    def _refuse_stale(self, request: _Request) -> None:
+        self.refused_stale += 1
+        self.served += 1
+        message = self._stale_message(request)
+        log.warning("stale_command_refused", client=request.client, reason=message)
+        self._answer_error(request, ReturnCode.HAL_NO_CONNECTED, message)
 
     def _small(self, request: _Request) -> Any:
         surface = self.surface
@@ -717,6 +803,20 @@ class SurfaceServer:
             raise BadParameterError(
                 "payload", f"<{len(request.payload)} bytes>", f"a {request.kind} request ({exc})"
             ) from None
+
+
+def freshness(parameters: zenoh.Parameters) -> tuple[float | None, float]:
+    """The send time and time to live (seconds) of an execute's ``sent_us`` and ``ttl_us``
+    selector parameters (integers of microseconds); (None, 0) without them. A malformed or
+    partial pair is (nan, 0): served as if absent, and logged."""
+    sent, ttl = parameters.get("sent_us"), parameters.get("ttl_us")
+    if sent is None and ttl is None:
+        return None, 0.0
+    try:
+        return int(sent or "") / 1e6, int(ttl or "") / 1e6
+    except ValueError:
+        log.warning("bad_freshness_parameters", sent_us=sent, ttl_us=ttl)
+        return math.nan, 0.0
 
 
 _BOMS = (b"\xef\xbb\xbf", b"\xfe\xff", b"\xff\xfe", b"\x00\x00\xfe\xff")
