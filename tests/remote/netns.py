@@ -134,41 +134,67 @@ async def serve_in(
 ) -> AsyncIterator[anyio.abc.Process]:
     """``openel-async serve RIG --listen ...`` inside ``ns`` (``--stop-on-eof``); waits,
     bounded, for its ``serving`` line; stops it on exit (end of input, SIGTERM, SIGKILL)."""
-    argv = [sys.executable, "-m", "openel_async.cli", "--log-level", "warning", "serve", rig]
-    for each in listen:
-        argv += ["--listen", each]
-    process = await anyio.open_process(
-        ns.run([*argv, "--stop-on-eof", *extra]),
-        stdin=subprocess.PIPE,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
+    async with serve_many([(ns, rig, listen, extra)]) as processes:
+        yield processes[0]
+
+
+@asynccontextmanager
+async def serve_many(
+    servers: Sequence[tuple[Netns, str, Sequence[str], Sequence[str]]],
+) -> AsyncIterator[list[anyio.abc.Process]]:
+    """Several ``serve_in`` at once: (namespace, rig, listen, extra arguments) each, started
+    together and waited for together."""
+    processes: list[anyio.abc.Process] = []
     try:
-        assert process.stdout is not None
-        seen = b""
+        for ns, rig, listen, extra in servers:
+            argv = [sys.executable, "-m", "openel_async.cli", "--log-level", "warning"]
+            argv += ["serve", rig, *(a for each in listen for a in ("--listen", each))]
+            processes.append(
+                await anyio.open_process(
+                    ns.run([*argv, "--stop-on-eof", *extra]),
+                    stdin=subprocess.PIPE,
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.STDOUT,
+                    env={**os.environ, "PYTHONUNBUFFERED": "1"},
+                )
+            )
         with anyio.fail_after(SERVE_READY_S):
-            while b"serving" not in seen:
-                try:
-                    seen += await process.stdout.receive()
-                except anyio.EndOfStream:
-                    raise OSError(f"serve ended before serving: {seen.decode()!r}") from None
+            async with anyio.create_task_group() as tg:
+                for process in processes:
+                    tg.start_soon(_serving, process)
         async with anyio.create_task_group() as tg:
-            tg.start_soon(_drain, process.stdout)
-            yield process
+            for process in processes:
+                assert process.stdout is not None
+                tg.start_soon(_drain, process.stdout)
+            yield processes
             tg.cancel_scope.cancel()
     finally:
         with anyio.CancelScope(shield=True):
-            if process.stdin is not None:
-                with contextlib.suppress(OSError, anyio.BrokenResourceError):
-                    await process.stdin.aclose()
-            with anyio.move_on_after(5):
-                await process.wait()
-            if process.returncode is None:
-                process.kill()
-                with anyio.move_on_after(5):
-                    await process.wait()
-            await process.aclose()
+            for process in processes:
+                await _stop(process)
+
+
+async def _serving(process: anyio.abc.Process) -> None:
+    assert process.stdout is not None
+    seen = b""
+    while b"serving" not in seen:
+        try:
+            seen += await process.stdout.receive()
+        except anyio.EndOfStream:
+            raise OSError(f"serve ended before serving: {seen.decode()!r}") from None
+
+
+async def _stop(process: anyio.abc.Process) -> None:
+    if process.stdin is not None:
+        with contextlib.suppress(OSError, anyio.BrokenResourceError):
+            await process.stdin.aclose()
+    with anyio.move_on_after(5):
+        await process.wait()
+    if process.returncode is None:
+        process.kill()
+        with anyio.move_on_after(5):
+            await process.wait()
+    await process.aclose()
 
 
 async def _drain(stream: anyio.abc.ByteReceiveStream) -> None:

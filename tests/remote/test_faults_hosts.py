@@ -19,7 +19,7 @@ from openel_zenoh.config import CONFIG_DIR, file_config
 from openel_zenoh.discovery import served_namespaces
 
 from .conftest import free_port, session
-from .netns import netns, netns_unavailable, serve_in
+from .netns import netns, netns_unavailable, serve_many
 
 RIG = """\
 namespace: {namespace}
@@ -60,8 +60,7 @@ async def test_rigs_on_two_hosts_joined_by_a_router(tmp_path: Path) -> None:
             rigs.append((host, str(rig), str(config)))
         async with (
             session(router_config),
-            serve_in(rigs[0][0], rigs[0][1], [], "--config", rigs[0][2]),
-            serve_in(rigs[1][0], rigs[1][1], [], "--config", rigs[1][2]),
+            serve_many([(host, rig, [], ("--config", config)) for host, rig, config in rigs]),
             session(
                 file_config(shipped("via-router.json5", f"tcp/127.0.0.1:{port}", tmp_path))
             ) as client,
