@@ -9,7 +9,8 @@ packets are dropped, nothing tells TCP, which retransmits until the link is back
 ``await ns.link(True)`` heals it. Both are removed on exit, also on failure.
 
 ``netns_unavailable()`` says why this machine cannot do it (not root, no ``ip``, no
-permission to create a namespace or a veth pair), None when it can; tests skip with it.
+permission to create a namespace or a veth pair), None when it can; ``require_netns()``
+skips a test with that reason (and warns once, so that the run's summary shows it).
 """
 
 from __future__ import annotations
@@ -21,12 +22,14 @@ import shutil
 import subprocess
 import sys
 import time
+import warnings
 from collections.abc import AsyncIterator, Callable, Sequence
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 
 import anyio
 import anyio.abc
+import pytest
 
 _counter = itertools.count(1)
 IP_TIMEOUT_S = 10.0
@@ -67,6 +70,23 @@ def netns_unavailable() -> str | None:
             _ip("netns", "del", name)
     _probe.append(reason)
     return reason
+
+
+def require_netns() -> None:
+    """Skip the calling test where network namespaces are unavailable, saying why: in the
+    skip reason (``pytest -rs``) and, once per run, as a warning, which pytest prints in its
+    summary by default."""
+    reason = netns_unavailable()
+    if reason is None:
+        return
+    message = f"network namespaces unavailable on this machine, fault tests skipped: {reason}"
+    if not _warned:
+        _warned.append(True)
+        warnings.warn(message, UserWarning, stacklevel=2)
+    pytest.skip(message)
+
+
+_warned: list[bool] = []
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ from openel_zenoh import RemoteActuator, RemoteSurface
 from openel_zenoh.config import LEASE_S, client_config
 
 from .conftest import free_port, session, sim_server
-from .netns import Netns, netns, netns_unavailable, serve_in, until
+from .netns import netns, require_netns, serve_in, until
 from .relay import Faults, Relay
 
 RIG = """\
@@ -42,9 +42,7 @@ TIMEOUT_S = 2.0
 
 @pytest.fixture
 def rig(tmp_path: Path) -> str:
-    reason = netns_unavailable()
-    if reason is not None:
-        pytest.skip(f"network namespaces unavailable on this machine: {reason}")
+    require_netns()
     path = tmp_path / "rig.yaml"
     path.write_text(RIG, encoding="utf-8")
     return str(path)
@@ -62,12 +60,6 @@ class Completions:
 
     def report_missed(self, count: int) -> None:
         self.missed += count
-
-
-@asynccontextmanager
-async def served(rig: str) -> AsyncIterator[Netns]:
-    async with netns() as ns, serve_in(ns, rig, [f"tcp/{ns.ip}:{PORT}"]):
-        yield ns
 
 
 @asynccontextmanager

@@ -19,7 +19,7 @@ from openel_zenoh.config import CONFIG_DIR, file_config
 from openel_zenoh.discovery import served_namespaces
 
 from .conftest import free_port, session
-from .netns import netns, netns_unavailable, serve_many
+from .netns import netns, require_netns, serve_many
 
 RIG = """\
 namespace: {namespace}
@@ -41,9 +41,7 @@ def shipped(name: str, router: str, folder: Path) -> Path:
 
 @pytest.mark.timeout(60)
 async def test_rigs_on_two_hosts_joined_by_a_router(tmp_path: Path) -> None:
-    reason = netns_unavailable()
-    if reason is not None:
-        pytest.skip(f"network namespaces unavailable on this machine: {reason}")
+    require_netns()
     port = free_port()
     async with netns() as host_a, netns() as host_b:
         router_config = zenoh.Config.from_file(
