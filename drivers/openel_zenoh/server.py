@@ -60,6 +60,7 @@ from openel_async.surface.messages import CommandMessage, DataType, Device, Para
 
 from . import wire
 from .bridge import ThreadInbox
+from .freshness import DelayBaseline, freshness
 from .gate import LoopGate, enter_as_loop, exit_loop, gate_of, needs_wake, work_marker
 from .keys import Keys
 
@@ -82,10 +83,6 @@ THREAD_READS = frozenset(
 """The execute functions a GatedEventLoop's server may answer on Zenoh's thread."""
 THREAD_READ_MAX_BYTES = 1024
 """Larger execute payloads (and XML ones) are never decoded on Zenoh's thread."""
-CLOCK_DRIFT = 1e-3
-"""How fast (s/s) a client's delay baseline may rise: the rate at which its clock may run
-slower than this one (1000 ppm; real clocks drift < 100 ppm) before fresh commands would be
-taken for late ones."""
 
 
 def _nothing() -> None:
@@ -121,10 +118,9 @@ class _Client:
     """Its liveliness token is up (it is forgotten when the token goes, not when idle)."""
     last_active: float = 0.0
     """When it last sent a query (the loop's clock)."""
-    delay_base: float | None = None
-    """The smallest (arrival - send time) of its queries so far: one-way delay plus the
-    offset between the clocks, allowed to rise by CLOCK_DRIFT a second."""
-    delay_at: float = 0.0
+    baseline: DelayBaseline = field(default_factory=DelayBaseline)
+    """How fast its queries arrive at best (freshness.py): the age of each is measured
+    against it."""
 
     def idle(self) -> bool:
         return not self.busy and not self.queue
@@ -716,29 +712,13 @@ class SurfaceServer:
         self._reply(request, payload)
 
     def _stale(self, client: _Client, request: _Request) -> bool:
-        """Whether ``request`` (an execute with a send time) arrived later than its time to
-        live allows; sets its ``deadline`` and updates the client's delay baseline.
-
-        The clocks of client and server differ by an unknown offset, so the age of a query
-        is measured against the fastest query of that client so far: age = (arrival - send
-        time) - the smallest such difference seen (raised by CLOCK_DRIFT a second, so a
-        client clock slower than this one is not taken for growing delays). The first query
-        of a client is its own baseline: a client's first execute cannot be judged."""
-        if request.sent is None:
+        """Whether ``request`` (an execute with a send time) arrived older than its time to
+        live (freshness.py); sets its ``deadline``."""
+        sent = request.sent
+        if sent is None or not (sent == sent and request.ttl > 0):  # none, NaN, no ttl
             return False
-        if not (request.sent == request.sent and request.ttl > 0):  # NaN or no ttl
-            return False
-        delay = request.received - request.sent
-        base = client.delay_base
-        if base is not None:
-            base += CLOCK_DRIFT * max(0.0, request.received - client.delay_at)
-        if base is None or delay < base:
-            base = delay
-        client.delay_base = base
-        client.delay_at = max(client.delay_at, request.received)
-        age = delay - base
-        request.deadline = request.received + request.ttl - age
-        return age > request.ttl
+        request.deadline = client.baseline.deadline(request.received, sent, request.ttl)
+        return request.deadline < request.received
 
     def _stale_message(self, request: _Request) -> str:
         late = time.monotonic() - request.deadline + request.ttl
@@ -803,20 +783,6 @@ class SurfaceServer:
             raise BadParameterError(
                 "payload", f"<{len(request.payload)} bytes>", f"a {request.kind} request ({exc})"
             ) from None
-
-
-def freshness(parameters: zenoh.Parameters) -> tuple[float | None, float]:
-    """The send time and time to live (seconds) of an execute's ``sent_us`` and ``ttl_us``
-    selector parameters (integers of microseconds); (None, 0) without them. A malformed or
-    partial pair is (nan, 0): served as if absent, and logged."""
-    sent, ttl = parameters.get("sent_us"), parameters.get("ttl_us")
-    if sent is None and ttl is None:
-        return None, 0.0
-    try:
-        return int(sent or "") / 1e6, int(ttl or "") / 1e6
-    except ValueError:
-        log.warning("bad_freshness_parameters", sent_us=sent, ttl_us=ttl)
-        return math.nan, 0.0
 
 
 _BOMS = (b"\xef\xbb\xbf", b"\xfe\xff", b"\xff\xfe", b"\x00\x00\xfe\xff")

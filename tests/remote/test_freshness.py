@@ -14,7 +14,7 @@ import zenoh
 from openel_async import ReturnCode
 from openel_async.surface import CommandMessage, Device, compact
 from openel_zenoh import RemoteSurface
-from openel_zenoh.server import CLOCK_DRIFT, freshness
+from openel_zenoh.freshness import CLOCK_DRIFT, DelayBaseline, freshness
 
 from .conftest import client_cfg, free_port, session, sim_server
 
@@ -106,3 +106,20 @@ def test_freshness_parameters(parameters: str, expected: tuple[float | None, flo
 def test_malformed_freshness_parameters_are_ignored() -> None:
     sent_s, ttl = freshness(zenoh.Parameters("sent_us=soon;ttl_us=1"))
     assert sent_s != sent_s and ttl == 0.0  # NaN: served as if absent
+
+
+def test_the_baseline_is_the_fastest_delivery_and_rises_with_the_drift_allowance() -> None:
+    baseline = DelayBaseline()
+
+    def deadline(received: float, delay: float, ttl: float = 1.0) -> float:
+        """A query arriving at ``received`` that spent ``delay`` on the way (the client's
+        clock is 100 s behind the server's, so delays are 100 s and a little)."""
+        return baseline.deadline(received, received - delay, ttl)
+
+    assert deadline(10.0, 100.010) == 11.0  # the first one is its own baseline
+    assert deadline(11.0, 100.002) == 12.0  # faster: the new baseline
+    assert deadline(12.0, 102.502) == pytest.approx(10.501)  # 2.5 s late: stale on arrival
+    # 1000 s later the baseline may have risen by 1000 * CLOCK_DRIFT = 1 s: a client whose
+    # clock lost 0.5 s meanwhile is not taken for late (without the allowance it would be).
+    assert CLOCK_DRIFT == 1e-3
+    assert deadline(1012.0, 100.502, ttl=0.1) == pytest.approx(1012.1)
