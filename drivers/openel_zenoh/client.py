@@ -22,6 +22,11 @@ s; a hit resets the backoff, so replies that steadily come within it are spun fo
 every query (at 1 kHz, replies of 0.2-0.5 ms: up to about half a core); use
 ``busy_wait=0`` when a control loop shares the event loop or CPU matters more than latency.
 
+Every execute carries its send time and a time to live of half the timeout (selector
+parameters ``sent_us`` and ``ttl_us``, docs/wire.md "Freshness"): a command that reaches the
+server later than that -- held up by a partition, retransmitted when the client may have
+given up on it -- is refused there (``HAL_NO_CONNECTED``) instead of executed late.
+
 The server's presence is followed through its liveliness token: ``on_server`` listeners
 hear of it leaving and coming back; when it comes back, subscriptions are made again
 (their local ids stay the same) and commands still awaiting completion end with
@@ -121,6 +126,9 @@ class RemoteSurface:
         """The function names whose ``completed`` follows later (the server's asynchronous
         operations); a reply to any other command expects none."""
         self._attachment = self.client_id.encode()
+        self._ttl_us = max(1, int(self.timeout * 500_000))
+        """An execute's time to live: half the timeout (the other half bounds the error of
+        the server's age estimate and the reply's way back)."""
         self.server_alive = False
         self._was_lost = False
         self.missed_total = 0
@@ -215,8 +223,9 @@ class RemoteSurface:
         self._presence.put(sample.kind == zenoh.SampleKind.PUT)
 
     # -- queries -------------------------------------------------------------------------
-    async def query(self, key: str, payload: bytes) -> bytes:
+    async def query(self, key: str, payload: bytes, parameters: str = "") -> bytes:
         """One Zenoh query, its first reply's payload; TimeoutError/NotConnectedError.
+        ``parameters``: the selector's (``sent_us=...;ttl_us=...``), none by default.
 
         Polled (the reply through a Zenoh channel, for at most ``busy_wait`` s; a miss
         then awaited by a worker thread blocked in the channel's ``recv``) unless
@@ -226,9 +235,9 @@ class RemoteSurface:
         """
         if self.busy_wait > 0.0:
             if self._sleepers_left == 0:
-                return await self._query_polled(key, payload)
+                return await self._query_polled(key, payload, parameters)
             self._sleepers_left -= 1
-        return await self._query_sleeping(key, payload)
+        return await self._query_sleeping(key, payload, parameters)
 
     @staticmethod
     def _reply_value(key: str, reply: zenoh.Reply) -> bytes | BaseException:
@@ -239,9 +248,9 @@ class RemoteSurface:
         text = err.payload.to_string() if err is not None else "error reply"
         return NotConnectedError(f"{key}: {text}")
 
-    async def _query_polled(self, key: str, payload: bytes) -> bytes:
+    async def _query_polled(self, key: str, payload: bytes, parameters: str = "") -> bytes:
         replies = self.session.get(
-            key,
+            f"{key}?{parameters}" if parameters else key,
             payload=payload,
             attachment=self._attachment,
             timeout=self.timeout,
@@ -263,7 +272,7 @@ class RemoteSurface:
             raise value
         return value
 
-    async def _query_sleeping(self, key: str, payload: bytes) -> bytes:
+    async def _query_sleeping(self, key: str, payload: bytes, parameters: str = "") -> bytes:
         """The reply (or, without one, the end of the query) handed to the sleeping loop
         with one ``call_soon_threadsafe`` from Zenoh's callback; a loop timer
         ``timeout + 1`` s later bounds the wait even if Zenoh never calls back."""
@@ -293,7 +302,7 @@ class RemoteSurface:
                 )
 
         self.session.get(
-            key,
+            f"{key}?{parameters}" if parameters else key,
             zenoh.handlers.Callback(on_reply, on_done, indirect=False),
             payload=payload,
             attachment=self._attachment,
@@ -351,7 +360,11 @@ class RemoteSurface:
         if encoding == "xml":
             delivery = self._delivery(application) if application is not None else None
             reply = xml_psm.device_from_xml(
-                await self.query(self.keys.execute, xml_psm.to_xml(device, declaration=False))
+                await self.query(
+                    self.keys.execute,
+                    xml_psm.to_xml(device, declaration=False),
+                    self.execute_parameters(),
+                )
             )
             self._expect_completions(reply, delivery)
             return reply
@@ -361,9 +374,15 @@ class RemoteSurface:
         """execute() of a Device message already in the compact encoding (a caller that
         sends the same message often encodes it once); the reply is decoded and checked."""
         delivery = self._delivery(application) if application is not None else None
-        reply = compact.device_from_compact(await self.query(self.keys.execute, payload))
+        reply = compact.device_from_compact(
+            await self.query(self.keys.execute, payload, self.execute_parameters())
+        )
         self._expect_completions(reply, delivery)
         return reply
+
+    def execute_parameters(self) -> str:
+        """An execute's selector parameters: its send time and time to live (docs/wire.md)."""
+        return f"sent_us={time.monotonic_ns() // 1000};ttl_us={self._ttl_us}"
 
     def _expect_completions(self, reply: Device, delivery: Delivery | None) -> None:
         """Route the coming ``completed`` of each accepted asynchronous command."""

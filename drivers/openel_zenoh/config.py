@@ -1,7 +1,11 @@
 """Zenoh session configurations with safe defaults.
 
 By default nothing is reachable from the network: peer mode, the server listening on
-127.0.0.1 only, clients not listening at all, multicast and gossip scouting off. A LAN
+127.0.0.1 only, clients not listening at all, multicast and gossip scouting off. The link's
+lease is LEASE_S (1 s, keep-alives every quarter of it) instead of Zenoh's 10 s, so that a
+partition is detected within about a second, and a lost connection is tried again every
+0.25 s doubling up to RETRY_MAX_S (1 s; Zenoh: 1 s up to 4 s), so that it is back within
+about a second of the heal (docs/remote.md, "Faults"). A LAN
 setup is the user's explicit choice: a JSON5 configuration file (examples ship in
 ``openel_zenoh/configs``: TLS, access control) replaces these defaults whole.
 """
@@ -19,14 +23,25 @@ from openel_async.errors import BadParameterError
 DEFAULT_PORT = 7447
 DEFAULT_ENDPOINT = f"tcp/127.0.0.1:{DEFAULT_PORT}"
 CONFIG_DIR = Path(__file__).with_name("configs")
+LEASE_S = 1.0
+"""Seconds of silence after which a Zenoh link is closed (its peer's liveliness tokens go):
+the bound on detecting a partition or a dead peer. Zenoh's own default is 10 s."""
+RETRY_INIT_S = 0.25
+RETRY_MAX_S = 1.0
+"""A connect endpoint not connected is tried again after RETRY_INIT_S, doubling up to this."""
 
 
 def endpoint(port: int, host: str = "127.0.0.1") -> str:
     return f"tcp/{host}:{port}"
 
 
-def safe_config(*, listen: Sequence[str] = (), connect: Sequence[str] = ()) -> zenoh.Config:
-    """A peer configuration that listens on ``listen`` only and scouts nothing."""
+def safe_config(
+    *, listen: Sequence[str] = (), connect: Sequence[str] = (), lease: float = LEASE_S
+) -> zenoh.Config:
+    """A peer configuration that listens on ``listen`` only, scouts nothing and closes a
+    link silent for ``lease`` seconds."""
+    if isinstance(lease, bool) or not isinstance(lease, (int, float)) or not 0.1 <= lease <= 3600:
+        raise BadParameterError("lease", lease, "seconds in [0.1, 3600]")
     for name, endpoints in (("listen", listen), ("connect", connect)):
         if isinstance(endpoints, str) or not all(
             isinstance(e, str) and "/" in e for e in endpoints
@@ -40,6 +55,13 @@ def safe_config(*, listen: Sequence[str] = (), connect: Sequence[str] = ()) -> z
     config.insert_json5("connect/endpoints", json.dumps(list(connect)))
     config.insert_json5("scouting/multicast/enabled", "false")
     config.insert_json5("scouting/gossip/enabled", "false")
+    config.insert_json5("transport/link/tx/lease", str(round(lease * 1000)))
+    retry = {
+        "period_init_ms": round(RETRY_INIT_S * 1000),
+        "period_max_ms": round(RETRY_MAX_S * 1000),
+        "period_increase_factor": 2,
+    }
+    config.insert_json5("connect/retry", json.dumps(retry))
     return config
 
 

@@ -5,13 +5,16 @@ device, so that ``Actuator(RemoteActuator(remote, 0))`` behaves as a local compo
 server's ``completed`` for the latest command is this device's ``target_reached``, so
 COMPLETED arrives as event 1; ``get_value`` of an actual value is one round trip. The
 server's errors for the component arrive as errors (a fault there is a fault here); the
-server going away is a link fault (``ErrorId.DISCONNECTED``, ``HAL_NO_CONNECTED``), and
+server going away, and a query of the device left without reply (its timeout), is a link
+fault (``ErrorId.DISCONNECTED``, ``HAL_NO_CONNECTED``), and
 ``re_init`` once it is back resets the remote component if it is in Error.
 """
 
 from __future__ import annotations
 
 import asyncio
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from openel_async.device import (
     ActuatorDevice,
@@ -57,6 +60,17 @@ def results_of(command: CommandMessage) -> ResultList:
     return results
 
 
+@contextmanager
+def no_reply_is_a_link_fault(what: str) -> Iterator[None]:
+    """A query left without reply (RemoteSurface's TimeoutError) raised as NotConnectedError:
+    for a remote device, no answer from its server is a link failure, whatever the cause
+    (a partition, a dead or stopped host)."""
+    try:
+        yield
+    except TimeoutError as exc:
+        raise NotConnectedError(f"{what}: no reply from the server ({exc})") from exc
+
+
 class _RemoteLink:
     """What both remote device kinds share: addressing, notices, presence."""
 
@@ -81,7 +95,9 @@ class _RemoteLink:
             payload = self._payloads[function_name] = compact.encode(
                 Device(self.device_kind, (command,))
             )
-        return results_of((await self.remote.execute_compact(payload)).commands[0])
+        with no_reply_is_a_link_fault(f"{self.device_kind}[{self.logical_id}] {function_name}"):
+            reply = await self.remote.execute_compact(payload)
+        return results_of(reply.commands[0])
 
     async def link_open(self, ctx: DeviceContext) -> ResultList:
         self.ctx = ctx
@@ -202,7 +218,10 @@ class RemoteActuator(_RemoteLink, ActuatorDevice):
             command = CommandMessage.call(
                 name, "", logical_id=self.logical_id, **{argument: float(value)}
             )
-        reply = await self.remote.execute_command(self.device_kind, command, self)
+        with no_reply_is_a_link_fault(
+            f"{self.device_kind}[{self.logical_id}] {command.function_name}"
+        ):
+            reply = await self.remote.execute_command(self.device_kind, command, self)
         results_of(reply)
         self._latest = reply.command_id
         status = self._completed.pop(reply.command_id, None)

@@ -23,6 +23,12 @@ Notices for a client (completed, notify_event, notify_error) are numbered and pu
 in batches, at most one batch per client per event-loop turn; the outbound buffer is
 bounded, and whatever it drops leaves a gap in the numbering that the client reports.
 
+An execute may carry its send time and a time to live (the selector parameters ``sent_us``
+and ``ttl_us``, docs/wire.md "Freshness"): the server estimates how late it arrived against
+the fastest query of that client seen so far (so the two clocks need not agree) and refuses
+it, executing nothing, when it is older than its time to live -- a command held up by a
+partition and retransmitted after the client gave up on it never moves anything.
+
 Client state is bounded: a client is known by its liveliness token (a ``ZenohClient``
 declares one; its state goes when the token goes) or, without one, for as long as it is
 active -- a client that has sent nothing for ``client_idle_timeout`` and has nothing queued
@@ -35,6 +41,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import math
+import time
 from collections import deque
 from dataclasses import dataclass, field
 from types import TracebackType
@@ -52,6 +60,7 @@ from openel_async.surface.messages import CommandMessage, DataType, Device, Para
 
 from . import wire
 from .bridge import ThreadInbox
+from .freshness import DelayBaseline, freshness
 from .gate import LoopGate, enter_as_loop, exit_loop, gate_of, needs_wake, work_marker
 from .keys import Keys
 
@@ -89,6 +98,14 @@ class _Request:
     device: Device | None = None
     """The execute payload, once decoded."""
     xml: bool = False
+    received: float = 0.0
+    """When it arrived (time.monotonic, on Zenoh's thread)."""
+    sent: float | None = None
+    """When the client sent it, on the client's clock (seconds; the ``sent_us`` parameter)."""
+    ttl: float = 0.0
+    """How long after ``sent`` it may still be executed (the ``ttl_us`` parameter)."""
+    deadline: float = math.inf
+    """When it becomes stale, on this server's clock (set once its client is known)."""
 
 
 @dataclass
@@ -101,6 +118,9 @@ class _Client:
     """Its liveliness token is up (it is forgotten when the token goes, not when idle)."""
     last_active: float = 0.0
     """When it last sent a query (the loop's clock)."""
+    baseline: DelayBaseline = field(default_factory=DelayBaseline)
+    """How fast its queries arrive at best (freshness.py): the age of each is measured
+    against it."""
 
     def idle(self) -> bool:
         return not self.busy and not self.queue
@@ -213,6 +233,8 @@ class SurfaceServer:
         """Clients without a token forgotten (idle too long, or displaced by a new one)."""
         self.refused_busy = 0
         self.refused_bad = 0
+        self.refused_stale = 0
+        """Executes refused because they arrived older than their time to live."""
         self.served = 0
         self.served_on_zenoh_thread = 0
         """Reads answered on Zenoh's thread through the loop's gate (a GatedEventLoop)."""
@@ -311,7 +333,17 @@ class SurfaceServer:
             payload = query.payload
             attachment = query.attachment
             client = attachment.to_bytes().decode("utf-8", "replace") if attachment else ANONYMOUS
-            request = _Request(kind, client, payload.to_bytes() if payload else b"", query)
+            request = _Request(
+                kind,
+                client,
+                payload.to_bytes() if payload else b"",
+                query,
+                received=time.monotonic(),
+            )
+            if kind == "execute":
+                parameters = query.parameters
+                if not parameters.is_empty():
+                    request.sent, request.ttl = freshness(parameters)
             if here is not None:
                 try:
                     if here(request):
@@ -374,6 +406,11 @@ class SurfaceServer:
         if client is None or client.busy or client.queue:
             return None
         client.last_active = loop.time()  # the gate is held: the loop is not running
+        if self._stale(client, request):
+            self.served += 1
+            self.refused_stale += 1
+            log.warning("stale_command_refused", client=request.client, kind=request.kind)
+            return ReturnCode.HAL_NO_CONNECTED, self._stale_message(request)
         enter_as_loop(loop)
         try:
             done = self.surface.execute_nowait(device, client.link)
@@ -503,6 +540,9 @@ class SurfaceServer:
                         ReturnCode.HAL_NO_MEMORY,
                         f"server full: {self.max_clients} clients known, none idle",
                     )
+                    continue
+                if self._stale(client, request):
+                    self._refuse_stale(request)
                     continue
                 if (
                     not client.busy
@@ -654,6 +694,9 @@ class SurfaceServer:
         self._answer_error(request, ReturnCode(code), message)
 
     async def _serve(self, request: _Request) -> None:
+        if time.monotonic() > request.deadline:  # it waited in its client's queue too long
+            self._refuse_stale(request)
+            return
         try:
             if request.kind == "execute":
                 device = self._decoded(request)
@@ -667,6 +710,29 @@ class SurfaceServer:
             return
         self.served += 1
         self._reply(request, payload)
+
+    def _stale(self, client: _Client, request: _Request) -> bool:
+        """Whether ``request`` (an execute with a send time) arrived older than its time to
+        live (freshness.py); sets its ``deadline``."""
+        sent = request.sent
+        if sent is None or not (sent == sent and request.ttl > 0):  # none, NaN, no ttl
+            return False
+        request.deadline = client.baseline.deadline(request.received, sent, request.ttl)
+        return request.deadline < request.received
+
+    def _stale_message(self, request: _Request) -> str:
+        late = time.monotonic() - request.deadline + request.ttl
+        return (
+            f"stale command: {late:.3f} s old, over its time to live of {request.ttl:.3f} s "
+            "(delayed on the way or in the queue); not executed"
+        )
+
+    def _refuse_stale(self, request: _Request) -> None:
+        self.refused_stale += 1
+        self.served += 1
+        message = self._stale_message(request)
+        log.warning("stale_command_refused", client=request.client, reason=message)
+        self._answer_error(request, ReturnCode.HAL_NO_CONNECTED, message)
 
     def _small(self, request: _Request) -> Any:
         surface = self.surface
