@@ -42,10 +42,10 @@ def test_demo_remote_runs_the_two_axis_demo_on_a_served_rig() -> None:
     output = done.stdout + done.stderr
     assert done.returncode == 0, output
     assert "summary (simulated devices served by 'openel-async serve' (pid" in output
-    # 50 ticks x 2 axes on an idle machine; on a loaded one some ticks find the observer
-    # still awaiting the previous tick's remote calls
+    # 50 ticks x 2 axes on an idle machine; on a loaded one many ticks find the observer
+    # still awaiting the previous tick's four remote calls (the timer discards them)
     sent = re.search(r"setpoints sent\s+(\d+)\b", output)
-    assert sent is not None and 50 <= int(sent.group(1)) <= 100, output
+    assert sent is not None and 10 <= int(sent.group(1)) <= 100, output
     assert re.search(r"errors\s+0\b", output), output
     assert re.search(r"sensor reads\s+[1-9]", output), output
     pid = server_pid(output)
