@@ -648,12 +648,13 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         await self._send_rpdo(mode, controlword, self._targets[mode])
 
     def _sync_running(self) -> bool:
-        """A SYNC producer runs on the bus (the bus's own, or a timer's CanSync)."""
+        """A SYNC producer runs on the bus (the bus's own, or a timer's CanSync whose
+        timer runs: a stopped timer sends no SYNC to apply a synchronous RPDO)."""
         if self.bus.sync_period is not None:
             return True
         from .sync import CanSync  # (it imports nothing of this module)
 
-        return CanSync.of(self.bus).running
+        return CanSync.of(self.bus).producing
 
     def rpdo_frame(self, mode: Mode, controlword: int, target: int) -> tuple[int, bytes]:
         """(COB-ID, data) of the RPDO of ``mode`` (:attr:`layout`'s or the fixed one)
