@@ -4,9 +4,10 @@ AxisGroup on SYNC from its timer: ``openel-async run csp4 [--rig FILE] [--sim]``
 - **Rig**: ``rigs/csp4.yaml`` by default (four drives, node ids 1-4, ``mode: csp``, on one
   CAN bus; ``--sim``: simulated drives on a python-can virtual bus). The app takes the
   rig's group :data:`GROUP` and its timer.
-- **SYNC**: the CAN bus's :class:`~openel_can.sync.CanSync` is started on the group's timer
-  (each drive's 0x60C2 = the timer period first); from then on every tick sends the four
-  RPDOs the group staged, then SYNC.
+- **SYNC**: the rig's CAN bus says ``sync: {counter: 0}``: opening the rig starts the bus's
+  SYNC producer on the timer driving it, the group's (each drive's 0x60C2 = the timer period
+  first); from then on every tick sends the four RPDOs the group staged, then SYNC. The app
+  names no CAN class: it reads the SYNC statistics through the drives (``sync_source``).
 - **Motion**: :data:`MOVES`, each one ``move_to`` of the four axes, starting and arriving
   together; one line per move (time, largest error at the end from the drives' TPDOs, SYNC
   cycles so far and missed ones). Exit status 0 when every move was reached.
@@ -66,17 +67,16 @@ async def main(ctx: AppContext) -> int:
     args = parser.parse_args(ctx.argv)
     if not 1 <= args.moves <= len(MOVES):
         parser.error(f"--moves {args.moves}: 1..{len(MOVES)}")
-    from openel_can import CanBus, CanSync  # the app needs the CAN driver, the framework not
-
     ok = True
     async with ctx.open_rig(default=RIG) as rig:
         group = rig.group(GROUP)
         spec = rig.spec.component(group.axis_names[0])
-        bus = rig.buses[spec.bus or ""]
-        if not isinstance(bus, CanBus):
-            parser.error(f"group {GROUP}: its axes are not on a CAN bus")
-        sync = CanSync.of(bus)
-        await sync.start(group.timer)
+        sync = getattr(group.axes[0].device, "sync_source", None)  # a cyclic CiA 402 drive's
+        if sync is None or not sync.running:
+            parser.error(
+                f"group {GROUP}: its axes must be CiA 402 drives in a cyclic mode on a CAN bus "
+                "with 'sync:' (the rig's SYNC producer)"
+            )
         ctx.title = f"CSP, four axes ({rig.bus_descriptions.get(spec.bus or '', '')})"
         print(
             f"{ctx.prog}: {len(group.axes)} axes in CSP, SYNC every "
@@ -105,7 +105,6 @@ async def main(ctx: AppContext) -> int:
             return 1
         finally:
             stats = sync.stats
-            sync.stop()
         print(
             f"summary (CSP, four axes): {'all' if ok else 'not all'} moves reached; "
             f"{stats.cycles} SYNC, {stats.missed} missed, {stats.rpdos} RPDOs, "

@@ -61,21 +61,23 @@ from openel_async.device import (
 from openel_async.errors import BadParameterError, HALError
 from openel_async.logs import get_logger
 from openel_async.requests import Request
-from openel_async.safety import ExitAction
 
 from . import canopen as co
 from . import cia402 as ds
 from .bus import CanBus, NodePort
 from .errors import DecodeError
 from .layout402 import (
-    FEEDBACK_OBJECTS,
-    STATUSWORD,
-    TARGET_OF_MODE,
     DriveFiles,
     DriveLayout,
-    LayoutTpdo,
     load_drive_files,
     plan_layout,
+)
+from .node402_pdos import LayoutPdos
+from .node402_safety import (
+    CONSUMER_HEARTBEAT_TIME_1,
+    QUICK_STOP_ON_ABORT,
+    WATCHDOG_FEED_FRACTION,
+    NodeSafety,
 )
 from .node_faults import NodeFaults
 from .od import write_parameter_values
@@ -153,11 +155,6 @@ DRIVE_MODES: Final = ("pp", "csp", "csv", "cst")
 ``csp``/``csv``/``cst`` cyclic synchronous position/velocity/torque on the bus's SYNC."""
 DEFAULT_HOST_NODE_ID: Final = 127
 """The host's CANopen node id for its heartbeat (0x77F): give another one when a drive uses 127."""
-CONSUMER_HEARTBEAT_TIME_1: Final = co.ObjectEntry(0x1016, 1, co.DataType.UNSIGNED32)
-QUICK_STOP_ON_ABORT: Final = 3
-"""0x6007 value: quick stop on a lost connection."""
-WATCHDOG_FEED_FRACTION: Final = 4
-"""The host heartbeat period is ``timeout / WATCHDOG_FEED_FRACTION``."""
 
 
 def _emcy_name(code: int) -> str:
@@ -201,7 +198,7 @@ class Setpoint:
     reported: bool = False
 
 
-class Cia402Node(NodeFaults, ActuatorDevice):
+class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
     """The CiA 402 node a set-point mode subclass drives; see the module docstring."""
 
     node_label = "CiA 402"
@@ -571,25 +568,6 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         cob_id, data = co.encode(co.NmtControl(command, self.node_id))
         await self._port.send(cob_id, data)
 
-    async def _wait_layout_status(self, started: int) -> None:
-        """After NMT start with :attr:`layout`: the event-driven statusword TPDO, else the
-        statusword by SDO (a synchronous one waits for SYNC)."""
-        layout = self.layout
-        assert layout is not None
-        if not layout.status_on_event:
-            self._set_statusword(
-                await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout), self._now()
-            )
-            return
-        with anyio.move_on_after(self.state_timeout):
-            while self._status_pdo_ns is None or self._status_pdo_ns < started:
-                await self._change_event().wait()
-            return
-        raise TimeoutError(
-            f"CiA 402 node {self.node_id}: no statusword TPDO within "
-            f"{self.state_timeout * 1000:.0f} ms"
-        )
-
     async def _wait_tpdo(self, after_ns: int, timeout: float) -> None:  # noqa: ASYNC109
         with anyio.move_on_after(timeout):
             while self._tpdo1_ns is None or self._tpdo1_ns < after_ns:
@@ -647,14 +625,6 @@ class Cia402Node(NodeFaults, ActuatorDevice):
         mode = self._mode or Mode.PROFILE_POSITION
         await self._send_rpdo(mode, controlword, self._targets[mode])
 
-    def _sync_running(self) -> bool:
-        """A SYNC producer runs on the bus (the bus's own, or a timer's CanSync)."""
-        if self.bus.sync_period is not None:
-            return True
-        from .sync import CanSync  # (it imports nothing of this module)
-
-        return CanSync.of(self.bus).running
-
     def rpdo_frame(self, mode: Mode, controlword: int, target: int) -> tuple[int, bytes]:
         """(COB-ID, data) of the RPDO of ``mode`` (:attr:`layout`'s or the fixed one)
         carrying ``controlword`` and ``target``; ``BadParameterError`` for a target that
@@ -669,29 +639,7 @@ class Cia402Node(NodeFaults, ActuatorDevice):
                     "value", target, f"a target that fits {RPDO_MAPS[number][1].data_type.name}"
                 ) from exc
             return co.RPDO_BASES[number] + self.node_id, data
-        rpdo = layout.rpdo_of_mode.get(mode)
-        if rpdo is None:
-            raise HALError(
-                f"CiA 402 node {self.node_id}: no RPDO of its pdos carries the controlword "
-                f"and {TARGET_OF_MODE[mode]:#06x} ({mode.name})"
-            )
-        own = TARGET_OF_MODE[mode]
-        values = []
-        for index in rpdo.slots:
-            if index == 0x6040:
-                values.append(controlword)
-            elif index == own:
-                values.append(target)
-            elif index == 0x6060:
-                values.append(int(mode))
-            else:  # another mode's target: its latest
-                values.append(
-                    next(self._targets[m] for m, t in TARGET_OF_MODE.items() if t == index)
-                )
-        try:
-            return rpdo.pdo.cob_id, rpdo.codec.pack(values)
-        except ValueError as exc:
-            raise BadParameterError("value", target, f"a target that fits {rpdo.pdo.name}") from exc
+        return self._layout_frame(layout, mode, controlword, target)
 
     async def _send_rpdo(self, mode: Mode, controlword: int, target: int) -> None:
         assert self._port is not None
@@ -797,88 +745,6 @@ class Cia402Node(NodeFaults, ActuatorDevice):
             setpoint.reported = True
             self._ctx.target_reached()
 
-    # -- heartbeat watchdog ---------------------------------------------------------------
-    async def arm_watchdog(self, timeout_s: float) -> None:
-        """Host heartbeat every ``timeout_s / 4`` (the bus's producer), 0x6007 = 3 (quick
-        stop) and 0x1016:1 = ``host_node_id << 16 | ms`` by SDO.
-
-        ``timeout_s``: a whole number of milliseconds in 4..65535 (the consumer time is an
-        UNSIGNED16 in ms; the heartbeat period, a quarter of it, at least 1 ms).
-        """
-        ok = (
-            not isinstance(timeout_s, bool)
-            and isinstance(timeout_s, int | float)
-            and math.isfinite(timeout_s)
-        )
-        ms = round(timeout_s * 1000) if ok else 0
-        if not (
-            ok and WATCHDOG_FEED_FRACTION <= ms <= 0xFFFF and abs(timeout_s * 1000 - ms) < 1e-6
-        ):
-            raise BadParameterError(
-                "timeout_s",
-                timeout_s,
-                "a whole number of milliseconds in 0.004..65.535 s "
-                "(0x1016 heartbeat consumer time, UNSIGNED16 ms)",
-            )
-        if self._ctx is None:
-            raise HALError(f"CiA 402 node {self.node_id}: arm_watchdog before open")
-        self.bus.produce_heartbeat(self.host_node_id, timeout_s / WATCHDOG_FEED_FRACTION, self)
-        try:
-            await self.sdo.write(
-                ds.ABORT_CONNECTION_OPTION_CODE, QUICK_STOP_ON_ABORT, timeout=self.sdo_timeout
-            )
-            await self.sdo.write(
-                CONSUMER_HEARTBEAT_TIME_1, self.host_node_id << 16 | ms, timeout=self.sdo_timeout
-            )
-        except BaseException:
-            self.bus.release_heartbeat(self)
-            raise
-        self.watchdog_timeout = ms / 1000
-        self.log.info("cia402_watchdog_armed", timeout_ms=ms, host_node_id=self.host_node_id)
-
-    async def disarm_watchdog(self) -> None:
-        """0x1016:1 = 0 (consumer off) by SDO, then stop producing the host heartbeat."""
-        if self.watchdog_timeout is None:
-            return
-        try:
-            if self.bus.is_up:
-                await self.sdo.write(CONSUMER_HEARTBEAT_TIME_1, 0, timeout=self.sdo_timeout)
-        finally:
-            self.bus.release_heartbeat(self)
-            self.watchdog_timeout = None
-
-    async def estop(self) -> None:
-        """Controlword Quick stop (the drive ramps down with 0x6085, then acts as 0x605A
-        says) and ``fault(ESTOP)`` at once; ``re_init`` enables the drive again."""
-        try:
-            await self.quick_stop()
-        finally:
-            self._fault(ErrorId.ESTOP, f"CiA 402 node {self.node_id}: e-stop (quick stop)")
-
-    async def safe_stop(self, action: ExitAction) -> None:
-        """HOLD: Operation enabled with Halt (bit 8): ramps down with the profile
-        deceleration 0x6084 and holds, loop closed; STOP: Quick stop (0x6085, then as
-        0x605A says: 1..4 Switch on disabled, 5..8 stay in Quick stop active holding);
-        TORQUE_OFF: Disable voltage (Switch on disabled, power stage off)."""
-        action = ExitAction(action)
-        self.left_safe = True
-        async with self._lock:
-            self._enabled_wanted = action is ExitAction.HOLD and self._enabled_wanted
-            self._pending = None
-            if action is ExitAction.HOLD:
-                await self._send_control(ENABLE_OPERATION | int(CB.HALT))
-            elif action is ExitAction.STOP:
-                await self._send_control(int(ds.Command.QUICK_STOP))
-            else:
-                await self._send_control(int(ds.Command.DISABLE_VOLTAGE))
-
-    async def quick_stop(self) -> None:
-        """Controlword quick stop: the drive ramps down (next command re-enables it)."""
-        async with self._lock:
-            self._enabled_wanted = False
-            self._pending = None
-            await self._send_control(int(ds.Command.QUICK_STOP))
-
     # -- receive side -----------------------------------------------------------------------
     def _now(self) -> int:
         assert self._ctx is not None, "used before open()"
@@ -945,48 +811,6 @@ class Cia402Node(NodeFaults, ActuatorDevice):
     def _on_tpdo2(self, frame: can.Message, now: int) -> None:
         self._velocity, self._mode_display = _TPDO2_CODEC.unpack(frame.data)
         self._tpdo2_ns = now
-
-    def _on_layout_tpdo(self, tpdo: LayoutTpdo, frame: can.Message, now: int) -> None:
-        """A TPDO of :attr:`layout`: the objects the driver follows, the others by name."""
-        values = tpdo.codec.unpack(frame.data)
-        statusword: int | None = None
-        state: ds.PowerState | None = None
-        if tpdo.status_at is not None:
-            statusword = values[tpdo.status_at]
-            # A statusword matching no state is malformed: nothing of this TPDO is kept.
-            state = ds.state_from_statusword(statusword)
-        seen = self._seen_ns
-        for index, name, value in zip(tpdo.slots, tpdo.names, values, strict=True):
-            if index == STATUSWORD:
-                pass
-            elif index == 0x6064:
-                self._position = value
-            elif index == 0x6077:
-                self._torque = value
-            elif index == 0x606C:
-                self._velocity = value
-            elif index == 0x6061:
-                self._mode_display = value
-            elif index not in FEEDBACK_OBJECTS:
-                self.pdo_values[name] = value
-            seen[index] = now
-        if tpdo.synchronous:
-            self._on_sync_tpdo(now)
-        if statusword is not None:
-            self._status_pdo_ns = now
-            self._set_statusword(statusword, now, state)
-
-    def _on_sync_tpdo(self, now: int) -> None:
-        """A synchronous TPDO of :attr:`layout` arrived (a cyclic drive notes the cycle)."""
-
-    def feedback_ns(self, index: int) -> int | None:
-        """When the TPDO value of object ``index`` (0x6064, 0x606C, 0x6077) last arrived
-        (None: never, or no TPDO carries it)."""
-        if self.layout is not None:
-            return self._seen_ns.get(index)
-        if index in (0x6064, 0x6077):
-            return self._tpdo1_ns
-        return self._tpdo2_ns if index == 0x606C else None
 
     def _set_statusword(
         self, statusword: int, now: int, state: ds.PowerState | None = None

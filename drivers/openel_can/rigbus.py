@@ -28,6 +28,7 @@ import msgspec
 
 from openel_async.errors import BadParameterError
 from openel_async.rig import BusKind, BusLoad, SimulatedBus, SimulatedDevice
+from openel_async.timer import EventTimer
 
 from . import canopen as co
 from . import cansimple as cs
@@ -35,13 +36,22 @@ from .bus import CanBus
 from .busload import Traffic, bus_load, frame_time
 from .drive402 import DEFAULT_HOST_NODE_ID
 from .layout402 import DriveLayout, drive_file, load_drive_files, plan_layout
+from .sync import CanSync
 
-__all__ = ["CanBusKind", "CanBusOptions"]
+__all__ = ["CanBusKind", "CanBusOptions", "SyncOptions"]
 
 ODRIVE_DEVICES = frozenset(
     {"odrive_axis", "odrive_encoder", "odrive_temperature", "odrive_bus_monitor"}
 )
 CIA402_DEVICES = frozenset({"cia402_drive", "cia402_temperature"})
+
+
+class SyncOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+    """The bus produces CANopen SYNC on the rig's timer driving it."""
+
+    counter: int = 0
+    """0: SYNC without data; 2..240: the SYNC counter overflow (CiA 301 0x1019, written to
+    the cyclic drives too): one byte counting 1..counter."""
 
 
 class CanBusOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
@@ -66,6 +76,11 @@ class CanBusOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     """Seconds a frame may wait for room in the adapter before the send fails."""
     options: dict[str, Any] = msgspec.field(default_factory=dict)
     """Other keyword arguments of the python-can interface (e.g. receive_own_messages)."""
+    sync: SyncOptions | None = None
+    """The bus's SYNC producer (``{counter: 0}``): a SYNC on every tick of the rig's timer
+    driving the bus (its axis groups' timer; else the rig's fastest timer), after the RPDOs
+    the cyclic drives staged for it. None: no SYNC from the rig (an app may start
+    ``CanSync.of(bus)`` itself)."""
 
 
 def _node_ids(devices: Sequence[SimulatedDevice]) -> tuple[dict[int, str], dict[int, str]]:
@@ -285,6 +300,12 @@ class CanBusKind(BusKind):
                 raise BadParameterError(key, value, "bits per second > 0")
         if options.data_bitrate is not None and not options.fd:
             raise BadParameterError("data_bitrate", options.data_bitrate, "only with fd: true")
+        if options.sync is not None and not (
+            options.sync.counter == 0 or 2 <= options.sync.counter <= 240
+        ):
+            raise BadParameterError(
+                "sync.counter", options.sync.counter, "0 (no counter) or 2..240 (0x1019)"
+            )
         if options.sleep_after_open is not None and options.interface != "slcan":
             raise BadParameterError(
                 "sleep_after_open", options.sleep_after_open, "only with interface: slcan"
@@ -318,6 +339,13 @@ class CanBusKind(BusKind):
         cycle_s: float | None,
     ) -> BusLoad | None:
         assert isinstance(options, CanBusOptions)
+        if options.sync is not None and cycle_s is None:
+            raise BadParameterError(
+                "sync",
+                msgspec.to_builtins(options.sync),
+                "a timer driving the bus: a group of its axes with a timer, or a timer in "
+                "the rig's 'timers'",
+            )
         if options.bitrate is None or not devices:
             return None
         bitrate, fd, data_bitrate = options.bitrate, options.fd, options.data_bitrate
@@ -332,6 +360,9 @@ class CanBusKind(BusKind):
             )
 
         background, per_cycle, axes = _traffic(devices, cyclic, cycle_s)
+        if options.sync is not None and cycle_s is not None:  # the rig's SYNC, every cycle
+            per_cycle = [t for t in per_cycle if t.what != "SYNC"]
+            per_cycle.append(Traffic("SYNC", 1 if options.sync.counter else 0, cycle_s))
         fraction = load_of([*background, *per_cycle])
         rate = self.describe(options).rsplit(" at ", 1)[-1]
         if cycle_s is None or not per_cycle:
@@ -389,6 +420,17 @@ class CanBusKind(BusKind):
             kwargs["sleep_after_open"] = options.sleep_after_open
         return CanBus(name=name, send_timeout=options.send_timeout, **kwargs)
 
+    def bind_timer(
+        self, bus: object, options: Any, timer: EventTimer
+    ) -> AbstractAsyncContextManager[object] | None:
+        """With ``sync``: the bus's :class:`~openel_can.sync.CanSync` on ``timer`` (every
+        cyclic drive's 0x60C2 and 0x1019 written first), stopped at exit."""
+        assert isinstance(options, CanBusOptions)
+        if options.sync is None:
+            return None
+        assert isinstance(bus, CanBus)
+        return _sync_on(bus, timer, options.sync.counter)
+
     def device_arguments(
         self, bus: object, options: Any, device: SimulatedDevice
     ) -> Mapping[str, Any]:
@@ -400,11 +442,24 @@ class CanBusKind(BusKind):
     def simulate(
         self, name: str, options: Any, devices: Sequence[SimulatedDevice]
     ) -> AbstractAsyncContextManager[SimulatedBus]:
-        return _simulated(name, devices)
+        assert isinstance(options, CanBusOptions)
+        return _simulated(name, devices, options.sync)
 
 
 @asynccontextmanager
-async def _simulated(name: str, devices: Sequence[SimulatedDevice]) -> AsyncIterator[SimulatedBus]:
+async def _sync_on(bus: CanBus, timer: EventTimer, counter: int) -> AsyncIterator[CanSync]:
+    sync = CanSync.of(bus)
+    await sync.start(timer, counter_overflow=counter)
+    try:
+        yield sync
+    finally:
+        sync.stop()
+
+
+@asynccontextmanager
+async def _simulated(
+    name: str, devices: Sequence[SimulatedDevice], sync: SyncOptions | None
+) -> AsyncIterator[SimulatedBus]:
     from .sim.cia402 import SimCia402Drive
     from .sim.odrive import SimODrive
 
@@ -426,7 +481,7 @@ async def _simulated(name: str, devices: Sequence[SimulatedDevice]) -> AsyncIter
             f"CiA 402 node {n}" for n in sorted(drives)
         ]
         yield SimulatedBus(
-            CanBusOptions(interface="virtual", channel=channel),
+            CanBusOptions(interface="virtual", channel=channel, sync=sync),
             f"python-can virtual channel {channel} with simulated {', '.join(shown) or 'no node'}",
             by_name,
         )

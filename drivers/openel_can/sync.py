@@ -35,7 +35,7 @@ from typing import Final, Protocol
 
 from openel_async.errors import BadParameterError, NotConnectedError, StateError
 from openel_async.logs import get_logger
-from openel_async.timer import EventTimer
+from openel_async.timer import EventTimer, TimerState
 
 from . import canopen as co
 from .bus import CanBus, NodePort
@@ -112,6 +112,12 @@ class CanSync:
     def running(self) -> bool:
         """Tied to a timer (:meth:`start`)."""
         return self.timer is not None
+
+    @property
+    def producing(self) -> bool:
+        """SYNC goes out: tied to a timer that is running."""
+        timer = self.timer
+        return timer is not None and timer.state is TimerState.RUNNING
 
     @property
     def period_ns(self) -> int | None:

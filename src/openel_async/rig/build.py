@@ -36,6 +36,10 @@ class ResolvedBus:
     """The rig's devices on this bus."""
     load: BusLoad | None = None
     """Its computed load (:meth:`BusKind.load`), if its kind computes one."""
+    timer: str | None = None
+    """The rig's timer driving the bus (its groups', the fastest; else the rig's fastest
+    timer; None without timers): the cycle of :attr:`load` and of
+    :meth:`BusKind.bind_timer`."""
 
 
 @dataclass(frozen=True)
@@ -155,7 +159,7 @@ def resolve_rig(spec: RigSpec) -> ResolvedRig:
             resolved_bus.kind.check(resolved_bus.options, resolved_bus.devices)
         except BadParameterError as exc:
             raise _bus_error(exc, resolved_bus.spec) from None
-        cyclic, cycle_s = _cycle(spec, resolved_bus.devices)
+        cyclic, cycle_s, timer = _cycle(spec, resolved_bus.devices)
         load = resolved_bus.kind.load(resolved_bus.options, resolved_bus.devices, cyclic, cycle_s)
         if load is not None and load.fraction > 1.0:
             error = BadParameterError(
@@ -164,28 +168,30 @@ def resolve_rig(spec: RigSpec) -> ResolvedRig:
                 f"at most 100 %: {load.advice}" if load.advice else "at most 100 %",
             )
             raise _bus_error(error, resolved_bus.spec)
-        buses[name] = dataclasses.replace(resolved_bus, load=load)
+        buses[name] = dataclasses.replace(resolved_bus, load=load, timer=timer)
     return ResolvedRig(spec, classes, buses)
 
 
 def _cycle(
     spec: RigSpec, devices: Sequence[SimulatedDevice]
-) -> tuple[tuple[SimulatedDevice, ...], float | None]:
-    """The devices of a bus an axis group streams set-points to, and the period of the
-    fastest timer driving the bus: its groups' timers, else (no group on the bus) the rig's
-    fastest timer; None without timers."""
+) -> tuple[tuple[SimulatedDevice, ...], float | None, str | None]:
+    """The devices of a bus an axis group streams set-points to, and the period and name of
+    the fastest timer driving the bus: its groups' timers, else (no group on the bus) the
+    rig's fastest timer; None without timers."""
     periods = {t.name: t.period_ms / 1000 for t in spec.timers}
     names = {d.name for d in devices}
     grouped: set[str] = set()
-    cycle: float | None = None
+    timer: str | None = None
     for g in spec.groups:
         on_bus = names.intersection(g.axes)
         if on_bus and g.timer in periods:
             grouped |= on_bus
-            cycle = periods[g.timer] if cycle is None else min(cycle, periods[g.timer])
-    if cycle is None and periods:
-        cycle = min(periods.values())
-    return tuple(d for d in devices if d.name in grouped), cycle
+            if timer is None or periods[g.timer] < periods[timer]:
+                timer = g.timer
+    if timer is None and periods:
+        timer = min(periods, key=lambda t: periods[t])
+    cycle = None if timer is None else periods[timer]
+    return tuple(d for d in devices if d.name in grouped), cycle, timer
 
 
 def convert_plain(options: Mapping[str, Any], options_type: type[Any]) -> Any:

@@ -29,6 +29,7 @@ import msgspec
 
 if TYPE_CHECKING:
     from ..clock import Clock
+    from ..timer import EventTimer
 
 __all__ = ["BusKind", "BusLoad", "FaultInjection", "SimulatedBus", "SimulatedDevice"]
 
@@ -110,6 +111,17 @@ class BusKind(ABC):
         ``cycle_s``, the period of the rig's fastest timer driving them; None when no timer
         drives the bus), or None when the kind has no notion of it (a serial port's own
         exchanges, a simulation). Called by ``rig check`` after :meth:`check`."""
+        return None
+
+    def bind_timer(
+        self, bus: object, options: Any, timer: EventTimer
+    ) -> AbstractAsyncContextManager[object] | None:
+        """Tie the opened ``bus`` to ``timer``, the rig's timer driving it (the timer of
+        the groups whose axes are on it, the fastest if several, else the rig's fastest
+        timer: the cycle :meth:`load` was given). A bus that produces something on every
+        tick (a CAN bus's SYNC) returns a context manager: the rig enters it once its
+        timers exist, before its groups are made (nothing ticks yet), and exits it
+        before the timers stop. None (the default): nothing to bind."""
         return None
 
     def clock(self, bus: object) -> Clock | None:

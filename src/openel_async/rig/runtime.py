@@ -334,6 +334,13 @@ async def open_rig(
             if on_timer is not None:
                 on_timer(timer)
             await _enter(stack, timer)
+        for name, resolved_bus in resolved.buses.items():
+            if resolved_bus.timer is not None:
+                binding = resolved_bus.kind.bind_timer(
+                    opened[name], resolved_bus.options, rig.timers[resolved_bus.timer]
+                )
+                if binding is not None:  # e.g. a CAN bus's SYNC on the timer driving it
+                    await _enter(stack, binding)
         for g in rig_spec.groups:
             axes = [rig.actuator(a) for a in g.axes]
             limits = [

@@ -1,0 +1,379 @@
+"""Four CiA 402 axes in cyclic synchronous position (CSP) at the fastest cycle the bus allows:
+our stack (EventTimer + CanSync + ``Cia402Drive(mode="csp", eds=...)``) vs canopen-py doing
+the same cycle with its own PDO and SYNC API in a thread; the same simulated drives on the
+same python-can ``virtual`` channel.
+
+The cycle is the wire limit at 1 Mbit/s (``openel_can.busload``): four RPDOs (controlword +
+target position, 6 bytes), four synchronous TPDO1s (statusword + position + torque, 8 bytes)
+and the SYNC, worst-case bit stuffing, rounded up to 0.1 ms.
+
+* **Ours**: four ``Actuator(Cia402Drive(bus, n, mode="csp", eds=SHIPPED_EDS))`` (configured
+  from the EDS by SDO, ``default_pdos("csp")``), an ``EventTimer`` at the cycle,
+  ``CanSync.of(bus).start(timer)``, and a timer observer staging a new target for every
+  drive each tick (``command_nowait``, what an ``AxisGroup`` does without its planning):
+  the next tick sends the four RPDOs, then SYNC.
+* **canopen-py**: four ``RemoteNode``\\ s from the same EDS, mapped with its ``pdo``
+  tooling exactly as ours maps them, CSP selected and enabled by RPDO; a thread runs the
+  cycle on ``time.perf_counter`` deadlines (a deadline it missed by a whole period is
+  skipped, as our timer does): each axis's ``rpdo["Target position"].raw = x`` and
+  ``rpdo.transmit()``, then ``network.sync.transmit()``, and each axis's position read from
+  its TPDO1 (``tpdo["Position actual value"].raw``, decoded by canopen's notifier thread).
+
+Figures: the SYNC period jitter, |interval - cycle| between consecutive SYNC frames as a
+listener on the channel timestamps them (python-can's ``virtual`` stamps a frame when it is
+sent), p50 and p99; the host CPU per cycle, the process's CPU time minus the CPU of the
+simulated drives' thread, divided by the cycles; the cycles missed. Median of the
+interleaved rounds (ours, canopen-py, ours, ...).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import statistics
+import threading
+import time
+import uuid
+from collections.abc import Sequence
+from contextlib import AsyncExitStack
+from typing import NamedTuple
+
+import anyio
+import anyio.from_thread
+import can
+import canopen
+
+from openel_async import Actuator, EventTimer, Request
+from openel_can import CanBus, CanSync, Cia402CyclicDrive, Cia402Drive
+from openel_can import cia402 as ds
+from openel_can.busload import frame_time
+from openel_can.cyclic402 import interpolation_period
+from openel_can.od import SHIPPED_EDS
+from openel_can.sim.cia402 import SimCia402Drive
+
+from .harness import BenchResult, Row, interleaved, ratio_of
+
+NAME = "canopen_csp"
+NODES = (1, 2, 3, 4)
+BITRATE = 1_000_000
+CYCLES = 2_000
+QUICK_CYCLES = 300
+ROUNDS = 5
+QUICK_ROUNDS = 1
+WARMUP_CYCLES = 50
+TARGET_JITTER = 0.5
+"""Ours p99 SYNC jitter at most half of canopen-py's."""
+TARGET_CPU = 1.0
+CSP = int(ds.ModeOfOperation.CYCLIC_SYNC_POSITION)
+
+
+class Run(NamedTuple):
+    jitter_p50: float
+    jitter_p99: float
+    cpu: float
+    """Host CPU seconds per cycle."""
+    missed: int
+    cycles: int
+
+
+def wire_cycle_ms() -> float:
+    """The fastest cycle four CSP axes fit at :data:`BITRATE` (0.1 ms steps)."""
+    per_axis = frame_time(6, BITRATE) + frame_time(8, BITRATE)
+    seconds = len(NODES) * per_axis + frame_time(0, BITRATE)
+    return math.ceil(seconds * 1e4 - 1e-9) / 10
+
+
+def _target(cycle: int) -> float:
+    return 0.5 * math.sin(cycle * 0.005)
+
+
+class _SyncListener:
+    """A python-can thread on the channel recording the SYNC frames' timestamps."""
+
+    def __init__(self, channel: str) -> None:
+        self.bus = can.Bus(interface="virtual", channel=channel)
+        self.stamps: list[float] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="sync-listener", daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            msg = self.bus.recv(0.05)
+            if msg is not None and msg.arbitration_id == 0x080:
+                self.stamps.append(msg.timestamp)
+
+    def __enter__(self) -> _SyncListener:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(2.0)
+        self.bus.shutdown()
+
+    def jitter(self, period_s: float, skip: int) -> tuple[float, float]:
+        stamps = self.stamps[skip:]
+        deviations = sorted(abs(b - a - period_s) for a, b in itertools.pairwise(stamps))
+        if not deviations:
+            raise AssertionError("no SYNC recorded")
+        p99 = deviations[min(len(deviations) - 1, math.ceil(0.99 * len(deviations)) - 1)]
+        return statistics.median(deviations), p99
+
+
+class _Peers:
+    """The four simulated drives in their own thread and event loop (a blocking portal)."""
+
+    def __init__(self, channel: str) -> None:
+        self.channel = channel
+        self.sims = [SimCia402Drive(n) for n in NODES]
+
+    def __enter__(self) -> _Peers:
+        self._cm = anyio.from_thread.start_blocking_portal(backend="asyncio")
+        self.portal = self._cm.__enter__()
+        self._futures = [self.portal.start_task(s.serve, self.channel)[0] for s in self.sims]
+        return self
+
+    def cpu(self) -> float:
+        return self.portal.call(time.thread_time)
+
+    def __exit__(self, *exc: object) -> None:
+        for future in self._futures:
+            future.cancel()
+        self._cm.__exit__(None, None, None)
+
+
+class _Streamer:
+    """A timer observer staging a new target for every drive each tick."""
+
+    def __init__(self, drives: Sequence[Cia402CyclicDrive], cycles: int) -> None:
+        self.drives = drives
+        self.cycles = cycles
+        self.tick = 0
+        self.done = anyio.Event()
+
+    def notify_timer(self, timer: EventTimer) -> None:
+        self.tick += 1
+        x = _target(self.tick)
+        for drive in self.drives:
+            drive.command_nowait(Request.POSITION, x)
+        if self.tick >= self.cycles:
+            self.done.set()
+
+
+def ours(cycles: int, period_ms: float) -> Run:
+    channel = f"bench-csp-{uuid.uuid4().hex[:8]}"
+
+    async def main(peers: _Peers) -> Run:
+        async with (
+            CanBus(interface="virtual", channel=channel, name="bench-csp") as bus,
+            AsyncExitStack() as stack,
+        ):
+            axes = [
+                await stack.enter_async_context(
+                    Actuator(Cia402Drive(bus, n, mode="csp", eds=SHIPPED_EDS))
+                )
+                for n in NODES
+            ]
+            drives = [a.device for a in axes]
+            assert all(isinstance(d, Cia402CyclicDrive) for d in drives)
+            timer = await stack.enter_async_context(EventTimer(period_ms, name="bench"))
+            sync = CanSync.of(bus)
+            await sync.start(timer)
+            stack.callback(sync.stop)
+            streamer = _Streamer(drives, cycles + WARMUP_CYCLES)  # type: ignore[arg-type]
+            timer.add_observer(streamer)
+            with _SyncListener(channel) as listener:
+                timer.start_timer()
+                with anyio.fail_after(60):
+                    while streamer.tick < WARMUP_CYCLES:  # noqa: ASYNC110
+                        await anyio.sleep(0.01)
+                cpu0, peer0, missed0 = time.process_time(), peers.cpu(), sync.stats.missed
+                with anyio.fail_after(60):
+                    await streamer.done.wait()
+                cpu, peer = time.process_time() - cpu0, peers.cpu() - peer0
+                missed = sync.stats.missed - missed0
+                timer.stop_timer()
+            p50, p99 = listener.jitter(period_ms / 1000, WARMUP_CYCLES)
+            for axis in axes:
+                if axis.state.value != "Active":
+                    raise AssertionError(f"ours: {axis.device_name} left Active")
+        return Run(p50, p99, (cpu - peer) / cycles, missed, cycles)
+
+    with _Peers(channel) as peers:
+        return anyio.run(main, peers, backend="asyncio")
+
+
+def _configure(network: canopen.Network, node: canopen.RemoteNode, period_ms: float) -> None:
+    """In PRE-OPERATIONAL with canopen's SDO and pdo tooling, as ours maps them."""
+    node.nmt.state = "PRE-OPERATIONAL"
+    node.tpdo.read()
+    node.rpdo.read()
+    rpdo, tpdo1, tpdo2 = node.rpdo[1], node.tpdo[1], node.tpdo[2]
+    rpdo.clear()
+    rpdo.add_variable("Controlword")
+    rpdo.add_variable("Target position")
+    rpdo.trans_type = 1
+    rpdo.enabled = True
+    tpdo1.clear()
+    for name in ("Statusword", "Position actual value", "Torque actual value"):
+        tpdo1.add_variable(name)
+    tpdo1.trans_type = 1
+    tpdo1.enabled = True
+    tpdo2.clear()
+    tpdo2.add_variable("Statusword")
+    tpdo2.add_variable("Modes of operation display")
+    tpdo2.trans_type = 0xFF
+    tpdo2.event_timer = 0
+    tpdo2.enabled = True
+    for n in (2, 3, 4):
+        node.rpdo[n].enabled = False
+    for n in (3, 4):
+        node.tpdo[n].enabled = False
+    node.rpdo.save()
+    node.tpdo.save()
+    value, index = interpolation_period(round(period_ms * 1e6))
+    node.sdo["Interpolation time period"]["Interpolation time period value"].raw = value
+    node.sdo["Interpolation time period"]["Interpolation time index"].raw = index
+    actual = node.sdo["Position actual value"].raw
+    node.sdo["Target position"].raw = actual
+    node.sdo["Modes of operation"].raw = CSP
+    if node.sdo["Modes of operation display"].raw != CSP:
+        raise AssertionError("canopen: CSP not selected")
+
+
+def _enable(node: canopen.RemoteNode) -> None:
+    rpdo, tpdo2 = node.rpdo[1], node.tpdo[2]
+    for word, mask, value in ((0x06, 0x6F, 0x21), (0x07, 0x6F, 0x23), (0x0F, 0x6F, 0x27)):
+        with tpdo2.receive_condition:
+            rpdo["Controlword"].raw = word
+            rpdo.transmit()
+            if not tpdo2.receive_condition.wait_for(
+                lambda m=mask, v=value: tpdo2["Statusword"].raw & m == v, 1.0
+            ):
+                raise AssertionError(f"canopen: no statusword after controlword {word:#x}")
+
+
+def peer(cycles: int, period_ms: float) -> Run:
+    channel = f"bench-csp-{uuid.uuid4().hex[:8]}"
+    with _Peers(channel) as peers:
+        network = canopen.Network()
+        network.connect(interface="virtual", channel=channel)
+        try:
+            nodes = []
+            for n in NODES:
+                node = canopen.RemoteNode(n, str(SHIPPED_EDS))
+                network.add_node(node)
+                node.sdo.RESPONSE_TIMEOUT = 1.0
+                nodes.append(node)
+            for node in nodes:
+                _configure(network, node, period_ms)
+            for node in nodes:
+                node.nmt.state = "OPERATIONAL"
+            time.sleep(0.05)
+            for node in nodes:
+                _enable(node)
+            rpdos = [node.rpdo[1] for node in nodes]
+            targets = [rpdo["Target position"] for rpdo in rpdos]
+            positions = [node.tpdo[1]["Position actual value"] for node in nodes]
+            for rpdo in rpdos:
+                rpdo["Controlword"].raw = 0x0F
+            counts_per_rad = 10_000 / math.tau
+            period = period_ms / 1000
+            total = cycles + WARMUP_CYCLES
+            missed = 0
+            with _SyncListener(channel) as listener:
+                cpu0 = peer0 = 0.0
+                deadline = time.perf_counter()
+                tick = 0
+                while tick < total:
+                    deadline += period
+                    now = time.perf_counter()
+                    if now - deadline >= period:  # skip the whole periods missed
+                        skipped = int((now - deadline) // period)
+                        deadline += skipped * period
+                        if tick >= WARMUP_CYCLES:
+                            missed += skipped
+                    delay = deadline - time.perf_counter()
+                    if delay > 0:
+                        time.sleep(delay)
+                    tick += 1
+                    counts = round(_target(tick) * counts_per_rad)
+                    for target, rpdo in zip(targets, rpdos, strict=True):
+                        target.raw = counts
+                        rpdo.transmit()
+                    network.sync.transmit()
+                    for position in positions:
+                        _ = position.raw
+                    if tick == WARMUP_CYCLES:
+                        cpu0, peer0 = time.process_time(), peers.cpu()
+                cpu, peer_cpu = time.process_time() - cpu0, peers.cpu() - peer0
+                time.sleep(0.05)
+            p50, p99 = listener.jitter(period, WARMUP_CYCLES)
+        finally:
+            network.disconnect()
+    return Run(p50, p99, (cpu - peer_cpu) / cycles, missed, cycles)
+
+
+def run(quick: bool) -> BenchResult:
+    cycles = QUICK_CYCLES if quick else CYCLES
+    rounds = QUICK_ROUNDS if quick else ROUNDS
+    period_ms = wire_cycle_ms()
+    measured = interleaved(
+        rounds, {"ours": lambda: ours(cycles, period_ms), "peer": lambda: peer(cycles, period_ms)}
+    )
+    mine, theirs = measured["ours"], measured["peer"]
+
+    def median(runs: list[Run], field: str) -> float:
+        return float(statistics.median(getattr(r, field) for r in runs))
+
+    def row(metric: str, field: str, target: float | None, scale: float = 1e6) -> Row:
+        a, b = median(mine, field), median(theirs, field)
+        ratio = ratio_of(a, b)
+        return Row(
+            metric,
+            a * scale,
+            "µs",
+            baseline=b * scale,
+            baseline_label="canopen-py",
+            ratio=ratio,
+            ratio_label="ours/canopen-py",
+            target="" if target is None else f"<= {target:g}x canopen-py",
+            passed=None if target is None else ratio <= target,
+            digits=0,
+        )
+
+    rows = (
+        row("SYNC period jitter p50", "jitter_p50", None),
+        row("SYNC period jitter p99", "jitter_p99", TARGET_JITTER),
+        row("host CPU per cycle (4 RPDO + SYNC + 4 TPDO)", "cpu", TARGET_CPU),
+    )
+
+    def each(runs: list[Run]) -> str:
+        return "; ".join(
+            f"p99 {r.jitter_p99 * 1e6:.0f} µs, CPU {r.cpu * 1e6:.0f} µs, missed {r.missed}"
+            for r in runs
+        )
+
+    notes = (
+        f"Cycle {period_ms:g} ms: the wire limit of four CSP axes at 1 Mbit/s (worst case); "
+        f"{rounds} interleaved round(s) of {cycles:,} cycles after {WARMUP_CYCLES} warm-up "
+        f"cycles. Ours: {each(mine)}. canopen-py: {each(theirs)}.",
+        "Host CPU: the process's CPU time minus the simulated drives' thread, per cycle "
+        "(ours: the event loop, reading the `virtual` bus in the loop; canopen-py: its cycle "
+        "thread and its notifier thread). The drives share the machine's cores and the GIL.",
+    )
+    return BenchResult(
+        name=NAME,
+        title="Four CiA 402 axes in CSP at the wire limit: openel_can vs canopen-py",
+        rows=rows,
+        description=__doc__ or "",
+        notes=notes,
+        params={
+            "axes": str(len(NODES)),
+            "cycle": f"{period_ms:g} ms",
+            "cycles": f"{cycles:,}",
+            "interface": "virtual",
+            "canopen": canopen.__version__,
+            "python-can": can.__version__,
+        },
+    )
