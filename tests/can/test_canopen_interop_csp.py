@@ -1,5 +1,6 @@
 """Cyclic synchronous position against canopen-py, an independent CANopen implementation,
-on python-can ``virtual``:
+on python-can ``virtual`` and through python-can's ``slcan`` interface on a pty (our
+simulated slcan adapter, :class:`~openel_can.sim.slcan.SlcanAdapter`):
 
 (a) OUR master -- ``Cia402Drive(mode="csp", eds=...)`` with its configure/verify sequence,
     NMT, power state machine, CanSync on an EventTimer and a set-point per SYNC -- drives
@@ -33,6 +34,7 @@ from openel_can import canopen as co
 from openel_can import cia402 as ds
 from openel_can.od import SHIPPED_EDS
 from openel_can.sim.cia402 import SimCia402Drive
+from openel_can.sim.slcan import SlcanAdapter
 
 from .conftest import Peers, wait_until
 
@@ -150,6 +152,30 @@ class _CspDevice:
 async def test_our_master_drives_a_canopen_local_node_in_csp(
     network: canopen.Network, host_bus: CanBus
 ) -> None:
+    await _our_master_csp(network, host_bus)
+
+
+async def test_our_master_through_slcan_drives_a_canopen_local_node_in_csp() -> None:
+    with SlcanAdapter() as adapter:
+        net = canopen.Network()
+        net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
+        net.connect(interface="virtual", channel=adapter.channel, receive_own_messages=False)
+        try:
+            async with CanBus(
+                interface="slcan",
+                channel=adapter.port,
+                bitrate=1_000_000,
+                sleep_after_open=0,
+                poll_interval=0.01,
+                name="host-slcan",
+            ) as bus:
+                await _our_master_csp(net, bus)
+        finally:
+            net.disconnect()
+    assert adapter.stats.errors == 0
+
+
+async def _our_master_csp(network: canopen.Network, host_bus: CanBus) -> None:
     local = canopen.LocalNode(NODE, str(SHIPPED_EDS))
     network.add_node(local)
     device = _CspDevice(local, network)
@@ -258,6 +284,27 @@ async def test_canopen_master_runs_our_simulated_drive_in_csp(
     remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))
     network.add_node(remote)
     out = await _in_thread(lambda: _master_csp(network, remote))
+    _check_csp(out, sim)
+
+
+async def test_canopen_master_through_slcan_runs_our_simulated_drive_in_csp() -> None:
+    sim = SimCia402Drive(NODE, heartbeat_ms=0)
+    with SlcanAdapter(peers=[sim]) as adapter:
+        net = canopen.Network()
+        net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
+        net.connect(interface="slcan", channel=adapter.port, bitrate=1_000_000, sleep_after_open=0)
+        try:
+            remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))
+            net.add_node(remote)
+            out = await _in_thread(lambda: _master_csp(net, remote), limit=20)
+        finally:
+            net.sync.stop()
+            net.disconnect()
+    _check_csp(out, sim)
+    assert adapter.stats.errors == 0
+
+
+def _check_csp(out: dict[str, Any], sim: SimCia402Drive) -> None:
     assert out["display"] == CSP and out["position"] == 2000
     assert sim.mode == CSP and sim.power_state is PS.OPERATION_ENABLED
     assert sim.interpolation_period_ns() == 5_000_000
