@@ -21,7 +21,7 @@ from typing import Any, Final, Literal
 import anyio
 
 from . import feetech as ft
-from .errors import DynamixelTimeoutError, FeetechTimeoutError, PortDisconnectedError
+from .errors import PortDisconnectedError, ServoTimeoutError
 from .link import SerialLink
 from .nmea import NmeaParser, Sentence
 from .rigbus import FEETECH_MODELS, SERVO_MODELS
@@ -143,53 +143,35 @@ async def scan_servos(
     from .feetech_port import FeetechPort
     from .port import DynamixelPort
 
+    port_class = DynamixelPort if protocol == "dynamixel" else FeetechPort
     wanted = tuple(ids)
     found: list[FoundServo] = []
     for baudrate in baudrates:
-        common: dict[str, Any] = {
-            "baudrate": baudrate,
-            "timeout_margin": timeout_margin,
-            "retries": 0,
-            "serial_options": serial_options,
-        }
-        if protocol == "dynamixel":
-            async with DynamixelPort(url, **common) as port:
-                for servo_id in wanted:
-                    try:
-                        info = await port.ping(servo_id)
-                    except DynamixelTimeoutError:
-                        continue
-                    found.append(
-                        FoundServo(
-                            protocol,
-                            baudrate,
-                            servo_id,
-                            info.model_number,
-                            MODEL_NAMES.get((protocol, info.model_number)),
-                            _device_for(protocol, info.model_number),
-                            info.firmware_version,
-                            info.error,
-                        )
+        async with port_class(
+            url,
+            baudrate=baudrate,
+            timeout_margin=timeout_margin,
+            retries=0,
+            serial_options=serial_options,
+        ) as port:
+            for servo_id in wanted:
+                try:
+                    info = await port.ping(servo_id)
+                except ServoTimeoutError:
+                    continue
+                model = info.model_number
+                found.append(
+                    FoundServo(
+                        protocol,
+                        baudrate,
+                        servo_id,
+                        model,
+                        MODEL_NAMES.get((protocol, model)),
+                        _device_for(protocol, model),
+                        getattr(info, "firmware_version", None),  # Dynamixel's PING has it
+                        info.error,
                     )
-        else:
-            async with FeetechPort(url, **common) as feetech:
-                for servo_id in wanted:
-                    try:
-                        answer = await feetech.ping(servo_id)
-                    except FeetechTimeoutError:
-                        continue
-                    found.append(
-                        FoundServo(
-                            protocol,
-                            baudrate,
-                            servo_id,
-                            answer.model_number,
-                            MODEL_NAMES.get((protocol, answer.model_number)),
-                            _device_for(protocol, answer.model_number),
-                            None,
-                            answer.error,
-                        )
-                    )
+                )
     return found
 
 

@@ -36,7 +36,7 @@ from openel_can.od import SHIPPED_EDS
 from openel_can.sim.cia402 import SimCia402Drive
 from openel_can.sim.slcan import SlcanAdapter
 
-from .conftest import Peers, wait_until
+from .conftest import Peers, canopen_network, slcan_host_bus, wait_until
 
 T = TypeVar("T")
 NODE = 6
@@ -52,14 +52,8 @@ async def _in_thread(fn: Callable[[], T], limit: float = 10) -> T:
 
 @pytest.fixture
 def network(channel: str) -> Iterator[canopen.Network]:
-    net = canopen.Network()
-    net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
-    net.connect(interface="virtual", channel=channel, receive_own_messages=False)
-    try:
+    with canopen_network(interface="virtual", channel=channel, receive_own_messages=False) as net:
         yield net
-    finally:
-        net.sync.stop()
-        net.disconnect()
 
 
 # -- (a) our master, canopen's LocalNode as a CSP drive ---------------------------------------
@@ -156,22 +150,14 @@ async def test_our_master_drives_a_canopen_local_node_in_csp(
 
 
 async def test_our_master_through_slcan_drives_a_canopen_local_node_in_csp() -> None:
-    with SlcanAdapter() as adapter:
-        net = canopen.Network()
-        net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
-        net.connect(interface="virtual", channel=adapter.channel, receive_own_messages=False)
-        try:
-            async with CanBus(
-                interface="slcan",
-                channel=adapter.port,
-                bitrate=1_000_000,
-                sleep_after_open=0,
-                poll_interval=0.01,
-                name="host-slcan",
-            ) as bus:
-                await _our_master_csp(net, bus)
-        finally:
-            net.disconnect()
+    with (
+        SlcanAdapter() as adapter,
+        canopen_network(
+            interface="virtual", channel=adapter.channel, receive_own_messages=False
+        ) as net,
+    ):
+        async with slcan_host_bus(adapter.port) as bus:
+            await _our_master_csp(net, bus)
     assert adapter.stats.errors == 0
 
 
@@ -289,17 +275,15 @@ async def test_canopen_master_runs_our_simulated_drive_in_csp(
 
 async def test_canopen_master_through_slcan_runs_our_simulated_drive_in_csp() -> None:
     sim = SimCia402Drive(NODE, heartbeat_ms=0)
-    with SlcanAdapter(peers=[sim]) as adapter:
-        net = canopen.Network()
-        net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
-        net.connect(interface="slcan", channel=adapter.port, bitrate=1_000_000, sleep_after_open=0)
-        try:
-            remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))
-            net.add_node(remote)
-            out = await _in_thread(lambda: _master_csp(net, remote), limit=20)
-        finally:
-            net.sync.stop()
-            net.disconnect()
+    with (
+        SlcanAdapter(peers=[sim]) as adapter,
+        canopen_network(
+            interface="slcan", channel=adapter.port, bitrate=1_000_000, sleep_after_open=0
+        ) as net,
+    ):
+        remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))
+        net.add_node(remote)
+        out = await _in_thread(lambda: _master_csp(net, remote), limit=20)
     _check_csp(out, sim)
     assert adapter.stats.errors == 0
 

@@ -39,7 +39,7 @@ from openel_can.pdomap import configure_pdos, default_pdos
 from openel_can.sim.cia402 import SimCia402Drive
 from openel_can.sim.slcan import SlcanAdapter
 
-from .conftest import Peers
+from .conftest import Peers, canopen_network, slcan_host_bus
 
 T = TypeVar("T")
 NODE = 5
@@ -53,14 +53,8 @@ async def _in_thread(fn: Callable[[], T], limit: float = 10) -> T:
 
 @pytest.fixture
 def network(channel: str) -> Iterator[canopen.Network]:
-    net = canopen.Network()
-    net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
-    net.connect(interface="virtual", channel=channel, receive_own_messages=False)
-    try:
+    with canopen_network(interface="virtual", channel=channel, receive_own_messages=False) as net:
         yield net
-    finally:
-        net.sync.stop()
-        net.disconnect()
 
 
 # -- (a) our master, canopen's LocalNode ------------------------------------------------------
@@ -105,22 +99,14 @@ async def test_our_master_maps_and_starts_a_canopen_local_node(
 
 
 async def test_our_master_through_slcan_maps_and_starts_a_canopen_local_node() -> None:
-    with SlcanAdapter() as adapter:
-        net = canopen.Network()
-        net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
-        net.connect(interface="virtual", channel=adapter.channel, receive_own_messages=False)
-        try:
-            async with CanBus(
-                interface="slcan",
-                channel=adapter.port,
-                bitrate=1_000_000,
-                sleep_after_open=0,
-                poll_interval=0.01,
-                name="host-slcan",
-            ) as bus:
-                await _our_master(net, bus)
-        finally:
-            net.disconnect()
+    with (
+        SlcanAdapter() as adapter,
+        canopen_network(
+            interface="virtual", channel=adapter.channel, receive_own_messages=False
+        ) as net,
+    ):
+        async with slcan_host_bus(adapter.port) as bus:
+            await _our_master(net, bus)
     assert adapter.stats.errors == 0
 
 
@@ -294,15 +280,11 @@ async def test_canopen_master_runs_our_simulated_drive(
 async def test_canopen_master_through_slcan_runs_our_simulated_drive() -> None:
     sim = SimCia402Drive(NODE, heartbeat_ms=0)
     with SlcanAdapter(peers=[sim]) as adapter:
-        net = canopen.Network()
-        net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
-        net.connect(interface="slcan", channel=adapter.port, bitrate=1_000_000, sleep_after_open=0)
-        try:
+        with canopen_network(
+            interface="slcan", channel=adapter.port, bitrate=1_000_000, sleep_after_open=0
+        ) as net:
             remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))
             net.add_node(remote)
             out = await _in_thread(lambda: _master_profile_position(net, remote), limit=20)
-        finally:
-            net.sync.stop()
-            net.disconnect()
         _check(out, sim)
     assert adapter.stats.errors == 0

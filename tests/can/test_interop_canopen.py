@@ -29,7 +29,7 @@ from openel_can import CanBus, Cia402Drive, SdoAbortError, SdoClient
 from openel_can import canopen as co
 from openel_can.sim.cia402 import ENERGY_LIMIT, OPERATING_TIME, SimCia402Drive
 
-from .conftest import Components, Peers
+from .conftest import Components, Peers, canopen_network
 
 T = TypeVar("T")
 NODE = 5
@@ -46,13 +46,8 @@ def _var(name: str, index: int, data_type: int, default: Any) -> cod.ODVariable:
 
 @pytest.fixture
 def network(channel: str) -> Iterator[canopen.Network]:
-    net = canopen.Network()
-    net.NOTIFIER_CYCLE = 0.05  # its receive timeout, which disconnect() waits out
-    net.connect(interface="virtual", channel=channel, receive_own_messages=False)
-    try:
+    with canopen_network(interface="virtual", channel=channel, receive_own_messages=False) as net:
         yield net
-    finally:
-        net.disconnect()
 
 
 @pytest.fixture
