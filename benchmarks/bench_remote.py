@@ -82,6 +82,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -199,7 +200,7 @@ def _raw(port: int, keys: int = 0) -> None:
 
     def on_query(query: zenoh.Query) -> None:
         with query:
-            query.reply("raw/q", b"\x00" * 8)
+            query.reply(query.key_expr, b"\x00" * 8)
             payload = query.payload.to_bytes() if query.payload else b""
         if payload.startswith(b"burst"):
             for _ in range(int(payload[5:])):
@@ -263,14 +264,23 @@ def spawn(kind: str, port: int, *args: str, module: str = "benchmarks.bench_remo
 
 def stop(proc: Popen) -> None:
     """Close ``proc``'s stdin (its signal to stop); kill it if it is not gone in 10 s."""
-    assert proc.stdin is not None
-    with contextlib.suppress(OSError):  # a broken pipe: the process is already gone
-        proc.stdin.close()
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(5)
+    stop_all([proc])
+
+
+def stop_all(procs: Sequence[Popen], timeout: float = 10.0) -> None:
+    """:func:`stop` every process at once: close every stdin, then kill those still
+    running ``timeout`` seconds later."""
+    for proc in procs:
+        if proc.stdin is not None:
+            with contextlib.suppress(OSError):  # a broken pipe: the process is gone
+                proc.stdin.close()
+    deadline = time.monotonic() + timeout
+    for proc in procs:
+        try:
+            proc.wait(max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
 
 
 # -- raw Zenoh baseline ------------------------------------------------------------------
