@@ -74,12 +74,15 @@ What changed in this pass (issue 12, the last missed target; before it: 320 us p
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import os
+import queue
 import subprocess
 import sys
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -98,8 +101,11 @@ TARGET_RT_RATIO = 1.5
 ROUNDS = 10
 TARGET_EVENT_RATE = 20_000.0
 
+Popen = subprocess.Popen[str]
 
-def _free_port() -> int:
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 (for a server process to listen on)."""
     import socket
 
     with socket.socket() as s:
@@ -108,13 +114,16 @@ def _free_port() -> int:
         return port
 
 
-def _pct(samples: list[float], q: float) -> float:
+def pct(samples: list[float], q: float) -> float:
+    """The ``q`` quantile (0..1) of ``samples`` (nearest rank)."""
     ordered = sorted(samples)
     return ordered[min(len(ordered) - 1, int(q * len(ordered)))]
 
 
 # -- the server processes ----------------------------------------------------------------
-def _serve(port: int) -> None:
+def _serve(port: int, motors: int = 1, burst: bool = True) -> None:
+    """Serve ``motors`` SimMotors (logical ids 0..motors-1) and, with ``burst``, the
+    burst device after them; print ``ready``, run until stdin closes."""
     from openel_async import (
         Actuator,
         ActuatorDevice,
@@ -156,15 +165,18 @@ def _serve(port: int) -> None:
 
     async def main() -> None:
         session = await open_session(server_config([endpoint(port)]))
-        motor = SimMotor(max_velocity=1e6, max_acceleration=1e9, position_limits=(-1e9, 1e9))
-        burst = Burst()
-        burst.limits = type(burst.limits)((-1e9, 1e9))
-        async with (
-            Actuator(motor) as axis,
-            Actuator(burst) as source,
-            Surface([axis, source]) as surface,
-            SurfaceServer(surface, session, NAMESPACE),
-        ):
+        devices: list[ActuatorDevice] = [
+            SimMotor(max_velocity=1e6, max_acceleration=1e9, position_limits=(-1e9, 1e9))
+            for _ in range(motors)
+        ]
+        if burst:
+            source = Burst()
+            source.limits = type(source.limits)((-1e9, 1e9))
+            devices.append(source)
+        async with contextlib.AsyncExitStack() as stack:
+            axes = [await stack.enter_async_context(Actuator(device)) for device in devices]
+            surface = await stack.enter_async_context(Surface(axes))
+            await stack.enter_async_context(SurfaceServer(surface, session, NAMESPACE))
             print("ready", flush=True)
             await anyio.to_thread.run_sync(sys.stdin.read)  # until the parent closes stdin
 
@@ -173,7 +185,9 @@ def _serve(port: int) -> None:
     anyio.run(main, backend="asyncio", backend_options={"loop_factory": GatedEventLoop})
 
 
-def _raw(port: int) -> None:
+def _raw(port: int, keys: int = 0) -> None:
+    """Raw Zenoh peer: a queryable ``raw/q`` (and ``keys`` more, ``raw/d/0``...) replying
+    8 bytes on Zenoh's thread; print ``ready``, run until stdin closes."""
     import zenoh
 
     from openel_zenoh.config import endpoint, server_config
@@ -186,7 +200,7 @@ def _raw(port: int) -> None:
 
     def on_query(query: zenoh.Query) -> None:
         with query:
-            query.reply("raw/q", b"\x00" * 8)
+            query.reply(query.key_expr, b"\x00" * 8)
             payload = query.payload.to_bytes() if query.payload else b""
         if payload.startswith(b"burst"):
             for _ in range(int(payload[5:])):
@@ -194,40 +208,79 @@ def _raw(port: int) -> None:
         elif payload == b"done":
             done.put(b"d")
 
-    queryable = session.declare_queryable(
-        "raw/q", zenoh.handlers.Callback(on_query, indirect=False)
-    )
+    queryables = [
+        session.declare_queryable(key, zenoh.handlers.Callback(on_query, indirect=False))
+        for key in ["raw/q", *(f"raw/d/{i}" for i in range(keys))]
+    ]
     print("ready", flush=True)
     sys.stdin.read()
-    queryable.undeclare()
+    for queryable in queryables:
+        queryable.undeclare()
     session.close()
 
 
-def _spawn(kind: str, port: int) -> subprocess.Popen[str]:
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "benchmarks.bench_remote", kind, str(port)],
+def start(kind: str, port: int, *args: str, module: str = "benchmarks.bench_remote") -> Popen:
+    """Start ``python -m module kind port *args`` with stdin and stdout as pipes (close
+    stdin to stop it: :func:`stop`); :func:`wait_ready` waits for its ``ready`` line."""
+    return subprocess.Popen(
+        [sys.executable, "-m", module, kind, str(port), *args],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"}, cwd=Path(__file__).resolve().parent.parent,
     )  # fmt: skip
+
+
+def read_line(proc: Popen, timeout: float) -> str | None:
+    """The next line of ``proc``'s stdout ("" at its end), None if none came within
+    ``timeout`` seconds (the reading thread then ends with the process)."""
     assert proc.stdout is not None
-    deadline = time.monotonic() + 30
+    stdout = proc.stdout
+    lines: queue.Queue[str] = queue.Queue(1)
+    threading.Thread(target=lambda: lines.put(stdout.readline()), daemon=True).start()
+    try:
+        return lines.get(timeout=max(0.0, timeout))
+    except queue.Empty:
+        return None
+
+
+def wait_ready(proc: Popen, kind: str, timeout: float = 30.0) -> None:
+    """Wait at most ``timeout`` seconds for ``proc``'s ``ready`` line; kill it otherwise."""
+    deadline = time.monotonic() + timeout
     while True:
-        line = proc.stdout.readline()
-        if line.strip() == "ready":
-            return proc
-        if not line or time.monotonic() > deadline:
+        line = read_line(proc, deadline - time.monotonic())
+        if line is not None and line.strip() == "ready":
+            return
+        if not line:  # None: timed out; "": the process ended
             proc.kill()
+            proc.wait(5)
             raise RuntimeError(f"the {kind} process did not start: {line!r}")
 
 
-def _stop(proc: subprocess.Popen[str]) -> None:
-    assert proc.stdin is not None
-    proc.stdin.close()
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(5)
+def spawn(kind: str, port: int, *args: str, module: str = "benchmarks.bench_remote") -> Popen:
+    """:func:`start` the process and :func:`wait_ready` for it (30 s at most)."""
+    proc = start(kind, port, *args, module=module)
+    wait_ready(proc, kind)
+    return proc
+
+
+def stop(proc: Popen) -> None:
+    """Close ``proc``'s stdin (its signal to stop); kill it if it is not gone in 10 s."""
+    stop_all([proc])
+
+
+def stop_all(procs: Sequence[Popen], timeout: float = 10.0) -> None:
+    """:func:`stop` every process at once: close every stdin, then kill those still
+    running ``timeout`` seconds later."""
+    for proc in procs:
+        if proc.stdin is not None:
+            with contextlib.suppress(OSError):  # a broken pipe: the process is gone
+                proc.stdin.close()
+    deadline = time.monotonic() + timeout
+    for proc in procs:
+        try:
+            proc.wait(max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
 
 
 # -- raw Zenoh baseline ------------------------------------------------------------------
@@ -295,7 +348,7 @@ def _raw_figures(port: int, calls: int, events: int) -> dict[str, float]:
         rate = count[0] / (time.perf_counter() - t0)
         sub.undeclare()
         return {
-            "completion_p50": _pct(completion, 0.5), "rate": rate, "lost": float(events - count[0]),
+            "completion_p50": pct(completion, 0.5), "rate": rate, "lost": float(events - count[0]),
         }  # fmt: skip
     finally:
         session.close()
@@ -405,7 +458,7 @@ async def _our_figures(port: int, calls: int, events: int) -> dict[str, float]:
                         t0 = time.perf_counter()
                         await remote.execute(message, encoding=encoding)  # type: ignore[arg-type]
                         samples.append(time.perf_counter() - t0)
-                    formats[encoding] = _pct(samples, 0.5)
+                    formats[encoding] = pct(samples, 0.5)
             app = ApplicationQueue(maxsize=events + 16)
             await remote.subscribe("Motor", "EVENT_5", app)
             t0 = time.perf_counter()
@@ -423,7 +476,7 @@ async def _our_figures(port: int, calls: int, events: int) -> dict[str, float]:
                     missed += notice.missed
             rate = (received + missed) / (time.perf_counter() - t0)
             return {
-                "completion_p50": _pct(completion, 0.5), "completion_p99": _pct(completion, 0.99),
+                "completion_p50": pct(completion, 0.5), "completion_p99": pct(completion, 0.99),
                 "rate": rate, "received": float(received), "missed": float(missed),
                 "xml_p50": formats["xml"], "compact_p50": formats["compact"],
             }  # fmt: skip
@@ -434,25 +487,25 @@ async def _our_figures(port: int, calls: int, events: int) -> dict[str, float]:
 def run(quick: bool) -> BenchResult:
     calls = QUICK_CALLS if quick else CALLS
     events = QUICK_EVENTS if quick else EVENTS
-    raw_port, our_port = _free_port(), _free_port()
-    raw_proc = _spawn("raw", raw_port)
+    raw_port, our_port = free_port(), free_port()
+    raw_proc = spawn("raw", raw_port)
     try:
-        server = _spawn("serve", our_port)
+        server = spawn("serve", our_port)
         try:
             rtt = anyio.run(_round_trips, raw_port, our_port, calls, backend="asyncio")
             ours = anyio.run(_our_figures, our_port, calls, events, backend="asyncio")
         finally:
-            _stop(server)
+            stop(server)
         raw = _raw_figures(raw_port, calls, events)
     finally:
-        _stop(raw_proc)
+        stop(raw_proc)
     ours.update(
-        rtt_p50=_pct(rtt["ours"], 0.5), rtt_p99=_pct(rtt["ours"], 0.99),
-        sleeping_p50=_pct(rtt["ours_sleeping"], 0.5),
+        rtt_p50=pct(rtt["ours"], 0.5), rtt_p99=pct(rtt["ours"], 0.99),
+        sleeping_p50=pct(rtt["ours_sleeping"], 0.5),
     )  # fmt: skip
     raw.update(
-        rtt_p50=_pct(rtt["raw"], 0.5), rtt_p99=_pct(rtt["raw"], 0.99),
-        async_p50=_pct(rtt["raw_async"], 0.5),
+        rtt_p50=pct(rtt["raw"], 0.5), rtt_p99=pct(rtt["raw"], 0.99),
+        async_p50=pct(rtt["raw_async"], 0.5),
     )  # fmt: skip
     us = 1e6
     rt_ratio = ratio_of(ours["rtt_p50"], raw["rtt_p50"])
@@ -498,11 +551,16 @@ def run(quick: bool) -> BenchResult:
 
 
 if __name__ == "__main__":
-    role, port_text = sys.argv[1], sys.argv[2]
+    # serve PORT [MOTORS [noburst]] | raw PORT [KEYS]
+    role, port_text, extra = sys.argv[1], sys.argv[2], sys.argv[3:]
     if role == "serve":
-        _serve(int(port_text))
+        _serve(
+            int(port_text),
+            motors=int(extra[0]) if extra else 1,
+            burst=extra[1:2] != ["noburst"],
+        )
     elif role == "raw":
-        _raw(int(port_text))
+        _raw(int(port_text), keys=int(extra[0]) if extra else 0)
     else:
         print(json.dumps({"error": f"unknown role {role}"}))
         sys.exit(2)
