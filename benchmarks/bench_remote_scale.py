@@ -58,7 +58,6 @@ START_TIMEOUT = 120.0
 """Seconds for all 22 processes to start (20 Python interpreters on a loaded 2-core box)."""
 ROUND_SLACK = 30.0
 """Seconds a round's report may come after the round's end."""
-TARGET_P99_RATIO = 3.0
 TARGET_RSS_GROWTH = 0.10
 
 
@@ -346,7 +345,7 @@ def run(quick: bool) -> BenchResult:
         Row("per-call latency p50", _median(ours.p50), "us", _median(raw.p50), "raw Zenoh query p50",
             _median([ratio_of(o, r) for o, r in zip(ours.p50, raw.p50, strict=True)]), "ours/raw"),
         Row("per-call latency p99", _median(ours.p99), "us", _median(raw.p99), "raw Zenoh query p99",
-            p99_ratio, "ours/raw", f"<= {TARGET_P99_RATIO:g}x raw", p99_ratio <= TARGET_P99_RATIO),
+            p99_ratio, "ours/raw"),
         Row("set_value latency p50", _median(ours.set_p50), "us", _median(raw.set_p50),
             "raw Zenoh query p50", ratio_of(_median(ours.set_p50), _median(raw.set_p50)), "ours/raw"),
         Row("calls answered", ours.calls / ours.seconds, "calls/s", raw.calls / raw.seconds,
