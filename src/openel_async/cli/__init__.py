@@ -307,8 +307,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _main(argv: Sequence[str] | None) -> int:
     parser = _build_parser()
     args = parser.parse_args(argv)
-    # Commands that run no application code configure structlog when it is first used.
-    configure_logging(args.log_format, log_level(args), defer=args.command in QUIET_START)
+    # Commands that run no application code, and a run that only asks an app for its help,
+    # configure structlog when it is first used.
+    only_help = args.command == "run" and bool({"-h", "--help"} & set(args.app_args))
+    defer = args.command in QUIET_START or only_help
+    configure_logging(args.log_format, log_level(args), defer=defer)
     contributed = getattr(args, "contributed", None)
     if contributed is not None:
         code: int = contributed.run(args)
