@@ -43,6 +43,7 @@ __all__ = [
     "BusStats",
     "BusStatus",
     "PolledBusPort",
+    "RegisterItem",
 ]
 
 log = get_logger(__name__)
@@ -62,6 +63,18 @@ class BusStatus(Protocol):
 
     @property
     def params(self) -> bytes: ...
+
+
+class RegisterItem(Protocol):
+    """A control-table item of any protocol: ``size`` bytes at ``address``."""
+
+    @property
+    def address(self) -> int: ...
+
+    @property
+    def size(self) -> int: ...
+
+    def encode(self, value: int) -> bytes: ...
 
 
 class BusParser(Protocol):
@@ -453,6 +466,12 @@ class PolledBusPort(Generic[StatusT, ClientT]):
         if not data:
             raise BadParameterError("data", data, "at least one {id: bytes} item")
         await self.send_only(self.encode_sync_write(address, length, data))
+
+    async def sync_write_item(self, item: RegisterItem, values: Mapping[int, int]) -> None:
+        """SYNC WRITE of ``item`` = ``values[id]`` on each servo."""
+        await self.sync_write(
+            item.address, item.size, {i: item.encode(v) for i, v in values.items()}
+        )
 
     # -- transactions --------------------------------------------------------------
     async def send_only(self, packet: bytes) -> None:

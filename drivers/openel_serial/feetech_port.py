@@ -322,11 +322,6 @@ class FeetechPort(PolledBusPort[ft.Status, FeetechClient]):
                     f"servo {servo_id}: register {item.address} reads {got} after writing {value}"
                 )
 
-    async def sync_write_item(self, item: ft.ControlItem, values: Mapping[int, int]) -> None:
-        await self.sync_write(
-            item.address, item.size, {i: item.encode(v) for i, v in values.items()}
-        )
-
     async def sync_read(self, ids: Sequence[int], address: int, length: int) -> dict[int, bytes]:
         """SYNC READ: ``{id: data}`` for every id, or :class:`FeetechTimeoutError`."""
         ids, statuses = await self.sync_read_all(ids, address, length)

@@ -353,11 +353,6 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
             out[dxl_id] = status.params
         return out
 
-    async def sync_write_item(self, item: dx.ControlItem, values: Mapping[int, int]) -> None:
-        await self.sync_write(
-            item.address, item.size, {i: item.encode(v) for i, v in values.items()}
-        )
-
     # -- transactions --------------------------------------------------------------
     async def _unicast(
         self, packet: bytes, dxl_id: int, what: str, param_length: int, check_alert: bool
