@@ -205,8 +205,7 @@ class FeetechPort(PolledBusPort[ft.Status, FeetechClient]):
         return ft.encode(ft.SyncRead(address, length, ids))
 
     def encode_sync_write(self, address: int, length: int, data: Mapping[int, bytes]) -> bytes:
-        items = tuple(ft.SyncWriteItem(i, bytes(d)) for i, d in data.items())
-        return ft.encode(ft.SyncWrite(address, length, items))
+        return ft.encode_sync_write(address, length, data)
 
     def estop_packet(self, every: bool, listed: Sequence[int]) -> bytes:
         if every:
