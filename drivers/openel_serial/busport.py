@@ -205,7 +205,7 @@ class PolledBusPort(Generic[StatusT, ClientT]):
         self._estop_all = False
         self._stack: AsyncExitStack | None = None
         self._entered = False
-        self._log = log.bind(port=url)
+        self._log = get_logger(type(self).__module__).bind(port=url)  # the protocol module's
 
     # -- protocol (subclasses) -----------------------------------------------------
     def client_id(self, client: ClientT) -> int:
