@@ -145,6 +145,9 @@ class PolledBusPort(Generic[StatusT, ClientT]):
     timeout_error: ClassVar[type[ServoTimeoutError]] = ServoTimeoutError
     reset_parser_per_request: ClassVar[bool] = False
     """Drop what the parser holds before each request (no delimiter but the header)."""
+    has_refusals: ClassVar[bool] = False
+    """Whether a status may refuse an instruction (:meth:`refused`; Dynamixel 2.0's error
+    numbers); without, reception takes the statuses of the right length inline."""
     estop_broadcasts: ClassVar[bool] = False
     """A default e-stop (no ids) is one broadcast packet (every servo on the bus)."""
 
@@ -628,8 +631,23 @@ class PolledBusPort(Generic[StatusT, ClientT]):
     # -- reception (transport callback) ----------------------------------------------
     def _on_data(self, data: bytes) -> None:
         status_type = self.status_type
+        expect = self._expect
+        replies = self._replies
+        length = self._param_length
+        plain = not self.has_refusals
         for msg in self.parser.feed(data):
-            if isinstance(msg, status_type):  # not an echo of an instruction
+            if not isinstance(msg, status_type):
+                continue  # an echo of an instruction (some half-duplex adapters)
+            servo_id = msg.id
+            if (
+                plain
+                and expect is not None
+                and servo_id in expect
+                and servo_id not in replies
+                and len(msg.params) == length
+            ):
+                replies[servo_id] = msg  # the usual case, inline
+            else:
                 self.take_status(msg)
         self.complete_if_done()
 

@@ -177,6 +177,7 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
     poll_length: ClassVar[int] = POLL_LENGTH
     status_type: ClassVar[type[Any]] = dx.Status
     timeout_error = DynamixelTimeoutError
+    has_refusals: ClassVar[bool] = True
 
     stats: PortStats
     parser: dx.PacketParser
