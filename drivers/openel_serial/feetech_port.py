@@ -1,7 +1,8 @@
 """FeetechPort: one half-duplex Feetech SCS/STS bus, many servos (the STS3215 of an SO-101).
 
-The same shape as :class:`~openel_serial.port.DynamixelPort`, on the same pieces
-(:class:`~openel_serial.link.SerialLink`, :class:`~openel_serial.halfduplex.BusLock`): every
+A :class:`~openel_serial.busport.PolledBusPort`, as :class:`~openel_serial.port.DynamixelPort`
+is (the lifecycle, transactions, reception, e-stop and poller are the base's; this module
+supplies the STS codec, the poll window, the alarms and the host watchdog): every
 transaction (an instruction packet and the status packets it asks for) runs under the bus's
 FIFO lock; the wait for the statuses is bounded by
 
