@@ -25,7 +25,6 @@ import gc
 import statistics
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import anyio
 import anyio.to_thread
@@ -38,6 +37,7 @@ from openel_serial.halfduplex import wire_time
 
 from .feetech_bus import FeetechBusProcess
 from .harness import BenchResult, Row, ratio_of
+from .serial_rounds import Round, make_round, median_of, package_version
 
 NAME = "feetech"
 SERVOS = 6
@@ -54,7 +54,6 @@ TIMEOUT_MARGIN_S = 0.05
 S = ft.STS
 GOALS = (ft.CENTER_TICK - 100, ft.CENTER_TICK + 100)
 """Each cycle's goal positions alternate between these (the servos keep moving)."""
-MAX_FAILURE_SHARE = 0.01
 
 
 def request_bytes() -> int:
@@ -80,23 +79,8 @@ def wire_cycle_us() -> float:
     return wire_time(request_bytes() + reply_bytes(), BAUD) * 1e6
 
 
-@dataclass(frozen=True, slots=True)
-class Round:
-    median_us: float
-    p99_us: float
-    cpu_us: float
-    """Process CPU time per cycle (this process only: the bus runs in another)."""
-    failures: int
-
-
 def _round(samples_ns: list[int], cpu_ns: int, failures: int, who: str) -> Round:
-    if failures > MAX_FAILURE_SHARE * len(samples_ns):
-        raise AssertionError(f"{who}: {failures} of {len(samples_ns)} cycles failed")
-    samples_ns.sort()
-    p99 = samples_ns[min(len(samples_ns) - 1, round(0.99 * (len(samples_ns) - 1)))]
-    return Round(
-        statistics.median(samples_ns) / 1e3, p99 / 1e3, cpu_ns / len(samples_ns) / 1e3, failures
-    )
+    return make_round(samples_ns, cpu_ns, failures, who, "cycles")
 
 
 # -- the SDK ---------------------------------------------------------------------------------
@@ -212,10 +196,6 @@ async def driver_round(path: str, cycles: int) -> Round:
 # -- the run -------------------------------------------------------------------------------
 
 
-def _median(rounds: list[Round], field: str) -> float:
-    return float(statistics.median(float(getattr(r, field)) for r in rounds))
-
-
 def run(quick: bool) -> BenchResult:
     cycles = QUICK_CYCLES if quick else CYCLES
     rounds = QUICK_ROUNDS if quick else ROUNDS
@@ -238,9 +218,9 @@ def run(quick: bool) -> BenchResult:
     rows = [
         Row(
             f"cycle (SYNC READ {SERVOS} + SYNC WRITE {SERVOS}), median wall time",
-            _median(ours, "median_us"),
+            median_of(ours, "median_us"),
             "µs",
-            baseline=_median(thread, "median_us"),
+            baseline=median_of(thread, "median_us"),
             baseline_label="scservo_sdk in a thread",
             ratio=ratio,
             ratio_label="ours/sdk",
@@ -249,9 +229,9 @@ def run(quick: bool) -> BenchResult:
         ),
         Row(
             "our CPU per cycle",
-            _median(ours, "cpu_us"),
+            median_of(ours, "cpu_us"),
             "µs",
-            baseline=_median(thread, "cpu_us"),
+            baseline=median_of(thread, "cpu_us"),
             baseline_label="scservo_sdk in a thread",
             ratio=cpu_ratio,
             ratio_label="ours/sdk",
@@ -260,20 +240,20 @@ def run(quick: bool) -> BenchResult:
         ),
         Row(
             "scservo_sdk blocking in the main thread, median wall time",
-            _median(blocking, "median_us"),
+            median_of(blocking, "median_us"),
             "µs",
-            baseline=_median(ours, "median_us"),
+            baseline=median_of(ours, "median_us"),
             baseline_label="ours",
-            ratio=ratio_of(_median(blocking, "median_us"), _median(ours, "median_us")),
+            ratio=ratio_of(median_of(blocking, "median_us"), median_of(ours, "median_us")),
             ratio_label="sdk/ours",
         ),
         Row(
             "scservo_sdk blocking, CPU per cycle",
-            _median(blocking, "cpu_us"),
+            median_of(blocking, "cpu_us"),
             "µs",
-            baseline=_median(ours, "cpu_us"),
+            baseline=median_of(ours, "cpu_us"),
             baseline_label="ours",
-            ratio=ratio_of(_median(blocking, "cpu_us"), _median(ours, "cpu_us")),
+            ratio=ratio_of(median_of(blocking, "cpu_us"), median_of(ours, "cpu_us")),
             ratio_label="sdk/ours",
         ),
     ]
@@ -283,8 +263,8 @@ def run(quick: bool) -> BenchResult:
         + "; CPU ratios "
         + ", ".join(f"{r:.2f}" for r in cpu_ratios)
         + ".",
-        f"p99 per cycle: ours {_median(ours, 'p99_us'):.0f} µs, sdk in a thread "
-        f"{_median(thread, 'p99_us'):.0f} µs, sdk blocking {_median(blocking, 'p99_us'):.0f} µs; "
+        f"p99 per cycle: ours {median_of(ours, 'p99_us'):.0f} µs, sdk in a thread "
+        f"{median_of(thread, 'p99_us'):.0f} µs, sdk blocking {median_of(blocking, 'p99_us'):.0f} µs; "
         f"failed cycles (a SYNC READ missing a status: retried by ours, COMM_RX_TIMEOUT in the "
         f"SDK): ours {sum(r.failures for r in ours)}, sdk "
         f"{sum(r.failures for r in thread) + sum(r.failures for r in blocking)}.",
@@ -309,18 +289,9 @@ def run(quick: bool) -> BenchResult:
             "replies": f"{SERVOS} x {ft.STATUS_OVERHEAD + POLL_LENGTH} B",
             "baud": f"{BAUD:,}",
             "rounds": str(rounds),
-            "peer": f"scservo_sdk (feetech-servo-sdk {_sdk_version()})",
+            "peer": f"scservo_sdk (feetech-servo-sdk {package_version('feetech-servo-sdk')})",
         },
     )
-
-
-def _sdk_version() -> str:
-    from importlib import metadata
-
-    try:
-        return metadata.version("feetech-servo-sdk")
-    except metadata.PackageNotFoundError:
-        return "(version unknown)"
 
 
 DESCRIPTION = f"""\

@@ -35,6 +35,7 @@ from openel_serial.port import POLL_ADDRESS, POLL_LENGTH, STATUS_OVERHEAD, wire_
 
 from .harness import BenchResult, Row, ratio_of
 from .serial_bus import BusProcess
+from .serial_rounds import Round, make_round, median_of, package_version
 
 NAME = "serial"
 SIZES = (1, 8, 32)
@@ -72,28 +73,8 @@ def wire_rate(servos: int, baudrate: int = BAUD) -> float:
     return 1 / wire_time(request_bytes(servos) + reply_bytes(servos), baudrate)
 
 
-@dataclass(frozen=True, slots=True)
-class Round:
-    median_us: float
-    p99_us: float
-    cpu_us: float
-    """Process CPU time per transaction (this process only: the bus runs in another)."""
-    failures: int
-    """Transactions that timed out (the SDK's) or were retried (ours): a stalled peer."""
-
-
-MAX_FAILURE_SHARE = 0.01
-"""More failed transactions than this share of a round end the benchmark."""
-
-
 def _round(samples_ns: list[int], cpu_ns: int, failures: int, who: str) -> Round:
-    if failures > MAX_FAILURE_SHARE * len(samples_ns):
-        raise AssertionError(f"{who}: {failures} of {len(samples_ns)} transactions failed")
-    samples_ns.sort()
-    p99 = samples_ns[min(len(samples_ns) - 1, round(0.99 * (len(samples_ns) - 1)))]
-    return Round(
-        statistics.median(samples_ns) / 1e3, p99 / 1e3, cpu_ns / len(samples_ns) / 1e3, failures
-    )
+    return make_round(samples_ns, cpu_ns, failures, who, "transactions")
 
 
 # -- the peer: dynamixel-sdk -------------------------------------------------------------
@@ -216,15 +197,11 @@ class Size:
     ours: tuple[Round, ...]
     peer: tuple[Round, ...]
 
-    @staticmethod
-    def _median(rounds: tuple[Round, ...], field: str) -> float:
-        return float(statistics.median(float(getattr(r, field)) for r in rounds))
-
     def ours_median(self, field: str) -> float:
-        return self._median(self.ours, field)
+        return median_of(self.ours, field)
 
     def peer_median(self, field: str) -> float:
-        return self._median(self.peer, field)
+        return median_of(self.peer, field)
 
 
 def measure(servos: int, cycles: int, rounds: int) -> Size:
@@ -350,18 +327,9 @@ def run(quick: bool) -> BenchResult:
             "replies": " / ".join(f"{n} x {STATUS_OVERHEAD + POLL_LENGTH} B" for n in SIZES),
             "baud (SDK setting, our timeouts)": f"{BAUD:,}",
             "rounds": str(rounds),
-            "peer": f"dynamixel-sdk {_sdk_version()}",
+            "peer": f"dynamixel-sdk {package_version('dynamixel-sdk')}",
         },
     )
-
-
-def _sdk_version() -> str:
-    from importlib import metadata
-
-    try:
-        return metadata.version("dynamixel-sdk")
-    except metadata.PackageNotFoundError:
-        return "(version unknown)"
 
 
 DESCRIPTION = f"""\

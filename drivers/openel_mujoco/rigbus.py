@@ -33,6 +33,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import AsyncIterator, Mapping, Sequence
 from contextlib import AbstractAsyncContextManager, asynccontextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import msgspec
@@ -40,7 +41,7 @@ import msgspec
 from openel_async.errors import BadParameterError
 from openel_async.rig import BusKind, ResolvedRig, SimulatedBus, SimulatedDevice
 
-from .models import ModelLoadError, load_model
+from .models import SHIPPED_MODELS, ModelLoadError, load_model
 from .sim import MujocoSim
 
 if TYPE_CHECKING:
@@ -59,8 +60,9 @@ class MujocoBusOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True,
     """A MuJoCo simulation as a bus (the keys of a ``type: mujoco`` bus entry)."""
 
     model: str
-    """A shipped model (``arm2``, ``arm6``, ``so101``) or the path of an MJCF or MJB file (relative to
-    the current directory)."""
+    """A shipped model (``arm2``, ``arm6``, ``so101``) or the path of an MJCF or MJB file
+    (relative to the rig file's directory; in a rig given as plain data, to the current
+    directory)."""
     pacing: Literal["lockstep", "realtime"] = "lockstep"
     """``lockstep``: the simulation is the clock, as fast as the CPU allows and
     deterministic; ``realtime``: stepped against the real clock."""
@@ -121,6 +123,16 @@ class MujocoBusKind(BusKind):
     def __init__(self, devices: Mapping[str, type]) -> None:
         self.devices = dict(devices)
         """The driver's device classes by name (what a component's ``device`` names)."""
+
+    def resolve_paths(self, options: Any, base: Path) -> MujocoBusOptions:
+        """``options`` with a relative model file path made relative to ``base``, the rig
+        file's directory (a name without suffix or folder stays a model's name)."""
+        o = _options(options)
+        path = Path(o.model).expanduser()
+        bare = not path.suffix and len(path.parts) == 1  # a model's name, shipped or not
+        if o.model in SHIPPED_MODELS or bare or path.is_absolute():
+            return o
+        return msgspec.structs.replace(o, model=str(base / path))
 
     def check(self, options: Any, devices: Sequence[SimulatedDevice]) -> None:
         """Load the model and build every device on a simulation that never runs."""

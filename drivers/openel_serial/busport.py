@@ -43,6 +43,7 @@ __all__ = [
     "BusStats",
     "BusStatus",
     "PolledBusPort",
+    "RegisterItem",
 ]
 
 log = get_logger(__name__)
@@ -62,6 +63,18 @@ class BusStatus(Protocol):
 
     @property
     def params(self) -> bytes: ...
+
+
+class RegisterItem(Protocol):
+    """A control-table item of any protocol: ``size`` bytes at ``address``."""
+
+    @property
+    def address(self) -> int: ...
+
+    @property
+    def size(self) -> int: ...
+
+    def encode(self, value: int) -> bytes: ...
 
 
 class BusParser(Protocol):
@@ -132,6 +145,9 @@ class PolledBusPort(Generic[StatusT, ClientT]):
     timeout_error: ClassVar[type[ServoTimeoutError]] = ServoTimeoutError
     reset_parser_per_request: ClassVar[bool] = False
     """Drop what the parser holds before each request (no delimiter but the header)."""
+    has_refusals: ClassVar[bool] = False
+    """Whether a status may refuse an instruction (:meth:`refused`; Dynamixel 2.0's error
+    numbers); without, reception takes the statuses of the right length inline."""
     estop_broadcasts: ClassVar[bool] = False
     """A default e-stop (no ids) is one broadcast packet (every servo on the bus)."""
 
@@ -192,7 +208,7 @@ class PolledBusPort(Generic[StatusT, ClientT]):
         self._estop_all = False
         self._stack: AsyncExitStack | None = None
         self._entered = False
-        self._log = log.bind(port=url)
+        self._log = get_logger(type(self).__module__).bind(port=url)  # the protocol module's
 
     # -- protocol (subclasses) -----------------------------------------------------
     def client_id(self, client: ClientT) -> int:
@@ -454,6 +470,12 @@ class PolledBusPort(Generic[StatusT, ClientT]):
             raise BadParameterError("data", data, "at least one {id: bytes} item")
         await self.send_only(self.encode_sync_write(address, length, data))
 
+    async def sync_write_item(self, item: RegisterItem, values: Mapping[int, int]) -> None:
+        """SYNC WRITE of ``item`` = ``values[id]`` on each servo."""
+        await self.sync_write(
+            item.address, item.size, {i: item.encode(v) for i, v in values.items()}
+        )
+
     # -- transactions --------------------------------------------------------------
     async def send_only(self, packet: bytes) -> None:
         """Send ``packet`` under the bus lock; no status comes back."""
@@ -609,8 +631,23 @@ class PolledBusPort(Generic[StatusT, ClientT]):
     # -- reception (transport callback) ----------------------------------------------
     def _on_data(self, data: bytes) -> None:
         status_type = self.status_type
+        expect = self._expect
+        replies = self._replies
+        length = self._param_length
+        plain = not self.has_refusals
         for msg in self.parser.feed(data):
-            if isinstance(msg, status_type):  # not an echo of an instruction
+            if not isinstance(msg, status_type):
+                continue  # an echo of an instruction (some half-duplex adapters)
+            servo_id = msg.id
+            if (
+                plain
+                and expect is not None
+                and servo_id in expect
+                and servo_id not in replies
+                and len(msg.params) == length
+            ):
+                replies[servo_id] = msg  # the usual case, inline
+            else:
                 self.take_status(msg)
         self.complete_if_done()
 

@@ -6,8 +6,9 @@ the torque turned off, the user puts the arm in the middle of its range and pres
 homing offsets are written so that this pose reads step 2048, 0 rad), then moves each joint
 through its full range by hand while the present positions and the minimum and maximum seen
 are shown live, and presses Enter (the ranges are written as the angle limits). The
-calibration file goes to ``--out``, else to the bus's ``calibration:`` option, else next to the
-rig (``RIG.calibration.yaml``); joints of the file that were not calibrated this time are kept.
+calibration file goes to ``--out``, else to the bus's ``calibration:`` option (a relative path
+next to the rig file, whatever the current directory), else next to the rig
+(``RIG.calibration.yaml``); joints of the file that were not calibrated this time are kept.
 
 The command owns the terminal: prompts and the summary on standard output, the live table on
 it while the joints are moved (on a terminal: rich's live display, log lines printed above

@@ -1,7 +1,8 @@
 """FeetechPort: one half-duplex Feetech SCS/STS bus, many servos (the STS3215 of an SO-101).
 
-The same shape as :class:`~openel_serial.port.DynamixelPort`, on the same pieces
-(:class:`~openel_serial.link.SerialLink`, :class:`~openel_serial.halfduplex.BusLock`): every
+A :class:`~openel_serial.busport.PolledBusPort`, as :class:`~openel_serial.port.DynamixelPort`
+is (the lifecycle, transactions, reception, e-stop and poller are the base's; this module
+supplies the STS codec, the poll window, the alarms and the host watchdog): every
 transaction (an instruction packet and the status packets it asks for) runs under the bus's
 FIFO lock; the wait for the statuses is bounded by
 
@@ -205,8 +206,7 @@ class FeetechPort(PolledBusPort[ft.Status, FeetechClient]):
         return ft.encode(ft.SyncRead(address, length, ids))
 
     def encode_sync_write(self, address: int, length: int, data: Mapping[int, bytes]) -> bytes:
-        items = tuple(ft.SyncWriteItem(i, bytes(d)) for i, d in data.items())
-        return ft.encode(ft.SyncWrite(address, length, items))
+        return ft.encode_sync_write(address, length, data)
 
     def estop_packet(self, every: bool, listed: Sequence[int]) -> bytes:
         if every:
@@ -321,11 +321,6 @@ class FeetechPort(PolledBusPort[ft.Status, FeetechClient]):
                 raise HALError(
                     f"servo {servo_id}: register {item.address} reads {got} after writing {value}"
                 )
-
-    async def sync_write_item(self, item: ft.ControlItem, values: Mapping[int, int]) -> None:
-        await self.sync_write(
-            item.address, item.size, {i: item.encode(v) for i, v in values.items()}
-        )
 
     async def sync_read(self, ids: Sequence[int], address: int, length: int) -> dict[int, bytes]:
         """SYNC READ: ``{id: data}`` for every id, or :class:`FeetechTimeoutError`."""

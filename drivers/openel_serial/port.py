@@ -1,7 +1,12 @@
 """DynamixelPort: one half-duplex Dynamixel Protocol 2.0 bus, many servos.
 
+A :class:`~openel_serial.busport.PolledBusPort` (the lifecycle, transactions, reception,
+e-stop and poller are the base's, shared with :class:`~openel_serial.feetech_port.FeetechPort`);
+this module supplies the Protocol 2.0 codec, the poll window, the status errors and hardware
+alerts, CRC_ERROR resends and the Bus Watchdog.
+
 Scheduling: the bus carries one request at a time. Every transaction (an instruction
-packet and the status packets it asks for) runs under one FIFO ``anyio.Lock``, so the
+packet and the status packets it asks for) runs under one FIFO bus lock, so the
 servos' commands and the shared poller interleave packet by packet and never collide.
 
 Timeouts and retries: a transaction waits for its status packets for
@@ -177,6 +182,7 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
     poll_length: ClassVar[int] = POLL_LENGTH
     status_type: ClassVar[type[Any]] = dx.Status
     timeout_error = DynamixelTimeoutError
+    has_refusals: ClassVar[bool] = True
 
     stats: PortStats
     parser: dx.PacketParser
@@ -352,11 +358,6 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
                 raise DynamixelStatusError(dxl_id, status.error, f"SYNC READ {address}+{length}")
             out[dxl_id] = status.params
         return out
-
-    async def sync_write_item(self, item: dx.ControlItem, values: Mapping[int, int]) -> None:
-        await self.sync_write(
-            item.address, item.size, {i: item.encode(v) for i, v in values.items()}
-        )
 
     # -- transactions --------------------------------------------------------------
     async def _unicast(

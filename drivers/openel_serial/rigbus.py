@@ -17,8 +17,9 @@ protocols. With ``--sim`` a Feetech port is a :class:`~openel_serial.feetech_pee
 of :class:`~openel_serial.feetech_peers.SimStsServo` s at the rig's ids, with the rig's baud
 rate as their Baud Rate (6) and its ``return_delay`` as their Return Delay (7).
 
-A Feetech port's ``calibration: FILE`` (a file ``openel-async calibrate`` writes, path
-relative to the current directory, as a MuJoCo bus's model path) gives each servo its entry
+A Feetech port's ``calibration: FILE`` (a file ``openel-async calibrate`` writes; a relative
+path is taken relative to the rig file's directory by :meth:`SerialBusKind.resolve_paths`,
+which the rig loader applies) gives each servo its entry
 (:class:`~openel_serial.feetech_calibration.JointCalibration`, by component name):
 ``rig check`` refuses a file it cannot read as a calibration file (with its ``FILE:LINE:COL``),
 a servo without an entry or with another id; a missing file passes ``rig check`` (calibrate
@@ -132,8 +133,9 @@ class SerialBusOptions(msgspec.Struct, forbid_unknown_fields=True, kw_only=True)
     """Dynamixel only: how many times a request whose replies were lost is sent again before
     the request fails. Default 2."""
     calibration: Annotated[str, msgspec.Meta(min_length=1)] | None = None
-    """Feetech only: the calibration file ``openel-async calibrate`` writes (relative to the
-    current directory): each servo's homing offset, range and drive mode, by component name."""
+    """Feetech only: the calibration file ``openel-async calibrate`` writes (a relative path:
+    relative to the rig file's directory, see :meth:`SerialBusKind.resolve_paths`): each
+    servo's homing offset, range and drive mode, by component name."""
 
 
 def read_calibration(path: str) -> CalibrationFile:
@@ -204,6 +206,16 @@ class SerialBusKind(BusKind):
     """``type: serial`` (see the module docstring)."""
 
     options_type = SerialBusOptions
+
+    def resolve_paths(self, options: Any, base: Path) -> SerialBusOptions:
+        """``options`` with a relative ``calibration:`` path made relative to ``base`` (the
+        directory of the rig file the options come from), so that the file is found from
+        any current directory."""
+        assert isinstance(options, SerialBusOptions)
+        path = options.calibration
+        if path is None or Path(path).is_absolute():
+            return options
+        return msgspec.structs.replace(options, calibration=str(base / path))
 
     def check(self, options: Any, devices: Sequence[SimulatedDevice]) -> None:
         assert isinstance(options, SerialBusOptions)

@@ -115,7 +115,10 @@ class BusServo(ActuatorDevice, Generic[PortT, StateT]):
         """The servo's return delay in seconds, read at open."""
         self.completions = 0
         self.watchdog_trips = 0
-        self._log = log.bind(port=port.url, **{port.id_param: servo_id})
+        # the logger of the protocol's module (openel_serial.servo, ...feetech_servo)
+        self._log = get_logger(type(self).__module__).bind(
+            port=port.url, **{port.id_param: servo_id}
+        )
 
     # -- protocol (subclasses) -------------------------------------------------------
     async def identify(self) -> None:

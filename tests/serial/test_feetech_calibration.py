@@ -21,7 +21,7 @@ from openel_async import Actuator, HALError, Request
 from openel_async.cli import main
 from openel_async.errors import BadParameterError
 from openel_async.positioned import DocumentError
-from openel_async.rig import load_rig, open_rig, resolve_rig
+from openel_async.rig import SimulatedDevice, load_rig, open_rig, resolve_rig
 from openel_serial import FeetechPort, FeetechSTS3215, SerialBusKind, SerialBusOptions
 from openel_serial import feetech as ft
 from openel_serial.feetech_calibration import (
@@ -271,9 +271,16 @@ def test_calibrate_through_the_command_line_then_the_rig_speaks_centred_radians(
             assert actuator.device.limits.position == pytest.approx(pan.radians(), abs=STEP)
 
     anyio.run(check)
-    # a second run keeps the joints of the file it does not calibrate (here: none left out)
-    assert _run(["calibrate", str(rig), "--sim", "--out", str(tmp_path / "o.yaml")], "\n\n", monkeypatch) == 0  # fmt: skip
-    assert load_calibration(tmp_path / "o.yaml").joints["gripper"].id == 6
+    # a relative calibration path is the rig file's neighbour, whatever the current directory
+    rigs, elsewhere = tmp_path / "rigs", tmp_path / "elsewhere"
+    rigs.mkdir()
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    relative = _so101_with(rigs, "arm.calibration.yaml")
+    assert _run(["calibrate", str(relative), "--sim"], "\n\n", monkeypatch) == 0
+    assert f"wrote {rigs / 'arm.calibration.yaml'} (6 joints)" in capsys.readouterr().out
+    assert load_calibration(rigs / "arm.calibration.yaml").joints["gripper"].id == 6
+    assert not (elsewhere / "arm.calibration.yaml").exists()
 
 
 def test_calibrate_refuses_a_closed_input_and_other_rigs(
@@ -317,3 +324,28 @@ def test_the_rig_option_refuses_a_bad_file_and_a_missing_one_on_a_real_port(
         SerialBusKind().open("arm", options)
     with pytest.raises(BadParameterError, match="only with protocol: feetech"):
         SerialBusKind().check(msgspec.structs.replace(options, protocol="dynamixel"), [])
+
+
+def test_the_bus_kind_takes_a_relative_calibration_path_from_the_rig_files_directory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    rigs, elsewhere = tmp_path / "rigs", tmp_path / "elsewhere"
+    rigs.mkdir()
+    elsewhere.mkdir()
+    entry = JointCalibration(id=1, homing_offset=40, range_min=100, range_max=4000)
+    written = rigs / "arm.calibration.yaml"
+    write_calibration(written, CalibrationFile(joints={"shoulder_pan": entry}))
+    monkeypatch.chdir(elsewhere)
+    options = msgspec.convert(
+        {"device": "/dev/null", "baudrate": 1_000_000, "protocol": "feetech",
+         "calibration": "arm.calibration.yaml"},
+        SerialBusOptions,
+    )  # fmt: skip
+    kind = SerialBusKind()
+    resolved = kind.resolve_paths(options, rigs)
+    assert resolved.calibration == str(written)
+    device = SimulatedDevice("shoulder_pan", "serial", "feetech_sts3215", {"servo_id": 1})
+    kind.check(resolved, [device])  # reads the file: it exists only next to the rig
+    assert kind.device_arguments(None, resolved, device)["calibration"] == entry
+    absolute = msgspec.structs.replace(options, calibration=str(written))
+    assert kind.resolve_paths(absolute, elsewhere) is absolute

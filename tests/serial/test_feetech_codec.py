@@ -186,3 +186,45 @@ def test_status_error_bits_describe() -> None:
     assert error.describe() == "OVERHEAT|OVERLOAD"
     assert ft.StatusError(0).describe() == "none"
     assert ft.StatusError(0x41).describe() == "VOLTAGE|0x40"
+
+
+@settings(max_examples=100, deadline=None)
+@given(
+    addresses,
+    st.integers(1, 8).flatmap(
+        lambda n: st.tuples(
+            st.just(n),
+            st.dictionaries(ids, st.binary(min_size=n, max_size=n), min_size=1, max_size=10),
+        )
+    ),
+)
+def test_the_direct_sync_write_encoder_is_encode_of_a_sync_write(
+    address: int, case: tuple[int, dict[int, bytes]]
+) -> None:
+    length, data = case
+    items = tuple(ft.SyncWriteItem(i, d) for i, d in data.items())
+    assert ft.encode_sync_write(address, length, data) == ft.encode(
+        ft.SyncWrite(address, length, items)
+    )
+
+
+@pytest.mark.parametrize(
+    ("address", "length", "data"),
+    [(256, 1, {1: b"x"}), (0, 256, {1: b"x"}), (0, 2, {1: b"x"}), (0, 1, {254: b"x"})],
+)
+def test_the_direct_sync_write_encoder_refuses_what_a_sync_write_refuses(
+    address: int, length: int, data: dict[int, bytes]
+) -> None:
+    with pytest.raises(ValueError):
+        ft.encode_sync_write(address, length, data)
+    with pytest.raises(ValueError):
+        ft.SyncWrite(address, length, tuple(ft.SyncWriteItem(i, d) for i, d in data.items()))
+
+
+def test_a_parsed_status_is_a_status_like_a_built_one() -> None:
+    built = ft.Status(7, 0x24, b"\x01\x02")
+    (parsed,) = ft.PacketParser(status=True).feed(ft.encode(built))
+    assert type(parsed) is ft.Status and parsed == built and hash(parsed) == hash(built)
+    assert repr(parsed) == repr(built)
+    with pytest.raises(AttributeError):
+        parsed.id = 3  # type: ignore[misc]

@@ -134,6 +134,9 @@ def resolve_rig(spec: RigSpec) -> ResolvedRig:
                 options = convert_plain(bus.options, kind.options_type)
             except ValueError as exc:
                 raise BadParameterError(f"buses.{bus.name}", dict(bus.options), str(exc)) from None
+        rig_dir = _rig_dir(spec)
+        if rig_dir is not None:  # the option's files relative to the rig file, not the cwd
+            options = kind.resolve_paths(options, rig_dir)
         devices: list[SimulatedDevice] = []
         for c in spec.components:
             if c.bus != bus.name:

@@ -113,6 +113,13 @@ class BusKind(ABC):
         exchanges, a simulation). Called by ``rig check`` after :meth:`check`."""
         return None
 
+    def resolve_paths(self, options: Any, base: Path) -> Any:
+        """``options`` with the relative file paths they name (a calibration file, a model)
+        made relative to ``base``, the directory of the rig file they come from, so that
+        the files are found from any current directory. The default: ``options`` as they
+        are (no file paths)."""
+        return options
+
     def bind_timer(
         self, bus: object, options: Any, timer: EventTimer
     ) -> AbstractAsyncContextManager[object] | None:
