@@ -563,6 +563,53 @@ def stream_targets(
             actuator._on_target_reached()
 
 
+async def send_targets(
+    actuators: Sequence[Actuator],
+    req: Request,
+    targets: Sequence[float],
+    posts_completed: bool = True,
+) -> None:
+    """:func:`stream_targets` over devices without a synchronous path: ``_send`` on every
+    actuator in order (one awaited ``device.command`` each), with the same semantics, but
+    each Motion is only built if someone asks for it (``Actuator.motion``) and the batch
+    runs in one coroutine, not one per actuator.  ``targets`` are validated (an
+    ActuatorBank's checks); a command overtaken by another during its await, a device that
+    does not report completion, an actuator that left Active or NO_EXCITE take the full
+    ``_accept``.
+    """
+    lazy = req is not _NO_EXCITE
+    for actuator, target in zip(actuators, targets, strict=True):
+        if actuator._stream is not None:
+            actuator._detach()
+        sequence = actuator._sequence + 1
+        actuator._sequence = sequence
+        try:
+            await actuator.device.command(req, target)
+        except _LINK_FAULTS as exc:
+            raise actuator._fault_from(exc) from exc
+        if (
+            actuator._sequence == sequence  # not overtaken during the await
+            and lazy
+            and actuator._reports_completion
+            and actuator.state is _ACTIVE
+            and actuator._stream is None
+        ):
+            if actuator._motion is not None:  # built because someone asked: it is replaced
+                previous = actuator._motion
+                if previous.outcome is _PENDING:
+                    previous._supersede(sequence)
+                actuator._motion = None
+            stamp = actuator.clock.now_ns()
+            actuator._latest = (req, target, sequence, stamp, posts_completed)
+            actuator._commanded[req] = target
+            if LISTENING.count:
+                listener = actuator._observers.listener
+                if listener is not None:
+                    listener.on_command(actuator, req, target, stamp)
+        else:
+            actuator._accept(req, target, sequence, posts_completed)
+
+
 def accept_streamed(
     actuators: Sequence[Actuator],
     req: Request,

@@ -23,7 +23,7 @@ import anyio.lowlevel
 
 from openel_async.logs import get_logger
 
-from ..actuator import Actuator
+from ..actuator import Actuator, send_targets
 from ..banks import ActuatorBank
 from ..clock import NS_PER_S
 from ..component import ComponentState
@@ -500,7 +500,9 @@ class AxisGroup:
         # One validated batch: every axis Active and every setpoint within its limits
         # before any is sent (else nothing is sent and the motion aborts).
         try:
-            await self._bank.set_values(position, POSITION)
+            req, targets = self._bank._check("set_values", position, POSITION)
+            # One coroutine for the batch, Motions built only when asked for.
+            await send_targets(self.axes, req, targets, self.setpoint_events)
         except Exception as exc:
             self._stream_failed(motion, position, exc, t)
             return
