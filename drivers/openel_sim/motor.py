@@ -33,6 +33,10 @@ from . import profile as prof
 
 log = get_logger(__name__)
 
+_POSITION = Request.POSITION
+_VELOCITY = Request.VELOCITY
+_TORQUE = Request.TORQUE
+
 TORQUE_RISE_NS = 2_000_000
 """Current-loop response: the commanded torque is reached this long after the command."""
 
@@ -128,12 +132,13 @@ class SimMotor(ActuatorDevice):
     def command_nowait(self, request: Request, value: float) -> None:
         self._check_connected()
         self.commands += 1
-        now = self._now()
+        ctx = self._ctx
+        now = ctx.clock.now_ns() if ctx is not None else 0
         p, v, _ = prof.evaluate(self._segments, now)
         vmax, amax = self.limits.velocity, self.max_acceleration
         if self.stuck:
             segments = prof.hold(now, p)
-        elif request is Request.POSITION:
+        elif request is _POSITION:
             segments = prof.trapezoid(now, p, v, value, vmax, amax)
         elif request is Request.VELOCITY:
             segments = prof.ramp(now, p, v, value, amax)
@@ -249,10 +254,11 @@ class SimMotor(ActuatorDevice):
     ) -> None:
         low, high = self.limits.position
         arrival_ns: int | None = None
-        if arrival and request is Request.TORQUE:
-            arrival_ns = self._now() + TORQUE_RISE_NS
-        elif arrival and request in (Request.POSITION, Request.VELOCITY):
-            arrival_ns = prof.end_time(segments)
+        if arrival:
+            if request is _POSITION or request is _VELOCITY:
+                arrival_ns = prof.end_time(segments)
+            elif request is _TORQUE:
+                arrival_ns = self._now() + TORQUE_RISE_NS
         segments, limit_ns = prof.clip_to_limits(segments, low, high)
         if limit_ns is not None and arrival_ns is not None and limit_ns < arrival_ns:
             arrival_ns = None  # stopped by a limit first: the target is never reached
@@ -262,13 +268,16 @@ class SimMotor(ActuatorDevice):
         self._arrival_ns = arrival_ns
         # Wake the watcher only if it now has something due earlier than its deadline;
         # a later due time is picked up when it wakes (cancelling costs ~7 us).
-        due = min((t for t in (arrival_ns, limit_ns) if t is not None), default=None)
         scope = self._sleep_scope
-        if (
-            scope is not None
-            and due is not None
-            and (self._sleep_until is None or due < self._sleep_until)
-        ):
+        if scope is None:
+            return
+        if limit_ns is None:
+            due = arrival_ns
+        elif arrival_ns is None or limit_ns < arrival_ns:
+            due = limit_ns
+        else:
+            due = arrival_ns
+        if due is not None and (self._sleep_until is None or due < self._sleep_until):
             scope.cancel()
 
     async def _watch(self) -> None:
