@@ -40,6 +40,7 @@ _ACTIVE = S.ACTIVE
 _PENDING = Outcome.PENDING
 _NO_EXCITE = Request.NO_EXCITE
 _SETTABLE = frozenset(SET_VALUE_REQUESTS)
+_POSITION = Request.POSITION
 _POSITION_ACTUAL = Request.POSITION_ACTUAL
 # get_value of a code the device does not read returns the commanded value of this code.
 COMMAND_OF = {
@@ -207,9 +208,9 @@ class Actuator(HALComponent):
     # -- SetValue ------------------------------------------------------------------
     async def set_value(self, value: float, request: Request | int = Request.POSITION) -> Motion:
         """SetValue: send a new target and return its Motion without waiting for arrival."""
-        req, target = self._validate("set_value", value, request)
         if self._command_nowait:  # a device that needs no I/O: the same, without suspending
-            return self._send_now(req, target)
+            return self._set_now("set_value", value, request)
+        req, target = self._validate("set_value", value, request)
         return await self._send(req, target)
 
     def set_value_nowait(self, value: float, request: Request | int = Request.POSITION) -> Motion:
@@ -223,8 +224,42 @@ class Actuator(HALComponent):
                 f"{self.device_name}: the device has no synchronous command path; "
                 "use 'await set_value(...)'"
             )
-        req, target = self._validate("set_value_nowait", value, request)
-        return self._send_now(req, target)
+        return self._set_now("set_value_nowait", value, request)
+
+    def _set_now(self, operation: str, value: object, request: Request | int) -> Motion:
+        """:meth:`_validate` then :meth:`_send_now` in one call (the per-command path of a
+        control loop over a device without I/O): the same checks, in the same order."""
+        if self.state is not _ACTIVE:
+            raise StateError(operation, self.state, (_ACTIVE,))
+        if type(request) is Request and request in _SETTABLE:
+            req = request
+        else:
+            req = coerce_request(request, SET_VALUE_REQUESTS)
+        target = value if type(value) is float and value - value == 0.0 else _finite(value)
+        device = self.device
+        if req not in device.supported_requests:
+            raise NotImplementedHALError(f"{self.device_name} does not support {req.name} control")
+        limits = device.limits
+        if req is not _POSITION:
+            limits.check(req, target)
+        else:
+            low, high = limits.position
+            if not low <= target <= high:
+                limits.check(req, target)  # raises BAD_PARAMETER
+        if self._stream is not None:
+            self._detach()
+        sequence = self._sequence = self._sync_send = self._sequence + 1
+        try:
+            device.command_nowait(req, target)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+        finally:
+            self._sync_send = 0
+        motion = self._accept(req, target, sequence)
+        if self._reached_in_send == sequence:
+            self._reached_in_send = 0
+            self._on_target_reached()
+        return motion
 
     def _validate(
         self, operation: str, value: object, request: Request | int
@@ -297,7 +332,8 @@ class Actuator(HALComponent):
             else:
                 motion._cancel(f"the actuator left Active ({self.state}) during set_value")
             return motion
-        previous = self.motion
+        # (the motion property, inline when nothing is left to settle or build)
+        previous = self._motion if self._stream is None and self._latest is None else self.motion
         if previous is not None and previous.sequence > sequence:
             motion._supersede(previous.sequence)  # a later command overtook this one
             return motion
