@@ -1,10 +1,10 @@
-"""Wakeup: a reusable wake-up for one waiting task, for per-tick and per-event paths.
+"""Wakeup: a reusable wake-up for waiting tasks, for per-tick and per-event paths.
 
 ``anyio.Event`` is single-use, so a task woken every tick builds a new one every tick;
 building one asks anyio for the running backend (``current_async_library()``) and
 waiting on it goes through asyncio's ``_get_loop``, 25-30 % of an AxisGroup tick when
-profiled. A :class:`Wakeup` is made once and reused: ``set()`` wakes the task waiting in
-:meth:`Wakeup.wait` (or, if none is waiting, makes its next wait return at once), and a
+profiled. A :class:`Wakeup` is made once and reused: ``set()`` wakes the tasks waiting in
+:meth:`Wakeup.wait` (or, if none is waiting, makes the next wait return at once), and a
 wait costs one loop future.
 
 Needs the asyncio backend, as the clocks do (docs/architecture.md). Cancellation (an
@@ -19,18 +19,28 @@ __all__ = ["Wakeup"]
 
 
 class Wakeup:
-    """A level-triggered, reusable wake-up for **one** waiting task at a time.
+    """A level-triggered, reusable wake-up.
 
-    ``set()`` never blocks and may be called any number of times before the task waits:
-    the next :meth:`wait` then returns at once (after one checkpoint, as an
-    ``anyio.Event`` that is already set does), and clears the flag.
+    ``set()`` never blocks. It wakes every task waiting in :meth:`wait`; when none is, it
+    sets a flag instead, and the next :meth:`wait` returns at once (after one checkpoint,
+    as an ``anyio.Event`` that is already set does) and clears it. A publisher that wants
+    edge-triggered wake-ups (only tasks already waiting) calls ``set()`` only while
+    :attr:`waiting`.
     """
 
-    __slots__ = ("_flag", "_waiter")
+    __slots__ = ("_flag", "_more", "_waiter")
 
     def __init__(self) -> None:
         self._flag = False
         self._waiter: asyncio.Future[None] | None = None
+        """The first waiting task's future (the usual, only one)."""
+        self._more: list[asyncio.Future[None]] | None = None
+        """The futures of the other waiting tasks, in the order they came."""
+
+    @property
+    def waiting(self) -> bool:
+        """Whether a task is waiting."""
+        return self._waiter is not None
 
     def is_set(self) -> bool:
         return self._flag
@@ -43,24 +53,43 @@ class Wakeup:
         self._waiter = None
         if not waiter.done():
             waiter.set_result(None)
+        more = self._more
+        if more is not None:
+            self._more = None
+            for future in more:
+                if not future.done():
+                    future.set_result(None)
 
     def clear(self) -> None:
         self._flag = False
 
     async def wait(self) -> None:
         """Until :meth:`set` is called (at once, after a checkpoint, if it was already)."""
-        if self._waiter is not None:
-            raise RuntimeError("Wakeup.wait: another task is already waiting")
         if self._flag:
             self._flag = False
             await asyncio.sleep(0)
             return
-        waiter = self._waiter = asyncio.get_running_loop().create_future()
+        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        if self._waiter is None:
+            self._waiter = future
+        elif self._more is None:
+            self._more = [future]
+        else:
+            self._more.append(future)
         try:
-            await waiter
-        finally:
-            if self._waiter is waiter:
-                self._waiter = None
+            await future
+        except BaseException:  # cancelled: leave the line (set() removed a woken one)
+            self._leave(future)
+            raise
+
+    def _leave(self, future: asyncio.Future[None]) -> None:
+        more = self._more
+        if self._waiter is future:
+            self._waiter = more.pop(0) if more else None
+        elif more is not None and future in more:
+            more.remove(future)
+        if not self._more:
+            self._more = None
 
     def __repr__(self) -> str:
         state = "waiting" if self._waiter is not None else ("set" if self._flag else "clear")
