@@ -37,6 +37,10 @@ _POSITION = Request.POSITION
 _VELOCITY = Request.VELOCITY
 _TORQUE = Request.TORQUE
 
+INSIDE_MARGIN = 1e-6
+"""Relative margin by which a position profile's extremes must lie inside the limits for
+the exact crossing search to be skipped (the profile's rounding is ~1e-12 relative)."""
+
 TORQUE_RISE_NS = 2_000_000
 """Current-loop response: the commanded torque is reached this long after the command."""
 
@@ -135,11 +139,22 @@ class SimMotor(ActuatorDevice):
         ctx = self._ctx
         now = ctx.clock.now_ns() if ctx is not None else 0
         p, v, _ = prof.evaluate(self._segments, now)
-        vmax, amax = self.limits.velocity, self.max_acceleration
+        limits = self.limits
+        vmax, amax = limits.velocity, self.max_acceleration
         if self.stuck:
             segments = prof.hold(now, p)
         elif request is _POSITION:
             segments = prof.trapezoid(now, p, v, value, vmax, amax)
+            # A trapezoid's farthest points are its start, its target and where braking
+            # now would stop (the turn of an overshoot or of a start heading away); when
+            # they lie inside the limits by a margin far above the profile's rounding,
+            # the limit check is done (else clip_to_limits looks for the crossing).
+            low, high = limits.position
+            stop = p + v * (v if v >= 0.0 else -v) / (2 * amax)
+            margin = INSIDE_MARGIN * (1.0 + abs(p) + abs(value) + abs(stop))
+            if low + margin < min(p, stop, value) and max(p, stop, value) < high - margin:
+                self._set_inside(segments, _POSITION, segments[-1][0])
+                return
         elif request is Request.VELOCITY:
             segments = prof.ramp(now, p, v, value, amax)
         elif request is Request.TORQUE:
@@ -262,6 +277,17 @@ class SimMotor(ActuatorDevice):
         segments, limit_ns = prof.clip_to_limits(segments, low, high)
         if limit_ns is not None and arrival_ns is not None and limit_ns < arrival_ns:
             arrival_ns = None  # stopped by a limit first: the target is never reached
+        self._set_inside(segments, request, arrival_ns, limit_ns)
+
+    def _set_inside(
+        self,
+        segments: list[prof.Segment],
+        request: Request,
+        arrival_ns: int | None,
+        limit_ns: int | None = None,
+    ) -> None:
+        """:meth:`_set_profile` once the profile is within the limits (``limit_ns``: when
+        it stops on one)."""
         self._segments = segments
         self._request = request
         self._limit_ns = limit_ns

@@ -8,6 +8,7 @@ time can leap (virtual clock) without losing accuracy.
 from __future__ import annotations
 
 import math
+from math import ceil, sqrt
 from typing import NamedTuple
 
 NS = 1e-9
@@ -69,29 +70,50 @@ def trapezoid(
 ) -> list[Segment]:
     """Time-optimal move to ``target`` at rest under |v| <= vmax, |a| <= amax."""
     d = target - p0
-    if abs(d) < 1e-12 and abs(v0) < 1e-12:
+    if -1e-12 < d < 1e-12 and -1e-12 < v0 < 1e-12:
         return hold(start_ns, target)
     # Direction: toward the target from where braking now would stop us.
-    stop = p0 + v0 * abs(v0) / (2 * amax)
+    stop = p0 + v0 * (v0 if v0 >= 0.0 else -v0) / (2 * amax)
     s = 1.0 if target >= stop else -1.0
-    v0 = max(-vmax, min(vmax, v0))
+    if v0 > vmax:
+        v0 = vmax
+    elif v0 < -vmax:
+        v0 = -vmax
     peak_sq = amax * s * d + v0 * v0 / 2
-    peak = s * math.sqrt(max(0.0, peak_sq))
+    peak = s * sqrt(peak_sq if peak_sq > 0.0 else 0.0)
     cruise = 0.0
-    if abs(peak) > vmax:
+    if (peak if peak >= 0.0 else -peak) > vmax:
         peak = s * vmax
         d1 = (peak * peak - v0 * v0) / (2 * s * amax)
         d3 = s * peak * peak / (2 * amax)
         cruise = (d - d1 - d3) / peak
-    phases = [
+    # _chain over the three phases (accelerate or brake to the peak, cruise, brake to
+    # rest), unrolled: the same segments, without its lists and calls.
+    segments: list[Segment] = []
+    append = segments.append
+    new = tuple.__new__
+    t = start_ns
+    p = p0
+    v = v0
+    for v_end, duration in (
         (peak, (peak - v0) / (s * amax)),
         (peak, cruise),
-        (0.0, abs(peak) / amax),
-    ]
-    segments = _chain(start_ns, p0, v0, phases)
-    end = segments[-1][4] if segments else start_ns
+        (0.0, (peak if peak >= 0.0 else -peak) / amax),
+    ):
+        if duration <= 0:
+            continue
+        steps = ceil(duration / NS - 1e-6)
+        if steps < 1:
+            steps = 1
+        dt = steps * NS
+        a = (v_end - v) / dt
+        end = t + steps
+        append(new(Segment, (t, p, v, a, end)))
+        p = p + v * dt + 0.5 * a * dt * dt
+        v = v_end
+        t = end
     # Close the float error of the closed form: the profile ends exactly at the target.
-    segments.append(tuple.__new__(Segment, (end, target, 0.0, 0.0, None)))
+    append(new(Segment, (t, target, 0.0, 0.0, None)))
     return segments
 
 
