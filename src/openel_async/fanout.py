@@ -296,7 +296,7 @@ class Fanout:
 
     def _wake(self) -> None:
         work = self._work
-        if work.waiting:
+        if work.waiter is not None:  # a task waits (Wakeup.waiting, without a call)
             work.set()
 
     def close(self) -> None:

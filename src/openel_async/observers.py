@@ -162,7 +162,7 @@ class NoticeQueue(Generic[N]):
             self.missed_total += 1
         items.append(notice)
         wakeup = self._wakeup
-        if wakeup.waiting:
+        if wakeup.waiter is not None:  # a task waits (Wakeup.waiting, without a call)
             wakeup.set()
 
     def report_missed(self, count: int) -> None:
@@ -257,7 +257,7 @@ class ObserverQueue(NoticeQueue[Notice]):
             return
         items.append(notice)  # put_nowait's common case, inlined (one call per delivery)
         wakeup = self._wakeup
-        if wakeup.waiting:
+        if wakeup.waiter is not None:  # a task waits (Wakeup.waiting, without a call)
             wakeup.set()
 
     def notify_error(

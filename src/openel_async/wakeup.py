@@ -28,29 +28,31 @@ class Wakeup:
     :attr:`waiting`.
     """
 
-    __slots__ = ("_flag", "_more", "_waiter")
+    __slots__ = ("_flag", "_more", "waiter")
 
     def __init__(self) -> None:
         self._flag = False
-        self._waiter: asyncio.Future[None] | None = None
-        """The first waiting task's future (the usual, only one)."""
+        self.waiter: asyncio.Future[None] | None = None
+        """The first waiting task's future (the usual, only one); None: no task waits.
+        Read only: ``wakeup.waiter is not None`` is :attr:`waiting` without a call, for
+        a publisher's per-notice path."""
         self._more: list[asyncio.Future[None]] | None = None
         """The futures of the other waiting tasks, in the order they came."""
 
     @property
     def waiting(self) -> bool:
         """Whether a task is waiting."""
-        return self._waiter is not None
+        return self.waiter is not None
 
     def is_set(self) -> bool:
         return self._flag
 
     def set(self) -> None:
-        waiter = self._waiter
+        waiter = self.waiter
         if waiter is None:
             self._flag = True
             return
-        self._waiter = None
+        self.waiter = None
         if not waiter.done():
             waiter.set_result(None)
         more = self._more
@@ -70,8 +72,8 @@ class Wakeup:
             await asyncio.sleep(0)
             return
         future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        if self._waiter is None:
-            self._waiter = future
+        if self.waiter is None:
+            self.waiter = future
         elif self._more is None:
             self._more = [future]
         else:
@@ -84,13 +86,13 @@ class Wakeup:
 
     def _leave(self, future: asyncio.Future[None]) -> None:
         more = self._more
-        if self._waiter is future:
-            self._waiter = more.pop(0) if more else None
+        if self.waiter is future:
+            self.waiter = more.pop(0) if more else None
         elif more is not None and future in more:
             more.remove(future)
         if not self._more:
             self._more = None
 
     def __repr__(self) -> str:
-        state = "waiting" if self._waiter is not None else ("set" if self._flag else "clear")
+        state = "waiting" if self.waiter is not None else ("set" if self._flag else "clear")
         return f"Wakeup({state})"
