@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import anyio
@@ -604,6 +604,7 @@ async def send_targets(
     req: Request,
     targets: Sequence[float],
     posts_completed: bool = True,
+    now_ns: Callable[[], int] | None = None,
 ) -> None:
     """:func:`stream_targets` over devices without a synchronous path: ``_send`` on every
     actuator in order (one awaited ``device.command`` each), with the same semantics, but
@@ -611,9 +612,15 @@ async def send_targets(
     runs in one coroutine, not one per actuator.  ``targets`` are validated (an
     ActuatorBank's checks); a command overtaken by another during its await, a device that
     does not report completion, an actuator that left Active or NO_EXCITE take the full
-    ``_accept``.
+    ``_accept``.  ``now_ns``: the clock every actuator shares, read once for the batch as
+    an ActuatorBank stamps its streamed batches (None: each actuator's own, after its
+    command).
     """
     lazy = req is not _NO_EXCITE
+    active = _ACTIVE
+    pending = _PENDING
+    listening = LISTENING
+    stamp = now_ns() if now_ns is not None else 0
     for actuator, target in zip(actuators, targets, strict=True):
         if actuator._stream is not None:
             actuator._detach()
@@ -624,26 +631,27 @@ async def send_targets(
         except _LINK_FAULTS as exc:
             raise actuator._fault_from(exc) from exc
         if (
-            actuator._sequence == sequence  # not overtaken during the await
-            and lazy
-            and actuator._reports_completion
-            and actuator.state is _ACTIVE
-            and actuator._stream is None
+            actuator._sequence != sequence  # overtaken during the await
+            or not lazy
+            or actuator.state is not active
+            or not actuator._reports_completion
+            or actuator._stream is not None
         ):
-            if actuator._motion is not None:  # built because someone asked: it is replaced
-                previous = actuator._motion
-                if previous.outcome is _PENDING:
-                    previous._supersede(sequence)
-                actuator._motion = None
-            stamp = actuator.clock.now_ns()
-            actuator._latest = (req, target, sequence, stamp, posts_completed)
-            actuator._commanded[req] = target
-            if LISTENING.count:
-                listener = actuator._observers.listener
-                if listener is not None:
-                    listener.on_command(actuator, req, target, stamp)
-        else:
             actuator._accept(req, target, sequence, posts_completed)
+            continue
+        previous = actuator._motion
+        if previous is not None:  # built because someone asked: it is replaced
+            if previous.outcome is pending:
+                previous._supersede(sequence)
+            actuator._motion = None
+        if now_ns is None:
+            stamp = actuator.clock.now_ns()
+        actuator._latest = (req, target, sequence, stamp, posts_completed)
+        actuator._commanded[req] = target
+        if listening.count:
+            listener = actuator._observers.listener
+            if listener is not None:
+                listener.on_command(actuator, req, target, stamp)
 
 
 def accept_streamed(

@@ -127,6 +127,8 @@ class AxisGroup:
         # Devices read without I/O: the actual positions in one bank read per tick (its
         # listeners hear the batch in one call).
         self._read_now = all(has_nowait(a.device, "read_nowait", "read") for a in axes)
+        # The clock every axis shares (one stamp reader for the awaited batches), if any.
+        self._now_ns = axes[0].clock.now_ns if len({id(a.clock) for a in axes}) == 1 else None
         self.timer = timer
         self._limits: tuple[AxisLimits, ...] = per_axis(limits, n, "limits", AxisLimits)
         self._tolerances: tuple[Tolerances, ...] = per_axis(
@@ -502,7 +504,7 @@ class AxisGroup:
         try:
             req, targets = self._bank._check("set_values", position, POSITION)
             # One coroutine for the batch, Motions built only when asked for.
-            await send_targets(self.axes, req, targets, self.setpoint_events)
+            await send_targets(self.axes, req, targets, self.setpoint_events, self._now_ns)
         except Exception as exc:
             self._stream_failed(motion, position, exc, t)
             return
