@@ -481,6 +481,32 @@ bookkeeping in compiled code. Not done on purpose: a per-tick check that no devi
 devices' limits when it is built (docs/psm.md), and the proof covers those limits, so a
 proven batch is exactly one the per-value check would have passed.
 
+**Issue 27 (targets 1.5x / 1.3x, async-only 64 axes 4x).** Profiled (cProfile), a new
+`anyio.Event()` per tick for the streaming task's wake-up took 25-30 % of the tick
+(`current_async_library`, asyncio's `_get_loop`), plus a task switch and a `TimerTick`
+per tick. Now a tick that needs no await runs inside `notify_timer` (the timer's
+notification: no task switch, no `TimerTick` built, the deadline read from
+`EventTimer.last_tick_fields`), and the streaming task, kept for ticks that await a
+driver, waits on a reused `Wakeup`. Over async-only drivers the tick paid a `_send`
+coroutine and a `Motion` per axis (`Actuator._accept`: 70 % of the tick); now one
+coroutine sends the batch (`actuator.send_targets`: one awaited `command` per axis,
+lazy Motions, one clock reading per batch): 16x -> ~6-7x the peer at 64 axes on a loaded
+machine. Warm micro-timing of the parts (thread time, min of 30 rounds, loaded machine,
+6 / 64 axes): peer 867 / 5,358 ns; `at_time` alone 502 / 3,683; the group's tick 2,397 /
+7,671: the sampler 641 / 3,697, the log row 152 / 155, the proven send 1,150 / 2,852 (the
+drive's batch alone 682 / 2,219: N attribute stores on N drive objects, where the peer
+stores into one list; `StreamBatch.accept` 182 / 283). Over async-only drivers, per axis:
+the bare awaited `command` 153-234 ns, `send_targets` 347-599 ns (sequence, the lazy
+Motion's tuple, the commanded value, the checks that a command was not overtaken during
+its await). At 6 axes the framework's own part of a tick (sampler wrapper, log row, the
+Active and limits checks, the stamp, `accept`, the tick closure: ~1 µs warm) is already
+more than 0.5x the peer, so 1.5x is out of reach in pure Python without dropping per-tick
+checks; compiling the tick (mypyc on `motion/group.py`, `banks.py`, `actuator.py`) or a
+position-only `at_time` in ruckig's binding are what is left. Over async-only drivers the
+awaited commands alone are ~1.7x the peer at 64 axes; an asynchronous batch hook on the
+driver (one coroutine per batch, as a bus SYNC WRITE, with the bank's `StreamBatch`
+bookkeeping) would remove the per-axis coroutine and bookkeeping.
+
 The proof does not use ruckig's `Trajectory.position_extrema`: the community edition
 skips velocity zeros in constant-acceleration phases and can miss an overshoot entirely
 (ruckig issue #215; e.g. from 1 rad/s back to the start under a 1, j 10 it reports a
