@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 import anyio
 
+from openel_async.clock import Clock
 from openel_async.device import (
     ActuatorDevice,
     ActuatorLimits,
@@ -30,6 +31,7 @@ from openel_async.logs import get_logger
 from openel_async.requests import EventId, Request
 
 from . import profile as prof
+from .profile import evaluate, trapezoid
 
 log = get_logger(__name__)
 
@@ -100,6 +102,8 @@ class SimMotor(ActuatorDevice):
         self._arrival_ns: int | None = None
         self._limit_ns: int | None = None
         self._ctx: DeviceContext | None = None
+        self._clock: Clock | None = None
+        """The component's clock (read once at open: the per-command path)."""
         self._sleep_scope: anyio.CancelScope | None = None
         self._sleep_until: int | None = None
         self.connected = True
@@ -109,6 +113,7 @@ class SimMotor(ActuatorDevice):
     # -- lifecycle -------------------------------------------------------------------
     async def open(self, ctx: DeviceContext) -> None:
         self._ctx = ctx
+        self._clock = ctx.clock
         now = ctx.clock.now_ns()
         self._segments = prof.hold(now, self._initial_position)
         ctx.start_soon(self._watch)
@@ -134,17 +139,18 @@ class SimMotor(ActuatorDevice):
         self.command_nowait(request, value)
 
     def command_nowait(self, request: Request, value: float) -> None:
-        self._check_connected()
+        if not self.connected:
+            raise NotConnectedError("simulated motor is disconnected")
         self.commands += 1
-        ctx = self._ctx
-        now = ctx.clock.now_ns() if ctx is not None else 0
-        p, v, _ = prof.evaluate(self._segments, now)
+        clock = self._clock
+        now = clock.now_ns() if clock is not None else 0
+        p, v, _ = evaluate(self._segments, now)
         limits = self.limits
         vmax, amax = limits.velocity, self.max_acceleration
         if self.stuck:
             segments = prof.hold(now, p)
         elif request is _POSITION:
-            segments = prof.trapezoid(now, p, v, value, vmax, amax)
+            segments = trapezoid(now, p, v, value, vmax, amax)
             # A trapezoid's farthest points are its start, its target and where braking
             # now would stop (the turn of an overshoot or of a start heading away); when
             # they lie inside the limits by a margin far above the profile's rounding,
@@ -153,7 +159,17 @@ class SimMotor(ActuatorDevice):
             stop = p + v * (v if v >= 0.0 else -v) / (2 * amax)
             margin = INSIDE_MARGIN * (1.0 + abs(p) + abs(value) + abs(stop))
             if low + margin < min(p, stop, value) and max(p, stop, value) < high - margin:
-                self._set_inside(segments, _POSITION, segments[-1][0])
+                # _set_inside(segments, POSITION, arrival), inline: the per-command path
+                arrival_ns = segments[-1][0]
+                self._segments = segments
+                self._request = _POSITION
+                self._limit_ns = None
+                self._arrival_ns = arrival_ns
+                scope = self._sleep_scope
+                if scope is not None and (
+                    self._sleep_until is None or arrival_ns < self._sleep_until
+                ):
+                    scope.cancel()  # the watcher has something due earlier
                 return
         elif request is Request.VELOCITY:
             segments = prof.ramp(now, p, v, value, amax)
@@ -258,7 +274,7 @@ class SimMotor(ActuatorDevice):
 
     # -- internals -------------------------------------------------------------------
     def _now(self) -> int:
-        return self._ctx.clock.now_ns() if self._ctx is not None else 0
+        return self._clock.now_ns() if self._clock is not None else 0
 
     def _check_connected(self) -> None:
         if not self.connected:

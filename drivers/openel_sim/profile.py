@@ -88,29 +88,45 @@ def trapezoid(
         d3 = s * peak * peak / (2 * amax)
         cruise = (d - d1 - d3) / peak
     # _chain over the three phases (accelerate or brake to the peak, cruise, brake to
-    # rest), unrolled: the same segments, without its lists and calls.
+    # rest), unrolled: the same segments, without its lists, loop and calls.
     segments: list[Segment] = []
     append = segments.append
     new = tuple.__new__
     t = start_ns
     p = p0
     v = v0
-    for v_end, duration in (
-        (peak, (peak - v0) / (s * amax)),
-        (peak, cruise),
-        (0.0, (peak if peak >= 0.0 else -peak) / amax),
-    ):
-        if duration <= 0:
-            continue
+    duration = (peak - v0) / (s * amax)
+    if duration > 0:
         steps = ceil(duration / NS - 1e-6)
         if steps < 1:
             steps = 1
         dt = steps * NS
-        a = (v_end - v) / dt
+        a = (peak - v) / dt
         end = t + steps
         append(new(Segment, (t, p, v, a, end)))
         p = p + v * dt + 0.5 * a * dt * dt
-        v = v_end
+        v = peak
+        t = end
+    if cruise > 0:
+        steps = ceil(cruise / NS - 1e-6)
+        if steps < 1:
+            steps = 1
+        dt = steps * NS
+        a = (peak - v) / dt
+        end = t + steps
+        append(new(Segment, (t, p, v, a, end)))
+        p = p + v * dt + 0.5 * a * dt * dt
+        v = peak
+        t = end
+    duration = (peak if peak >= 0.0 else -peak) / amax
+    if duration > 0:
+        steps = ceil(duration / NS - 1e-6)
+        if steps < 1:
+            steps = 1
+        dt = steps * NS
+        a = (0.0 - v) / dt
+        end = t + steps
+        append(new(Segment, (t, p, v, a, end)))
         t = end
     # Close the float error of the closed form: the profile ends exactly at the target.
     append(new(Segment, (t, target, 0.0, 0.0, None)))
