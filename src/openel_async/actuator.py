@@ -255,7 +255,24 @@ class Actuator(HALComponent):
             raise self._fault_from(exc) from exc
         finally:
             self._sync_send = 0
-        motion = self._accept(req, target, sequence)
+        previous = self._motion
+        if (
+            self.state is _ACTIVE
+            and self._stream is None
+            and self._latest is None
+            and self._observers.listener is None
+            and req is not _NO_EXCITE
+            and (previous is None or previous.sequence < sequence)
+        ):  # _accept's common case, inline: the per-command path of a control loop
+            motion = Motion(req, target, sequence, self.clock.now_ns())
+            self._motion = motion
+            if previous is not None and previous.outcome is _PENDING:
+                previous._supersede(sequence)
+            self._commanded[req] = target
+            if not self._reports_completion:
+                self._watch.set()
+        else:
+            motion = self._accept(req, target, sequence)
         if self._reached_in_send == sequence:
             self._reached_in_send = 0
             self._on_target_reached()
