@@ -305,9 +305,21 @@ def run(quick: bool) -> BenchResult:
     ticks = QUICK_TICKS if quick else TICKS
     rounds = QUICK_ROUNDS if quick else ROUNDS
     results = [anyio.run(measure_size, n, ticks, rounds, backend="asyncio") for n in SIZES]
-    real = anyio.run(
-        measure_real, REAL_AXES, QUICK_REAL_SECONDS if quick else REAL_SECONDS, backend="asyncio"
+    real_s = QUICK_REAL_SECONDS if quick else REAL_SECONDS
+    real_runs = []
+    for _ in range(rounds):  # the real-clock run in rounds too: its row is their median
+        gc.collect()
+        real_runs.append(anyio.run(measure_real, REAL_AXES, real_s / rounds, backend="asyncio"))
+    real = RealRun(
+        seconds=sum(r.seconds for r in real_runs),
+        cpu_seconds=sum(r.cpu_seconds for r in real_runs),
+        ticks=sum(r.ticks for r in real_runs),
+        timer_missed=sum(r.timer_missed for r in real_runs),
+        group_skipped=sum(r.group_skipped for r in real_runs),
+        tick_median_us=median([r.tick_median_us for r in real_runs]),
+        tick_p99_us=max(r.tick_p99_us for r in real_runs),
     )
+    real_cores = median([r.cores for r in real_runs])
     rows: list[Row] = []
     notes: list[str] = []
     for r in results:
@@ -376,18 +388,19 @@ def run(quick: bool) -> BenchResult:
     rows.append(
         Row(
             f"real clock, {REAL_AXES} axes at 1 kHz: CPU per wall second",
-            real.cores,
+            real_cores,
             "cores",
             target="< 0.5 core",
-            passed=real.cores < 0.5,
+            passed=real_cores < 0.5,
             digits=3,
         )
     )
     notes.append(
-        f"Real clock: {real.ticks} ticks in {real.seconds:.1f} s, {real.cpu_seconds:.2f} s "
+        f"Real clock ({rounds} rounds; CPU per wall second: the median of the rounds'): "
+        f"{real.ticks} ticks in {real.seconds:.1f} s, {real.cpu_seconds:.2f} s "
         f"of CPU; the timer skipped {real.timer_missed} period(s), the group "
         f"{real.group_skipped} tick(s); group tick median {real.tick_median_us:.1f} µs, "
-        f"p99 {real.tick_p99_us:.0f} µs."
+        f"largest round p99 {real.tick_p99_us:.0f} µs."
     )
     for r in results:
         notes.append(
