@@ -32,7 +32,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog=COMMAND.removeprefix("uv run "),
         description="Run the openel-async benchmarks (each against a baseline measured "
-        "in the same run). Exit status 1 when a target is missed.",
+        "in the same run). Exit status 1 when a benchmark fails with an error, and with "
+        "--check also when a row misses its target.",
     )
     parser.add_argument(
         "names", nargs="*", metavar="NAME", help=f"benchmarks to run (default: all of {names})"
@@ -48,6 +49,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         action="store_true",
         help="run under cProfile and print the top functions (inflates the figures; "
         "not allowed with --write-docs)",
+    )
+    parser.add_argument(
+        "--check",
+        action="store_true",
+        help="exit with status 1 when any row misses its target (each row: the median of "
+        "at least 5 interleaved rounds), listing the rows missed: for CI and regressions",
     )
     parser.add_argument("--list", action="store_true", help="list the benchmarks and exit")
     args = parser.parse_args(argv)
@@ -89,7 +96,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.write_docs:
         written = write_document(results)
         print(f"wrote sections {written} of {DOC_PATH}")
-    return 0 if all(r.passed or r.skipped is not None for r in results) else 1
+    if any(r.error is not None for r in results):
+        return 1
+    if not args.check:
+        return 0
+    missed = [(r.name, row) for r in results if r.skipped is None for row in r.failures]
+    for name, row in missed:
+        print(f"target missed: {name}: {row.metric}: {row.target}")
+    return 1 if missed else 0
 
 
 if __name__ == "__main__":

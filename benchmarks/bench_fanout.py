@@ -47,9 +47,13 @@ QUICK_EVENTS = 40_000
 BATCH = 100
 QUEUE_SIZE = 1024
 ROUNDS = 5
-QUICK_ROUNDS = 2
+QUICK_ROUNDS = 5
 THROUGHPUT_TARGET = 0.8
-"""ours / asyncio.Queue deliveries per second, at least."""
+"""ours / asyncio.Queue deliveries per second, at least (batches of BATCH events)."""
+YIELD_EVENTS = 40_000
+QUICK_YIELD_EVENTS = 10_000
+YIELD_TARGET = 1.0
+"""The same when the publisher yields after every event (issue 27), at least."""
 SCALE = (10, 100, 1000)
 SCALE_DELIVERIES = 200_000
 QUICK_SCALE_DELIVERIES = 50_000
@@ -107,7 +111,7 @@ async def _drain_queue(queue: ObserverQueue, counts: list[int], i: int) -> None:
     counts[i] = n - lost  # a notice that reports missed ones stands for a loss
 
 
-async def ours_round(events: int) -> Run:
+async def ours_round(events: int, batch: int = BATCH) -> Run:
     source = EventSource()
     queues = [ObserverQueue(QUEUE_SIZE, name=f"bench-fanout-{i}") for i in range(OBSERVERS)]
     counts = [0] * OBSERVERS
@@ -119,14 +123,14 @@ async def ours_round(events: int) -> Run:
         post = source.ctx.post_event
         await anyio.lowlevel.checkpoint()  # consumers are waiting on their empty queues
         t0 = time.perf_counter()
-        for _ in range(events // BATCH):
-            for _ in range(BATCH):
+        for _ in range(events // batch):
+            for _ in range(batch):
                 post(EVENT)
             await anyio.lowlevel.checkpoint()
         for queue in queues:
             queue.close()  # each consumer ends once it took what is queued
     seconds = time.perf_counter() - t0
-    sent = events // BATCH * BATCH
+    sent = events // batch * batch
     lost = sum(q.missed_total for q in queues) + sum(sent - c for c in counts)
     return Run(deliveries=sum(counts), seconds=seconds, lost=lost)
 
@@ -146,7 +150,7 @@ async def _drain_asyncio(queue: asyncio.Queue[int | None], counts: list[int], i:
     counts[i] = n
 
 
-async def asyncio_queue_round(events: int) -> Run:
+async def asyncio_queue_round(events: int, batch: int = BATCH) -> Run:
     counts = [0] * OBSERVERS
     lost = 0
     queues: list[asyncio.Queue[int | None]] = [
@@ -155,8 +159,8 @@ async def asyncio_queue_round(events: int) -> Run:
     tasks = [asyncio.ensure_future(_drain_asyncio(q, counts, i)) for i, q in enumerate(queues)]
     await asyncio.sleep(0)
     t0 = time.perf_counter()
-    for _ in range(events // BATCH):
-        for _ in range(BATCH):
+    for _ in range(events // batch):
+        for _ in range(batch):
             for queue in queues:
                 try:
                     queue.put_nowait(EVENT)
@@ -167,7 +171,7 @@ async def asyncio_queue_round(events: int) -> Run:
         queue.put_nowait(None)
     await asyncio.gather(*tasks)
     seconds = time.perf_counter() - t0
-    sent = events // BATCH * BATCH
+    sent = events // batch * batch
     lost += sum(sent - c for c in counts)
     return Run(deliveries=sum(counts), seconds=seconds, lost=lost)
 
@@ -190,7 +194,7 @@ async def _drain_stream(stream: MemoryObjectReceiveStream[int], counts: list[int
     counts[i] = n
 
 
-async def streams_round(events: int) -> Run:
+async def streams_round(events: int, batch: int = BATCH) -> Run:
     counts = [0] * OBSERVERS
     lost = 0
     async with anyio.create_task_group() as tg:
@@ -201,8 +205,8 @@ async def streams_round(events: int) -> Run:
             tg.start_soon(_drain_stream, receive, counts, i)
         await anyio.lowlevel.checkpoint()
         t0 = time.perf_counter()
-        for _ in range(events // BATCH):
-            for _ in range(BATCH):
+        for _ in range(events // batch):
+            for _ in range(batch):
                 for send in senders:
                     try:
                         send.send_nowait(EVENT)
@@ -212,7 +216,7 @@ async def streams_round(events: int) -> Run:
         for send in senders:
             send.close()
     seconds = time.perf_counter() - t0
-    sent = events // BATCH * BATCH
+    sent = events // batch * batch
     lost += sum(sent - c for c in counts)
     return Run(deliveries=sum(counts), seconds=seconds, lost=lost)
 
@@ -396,6 +400,37 @@ def run(quick: bool) -> BenchResult:
         + "."
     )
 
+    yield_events = QUICK_YIELD_EVENTS if quick else YIELD_EVENTS
+    ty = _interleaved(
+        rounds,
+        {
+            "ours": lambda: ours_round(yield_events, 1),
+            "asyncio.Queue": lambda: asyncio_queue_round(yield_events, 1),
+        },
+    )
+    y_rate = {name: statistics.median(r.rate for r in runs) for name, runs in ty.items()}
+    y_lost = {name: sum(r.lost for r in runs) for name, runs in ty.items()}
+    ratio_y = ratio_of(y_rate["ours"], y_rate["asyncio.Queue"])
+    rows.append(
+        Row(
+            f"deliveries/s, {OBSERVERS} observers, publisher yields after every event",
+            y_rate["ours"],
+            "/s",
+            baseline=y_rate["asyncio.Queue"],
+            baseline_label="asyncio.Queue",
+            ratio=ratio_y,
+            ratio_label="ours/asyncio.Queue",
+            target=f">= {YIELD_TARGET:g}x asyncio.Queue",
+            passed=ratio_y >= YIELD_TARGET and y_lost["ours"] == 0,
+            digits=0,
+        )
+    )
+    notes.append(
+        f"Yielding after every event: median of {rounds} alternating rounds of "
+        f"{yield_events:,} events x {OBSERVERS} observers; lost: ours {y_lost['ours']}, "
+        f"asyncio.Queue {y_lost['asyncio.Queue']}."
+    )
+
     per_delivery: dict[tuple[bool, int], tuple[float, float]] = {}
     for asynchronous in (False, True):
         kind = "async" if asynchronous else "sync"
@@ -498,7 +533,9 @@ then drains with `get_nowait()`), and {OBSERVERS} anyio memory object streams
 (`send_nowait`; `receive()` then `receive_nowait()`). Figure: deliveries per second =
 events x {OBSERVERS} / wall time from the first event until every consumer finished.
 The publisher posts {BATCH} events, then yields once; queues hold {QUEUE_SIZE}, so nothing
-is lost, which is checked.
+is lost, which is checked. A second row does the same with a publisher that yields after
+every event (each consumer woken, takes one notice and waits again, every event): the
+cost of a consumer's wait and wake-up, against `asyncio.Queue.get`'s.
 
 **Scaling, 10 to 1000 observers.** One event per tick. Sync: N plain observers
 (`notify_event` counts) called inline by `post_event`; peer: a loop calling N callbacks,

@@ -29,13 +29,14 @@ import anyio.lowlevel
 from openel_async import EventTimer, MonotonicClock, ObserverQueue, TimerTick, timerfd
 from openel_async.stats import LatenessRecorder, LatenessSummary
 
-from .harness import BenchResult, Row, ratio_of
+from .harness import MIN_ROUNDS, BenchResult, Row, median, ratio_of
 
 NAME = "timer"
 PERIOD_MS = 1.0
 PERIOD_NS = 1_000_000
 DURATION_S = 10.0
 QUICK_DURATION_S = 2.0
+ROUNDS = MIN_ROUNDS
 QUEUE_SIZE = 1024
 P99_TARGET_US = 300.0
 NAIVE_FACTOR_TARGET = 3.0
@@ -308,17 +309,45 @@ def _measure(loop: str, duration_ns: int) -> LoopFigures:
     return anyio.run(deadline_loop, duration_ns, backend="asyncio")
 
 
+def _summary(rounds: list[LatenessSummary]) -> LatenessSummary:
+    """The rounds' lateness as one: p50 and p99 the median of the rounds' own, max the
+    largest, mean the mean of the means, count the total."""
+    return LatenessSummary(
+        count=sum(r.count for r in rounds),
+        p50_ns=round(median([r.p50_ns for r in rounds])),
+        p99_ns=round(median([r.p99_ns for r in rounds])),
+        max_ns=max(r.max_ns for r in rounds),
+        mean_ns=sum(r.mean_ns for r in rounds) / len(rounds),
+    )
+
+
+def _combined(rounds: list[LoopFigures]) -> LoopFigures:
+    return LoopFigures(
+        lateness=_summary([r.lateness for r in rounds]),
+        ticks=sum(r.ticks for r in rounds),
+        missed=sum(r.missed for r in rounds),
+        drift_ns=round(median([r.drift_ns for r in rounds])),
+        consumed=sum(r.consumed for r in rounds),
+        max_lag=max(r.max_lag for r in rounds),
+    )
+
+
 def run(quick: bool) -> BenchResult:
     duration_s = QUICK_DURATION_S if quick else DURATION_S
     duration_ns = round(duration_s * 1e9)
-    # Sequential, never concurrent: each loop has the event loop (and a core) to itself.
-    ours = _measure("ours", duration_ns)
-    naive = _measure("naive", duration_ns)
-    deadline = _measure("deadline", duration_ns)
-    floor: LatenessSummary | None = None
-    if timerfd.available():
-        gc.collect()
-        floor = anyio.run(timerfd_floor, duration_ns, backend="asyncio")
+    round_ns = duration_ns // ROUNDS
+    # Sequential, never concurrent: each loop has the event loop (and a core) to itself;
+    # ROUNDS interleaved rounds of duration / ROUNDS each, so load changes hit all alike.
+    per: dict[str, list[LoopFigures]] = {"ours": [], "naive": [], "deadline": []}
+    floors: list[LatenessSummary] = []
+    for _ in range(ROUNDS):
+        for loop in per:
+            per[loop].append(_measure(loop, round_ns))
+        if timerfd.available():
+            gc.collect()
+            floors.append(anyio.run(timerfd_floor, round_ns, backend="asyncio"))
+    ours, naive, deadline = (_combined(per[loop]) for loop in ("ours", "naive", "deadline"))
+    floor: LatenessSummary | None = _summary(floors) if floors else None
 
     us = 1e3
     rows: list[Row] = []
@@ -410,6 +439,10 @@ def run(quick: bool) -> BenchResult:
 
     expected = duration_ns // PERIOD_NS
     notes: tuple[str, ...] = (
+        f"{ROUNDS} interleaved rounds of {round_ns / 1e9:g} s per loop (ours, naive, "
+        "deadline, floor): p50 and p99 are the median of the rounds' own, max the "
+        "largest, drift the median of the rounds' last-tick drifts; ticks and missed "
+        "periods summed.",
         f"Expected {expected} periods per loop; every loop's queue consumer and async "
         f"observer saw every tick it delivered (ours {ours.consumed}, naive {naive.consumed}, "
         f"deadline {deadline.consumed}) and no observer queue overflowed. The async "
@@ -427,7 +460,7 @@ def run(quick: bool) -> BenchResult:
     )
     if floor is not None:
         notes += (
-            f"Timerfd floor (bare wake-ups, own {duration_s:g} s window after the others): "
+            f"Timerfd floor (bare wake-ups, own window after the others in each round): "
             f"p50 {floor.p50_ns / us:.1f} µs, p99 {floor.p99_ns / us:.1f} µs, max "
             f"{floor.max_ns / us:.1f} µs. Tails (p99, max, skipped periods) come from the "
             "machine's wake-up jitter, which changes from one window to the next, so a "
@@ -441,7 +474,7 @@ def run(quick: bool) -> BenchResult:
         notes=notes,
         params={
             "period": f"{PERIOD_MS:g} ms",
-            "duration per loop": f"{duration_s:g} s",
+            "duration per loop": f"{duration_s:g} s in {ROUNDS} rounds",
             "observers": "sync callable + ObserverQueue/consumer task + async observer",
             "clock": repr(MonotonicClock()),
         },
@@ -459,7 +492,8 @@ per tick (the sync call, the queue, and a task running the async observer):
   start + k x period, so its lateness includes the drift accumulated so far.
 - **deadline**: absolute deadlines with `await anyio.sleep(deadline - now)`.
 
-The three loops run one after the other, never concurrently. Lateness is taken right
+The three loops run one after the other, never concurrently, in 5 interleaved rounds of
+a fifth of the duration each; p50 and p99 are the median of the rounds' own. Lateness is taken right
 after each wake-up, before the observers run; p50/p99 are nearest-rank percentiles.
 Drift is the last tick's time minus start + n x period. Missed periods are periods
 with no tick (for ours, the ticks the timer skipped after waking a whole period late).

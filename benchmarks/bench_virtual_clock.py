@@ -3,13 +3,24 @@
 from __future__ import annotations
 
 import gc
+import math
 import time
+from contextlib import AsyncExitStack
 
 import anyio
 
-from benchmarks.harness import BenchResult, Row, ratio_of
-from openel_async import EventTimer, MonotonicClock, ObserverQueue, VirtualClock
+from benchmarks.harness import MIN_ROUNDS, BenchResult, Row, median, ratio_of
+from openel_async import (
+    Actuator,
+    ActuatorBank,
+    EventTimer,
+    MonotonicClock,
+    ObserverQueue,
+    Request,
+    VirtualClock,
+)
 from openel_async.clock import Clock
+from openel_sim import SimMotor
 
 NAME = "virtual_clock"
 PERIOD_MS = 1
@@ -17,6 +28,12 @@ VIRTUAL_S = 10.0
 REAL_S = 1.0
 QUICK_REAL_S = 0.3
 TARGET_WALL_S = 1.0
+ROUNDS = MIN_ROUNDS
+MOTORS = (10, 100)
+MOTOR_TICKS = 1_000
+QUICK_MOTOR_TICKS = 300
+MOTOR_TARGET_US = 5.0
+"""Wall time per motor and tick at N = 100, at most (issue 27)."""
 
 
 async def _ticks(clock: Clock, seconds: float) -> tuple[int, float]:
@@ -55,14 +72,102 @@ async def _real(seconds: float) -> tuple[int, float]:
     return await _ticks(MonotonicClock(), seconds)
 
 
+async def _motors(count: int, ticks: int, framework: bool | None) -> float:
+    """Wall seconds per motor and tick: an EventTimer(1 ms) on a VirtualClock whose plain
+    observer sends every motor a new position each tick (a slow sine, so each command
+    is a real new move), through ``Actuator.set_value_nowait`` (``framework`` True), one
+    ``ActuatorBank.set_values_nowait`` (None) or, for the driver alone,
+    ``SimMotor.command_nowait`` (False)."""
+    clock = VirtualClock()
+    async with clock.autojump(), AsyncExitStack() as stack:
+        actuators = [
+            await stack.enter_async_context(Actuator(SimMotor(), clock=clock)) for _ in range(count)
+        ]
+        devices = [a.device for a in actuators]
+        bank = ActuatorBank(actuators)
+        targets = [0.0] * count
+        position = Request.POSITION
+        k = 0
+
+        def drive(timer: EventTimer) -> None:
+            nonlocal k
+            k += 1
+            x = 0.5 * math.sin(k * 0.01)
+            if framework:
+                for actuator in actuators:
+                    actuator.set_value_nowait(x, position)
+            elif framework is None:
+                targets[:] = [x] * count
+                bank.set_values_nowait(targets, position)
+            else:
+                for device in devices:
+                    device.command_nowait(position, x)
+
+        async with EventTimer(PERIOD_MS, clock=clock) as timer:
+            timer.add_observer(drive)
+            start = time.perf_counter()
+            timer.start_timer()
+            await clock.sleep(ticks * PERIOD_MS / 1000)
+            timer.stop_timer()
+            wall = time.perf_counter() - start
+    return wall / k / count
+
+
 def run(quick: bool) -> BenchResult:
-    gc.collect()
-    ticks, wall = anyio.run(_virtual, backend="asyncio")
     real_s = QUICK_REAL_S if quick else REAL_S
-    gc.collect()
-    real_ticks, real_wall = anyio.run(_real, real_s, backend="asyncio")
+    runs: list[tuple[int, float]] = []
+    real_runs: list[tuple[int, float]] = []
+    for _ in range(ROUNDS):  # interleaved: load changes hit both alike
+        gc.collect()
+        runs.append(anyio.run(_virtual, backend="asyncio"))
+        gc.collect()
+        real_runs.append(anyio.run(_real, real_s / ROUNDS, backend="asyncio"))
+    ticks = runs[0][0]
+    wall = median([w for _, w in runs])
+    real_per_tick = median([w / t * 1e6 for t, w in real_runs])
+    real_ticks = sum(t for t, _ in real_runs)
     per_tick = wall / ticks * 1e6
-    real_per_tick = real_wall / real_ticks * 1e6
+    motor_ticks = QUICK_MOTOR_TICKS if quick else MOTOR_TICKS
+    per_motor: dict[tuple[int, bool], list[float]] = {}
+    for _ in range(ROUNDS):
+        for count in MOTORS:
+            for framework in (True, None, False):
+                gc.collect()
+                per_motor.setdefault((count, framework), []).append(
+                    anyio.run(_motors, count, motor_ticks, framework, backend="asyncio")
+                )
+    motor_rows = []
+    for count in MOTORS:
+        banked = median(per_motor[(count, None)]) * 1e6
+        ours = median(per_motor[(count, True)]) * 1e6
+        alone = median(per_motor[(count, False)]) * 1e6
+        target = count == MOTORS[-1]
+        motor_rows.append(
+            Row(
+                f"EventTimer driving {count} SimMotors: wall time per motor and tick",
+                ours,
+                "µs",
+                baseline=alone,
+                baseline_label="SimMotor.command_nowait alone",
+                ratio=ratio_of(ours, alone),
+                ratio_label="ours/driver",
+                target=f"<= {MOTOR_TARGET_US:g} µs" if target else "",
+                passed=ours <= MOTOR_TARGET_US if target else None,
+                digits=2,
+            )
+        )
+        motor_rows.append(
+            Row(
+                f"the same through one ActuatorBank.set_values_nowait, {count} SimMotors",
+                banked,
+                "µs",
+                baseline=alone,
+                baseline_label="SimMotor.command_nowait alone",
+                ratio=ratio_of(banked, alone),
+                ratio_label="bank/driver",
+                digits=2,
+            )
+        )
     rows = (
         Row(
             f"wall time for {VIRTUAL_S:.0f} s of virtual time",
@@ -87,6 +192,7 @@ def run(quick: bool) -> BenchResult:
             digits=1,
         ),
         Row("ticks delivered", ticks, target=f"{round(VIRTUAL_S * 1000 / PERIOD_MS)}", digits=0),
+        *motor_rows,
     )
     return BenchResult(
         name=NAME,
@@ -95,8 +201,10 @@ def run(quick: bool) -> BenchResult:
         description=DESCRIPTION,
         notes=(
             f"The baseline runs the same timer and observers on MonotonicClock for "
-            f"{real_s} s in the same run; its per-tick wall time (one period) is scaled to "
-            f"the virtual run's {ticks} ticks.",
+            f"{real_s} s in the same run ({ROUNDS} slices of {real_s / ROUNDS:g} s, "
+            f"{real_ticks} ticks); its per-tick wall time (one period) is scaled to the "
+            f"virtual run's {ticks} ticks. Figures: medians of {ROUNDS} interleaved rounds.",
+            f"SimMotors: {motor_ticks} ticks per round, {ROUNDS} interleaved rounds.",
         ),
         params={"period": f"{PERIOD_MS} ms", "virtual span": f"{VIRTUAL_S} s", "quick": str(quick)},
     )
@@ -108,4 +216,25 @@ plain callable, an `ObserverQueue` drained by the measuring task, and an async
 observer), runs until 10,000 ticks were delivered. The figure is the wall time of the
 whole run; the baseline is the same workload on the real clock (which takes one
 period per tick by definition), measured in the same run.
+
+**EventTimer driving N simulated motors.** N `Actuator(SimMotor())` on a `VirtualClock`
+with auto-jump; a plain observer of an `EventTimer(1 ms)` gives every motor a new
+position target each tick with `set_value_nowait` (a slow sine: each command plans a new
+trapezoidal move from the motor's current position and velocity). Figure: wall time per
+motor and tick over the run. Baseline: the same observer calling
+`SimMotor.command_nowait` directly (the driver alone, no component). An informational
+row drives the same motors through one `ActuatorBank.set_values_nowait` per tick (the
+driver's batch command and the bank's per-batch bookkeeping instead of a `set_value` per
+motor).
+
+Profile of the SimMotor command (cProfile, N = 100): when issue 27 was filed ~36 µs per
+motor and tick, 32 of them in SimMotor: the limit-crossing search (a quadratic solved for
+both limits on each of four segments, `_first_crossing`), the trapezoid's phase chain
+(`NamedTuple` segments, `end_state` calls) and `_set_profile`. Now a position move whose
+extremes (start, target, braking stop point) lie inside the limits by a margin skips the
+crossing search, other profiles check each segment's ends and turning point first
+(`profile.inside`), and the trapezoid is built unrolled into plain tuples; what is left is
+the trapezoid's arithmetic (one `sqrt`, three rounded phases), the evaluation of the
+previous profile at the command time, and the `Actuator`'s own `set_value_nowait`
+(validation, sequence, `Motion`).
 """

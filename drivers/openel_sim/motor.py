@@ -15,6 +15,7 @@ from collections.abc import Sequence
 
 import anyio
 
+from openel_async.clock import Clock
 from openel_async.device import (
     ActuatorDevice,
     ActuatorLimits,
@@ -30,8 +31,17 @@ from openel_async.logs import get_logger
 from openel_async.requests import EventId, Request
 
 from . import profile as prof
+from .profile import evaluate, trapezoid
 
 log = get_logger(__name__)
+
+_POSITION = Request.POSITION
+_VELOCITY = Request.VELOCITY
+_TORQUE = Request.TORQUE
+
+INSIDE_MARGIN = 1e-6
+"""Relative margin by which a position profile's extremes must lie inside the limits for
+the exact crossing search to be skipped (the profile's rounding is ~1e-12 relative)."""
 
 TORQUE_RISE_NS = 2_000_000
 """Current-loop response: the commanded torque is reached this long after the command."""
@@ -92,6 +102,8 @@ class SimMotor(ActuatorDevice):
         self._arrival_ns: int | None = None
         self._limit_ns: int | None = None
         self._ctx: DeviceContext | None = None
+        self._clock: Clock | None = None
+        """The component's clock (read once at open: the per-command path)."""
         self._sleep_scope: anyio.CancelScope | None = None
         self._sleep_until: int | None = None
         self.connected = True
@@ -101,6 +113,7 @@ class SimMotor(ActuatorDevice):
     # -- lifecycle -------------------------------------------------------------------
     async def open(self, ctx: DeviceContext) -> None:
         self._ctx = ctx
+        self._clock = ctx.clock
         now = ctx.clock.now_ns()
         self._segments = prof.hold(now, self._initial_position)
         ctx.start_soon(self._watch)
@@ -126,15 +139,38 @@ class SimMotor(ActuatorDevice):
         self.command_nowait(request, value)
 
     def command_nowait(self, request: Request, value: float) -> None:
-        self._check_connected()
+        if not self.connected:
+            raise NotConnectedError("simulated motor is disconnected")
         self.commands += 1
-        now = self._now()
-        p, v, _ = prof.evaluate(self._segments, now)
-        vmax, amax = self.limits.velocity, self.max_acceleration
+        clock = self._clock
+        now = clock.now_ns() if clock is not None else 0
+        p, v, _ = evaluate(self._segments, now)
+        limits = self.limits
+        vmax, amax = limits.velocity, self.max_acceleration
         if self.stuck:
             segments = prof.hold(now, p)
-        elif request is Request.POSITION:
-            segments = prof.trapezoid(now, p, v, value, vmax, amax)
+        elif request is _POSITION:
+            segments = trapezoid(now, p, v, value, vmax, amax)
+            # A trapezoid's farthest points are its start, its target and where braking
+            # now would stop (the turn of an overshoot or of a start heading away); when
+            # they lie inside the limits by a margin far above the profile's rounding,
+            # the limit check is done (else clip_to_limits looks for the crossing).
+            low, high = limits.position
+            stop = p + v * (v if v >= 0.0 else -v) / (2 * amax)
+            margin = INSIDE_MARGIN * (1.0 + abs(p) + abs(value) + abs(stop))
+            if low + margin < min(p, stop, value) and max(p, stop, value) < high - margin:
+                # _set_inside(segments, POSITION, arrival), inline: the per-command path
+                arrival_ns = segments[-1][0]
+                self._segments = segments
+                self._request = _POSITION
+                self._limit_ns = None
+                self._arrival_ns = arrival_ns
+                scope = self._sleep_scope
+                if scope is not None and (
+                    self._sleep_until is None or arrival_ns < self._sleep_until
+                ):
+                    scope.cancel()  # the watcher has something due earlier
+                return
         elif request is Request.VELOCITY:
             segments = prof.ramp(now, p, v, value, amax)
         elif request is Request.TORQUE:
@@ -238,7 +274,7 @@ class SimMotor(ActuatorDevice):
 
     # -- internals -------------------------------------------------------------------
     def _now(self) -> int:
-        return self._ctx.clock.now_ns() if self._ctx is not None else 0
+        return self._clock.now_ns() if self._clock is not None else 0
 
     def _check_connected(self) -> None:
         if not self.connected:
@@ -249,26 +285,41 @@ class SimMotor(ActuatorDevice):
     ) -> None:
         low, high = self.limits.position
         arrival_ns: int | None = None
-        if arrival and request is Request.TORQUE:
-            arrival_ns = self._now() + TORQUE_RISE_NS
-        elif arrival and request in (Request.POSITION, Request.VELOCITY):
-            arrival_ns = prof.end_time(segments)
+        if arrival:
+            if request is _POSITION or request is _VELOCITY:
+                arrival_ns = prof.end_time(segments)
+            elif request is _TORQUE:
+                arrival_ns = self._now() + TORQUE_RISE_NS
         segments, limit_ns = prof.clip_to_limits(segments, low, high)
         if limit_ns is not None and arrival_ns is not None and limit_ns < arrival_ns:
             arrival_ns = None  # stopped by a limit first: the target is never reached
+        self._set_inside(segments, request, arrival_ns, limit_ns)
+
+    def _set_inside(
+        self,
+        segments: list[prof.Segment],
+        request: Request,
+        arrival_ns: int | None,
+        limit_ns: int | None = None,
+    ) -> None:
+        """:meth:`_set_profile` once the profile is within the limits (``limit_ns``: when
+        it stops on one)."""
         self._segments = segments
         self._request = request
         self._limit_ns = limit_ns
         self._arrival_ns = arrival_ns
         # Wake the watcher only if it now has something due earlier than its deadline;
         # a later due time is picked up when it wakes (cancelling costs ~7 us).
-        due = min((t for t in (arrival_ns, limit_ns) if t is not None), default=None)
         scope = self._sleep_scope
-        if (
-            scope is not None
-            and due is not None
-            and (self._sleep_until is None or due < self._sleep_until)
-        ):
+        if scope is None:
+            return
+        if limit_ns is None:
+            due = arrival_ns
+        elif arrival_ns is None or limit_ns < arrival_ns:
+            due = limit_ns
+        else:
+            due = arrival_ns
+        if due is not None and (self._sleep_until is None or due < self._sleep_until):
             scope.cancel()
 
     async def _watch(self) -> None:

@@ -8,6 +8,7 @@ time can leap (virtual clock) without losing accuracy.
 from __future__ import annotations
 
 import math
+from math import ceil, sqrt
 from typing import NamedTuple
 
 NS = 1e-9
@@ -45,17 +46,22 @@ def _chain(start_ns: int, p: float, v: float, phases: list[tuple[float, float]])
     exceeds the planned acceleration.
     """
     segments: list[Segment] = []
+    append = segments.append
+    new = tuple.__new__  # Segment(...) without the NamedTuple's Python-level __new__
+    ceil = math.ceil
     t = start_ns
     for v_end, duration in phases:
         if duration <= 0:
             continue
-        steps = max(1, math.ceil(duration / NS - 1e-6))
-        a = (v_end - v) / (steps * NS)
-        seg = Segment(t, p, v, a, t + steps)
-        segments.append(seg)
-        p, _ = seg.end_state()
+        steps = max(1, ceil(duration / NS - 1e-6))
+        dt = steps * NS
+        a = (v_end - v) / dt
+        end = t + steps
+        append(new(Segment, (t, p, v, a, end)))
+        # The segment's end state, as Segment.at(end) computes it.
+        p = p + v * dt + 0.5 * a * dt * dt
         v = v_end
-        t += steps
+        t = end
     return segments
 
 
@@ -64,30 +70,67 @@ def trapezoid(
 ) -> list[Segment]:
     """Time-optimal move to ``target`` at rest under |v| <= vmax, |a| <= amax."""
     d = target - p0
-    if abs(d) < 1e-12 and abs(v0) < 1e-12:
+    if -1e-12 < d < 1e-12 and -1e-12 < v0 < 1e-12:
         return hold(start_ns, target)
     # Direction: toward the target from where braking now would stop us.
-    stop = p0 + v0 * abs(v0) / (2 * amax)
+    stop = p0 + v0 * (v0 if v0 >= 0.0 else -v0) / (2 * amax)
     s = 1.0 if target >= stop else -1.0
-    v0 = max(-vmax, min(vmax, v0))
+    if v0 > vmax:
+        v0 = vmax
+    elif v0 < -vmax:
+        v0 = -vmax
     peak_sq = amax * s * d + v0 * v0 / 2
-    peak = s * math.sqrt(max(0.0, peak_sq))
+    peak = s * sqrt(peak_sq if peak_sq > 0.0 else 0.0)
     cruise = 0.0
-    if abs(peak) > vmax:
+    if (peak if peak >= 0.0 else -peak) > vmax:
         peak = s * vmax
         d1 = (peak * peak - v0 * v0) / (2 * s * amax)
         d3 = s * peak * peak / (2 * amax)
         cruise = (d - d1 - d3) / peak
-    phases = [
-        (peak, (peak - v0) / (s * amax)),
-        (peak, cruise),
-        (0.0, abs(peak) / amax),
-    ]
-    segments = _chain(start_ns, p0, v0, phases)
-    end = segments[-1].end_ns if segments else start_ns
-    assert end is not None
+    # _chain over the three phases (accelerate or brake to the peak, cruise, brake to
+    # rest), unrolled: the same segments, without its lists, loop and calls.
+    segments: list[Segment] = []
+    append = segments.append
+    new = tuple.__new__
+    t = start_ns
+    p = p0
+    v = v0
+    duration = (peak - v0) / (s * amax)
+    if duration > 0:
+        steps = ceil(duration / NS - 1e-6)
+        if steps < 1:
+            steps = 1
+        dt = steps * NS
+        a = (peak - v) / dt
+        end = t + steps
+        append(new(Segment, (t, p, v, a, end)))
+        p = p + v * dt + 0.5 * a * dt * dt
+        v = peak
+        t = end
+    if cruise > 0:
+        steps = ceil(cruise / NS - 1e-6)
+        if steps < 1:
+            steps = 1
+        dt = steps * NS
+        a = (peak - v) / dt
+        end = t + steps
+        append(new(Segment, (t, p, v, a, end)))
+        p = p + v * dt + 0.5 * a * dt * dt
+        v = peak
+        t = end
+    duration = (peak if peak >= 0.0 else -peak) / amax
+    if duration > 0:
+        steps = ceil(duration / NS - 1e-6)
+        if steps < 1:
+            steps = 1
+        dt = steps * NS
+        a = (0.0 - v) / dt
+        end = t + steps
+        append(new(Segment, (t, p, v, a, end)))
+        t = end
     # Close the float error of the closed form: the profile ends exactly at the target.
-    return [*segments, Segment(end, target, 0.0, 0.0, None)]
+    append(new(Segment, (t, target, 0.0, 0.0, None)))
+    return segments
 
 
 def ramp(start_ns: int, p0: float, v0: float, v1: float, amax: float) -> list[Segment]:
@@ -116,22 +159,55 @@ def accelerate(start_ns: int, p0: float, v0: float, a: float, vmax: float) -> li
 def evaluate(segments: list[Segment], t_ns: int) -> tuple[float, float, float]:
     """Position, velocity and acceleration at ``t_ns`` (clamped to the first segment)."""
     for seg in segments:
-        if seg.end_ns is None or t_ns < seg.end_ns:
-            return seg.at(max(t_ns, seg.start_ns))
+        end_ns = seg[4]
+        if end_ns is None or t_ns < end_ns:
+            start_ns = seg[0]
+            dt = ((t_ns if t_ns > start_ns else start_ns) - start_ns) * NS
+            a = seg[3]
+            return seg[1] + seg[2] * dt + 0.5 * a * dt * dt, seg[2] + a * dt, a
     last = segments[-1]
     return last.at(t_ns)
 
 
 def end_time(segments: list[Segment]) -> int:
     """When the last finite segment ends (the profile's arrival time)."""
-    finite = [s.end_ns for s in segments if s.end_ns is not None]
-    return max(finite) if finite else segments[0].start_ns
+    for seg in reversed(segments):  # in time order: the last finite one ends last
+        end_ns = seg[4]
+        if end_ns is not None:
+            return end_ns
+    return segments[0].start_ns
+
+
+def inside(segments: list[Segment], low: float, high: float) -> bool:
+    """Whether the profile certainly stays strictly inside (low, high): every segment's
+    ends and velocity-zero point are (a finite segment's position is a parabola, so those
+    are its extremes), and the last one is at rest.  False when unsure, not only when it
+    leaves: :func:`clip_to_limits` then looks for the crossing exactly."""
+    for start_ns, p0, v0, a, end_ns in segments:
+        if not low < p0 < high:
+            return False
+        if end_ns is None:
+            if v0 != 0.0 or a != 0.0:
+                return False
+            continue
+        dt = (end_ns - start_ns) * NS
+        v1 = v0 + a * dt
+        p1 = p0 + v0 * dt + 0.5 * a * dt * dt
+        if not low < p1 < high:
+            return False
+        if v0 * v1 < 0.0:  # turns inside the segment: its farthest point
+            turn = p0 - v0 * v0 / (2.0 * a)
+            if not low < turn < high:
+                return False
+    return True
 
 
 def clip_to_limits(
     segments: list[Segment], low: float, high: float
 ) -> tuple[list[Segment], int | None]:
     """Stop the profile where it first leaves [low, high]; returns the stop time too."""
+    if inside(segments, low, high):  # the common case, without solving for a crossing
+        return segments, None
     out: list[Segment] = []
     for seg in segments:
         hit = _first_crossing(seg, low, high)

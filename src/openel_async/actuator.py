@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import anyio
@@ -40,6 +40,7 @@ _ACTIVE = S.ACTIVE
 _PENDING = Outcome.PENDING
 _NO_EXCITE = Request.NO_EXCITE
 _SETTABLE = frozenset(SET_VALUE_REQUESTS)
+_POSITION = Request.POSITION
 _POSITION_ACTUAL = Request.POSITION_ACTUAL
 # get_value of a code the device does not read returns the commanded value of this code.
 COMMAND_OF = {
@@ -207,9 +208,9 @@ class Actuator(HALComponent):
     # -- SetValue ------------------------------------------------------------------
     async def set_value(self, value: float, request: Request | int = Request.POSITION) -> Motion:
         """SetValue: send a new target and return its Motion without waiting for arrival."""
-        req, target = self._validate("set_value", value, request)
         if self._command_nowait:  # a device that needs no I/O: the same, without suspending
-            return self._send_now(req, target)
+            return self._set_now("set_value", value, request)
+        req, target = self._validate("set_value", value, request)
         return await self._send(req, target)
 
     def set_value_nowait(self, value: float, request: Request | int = Request.POSITION) -> Motion:
@@ -223,8 +224,59 @@ class Actuator(HALComponent):
                 f"{self.device_name}: the device has no synchronous command path; "
                 "use 'await set_value(...)'"
             )
-        req, target = self._validate("set_value_nowait", value, request)
-        return self._send_now(req, target)
+        return self._set_now("set_value_nowait", value, request)
+
+    def _set_now(self, operation: str, value: object, request: Request | int) -> Motion:
+        """:meth:`_validate` then :meth:`_send_now` in one call (the per-command path of a
+        control loop over a device without I/O): the same checks, in the same order."""
+        if self.state is not _ACTIVE:
+            raise StateError(operation, self.state, (_ACTIVE,))
+        if type(request) is Request and request in _SETTABLE:
+            req = request
+        else:
+            req = coerce_request(request, SET_VALUE_REQUESTS)
+        target = value if type(value) is float and value - value == 0.0 else _finite(value)
+        device = self.device
+        if req not in device.supported_requests:
+            raise NotImplementedHALError(f"{self.device_name} does not support {req.name} control")
+        limits = device.limits
+        if req is not _POSITION:
+            limits.check(req, target)
+        else:
+            low, high = limits.position
+            if not low <= target <= high:
+                limits.check(req, target)  # raises BAD_PARAMETER
+        if self._stream is not None:
+            self._detach()
+        sequence = self._sequence = self._sync_send = self._sequence + 1
+        try:
+            device.command_nowait(req, target)
+        except _LINK_FAULTS as exc:
+            raise self._fault_from(exc) from exc
+        finally:
+            self._sync_send = 0
+        previous = self._motion
+        if (
+            self.state is _ACTIVE
+            and self._stream is None
+            and self._latest is None
+            and self._observers.listener is None
+            and req is not _NO_EXCITE
+            and (previous is None or previous.sequence < sequence)
+        ):  # _accept's common case, inline: the per-command path of a control loop
+            motion = Motion(req, target, sequence, self.clock.now_ns())
+            self._motion = motion
+            if previous is not None and previous.outcome is _PENDING:
+                previous._supersede(sequence)
+            self._commanded[req] = target
+            if not self._reports_completion:
+                self._watch.set()
+        else:
+            motion = self._accept(req, target, sequence)
+        if self._reached_in_send == sequence:
+            self._reached_in_send = 0
+            self._on_target_reached()
+        return motion
 
     def _validate(
         self, operation: str, value: object, request: Request | int
@@ -297,7 +349,8 @@ class Actuator(HALComponent):
             else:
                 motion._cancel(f"the actuator left Active ({self.state}) during set_value")
             return motion
-        previous = self.motion
+        # (the motion property, inline when nothing is left to settle or build)
+        previous = self._motion if self._stream is None and self._latest is None else self.motion
         if previous is not None and previous.sequence > sequence:
             motion._supersede(previous.sequence)  # a later command overtook this one
             return motion
@@ -561,6 +614,61 @@ def stream_targets(
         if actuator._reached_in_send == sequence:
             actuator._reached_in_send = 0
             actuator._on_target_reached()
+
+
+async def send_targets(
+    actuators: Sequence[Actuator],
+    req: Request,
+    targets: Sequence[float],
+    posts_completed: bool = True,
+    now_ns: Callable[[], int] | None = None,
+) -> None:
+    """:func:`stream_targets` over devices without a synchronous path: ``_send`` on every
+    actuator in order (one awaited ``device.command`` each), with the same semantics, but
+    each Motion is only built if someone asks for it (``Actuator.motion``) and the batch
+    runs in one coroutine, not one per actuator.  ``targets`` are validated (an
+    ActuatorBank's checks); a command overtaken by another during its await, a device that
+    does not report completion, an actuator that left Active or NO_EXCITE take the full
+    ``_accept``.  ``now_ns``: the clock every actuator shares, read once for the batch as
+    an ActuatorBank stamps its streamed batches (None: each actuator's own, after its
+    command).
+    """
+    lazy = req is not _NO_EXCITE
+    active = _ACTIVE
+    pending = _PENDING
+    listening = LISTENING
+    stamp = now_ns() if now_ns is not None else 0
+    for actuator, target in zip(actuators, targets, strict=True):
+        if actuator._stream is not None:
+            actuator._detach()
+        sequence = actuator._sequence + 1
+        actuator._sequence = sequence
+        try:
+            await actuator.device.command(req, target)
+        except _LINK_FAULTS as exc:
+            raise actuator._fault_from(exc) from exc
+        if (
+            actuator._sequence != sequence  # overtaken during the await
+            or not lazy
+            or actuator.state is not active
+            or not actuator._reports_completion
+            or actuator._stream is not None
+        ):
+            actuator._accept(req, target, sequence, posts_completed)
+            continue
+        previous = actuator._motion
+        if previous is not None:  # built because someone asked: it is replaced
+            if previous.outcome is pending:
+                previous._supersede(sequence)
+            actuator._motion = None
+        if now_ns is None:
+            stamp = actuator.clock.now_ns()
+        actuator._latest = (req, target, sequence, stamp, posts_completed)
+        actuator._commanded[req] = target
+        if listening.count:
+            listener = actuator._observers.listener
+            if listener is not None:
+                listener.on_command(actuator, req, target, stamp)
 
 
 def accept_streamed(

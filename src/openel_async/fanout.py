@@ -33,6 +33,7 @@ from openel_async.logs import get_logger
 from .errors import BadParameterError
 from .observers import Notice, Route, observer_routes
 from .stats import MailboxStats, ObserverStats
+from .wakeup import Wakeup
 
 if TYPE_CHECKING:
     from .listeners import ComponentListener
@@ -194,8 +195,9 @@ class Fanout:
         emptied by every change and rebuilt by the next notification."""
         self._notice_kinds: dict[str, int] = {}
         """Per kind, how many observers take the notice."""
-        self._work: anyio.Event | None = None
-        """Set by the next notification for mailbox tasks waiting for work."""
+        self._work = Wakeup()
+        """Set by the next notification for mailbox tasks waiting for work (reused: no
+        anyio.Event per notification)."""
         self._task_group: anyio.abc.TaskGroup | None = None
         self.published = 0
         """Notifications published (each to every observer registered for its kind)."""
@@ -289,14 +291,12 @@ class Fanout:
     async def work(self) -> None:
         """Wait (a mailbox task) until the next notification or change."""
         work = self._work
-        if work is None:
-            work = self._work = anyio.Event()
+        work.clear()  # only a notification from now on wakes this task
         await work.wait()
 
     def _wake(self) -> None:
         work = self._work
-        if work is not None:
-            self._work = None
+        if work.waiter is not None:  # a task waits (Wakeup.waiting, without a call)
             work.set()
 
     def close(self) -> None:

@@ -33,6 +33,7 @@ import anyio
 from openel_async.logs import get_logger
 
 from .errors import BadParameterError
+from .wakeup import Wakeup
 
 if TYPE_CHECKING:
     from .component import HALComponent
@@ -141,7 +142,7 @@ class NoticeQueue(Generic[N]):
         self.maxsize = maxsize
         self.name = name
         self._items: deque[N] = deque()
-        self._wakeup: anyio.Event | None = None
+        self._wakeup = Wakeup()  # reused: no anyio.Event per wait
         self._missed = 0
         self.missed_total = 0
         self.delivered = 0
@@ -161,8 +162,7 @@ class NoticeQueue(Generic[N]):
             self.missed_total += 1
         items.append(notice)
         wakeup = self._wakeup
-        if wakeup is not None:
-            self._wakeup = None
+        if wakeup.waiter is not None:  # a task waits (Wakeup.waiting, without a call)
             wakeup.set()
 
     def report_missed(self, count: int) -> None:
@@ -175,9 +175,8 @@ class NoticeQueue(Generic[N]):
     def close(self) -> None:
         """End iteration once the queued notices are consumed."""
         self._closed = True
-        if self._wakeup is not None:
+        if self._wakeup.waiting:
             self._wakeup.set()
-            self._wakeup = None
 
     # -- consumer side ----------------------------------------------------------------
     def __len__(self) -> int:
@@ -202,8 +201,7 @@ class NoticeQueue(Generic[N]):
         while not self._items:
             if self._closed:
                 raise anyio.EndOfStream
-            if self._wakeup is None:
-                self._wakeup = anyio.Event()
+            self._wakeup.clear()
             await self._wakeup.wait()
         return self._take()
 
@@ -223,8 +221,7 @@ class NoticeQueue(Generic[N]):
         while not items:
             if self._closed:
                 raise StopAsyncIteration
-            if self._wakeup is None:
-                self._wakeup = anyio.Event()
+            self._wakeup.clear()
             await self._wakeup.wait()
         # _take() inlined too: this is the consumer's hot path.
         notice = items.popleft()
@@ -260,8 +257,7 @@ class ObserverQueue(NoticeQueue[Notice]):
             return
         items.append(notice)  # put_nowait's common case, inlined (one call per delivery)
         wakeup = self._wakeup
-        if wakeup is not None:
-            self._wakeup = None
+        if wakeup.waiter is not None:  # a task waits (Wakeup.waiting, without a call)
             wakeup.set()
 
     def notify_error(

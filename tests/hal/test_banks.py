@@ -45,6 +45,7 @@ from openel_async import (
     VirtualClock,
     WouldBlockError,
 )
+from openel_async.actuator import send_targets
 from openel_async.device import BatchCommander
 from openel_async.testing import ComponentStack, EventRecorder
 from openel_sim import SimEncoder, SimIMU, SimMotor, SimTemperature
@@ -620,6 +621,46 @@ async def test_bank_with_a_device_without_sync_path(
         assert events.count("event", COMPLETED, source=actuator) == 1
         assert actuator.get_value_nowait(Request.POSITION) == target
     assert await bank.get_values(Request.POSITION_ACTUAL) == pytest.approx((0.5, -0.5))
+
+
+async def test_send_targets_streams_awaited_commands_with_lazy_motions(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    """The awaited batch (an AxisGroup over devices without a synchronous path): one
+    coroutine for the batch, Motions built when asked for, the same as set_value's; a
+    set_value that overtakes a command during its await stays the final target."""
+    events = EventRecorder(virtual_clock)
+    motors = [AsyncSimMotor(), AsyncSimMotor()]
+    actuators = [
+        await hal_components.actuator(m, device_name=f"A{i}") for i, m in enumerate(motors)
+    ]
+    for actuator in actuators:
+        actuator.add_observer(events)
+    first = await actuators[0].set_value(0.1)
+    issued = virtual_clock.now_ns()
+    await send_targets(actuators, Request.POSITION, [0.5, -0.5])
+    assert [m.async_commands[-1] for m in motors] == [
+        (Request.POSITION, 0.5),
+        (Request.POSITION, -0.5),
+    ]
+    assert first.outcome is Outcome.SUPERSEDED
+    a, b = actuators[0].motion, actuators[1].motion
+    assert a is not None and b is not None
+    assert a.issued_ns == b.issued_ns == issued and a.sequence == first.sequence + 1
+    await a
+    await b
+    assert [events.count("event", COMPLETED, source=x) for x in actuators] == [1, 1]
+
+    async def overtake() -> None:  # runs while axis 0's command awaits its link
+        await actuators[0].set_value(0.25)
+
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(send_targets, actuators, Request.POSITION, [-0.25, 0.0])
+        tg.start_soon(overtake)
+    latest = actuators[0].motion
+    assert latest is not None and latest.target == 0.25
+    await latest
+    assert actuators[0].get_value_nowait(Request.POSITION) == 0.25
 
 
 # -- link faults ---------------------------------------------------------------------------------

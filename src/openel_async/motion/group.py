@@ -23,16 +23,16 @@ import anyio.lowlevel
 
 from openel_async.logs import get_logger
 
-from ..actuator import Actuator
+from ..actuator import Actuator, send_targets
 from ..banks import ActuatorBank
 from ..clock import NS_PER_S
 from ..component import ComponentState
 from ..device import has_nowait
 from ..errors import BadParameterError, HALError, StateError
-from ..observers import TimerTick
 from ..requests import Request
 from ..stats import LatenessRecorder, LatenessSummary
 from ..timer import EventTimer, TimerState
+from ..wakeup import Wakeup
 from .errors import (
     AxisFaultError,
     AxisStateError,
@@ -127,6 +127,8 @@ class AxisGroup:
         # Devices read without I/O: the actual positions in one bank read per tick (its
         # listeners hear the batch in one call).
         self._read_now = all(has_nowait(a.device, "read_nowait", "read") for a in axes)
+        # The clock every axis shares (one stamp reader for the awaited batches), if any.
+        self._now_ns = axes[0].clock.now_ns if len({id(a.clock) for a in axes}) == 1 else None
         self.timer = timer
         self._limits: tuple[AxisLimits, ...] = per_axis(limits, n, "limits", AxisLimits)
         self._tolerances: tuple[Tolerances, ...] = per_axis(
@@ -146,11 +148,16 @@ class AxisGroup:
         (a tick streams positions only; the full state is computed when needed)."""
         self._last_plan: Plan | None = None
         self._commanded: list[float] = list(zeros)
-        self._pending: TimerTick | None = None
+        self._pending: int | None = None
+        """The deadline of the tick waiting for the streaming task (None: none)."""
+        self._busy = False
+        """The streaming task is inside a tick that awaits (a driver's I/O)."""
+        self._crashed: BaseException | None = None
+        """An unexpected exception of a tick run inline: raised by the streaming task."""
         self._fast: Callable[[int], None] | None = None
         """The proven streaming tick of ``_fast_motion`` (see :meth:`_proven_tick`)."""
         self._fast_motion: GroupMotion | None = None
-        self._wakeup: anyio.Event | None = None  # created on entry, in the event loop
+        self._wakeup = Wakeup()
         self._ids = itertools.count(1)
         self._tg: anyio.abc.TaskGroup | None = None
         self._closed = False
@@ -165,7 +172,6 @@ class AxisGroup:
     async def __aenter__(self) -> Self:
         if self._tg is not None or self._closed:
             raise StateError("__aenter__", "entered", ["an axis group not yet entered"])
-        self._wakeup = anyio.Event()
         tg = anyio.create_task_group()
         await tg.__aenter__()
         try:
@@ -350,54 +356,112 @@ class AxisGroup:
 
     # -- the timer's side ----------------------------------------------------------------------
     def notify_timer(self, timer: EventTimer) -> None:
-        """TimerObserver: hand the tick to the streaming task (never blocks)."""
+        """TimerObserver: run the tick now if it needs no await (devices with a synchronous
+        path, the common case), else hand it to the streaming task (never blocks)."""
         if self._active is None:
             return
-        tick = timer.last_tick
-        if tick is None:
+        fields = timer.last_tick_fields  # no TimerTick built: the deadline is all we need
+        if fields is None:
+            return
+        deadline = fields[1]
+        if self._pending is None and not self._busy and self._ticks_inline():
+            started = time.perf_counter_ns()
+            try:
+                self._tick_now(deadline)
+            except Exception as exc:  # a bug, not a device fault: end the group's task
+                self._crashed = exc
+                self._wakeup.set()
+                return
+            cost = time.perf_counter_ns() - started
+            self._cost.record(cost)
+            self._costs.append(cost)
+            self._ticks += 1
             return
         if self._pending is not None:
             self._skipped += 1
-        self._pending = tick
-        if self._wakeup is not None:
-            self._wakeup.set()
+        self._pending = deadline
+        self._wakeup.set()
+
+    def _ticks_inline(self) -> bool:
+        """Whether the running motion's tick needs no await: a proven stream, or devices
+        that are commanded (and, if the tick reads them, read) without suspending."""
+        motion = self._active
+        if motion is None:
+            return True
+        if self._fast is not None and motion is self._fast_motion:
+            return True
+        return self._nowait and (
+            self._read_now or not (motion._settling or motion._checks_path or self._log_actual)
+        )
+
+    def _tick_now(self, t: int) -> None:
+        """One tick of the running motion, without suspending (see :meth:`_ticks_inline`)."""
+        motion = self._active
+        if motion is None:
+            return
+        fast = self._fast
+        if fast is not None and motion is self._fast_motion:  # the common tick
+            fast(t)
+        elif not (motion._settling or motion._checks_path or self._log_actual):
+            self._advance_now(motion, t, None)  # sample and stream
+        else:
+            self._step_now(motion, t)
 
     async def _stream(self) -> None:
+        """The ticks that await (devices without a synchronous path), one at a time."""
         perf = time.perf_counter_ns
         record = self._cost.record
         keep = self._costs.append
+        wakeup = self._wakeup
         while True:
-            tick = self._pending
-            if tick is None:
-                assert self._wakeup is not None
-                await self._wakeup.wait()
-                self._wakeup = anyio.Event()
+            crashed = self._crashed
+            if crashed is not None:
+                self._crashed = None
+                raise crashed
+            t = self._pending
+            if t is None:
+                await wakeup.wait()
                 continue
             self._pending = None
             started = perf()
-            motion = self._active
-            fast = self._fast
-            if fast is not None and motion is self._fast_motion:  # the common tick
-                fast(tick.deadline_ns)
-            elif (
-                motion is not None
-                and self._nowait
-                and not (motion._settling or motion._checks_path or self._log_actual)
-            ):  # sample and stream, nothing to await
-                self._advance_now(motion, tick.deadline_ns, None)
+            if self._ticks_inline():
+                self._tick_now(t)
             else:
-                await self._step(tick)
+                self._busy = True
+                try:
+                    await self._step(t)
+                finally:
+                    self._busy = False
             cost = perf() - started
             record(cost)
             keep(cost)
             self._ticks += 1
 
-    async def _step(self, tick: TimerTick) -> None:
-        """One tick of the running motion."""
+    def _step_now(self, motion: GroupMotion, t: int) -> None:
+        """:meth:`_step` for devices read and commanded without suspending."""
+        actual: list[float] | None = None
+        settling = motion._settling
+        if settling or motion._checks_path or self._log_actual:
+            if self._axis_left_active(motion, t):
+                return
+            try:
+                actual = list(self._bank.get_values_nowait(POSITION_ACTUAL))
+            except Exception as exc:
+                self._read_failed(motion, exc, t)
+                return
+            if not settling and motion._checks_path and self._path_violated(motion, actual, t):
+                return
+        if settling:
+            assert actual is not None
+            self._settle(motion, actual, t)
+            return
+        self._advance_now(motion, t, actual)
+
+    async def _step(self, t: int) -> None:
+        """One tick of the running motion, over devices that need an await."""
         motion = self._active
         if motion is None:
             return
-        t = tick.deadline_ns
         settling = motion._settling
         actual: list[float] | None = None
         if settling or motion._checks_path or self._log_actual:
@@ -438,7 +502,9 @@ class AxisGroup:
         # One validated batch: every axis Active and every setpoint within its limits
         # before any is sent (else nothing is sent and the motion aborts).
         try:
-            await self._bank.set_values(position, POSITION)
+            req, targets = self._bank._check("set_values", position, POSITION)
+            # One coroutine for the batch, Motions built only when asked for.
+            await send_targets(self.axes, req, targets, self.setpoint_events, self._now_ns)
         except Exception as exc:
             self._stream_failed(motion, position, exc, t)
             return

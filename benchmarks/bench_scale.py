@@ -1,0 +1,347 @@
+"""Scale: 1 to 1000 components on one EventTimer, against the plain asyncio equivalent.
+
+Every tick of one ``EventTimer(1 ms)`` on the real clock, each of N components posts one
+event, heard by its observer: a plain (sync) observer, an async observer (a mailbox and a
+task of its own), or an ``ObserverQueue`` drained by a consumer task. The plain asyncio
+equivalent of each: a deadline loop (``await asyncio.sleep(deadline - now)``) calling N
+callbacks, or putting each event on one of N ``asyncio.Queue``s whose consumer task awaits
+the observer's coroutine or just takes it. The figure is the process CPU time per
+delivery (CPU, not wall: the idle part of each period is not work), the median of
+interleaved rounds.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import gc
+import time
+from collections.abc import Awaitable, Callable
+from contextlib import AsyncExitStack, suppress
+from dataclasses import dataclass
+
+import anyio
+import anyio.abc
+import anyio.lowlevel
+
+from openel_async import (
+    Actuator,
+    ActuatorDevice,
+    DeviceContext,
+    DeviceInfo,
+    DeviceKind,
+    EventId,
+    EventTimer,
+    MonotonicClock,
+    ObserverQueue,
+    Request,
+)
+
+from .harness import MIN_ROUNDS, BenchResult, Row, median, ratio_of
+
+NAME = "scale"
+SIZES = (1, 10, 100, 1000)
+KINDS = ("sync", "async", "queue")
+PERIOD_MS = 1
+TICKS = {1: 400, 10: 400, 100: 200, 1000: 60}
+QUICK_TICKS = {1: 100, 10: 100, 100: 50, 1000: 20}
+ROUNDS = MIN_ROUNDS
+RATIO_TARGET = 2.0
+"""Ours / the plain equivalent, CPU per delivery, at most (issue 27)."""
+LINEAR_LIMIT = 1.5
+"""Per-delivery cost at 1000 components / at 10, at most this many times the plain
+equivalent's own growth (nothing O(N) per item)."""
+EVENT = int(EventId.LIMIT_REACHED)
+DRAIN_TIMEOUT_S = 30.0
+
+
+class EventSource(ActuatorDevice):
+    """A driver that only posts events: it keeps the context the component gives it."""
+
+    info = DeviceInfo(kind=DeviceKind.MOTOR, vendor_name="Bench", product_name="EventSource")
+    reports_completion = True  # no completion-detection task
+
+    def __init__(self) -> None:
+        self.ctx: DeviceContext | None = None
+
+    async def open(self, ctx: DeviceContext) -> None:
+        self.ctx = ctx
+
+    async def command(self, request: Request, value: float) -> None:
+        pass
+
+    async def read(self, request: Request) -> float:
+        return 0.0
+
+
+class Counter:
+    """A plain observer that counts."""
+
+    def __init__(self, total: list[int]) -> None:
+        self.total = total
+
+    def notify_event(self, source: object, event_id: int) -> None:
+        self.total[0] += 1
+
+    def notify_error(self, source: object, error_id: int) -> None:
+        pass
+
+
+class AsyncCounter:
+    """An async observer that counts."""
+
+    def __init__(self, total: list[int]) -> None:
+        self.total = total
+
+    async def notify_event(self, source: object, event_id: int) -> None:
+        self.total[0] += 1
+
+    async def notify_error(self, source: object, error_id: int) -> None:
+        pass
+
+
+@dataclass(frozen=True, slots=True)
+class Run:
+    deliveries: int
+    cpu_s: float
+    lost: int
+
+    @property
+    def ns_per_delivery(self) -> float:
+        return self.cpu_s * 1e9 / max(1, self.deliveries)
+
+
+async def _wait_for(total: list[int], expected: int) -> None:
+    with anyio.fail_after(DRAIN_TIMEOUT_S):
+        while total[0] < expected:
+            await anyio.lowlevel.checkpoint()
+
+
+async def _drain(queue: ObserverQueue, total: list[int]) -> None:
+    async for notice in queue:
+        total[0] += 1 + notice.missed * 0
+
+
+async def ours(kind: str, count: int, ticks: int) -> Run:
+    total = [0]
+    clock = MonotonicClock()
+    async with AsyncExitStack() as stack:
+        tg = await stack.enter_async_context(anyio.create_task_group())
+        actuators = [
+            await stack.enter_async_context(Actuator(EventSource(), clock=clock))
+            for _ in range(count)
+        ]
+        queues: list[ObserverQueue] = []
+        for actuator in actuators:
+            if kind == "sync":
+                actuator.add_observer(Counter(total))
+            elif kind == "async":
+                actuator.add_observer(AsyncCounter(total))
+            else:
+                queue = ObserverQueue(1024, name="bench-scale")
+                queues.append(queue)
+                actuator.add_observer(queue)
+                tg.start_soon(_drain, queue, total)
+        posts = []
+        for actuator in actuators:
+            device = actuator.device
+            assert isinstance(device, EventSource) and device.ctx is not None
+            posts.append(device.ctx.post_event)
+        done = anyio.Event()
+        delivered = [0]
+
+        def tick(timer: EventTimer) -> None:
+            for post in posts:
+                post(EVENT)
+            delivered[0] += 1
+            if delivered[0] == ticks:
+                timer.stop_timer()
+                done.set()
+
+        async with EventTimer(PERIOD_MS, clock=clock, name="bench-scale") as timer:
+            timer.add_observer(tick)
+            await anyio.sleep(0.01)
+            cpu0 = time.process_time()
+            timer.start_timer()
+            with anyio.fail_after(DRAIN_TIMEOUT_S):
+                await done.wait()
+            await _wait_for(total, ticks * count)
+            cpu = time.process_time() - cpu0
+        lost = sum(q.missed_total for q in queues)
+        for actuator in actuators:
+            lost += actuator.observer_stats.overflowed + actuator.observer_stats.failures
+        for queue in queues:
+            queue.close()
+    return Run(total[0], cpu, lost + ticks * count - total[0])
+
+
+async def plain(kind: str, count: int, ticks: int) -> Run:
+    """The same with asyncio alone: a deadline loop; callbacks, or queues and tasks."""
+    total = [0]
+    loop = asyncio.get_running_loop()
+    tasks: list[asyncio.Task[None]] = []
+    callbacks: list[Callable[[object, int], object]] = []
+    queues: list[asyncio.Queue[int | None]] = []
+
+    async def consume(queue: asyncio.Queue[int | None], observer: AsyncCounter | None) -> None:
+        while True:
+            item = await queue.get()
+            if item is None:
+                return
+            if observer is None:
+                total[0] += 1
+            else:
+                with suppress(Exception):
+                    await observer.notify_event(None, item)
+
+    for _ in range(count):
+        if kind == "sync":
+            callbacks.append(Counter(total).notify_event)
+        else:
+            queue: asyncio.Queue[int | None] = asyncio.Queue(1024)
+            queues.append(queue)
+            observer = AsyncCounter(total) if kind == "async" else None
+            tasks.append(asyncio.ensure_future(consume(queue, observer)))
+    await asyncio.sleep(0.01)
+    cpu0 = time.process_time()
+    period = PERIOD_MS / 1000
+    deadline = loop.time() + period
+    lost = 0
+    for _ in range(ticks):
+        await asyncio.sleep(max(0.0, deadline - loop.time()))
+        deadline += period
+        if callbacks:
+            for callback in callbacks:
+                try:  # isolated, like an observer
+                    callback(None, EVENT)
+                except Exception:
+                    lost += 1
+        else:
+            for q in queues:
+                try:
+                    q.put_nowait(EVENT)
+                except asyncio.QueueFull:
+                    lost += 1
+    await _wait_for(total, ticks * count - lost)
+    cpu = time.process_time() - cpu0
+    for q in queues:
+        q.put_nowait(None)
+    await asyncio.gather(*tasks)
+    return Run(total[0], cpu, lost + ticks * count - total[0])
+
+
+def _interleaved(
+    rounds: int, cases: dict[str, Callable[[], Awaitable[Run]]]
+) -> dict[str, list[Run]]:
+    out: dict[str, list[Run]] = {name: [] for name in cases}
+    for _ in range(rounds):  # alternate, so load changes hit every case alike
+        for name, case in cases.items():
+            gc.collect()
+            out[name].append(anyio.run(case, backend="asyncio"))
+    return out
+
+
+def run(quick: bool) -> BenchResult:
+    ticks_for = QUICK_TICKS if quick else TICKS
+    rows: list[Row] = []
+    notes: list[str] = []
+    peers = {
+        "sync": "a deadline loop calling N callbacks",
+        "async": "N asyncio.Queues, N tasks awaiting the observer",
+        "queue": "N asyncio.Queues drained by N tasks",
+    }
+    labels = {
+        "sync": "sync observers",
+        "async": "async observers",
+        "queue": "ObserverQueues",
+    }
+    for kind in KINDS:
+        per: dict[int, tuple[float, float]] = {}
+        for count in SIZES:
+            ticks = ticks_for[count]
+            runs = _interleaved(
+                ROUNDS,
+                {
+                    "ours": lambda k=kind, n=count, t=ticks: ours(k, n, t),
+                    "plain": lambda k=kind, n=count, t=ticks: plain(k, n, t),
+                },
+            )
+            ours_ns = median([r.ns_per_delivery for r in runs["ours"]])
+            plain_ns = median([r.ns_per_delivery for r in runs["plain"]])
+            lost = sum(r.lost for r in runs["ours"])
+            per[count] = (ours_ns, plain_ns)
+            ratio = ratio_of(ours_ns, plain_ns)
+            rows.append(
+                Row(
+                    f"{labels[kind]}: {count} component{'s' if count > 1 else ''}, "
+                    "CPU per delivery",
+                    ours_ns,
+                    "ns",
+                    baseline=plain_ns,
+                    baseline_label=peers[kind],
+                    ratio=ratio,
+                    ratio_label="ours/plain",
+                    target=f"<= {RATIO_TARGET:g}x plain, 0 lost",
+                    passed=ratio <= RATIO_TARGET and lost == 0,
+                    digits=0,
+                )
+            )
+        (ours_small, plain_small) = per[SIZES[1]]
+        (ours_large, plain_large) = per[SIZES[-1]]
+        growth = ratio_of(ours_large, ours_small)
+        plain_growth = ratio_of(plain_large, plain_small)
+        excess = ratio_of(growth, plain_growth)
+        rows.append(
+            Row(
+                f"{labels[kind]}: CPU per delivery, {SIZES[-1]} / {SIZES[1]} components",
+                growth,
+                "x",
+                baseline=plain_growth,
+                baseline_label="the plain equivalent's",
+                ratio=excess,
+                ratio_label="ours/plain growth",
+                target=f"growth <= {LINEAR_LIMIT}x the plain one's (linear)",
+                passed=excess <= LINEAR_LIMIT,
+                digits=2,
+            )
+        )
+    notes.append(
+        "Ticks per round by N: "
+        + ", ".join(f"{n}: {t}" for n, t in ticks_for.items())
+        + f"; median of {ROUNDS} interleaved rounds (ours, then the plain equivalent). "
+        "Every delivery is counted: a lost one (queue overflow, observer failure) fails "
+        "the row."
+    )
+    return BenchResult(
+        name=NAME,
+        title="1 to 1000 components on one EventTimer vs the plain asyncio equivalent",
+        rows=tuple(rows),
+        description=DESCRIPTION,
+        notes=tuple(notes),
+        params={
+            "components": ", ".join(str(n) for n in SIZES),
+            "period": f"{PERIOD_MS} ms (MonotonicClock)",
+            "rounds": str(ROUNDS),
+        },
+    )
+
+
+DESCRIPTION = f"""\
+**Ours.** N `Actuator`s over a driver that only posts events (it keeps its
+`DeviceContext`), one `EventTimer({PERIOD_MS} ms)` on `MonotonicClock` whose plain observer
+makes every component post one event per tick (`ctx.post_event`), and one observer per
+component: a plain observer (`notify_event` counts, called inline), an async observer
+(`async def notify_event`: a mailbox and a task each, run by the component's fan-out), or an
+`ObserverQueue` drained by its own consumer task (`async for notice in queue`).
+
+**The plain asyncio equivalent** of each: a deadline loop
+(`await asyncio.sleep(deadline - loop.time())`, deadlines advanced by the period) that per
+tick calls N callbacks, each in a try/except (sync); or puts the event on N
+`asyncio.Queue`s, each drained by a task that awaits the observer's coroutine (async) or
+only takes it (queue).
+
+Figure: process CPU time (`time.process_time`) from the start of the ticks until every
+delivery was made, per delivery; CPU rather than wall so that the idle part of each
+period does not count. Linear: from 10 to 1000 components the per-delivery cost grows by
+at most {LINEAR_LIMIT}x the plain equivalent's own growth. At 1 component the figure is
+mostly each side's per-tick cost (the timer's wake-up and bookkeeping against one
+`asyncio.sleep`)."""
