@@ -21,7 +21,7 @@ This module imports no driver and no app: apps are loaded by name when asked for
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator, Awaitable, Callable, Iterable, Sequence
+from collections.abc import AsyncIterator, Awaitable, Callable, Collection, Iterable, Sequence
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
@@ -251,10 +251,13 @@ class AppEntry:
     error: str | None = None
 
 
-def discover_apps() -> list[AppEntry]:
-    """Load every registered app; an app that fails to load is reported, not raised."""
+def discover_apps(names: Collection[str] | None = None) -> list[AppEntry]:
+    """Load every registered app (``names``: only those); an app that fails to load is
+    reported, not raised."""
     found: list[AppEntry] = []
     for ep in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda e: e.name):
+        if names is not None and ep.name not in names:
+            continue
         try:
             info = ep.load()
         except Exception as exc:  # a broken app must not hide the others
@@ -270,10 +273,11 @@ def discover_apps() -> list[AppEntry]:
 
 def find_app(name: str) -> AppInfo:
     """The registered app ``name``; raises LookupError saying which names exist."""
-    entries = {e.name: e for e in discover_apps()}
+    entries = {e.name: e for e in discover_apps({name})}  # the others are not imported
     entry = entries.get(name)
     if entry is None:
-        known = ", ".join(entries) or "none"
+        registered = sorted({ep.name for ep in entry_points(group=ENTRY_POINT_GROUP)})
+        known = ", ".join(registered) or "none"
         raise LookupError(f"no app named {name!r} (registered: {known})")
     if entry.info is None:
         raise LookupError(f"app {name!r} ({entry.value}) cannot load: {entry.error}")

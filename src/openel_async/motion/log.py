@@ -12,18 +12,24 @@ taken, not converted into numpy on every tick.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-
-import numpy as np
-import numpy.typing as npt
+from typing import TYPE_CHECKING, TypeAlias
 
 from ..clock import NS_PER_S
 from ..errors import BadParameterError
 from .planner import Plan
 
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
+if TYPE_CHECKING:
+    import numpy as np
+    import numpy.typing as npt
+
+    FloatArray: TypeAlias = npt.NDArray[np.float64]
+    IntArray: TypeAlias = npt.NDArray[np.int64]
+
+# numpy is imported when a log is made (an AxisGroup), not with the module: importing the
+# framework (an app's --help) does not load it.
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,6 +56,8 @@ class TrajectorySamples:
     @property
     def time_s(self) -> FloatArray:
         """Seconds since the first row."""
+        import numpy as np
+
         if len(self) == 0:
             return np.zeros(0)
         return np.asarray((self.time_ns - self.time_ns[0]) / NS_PER_S, dtype=np.float64)
@@ -71,6 +79,8 @@ class TrajectoryLog:
     """Ring buffer of the last ``capacity`` ticks of an axis group (0: disabled)."""
 
     def __init__(self, axes: int, capacity: int = 10_000, *, actual: bool = False) -> None:
+        import numpy as np
+
         if isinstance(capacity, bool) or not isinstance(capacity, int) or capacity < 0:
             raise BadParameterError("log_capacity", capacity, "an int >= 0 (0: no log)")
         self.axes = axes
@@ -116,7 +126,7 @@ class TrajectoryLog:
         self._a[row] = acceleration
         self._planned[row] = None
         if self._actual is not None:
-            self._actual[row] = np.nan if actual is None else actual
+            self._actual[row] = math.nan if actual is None else actual
 
     def append_plan(
         self, time_ns: int, motion_id: int, plan: Plan, actual: Sequence[float] | None = None
@@ -129,7 +139,7 @@ class TrajectoryLog:
         self._count += 1
         self._planned[row] = (time_ns, motion_id, plan)
         if self._actual is not None:
-            self._actual[row] = np.nan if actual is None else actual
+            self._actual[row] = math.nan if actual is None else actual
 
     def plan_rows(self, motion_id: int, plan: Plan) -> Callable[[int], None]:
         """``append_plan(t, motion_id, plan)`` as a call of one argument ``t`` (what a
@@ -146,7 +156,7 @@ class TrajectoryLog:
             index = count % capacity
             planned[index] = (time_ns, motion_id, plan)
             if actual is not None:
-                actual[index] = np.nan
+                actual[index] = math.nan
 
         return row
 
@@ -165,6 +175,8 @@ class TrajectoryLog:
             planned[row] = None
 
     def snapshot(self) -> TrajectorySamples:
+        import numpy as np
+
         self._sample_planned()
         n = len(self)
         start = self._count % self.capacity if self._count > self.capacity else 0
