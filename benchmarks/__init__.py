@@ -1,4 +1,4 @@
-"""Benchmarks of openel-async: ``uv run python -m benchmarks [NAME...] [--quick] [--write-docs]``.
+"""Benchmarks of openel-async: ``uv run python -m benchmarks [NAME...] [--quick] [--check] [--write-docs]``.
 
 Each benchmark is a module ``bench_<name>.py`` in this package exposing
 ``run(quick: bool) -> BenchResult`` (see :mod:`benchmarks.harness`); it is found by its

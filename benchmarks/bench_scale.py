@@ -48,8 +48,9 @@ ROUNDS = MIN_ROUNDS
 RATIO_TARGET = 2.0
 """Ours / the plain equivalent, CPU per delivery, at most (issue 27)."""
 LINEAR_LIMIT = 1.5
-"""Per-delivery cost at 1000 components / at 10, at most this many times the plain
-equivalent's own growth (nothing O(N) per item)."""
+"""Per-delivery cost at 1000 components / at 100, at most (the total cost linear in N:
+nothing O(N) per item). Compared from 100 on: below, each tick's fixed cost (the timer's
+wake-up) is a large part of a delivery's, on both sides."""
 EVENT = int(EventId.LIMIT_REACHED)
 DRAIN_TIMEOUT_S = 30.0
 
@@ -285,22 +286,19 @@ def run(quick: bool) -> BenchResult:
                     digits=0,
                 )
             )
-        (ours_small, plain_small) = per[SIZES[1]]
+        (ours_small, plain_small) = per[SIZES[-2]]
         (ours_large, plain_large) = per[SIZES[-1]]
         growth = ratio_of(ours_large, ours_small)
         plain_growth = ratio_of(plain_large, plain_small)
-        excess = ratio_of(growth, plain_growth)
         rows.append(
             Row(
-                f"{labels[kind]}: CPU per delivery, {SIZES[-1]} / {SIZES[1]} components",
+                f"{labels[kind]}: CPU per delivery, {SIZES[-1]} / {SIZES[-2]} components",
                 growth,
                 "x",
                 baseline=plain_growth,
                 baseline_label="the plain equivalent's",
-                ratio=excess,
-                ratio_label="ours/plain growth",
-                target=f"growth <= {LINEAR_LIMIT}x the plain one's (linear)",
-                passed=excess <= LINEAR_LIMIT,
+                target=f"<= {LINEAR_LIMIT}x (linear)",
+                passed=growth <= LINEAR_LIMIT,
                 digits=2,
             )
         )
@@ -341,7 +339,16 @@ only takes it (queue).
 
 Figure: process CPU time (`time.process_time`) from the start of the ticks until every
 delivery was made, per delivery; CPU rather than wall so that the idle part of each
-period does not count. Linear: from 10 to 1000 components the per-delivery cost grows by
-at most {LINEAR_LIMIT}x the plain equivalent's own growth. At 1 component the figure is
-mostly each side's per-tick cost (the timer's wake-up and bookkeeping against one
-`asyncio.sleep`)."""
+period does not count. Linear: from 100 to 1000 components the per-delivery cost grows
+by at most {LINEAR_LIMIT}x (the total cost is linear in N; the plain equivalent's own
+ratio is shown beside). At 1 and 10 components the figure is mostly each side's per-tick
+cost (the timer's wake-up and bookkeeping against one `asyncio.sleep`).
+
+Profile (first run, issue 27): a sync delivery costs ~0.7 µs in the component layer
+against ~0.08 µs for a bare callback (`DeviceContext.post_event` ->
+`HALComponent._publish_event`, whose state test `state in _NOTIFYING` hashes a plain
+`Enum` in Python, -> `Fanout.publish`, isolated in a try/except), so at 1000 components
+the sync rows are bound by that per-event path, not by the fan-out; at 1 component, by
+the timer's per-tick wake-up (`anyio.wait_readable` on the timerfd: registering and
+unregistering it with epoll on every tick, two loop passes) against one
+`asyncio.sleep`."""

@@ -157,8 +157,15 @@ class SimMotor(ActuatorDevice):
             # the limit check is done (else clip_to_limits looks for the crossing).
             low, high = limits.position
             stop = p + v * (v if v >= 0.0 else -v) / (2 * amax)
-            margin = INSIDE_MARGIN * (1.0 + abs(p) + abs(value) + abs(stop))
-            if low + margin < min(p, stop, value) and max(p, stop, value) < high - margin:
+            lo = p if p < stop else stop
+            hi = p if p > stop else stop
+            if value < lo:
+                lo = value
+            elif value > hi:
+                hi = value
+            # (min and max of the three, and a margin relative to their magnitude)
+            margin = INSIDE_MARGIN * (1.0 + (hi if hi >= 0.0 else -hi) + (lo if lo >= 0.0 else -lo))
+            if low + margin < lo and hi < high - margin:
                 # _set_inside(segments, POSITION, arrival), inline: the per-command path
                 arrival_ns = segments[-1][0]
                 self._segments = segments

@@ -216,13 +216,18 @@ class NoticeQueue(Generic[N]):
         return self
 
     async def __anext__(self) -> N:
-        # get() inlined: one coroutine per notice instead of two.
+        # get() inlined: one coroutine per notice instead of two; the wait too (Wakeup.arm).
         items = self._items
         while not items:
             if self._closed:
                 raise StopAsyncIteration
-            self._wakeup.clear()
-            await self._wakeup.wait()
+            wakeup = self._wakeup
+            future = wakeup.arm()
+            try:
+                await future
+            except BaseException:  # cancelled: leave the line of waiters
+                wakeup.disarm(future)
+                raise
         # _take() inlined too: this is the consumer's hot path.
         notice = items.popleft()
         self.delivered += 1

@@ -84,6 +84,24 @@ class Wakeup:
             self._leave(future)
             raise
 
+    def arm(self) -> asyncio.Future[None]:
+        """:meth:`wait` in two steps, for a consumer's hot loop (one coroutine frame less):
+        clear the flag and return a future in the line of waiters, resolved by the next
+        :meth:`set`. Await it; if the await raises (cancellation), call :meth:`disarm`."""
+        self._flag = False
+        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        if self.waiter is None:
+            self.waiter = future
+        elif self._more is None:
+            self._more = [future]
+        else:
+            self._more.append(future)
+        return future
+
+    def disarm(self, future: asyncio.Future[None]) -> None:
+        """Take a future of :meth:`arm` out of the line (its await was cancelled)."""
+        self._leave(future)
+
     def _leave(self, future: asyncio.Future[None]) -> None:
         more = self._more
         if self.waiter is future:

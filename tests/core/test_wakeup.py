@@ -108,3 +108,28 @@ async def test_the_first_waiter_cancelled_passes_its_place_on() -> None:
     with pytest.raises(TimeoutError):
         with anyio.fail_after(0.01):
             await wakeup.wait()
+
+
+async def test_arm_and_disarm_are_wait_in_two_steps() -> None:
+    wakeup = Wakeup()
+    wakeup.set()
+    first = wakeup.arm()  # clears the flag: only the next set() resolves it
+    second = wakeup.arm()
+    assert not wakeup.is_set() and wakeup.waiter is first
+    wakeup.disarm(first)  # its await was cancelled: the second is first in line
+    assert wakeup.waiter is second
+    wakeup.set()
+    with anyio.fail_after(5):
+        await second
+    assert not first.done() and not wakeup.waiting
+    first.cancel()
+
+
+async def test_a_cancelled_queue_consumer_leaves_no_waiter_behind() -> None:
+    from openel_async import ObserverQueue
+
+    queue: ObserverQueue = ObserverQueue(4)
+    with anyio.move_on_after(0.01):
+        async for _ in queue:
+            pass
+    assert not queue._wakeup.waiting
