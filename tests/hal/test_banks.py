@@ -45,8 +45,8 @@ from openel_async import (
     VirtualClock,
     WouldBlockError,
 )
-from openel_async.actuator import send_targets
 from openel_async.device import BatchCommander
+from openel_async.streaming import send_targets
 from openel_async.testing import ComponentStack, EventRecorder
 from openel_sim import SimEncoder, SimIMU, SimMotor, SimTemperature
 

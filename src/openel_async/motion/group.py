@@ -23,7 +23,7 @@ import anyio.lowlevel
 
 from openel_async.logs import get_logger
 
-from ..actuator import Actuator, send_targets
+from ..actuator import Actuator
 from ..banks import ActuatorBank
 from ..clock import NS_PER_S
 from ..component import ComponentState
@@ -31,6 +31,7 @@ from ..device import has_nowait
 from ..errors import BadParameterError, HALError, StateError
 from ..requests import Request
 from ..stats import LatenessRecorder, LatenessSummary
+from ..streaming import send_targets
 from ..timer import EventTimer, TimerState
 from ..wakeup import Wakeup
 from .errors import (
