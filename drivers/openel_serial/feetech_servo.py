@@ -309,6 +309,7 @@ class FeetechServo(BusServo[FeetechPort, FeetechPresentState]):
 
     async def _torque_on(self) -> None:
         if not self._torque:
+            self.check_not_estopped()  # an e-stop that came during this command
             await self._write(S.TORQUE_ENABLE, 1)
             self._torque = True
 
@@ -336,6 +337,7 @@ class FeetechServo(BusServo[FeetechPort, FeetechPresentState]):
                 await self._write(S.TORQUE_ENABLE, 0)
                 self._torque = False
                 return
+            self.check_not_estopped()
             if request is Request.POSITION:
                 raw = self._to_ticks(value)
                 if not 0 <= raw < 1 << 15:

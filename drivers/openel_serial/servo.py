@@ -596,7 +596,9 @@ class DynamixelServo(BusServo[DynamixelPort, PresentState]):
         self, mode: int, item: dx.ControlItem, raw: int, acceleration: int | None = None
     ) -> None:
         """Switch the operating mode if needed (torque off first), write the profile
-        (``acceleration``, else the configured one), the goal, torque on."""
+        (``acceleration``, else the configured one), the goal, torque on -- refused while
+        e-stopped, also when the e-stop comes between two of these writes."""
+        self.check_not_estopped()
         if self._mode != mode:
             if self._torque:
                 await self._write(X.TORQUE_ENABLE, 0)
@@ -611,6 +613,7 @@ class DynamixelServo(BusServo[DynamixelPort, PresentState]):
         )
         await self._write(item, raw)
         if not self._torque:
+            self.check_not_estopped()
             await self._write(X.TORQUE_ENABLE, 1)
             self._torque = True
 

@@ -204,6 +204,7 @@ class BusServo(ActuatorDevice, Generic[PortT, StateT]):
         await self.port.reconnect()
         await self.identify()
         await self.load_table()
+        self._estop_active = False  # re_init is what ends an e-stop
         await self.make_operational()
 
     async def close(self) -> None:
@@ -245,6 +246,14 @@ class BusServo(ActuatorDevice, Generic[PortT, StateT]):
             await self.port.estop([self._servo_id])
         finally:
             self._estopped_now(f"servo {self._servo_id}: e-stop: torque off")
+
+    def check_not_estopped(self) -> None:
+        """Refuse to drive the servo while it is e-stopped: a command already on its way when
+        the e-stop came must not turn the torque back on (only ``re_init`` does)."""
+        if self._estop_active:
+            raise HALError(
+                f"servo {self._servo_id}: e-stopped: the torque stays off until re_init"
+            )
 
     def _estopped_now(self, reason: str) -> None:
         self._estop_active = True

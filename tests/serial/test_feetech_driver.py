@@ -10,6 +10,7 @@ from contextlib import AsyncExitStack
 from typing import Any
 
 import anyio
+import anyio.lowlevel
 import pytest
 
 from openel_async import (
@@ -282,6 +283,33 @@ async def test_estop_broadcasts_torque_off_and_re_init_recovers(
         for actuator in actuators:
             await actuator.re_init()
         assert all(s.torque_enabled for s in bus.servos)
+
+
+async def test_a_command_on_its_way_when_the_e_stop_comes_leaves_the_torque_off(
+    bus: SimFeetechBus, port: FeetechPort, recorder: EventRecorder
+) -> None:
+    async with AsyncExitStack() as stack:
+        (actuator,) = await open_servos(stack, port, recorder, 1)
+        servo = actuator.device
+        assert isinstance(servo, FeetechServo)
+        await servo.command(Request.NO_EXCITE, 0.0)  # torque off: the next command turns it on
+        refused: list[Exception] = []
+
+        async def command() -> None:
+            try:
+                await servo.command(Request.POSITION, 0.5)
+            except HALError as exc:
+                refused.append(exc)
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(command)
+            await anyio.lowlevel.checkpoint()  # the command's first write is on its way
+            await servo.estop()
+        assert refused and "e-stopped" in str(refused[0])
+        await port.ping(1)  # every packet sent is handled
+        assert not bus.servos[0].torque_enabled
+        await actuator.re_init()
+        assert bus.servos[0].torque_enabled
 
 
 async def test_the_host_watchdog_turns_the_torque_off_while_the_loop_is_stalled(

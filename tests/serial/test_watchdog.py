@@ -18,6 +18,7 @@ import time
 from contextlib import AsyncExitStack
 
 import anyio
+import anyio.lowlevel
 import dynamixel_sdk as sdk
 import pytest
 
@@ -26,6 +27,7 @@ from openel_async import (
     BadParameterError,
     ComponentState,
     ErrorId,
+    HALError,
     NotImplementedHALError,
     Request,
     VirtualClock,
@@ -439,6 +441,37 @@ async def test_port_estop_turns_every_torque_off_in_one_sync_write(
         assert bus[1].torque_enabled and bus[2].torque_enabled
         with anyio.fail_after(WAIT_S):
             await (await a1.set_value(0.3))
+
+
+async def test_a_command_on_its_way_when_the_e_stop_comes_leaves_the_torque_off(
+    bus: SimDynamixelBus, port: DynamixelPort, recorder: EventRecorder
+) -> None:
+    """The command's writes (mode, profile, goal, torque on) are awaited one by one; an
+    e-stop that comes between them must not be undone by its torque-on (a race seen once
+    in a loaded suite run: a servo e-stopped by SIGQUIT had its torque on again)."""
+    async with AsyncExitStack() as stack:
+        (a1,) = await actuators(stack, port, recorder, 1)
+        servo = servo_of(a1)
+        await servo.command(Request.NO_EXCITE, 0.0)  # torque off: the next command turns it on
+        refused: list[Exception] = []
+
+        async def command() -> None:
+            try:
+                await servo.command(Request.POSITION, 0.5)
+            except HALError as exc:
+                refused.append(exc)
+
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(command)
+            await anyio.lowlevel.checkpoint()  # the command's first write is on its way
+            await servo.estop()
+        assert refused and "e-stopped" in str(refused[0])
+        await port.ping(1)  # every packet sent is handled
+        assert not bus[1].torque_enabled and servo.estopped
+        with pytest.raises(HALError, match="e-stopped"):
+            await servo.command(Request.POSITION, 0.5)  # and the next one is refused too
+        await a1.re_init()
+        assert bus[1].torque_enabled
 
 
 async def test_concurrent_servo_estops_share_one_packet(
