@@ -251,9 +251,7 @@ class BusServo(ActuatorDevice, Generic[PortT, StateT]):
         """Refuse to drive the servo while it is e-stopped: a command already on its way when
         the e-stop came must not turn the torque back on (only ``re_init`` does)."""
         if self._estop_active:
-            raise HALError(
-                f"servo {self._servo_id}: e-stopped: the torque stays off until re_init"
-            )
+            raise HALError(f"servo {self._servo_id}: e-stopped: the torque stays off until re_init")
 
     def _estopped_now(self, reason: str) -> None:
         self._estop_active = True
