@@ -19,6 +19,7 @@ the writes run in a worker thread, never in the event loop.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections import Counter
 from collections.abc import Callable, Iterable
@@ -286,5 +287,10 @@ async def monitor(
 
 
 def _write(writer: can.Listener, batch: list[can.Message]) -> None:
+    """The frames into the log file, on the writer's own channel: python-can's writers turn
+    a channel name into a number by its trailing digits (BLF stores it in 16 bits), and a
+    bus named ``monitor-3f1234567`` or ``vcan70000`` is one bus, not channel 1234567."""
     for frame in batch:
-        writer.on_message_received(frame)
+        logged = copy.copy(frame)
+        logged.channel = None
+        writer.on_message_received(logged)

@@ -31,7 +31,9 @@ def _frame(msg: co.CanOpenMessage) -> can.Message:
 
 @pytest.mark.parametrize("suffix", [".blf", ".trc"])
 async def test_frames_decoded_counted_and_logged(tmp_path: Path, suffix: str) -> None:
-    channel = f"monitor-{uuid.uuid4().hex[:8]}"
+    # (a name ending in a number over 65535: python-can's BLF writer took it for the channel
+    # number, which BLF stores in 16 bits -- a random name failed now and then)
+    channel = f"monitor-{uuid.uuid4().hex[:8]}-1234567"
     log = tmp_path / f"bus{suffix}"
     seen: list[Decoded] = []
     peers = [SimODrive(1, heartbeat_period=0.05), SimCia402Drive(2, heartbeat_ms=50)]
