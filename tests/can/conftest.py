@@ -8,12 +8,13 @@ wait is bounded (``anyio.fail_after`` or a bounded helper).
 from __future__ import annotations
 
 import uuid
-from collections.abc import AsyncIterator, Callable, Iterator
+from collections.abc import AsyncIterator, Awaitable, Callable, Iterator
 from contextlib import AsyncExitStack, asynccontextmanager, contextmanager
 from typing import Any, TypeVar
 
 import anyio
 import anyio.abc
+import anyio.to_thread
 import can
 import canopen
 import pytest
@@ -139,3 +140,29 @@ async def slcan_host_bus(port: str) -> AsyncIterator[CanBus]:
         name="host-slcan",
     ) as bus:
         yield bus
+
+
+T = TypeVar("T")
+
+
+async def in_thread(fn: Callable[[], T], limit: float = 10) -> T:
+    """``fn`` (a blocking peer's code, canopen-py's) in a worker thread, bounded."""
+    with anyio.fail_after(limit):
+        return await anyio.to_thread.run_sync(fn)
+
+
+async def through_slcan(master: Callable[[canopen.Network, CanBus], Awaitable[None]]) -> None:
+    """``master(network, bus)`` with our host bus through python-can's ``slcan`` interface on
+    a simulated adapter's pty, and a canopen-py network on the adapter's far side; the
+    adapter saw no error."""
+    from openel_can.sim.slcan import SlcanAdapter
+
+    with (
+        SlcanAdapter() as adapter,
+        canopen_network(
+            interface="virtual", channel=adapter.channel, receive_own_messages=False
+        ) as net,
+    ):
+        async with slcan_host_bus(adapter.port) as bus:
+            await master(net, bus)
+    assert adapter.stats.errors == 0

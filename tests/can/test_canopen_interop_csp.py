@@ -23,7 +23,6 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
-import anyio
 import canopen
 import pytest
 from canopen.pdo.base import PdoMap
@@ -36,18 +35,13 @@ from openel_can.od import SHIPPED_EDS
 from openel_can.sim.cia402 import SimCia402Drive
 from openel_can.sim.slcan import SlcanAdapter
 
-from .conftest import Peers, canopen_network, slcan_host_bus, wait_until
+from .conftest import Peers, canopen_network, in_thread, through_slcan, wait_until
 
 T = TypeVar("T")
 NODE = 6
 PS = ds.PowerState
 CSP = int(ds.ModeOfOperation.CYCLIC_SYNC_POSITION)
 FOLLOWS = int(ds.StatusBit.SETPOINT_ACKNOWLEDGE)  # bit 12 in CSP: follows the command value
-
-
-async def _in_thread(fn: Callable[[], T], limit: float = 10) -> T:
-    with anyio.fail_after(limit):
-        return await anyio.to_thread.run_sync(fn)
 
 
 @pytest.fixture
@@ -150,15 +144,7 @@ async def test_our_master_drives_a_canopen_local_node_in_csp(
 
 
 async def test_our_master_through_slcan_drives_a_canopen_local_node_in_csp() -> None:
-    with (
-        SlcanAdapter() as adapter,
-        canopen_network(
-            interface="virtual", channel=adapter.channel, receive_own_messages=False
-        ) as net,
-    ):
-        async with slcan_host_bus(adapter.port) as bus:
-            await _our_master_csp(net, bus)
-    assert adapter.stats.errors == 0
+    await through_slcan(_our_master_csp)
 
 
 async def _our_master_csp(network: canopen.Network, host_bus: CanBus) -> None:
@@ -269,7 +255,7 @@ async def test_canopen_master_runs_our_simulated_drive_in_csp(
     sim = await peers.start(SimCia402Drive(NODE, heartbeat_ms=0))
     remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))
     network.add_node(remote)
-    out = await _in_thread(lambda: _master_csp(network, remote))
+    out = await in_thread(lambda: _master_csp(network, remote))
     _check_csp(out, sim)
 
 
@@ -283,7 +269,7 @@ async def test_canopen_master_through_slcan_runs_our_simulated_drive_in_csp() ->
     ):
         remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))
         net.add_node(remote)
-        out = await _in_thread(lambda: _master_csp(net, remote), limit=20)
+        out = await in_thread(lambda: _master_csp(net, remote), limit=20)
     _check_csp(out, sim)
     assert adapter.stats.errors == 0
 

@@ -39,16 +39,11 @@ from openel_can.pdomap import configure_pdos, default_pdos
 from openel_can.sim.cia402 import SimCia402Drive
 from openel_can.sim.slcan import SlcanAdapter
 
-from .conftest import Peers, canopen_network, slcan_host_bus
+from .conftest import Peers, canopen_network, in_thread, through_slcan
 
 T = TypeVar("T")
 NODE = 5
 PS = ds.PowerState
-
-
-async def _in_thread(fn: Callable[[], T], limit: float = 10) -> T:
-    with anyio.fail_after(limit):
-        return await anyio.to_thread.run_sync(fn)
 
 
 @pytest.fixture
@@ -99,15 +94,7 @@ async def test_our_master_maps_and_starts_a_canopen_local_node(
 
 
 async def test_our_master_through_slcan_maps_and_starts_a_canopen_local_node() -> None:
-    with (
-        SlcanAdapter() as adapter,
-        canopen_network(
-            interface="virtual", channel=adapter.channel, receive_own_messages=False
-        ) as net,
-    ):
-        async with slcan_host_bus(adapter.port) as bus:
-            await _our_master(net, bus)
-    assert adapter.stats.errors == 0
+    await through_slcan(_our_master)
 
 
 async def _our_master(network: canopen.Network, host_bus: CanBus) -> None:
@@ -132,7 +119,7 @@ async def _our_master(network: canopen.Network, host_bus: CanBus) -> None:
         while local.nmt.state != "OPERATIONAL":
             assert time.monotonic() < deadline, local.nmt.state
             await anyio.sleep(0.001)
-        await _in_thread(glue.start)
+        await in_thread(glue.start)
         # The application's values, then our SYNC: TPDO1 and TPDO2 answer it.
         for name, value in [
             ("Statusword", 0x0237),
@@ -273,7 +260,7 @@ async def test_canopen_master_runs_our_simulated_drive(
     sim = await peers.start(SimCia402Drive(NODE, heartbeat_ms=0))
     remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))
     network.add_node(remote)
-    out = await _in_thread(lambda: _master_profile_position(network, remote))
+    out = await in_thread(lambda: _master_profile_position(network, remote))
     _check(out, sim)
 
 
@@ -285,6 +272,6 @@ async def test_canopen_master_through_slcan_runs_our_simulated_drive() -> None:
         ) as net:
             remote = canopen.RemoteNode(NODE, str(SHIPPED_EDS))
             net.add_node(remote)
-            out = await _in_thread(lambda: _master_profile_position(net, remote), limit=20)
+            out = await in_thread(lambda: _master_profile_position(net, remote), limit=20)
         _check(out, sim)
     assert adapter.stats.errors == 0
