@@ -27,6 +27,7 @@ from openel_async.errors import BadParameterError
 
 if TYPE_CHECKING:
     from .bus import CanBus
+    from .monitor import Decoder
     from .scan import CanScan
 
     SubParsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
@@ -281,8 +282,10 @@ SCAN_CAN = CliCommand("can", add_scan_can_parser, run_scan_can, parent="scan")
 MONITOR_DESCRIPTION = """\
 Watch a CAN bus: every frame on one line, decoded by what the rig knows -- ODrive messages
 (CANSimple) of its ODrive nodes, CANopen (NMT, SYNC, heartbeats, EMCY with its class, SDO
-transfers with index and subindex, PDOs raw) -- with a summary of per-id rates and error
-counters every --summary seconds and at the end. --json: one JSON object a line.
+transfers with the object by name and its value, the PDOs of its CiA 402 drives field by
+field by the maps the driver writes to them, other PDOs raw) -- with a summary of per-id
+rates and error counters every --summary seconds and at the end. --json: one JSON object a
+line.
 
 The monitor is passive: it sends nothing. With --sim the rig's simulated peers run and send
 what they send unprompted (heartbeats, an ODrive's encoder estimates); run an app on the real
@@ -311,6 +314,14 @@ def add_monitor_parser(sub: SubParsers) -> argparse.ArgumentParser:
         help="ODrive node ids to decode as CANSimple, e.g. 1,2 (a rig says its own)",
     )
     parser.add_argument(
+        "--cia402",
+        metavar="NODES",
+        default="",
+        help="CiA 402 node ids whose PDOs to decode by the driver's maps of a drive with no "
+        "files, each with its mode: 2,3:csp (modes pp, csp, csv, cst; default pp; a rig "
+        "says its own drives' maps)",
+    )
+    parser.add_argument(
         "--duration", type=float, default=10.0, metavar="S", help="seconds to watch (default 10)"
     )
     parser.add_argument(
@@ -333,6 +344,25 @@ def _node_list(text: str) -> frozenset[int] | None:
     except ValueError:
         return None
     return nodes if all(0 <= n < 0x3F for n in nodes) else None
+
+
+def _cia402_list(text: str) -> dict[int, str] | None:
+    """``2,3:csp`` -> {2: "pp", 3: "csp"}; None when malformed."""
+    from .monitor_canopen import CIA402_MODES
+
+    out: dict[int, str] = {}
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        node_text, _, mode = part.partition(":")
+        try:
+            node = int(node_text, 0)
+        except ValueError:
+            return None
+        if not 1 <= node <= 127 or (mode or "pp") not in CIA402_MODES:
+            return None
+        out[node] = mode or "pp"
+    return out
 
 
 def run_monitor(args: argparse.Namespace) -> int:
@@ -358,20 +388,35 @@ def run_monitor(args: argparse.Namespace) -> int:
     odrives = _node_list(args.odrive)
     if odrives is None:
         return refuse(f"--odrive {args.odrive}: node ids 0..62, separated by commas")
+    cia402 = _cia402_list(args.cia402)
+    if cia402 is None:
+        return refuse(
+            f"--cia402 {args.cia402}: node ids 1..127 separated by commas, each with an "
+            "optional mode :pp, :csp, :csv or :cst"
+        )
     if args.log is not None and (why := check_log_path(args.log)) is not None:
         return refuse(f"--log {args.log}: {why}")
     source = bus_source(prog, args)
     if source is None:
         return EXIT_USAGE
+    from .monitor import Decoder
+    from .monitor_canopen import rig_knowledge
     from .rigbus import ODRIVE_DEVICES
 
     odrives |= {d.params["node_id"] for d in source.devices if d.device in ODRIVE_DEVICES}
-    anyio.run(_monitor, source, odrives, args)
+    try:
+        known = rig_knowledge(source.devices)
+    except BadParameterError as exc:
+        return refuse(f"{args.rig}: {exc}")
+    for node, mode in cia402.items():
+        if not any(layout.node_id == node for layout in known.pdos.values()):
+            known.add_fixed(node, mode)
+    anyio.run(_monitor, source, Decoder(odrives, known=known), args)
     return 0
 
 
-async def _monitor(source: BusSource, odrives: frozenset[int], args: argparse.Namespace) -> None:
-    from .monitor import Decoded, Decoder, MonitorStats, monitor
+async def _monitor(source: BusSource, decoder: Decoder, args: argparse.Namespace) -> None:
+    from .monitor import Decoded, MonitorStats, monitor
 
     first: list[float] = []
 
@@ -393,7 +438,7 @@ async def _monitor(source: BusSource, odrives: frozenset[int], args: argparse.Na
             print(f"monitoring {description} for {args.duration:g} s", flush=True)
         stats = await monitor(
             bus,
-            Decoder(odrives),
+            decoder,
             duration=args.duration,
             on_frame=frame_line,
             on_summary=summary,
