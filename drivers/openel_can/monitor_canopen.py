@@ -27,6 +27,7 @@ from typing import Any, Final
 
 from . import canopen as co
 from . import cia402 as ds
+from .errors import DecodeError
 from .od import SHIPPED_EDS, Access, ObjectDictionary, OdEntry, OdValue, load_od
 
 __all__ = [
@@ -72,7 +73,10 @@ def format_value(entry: OdEntry, value: OdValue) -> str:
         if entry.index in _HEX_OBJECTS and not entry.subindex:
             text = f"{value:#0{2 + 2 * (entry.size or 2)}x}"
             if entry.index == 0x6041:
-                text += f" {ds.state_from_statusword(value).name}"
+                try:
+                    text += f" {ds.state_from_statusword(value).name}"
+                except DecodeError:
+                    text += " (no CiA 402 state)"
             return text
         if entry.index in _MODE_OBJECTS and not entry.subindex:
             try:
