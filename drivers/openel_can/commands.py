@@ -5,6 +5,9 @@
   (:mod:`openel_can.scan`), print a table (``--json``: one JSON document) and, with
   ``--rig-out``, write a rig file naming them;
 - ``openel-async bus monitor``: print the frames of a bus decoded (:mod:`openel_can.monitor`).
+  A rig bus of another kind whose ``BusKind`` has a ``monitor(args, name, bus) -> int``
+  method (the serial driver's: Dynamixel and Feetech packets) is handed to it, with the
+  parsed options (``--port`` is for those).
 
 Both open a bus from python-can options (``--interface``, ``--channel``, ``--bitrate``) or
 from a rig file's bus (``--rig RIG.yaml --bus NAME``; ``--sim``: the rig's simulated bus with
@@ -27,6 +30,7 @@ from openel_async.errors import BadParameterError
 
 if TYPE_CHECKING:
     from .bus import CanBus
+    from .monitor import Decoder
     from .scan import CanScan
 
     SubParsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
@@ -279,10 +283,12 @@ SCAN_CAN = CliCommand("can", add_scan_can_parser, run_scan_can, parent="scan")
 # -- bus monitor --------------------------------------------------------------------------------
 
 MONITOR_DESCRIPTION = """\
-Watch a CAN bus: every frame on one line, decoded by what the rig knows -- ODrive messages
+Watch a CAN bus or a serial servo bus of a rig: every frame on one line, decoded by what the rig knows -- ODrive messages
 (CANSimple) of its ODrive nodes, CANopen (NMT, SYNC, heartbeats, EMCY with its class, SDO
-transfers with index and subindex, PDOs raw) -- with a summary of per-id rates and error
-counters every --summary seconds and at the end. --json: one JSON object a line.
+transfers with the object by name and its value, the PDOs of its CiA 402 drives field by
+field by the maps the driver writes to them, other PDOs raw) -- with a summary of per-id
+rates and error counters every --summary seconds and at the end. --json: one JSON object a
+line.
 
 The monitor is passive: it sends nothing. With --sim the rig's simulated peers run and send
 what they send unprompted (heartbeats, an ODrive's encoder estimates); run an app on the real
@@ -290,7 +296,13 @@ bus in another terminal to see its commands. --log FILE also writes every frame 
 python-can reads back (can.player, can.logger, can.LogReader), chosen by the extension:
 .asc, .blf, .trc, .log or .csv.
 
-Exit status: 0 done (after --duration seconds), 2 usage error, 130 Ctrl-C.
+A serial bus of a rig (Dynamixel 2.0, Feetech STS): its packets in both directions, by
+instruction and control-table item, with rates and error counters; --port DEVICE is a second
+adapter listening on the same line (only read), --sim the rig's simulated servos read by its
+driver through a tap (nothing written); --log FILE writes timestamped hex lines.
+
+Exit status: 0 done (after --duration seconds), 1 a serial port failed, 2 usage error, 130
+Ctrl-C.
 """
 
 
@@ -311,6 +323,21 @@ def add_monitor_parser(sub: SubParsers) -> argparse.ArgumentParser:
         help="ODrive node ids to decode as CANSimple, e.g. 1,2 (a rig says its own)",
     )
     parser.add_argument(
+        "--cia402",
+        metavar="NODES",
+        default="",
+        help="CiA 402 node ids whose PDOs to decode by the driver's maps of a drive with no "
+        "files, each with its mode: 2,3:csp (modes pp, csp, csv, cst; default pp; a rig "
+        "says its own drives' maps)",
+    )
+    serial = parser.add_argument_group("a serial servo bus of the rig (Dynamixel, Feetech)")
+    serial.add_argument(
+        "--port",
+        metavar="DEVICE",
+        help="a second adapter on the same line, only read (the app keeps its own); "
+        "or --sim: the rig's simulated servos read by its driver, through a tap",
+    )
+    parser.add_argument(
         "--duration", type=float, default=10.0, metavar="S", help="seconds to watch (default 10)"
     )
     parser.add_argument(
@@ -322,7 +349,10 @@ def add_monitor_parser(sub: SubParsers) -> argparse.ArgumentParser:
     )
     parser.add_argument("--json", action="store_true", help="one JSON object a line")
     parser.add_argument(
-        "--log", metavar="FILE", help="also write the frames to FILE (.asc, .blf, .trc, .log, .csv)"
+        "--log",
+        metavar="FILE",
+        help="also write the frames to FILE (CAN: .asc, .blf, .trc, .log, .csv; serial: "
+        "timestamped hex lines)",
     )
     return parser
 
@@ -333,6 +363,50 @@ def _node_list(text: str) -> frozenset[int] | None:
     except ValueError:
         return None
     return nodes if all(0 <= n < 0x3F for n in nodes) else None
+
+
+def _other_kind(prog: str, args: argparse.Namespace) -> int | None:
+    """The exit status of the monitor of a rig bus that is not CAN (its kind's ``monitor``),
+    or None: a CAN bus (or a rig that does not load: :func:`bus_source` says why)."""
+    if args.rig is None or args.bus is None or not Path(args.rig).is_file():
+        return None
+    from openel_async.rig import load_rig, resolve_rig
+
+    from .rigbus import CanBusKind
+
+    try:
+        bus = resolve_rig(load_rig(args.rig)).buses.get(args.bus)
+    except BadParameterError:
+        return None
+    if bus is None or isinstance(bus.kind, CanBusKind):
+        return None
+    monitor = getattr(bus.kind, "monitor", None)
+    if monitor is None:
+        print(
+            f"{prog}: {args.bus}: the installed drivers monitor no bus of its kind", file=sys.stderr
+        )
+        return EXIT_USAGE
+    status: int = monitor(args, args.bus, bus)
+    return status
+
+
+def _cia402_list(text: str) -> dict[int, str] | None:
+    """``2,3:csp`` -> {2: "pp", 3: "csp"}; None when malformed."""
+    from .monitor_canopen import CIA402_MODES
+
+    out: dict[int, str] = {}
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        node_text, _, mode = part.partition(":")
+        try:
+            node = int(node_text, 0)
+        except ValueError:
+            return None
+        if not 1 <= node <= 127 or (mode or "pp") not in CIA402_MODES:
+            return None
+        out[node] = mode or "pp"
+    return out
 
 
 def run_monitor(args: argparse.Namespace) -> int:
@@ -355,23 +429,43 @@ def run_monitor(args: argparse.Namespace) -> int:
         and check_seconds(prog, "--summary", args.summary, 0.1, 3600.0)
     ):
         return EXIT_USAGE
+    handed = _other_kind(prog, args)
+    if handed is not None:
+        return handed
+    if args.port is not None:
+        return refuse("--port goes with a serial bus of a rig (RIG.yaml BUS)")
     odrives = _node_list(args.odrive)
     if odrives is None:
         return refuse(f"--odrive {args.odrive}: node ids 0..62, separated by commas")
+    cia402 = _cia402_list(args.cia402)
+    if cia402 is None:
+        return refuse(
+            f"--cia402 {args.cia402}: node ids 1..127 separated by commas, each with an "
+            "optional mode :pp, :csp, :csv or :cst"
+        )
     if args.log is not None and (why := check_log_path(args.log)) is not None:
         return refuse(f"--log {args.log}: {why}")
     source = bus_source(prog, args)
     if source is None:
         return EXIT_USAGE
+    from .monitor import Decoder
+    from .monitor_canopen import rig_knowledge
     from .rigbus import ODRIVE_DEVICES
 
     odrives |= {d.params["node_id"] for d in source.devices if d.device in ODRIVE_DEVICES}
-    anyio.run(_monitor, source, odrives, args)
+    try:
+        known = rig_knowledge(source.devices)
+    except BadParameterError as exc:
+        return refuse(f"{args.rig}: {exc}")
+    for node, mode in cia402.items():
+        if not any(layout.node_id == node for layout in known.pdos.values()):
+            known.add_fixed(node, mode)
+    anyio.run(_monitor, source, Decoder(odrives, known=known), args)
     return 0
 
 
-async def _monitor(source: BusSource, odrives: frozenset[int], args: argparse.Namespace) -> None:
-    from .monitor import Decoded, Decoder, MonitorStats, monitor
+async def _monitor(source: BusSource, decoder: Decoder, args: argparse.Namespace) -> None:
+    from .monitor import Decoded, MonitorStats, monitor
 
     first: list[float] = []
 
@@ -393,7 +487,7 @@ async def _monitor(source: BusSource, odrives: frozenset[int], args: argparse.Na
             print(f"monitoring {description} for {args.duration:g} s", flush=True)
         stats = await monitor(
             bus,
-            Decoder(odrives),
+            decoder,
             duration=args.duration,
             on_frame=frame_line,
             on_summary=summary,

@@ -7,7 +7,10 @@ rig knows, per-id rates and error counters, and optionally a log file python-can
   the DBC at run time (both stay test-only dependencies of the ``peers`` group);
 * **CANopen** frames by :mod:`openel_can.canopen`: NMT commands, SYNC, heartbeats, EMCY with
   the class of its code (:func:`openel_can.emcy.describe_emcy`), SDO transfers with index and
-  subindex, PDOs raw;
+  subindex (named, and their values decoded by type, when the node's dictionary is known;
+  a segmented transfer's value and size at its last segment), and the PDOs of the CiA 402
+  drives the rig names (or ``--cia402``) field by field, by the maps the driver writes
+  (:mod:`openel_can.monitor_canopen`); other PDOs raw;
 * anything else raw.
 
 The monitor sends nothing. It watches the 11-bit ids (the ones these protocols use). Frames that do not decode count as ``malformed``; error frames,
@@ -38,6 +41,7 @@ from . import cansimple as cs
 from .bus import CanBus
 from .emcy import describe_emcy
 from .errors import DecodeError
+from .monitor_canopen import CanopenKnowledge, SdoTracker
 
 __all__ = ["LOG_SUFFIXES", "Decoded", "Decoder", "MonitorStats", "monitor"]
 
@@ -58,6 +62,8 @@ class Decoded:
     """What it says, for people: ``ODrive 1 Heartbeat axis_state=IDLE ...``."""
     malformed: bool = False
     remote: bool = False
+    fields: tuple[dict[str, Any], ...] = ()
+    """A PDO's objects: ``object`` (``6040:00``), ``name``, ``type``, ``value``."""
 
     def line(self, since: float = 0.0) -> str:
         """One line for people; the time in seconds since ``since``."""
@@ -65,7 +71,7 @@ class Decoded:
         return f"{self.timestamp - since:10.4f}  {self.arbitration_id:03X}  [{len(self.data)}] {data:<23}  {self.text}"
 
     def to_dict(self) -> dict[str, Any]:
-        return {
+        out: dict[str, Any] = {
             "t": round(self.timestamp, 6),
             "id": self.arbitration_id,
             "data": self.data.hex(),
@@ -74,6 +80,9 @@ class Decoded:
             "text": self.text,
             "malformed": self.malformed,
         }
+        if self.fields:
+            out["fields"] = list(self.fields)
+        return out
 
 
 def _fields(msg: object) -> str:
@@ -101,6 +110,12 @@ class Decoder:
     """ODrive node ids (CANSimple: ``node << 5 | cmd``)."""
     canopen: frozenset[int] | None = None
     """CANopen node ids (None: any id a CANopen function code explains)."""
+    known: CanopenKnowledge = field(default_factory=CanopenKnowledge)
+    """The PDO maps (by COB-ID) and dictionaries (by node) of the CiA 402 drives."""
+    sdo: SdoTracker = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.sdo = SdoTracker(self.known.ods)
 
     def decode(self, frame: can.Message) -> Decoded:
         arb, data, t = frame.arbitration_id, bytes(frame.data), frame.timestamp
@@ -113,6 +128,10 @@ class Decoder:
             cs.BROADCAST_NODE_ID, cs.CmdId.ADDRESS
         ):
             return self._odrive(t, arb, data, remote)
+        layout = self.known.pdos.get(arb)
+        if layout is not None and not remote:
+            text, fields, malformed = layout.decode(data)
+            return Decoded(t, arb, data, "canopen", text, malformed, fields=fields)
         return self._canopen(t, arb, data, remote)
 
     def _odrive(self, t: float, arb: int, data: bytes, remote: bool) -> Decoded:
@@ -142,10 +161,11 @@ class Decoder:
             msg = co.decode(arb, data)
         except DecodeError as exc:
             return Decoded(t, arb, data, "canopen", f"malformed: {exc}", True)
-        return Decoded(t, arb, data, "canopen", _canopen_text(msg))
+        note, odd = self.sdo.note(msg)
+        return Decoded(t, arb, data, "canopen", _canopen_text(msg, self.sdo) + note, odd)
 
 
-def _canopen_text(msg: co.CanOpenMessage) -> str:
+def _canopen_text(msg: co.CanOpenMessage, sdo: SdoTracker) -> str:
     if isinstance(msg, co.NmtControl):
         target = "all nodes" if msg.node_id == 0 else f"node {msg.node_id}"
         command = msg.command.name if isinstance(msg.command, co.NmtCommand) else msg.command
@@ -170,6 +190,8 @@ def _canopen_text(msg: co.CanOpenMessage) -> str:
     node = msg.node_id
     index, subindex = getattr(msg, "index", None), getattr(msg, "subindex", None)
     where = "" if index is None else f" {index:04X}:{subindex:02X}"
+    if index is not None and subindex is not None:
+        where += sdo.name(node, index, subindex)
     detail = ""
     if isinstance(msg, co.SdoAbort):
         try:
@@ -177,7 +199,7 @@ def _canopen_text(msg: co.CanOpenMessage) -> str:
         except ValueError:
             detail = f" {msg.code:#010x}"
     elif isinstance(msg, co.SdoUploadResponse | co.SdoDownloadRequest):
-        detail = f" = {int.from_bytes(msg.data, 'little')} ({msg.data.hex(' ')})"
+        detail = f" {sdo.value(node, msg.index, msg.subindex, msg.data)}"
     return f"node {node} SDO {name}{where}{detail}"
 
 

@@ -309,6 +309,13 @@ class SerialBusKind(BusKind):
             return {"port": bus}
         return {"url": options.device, "baudrate": options.baudrate}
 
+    def monitor(self, args: Any, name: str, bus: Any) -> int:
+        """``openel-async bus monitor`` on this bus (the command's parsed ``args``; ``bus``:
+        the rig's resolved entry): :func:`openel_serial.monitor_cmd.run`, the exit status."""
+        from .monitor_cmd import run
+
+        return run(args, name, bus)
+
     def simulate(
         self, name: str, options: Any, devices: Sequence[SimulatedDevice]
     ) -> AbstractAsyncContextManager[SimulatedBus]:

@@ -5,6 +5,9 @@ counters, and the log file read back with python-can's own reader."""
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 import uuid
 from pathlib import Path
 
@@ -22,6 +25,7 @@ from openel_can.sim.odrive import SimODrive
 
 ROOT = Path(__file__).resolve().parents[2]
 CAN_RIG = ROOT / "apps" / "openel_apps" / "rigs" / "twoaxis-can.yaml"
+SO101 = ROOT / "apps" / "openel_apps" / "rigs" / "so101.yaml"
 
 
 def _frame(msg: co.CanOpenMessage) -> can.Message:
@@ -101,6 +105,10 @@ def test_the_command_on_a_rigs_simulated_bus(
         (["--interface", "virtual", "--log", "x.txt"], "--log x.txt: a file ending in .asc"),
         (["--interface", "virtual", "--duration", "0"], "--duration 0: a number of seconds"),
         (["--interface", "virtual", "--odrive", "1,x"], "--odrive 1,x: node ids 0..62"),
+        (["--interface", "virtual", "--cia402", "2:xx"], "--cia402 2:xx: node ids 1..127"),
+        (["--interface", "virtual", "--port", "/dev/null"], "--port goes with a serial bus"),
+        ([str(SO101), "arm"], "give --port DEVICE (a second adapter listening"),
+        ([str(SO101), "arm", "--sim", "--odrive", "1"], "--odrive: CAN options (arm is a serial"),
         ([str(CAN_RIG), "bus9"], "has no CAN bus of that name"),
     ],
 )
@@ -109,3 +117,29 @@ def test_options_are_checked_before_anything_opens(
 ) -> None:
     assert main(["bus", "monitor", *argv]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_serial_bus_with_sim_in_a_subprocess(tmp_path: Path) -> None:
+    """The rig's simulated Feetech servos read by its driver through the tap: both
+    directions decoded, no error, and the capture file read back."""
+    from openel_serial.monitor import read_capture
+
+    log = tmp_path / "arm.hex"
+    done = subprocess.run(
+        [sys.executable, "-m", "openel_async.cli", "bus", "monitor", str(SO101), "arm", "--sim",
+         "--duration", "0.4", "--summary", "5", "--json", "--log", str(log)],
+        capture_output=True, text=True, timeout=60, env=dict(os.environ, NO_COLOR="1"),
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    lines = [json.loads(line) for line in done.stdout.splitlines()]
+    frames = [line for line in lines if "summary" not in line]
+    texts = [f["text"] for f in frames]
+    assert "Feetech 1 PING" in texts and "Feetech 1 STATUS Model Number=777" in texts
+    assert any(t.startswith("Feetech SYNC READ 1..6 56+8 (Present Position") for t in texts)
+    assert any(t.startswith("Feetech 6 STATUS Present Position=") for t in texts)
+    assert not any(f["kind"] in ("WRITE", "SYNC WRITE", "REG_WRITE") for f in frames)
+    summary = lines[-1]["summary"]
+    assert summary["packets"] == len(frames) and summary["malformed"] == 0
+    assert summary["checksum_errors"] == 0 and summary["dropped_bytes"] == 0
+    assert set(summary["rates"]) == {"1", "2", "3", "4", "5", "6"}
+    assert sum(len(data) for _, data in read_capture(log)) == summary["bytes"]
