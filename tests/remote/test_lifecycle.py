@@ -113,7 +113,8 @@ async def test_deactivate_takes_the_torque_off_and_refuses_commands_until_activa
         assert await lc.lifecycle_main(rig_shell, parse("activate", "MOTOR_1")) == 0
         assert capsys.readouterr().out == "MOTOR_1 ACTIVE (HAL Active)\n"
         assert m1.get_control_mode() is MotorControlMode.POSITION  # holding where it was
-        assert await m1.get_value(Request.POSITION) == pytest.approx(position)
+        held = await m1.get_value(Request.POSITION)  # (the rotor may still coast a little)
+        assert held == pytest.approx(position, abs=0.02)
         assert await sc.set_main(rig_shell, _set("MOTOR_1", "0.0")) == 0
 
 
@@ -230,8 +231,8 @@ async def test_lifecycle_commands_as_processes() -> None:
             tg.start_soon(one, "deactivate", "deactivate", "MOTOR_1")
             tg.start_soon(one, "conf_set", "conf", "set", "MOTOR_2", "max_velocity", "99")
             tg.start_soon(one, "conf_get", "conf", "get", "MOTOR_2", "max_velocity", "--json")
+            tg.start_soon(one, "activate", "activate", "MOTOR_1", "--namespace", "nope")
         assert m1.get_control_mode() is MotorControlMode.READY_TO_CONTROL
-        done["activate"] = await run("activate", "MOTOR_1", "--namespace", "nope")
     assert done["deactivate"].returncode == 0, done["deactivate"]
     assert done["deactivate"].stdout == b"MOTOR_1 INACTIVE (HAL Active)\n"
     assert done["conf_set"].returncode == 3 and b"violates constraint '0<x<=" in (
