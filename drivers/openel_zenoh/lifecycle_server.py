@@ -230,8 +230,9 @@ class RigLifecycleServer:
         try:
             lifecycle.configure(hosted.name, request.set_name, request.parameter, request.value)
         except ConfigurationError as exc:
+            message = str(exc) if str(exc).startswith(hosted.name) else f"{hosted.name}: {exc}"
             return conf_reply(
-                hosted, int(ReturnCode.HAL_BAD_PARAMETER), str(exc), exc.constraint or ""
+                hosted, int(ReturnCode.HAL_BAD_PARAMETER), message, exc.constraint or ""
             )
         except HALError as exc:
             return conf_reply(hosted, int(exc.code), str(exc))
