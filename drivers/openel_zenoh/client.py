@@ -429,6 +429,19 @@ class RemoteSurface:
         key = self.keys.rig_estop_release if release else self.keys.rig_estop
         return wire.estop_decoder.decode(await self.query(key, b""))
 
+    async def lifecycle(self, action: str, names: list[str] | None = None) -> wire.LifecycleReply:
+        """The RTC lifecycle of the served components (``openel-async serve`` only;
+        openel_zenoh.lifecycle): ``get`` their states, ``activate``, ``deactivate`` or
+        ``reset`` those named. The reply's return_code is not checked."""
+        payload = wire.encoder.encode(wire.LifecycleRequest(action, list(names or [])))
+        return wire.lifecycle_decoder.decode(await self.query(self.keys.rig_lifecycle, payload))
+
+    async def conf(self, request: wire.ConfRequest) -> wire.ConfReply:
+        """Read or set a served component's configuration (``openel-async serve`` only).
+        The reply's return_code is not checked."""
+        payload = wire.encoder.encode(request)
+        return wire.conf_decoder.decode(await self.query(self.keys.rig_conf, payload))
+
     async def _answer(self, key: str, payload: bytes) -> wire.Answer:
         answer = wire.answer_decoder.decode(await self.query(key, payload))
         check_code(answer.return_code, answer.message)

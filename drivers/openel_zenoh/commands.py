@@ -6,7 +6,8 @@
   127.0.0.1 only (``--listen`` to change the endpoint, ``--config`` for a Zenoh JSON5 file of
   your own, e.g. TLS or access control for a LAN), no multicast or gossip scouting.
   It also serves the rig's e-stop (``openel/<ns>/rig/estop``, ``.../release``:
-  openel_zenoh.estop), and SIGQUIT e-stops the rig (unless its ``safety.estop_on_sigquit``
+  openel_zenoh.estop), its components' RTC lifecycle and configuration
+  (``openel/<ns>/rig/lifecycle``, ``.../conf``: openel_zenoh.lifecycle), and SIGQUIT e-stops the rig (unless its ``safety.estop_on_sigquit``
   is false).
 - ``openel-async estop``: e-stop every component of a served rig at once (``--release``:
   release it), print one line per component.
@@ -121,6 +122,7 @@ async def _serve(args: argparse.Namespace) -> int:
     from . import SurfaceServer, close_session, open_session
     from .config import DEFAULT_ENDPOINT, file_config, server_config
     from .estop import RigEstopServer
+    from .lifecycle_server import RigLifecycleServer
 
     spec = load_rig(args.rig)
     namespace = args.namespace or spec.namespace
@@ -133,12 +135,14 @@ async def _serve(args: argparse.Namespace) -> int:
             open_rig(spec, sim=args.sim, handle_sigquit=True) as rig,
             RigEstopServer(rig, session, namespace),  # before the server's liveliness token
             Surface(list(rig.components.values())) as surface,
+            RigLifecycleServer(surface, session, namespace) as lifecycle,
             SurfaceServer(
                 surface,
                 session,
                 namespace,
                 max_clients=args.max_clients,
                 client_idle_timeout=args.client_idle_timeout,
+                admit=lifecycle.lifecycle.admit,
             ),
         ):
             opened.append(rig)

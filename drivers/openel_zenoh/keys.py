@@ -10,6 +10,8 @@
 | ``openel/<ns>/surface/components``       | server, queryable  | the components: kind, logical id, name    |
 | ``openel/<ns>/rig/estop``                | serve, queryable   | e-stop every component of the rig at once |
 | ``openel/<ns>/rig/estop/release``        | serve, queryable   | release the rig's e-stop                  |
+| ``openel/<ns>/rig/lifecycle``           | serve, queryable   | lifecycle states; activate, deactivate, reset |
+| ``openel/<ns>/rig/conf``                | serve, queryable   | configuration sets: get, set (constraints) |
 | ``openel/<ns>/client/<client>/notices``  | server, publisher  | completed, notify_event, notify_error of one client, numbered |
 | ``openel/<ns>/alive/server``             | server, liveliness | the server is up                          |
 | ``openel/<ns>/alive/client/<client>``    | client, liveliness | the client is up (its state is dropped when it goes) |
@@ -47,6 +49,8 @@ class Keys:
         self.components = f"{root}/surface/components"
         self.rig_estop = f"{root}/rig/estop"
         self.rig_estop_release = f"{root}/rig/estop/release"
+        self.rig_lifecycle = f"{root}/rig/lifecycle"
+        self.rig_conf = f"{root}/rig/conf"
         self.server_alive = f"{root}/alive/server"
         self.clients_alive = f"{root}/alive/client/*"
 

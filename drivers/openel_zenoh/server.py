@@ -44,6 +44,7 @@ import contextlib
 import math
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any, Self, cast
@@ -216,6 +217,7 @@ class SurfaceServer:
         *,
         max_clients: int = MAX_CLIENTS,
         client_idle_timeout: float = CLIENT_IDLE_TIMEOUT,
+        admit: Callable[[Device], Device | None] | None = None,
     ) -> None:
         if isinstance(max_clients, bool) or not isinstance(max_clients, int) or max_clients < 1:
             raise BadParameterError("max_clients", max_clients, "an int >= 1")
@@ -224,6 +226,10 @@ class SurfaceServer:
         self.surface = surface
         self.session = session
         self.keys = Keys(namespace)
+        self.admit = admit
+        """Called with every execute's Device before it runs (not the plain reads answered
+        on Zenoh's thread): None runs it, a Device is the reply instead (nothing executed;
+        openel_zenoh.lifecycle refuses the commands of INACTIVE components this way)."""
         self.max_clients = max_clients
         self.client_idle_timeout = client_idle_timeout
         self.clients: dict[str, _Client] = {}
@@ -650,8 +656,9 @@ class SurfaceServer:
                 device = self._decoded(request)
                 client = self.clients.get(request.client)
                 app = client.link if client is not None else None
+                refused = self.admit(device) if self.admit is not None else None
                 try:
-                    done = self.surface.execute_nowait(device, app)
+                    done = refused or self.surface.execute_nowait(device, app)
                 except WouldBlockError:
                     return False
                 payload = self._encoded(request, done)
@@ -702,7 +709,9 @@ class SurfaceServer:
                 device = self._decoded(request)
                 client = self.clients.get(request.client)
                 app = client.link if client is not None else None
-                payload = self._encoded(request, await self.surface.execute(device, app))
+                refused = self.admit(device) if self.admit is not None else None
+                done = refused or await self.surface.execute(device, app)
+                payload = self._encoded(request, done)
             else:
                 payload = wire.encoder.encode(self._small(request))
         except Exception as exc:

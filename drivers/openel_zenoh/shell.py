@@ -1,4 +1,5 @@
-"""A served rig from the shell (``openel-async ls``, ``get``, ``set``, ``watch``, ``reset``):
+"""A served rig from the shell (``openel-async ls``, ``get``, ``set``, ``watch``, ``reset``,
+``activate``, ``deactivate``, ``conf``):
 the served namespaces discovered, components addressed by name, every wait bounded.
 
 :func:`discover` finds the namespaces served on a session from the servers' liveliness
@@ -381,3 +382,27 @@ class RigShell:
                 if isinstance(notice, Completed) and notice.command_id == command.command_id:
                     return command.command_id, int(notice.status)
         raise NotCompletedError(f"{target.name}: {function} not completed within {wait:g} s")
+
+    async def lifecycle(
+        self, namespace: str, action: str, names: list[str] | None = None
+    ) -> wire.LifecycleReply:
+        """The RTC lifecycle of ``namespace``'s components (openel_zenoh.lifecycle): ``get``,
+        ``activate``, ``deactivate`` or ``reset``. NotConnectedError when the server has
+        none (no reply)."""
+        remote = await self.remote(namespace)
+        try:
+            return await remote.lifecycle(action, names)
+        except TimeoutError:
+            raise NotConnectedError(
+                f"{namespace}: no lifecycle served (openel/{namespace}/rig/lifecycle: no reply)"
+            ) from None
+
+    async def conf(self, namespace: str, request: wire.ConfRequest) -> wire.ConfReply:
+        """A configuration query of ``namespace`` (openel_zenoh.lifecycle)."""
+        remote = await self.remote(namespace)
+        try:
+            return await remote.conf(request)
+        except TimeoutError:
+            raise NotConnectedError(
+                f"{namespace}: no configuration served (openel/{namespace}/rig/conf: no reply)"
+            ) from None

@@ -246,9 +246,21 @@ async def ls_main(shell: RigShell, args: argparse.Namespace) -> int:
         except HALError:  # listed without its HALId
             profiles[index] = {}
 
+    lifecycles: dict[tuple[str, str], str] = {}
+
+    async def lifecycle(space: str) -> None:
+        try:
+            reply = await shell.lifecycle(space, "get")
+        except (HALError, TimeoutError):  # a server without a lifecycle: listed without
+            return
+        for state in reply.components:
+            lifecycles[space, state.name] = state.state
+
     async with anyio.create_task_group() as tg:
         for index, target in enumerate(targets):
             tg.start_soon(profile, index, target)
+        for space in listing:
+            tg.start_soon(lifecycle, space)
     rows = [(t, profiles[i]) for i, t in enumerate(targets)]
     if args.json:
         emit_json(
@@ -259,6 +271,7 @@ async def ls_main(shell: RigShell, args: argparse.Namespace) -> int:
                         "kind": t.kind,
                         "logical_id": t.logical_id,
                         "state": t.info.state,
+                        "lifecycle": lifecycles.get((space, t.name)),
                         "hal_id": hal_id_dict(p),
                     }
                     for t, p in rows
@@ -270,19 +283,25 @@ async def ls_main(shell: RigShell, args: argparse.Namespace) -> int:
         return 0
     for space, infos in listing.items():
         print(f"{space}: {len(infos)} component{'s' if len(infos) != 1 else ''}", flush=False)
-        table = [("NAME", "ADDRESS", "STATE", "HALID (kind:vendor:product:instance)")]
+        table = [("NAME", "ADDRESS", "STATE", "LIFECYCLE", "HALID (kind:vendor:product:instance)")]
         table += [
-            (t.name, t.address, t.info.state, hal_id_text(p))
+            (
+                t.name,
+                t.address,
+                t.info.state,
+                lifecycles.get((space, t.name), "-"),
+                hal_id_text(p),
+            )
             for t, p in rows
             if t.namespace == space
         ]
-        widths = [max(len(row[i]) for row in table) for i in range(3)]
+        widths = [max(len(row[i]) for row in table) for i in range(4)]
         for row in table:
             print(
                 "  "
-                + "  ".join(c.ljust(w) for c, w in zip(row[:3], widths, strict=True))
+                + "  ".join(c.ljust(w) for c, w in zip(row[:4], widths, strict=True))
                 + "  "
-                + row[3]
+                + row[4]
             )
     sys.stdout.flush()
     return 0
@@ -535,8 +554,9 @@ def add_reset_parser(sub: SubParsers) -> argparse.ArgumentParser:
     parser: argparse.ArgumentParser = sub.add_parser(
         "reset",
         help="recover a served component from Error (ReInit), print its state",
-        description="ReInit a component of a served rig (the surface layer's Reset): from "
-        "Error back to Active; refused while the rig's e-stop is latched ('openel-async estop "
+        description="ReInit a component of a served rig (the surface layer's Reset; the RTC "
+        "lifecycle's reset): from Error back to Active, INACTIVE (no torque until 'openel-async "
+        "activate') where the server serves the lifecycle; refused while the rig's e-stop is latched ('openel-async estop "
         "--release' first). A component that is not in Error is left as it is. Prints "
         "'NAME STATE'. Exit status: 0 Active, 1 no such rig or component (or no reply), 2 "
         "usage error, 3 refused or failed.",
@@ -563,21 +583,36 @@ async def reset_main(shell: RigShell, args: argparse.Namespace) -> int:
         except HALError as exc:
             failure = describe_error(exc)
     after = results_dict(await shell.call(target, "GetState"))
+    lifecycle = await lifecycle_state(shell, target)
     if args.json:
         emit_json(
             {
                 **identity(target),
                 **after,
+                "lifecycle": lifecycle,
                 "reset": before.get("state") == "Error",
                 "failure": failure,
             }
         )
     else:
         note = "" if before.get("state") == "Error" else " (not in Error: nothing to reset)"
+        if lifecycle == "INACTIVE" and not note:
+            note = " INACTIVE (no torque: 'openel-async activate' to command it)"
+        elif lifecycle is not None and not note:
+            note = f" {lifecycle}"
         print(f"{target.name} {after.get('state')}{note}", flush=True)
         if failure:
             print(f"openel-async reset: {target.name}: {failure}", file=sys.stderr)
     return EXIT_FAILED if failure or after.get("state") != "Active" else 0
+
+
+async def lifecycle_state(shell: RigShell, target: Target) -> str | None:
+    """The RTC lifecycle state of ``target`` (None: its server has no lifecycle)."""
+    try:
+        reply = await shell.lifecycle(target.namespace, "get", [target.name])
+    except (HALError, TimeoutError):
+        return None
+    return next((s.state for s in reply.components if s.name == target.name), None)
 
 
 # -- watch ------------------------------------------------------------------------------------

@@ -73,6 +73,72 @@ class EstopReply(msgspec.Struct, array_like=True):
     components: list[RigComponentState]
 
 
+class LifecycleRequest(msgspec.Struct, array_like=True):
+    """A query of ``rig/lifecycle``: ``action`` is ``get``, ``activate``, ``deactivate`` or
+    ``reset``; ``names``: the components (rig names; empty: every one, ``get`` only)."""
+
+    action: str
+    names: list[str] = []
+
+
+class LifecycleComponent(msgspec.Struct, array_like=True):
+    """One served component's RTC lifecycle state (``ACTIVE``, ``INACTIVE``, ``ERROR``) and
+    its HAL state (``Active``, ``Error``...)."""
+
+    name: str
+    state: str
+    hal_state: str
+    latched: bool = False
+    """The rig's e-stop is latched (``reset`` is refused until it is released)."""
+
+
+class LifecycleReply(msgspec.Struct, array_like=True):
+    """The reply of ``rig/lifecycle``: return_code 0 (HAL_OK) when the action was done on
+    every component named, else the first failure's code and message; ``components``: the
+    states after it."""
+
+    return_code: int
+    message: str
+    components: list[LifecycleComponent]
+
+
+class ConfRequest(msgspec.Struct, array_like=True):
+    """A query of ``rig/conf``: ``value`` None reads (``parameter`` empty: every one),
+    else sets ``parameter`` of the set ``set_name`` to the text ``value``."""
+
+    name: str
+    set_name: str = "default"
+    parameter: str = ""
+    value: str | None = None
+
+
+class ConfParameter(msgspec.Struct, array_like=True):
+    name: str
+    type: str
+    constraint: str
+    """OpenRTM's text form of the RTC constraint (empty: none)."""
+    unit: str
+
+
+class ConfSet(msgspec.Struct, array_like=True):
+    name: str
+    values: dict[str, str]
+
+
+class ConfReply(msgspec.Struct, array_like=True):
+    """The reply of ``rig/conf``: return_code, message (a refusal names the constraint),
+    the component's parameters, active set and sets (after a set, its new values)."""
+
+    return_code: int
+    message: str
+    name: str = ""
+    parameters: list[ConfParameter] = []
+    active_set: str = ""
+    sets: list[ConfSet] = []
+    constraint: str = ""
+    """The constraint a refused value violates (empty otherwise)."""
+
+
 class CompletedNotice(msgspec.Struct, array_like=True, tag="C"):
     command_id: str
     status: int
@@ -108,3 +174,7 @@ subscribe_decoder = msgspec.msgpack.Decoder(SubscribeRequest)
 components_decoder = msgspec.msgpack.Decoder(ComponentsReply)
 protocol_decoder = msgspec.msgpack.Decoder(int)
 estop_decoder = msgspec.msgpack.Decoder(EstopReply)
+lifecycle_request_decoder = msgspec.msgpack.Decoder(LifecycleRequest)
+lifecycle_decoder = msgspec.msgpack.Decoder(LifecycleReply)
+conf_request_decoder = msgspec.msgpack.Decoder(ConfRequest)
+conf_decoder = msgspec.msgpack.Decoder(ConfReply)

@@ -72,17 +72,20 @@ async def test_ls_lists_every_component_with_state_address_and_hal_id(
     port = free_port()
     async with served(port), shell(port) as rig_shell:
         assert await sc.ls_main(rig_shell, parse("ls")) == 0
-        lines = capsys.readouterr().out.splitlines()
+        lines = capsys.readouterr().out.splitlines()  # no lifecycle served here: "-"
         assert lines[0] == "twoaxis: 4 components"
         assert lines[1].split() == [
             "NAME",
             "ADDRESS",
             "STATE",
+            "LIFECYCLE",
             "HALID",
             "(kind:vendor:product:instance)",
         ]
-        assert lines[2].split() == ["MOTOR_1", "Motor[0]", "Active", "0x1:0xE1:0x100:1"]
-        assert lines[5].split() == ["TEMP_2", "TemperatureSensor[0]", "Active", "0x8:0xE1:0x400:1"]
+        assert lines[2].split() == ["MOTOR_1", "Motor[0]", "Active", "-", "0x1:0xE1:0x100:1"]
+        assert lines[5].split() == [
+            "TEMP_2", "TemperatureSensor[0]", "Active", "-", "0x8:0xE1:0x400:1"
+        ]  # fmt: skip
 
         assert await sc.ls_main(rig_shell, parse("ls", "--json")) == 0
         listing = json.loads(capsys.readouterr().out)

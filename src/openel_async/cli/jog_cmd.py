@@ -1,4 +1,4 @@
-"""``openel-async jog RIG.yaml [--sim]``: the terminal UI (``openel_async.tui``) over an
+"""``openel-async jog RIG.yaml [--sim]`` (or ``--remote NAMESPACE``, a served rig): the terminal UI (``openel_async.tui``) over an
 opened rig: every component with its state and live values, plots, keyboard jogging of the
 selected axis within its limits, enable/disable, e-stop, the event and error log.
 
@@ -41,7 +41,31 @@ status 130; whatever ends it, each actuator is left in the rig's safety.on_exit 
 
 def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     jog = sub.add_parser("jog", help=JOG_HELP, description=JOG_DESCRIPTION)
-    jog.add_argument("rig", metavar="RIG.yaml", help="the rig file to open")
+    jog.add_argument(
+        "rig", metavar="RIG.yaml", nargs="?", help="the rig file to open (not with --remote)"
+    )
+    jog.add_argument(
+        "--remote",
+        metavar="NAMESPACE",
+        help="jog the rig 'openel-async serve' serves under NAMESPACE instead of opening one "
+        "(through the installed remote driver: Zenoh)",
+    )
+    jog.add_argument(
+        "--connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="--remote: the server's endpoint (default tcp/127.0.0.1:7447, serve's; repeatable)",
+    )
+    jog.add_argument(
+        "--config", metavar="FILE", help="--remote: a Zenoh JSON5 configuration of your own"
+    )
+    jog.add_argument(
+        "--timeout",
+        type=float,
+        default=2.0,
+        metavar="S",
+        help="--remote: seconds to wait for the server, then for each reply (default 2)",
+    )
     jog.add_argument(
         "--sim",
         action="store_true",
@@ -74,6 +98,14 @@ def _positive(name: str, value: float, high: float) -> bool:
 
 def run(args: argparse.Namespace) -> int:
     if not (_positive("--step", args.step, 10.0) and _positive("--velocity", args.velocity, 100.0)):
+        return EXIT_USAGE
+    if args.remote is not None:
+        return run_remote(args)
+    if args.rig is None:
+        print(f"{PROG}: give a rig file, or --remote NAMESPACE", file=sys.stderr)
+        return EXIT_USAGE
+    if args.connect or args.config:
+        print(f"{PROG}: --connect and --config go with --remote", file=sys.stderr)
         return EXIT_USAGE
     if no_such_file(PROG, args.rig):
         return EXIT_USAGE
@@ -128,4 +160,53 @@ async def session(resolved: Any, args: argparse.Namespace, lines: list[str]) -> 
     finally:
         if rig is not None:
             lines.append(rig.exit_line())
+    return 1 if code is None else code
+
+
+def run_remote(args: argparse.Namespace) -> int:
+    """``jog --remote NAMESPACE``: a driver's session over a served rig (entry points
+    ``openel_async.remote_jog``)."""
+    if args.rig is not None or args.sim:
+        print(f"{PROG}: --remote jogs a served rig: no RIG.yaml, no --sim", file=sys.stderr)
+        return EXIT_USAGE
+    from ..tui.session import remote_providers
+
+    providers = remote_providers()
+    if not providers:
+        print(f"{PROG}: --remote: no remote driver installed (openel_zenoh)", file=sys.stderr)
+        return EXIT_USAGE
+    provider = providers[0]
+    problem = provider.check(args)
+    if problem is not None:
+        print(f"{PROG}: {problem}", file=sys.stderr)
+        return EXIT_USAGE
+    if not (sys.stdin.isatty() and sys.stdout.isatty()):
+        print(f"{PROG}: needs a terminal (standard input and output)", file=sys.stderr)
+        return EXIT_USAGE
+
+    import anyio
+
+    from ..app import Interrupted, run_interruptible
+
+    result = anyio.run(run_interruptible, partial(remote_session, provider, args))
+    if isinstance(result, Interrupted):
+        print(f"{PROG}: interrupted by {result.signum.name}", file=sys.stderr)
+        return result.exit_code
+    return result
+
+
+async def remote_session(provider: Any, args: argparse.Namespace) -> int:
+    """Run the UI over ``provider``'s session until it quits (the served rig stays as the
+    jogs left it: a jog's setpoints stop at the last one sent)."""
+    from ..errors import HALError
+    from ..tui.app import JogApp
+
+    try:
+        async with provider.session(args) as jogger:
+            app = JogApp(jogger)
+            await app.run_async()
+        code = app.return_code
+    except (HALError, OSError) as exc:  # the UI is gone (or never came)
+        print(f"{PROG}: {exc}", file=sys.stderr)
+        code = 1
     return 1 if code is None else code

@@ -1,4 +1,5 @@
-"""The Textual app of ``openel-async jog``: :class:`JogApp` over a :class:`~.jogger.Jogger`.
+"""The Textual app of ``openel-async jog``: :class:`JogApp` over a jog session (a
+:class:`~.jogger.Jogger`, or a driver's remote one: :class:`~.session.JogSession`).
 
 Keys: up/down (k/j) select a component; left/right (h/l) jog the selected axis by one step; ``[`` /
 ``]`` the step, ``-`` / ``+`` the velocity; space stops the jogs; ``e`` enables (re-initializes
@@ -19,7 +20,8 @@ from textual.binding import Binding, BindingType
 from textual.css.query import NoMatches
 from textual.widgets import DataTable, Footer, Header
 
-from .jogger import Jogger, LogEntry
+from .jogger import LogEntry
+from .session import JogSession
 from .widgets import ComponentTable, EventLog, PlotPanel, StatusLine
 
 __all__ = ["EXIT_INTERRUPTED", "REFRESH_S", "JogApp"]
@@ -62,13 +64,12 @@ class JogApp(App[None]):
         Binding("ctrl+c", "interrupt", "quit (130)", show=False, priority=True),
     ]
 
-    def __init__(self, jogger: Jogger, *, refresh_s: float = REFRESH_S) -> None:
+    def __init__(self, jogger: JogSession, *, refresh_s: float = REFRESH_S) -> None:
         super().__init__()
         self.jogger = jogger
         self.refresh_s = refresh_s
         self._queue = anyio.Lock()  # FIFO: the queued commands run in the order given
-        rig = jogger.rig
-        self.sub_title = f"{rig.spec.source}{' (simulated)' if rig.simulated else ''}"
+        self.sub_title = jogger.title
 
     def compose(self) -> ComposeResult:
         yield Header()

@@ -264,6 +264,19 @@ class Jogger:
         row.plotted = not row.plotted
         return row.plotted
 
+    @property
+    def title(self) -> str:
+        """The rig file (and whether it is simulated): the UI's subtitle."""
+        return f"{self.rig.spec.source}{' (simulated)' if self.rig.simulated else ''}"
+
+    @property
+    def estopped(self) -> bool:
+        return self.rig.estopped
+
+    def jogs(self, row: object) -> bool:
+        """Whether ``row`` (one of :attr:`rows`) is an axis that takes a position."""
+        return isinstance(row, Row) and self.can_jog(row.component)
+
     @staticmethod
     def can_jog(component: HALComponent) -> bool:
         return (

@@ -10,7 +10,8 @@ from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.widgets import DataTable, Label, RichLog, Sparkline, Static
 
-from .jogger import Jogger, LogEntry, Row
+from .jogger import LogEntry
+from .session import JogRow, JogSession
 
 __all__ = ["ComponentTable", "EventLog", "PlotPanel", "StatusLine", "format_values"]
 
@@ -25,6 +26,7 @@ COLUMNS = (  # key, label, width (None: the widest cell at start)
 )
 STATE_STYLES = {
     "Active": "green",
+    "Inactive": "yellow",
     "Error": "bold red",
     "Initialized": "yellow",
     "Initializing": "yellow",
@@ -37,7 +39,7 @@ def _number(value: float) -> str:
     return f"{value:+.4f}" if math.isfinite(value) else str(value)
 
 
-def format_values(row: Row) -> str:
+def format_values(row: JogRow) -> str:
     """The row's last values (with its units), ``-`` before the first read."""
     if not row.values:
         return "-"
@@ -45,7 +47,7 @@ def format_values(row: Row) -> str:
     return f"{text} {row.units}" if row.units else text
 
 
-def _limits(row: Row) -> str:
+def _limits(row: JogRow) -> str:
     limits = row.limits
     if limits is None:
         return ""
@@ -55,7 +57,7 @@ def _limits(row: Row) -> str:
 class ComponentTable(DataTable[Text | str]):
     """Every component, one a row (the cursor row is the selected one)."""
 
-    def setup(self, jogger: Jogger) -> None:
+    def setup(self, jogger: JogSession) -> None:
         self.cursor_type = "row"
         self.zebra_stripes = True
         for key, label, width in COLUMNS:
@@ -67,7 +69,7 @@ class ComponentTable(DataTable[Text | str]):
             self._shown[row.name] = cells
         self.move_cursor(row=jogger.selected)
 
-    def _cells(self, row: Row) -> list[Text | str]:
+    def _cells(self, row: JogRow) -> list[Text | str]:
         return [
             "●" if row.plotted else "",
             row.name,
@@ -78,7 +80,7 @@ class ComponentTable(DataTable[Text | str]):
             _limits(row),
         ]
 
-    def show(self, jogger: Jogger) -> None:
+    def show(self, jogger: JogSession) -> None:
         """Update the cells that changed (a redraw of the table costs)."""
         for row in jogger.rows:
             shown = self._shown[row.name]
@@ -91,7 +93,7 @@ class ComponentTable(DataTable[Text | str]):
 class PlotRow(Vertical):
     """One component's plot: its name and range, then a sparkline of its history."""
 
-    def __init__(self, row: Row) -> None:
+    def __init__(self, row: JogRow) -> None:
         super().__init__(classes="plot")
         self.row = row
         self._data: list[float] | None = None
@@ -115,7 +117,7 @@ class PlotRow(Vertical):
 class PlotPanel(Vertical):
     """The plots of the components marked for plotting (``p`` toggles)."""
 
-    async def show(self, jogger: Jogger) -> None:
+    async def show(self, jogger: JogSession) -> None:
         plots = {plot.row.name: plot for plot in self.query(PlotRow)}
         wanted = [row for row in jogger.rows if row.plotted]
         for name, plot in plots.items():
@@ -134,16 +136,16 @@ class StatusLine(Static):
 
     shown: Text | None = None
 
-    def show(self, jogger: Jogger) -> None:
+    def show(self, jogger: JogSession) -> None:
         row = jogger.row
         text = Text()
         text.append(f" {row.name} ", style="bold reverse")
-        if jogger.can_jog(row.component):
+        if jogger.jogs(row):
             text.append(f"  step {jogger.step:g}  velocity {jogger.velocity:g}/s")
         else:
             text.append("  (not an axis: nothing to jog)", style="dim")
         text.append(f"  completed {jogger.completed}", style="dim")
-        if jogger.rig.estopped:
+        if jogger.estopped:
             text.append("   E-STOP (r releases)", style="bold white on red")
         if text != self.shown:
             self.shown = text
