@@ -487,6 +487,15 @@ class PolledBusPort(Generic[StatusT, ClientT]):
             # The next request may follow at once: the port sends bytes in order.
             await anyio.lowlevel.checkpoint()
 
+    async def collect(
+        self, packet: bytes, ids: Sequence[int], param_length: int, window: float
+    ) -> dict[int, StatusT]:
+        """Send ``packet`` (under the bus lock, once, no retry) and keep the statuses of
+        ``param_length`` params that ``ids`` send within ``window`` s: a broadcast that
+        every servo answers in turn (Dynamixel's broadcast PING)."""
+        async with self._lock:
+            return await self._exchange(packet, ids, param_length, window)
+
     async def unicast(self, packet: bytes, servo_id: int, what: str, param_length: int) -> StatusT:
         """One request to one servo (the lock is taken): its status, or the timeout error."""
         async with self._lock:
@@ -563,9 +572,10 @@ class PolledBusPort(Generic[StatusT, ClientT]):
         """Count statuses saying the instruction arrived damaged."""
 
     async def _exchange(
-        self, packet: bytes, ids: Sequence[int], param_length: int
+        self, packet: bytes, ids: Sequence[int], param_length: int, window: float | None = None
     ) -> dict[int, StatusT]:
-        """One attempt: write ``packet`` and wait for a status from each id or the timeout.
+        """One attempt: write ``packet`` and wait for a status from each id or the timeout
+        (``window`` s, by default the statuses' own time: :meth:`response_timeout`).
 
         The wait is one future, completed by the reception callback when the last status
         arrived, by the port's timer at the deadline, or by a loss of the port; a
@@ -592,7 +602,9 @@ class PolledBusPort(Generic[StatusT, ClientT]):
         self._param_length = param_length
         self._waiter = waiter
         try:
-            timeout = self.response_timeout(len(packet), len(ids), param_length)
+            timeout = window
+            if timeout is None:
+                timeout = self.response_timeout(len(packet), len(ids), param_length)
             self._arm_timer(loop, loop.time() + timeout)
             await waiter
         finally:

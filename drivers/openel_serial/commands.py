@@ -75,7 +75,8 @@ CALIBRATE = CliCommand("calibrate", add_calibrate_parser, run_calibrate)
 SCAN_DESCRIPTION = """\
 Find what is on a serial port before writing a rig: Dynamixel Protocol 2.0 or Feetech STS
 servos (a PING of every id of --ids at each baud rate of --baud, each bounded by the status
-time plus --timeout, through the driver's own port) or an NMEA 0183 receiver (the port
+time plus --timeout, through the driver's own port; on a Dynamixel bus one broadcast PING
+instead when that is quicker, as for the default 0-252) or an NMEA 0183 receiver (the port
 listened to for --listen seconds at each baud rate: whole, checksummed sentences come only at
 the receiver's rate).
 

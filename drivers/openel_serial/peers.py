@@ -611,7 +611,7 @@ class SimDynamixelBus(SimServoBus[SimServo, dx.DynamixelMessage]):
         elif isinstance(msg, dx.SyncRead):
             order = [self.servos[i] for i in msg.ids if i in self.servos]
         elif isinstance(msg, dx.SyncWrite) or getattr(msg, "id", None) == dx.BROADCAST_ID:
-            order = list(self.servos.values())
+            order = [self.servos[i] for i in sorted(self.servos)]  # a broadcast PING: by id
         else:
             servo = self.servos.get(getattr(msg, "id", -1))
             order = [] if servo is None else [servo]

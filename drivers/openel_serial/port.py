@@ -97,6 +97,10 @@ SYNC_READ_OVERHEAD: Final = 14
 """Bytes of a SYNC READ packet besides its id list: header 4, id, length 2, 0x82, address 2,
 data length 2, CRC 2 (without byte stuffing)."""
 DEFAULT_RETURN_DELAY: Final = 500e-6
+PING_PACKET: Final = 10
+"""Bytes of a PING instruction packet (header 4, id, length 2, instruction, CRC 2)."""
+BROADCAST_PING_SLOT: Final = 3e-3
+"""Seconds between two servos' answers to a broadcast PING (dynamixel-sdk's wait per id)."""
 """The X series' factory Return Delay Time (9): 250 x 2 us."""
 _CRC_ERROR: Final = int(dx.ErrorNumber.CRC_ERROR)
 _ERROR_NUMBER: Final = 0x7F
@@ -303,6 +307,34 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
         status = await self._unicast(dx.encode(dx.Ping(dxl_id)), dxl_id, "PING", 3, check_alert)
         model, firmware = status.ping_info()
         return PingInfo(model, firmware, status.error)
+
+    def broadcast_ping_window(self) -> float:
+        """How long every servo of a bus takes to answer a broadcast PING: each id's turn
+        comes 3 ms after the previous one (dynamixel-sdk waits the same), plus the wire
+        time of a status from every id and the port's margin."""
+        ids = dx.MAX_ID + 1
+        return (
+            ids * BROADCAST_PING_SLOT
+            + wire_time(PING_PACKET + ids * (STATUS_OVERHEAD + 3), self.baudrate)
+            + self.timeout_margin
+        )
+
+    async def broadcast_ping(self) -> dict[int, PingInfo]:
+        """PING the broadcast id (0xFE): every servo on the bus answers in turn, in the
+        order of their ids (Protocol 2.0). The answers that came within
+        :meth:`broadcast_ping_window`, by id; sent once, never retried (a servo whose
+        status was lost is simply absent)."""
+        statuses = await self.collect(
+            dx.encode(dx.Ping(dx.BROADCAST_ID)),
+            range(dx.MAX_ID + 1),
+            3,
+            self.broadcast_ping_window(),
+        )
+        found = {}
+        for dxl_id in sorted(statuses):
+            model, firmware = statuses[dxl_id].ping_info()
+            found[dxl_id] = PingInfo(model, firmware, statuses[dxl_id].error)
+        return found
 
     async def read(
         self, dxl_id: int, address: int, length: int, *, check_alert: bool = True

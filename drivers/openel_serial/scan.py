@@ -1,7 +1,8 @@
 """Finding what is on a serial port before writing a rig (``openel-async scan serial``).
 
 - Dynamixel Protocol 2.0 and Feetech STS servos: at each baud rate asked for, a PING of every
-  id asked for (each bounded by the port's status timeout, no retry), through the driver's own
+  id asked for (each bounded by the port's status timeout, no retry; on a Dynamixel bus one
+  broadcast PING when that is quicker, every servo answering in turn), through the driver's own
   ports (:class:`~openel_serial.port.DynamixelPort`, :class:`~openel_serial.feetech_port.FeetechPort`),
   so the bytes on the wire are the driver's. A servo answers only at its own baud rate; the
   model number comes with the PING's status (Dynamixel) or from Model Number (3) (Feetech,
@@ -154,11 +155,7 @@ async def scan_servos(
             retries=0,
             serial_options=serial_options,
         ) as port:
-            for servo_id in wanted:
-                try:
-                    info = await port.ping(servo_id)
-                except ServoTimeoutError:
-                    continue
+            for servo_id, info in (await _ping_each(port, wanted)).items():
                 model = info.model_number
                 found.append(
                     FoundServo(
@@ -173,6 +170,26 @@ async def scan_servos(
                     )
                 )
     return found
+
+
+async def _ping_each(port: Any, wanted: Sequence[int]) -> dict[int, Any]:
+    """What each id of ``wanted`` answers to a PING: by one broadcast PING on a Dynamixel
+    bus when that takes less time than PINGs one id at a time (a long id list: the
+    broadcast waits for every id's turn, ~0.77 s), else id by id."""
+    from .port import PING_PACKET, DynamixelPort
+
+    if isinstance(port, DynamixelPort):
+        one_by_one = len(wanted) * port.response_timeout(PING_PACKET, 1, 3)
+        if port.broadcast_ping_window() < one_by_one:
+            found = await port.broadcast_ping()
+            return {i: found[i] for i in wanted if i in found}
+    answers = {}
+    for servo_id in wanted:
+        try:
+            answers[servo_id] = await port.ping(servo_id)
+        except ServoTimeoutError:
+            continue
+    return answers
 
 
 async def scan_nmea(
