@@ -74,8 +74,9 @@ class ParameterInfo:
     high: float | None = None
     scale: float = 1.0
     """``raw * scale`` is the value in :attr:`unit`."""
-    aliases: tuple[str, ...] = ()
-    """Other keys that name it (``6081``, ``0x6081:0``)."""
+    command: bool = False
+    """A command rather than a setting (a controlword, a target, Torque Enable): writing it
+    would enable, move or stop the device, so ``openel-async param`` only reads it."""
 
     @property
     def readable(self) -> bool:
@@ -124,14 +125,16 @@ class ParameterAccess(Protocol):
 
 
 def close_matches(key: str, names: Iterable[str], n: int = 3) -> list[str]:
-    """The names closest to ``key`` (case ignored), best first."""
+    """The names closest to ``key`` (case ignored), best first: those containing it (a part
+    of a long dotted name, ``vel_limit``), then the most alike."""
     by_fold: dict[str, str] = {}
     for name in names:
         by_fold.setdefault(name.casefold(), name)
-    found = difflib.get_close_matches(key.casefold(), list(by_fold), n=n, cutoff=0.5)
-    if not found:  # a part of a long dotted name ("vel_limit")
-        part = key.casefold()
-        found = [f for f in by_fold if part in f][:n]
+    part = key.strip().casefold()
+    found = [f for f in by_fold if part and part in f][:n]
+    for alike in difflib.get_close_matches(part, list(by_fold), n=n, cutoff=0.5):
+        if alike not in found and len(found) < n:
+            found.append(alike)
     return [by_fold[f] for f in found]
 
 

@@ -313,6 +313,12 @@ async def _set(
     if not info.writable:
         _error(f"{info.name} ({info.address}) is {info.access}: it cannot be written")
         return EXIT_USAGE
+    if info.command:
+        _error(
+            f"{info.name} ({info.address}) is a command (it would enable, move or stop the "
+            "device): param only reads it; the HAL commands it (openel-async jog, an app)"
+        )
+        return EXIT_USAGE
     value = parse_value(info, args.value)
     if info.storage == "eeprom" and not args.yes:
         question = (
