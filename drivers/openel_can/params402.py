@@ -29,7 +29,15 @@ from openel_async.params import ParameterInfo, ParamValue, Storage, not_found
 
 from .bus import CanBus
 from .layout402 import drive_file
-from .od import SHIPPED_EDS, Access, ObjectDictionary, ObjectNotFoundError, OdEntry, load_od, parse_key
+from .od import (
+    SHIPPED_EDS,
+    Access,
+    ObjectDictionary,
+    ObjectNotFoundError,
+    OdEntry,
+    load_od,
+    parse_key,
+)
 from .sdo import SdoClient
 
 __all__ = ["COMMAND_OBJECTS", "CanOpenParameters", "parameter_info"]
@@ -134,7 +142,9 @@ def _range(entry: OdEntry) -> tuple[float | None, float | None]:
     bits = _INTEGERS.get(entry.data_type)
     if bits is not None:
         size, signed = bits
-        type_low, type_high = (-(2 ** (size - 1)), 2 ** (size - 1) - 1) if signed else (0, 2**size - 1)
+        type_low, type_high = (
+            (-(2 ** (size - 1)), 2 ** (size - 1) - 1) if signed else (0, 2**size - 1)
+        )
         low = type_low if low is None else max(low, type_low)
         high = type_high if high is None else min(high, type_high)
     return low, high
@@ -188,13 +198,17 @@ class CanOpenParameters:
         self._entries: dict[str, OdEntry] = {}
         self._infos: list[ParameterInfo] = []
         for entry in od:
+            if entry.index < 0x1000:  # the data type definitions (DummyUsage), no values
+                continue
             info = parameter_info(entry, shipped=shipped)
             self._entries[info.address] = entry
             self._infos.append(info)
         self._by_address = {i.address: i for i in self._infos}
 
     @classmethod
-    def for_device(cls, bus: CanBus, params: Mapping[str, Any], rig_dir: Path | None) -> CanOpenParameters:
+    def for_device(
+        cls, bus: CanBus, params: Mapping[str, Any], rig_dir: Path | None
+    ) -> CanOpenParameters:
         """The parameters of a rig's ``cia402_*`` entry: its DCF, else its EDS, else the
         shipped EDS."""
         node_id = int(params["node_id"])
@@ -203,7 +217,9 @@ class CanOpenParameters:
             if value is not None:
                 path = drive_file(key, value, rig_dir)
                 od = load_od(path, node_id=node_id)
-                return cls(bus, node_id, od, f"CiA 402 node {node_id}, {key.upper()} {Path(path).name}")
+                return cls(
+                    bus, node_id, od, f"CiA 402 node {node_id}, {key.upper()} {Path(path).name}"
+                )
         od = load_od(SHIPPED_EDS, node_id=node_id)
         source = (
             f"CiA 402 node {node_id}, EDS {SHIPPED_EDS.name} (the rig names no eds: for it: the "
@@ -224,8 +240,11 @@ class CanOpenParameters:
         except ObjectNotFoundError as exc:
             if parse_key(key) is not None:  # an index: the dictionary's own hint
                 raise
-            raise not_found(key, [e.name for e in self.od], self.od.source) from exc
-        return self._by_address[f"{entry.index:#06x}:{entry.subindex:02x}"]
+            raise not_found(key, [i.name for i in self._infos], self.od.source) from exc
+        info = self._by_address.get(f"{entry.index:#06x}:{entry.subindex:02x}")
+        if info is None:
+            raise not_found(key, [i.name for i in self._infos], self.od.source)
+        return info
 
     async def read(self, info: ParameterInfo) -> ParamValue:
         return await self.sdo.read(self._entries[info.address])

@@ -18,6 +18,7 @@ import json
 import math
 import os
 import sys
+from collections.abc import Sequence
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
@@ -36,7 +37,9 @@ PROMPT_TIMEOUT = 120.0
 DUMP_GIVE_UP = 3
 """``dump`` stops after this many reads in a row got no answer (the device is gone)."""
 
-PARAM_HELP = "read and write a device's parameters (CANopen objects, ODrive endpoints, servo tables)"
+PARAM_HELP = (
+    "read and write a device's parameters (CANopen objects, ODrive endpoints, servo tables)"
+)
 PARAM_DESCRIPTION = """\
 Read and write one device's own parameters by name or address: a CiA 402 drive's objects
 (from its EDS, by name or index: 'Profile velocity', 6081, 0x6081:00), an ODrive axis's
@@ -213,8 +216,7 @@ def _list(opened: OpenedDevice, args: argparse.Namespace, out: list[str]) -> int
         return 0
     out.append(_header(opened))
     rows = [
-        (p.address, p.name, p.type, p.access, p.storage, p.unit if p.unit else "")
-        for p in params
+        (p.address, p.name, p.type, p.access, p.storage, p.unit if p.unit else "") for p in params
     ]
     out.extend(_table(("ADDRESS", "NAME", "TYPE", "ACCESS", "STORAGE", "UNIT"), rows))
     return 0
@@ -329,9 +331,14 @@ async def _set(
             return EXIT_USAGE
     with anyio.fail_after(args.timeout):
         blocker = await opened.access.write_blocker(info)
-    if blocker is not None and not args.torque_off:
-        if not await _confirm(f"{blocker}: turn it off first (the axis goes limp)?", "--torque-off"):
-            return EXIT_USAGE
+    if (
+        blocker is not None
+        and not args.torque_off
+        and not await _confirm(
+            f"{blocker}: turn it off first (the axis goes limp)?", "--torque-off"
+        )
+    ):
+        return EXIT_USAGE
     before = await _read(opened.access, info, args.timeout) if info.readable else None
     with anyio.fail_after(args.timeout):
         await opened.access.write(info, value, unblock=blocker is not None)
@@ -389,8 +396,10 @@ async def _confirm(question: str, flag: str) -> bool:
     return False
 
 
-def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> list[str]:
-    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(header)]
+def _table(header: tuple[str, ...], rows: Sequence[tuple[str, ...]]) -> list[str]:
+    widths = [
+        max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(header)
+    ]
     widths[-1] = 0  # the last column is not padded
     lines = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip()]
     lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]

@@ -35,7 +35,9 @@ def device_of(resolved: ResolvedRig, name: str) -> tuple[str, SimulatedDevice]:
     the close names) when the rig has no such component or it is on no bus."""
     names = [c.name for c in resolved.spec.components]
     if name not in names:
-        raise BadParameterError("component", name, f"a component of the rig ({did_you_mean(name, names)})")
+        raise BadParameterError(
+            "component", name, f"a component of the rig ({did_you_mean(name, names)})"
+        )
     spec = resolved.spec.component(name)
     if spec.bus is None:
         raise BadParameterError(
@@ -79,6 +81,8 @@ async def _bus(
         async with bus.kind.open(bus_name, bus.options) as opened:
             yield opened, bus.options, bus.kind.describe(bus.options)
         return
-    async with bus.kind.simulate(bus_name, bus.options, (device,)) as simulated:
-        async with bus.kind.open(bus_name, simulated.options) as opened:
-            yield opened, simulated.options, simulated.description
+    async with (
+        bus.kind.simulate(bus_name, bus.options, (device,)) as simulated,
+        bus.kind.open(bus_name, simulated.options) as opened,
+    ):
+        yield opened, simulated.options, simulated.description
