@@ -126,15 +126,23 @@ class ParameterAccess(Protocol):
 
 def close_matches(key: str, names: Iterable[str], n: int = 3) -> list[str]:
     """The names closest to ``key`` (case ignored), best first: those containing it (a part
-    of a long dotted name, ``vel_limit``), then the most alike."""
+    of a long dotted name, ``vel_limit``), then the most alike, as a whole or by their last
+    dotted part (``vel_limt``)."""
     by_fold: dict[str, str] = {}
     for name in names:
         by_fold.setdefault(name.casefold(), name)
     part = key.strip().casefold()
     found = [f for f in by_fold if part and part in f][:n]
-    for alike in difflib.get_close_matches(part, list(by_fold), n=n, cutoff=0.5):
-        if alike not in found and len(found) < n:
-            found.append(alike)
+
+    def score(folded: str) -> float:
+        last = folded.rsplit(".", 1)[-1]
+        return max(
+            difflib.SequenceMatcher(None, part, folded).ratio(),
+            difflib.SequenceMatcher(None, part, last).ratio(),
+        )
+
+    scored = sorted(((score(f), f) for f in by_fold if f not in found), reverse=True)
+    found += [f for s, f in scored[: n - len(found)] if s >= 0.6]
     return [by_fold[f] for f in found]
 
 
