@@ -158,10 +158,12 @@ def _storage(entry: OdEntry) -> Storage:
     return "ram" if entry.writable else "volatile"
 
 
-def parameter_info(entry: OdEntry, *, shipped: bool = False) -> ParameterInfo:
+def parameter_info(entry: OdEntry, *, shipped: bool = False, record: bool = False) -> ParameterInfo:
     """The :class:`~openel_async.params.ParameterInfo` of an object (``shipped``: the
-    dictionary is the shipped EDS, whose manufacturer objects have known units)."""
-    unit, scale = _UNITS.get(entry.index, ""), 1.0
+    dictionary is the shipped EDS, whose manufacturer objects have known units; ``record``:
+    the object is a record or array, whose sub-index 0 counts its entries)."""
+    count = record and entry.subindex == 0
+    unit, scale = ("" if count else _UNITS.get(entry.index, "")), 1.0
     if shipped and entry.index in _SHIPPED_UNITS:
         unit, scale = _SHIPPED_UNITS[entry.index]
     low, high = _range(entry)
@@ -200,7 +202,7 @@ class CanOpenParameters:
         for entry in od:
             if entry.index < 0x1000:  # the data type definitions (DummyUsage), no values
                 continue
-            info = parameter_info(entry, shipped=shipped)
+            info = parameter_info(entry, shipped=shipped, record=od.is_record(entry.index))
             self._entries[info.address] = entry
             self._infos.append(info)
         self._by_address = {i.address: i for i in self._infos}
