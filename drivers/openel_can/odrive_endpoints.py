@@ -1,19 +1,19 @@
 """The endpoints of an ODrive axis reachable by CANSimple RxSdo/TxSdo, for ODrive firmware
 0.6.x (ODrive Pro / S1): name, endpoint id and type (:data:`ENDPOINTS`).
 
-Source: the ``flat_endpoints.json`` of firmware 0.6.x that ODrive publishes with each
-release (docs.odriverobotics.com, "releases/firmware"), as copied into a third-party
-CANSimple library's endpoint map -- the same copy :data:`openel_can.odrive.VEL_RAMP_RATE_ENDPOINT`,
-``WATCHDOG_TIMEOUT_ENDPOINT`` and ``ENABLE_WATCHDOG_ENDPOINT`` (390, 200, 201) come from. The
-ids and type names are facts of the firmware's interface, carried over as data (no code);
-the ``odrive`` Python package and the file are ODrive Robotics' (MIT-licensed tooling;
-the file is published for this use). Not checked against a 0.6.10/0.6.11 build or
-hardware: endpoint ids change between builds, so check them against the
-``flat_endpoints.json`` of the firmware you run (``odrivetool``'s ``odrv0``, or the
-release page). Kept: the device, CAN, inverter and GPIO configuration, every
-``axis0.config`` setting, the controller, trajectory, endstop, thermistor and encoder
-settings and the main measurements (the task timers, stack statistics and raw current
-samples are left out).
+Source: the ``flat_endpoints.json`` of firmware 0.6.x that ODrive Robotics publishes with
+each release (docs.odriverobotics.com, "releases/firmware"), as copied into the endpoint
+map of a third-party CANSimple library (a JavaScript package; the same copy
+:data:`openel_can.odrive.VEL_RAMP_RATE_ENDPOINT`, ``WATCHDOG_TIMEOUT_ENDPOINT`` and
+``ENABLE_WATCHDOG_ENDPOINT`` -- 390, 200, 201, the only endpoints the driver knew before --
+come from). Carried over: the names, ids and type names, facts of the firmware's interface,
+as data (no code of either); that copy's own licence was not established, so treat ODrive's
+published file as the reference. Not checked against a 0.6.10/0.6.11 build or hardware:
+endpoint ids change between builds, so compare them with the ``flat_endpoints.json`` of the
+firmware you run (its release page) before writing. Kept: the device, CAN, inverter and
+GPIO configuration, every ``axis0.config`` setting, the controller, trajectory, endstop,
+thermistor and encoder settings and the main measurements (the task timers, stack
+statistics and raw current samples are left out).
 
 Types: the copy names ``float`` (float32), ``uint``, ``int`` and ``boolean``; a TxSdo value
 field is 4 bytes, little-endian, a uint or int endpoint read as 32 bits (the firmware's
