@@ -27,6 +27,7 @@ import can
 import msgspec
 
 from openel_async.errors import BadParameterError
+from openel_async.params import ParameterAccess
 from openel_async.rig import BusKind, BusLoad, SimulatedBus, SimulatedDevice
 from openel_async.timer import EventTimer
 
@@ -444,6 +445,22 @@ class CanBusKind(BusKind):
     ) -> AbstractAsyncContextManager[SimulatedBus]:
         assert isinstance(options, CanBusOptions)
         return _simulated(name, devices, options.sync)
+
+    def parameter_access(
+        self, bus: object, options: Any, device: SimulatedDevice
+    ) -> ParameterAccess | None:
+        """A CiA 402 drive's objects (:mod:`openel_can.params402`), an ODrive's endpoints
+        (:mod:`openel_can.params_odrive`)."""
+        assert isinstance(bus, CanBus)
+        if device.device in CIA402_DEVICES:
+            from .params402 import CanOpenParameters
+
+            return CanOpenParameters.for_device(bus, device.params, device.rig_dir)
+        if device.device in ODRIVE_DEVICES:
+            from .params_odrive import ODriveParameters
+
+            return ODriveParameters(bus, int(device.params["node_id"]))
+        return None
 
 
 @asynccontextmanager

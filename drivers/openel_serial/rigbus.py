@@ -55,6 +55,7 @@ from typing import Annotated, Any, Final, Literal
 import msgspec
 
 from openel_async.errors import BadParameterError
+from openel_async.params import ParameterAccess
 from openel_async.positioned import DocumentError, relocate
 from openel_async.rig import BusKind, SimulatedBus, SimulatedDevice
 from openel_serial import dynamixel as dx
@@ -315,6 +316,19 @@ class SerialBusKind(BusKind):
         from .monitor_cmd import run
 
         return run(args, name, bus)
+
+    def parameter_access(
+        self, bus: object, options: Any, device: SimulatedDevice
+    ) -> ParameterAccess | None:
+        """A Dynamixel's or a Feetech servo's control table (:mod:`openel_serial.params_servo`)."""
+        from .params_servo import ServoParameters
+
+        if isinstance(bus, DynamixelPort):
+            xl430 = device.device == "dynamixel_xl430_w250"
+            return ServoParameters.dynamixel(bus, int(device.params["dxl_id"]), current=not xl430)
+        if isinstance(bus, FeetechPort):
+            return ServoParameters.sts(bus, int(device.params["servo_id"]))
+        return None
 
     def simulate(
         self, name: str, options: Any, devices: Sequence[SimulatedDevice]

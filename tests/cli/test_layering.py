@@ -61,8 +61,8 @@ def test_help_without_any_driver() -> None:
         line.split()[0] for line in listed.splitlines() if line[:4] == "    " and line[4:5] != " "
     ]
     assert commands == [
-        "demo", "run", "devices", "profile", "record", "replay", "rig", "jog", "hal4rt", "scan", "bus",
-        "completion",
+        "demo", "run", "devices", "profile", "record", "replay", "rig", "param", "jog", "hal4rt",
+        "scan", "bus", "completion",
     ]  # no serve: Zenoh's command  # fmt: skip
     assert result.stderr == ""
     assert "DRIVER MODULES: []" in result.stdout

@@ -21,8 +21,11 @@ firmware reports states this codec does not name, e.g. 15 and 16 in 0.6.11).
 Endpoint access (RxSdo/TxSdo): the endpoint ``vel_ramp_rate_endpoint`` (default
 :data:`~openel_can.odrive.VEL_RAMP_RATE_ENDPOINT`, ``axis0.controller.config.vel_ramp_rate``
 as a float32 in turns/s²) is read and written; a read is answered with TxSdo, a write is
-not answered. Other endpoint ids are recorded and otherwise ignored (no reply), as is a
-non-finite or negative rate.
+not answered. The other endpoints of :data:`~openel_can.odrive_endpoints.ENDPOINTS`
+(firmware 0.6.x, what ``openel-async param`` reads) are answered too: a written value is
+read back as written, one never written reads as the simulation's own value where it has
+one (bus voltage, limits, node id, state, temperatures...) or 0. Endpoint ids outside that
+table are recorded and otherwise ignored (no reply), as is a non-finite or negative rate.
 
 Axis watchdog (``axis0.config.enable_watchdog`` / ``watchdog_timeout``, endpoints
 ``enable_watchdog_endpoint`` / ``watchdog_timeout_endpoint``, defaults
@@ -64,6 +67,7 @@ from ..odrive import (
     WATCHDOG_TIMEOUT_ENDPOINT,
     ODriveError,
 )
+from ..odrive_endpoints import ENDPOINTS
 from .history import DEFAULT_HISTORY, History
 
 __all__ = ["SimODrive"]
@@ -102,6 +106,9 @@ _POLLED: Final = (
 )
 TORQUE_RISE_S: Final = 0.002
 AMBIENT_C: Final = 25.0
+
+
+_ENDPOINT_NAMES: Final = {e.id: e.name for e in ENDPOINTS}
 
 
 class SimODrive:
@@ -177,6 +184,9 @@ class SimODrive:
         self._port: NodePort | None = None
         self.watchdog_timeout_endpoint = watchdog_timeout_endpoint
         self.enable_watchdog_endpoint = enable_watchdog_endpoint
+        self.endpoint_values: dict[int, bytes] = {}
+        """The other endpoints of :data:`~openel_can.odrive_endpoints.ENDPOINTS` written by
+        RxSdo (read back as written; never written: zero, or the simulation's own value)."""
         self.enable_watchdog = False
         """``axis0.config.enable_watchdog``."""
         self.watchdog_timeout = 0.0
@@ -398,9 +408,42 @@ class SimODrive:
             value = struct.pack("<f", self.watchdog_timeout)
         elif endpoint == self.enable_watchdog_endpoint:
             value = bytes((int(self.enable_watchdog), 0, 0, 0))
+        elif endpoint in _ENDPOINT_NAMES:
+            value = self.endpoint_values.get(endpoint) or self._endpoint_value(endpoint)
         else:
             return None
         return cs.TxSdo(self.node_id, endpoint, value)
+
+    def _endpoint_value(self, endpoint: int) -> bytes:
+        """An endpoint never written: the simulation's own value where it has one, else 0."""
+        name = _ENDPOINT_NAMES[endpoint]
+        floats = {
+            "vbus_voltage": self.nominal_bus_voltage,
+            "axis0.controller.config.vel_limit": self.vel_limit,
+            "axis0.trap_traj.config.vel_limit": self.traj_vel_limit,
+            "axis0.trap_traj.config.accel_limit": self.traj_accel_limit,
+            "axis0.trap_traj.config.decel_limit": self.traj_accel_limit,
+            "axis0.config.motor.torque_constant": self.torque_constant,
+            "axis0.config.motor.phase_resistance": self.phase_resistance,
+            "axis0.motor.motor_thermistor.temperature": self.motor_temp,
+            "axis0.motor.fet_thermistor.temperature": self.fet_temp,
+        }
+        if name in floats:
+            return struct.pack("<f", floats[name])
+        ints = {
+            "fw_version_major": 0,
+            "fw_version_minor": 6,
+            "fw_version_revision": 10,
+            "axis0.config.can.node_id": self.node_id,
+            "axis0.config.can.heartbeat_msg_rate_ms": round(self.heartbeat_period * 1000),
+            "axis0.config.can.encoder_msg_rate_ms": round(self.encoder_period * 1000),
+            "axis0.current_state": int(self.axis_state),
+            "axis0.controller.config.control_mode": int(self.control_mode),
+            "axis0.controller.config.input_mode": int(self.input_mode),
+            "axis0.active_errors": self.active_errors,
+            "axis0.disarm_reason": self.disarm_reason,
+        }
+        return struct.pack("<I", ints.get(name, 0) & 0xFFFF_FFFF)
 
     async def _send(self, msg: cs.CanSimpleMessage | None) -> None:
         if msg is None or self.silent or self._port is None:
@@ -442,6 +485,8 @@ class SimODrive:
                     self.watchdog_timeout = timeout
             elif msg.endpoint_id == self.enable_watchdog_endpoint:
                 self.enable_watchdog = msg.value[0] != 0  # a bool endpoint: the first byte
+            elif msg.endpoint_id in _ENDPOINT_NAMES:
+                self.endpoint_values[msg.endpoint_id] = bytes(msg.value)
         elif isinstance(msg, cs.Estop):
             self.inject_error(ODriveError.ESTOP_REQUESTED)
         elif isinstance(msg, cs.ClearErrors):

@@ -252,6 +252,9 @@ def _build_parser() -> argparse.ArgumentParser:
     from .rig_cmd import add_parser as add_rig_parser
 
     add_rig_parser(sub)
+    from .param_cmd import add_parser as add_param_parser
+
+    add_param_parser(sub)
     from .jog_cmd import add_parser as add_jog_parser
 
     add_jog_parser(sub)
@@ -346,6 +349,10 @@ def _main(argv: Sequence[str] | None) -> int:
         from .rig_cmd import run as run_rig_cmd
 
         return run_rig_cmd(args)
+    if args.command == "param":
+        from .param_cmd import run as run_param_cmd
+
+        return run_param_cmd(args)
     if args.command == "jog":
         from .jog_cmd import run as run_jog_cmd
 

@@ -29,6 +29,7 @@ import msgspec
 
 if TYPE_CHECKING:
     from ..clock import Clock
+    from ..params import ParameterAccess
     from ..timer import EventTimer
 
 __all__ = ["BusKind", "BusLoad", "FaultInjection", "SimulatedBus", "SimulatedDevice"]
@@ -135,6 +136,15 @@ class BusKind(ABC):
         """The clock of a bus that is a simulation of its own (a MuJoCo model steps its own
         time): the rig's components and timers use it unless the caller gives one. None
         (the default): the bus follows the caller's clock."""
+        return None
+
+    def parameter_access(
+        self, bus: object, options: Any, device: SimulatedDevice
+    ) -> ParameterAccess | None:
+        """The parameters of ``device`` on the opened ``bus`` (``openel-async param``): its
+        table (an EDS, an endpoint list, a control table) and a way to read and write it
+        that sends nothing until asked and never enables or moves anything. The device's
+        component is not built nor entered. None (the default): none the driver knows."""
         return None
 
     @abstractmethod
