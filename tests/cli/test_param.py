@@ -147,3 +147,11 @@ def test_param_as_its_own_process() -> None:
     document = json.loads(result.stdout)
     assert document["parameter"]["address"] == "endpoint 200"
     assert document["value"] == 0.0 and document["shown"] == "0 s"
+
+
+def test_json_values_are_valid_json_for_every_float() -> None:
+    from openel_async.cli.param_cmd import value_json
+
+    document = [value_json(v) for v in (float("nan"), float("inf"), -float("inf"), 1.5, b"\x01")]
+    assert document == ["nan", "inf", "-inf", 1.5, "01"]
+    assert json.loads(json.dumps(document, allow_nan=False)) == document

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import signal
 import sys
 from collections.abc import Sequence
@@ -297,6 +298,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return _main(argv)
     except BaseException as exc:
+        if _broken_pipe(exc):
+            # The reader of stdout went away (``| head``): stop quietly, as a shell tool
+            # does, and point stdout at /dev/null so that the exit's flush raises nothing.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            os.close(devnull)
+            return EXIT_BROKEN_PIPE
         code = interrupt_code(exc)
         if code is None:
             raise
@@ -305,6 +313,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         return code
     finally:
         signal.signal(signal.SIGTERM, previous_sigterm)
+
+
+EXIT_BROKEN_PIPE = 128 + 13
+"""The exit status when stdout's reader left (killed by SIGPIPE, as a shell reports it)."""
+
+
+def _broken_pipe(exc: BaseException) -> bool:
+    """Whether ``exc`` is a BrokenPipeError on stdout, alone or in an exception group."""
+    if isinstance(exc, BaseExceptionGroup):
+        return all(_broken_pipe(e) for e in exc.exceptions)
+    return isinstance(exc, BrokenPipeError)
 
 
 def _main(argv: Sequence[str] | None) -> int:

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from ..params import ParameterAccess, ParameterInfo, ParamValue
     from ..rig.single import OpenedDevice
 
-__all__ = ["add_parser", "run"]
+__all__ = ["add_parser", "run", "value_json"]
 
 PROG = "openel-async param"
 EXIT_DEVICE = 1
@@ -196,8 +196,14 @@ def _info_json(info: ParameterInfo) -> dict[str, Any]:
     }
 
 
-def _value_json(value: ParamValue) -> Any:
-    return value.hex() if isinstance(value, bytes) else value
+def value_json(value: ParamValue) -> Any:
+    """A JSON value: bytes as hex, a float NaN or infinity as the string "nan", "inf" or
+    "-inf" (JSON has no such numbers; ``json.dumps`` would write invalid JSON)."""
+    if isinstance(value, bytes):
+        return value.hex()
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    return value
 
 
 def _header(opened: OpenedDevice) -> str:
@@ -212,7 +218,7 @@ def _list(opened: OpenedDevice, args: argparse.Namespace, out: list[str]) -> int
             "source": opened.access.source,
             "parameters": [_info_json(p) for p in params],
         }
-        out.append(json.dumps(document, indent=2))
+        out.append(json.dumps(document, indent=2, allow_nan=False))
         return 0
     out.append(_header(opened))
     rows = [
@@ -242,10 +248,10 @@ async def _get(
         document = {
             "component": opened.name,
             "parameter": _info_json(info),
-            "value": _value_json(value),
+            "value": value_json(value),
             "shown": format_value(info, value),
         }
-        out.append(json.dumps(document, indent=2))
+        out.append(json.dumps(document, indent=2, allow_nan=False))
         return 0
     out.append(f"{opened.name} {info.name} = {format_value(info, value)}")
     out.append(f"  {_facts(info)}")
@@ -284,7 +290,7 @@ async def _dump(opened: OpenedDevice, args: argparse.Namespace, out: list[str]) 
             rows.append((info.address, info.name, info.type, info.access, f"({exc})"))
             continue
         silent = 0
-        records.append({**_info_json(info), "value": _value_json(value)})
+        records.append({**_info_json(info), "value": value_json(value)})
         rows.append((info.address, info.name, info.type, info.access, format_value(info, value)))
     _emit_dump(opened, args, out, records, rows)
     return 0
@@ -299,7 +305,7 @@ def _emit_dump(
 ) -> None:
     if args.json:
         document = {"component": opened.name, "source": opened.access.source, "parameters": records}
-        out.append(json.dumps(document, indent=2))
+        out.append(json.dumps(document, indent=2, allow_nan=False))
         return
     out.append(_header(opened))
     out.extend(_table(("ADDRESS", "NAME", "TYPE", "ACCESS", "VALUE"), rows))
@@ -347,12 +353,12 @@ async def _set(
         document = {
             "component": opened.name,
             "parameter": _info_json(info),
-            "before": None if before is None else _value_json(before),
-            "written": _value_json(value),
-            "after": None if after is None else _value_json(after),
+            "before": None if before is None else value_json(before),
+            "written": value_json(value),
+            "after": None if after is None else value_json(after),
             "torque_turned_off": blocker is not None,
         }
-        out.append(json.dumps(document, indent=2))
+        out.append(json.dumps(document, indent=2, allow_nan=False))
     else:
         was = "" if before is None else f"{format_value(info, before)} -> "
         now = format_value(info, value if after is None else after)
