@@ -42,7 +42,7 @@ from openel_async import (
     VirtualClock,
 )
 from openel_async.clock import Clock
-from openel_async.device import BatchCommander
+from openel_async.device import AsyncBatchCommander, BatchCommander
 from openel_async.motion import AxisGroup, AxisLimits, Tolerances
 from openel_async.stats import percentile
 
@@ -101,13 +101,32 @@ class MemoryDrive(ActuatorDevice):
         return command_all
 
 
-class AsyncMemoryDrive(MemoryDrive):
-    """The same without a synchronous path: what a bus driver looks like to the group."""
+class AsyncEachDrive(MemoryDrive):
+    """The same without a synchronous path and without a batch command: one awaited
+    ``command`` per axis and tick."""
 
-    info = DeviceInfo(kind=DeviceKind.MOTOR, vendor_name="Bench", product_name="AsyncMemory")
+    info = DeviceInfo(kind=DeviceKind.MOTOR, vendor_name="Bench", product_name="AsyncEach")
 
     async def command(self, request: Request, value: float) -> None:
         self.position = value
+
+
+class AsyncMemoryDrive(AsyncEachDrive):
+    """Without a synchronous path, with an awaited batch command: what a bus driver with
+    one write for every drive (a SYNC WRITE, a CAN SYNC cycle) looks like to the group."""
+
+    info = DeviceInfo(kind=DeviceKind.MOTOR, vendor_name="Bench", product_name="AsyncMemory")
+
+    @classmethod
+    def async_batch_commander(cls, devices: Sequence[ActuatorDevice]) -> AsyncBatchCommander:
+        drives = tuple(cast(MemoryDrive, d) for d in devices)
+
+        async def command_all(request: Request, values: Sequence[float], /) -> bool:
+            for drive, value in zip(drives, values, strict=True):
+                drive.position = value
+            return True
+
+        return command_all
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,7 +138,9 @@ class SizeResult:
     checked_ns: list[list[int]]
     """Group tick with a path tolerance (reads POSITION_ACTUAL every tick)."""
     async_ns: list[list[int]]
-    """Group tick over drivers without a synchronous command path."""
+    """Group tick over drivers without a synchronous command path (an awaited batch)."""
+    each_ns: list[list[int]]
+    """The same, one awaited command per axis."""
 
     @staticmethod
     def median_us(rounds: list[list[int]]) -> float:
@@ -219,8 +240,9 @@ async def measure_size(axes: int, ticks: int, rounds: int) -> SizeResult:
     peer: list[list[int]] = []
     checked: list[list[int]] = []
     slow: list[list[int]] = []
+    each: list[list[int]] = []
 
-    async def body(group: AxisGroup, slow_group: AxisGroup) -> None:
+    async def body(group: AxisGroup, slow_group: AxisGroup, each_group: AxisGroup) -> None:
         sign = 1.0
         for _ in range(rounds):  # alternate ours and the peer, same inputs
             gc.collect()
@@ -235,16 +257,23 @@ async def measure_size(axes: int, ticks: int, rounds: int) -> SizeResult:
             group.tolerances = Tolerances()
             gc.collect()
             slow.append(await _move_ticks(slow_group, _targets(axes, rng, sign), ticks))
+            gc.collect()
+            each.append(await _move_ticks(each_group, _targets(axes, rng, sign), ticks))
             sign = -sign
 
     async def outer(group: AxisGroup) -> None:
-        async def inner(slow_group: AxisGroup) -> None:
-            await body(group, slow_group)
+        clock = group.timer.clock
 
-        await _with_group(AsyncMemoryDrive, axes, inner, clock=group.timer.clock)
+        async def inner(slow_group: AxisGroup) -> None:
+            async def innermost(each_group: AxisGroup) -> None:
+                await body(group, slow_group, each_group)
+
+            await _with_group(AsyncEachDrive, axes, innermost, clock=clock)
+
+        await _with_group(AsyncMemoryDrive, axes, inner, clock=clock)
 
     await _with_group(MemoryDrive, axes, outer)
-    return SizeResult(axes, ours, peer, checked, slow)
+    return SizeResult(axes, ours, peer, checked, slow, each)
 
 
 @dataclass(frozen=True, slots=True)
@@ -373,7 +402,7 @@ def run(quick: bool) -> BenchResult:
         limit = ASYNC_TARGETS.get(r.axes)
         rows.append(
             Row(
-                f"tick over async-only drivers, {r.axes} axes (median)",
+                f"tick over async-only drivers, awaited batch, {r.axes} axes (median)",
                 slow,
                 "µs",
                 baseline=peer,
@@ -382,6 +411,20 @@ def run(quick: bool) -> BenchResult:
                 ratio_label="ours/ruckig",
                 target=f"<= {limit:g}x ruckig" if limit is not None else "",
                 passed=ratio <= limit if limit is not None else None,
+                digits=2,
+            )
+        )
+    for r in results:
+        each, peer = r.median_us(r.each_ns), r.median_us(r.peer_ns)
+        rows.append(
+            Row(
+                f"tick over async-only drivers, one command per axis, {r.axes} axes (median)",
+                each,
+                "µs",
+                baseline=peer,
+                baseline_label="ruckig at_time + stores",
+                ratio=ratio_of(each, peer),
+                ratio_label="ours/ruckig",
                 digits=2,
             )
         )

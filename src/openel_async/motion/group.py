@@ -31,7 +31,6 @@ from ..device import has_nowait
 from ..errors import BadParameterError, HALError, StateError
 from ..requests import Request
 from ..stats import LatenessRecorder, LatenessSummary
-from ..streaming import send_targets
 from ..timer import EventTimer, TimerState
 from ..wakeup import Wakeup
 from .errors import (
@@ -128,8 +127,6 @@ class AxisGroup:
         # Devices read without I/O: the actual positions in one bank read per tick (its
         # listeners hear the batch in one call).
         self._read_now = all(has_nowait(a.device, "read_nowait", "read") for a in axes)
-        # The clock every axis shares (one stamp reader for the awaited batches), if any.
-        self._now_ns = axes[0].clock.now_ns if len({id(a.clock) for a in axes}) == 1 else None
         self.timer = timer
         self._limits: tuple[AxisLimits, ...] = per_axis(limits, n, "limits", AxisLimits)
         self._tolerances: tuple[Tolerances, ...] = per_axis(
@@ -503,9 +500,9 @@ class AxisGroup:
         # One validated batch: every axis Active and every setpoint within its limits
         # before any is sent (else nothing is sent and the motion aborts).
         try:
-            req, targets = self._bank._check("set_values", position, POSITION)
-            # One coroutine for the batch, Motions built only when asked for.
-            await send_targets(self.axes, req, targets, self.setpoint_events, self._now_ns)
+            # One coroutine for the batch (one awaited device batch when the driver offers
+            # one), Motions built only when asked for.
+            await self._bank.set_values(position, POSITION)
         except Exception as exc:
             self._stream_failed(motion, position, exc, t)
             return
