@@ -42,7 +42,7 @@ from openel_async import (
     VirtualClock,
 )
 from openel_async.clock import Clock
-from openel_async.device import BatchCommander
+from openel_async.device import AsyncBatchCommander, BatchCommander
 from openel_async.motion import AxisGroup, AxisLimits, Tolerances
 from openel_async.stats import percentile
 
@@ -101,13 +101,32 @@ class MemoryDrive(ActuatorDevice):
         return command_all
 
 
-class AsyncMemoryDrive(MemoryDrive):
-    """The same without a synchronous path: what a bus driver looks like to the group."""
+class AsyncEachDrive(MemoryDrive):
+    """The same without a synchronous path and without a batch command: one awaited
+    ``command`` per axis and tick."""
 
-    info = DeviceInfo(kind=DeviceKind.MOTOR, vendor_name="Bench", product_name="AsyncMemory")
+    info = DeviceInfo(kind=DeviceKind.MOTOR, vendor_name="Bench", product_name="AsyncEach")
 
     async def command(self, request: Request, value: float) -> None:
         self.position = value
+
+
+class AsyncMemoryDrive(AsyncEachDrive):
+    """Without a synchronous path, with an awaited batch command: what a bus driver with
+    one write for every drive (a SYNC WRITE, a CAN SYNC cycle) looks like to the group."""
+
+    info = DeviceInfo(kind=DeviceKind.MOTOR, vendor_name="Bench", product_name="AsyncMemory")
+
+    @classmethod
+    def async_batch_commander(cls, devices: Sequence[ActuatorDevice]) -> AsyncBatchCommander:
+        drives = tuple(cast(MemoryDrive, d) for d in devices)
+
+        async def command_all(request: Request, values: Sequence[float], /) -> bool:
+            for drive, value in zip(drives, values, strict=True):
+                drive.position = value
+            return True
+
+        return command_all
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,7 +138,11 @@ class SizeResult:
     checked_ns: list[list[int]]
     """Group tick with a path tolerance (reads POSITION_ACTUAL every tick)."""
     async_ns: list[list[int]]
-    """Group tick over drivers without a synchronous command path."""
+    """Group tick over drivers without a synchronous command path (an awaited batch)."""
+    each_ns: list[list[int]]
+    """The same, one awaited command per axis."""
+    floor_ns: list[list[int]]
+    """The least a tick of the group's shape costs in Python (:func:`floor_ticks`)."""
 
     @staticmethod
     def median_us(rounds: list[list[int]]) -> float:
@@ -153,8 +176,8 @@ async def _move_ticks(group: AxisGroup, targets: list[float], ticks: int) -> lis
     return group.tick_costs_ns()
 
 
-def peer_ticks(start: list[float], targets: list[float], ticks: int) -> list[int]:
-    """The peer: ruckig called directly with the group's inputs, setpoints stored in a list."""
+def _trajectory(start: list[float], targets: list[float]) -> Trajectory:
+    """ruckig's plan of the group's move (the same inputs)."""
     n = len(start)
     inp = InputParameter(n)
     inp.current_position = start
@@ -167,6 +190,39 @@ def peer_ticks(start: list[float], targets: list[float], ticks: int) -> list[int
     inp.synchronization = Synchronization.Phase
     trajectory = Trajectory(n)
     Ruckig(n).calculate(inp, trajectory)
+    return trajectory
+
+
+def floor_ticks(start: list[float], targets: list[float], ticks: int) -> list[int]:
+    """The least a tick of the group's shape can do in Python: one call into a tick
+    function, ruckig's ``at_time``, the N setpoints stored into N drive objects (where the
+    peer stores them into one list) and the setpoints kept; no check, stamp or log."""
+    trajectory = _trajectory(start, targets)
+    drives = [MemoryDrive() for _ in start]
+    at_time = trajectory.at_time
+    kept: list[list[float]] = [[]]
+
+    def tick(t_s: float) -> None:
+        position, _, _ = at_time(t_s)
+        for drive, value in zip(drives, position):  # noqa: B905 (as the drive's batch)
+            drive.position = value
+        kept[0] = position
+
+    perf = time.perf_counter_ns
+    costs: list[int] = []
+    period_s = PERIOD_MS / 1000
+    last = min(ticks, int(trajectory.duration / period_s) + 1)
+    for k in range(1, last + 1):
+        t0 = perf()
+        tick(k * period_s)
+        costs.append(perf() - t0)
+    return costs
+
+
+def peer_ticks(start: list[float], targets: list[float], ticks: int) -> list[int]:
+    """The peer: ruckig called directly with the group's inputs, setpoints stored in a list."""
+    n = len(start)
+    trajectory = _trajectory(start, targets)
     setpoints = [0.0] * n
     at_time = trajectory.at_time
     perf = time.perf_counter_ns
@@ -219,8 +275,10 @@ async def measure_size(axes: int, ticks: int, rounds: int) -> SizeResult:
     peer: list[list[int]] = []
     checked: list[list[int]] = []
     slow: list[list[int]] = []
+    each: list[list[int]] = []
+    floor: list[list[int]] = []
 
-    async def body(group: AxisGroup, slow_group: AxisGroup) -> None:
+    async def body(group: AxisGroup, slow_group: AxisGroup, each_group: AxisGroup) -> None:
         sign = 1.0
         for _ in range(rounds):  # alternate ours and the peer, same inputs
             gc.collect()
@@ -229,22 +287,31 @@ async def measure_size(axes: int, ticks: int, rounds: int) -> SizeResult:
             ours.append(await _move_ticks(group, targets, ticks))
             gc.collect()
             peer.append(peer_ticks(start, targets, ticks))
+            gc.collect()
+            floor.append(floor_ticks(start, targets, ticks))
             # Back with a path check: every axis' POSITION_ACTUAL read every tick.
             group.tolerances = Tolerances(goal=1e-3, path=0.1)
             checked.append(await _move_ticks(group, _targets(axes, rng, -sign), ticks))
             group.tolerances = Tolerances()
             gc.collect()
             slow.append(await _move_ticks(slow_group, _targets(axes, rng, sign), ticks))
+            gc.collect()
+            each.append(await _move_ticks(each_group, _targets(axes, rng, sign), ticks))
             sign = -sign
 
     async def outer(group: AxisGroup) -> None:
-        async def inner(slow_group: AxisGroup) -> None:
-            await body(group, slow_group)
+        clock = group.timer.clock
 
-        await _with_group(AsyncMemoryDrive, axes, inner, clock=group.timer.clock)
+        async def inner(slow_group: AxisGroup) -> None:
+            async def innermost(each_group: AxisGroup) -> None:
+                await body(group, slow_group, each_group)
+
+            await _with_group(AsyncEachDrive, axes, innermost, clock=clock)
+
+        await _with_group(AsyncMemoryDrive, axes, inner, clock=clock)
 
     await _with_group(MemoryDrive, axes, outer)
-    return SizeResult(axes, ours, peer, checked, slow)
+    return SizeResult(axes, ours, peer, checked, slow, each, floor)
 
 
 @dataclass(frozen=True, slots=True)
@@ -341,6 +408,20 @@ def run(quick: bool) -> BenchResult:
             )
         )
     for r in results:
+        floor, peer = r.median_us(r.floor_ns), r.median_us(r.peer_ns)
+        rows.append(
+            Row(
+                f"floor: one call, at_time, {r.axes} stores into {r.axes} drives (median)",
+                floor,
+                "µs",
+                baseline=peer,
+                baseline_label="ruckig at_time + stores",
+                ratio=ratio_of(floor, peer),
+                ratio_label="floor/ruckig",
+                digits=2,
+            )
+        )
+    for r in results:
         rows.append(
             Row(
                 f"tick, {r.axes} axes (p99)",
@@ -373,7 +454,7 @@ def run(quick: bool) -> BenchResult:
         limit = ASYNC_TARGETS.get(r.axes)
         rows.append(
             Row(
-                f"tick over async-only drivers, {r.axes} axes (median)",
+                f"tick over async-only drivers, awaited batch, {r.axes} axes (median)",
                 slow,
                 "µs",
                 baseline=peer,
@@ -382,6 +463,20 @@ def run(quick: bool) -> BenchResult:
                 ratio_label="ours/ruckig",
                 target=f"<= {limit:g}x ruckig" if limit is not None else "",
                 passed=ratio <= limit if limit is not None else None,
+                digits=2,
+            )
+        )
+    for r in results:
+        each, peer = r.median_us(r.each_ns), r.median_us(r.peer_ns)
+        rows.append(
+            Row(
+                f"tick over async-only drivers, one command per axis, {r.axes} axes (median)",
+                each,
+                "µs",
+                baseline=peer,
+                baseline_label="ruckig at_time + stores",
+                ratio=ratio_of(each, peer),
+                ratio_label="ours/ruckig",
                 digits=2,
             )
         )
@@ -517,8 +612,45 @@ more than 0.5x the peer, so 1.5x is out of reach in pure Python without dropping
 checks; compiling the tick (mypyc on `motion/group.py`, `banks.py`, `actuator.py`) or a
 position-only `at_time` in ruckig's binding are what is left. Over async-only drivers the
 awaited commands alone are ~1.7x the peer at 64 axes; an asynchronous batch hook on the
-driver (one coroutine per batch, as a bus SYNC WRITE, with the bank's `StreamBatch`
-bookkeeping) would remove the per-axis coroutine and bookkeeping.
+driver removes the per-axis coroutine and bookkeeping (done: below).
+
+**Async-only drivers: an awaited batch.** A driver without a synchronous path may offer
+`ActuatorDevice.async_batch_commander` (a bus's one write for every drive: a SYNC WRITE,
+one CAN SYNC cycle); the group's bank then awaits one batch per tick and records it in its
+`StreamBatch` (lazy Motions, as the synchronous batch), instead of one awaited `command`,
+sequence and Motion tuple per axis. The target row runs over such a drive
+(`AsyncMemoryDrive`); the informational row "one command per axis" over the same drive
+without it (`AsyncEachDrive`). At 64 axes (loaded 2-core machine, quick runs): 4.6x the
+peer before, 2.8-3.5x with the awaited batch (one command per axis: ~7x).
+
+**The floor, and the compiled path (issue 27: 6 axes <= 1.5x).** The row "floor" times the
+least a tick of the group's shape can do in Python (`floor_ticks`): one call into a tick
+function, ruckig's `at_time`, N stores into N drive objects, the setpoints kept; no Active
+check, no stamp, no log row, no end-error blend. Measured beside the peer in the same
+rounds (5 rounds of 2,000 ticks, 2-core machine at load 1.6-2.5, four runs): the floor is
+1.17-1.32x the peer at 6 axes and 1.11-1.18x at 64; the group's tick 3.1-4.3x at 6 axes
+and 1.7-2.1x at 64 in the same runs. So at 6 axes the 1.5x target leaves ~0.2-0.4x of the
+peer (~0.3-0.6 µs: two to four Python calls) for everything the group does beyond the
+floor -- the Active check, the clock stamp, the log row, `StreamBatch.accept`, the sampler's
+end-error blend -- which cannot fit: the target is out of reach in pure Python without
+dropping per-tick checks. Compiled with mypyc (mypy 1.x's `mypyc` through
+`uv run --with setuptools`, gcc present here) in a scratch build of `motion/planner.py`,
+`streaming.py`, `banks.py` and `motion/group.py` (55 s to build; `motion/log.py` does not
+import once compiled: its dataclass annotations name `TYPE_CHECKING`-only aliases), the
+6-axis tick stayed where it was (3.6-3.9x against 3.1-4.3x interpreted, same load; 64 axes
+1.1-2.0x, within the noise): the tick's cost is calls across objects mypyc cannot type
+natively (the `Actuator`s, the drive, ruckig's binding, the lists `at_time` builds), not
+the interpreted bytecode of these modules. The compiled build also changed behaviour:
+`sum(values)` over a `Sequence[float]` in `ActuatorBank.set_values_nowait` raised
+`TypeError: int object expected; got float` (mypyc typed the sum as int), so every path
+would need tests run against both builds. Its cost: a C compiler for a source install,
+wheels per platform and Python version (cibuildwheel: CPython 3.11-3.13 x Linux
+x86_64/aarch64, macOS, Windows), and a build hook that falls back to pure Python so that
+`uv sync --locked` with `UV_PYTHON_DOWNLOADS=never` still works on a machine without a
+compiler. **Decision: no compiled extension** -- the data shows no gain on this path for
+that cost. What would move the 6-axis row: a position-only `at_time` in ruckig's binding
+(it builds three lists per call), or a tick that skips the checks (not done: a proven
+batch must stay exactly one the per-value check would pass, with every axis Active).
 
 The proof does not use ruckig's `Trajectory.position_extrema`: the community edition
 skips velocity zeros in constant-acceleration phases and can miss an overshoot entirely

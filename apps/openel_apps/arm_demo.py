@@ -38,7 +38,6 @@ from typing import TYPE_CHECKING, Literal, Protocol, TextIO, TypeVar
 
 import anyio
 import anyio.to_thread
-import numpy as np
 
 from openel_async.app import AppContext, AppUnavailable, DemoOptions, LiveLine, atomic_output
 from openel_async.errors import HALError
@@ -366,6 +365,8 @@ def arrival_ticks(
     The rows are the group log's rows of that motion (one per tick, the settling ticks
     included, which repeat the final setpoints).
     """
+    import numpy as np  # (~0.2 s to import: not for an app's --help)
+
     rows = samples.of_motion(motion_id)
     commanded = rows.commanded
     if len(rows) == 0:

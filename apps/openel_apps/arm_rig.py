@@ -33,11 +33,11 @@ from openel_async.actuator import Actuator
 from openel_async.app import AppContext, AppUnavailable
 from openel_async.device import ActuatorDevice
 from openel_async.motion import AxisGroup, AxisLimits, Tolerances
-from openel_async.rig import GroupSpec, ResolvedRig, Rig, TimerSpec, load_rig, open_rig, resolve_rig
 
 from .arm_demo import LOG_MARGIN_S, check_period_ms
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the rig package (yaml, msgspec) loads when a rig is: not for --help
+    from openel_async.rig import GroupSpec, ResolvedRig, Rig, TimerSpec
     from openel_mujoco import MujocoBusOptions, MujocoSim
 
 __all__ = ["RIGS", "ArmRigSpec", "arm_group", "load_arm_rig", "open_arm_rig"]
@@ -140,6 +140,8 @@ def load_arm_rig(
         from openel_mujoco import mujoco_buses
     except Exception as exc:  # ImportError: MuJoCo or the driver is not installed
         raise AppUnavailable("MuJoCo", f"{type(exc).__name__}: {exc}") from exc
+    from openel_async.rig import load_rig, resolve_rig
+
     resolved = ctx.rig_spec if ctx.rig_spec is not None else resolve_rig(load_rig(default))
     spec = resolved.spec
     where = f"rig {Path(spec.source).name}"
@@ -189,6 +191,7 @@ async def open_arm_rig(
     registered with ``ctx`` and it is kept in ``ctx.rigs`` (the run's last line says how it
     left the actuators). SIGQUIT e-stops it; at exit every actuator is left as the rig's
     ``safety.on_exit`` says."""
+    from openel_async.rig import open_rig
     from openel_mujoco import with_simulation
 
     ctx = ctx if ctx is not None else AppContext()

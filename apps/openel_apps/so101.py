@@ -31,18 +31,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
 import anyio
-import msgspec
 
 from openel_async import Actuator, EventTimer, HALError, Request
 from openel_async.app import AppContext, AppInfo, AppUnavailable, DemoOptions
 from openel_async.device import ActuatorDevice
 from openel_async.logs import get_logger
 from openel_async.motion import AxisGroup, AxisLimits, Tolerances
-from openel_async.rig import ResolvedRig, Rig, load_rig, resolve_rig
 
 from .arm_demo import add_pacing_arguments, check_out_dir, display_path, output_dir, save_snapshot
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the rig package (yaml, msgspec) loads when a rig is: not for --help
+    from openel_async.rig import ResolvedRig, Rig
     from openel_mujoco import MujocoSim
 
 __all__ = [
@@ -197,6 +196,8 @@ def so101_rig(
     naming what is missing), its group ``so101`` taken out for the app's, its MuJoCo buses
     paced as ``realtime`` says (None: as the rig says) and the group's timer at
     ``period_ms`` (None: the rig's)."""
+    from openel_async.rig import load_rig, resolve_rig
+
     resolved = ctx.rig_spec if ctx.rig_spec is not None else resolve_rig(load_rig(RIG))
     spec = resolved.spec
     where = f"rig {Path(spec.source).name}"
@@ -245,6 +246,8 @@ def so101_rig(
         n for n, b in buses.items() if type(b.kind).__module__.startswith("openel_mujoco")
     )
     if realtime is not None:
+        import msgspec  # (loaded with the rig already; not at import: --help)
+
         for name in mujoco:
             pacing = "realtime" if realtime else "lockstep"
             options = msgspec.structs.replace(buses[name].options, pacing=pacing)

@@ -30,6 +30,7 @@ from collections.abc import AsyncIterator, Callable, Mapping
 from contextlib import AbstractAsyncContextManager, AsyncExitStack, asynccontextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import anyio
 import anyio.lowlevel
@@ -52,8 +53,10 @@ from openel_async.clock import NS_PER_S
 from openel_async.device import ActuatorDevice, ErrorId
 from openel_async.errors import BadParameterError
 from openel_async.logs import get_logger
-from openel_async.rig import FaultInjection, ResolvedRig, load_rig, open_rig, resolve_rig
-from openel_async.rig import Rig as OpenedRig
+
+if TYPE_CHECKING:  # the rig package (yaml, msgspec) loads when a rig is: not for --help
+    from openel_async.rig import ResolvedRig
+    from openel_async.rig import Rig as OpenedRig
 
 log = get_logger(__name__)
 
@@ -290,6 +293,8 @@ def file_rig(
 
     @asynccontextmanager
     async def factory(clock: Clock) -> AsyncIterator[Rig]:
+        from openel_async.rig import FaultInjection, ResolvedRig, load_rig, open_rig, resolve_rig
+
         spec = rig if isinstance(rig, ResolvedRig) else resolve_rig(load_rig(rig))
         actuators = [
             c.name for c in spec.spec.components if issubclass(spec.classes[c.name], ActuatorDevice)
@@ -641,6 +646,8 @@ async def main(ctx: AppContext) -> int:
             parser.error("--bus chooses one of the demo's own rigs: not with --rig or --sim")
         if args.virtual and (ctx.sim or (ctx.rig_spec is not None and ctx.rig_spec.buses)):
             parser.error("--virtual needs a rig without buses: buses run in real time")
+        from openel_async.rig import load_rig, resolve_rig
+
         rig = file_rig(ctx.rig_spec or resolve_rig(load_rig(CAN_RIG)), sim=ctx.sim, ctx=ctx)
     else:
         bus = args.bus or "sim"

@@ -22,7 +22,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from operator import le as _le
 from typing import TypeVar, cast
 
-from .actuator import Actuator, StreamBatch, accept_streamed, stream_targets
+from .actuator import Actuator, StreamBatch, accept_streamed, send_targets, stream_targets
 from .completion import Motion
 from .component import LINK_FAULTS, STATE_CHANGES, ComponentState, HALComponent
 from .device import LIMITS_CHANGES
@@ -126,6 +126,7 @@ class ActuatorBank:
         # One device call for the whole batch when the driver offers one (every device of
         # one class); only where the Motions are lazy (devices report completion).
         classes = {type(d) for d in devices}
+        classes_of = list(classes)
         self._batch = (
             classes.pop().batch_commander(devices)
             if len(classes) == 1
@@ -133,16 +134,27 @@ class ActuatorBank:
             and all(a._reports_completion for a in self.actuators)
             else None
         )
+        # The same over devices that need an await (a bus's one write for every drive).
+        self._async_batch = (
+            classes_of[0].async_batch_commander(devices)
+            if len(classes_of) == 1
+            and not self._nowait
+            and all(a._reports_completion for a in self.actuators)
+            else None
+        )
         # The latest batch the device batch commanded, which the actuators settle from
         # lazily (one stamp per batch: only when they share a clock).
         self._streamed = (
             StreamBatch(len(devices), setpoint_events)
-            if self._now_ns is not None and self._batch is not None
+            if self._now_ns is not None
+            and (self._batch is not None or self._async_batch is not None)
             else None
         )
         # The streaming tick checked inline by set_values_nowait: POSITION batches streamed
         # through the device batch, every device supporting POSITION.
-        self._stream_inline = self._streamed is not None and self._positions
+        self._stream_inline = (
+            self._streamed is not None and self._batch is not None and self._positions
+        )
         # The members' batch listener for reads (asked again when LISTENING.changes moved).
         self._read_listen_at = -1
         self._on_read: BatchListener | None = None
@@ -183,8 +195,63 @@ class ActuatorBank:
         if self._nowait:
             self._stream(req, targets)
         else:
-            for actuator, target in zip(self.actuators, targets, strict=True):
-                await actuator._send(req, target, self.setpoint_events)
+            await self._send_awaited(req, targets)
+
+    async def _send_awaited(self, req: Request, targets: Sequence[float]) -> None:
+        """Send validated targets over devices that need an await: one awaited device batch
+        when the driver offers one (``ActuatorDevice.async_batch_commander``) and takes this
+        batch, else one awaited ``command`` per device, all in one coroutine
+        (:func:`~openel_async.streaming.send_targets`)."""
+        batch = self._async_batch
+        streamed = self._streamed
+        now_ns = self._now_ns
+        if (
+            batch is not None
+            and streamed is not None
+            and now_ns is not None
+            and req is not _NO_EXCITE
+        ):
+            actuators = self.actuators
+            if not streamed.intact or req is not streamed.request:
+                # Attached before the await: a member commanded by another path meanwhile
+                # leaves the stream (``intact`` cleared), so its later command stands.
+                streamed.attach(actuators)
+                streamed.request = req
+            active_at = self._active_at
+            stamp = now_ns()
+            try:
+                sent = await batch(req, targets)
+            except LINK_FAULTS:
+                sent = False  # nothing was sent: the per-device path reports the fault
+            if sent:
+                if streamed.intact and active_at == STATE_CHANGES.value:
+                    streamed.accept(actuators, req, targets, stamp, LISTENING.count > 0)
+                else:
+                    self._accept_each(streamed, req, targets, stamp)
+                return
+        await send_targets(self.actuators, req, targets, self.setpoint_events, now_ns)
+
+    def _accept_each(
+        self, streamed: StreamBatch, req: Request, targets: Sequence[float], stamp: int
+    ) -> None:
+        """An awaited device batch's bookkeeping when something changed during the await:
+        a member commanded by another path meanwhile (no longer attached) keeps that later
+        command; the others take the batch's, lazily if still Active, else in full."""
+        lazy: list[Actuator] = []
+        lazy_targets: list[float] = []
+        for actuator, target in zip(self.actuators, targets, strict=True):
+            link = actuator._stream
+            if link is None or link[0] is not streamed:
+                continue  # its own later command stands
+            if actuator.state is _ACTIVE:
+                lazy.append(actuator)
+                lazy_targets.append(target)
+                continue
+            actuator._accept(req, target, actuator._next_sequence(), self.setpoint_events)
+        if lazy:
+            accept_streamed(
+                lazy, req, lazy_targets, stamp, LISTENING.count > 0, self.setpoint_events
+            )
 
     def set_values_nowait(
         self, values: Sequence[float], request: Request | int = Request.POSITION

@@ -64,7 +64,10 @@ STATE_HINTS[S.INITIALIZED] = (
 )
 
 # Observers hear from a component only while it is operating.
-_NOTIFYING = frozenset({ComponentState.ACTIVE, ComponentState.ERROR})
+# The states that notify observers (Active, Error), tested by identity: ``in`` a set would
+# call Enum.__hash__ (Python code) on every event.
+_NOTIFY_ACTIVE = ComponentState.ACTIVE
+_NOTIFY_ERROR = ComponentState.ERROR
 
 # Exceptions of a device call that mean the link or the device failed (-> Error state).
 LINK_FAULTS: tuple[type[BaseException], ...] = (
@@ -431,7 +434,8 @@ class HALComponent:
         return self._observers.stats()
 
     def _publish_event(self, event_id: int) -> None:
-        if self.state in _NOTIFYING:
+        state = self.state
+        if state is _NOTIFY_ACTIVE or state is _NOTIFY_ERROR:
             observers = self._observers
             if "notify_event" in observers.wants_notice:
                 notice = EventNotice(self, event_id)
@@ -443,7 +447,8 @@ class HALComponent:
             self.log.debug("event_dropped", event_id=event_id, state=str(self.state))
 
     def _publish_error(self, error_id: int) -> None:
-        if self.state in _NOTIFYING:
+        state = self.state
+        if state is _NOTIFY_ACTIVE or state is _NOTIFY_ERROR:
             observers = self._observers
             if "notify_error" in observers.wants_notice:
                 notice = ErrorNotice(self, error_id)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, ABCMeta, abstractmethod
-from collections.abc import Callable, Coroutine, Sequence
+from collections.abc import Awaitable, Callable, Coroutine, Sequence
 from dataclasses import dataclass
 from enum import Enum, IntEnum
 from typing import Any, NamedTuple, Protocol
@@ -313,6 +313,33 @@ class ActuatorDevice(Device, metaclass=ActuatorDeviceType):
         ``command_nowait``) is built.  See :class:`BatchCommander` for its contract.
         """
         return None
+
+    @classmethod
+    def async_batch_commander(cls, devices: Sequence[ActuatorDevice]) -> AsyncBatchCommander | None:
+        """A coroutine function commanding several devices of this class at once (a bus's
+        one write for every drive), or None (the default: an
+        :class:`~openel_async.ActuatorBank` or an ``AxisGroup`` then awaits ``command``
+        device by device, one coroutine for the batch).
+
+        Asked once, when a bank over ``devices`` (all of this class, none with a usable
+        ``command_nowait``, all reporting completion) is built.  See
+        :class:`AsyncBatchCommander` for its contract.
+        """
+        return None
+
+
+class AsyncBatchCommander(Protocol):
+    """``await command(request, values[i])`` on device i of a bank, in one coroutine.
+
+    The contract of :class:`BatchCommander`, awaited: all or nothing, False (having
+    commanded none) when it cannot take this batch (the bank then awaits ``command``
+    device by device), a link fault raised only before commanding any device, never
+    ``ctx.target_reached()`` from inside; the values are already validated.  A member that
+    is commanded by another path while the batch is awaited keeps that later command as
+    its latest (the bank records the batch for the others only).
+    """
+
+    def __call__(self, request: Request, values: Sequence[float], /) -> Awaitable[bool]: ...
 
 
 class BatchCommander(Protocol):

@@ -42,6 +42,24 @@ def test_help_imports_none_of_the_heavy_libraries() -> None:
     assert not top.intersection(HEAVY), sorted(top.intersection(HEAVY))
 
 
+def test_an_apps_help_imports_only_what_it_runs_on() -> None:
+    """``openel-async run NAME --help`` imports the app (its parser is built in ``main``) but
+    neither the rig files' libraries (yaml, msgspec), MuJoCo, numpy nor rich: the apps load
+    them when they open a rig or show progress. arm2 is the heaviest (MuJoCo, plots)."""
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "openel_async.cli", "run", "arm2", "--help"],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "usage: openel-async run arm2" in done.stdout
+    imported = set(re.findall(r"^import time:\s+\d+ \|\s+\d+ \| +(\S+)$", done.stderr, re.M))
+    assert "openel_apps.arm_rig" in imported  # (the app was loaded)
+    top = {name.split(".")[0] for name in imported}
+    heavy = set(HEAVY) - {"anyio"}  # the app runs on anyio
+    assert not top.intersection(heavy), sorted(top.intersection(heavy))
+    assert "openel_async.rig" not in imported
+
+
 def test_every_module_logs_through_the_lazy_logger() -> None:
     """``structlog.get_logger`` at module level would import structlog (and rich) with the
     module: every module takes ``openel_async.logs.get_logger`` instead."""

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
 
-from rich.console import Console
-from rich.live import Live
-from rich.text import Text
+if TYPE_CHECKING:  # rich (~0.1 s to import) loads when a line first shows on a terminal
+    from rich.live import Live
+    from rich.text import Text
 
 __all__ = ["LiveLine"]
 
@@ -44,6 +44,8 @@ class LiveLine:
             self.stream.write(text + "\n")
             self.stream.flush()
             return
+        from rich.text import Text
+
         line = Text(text, no_wrap=True, overflow="ellipsis")
         if self._live is None:
             self._live = self._start(line)
@@ -51,6 +53,9 @@ class LiveLine:
             self._live.update(line, refresh=True)
 
     def _start(self, line: Text) -> Live:
+        from rich.console import Console
+        from rich.live import Live
+
         # soft_wrap: a long line printed above is wrapped by the terminal, not broken by rich
         console = Console(file=self.stream, highlight=False, soft_wrap=True)
         # Output to stdout and stderr is printed above the line while it shows -- when that

@@ -12,7 +12,7 @@ import contextlib
 import itertools
 import time
 from collections import deque
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Self
@@ -31,24 +31,27 @@ from ..device import has_nowait
 from ..errors import BadParameterError, HALError, StateError
 from ..requests import Request
 from ..stats import LatenessRecorder, LatenessSummary
-from ..streaming import send_targets
 from ..timer import EventTimer, TimerState
 from ..wakeup import Wakeup
+from .arguments import check_actuators, positions_arg, waypoints_arg
 from .errors import (
-    AxisFaultError,
     AxisStateError,
-    GoalTimeoutError,
     MotionStoppedError,
-    PathToleranceError,
     PreemptedError,
 )
 from .handle import GroupMotion, GroupOutcome
 from .log import TrajectoryLog
+from .outcomes import (
+    axis_failure,
+    goal_timeout,
+    left_active,
+    path_violation,
+    worst_goal_miss,
+)
 from .params import (
     AxisLimits,
     Tolerances,
     Waypoint,
-    finite,
     finite_non_negative,
     finite_positive,
     per_axis,
@@ -110,7 +113,7 @@ class AxisGroup:
         log_actual: bool = False,
         setpoint_events: bool = False,
     ) -> None:
-        axes = _check_actuators(actuators)
+        axes = check_actuators(actuators)
         if not isinstance(timer, EventTimer):
             raise BadParameterError("timer", timer, "an EventTimer")
         if not isinstance(setpoint_events, bool):
@@ -128,8 +131,6 @@ class AxisGroup:
         # Devices read without I/O: the actual positions in one bank read per tick (its
         # listeners hear the batch in one call).
         self._read_now = all(has_nowait(a.device, "read_nowait", "read") for a in axes)
-        # The clock every axis shares (one stamp reader for the awaited batches), if any.
-        self._now_ns = axes[0].clock.now_ns if len({id(a.clock) for a in axes}) == 1 else None
         self.timer = timer
         self._limits: tuple[AxisLimits, ...] = per_axis(limits, n, "limits", AxisLimits)
         self._tolerances: tuple[Tolerances, ...] = per_axis(
@@ -281,7 +282,7 @@ class AxisGroup:
         """
         self._require_open("move_to")
         self._refresh_device_limits()
-        goal = self._positions(targets, "targets")
+        goal = positions_arg(targets, "targets", self.axes, self._planner.bounds)
         axis_limits = self._limits_arg(limits)
         tol = self._tolerances_arg(tolerances)
         goal_time_ns = self._goal_time_arg(goal_time)
@@ -308,7 +309,7 @@ class AxisGroup:
         """
         self._require_open("follow")
         self._refresh_device_limits()
-        points = self._waypoints_arg(waypoints)
+        points = waypoints_arg(waypoints, self.axes, self._planner.bounds)
         axis_limits = self._limits_arg(limits)
         tol = self._tolerances_arg(tolerances)
         goal_time_ns = self._goal_time_arg(goal_time)
@@ -503,9 +504,9 @@ class AxisGroup:
         # One validated batch: every axis Active and every setpoint within its limits
         # before any is sent (else nothing is sent and the motion aborts).
         try:
-            req, targets = self._bank._check("set_values", position, POSITION)
-            # One coroutine for the batch, Motions built only when asked for.
-            await send_targets(self.axes, req, targets, self.setpoint_events, self._now_ns)
+            # One coroutine for the batch (one awaited device batch when the driver offers
+            # one), Motions built only when asked for.
+            await self._bank.set_values(position, POSITION)
         except Exception as exc:
             self._stream_failed(motion, position, exc, t)
             return
@@ -584,25 +585,11 @@ class AxisGroup:
 
     def _axis_left_active(self, motion: GroupMotion, t: int) -> bool:
         """Abort ``motion`` with AxisFaultError if an axis is no longer Active."""
-        axes = self.axes
-        active = S.ACTIVE
-        for i, axis in enumerate(axes):
-            if axis.state is not active:
-                cause = axis.last_fault
-                self._abort(
-                    motion,
-                    AxisFaultError(
-                        f"{self.name}: axis {i} ({axis.device_name}) left Active "
-                        f"({axis.state})" + (f": {cause}" if cause is not None else ""),
-                        axis=i,
-                        axis_name=axis.device_name,
-                        cause=cause,
-                        time_ns=t,
-                    ),
-                    t,
-                )
-                return True
-        return False
+        error = left_active(self.name, self.axes, t)
+        if error is None:
+            return False
+        self._abort(motion, error, t)
+        return True
 
     def _read_failed(self, motion: GroupMotion, exc: Exception, t: int) -> None:
         """The bank's read of the actual positions raised: abort, naming the axis.
@@ -648,67 +635,23 @@ class AxisGroup:
 
     # -- tolerances and outcomes --------------------------------------------------------------
     def _path_violated(self, motion: GroupMotion, actual: list[float], t: int) -> bool:
-        worst: tuple[float, int, float, float] | None = None
-        commanded = self._commanded
-        for i, tol in enumerate(motion._path_tolerance):
-            if tol is None:
-                continue
-            deviation = actual[i] - commanded[i]
-            if abs(deviation) > tol:
-                ratio = abs(deviation) / tol
-                if worst is None or ratio > worst[0]:
-                    worst = (ratio, i, deviation, tol)
-        if worst is None:
+        """Abort ``motion`` with PathToleranceError if an axis is beyond its path tolerance."""
+        error = path_violation(self.name, self.axes, motion, actual, self._commanded, t)
+        if error is None:
             return False
-        _, i, deviation, tol = worst
-        name = self.axes[i].device_name
-        self._abort(
-            motion,
-            PathToleranceError(
-                f"{self.name}: axis {i} ({name}) is {deviation:+.6g} from its setpoint, "
-                f"beyond the path tolerance {tol:g}",
-                axis=i,
-                axis_name=name,
-                deviation=deviation,
-                tolerance=tol,
-                time_ns=t,
-            ),
-            t,
-        )
+        self._abort(motion, error, t)
         return True
 
     def _settle(self, motion: GroupMotion, actual: list[float], t: int) -> None:
-        targets = motion.targets
         self._last_t = t
         self._last_state = None
         self._last_plan = motion._plan
         self.log.append_plan(t, motion.id, motion._plan, actual)
-        worst: tuple[float, int, float, float] | None = None
-        for i, tol in enumerate(motion._goal_tolerance):
-            deviation = actual[i] - targets[i]
-            if abs(deviation) > tol:
-                ratio = abs(deviation) / tol
-                if worst is None or ratio > worst[0]:
-                    worst = (ratio, i, deviation, tol)
+        worst = worst_goal_miss(motion, actual)
         if worst is None:
             self._succeed(motion, t)
         elif t > motion._goal_deadline_ns:
-            _, i, deviation, tol = worst
-            name = self.axes[i].device_name
-            self._abort(
-                motion,
-                GoalTimeoutError(
-                    f"{self.name}: axis {i} ({name}) is still {deviation:+.6g} from its "
-                    f"target {targets[i]:g} (goal tolerance {tol:g}) "
-                    f"{motion._goal_time_ns / NS_PER_S:g} s after the trajectory ended",
-                    axis=i,
-                    axis_name=name,
-                    deviation=deviation,
-                    tolerance=tol,
-                    time_ns=t,
-                ),
-                t,
-            )
+            self._abort(motion, goal_timeout(self.name, self.axes, motion, worst, t), t)
 
     def _axis_failed(self, axis_index: int, exc: Exception, t: int) -> None:
         motion = self._active
@@ -717,18 +660,7 @@ class AxisGroup:
         axis = self.axes[axis_index]
         if not isinstance(exc, HALError):
             self._log.exception("axis_call_failed", axis=axis_index, actuator=axis.device_name)
-        self._abort(
-            motion,
-            AxisFaultError(
-                f"{self.name}: axis {axis_index} ({axis.device_name}) failed: "
-                f"{type(exc).__name__}: {exc}",
-                axis=axis_index,
-                axis_name=axis.device_name,
-                cause=exc,
-                time_ns=t,
-            ),
-            t,
-        )
+        self._abort(motion, axis_failure(self.name, self.axes, axis_index, exc, t), t)
 
     def _succeed(self, motion: GroupMotion, t: int) -> None:
         if self._active is motion:
@@ -866,26 +798,6 @@ class AxisGroup:
         planner.bounds = tuple(a.device.limits.position for a in self.axes)
         planner.velocity_caps = tuple(a.device.limits.velocity for a in self.axes)
 
-    def _positions(self, value: object, name: str) -> list[float]:
-        n = len(self.axes)
-        if isinstance(value, str | bytes) or not isinstance(value, Iterable):
-            raise BadParameterError(name, value, f"a sequence of {n} positions (one per axis)")
-        items = list(value)
-        if len(items) != n:
-            raise BadParameterError(name, value, f"{n} positions (one per axis), not {len(items)}")
-        out: list[float] = []
-        for i, (item, (low, high)) in enumerate(zip(items, self._planner.bounds, strict=True)):
-            position = finite(f"{name}[{i}]", item)
-            if not low <= position <= high:
-                raise BadParameterError(
-                    f"{name}[{i}]",
-                    item,
-                    f"a position in [{low}, {high}] (the limits of axis {i}, "
-                    f"{self.axes[i].device_name})",
-                )
-            out.append(position)
-        return out
-
     def _limits_arg(
         self, limits: AxisLimits | Sequence[AxisLimits] | None
     ) -> tuple[AxisLimits, ...]:
@@ -906,60 +818,6 @@ class AxisGroup:
         )
         return round(seconds * NS_PER_S)
 
-    def _waypoints_arg(self, waypoints: object) -> list[tuple[list[float], float | None]]:
-        if isinstance(waypoints, str | bytes) or not isinstance(waypoints, Sequence):
-            raise BadParameterError("waypoints", waypoints, "a sequence of Waypoint")
-        if not waypoints:
-            raise BadParameterError("waypoints", waypoints, "at least one Waypoint")
-        points: list[tuple[list[float], float | None]] = []
-        last_time = 0.0
-        for i, point in enumerate(waypoints):
-            if not isinstance(point, Waypoint):
-                raise BadParameterError(f"waypoints[{i}]", point, "a Waypoint")
-            positions = self._positions(point.positions, f"waypoints[{i}].positions")
-            at: float | None = None
-            if point.time is not None:
-                at = finite_positive(f"waypoints[{i}].time", point.time)
-                if at <= last_time:
-                    raise BadParameterError(
-                        f"waypoints[{i}].time",
-                        point.time,
-                        f"a time after the previous timed waypoint ({last_time:g} s)",
-                    )
-                last_time = at
-            points.append((positions, at))
-        return points
-
     def __repr__(self) -> str:
         state = "closed" if self._closed else ("open" if self._tg is not None else "new")
         return f"AxisGroup({self.name!r}, axes={len(self.axes)}, {state}, current={self._active})"
-
-
-def _check_actuators(actuators: object) -> tuple[Actuator, ...]:
-    if isinstance(actuators, str | bytes) or not isinstance(actuators, Sequence):
-        raise BadParameterError("actuators", actuators, "a sequence of Actuators")
-    axes = tuple(actuators)
-    if not axes:
-        raise BadParameterError("actuators", actuators, "at least one Actuator")
-    seen: dict[int, int] = {}
-    for i, axis in enumerate(axes):
-        if not isinstance(axis, Actuator):
-            raise BadParameterError(f"actuators[{i}]", axis, "an Actuator")
-        first = seen.setdefault(id(axis), i)
-        if first != i:
-            raise BadParameterError(
-                f"actuators[{i}]",
-                axis.device_name,
-                f"an actuator not already in the group (it is actuators[{first}])",
-            )
-        if axis.state is S.FINALIZED:
-            raise BadParameterError(
-                f"actuators[{i}]", axis.device_name, "an Actuator that is not Finalized"
-            )
-        if POSITION not in axis.device.supported_requests:
-            raise BadParameterError(
-                f"actuators[{i}]",
-                axis.device_name,
-                "an Actuator whose device supports POSITION control",
-            )
-    return axes
