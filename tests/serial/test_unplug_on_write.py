@@ -56,11 +56,15 @@ async def test_a_write_noticing_the_unplug_raises_not_connected_quietly() -> Non
         ):
             await port.ping(1)
             bus.unplug()
-            # Nothing polls (no servo attached) and the reader has not run yet: the ping's
-            # own write is what meets the vanished device (EIO).
+            # Nothing polls (no servo attached): the ping's own write meets the vanished
+            # device (EIO), unless the reader saw it first while the ping took the bus lock
+            # (a loop pass; on a loaded machine the reader's EIO can be ready by then).
             with anyio.fail_after(WAIT_S), pytest.raises(PortDisconnectedError) as info:
                 await port.ping(1)
-            assert "port lost: write failed: [Errno 5]" in str(info.value)
+            message = str(info.value)
+            assert "port lost: write failed: [Errno 5]" in message or message.endswith(
+                "not open"
+            ), message
             assert not port.connected and port.stats.losses == 1
     assert calls == []
 
