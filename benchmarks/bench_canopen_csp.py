@@ -31,9 +31,7 @@ from __future__ import annotations
 import itertools
 import math
 import statistics
-import threading
 import time
-import uuid
 from collections.abc import Sequence
 from contextlib import AsyncExitStack
 from typing import NamedTuple
@@ -49,8 +47,8 @@ from openel_can import cia402 as ds
 from openel_can.busload import frame_time
 from openel_can.cyclic402 import interpolation_period
 from openel_can.od import SHIPPED_EDS
-from openel_can.sim.cia402 import SimCia402Drive
 
+from .csp_peers import CspPeersProcess
 from .harness import BenchResult, Row, interleaved, ratio_of
 
 NAME = "canopen_csp"
@@ -87,59 +85,19 @@ def _target(cycle: int) -> float:
     return 0.5 * math.sin(cycle * 0.005)
 
 
-class _SyncListener:
-    """A python-can thread on the channel recording the SYNC frames' timestamps."""
-
-    def __init__(self, channel: str) -> None:
-        self.bus = can.Bus(interface="virtual", channel=channel)
-        self.stamps: list[float] = []
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="sync-listener", daemon=True)
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            msg = self.bus.recv(0.05)
-            if msg is not None and msg.arbitration_id == 0x080:
-                self.stamps.append(msg.timestamp)
-
-    def __enter__(self) -> _SyncListener:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(2.0)
-        self.bus.shutdown()
-
-    def jitter(self, period_s: float, skip: int) -> tuple[float, float]:
-        stamps = self.stamps[skip:]
-        deviations = sorted(abs(b - a - period_s) for a, b in itertools.pairwise(stamps))
-        if not deviations:
-            raise AssertionError("no SYNC recorded")
-        p99 = deviations[min(len(deviations) - 1, math.ceil(0.99 * len(deviations)) - 1)]
-        return statistics.median(deviations), p99
+def jitter(stamps_ns: Sequence[int], period_s: float) -> tuple[float, float]:
+    """p50 and p99 of |interval - period| between consecutive SYNC stamps (seconds)."""
+    period_ns = period_s * 1e9
+    deviations = sorted(abs(b - a - period_ns) / 1e9 for a, b in itertools.pairwise(stamps_ns))
+    if not deviations:
+        raise AssertionError("no SYNC recorded")
+    p99 = deviations[min(len(deviations) - 1, math.ceil(0.99 * len(deviations)) - 1)]
+    return statistics.median(deviations), p99
 
 
-class _Peers:
-    """The four simulated drives in their own thread and event loop (a blocking portal)."""
-
-    def __init__(self, channel: str) -> None:
-        self.channel = channel
-        self.sims = [SimCia402Drive(n) for n in NODES]
-
-    def __enter__(self) -> _Peers:
-        self._cm = anyio.from_thread.start_blocking_portal(backend="asyncio")
-        self.portal = self._cm.__enter__()
-        self._futures = [self.portal.start_task(s.serve, self.channel)[0] for s in self.sims]
-        return self
-
-    def cpu(self) -> float:
-        return self.portal.call(time.thread_time)
-
-    def __exit__(self, *exc: object) -> None:
-        for future in self._futures:
-            future.cancel()
-        self._cm.__exit__(None, None, None)
+def _measured(stamps_ns: Sequence[int], cycles: int) -> list[int]:
+    """The SYNCs of the measured cycles (after the warm-up)."""
+    return list(stamps_ns[WARMUP_CYCLES : WARMUP_CYCLES + cycles + 1])
 
 
 class _Streamer:
@@ -161,11 +119,9 @@ class _Streamer:
 
 
 def ours(cycles: int, period_ms: float) -> Run:
-    channel = f"bench-csp-{uuid.uuid4().hex[:8]}"
-
-    async def main(peers: _Peers) -> Run:
+    async def main(peers: CspPeersProcess) -> tuple[float, int]:
         async with (
-            CanBus(interface="virtual", channel=channel, name="bench-csp") as bus,
+            CanBus(peers.bus(), name="bench-csp", send_mode="inline", read_mode="loop") as bus,
             AsyncExitStack() as stack,
         ):
             axes = [
@@ -182,25 +138,25 @@ def ours(cycles: int, period_ms: float) -> Run:
             stack.callback(sync.stop)
             streamer = _Streamer(drives, cycles + WARMUP_CYCLES)  # type: ignore[arg-type]
             timer.add_observer(streamer)
-            with _SyncListener(channel) as listener:
-                timer.start_timer()
-                with anyio.fail_after(60):
-                    while streamer.tick < WARMUP_CYCLES:  # noqa: ASYNC110
-                        await anyio.sleep(0.01)
-                cpu0, peer0, missed0 = time.process_time(), peers.cpu(), sync.stats.missed
-                with anyio.fail_after(60):
-                    await streamer.done.wait()
-                cpu, peer = time.process_time() - cpu0, peers.cpu() - peer0
-                missed = sync.stats.missed - missed0
-                timer.stop_timer()
-            p50, p99 = listener.jitter(period_ms / 1000, WARMUP_CYCLES)
+            timer.start_timer()
+            with anyio.fail_after(60):
+                while streamer.tick < WARMUP_CYCLES:  # noqa: ASYNC110
+                    await anyio.sleep(0.01)
+            cpu0, missed0 = time.process_time(), sync.stats.missed
+            with anyio.fail_after(60):
+                await streamer.done.wait()
+            cpu = time.process_time() - cpu0
+            missed = sync.stats.missed - missed0
+            timer.stop_timer()
             for axis in axes:
                 if axis.state.value != "Active":
                     raise AssertionError(f"ours: {axis.device_name} left Active")
-        return Run(p50, p99, (cpu - peer) / cycles, missed, cycles)
+        return cpu, missed
 
-    with _Peers(channel) as peers:
-        return anyio.run(main, peers, backend="asyncio")
+    with CspPeersProcess(NODES) as peers:
+        cpu, missed = anyio.run(main, peers, backend="asyncio")
+    p50, p99 = jitter(_measured(peers.sync_stamps_ns, cycles), period_ms / 1000)
+    return Run(p50, p99, cpu / cycles, missed, cycles)
 
 
 def _configure(network: canopen.Network, node: canopen.RemoteNode, period_ms: float) -> None:
@@ -254,10 +210,9 @@ def _enable(node: canopen.RemoteNode) -> None:
 
 
 def peer(cycles: int, period_ms: float) -> Run:
-    channel = f"bench-csp-{uuid.uuid4().hex[:8]}"
-    with _Peers(channel) as peers:
-        network = canopen.Network()
-        network.connect(interface="virtual", channel=channel)
+    with CspPeersProcess(NODES) as peers:
+        network = canopen.Network(peers.bus())
+        network.connect()
         try:
             nodes = []
             for n in NODES:
@@ -281,37 +236,36 @@ def peer(cycles: int, period_ms: float) -> Run:
             period = period_ms / 1000
             total = cycles + WARMUP_CYCLES
             missed = 0
-            with _SyncListener(channel) as listener:
-                cpu0 = peer0 = 0.0
-                deadline = time.perf_counter()
-                tick = 0
-                while tick < total:
-                    deadline += period
-                    now = time.perf_counter()
-                    if now - deadline >= period:  # skip the whole periods missed
-                        skipped = int((now - deadline) // period)
-                        deadline += skipped * period
-                        if tick >= WARMUP_CYCLES:
-                            missed += skipped
-                    delay = deadline - time.perf_counter()
-                    if delay > 0:
-                        time.sleep(delay)
-                    tick += 1
-                    counts = round(_target(tick) * counts_per_rad)
-                    for target, rpdo in zip(targets, rpdos, strict=True):
-                        target.raw = counts
-                        rpdo.transmit()
-                    network.sync.transmit()
-                    for position in positions:
-                        _ = position.raw
-                    if tick == WARMUP_CYCLES:
-                        cpu0, peer0 = time.process_time(), peers.cpu()
-                cpu, peer_cpu = time.process_time() - cpu0, peers.cpu() - peer0
-                time.sleep(0.05)
-            p50, p99 = listener.jitter(period, WARMUP_CYCLES)
+            cpu0 = 0.0
+            deadline = time.perf_counter()
+            tick = 0
+            while tick < total:
+                deadline += period
+                now = time.perf_counter()
+                if now - deadline >= period:  # skip the whole periods missed
+                    skipped = int((now - deadline) // period)
+                    deadline += skipped * period
+                    if tick >= WARMUP_CYCLES:
+                        missed += skipped
+                delay = deadline - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+                tick += 1
+                counts = round(_target(tick) * counts_per_rad)
+                for target, rpdo in zip(targets, rpdos, strict=True):
+                    target.raw = counts
+                    rpdo.transmit()
+                network.sync.transmit()
+                for position in positions:
+                    _ = position.raw
+                if tick == WARMUP_CYCLES:
+                    cpu0 = time.process_time()
+            cpu = time.process_time() - cpu0
+            time.sleep(0.05)
         finally:
             network.disconnect()
-    return Run(p50, p99, (cpu - peer_cpu) / cycles, missed, cycles)
+    p50, p99 = jitter(_measured(peers.sync_stamps_ns, cycles), period_ms / 1000)
+    return Run(p50, p99, cpu / cycles, missed, cycles)
 
 
 def run(quick: bool) -> BenchResult:
