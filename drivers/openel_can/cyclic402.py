@@ -283,6 +283,8 @@ class Cia402CyclicDrive(Cia402Drive):
         """Stage the set-point for the next SYNC (no I/O; :meth:`CanSync.stage`)."""
         if request is not self.request:
             raise BadParameterError("request", request, f"{self.request.name} (mode {self.mode})")
+        if self._estop_active:
+            raise HALError(f"CiA 402 node {self.node_id}: e-stopped: no set-point until re_init")
         if self._mode is not self.cyclic_mode or not self._enabled_wanted:
             raise StateError(
                 "command", f"node {self.node_id} not enabled in {self.mode}", ["enter_cyclic()"]
@@ -351,6 +353,9 @@ class Cia402CyclicDrive(Cia402Drive):
                 await self.quick_stop()
         except Exception as exc:
             self.log.warning("cia402_quick_stop_after_emcy_failed", error=repr(exc))
+
+    def _on_estop(self) -> None:
+        self.sync_source.unstage(self.rpdo_cob_id)  # a staged Enable operation stays here
 
     def _on_sync_tpdo(self, now: int) -> None:
         self.feedback_cycle = self.sync_source.cycle

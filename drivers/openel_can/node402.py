@@ -143,6 +143,9 @@ ENABLE_OPERATION: Final = int(ds.Command.ENABLE_OPERATION)
 """The controlword Enable operation as a plain int (IntFlag arithmetic is Python code)."""
 TARGET_REACHED: Final = int(SB.TARGET_REACHED)
 """Statusword bit 10 as a plain int."""
+_SWITCHES_ON: Final = 0x07
+"""Controlword bits 0..2 (switch on, enable voltage, quick stop high): Switch on and Enable
+operation have all three; Quick stop, Disable voltage, Shutdown and Fault reset do not."""
 
 
 _PROFILE_REQUESTS: Final = {
@@ -339,6 +342,9 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
         """The target each mode's RPDO carries with the next controlword."""
         self._pending: Setpoint | None = None
         self._enabled_wanted = False
+        self._estop_active = False
+        """Set by :meth:`estop`, cleared by ``init``/``re_init``: while set no controlword
+        that switches the drive on or enables it is sent (:meth:`_send_rpdo`)."""
         self._engaged = False
         self._latched = False
         self._needs_config = True
@@ -403,6 +409,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
     async def init(self) -> None:
         self.left_safe = False
         self._latched = False
+        self._estop_active = False
         self._heartbeat_error = False
         await self._enable()
         self._heartbeat_ns = self._now()
@@ -414,6 +421,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
         self._latched = False
         self._heartbeat_error = False
         self._pending = None
+        self._estop_active = False  # re_init is the way back from an e-stop
         await self.bus.wait_up(self.state_timeout)
         # The node answers (an SDO timeout here means it is still gone).
         self._set_statusword(
@@ -643,6 +651,13 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
 
     async def _send_rpdo(self, mode: Mode, controlword: int, target: int) -> None:
         assert self._port is not None
+        if self._estop_active and controlword & _SWITCHES_ON == _SWITCHES_ON:
+            # A command already on its way when the e-stop came (its steps are awaited one
+            # at a time): its later controlwords must not enable the drive again.
+            raise HALError(
+                f"CiA 402 node {self.node_id}: e-stopped: controlword {controlword:#06x} "
+                "refused until re_init"
+            )
         layout = self.layout
         if layout is not None:
             rpdo = layout.rpdo_of_mode.get(mode)
