@@ -15,6 +15,7 @@ its GIL). :class:`CspPeersProcess` starts it.
 from __future__ import annotations
 
 import logging
+import os
 import select
 import socket
 import struct
@@ -40,6 +41,7 @@ SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
 _TIMESPEC = struct.Struct("@ll")
 _CMSG_SPACE = socket.CMSG_SPACE(_TIMESPEC.size)
 START_TIMEOUT_S = 20.0
+SEND_BUFFER = 8 << 20
 
 
 class _StampingBus(SocketPairBus):
@@ -118,6 +120,16 @@ def main(argv: Sequence[str] | None = None) -> None:
     anyio.run(serve, fd, drives, backend="asyncio")
 
 
+def _grow_send_buffer(sock: socket.socket, size: int = SEND_BUFFER) -> None:
+    """A datagram costs ~1 KiB of the sender's buffer (the default, ~200 KiB, holds ~270
+    frames): beyond the system limit where the process may (SO_SNDBUFFORCE)."""
+    force = getattr(socket, "SO_SNDBUFFORCE", 32)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, force, size)
+    except OSError:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, size)
+
+
 class CspPeersProcess:
     """``with CspPeersProcess(nodes) as peers:`` the drives in a child process;
     ``peers.bus()`` is a python-can bus on the master's end of the socket pair (one only);
@@ -129,6 +141,19 @@ class CspPeersProcess:
         self.sync_stamps_ns: list[int] = []
         self.cpu_s = 0.0
         self._sock: socket.socket | None = None
+        self._affinity: set[int] = set()
+
+    def _pin(self, child: int) -> None:
+        """The drives on the last CPU, this process (the master) on the others: the drives
+        are other devices on a real bus, and a drive process woken by every frame the master
+        sends would otherwise be scheduled on the master's CPU (the kernel places a wakee
+        near its waker) and take it from the master mid-cycle. Undone at exit."""
+        cpus = sorted(os.sched_getaffinity(0))
+        self._affinity = set(cpus)
+        if len(cpus) < 2:
+            return
+        os.sched_setaffinity(child, {cpus[-1]})
+        os.sched_setaffinity(0, set(cpus[:-1]))
 
     def bus(self) -> SocketPairBus:
         assert self._sock is not None, "enter the CspPeersProcess first"
@@ -136,6 +161,8 @@ class CspPeersProcess:
 
     def __enter__(self) -> CspPeersProcess:
         host, peer = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        for sock in (host, peer):  # room for a burst while the other side is descheduled
+            _grow_send_buffer(sock)
         try:
             proc = self.process = subprocess.Popen(
                 [
@@ -153,6 +180,7 @@ class CspPeersProcess:
         finally:
             peer.close()
         self._sock = host
+        self._pin(proc.pid)
         assert proc.stdout is not None
         ready, _, _ = select.select([proc.stdout], [], [], START_TIMEOUT_S)
         line = proc.stdout.readline().strip() if ready else ""
@@ -170,6 +198,8 @@ class CspPeersProcess:
         proc, self.process = self.process, None
         if proc is None:
             return
+        if self._affinity:
+            os.sched_setaffinity(0, self._affinity)
         assert proc.stdin is not None and proc.stdout is not None
         proc.stdin.close()
         ready, _, _ = select.select([proc.stdout], [], [], START_TIMEOUT_S)

@@ -316,6 +316,8 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
         self.pdo_values: dict[str, int] = {}
         """TPDO objects the driver does not follow itself, by name (with :attr:`layout`)."""
         self._seen_ns: dict[int, int] = {}
+        self._tpdo_plans: dict[int, Any] = {}
+        """Per TPDO COB-ID, where it carries the followed objects (node402_pdos)."""
         """When each TPDO object (by index) last arrived (with :attr:`layout`)."""
         self._status_pdo_ns: int | None = None
         """When a statusword last arrived by PDO (with :attr:`layout`)."""
