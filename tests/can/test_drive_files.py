@@ -43,11 +43,12 @@ async def _csp_move(axis: Actuator, bus: CanBus, sim: SimCia402Drive, target: fl
         try:
             timer.start_timer()
             await axis.set_value(target)
-            await wait_until(lambda: abs(sim.position - target * CPR / math.tau) < 2)
+            counts = round(target * CPR / math.tau)
+            await wait_until(lambda: abs(sim.position - counts) < 0.5)  # there, not on the way
             drive = axis.device
             assert isinstance(drive, Cia402CyclicDrive)
             await wait_until(lambda: drive.feedback_cycle >= sync.cycle - 1)
-            await wait_until(lambda: abs(drive._position - sim.position) < 2)
+            await wait_until(lambda: abs(drive._position - sim.position) < 1)
             position = await axis.get_value(Request.POSITION_ACTUAL)
             assert position == pytest.approx(target, abs=1e-3)
         finally:
