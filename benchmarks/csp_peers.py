@@ -42,6 +42,8 @@ _TIMESPEC = struct.Struct("@ll")
 _CMSG_SPACE = socket.CMSG_SPACE(_TIMESPEC.size)
 START_TIMEOUT_S = 20.0
 SEND_BUFFER = 8 << 20
+REALTIME_PRIORITY = 10
+"""SCHED_FIFO priority of the master process during a round (when permitted)."""
 
 
 class _StampingBus(SocketPairBus):
@@ -130,6 +132,17 @@ def _grow_send_buffer(sock: socket.socket, size: int = SEND_BUFFER) -> None:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, size)
 
 
+def realtime_permitted() -> bool:
+    """This process may run at SCHED_FIFO (tried and undone)."""
+    try:
+        old = os.sched_getscheduler(0), os.sched_getparam(0)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(REALTIME_PRIORITY))
+        os.sched_setscheduler(0, old[0], old[1])
+    except (OSError, AttributeError):
+        return False
+    return True
+
+
 class CspPeersProcess:
     """``with CspPeersProcess(nodes) as peers:`` the drives in a child process;
     ``peers.bus()`` is a python-can bus on the master's end of the socket pair (one only);
@@ -142,18 +155,27 @@ class CspPeersProcess:
         self.cpu_s = 0.0
         self._sock: socket.socket | None = None
         self._affinity: set[int] = set()
+        self._realtime = False
 
     def _pin(self, child: int) -> None:
-        """The drives on the last CPU, this process (the master) on the others: the drives
+        """The drives on the last CPU, this process (the master) on the others, at
+        real-time priority (when permitted; :attr:`realtime` says): the drives
         are other devices on a real bus, and a drive process woken by every frame the master
         sends would otherwise be scheduled on the master's CPU (the kernel places a wakee
         near its waker) and take it from the master mid-cycle. Undone at exit."""
         cpus = sorted(os.sched_getaffinity(0))
         self._affinity = set(cpus)
-        if len(cpus) < 2:
-            return
-        os.sched_setaffinity(child, {cpus[-1]})
-        os.sched_setaffinity(0, set(cpus[:-1]))
+        if len(cpus) >= 2:
+            os.sched_setaffinity(child, {cpus[-1]})
+            os.sched_setaffinity(0, set(cpus[:-1]))
+        # The master (this thread, and the threads it starts from now on: canopen-py's
+        # notifier) at real-time priority, as a CANopen master on Linux runs: its wake-ups
+        # then do not wait behind the other work of a shared machine (both masters alike).
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(REALTIME_PRIORITY))
+            self._realtime = True
+        except (OSError, AttributeError):  # not permitted: measured at normal priority
+            self._realtime = False
 
     def bus(self) -> SocketPairBus:
         assert self._sock is not None, "enter the CspPeersProcess first"
@@ -200,6 +222,8 @@ class CspPeersProcess:
             return
         if self._affinity:
             os.sched_setaffinity(0, self._affinity)
+        if self._realtime:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
         assert proc.stdin is not None and proc.stdout is not None
         proc.stdin.close()
         ready, _, _ = select.select([proc.stdout], [], [], START_TIMEOUT_S)
