@@ -4,7 +4,7 @@ of :class:`~openel_can.node402.Cia402Node` (see its module docstring)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final
 
 import anyio
@@ -15,6 +15,7 @@ from openel_async.safety import ExitAction
 
 from . import canopen as co
 from . import cia402 as ds
+from .node402_power import PowerStateMachine
 
 if TYPE_CHECKING:
     from .bus import CanBus
@@ -36,8 +37,9 @@ WATCHDOG_FEED_FRACTION: Final = 4
 """The host heartbeat period is ``timeout / WATCHDOG_FEED_FRACTION``."""
 
 
-class NodeSafety:
-    """Mixin: the host heartbeat the drive watches, e-stop and the exit states."""
+class NodeSafety(PowerStateMachine):
+    """Mixin: the host heartbeat the drive watches, e-stop and the exit states (on the
+    power state machine's controlword path)."""
 
     bus: CanBus
     node_id: int
@@ -52,7 +54,6 @@ class NodeSafety:
     _enabled_wanted: bool
     _estop_active: bool
     _pending: object | None
-    _send_control: Callable[[int], Awaitable[None]]
     _fault: Callable[..., None]
 
     # -- heartbeat watchdog ---------------------------------------------------------------
