@@ -1,29 +1,45 @@
 """Four CiA 402 axes in cyclic synchronous position (CSP) at the fastest cycle the bus allows:
 our stack (EventTimer + CanSync + ``Cia402Drive(mode="csp", eds=...)``) vs canopen-py doing
-the same cycle with its own PDO and SYNC API in a thread; the same simulated drives on the
-same python-can ``virtual`` channel.
+the same cycle with its own PDO and SYNC API in a thread, against the same simulated drives
+in a child process.
 
 The cycle is the wire limit at 1 Mbit/s (``openel_can.busload``): four RPDOs (controlword +
 target position, 6 bytes), four synchronous TPDO1s (statusword + position + torque, 8 bytes)
 and the SYNC, worst-case bit stuffing, rounded up to 0.1 ms.
 
+* **The drives**: four ``SimCia402Drive`` peers in a child process
+  (``benchmarks.csp_peers``), reached through an ``AF_UNIX``/``SOCK_SEQPACKET`` socket pair
+  carrying one CAN frame per datagram (python-can bus ``benchmarks.can_peers.SocketPairBus``:
+  a non-blocking ``send`` per frame, ``recv`` per frame, as ``socketcan`` does). The child
+  is pinned to the machine's last CPU and the master to the others (on a real bus the drives
+  are other devices; without it the kernel schedules the drives, woken by each frame the
+  master sends, on the master's CPU in the middle of its cycle). Their CPU time and their
+  GIL are not the master's. The master process runs at real-time priority (``SCHED_FIFO``
+  10, its threads too: canopen-py's notifier) when permitted, as a CANopen master on Linux
+  runs: on a machine shared with other work its wake-ups would otherwise wait behind that
+  work for whole scheduler ticks (4 ms), whichever stack it is.
 * **Ours**: four ``Actuator(Cia402Drive(bus, n, mode="csp", eds=SHIPPED_EDS))`` (configured
-  from the EDS by SDO, ``default_pdos("csp")``), an ``EventTimer`` at the cycle,
-  ``CanSync.of(bus).start(timer)``, and a timer observer staging a new target for every
-  drive each tick (``command_nowait``, what an ``AxisGroup`` does without its planning):
-  the next tick sends the four RPDOs, then SYNC.
-* **canopen-py**: four ``RemoteNode``\\ s from the same EDS, mapped with its ``pdo``
-  tooling exactly as ours maps them, CSP selected and enabled by RPDO; a thread runs the
-  cycle on ``time.perf_counter`` deadlines (a deadline it missed by a whole period is
-  skipped, as our timer does): each axis's ``rpdo["Target position"].raw = x`` and
-  ``rpdo.transmit()``, then ``network.sync.transmit()``, and each axis's position read from
-  its TPDO1 (``tpdo["Position actual value"].raw``, decoded by canopen's notifier thread).
+  from the EDS by SDO, ``default_pdos("csp")``) on a ``CanBus`` reading the socket in the
+  event loop (``read_mode="loop"``, what ``socketcan`` gets by default), an ``EventTimer``
+  at the cycle, ``CanSync.of(bus).start(timer)``, and a timer observer staging a new target
+  for every drive each tick (``command_nowait``, what an ``AxisGroup`` does without its
+  planning): the next tick sends the four RPDOs, then SYNC.
+* **canopen-py**: ``canopen.Network(bus)`` on the same kind of socket pair, four
+  ``RemoteNode`` objects from the same EDS, mapped with its ``pdo`` tooling exactly as ours maps
+  them, CSP selected and enabled by RPDO; a thread runs the cycle on ``time.perf_counter``
+  deadlines (a deadline it missed by a whole period is skipped, as our timer does): each
+  axis's ``rpdo["Target position"].raw = x`` and ``rpdo.transmit()``, then
+  ``network.sync.transmit()``, and each axis's position read from its TPDO1
+  (``tpdo["Position actual value"].raw``, decoded by canopen's notifier thread).
 
-Figures: the SYNC period jitter, |interval - cycle| between consecutive SYNC frames as a
-listener on the channel timestamps them (python-can's ``virtual`` stamps a frame when it is
-sent), p50 and p99; the host CPU per cycle, the process's CPU time minus the CPU of the
-simulated drives' thread, divided by the cycles; the cycles missed. Median of the
-interleaved rounds (ours, canopen-py, ours, ...).
+Figures: the SYNC period jitter, |interval - cycle| between consecutive SYNC frames on the
+wire -- each SYNC stamped by the kernel when the master's ``send`` queued it on the socket
+(``SO_TIMESTAMPNS`` on the drives' end, as a socketcan adapter stamps frames), whatever the
+drives' process was doing -- p50 and p99; a missed cycle (a tick skipped because the master
+woke a whole period late) is an interval of two periods, a deviation of one period. The host
+CPU per cycle: the master process's own CPU time (``time.process_time``: every thread of it,
+nothing of the drives) over the measured cycles, divided by them. The cycles missed. Median
+of the interleaved rounds (ours, canopen-py, ours, ...).
 """
 
 from __future__ import annotations
@@ -31,9 +47,7 @@ from __future__ import annotations
 import itertools
 import math
 import statistics
-import threading
 import time
-import uuid
 from collections.abc import Sequence
 from contextlib import AsyncExitStack
 from typing import NamedTuple
@@ -49,8 +63,8 @@ from openel_can import cia402 as ds
 from openel_can.busload import frame_time
 from openel_can.cyclic402 import interpolation_period
 from openel_can.od import SHIPPED_EDS
-from openel_can.sim.cia402 import SimCia402Drive
 
+from .csp_peers import CspPeersProcess, realtime_permitted
 from .harness import BenchResult, Row, interleaved, ratio_of
 
 NAME = "canopen_csp"
@@ -87,59 +101,19 @@ def _target(cycle: int) -> float:
     return 0.5 * math.sin(cycle * 0.005)
 
 
-class _SyncListener:
-    """A python-can thread on the channel recording the SYNC frames' timestamps."""
-
-    def __init__(self, channel: str) -> None:
-        self.bus = can.Bus(interface="virtual", channel=channel)
-        self.stamps: list[float] = []
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="sync-listener", daemon=True)
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            msg = self.bus.recv(0.05)
-            if msg is not None and msg.arbitration_id == 0x080:
-                self.stamps.append(msg.timestamp)
-
-    def __enter__(self) -> _SyncListener:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(2.0)
-        self.bus.shutdown()
-
-    def jitter(self, period_s: float, skip: int) -> tuple[float, float]:
-        stamps = self.stamps[skip:]
-        deviations = sorted(abs(b - a - period_s) for a, b in itertools.pairwise(stamps))
-        if not deviations:
-            raise AssertionError("no SYNC recorded")
-        p99 = deviations[min(len(deviations) - 1, math.ceil(0.99 * len(deviations)) - 1)]
-        return statistics.median(deviations), p99
+def jitter(stamps_ns: Sequence[int], period_s: float) -> tuple[float, float]:
+    """p50 and p99 of |interval - period| between consecutive SYNC stamps (seconds)."""
+    period_ns = period_s * 1e9
+    deviations = sorted(abs(b - a - period_ns) / 1e9 for a, b in itertools.pairwise(stamps_ns))
+    if not deviations:
+        raise AssertionError("no SYNC recorded")
+    p99 = deviations[min(len(deviations) - 1, math.ceil(0.99 * len(deviations)) - 1)]
+    return statistics.median(deviations), p99
 
 
-class _Peers:
-    """The four simulated drives in their own thread and event loop (a blocking portal)."""
-
-    def __init__(self, channel: str) -> None:
-        self.channel = channel
-        self.sims = [SimCia402Drive(n) for n in NODES]
-
-    def __enter__(self) -> _Peers:
-        self._cm = anyio.from_thread.start_blocking_portal(backend="asyncio")
-        self.portal = self._cm.__enter__()
-        self._futures = [self.portal.start_task(s.serve, self.channel)[0] for s in self.sims]
-        return self
-
-    def cpu(self) -> float:
-        return self.portal.call(time.thread_time)
-
-    def __exit__(self, *exc: object) -> None:
-        for future in self._futures:
-            future.cancel()
-        self._cm.__exit__(None, None, None)
+def _measured(stamps_ns: Sequence[int], cycles: int) -> list[int]:
+    """The SYNCs of the measured cycles (after the warm-up)."""
+    return list(stamps_ns[WARMUP_CYCLES : WARMUP_CYCLES + cycles + 1])
 
 
 class _Streamer:
@@ -161,11 +135,9 @@ class _Streamer:
 
 
 def ours(cycles: int, period_ms: float) -> Run:
-    channel = f"bench-csp-{uuid.uuid4().hex[:8]}"
-
-    async def main(peers: _Peers) -> Run:
+    async def main(peers: CspPeersProcess) -> tuple[float, int]:
         async with (
-            CanBus(interface="virtual", channel=channel, name="bench-csp") as bus,
+            CanBus(peers.bus(), name="bench-csp", send_mode="inline", read_mode="loop") as bus,
             AsyncExitStack() as stack,
         ):
             axes = [
@@ -182,25 +154,25 @@ def ours(cycles: int, period_ms: float) -> Run:
             stack.callback(sync.stop)
             streamer = _Streamer(drives, cycles + WARMUP_CYCLES)  # type: ignore[arg-type]
             timer.add_observer(streamer)
-            with _SyncListener(channel) as listener:
-                timer.start_timer()
-                with anyio.fail_after(60):
-                    while streamer.tick < WARMUP_CYCLES:  # noqa: ASYNC110
-                        await anyio.sleep(0.01)
-                cpu0, peer0, missed0 = time.process_time(), peers.cpu(), sync.stats.missed
-                with anyio.fail_after(60):
-                    await streamer.done.wait()
-                cpu, peer = time.process_time() - cpu0, peers.cpu() - peer0
-                missed = sync.stats.missed - missed0
-                timer.stop_timer()
-            p50, p99 = listener.jitter(period_ms / 1000, WARMUP_CYCLES)
+            timer.start_timer()
+            with anyio.fail_after(60):
+                while streamer.tick < WARMUP_CYCLES:  # noqa: ASYNC110
+                    await anyio.sleep(0.01)
+            cpu0, missed0 = time.process_time(), sync.stats.missed
+            with anyio.fail_after(60):
+                await streamer.done.wait()
+            cpu = time.process_time() - cpu0
+            missed = sync.stats.missed - missed0
+            timer.stop_timer()
             for axis in axes:
                 if axis.state.value != "Active":
                     raise AssertionError(f"ours: {axis.device_name} left Active")
-        return Run(p50, p99, (cpu - peer) / cycles, missed, cycles)
+        return cpu, missed
 
-    with _Peers(channel) as peers:
-        return anyio.run(main, peers, backend="asyncio")
+    with CspPeersProcess(NODES) as peers:
+        cpu, missed = anyio.run(main, peers, backend="asyncio")
+    p50, p99 = jitter(_measured(peers.sync_stamps_ns, cycles), period_ms / 1000)
+    return Run(p50, p99, cpu / cycles, missed, cycles)
 
 
 def _configure(network: canopen.Network, node: canopen.RemoteNode, period_ms: float) -> None:
@@ -254,10 +226,9 @@ def _enable(node: canopen.RemoteNode) -> None:
 
 
 def peer(cycles: int, period_ms: float) -> Run:
-    channel = f"bench-csp-{uuid.uuid4().hex[:8]}"
-    with _Peers(channel) as peers:
-        network = canopen.Network()
-        network.connect(interface="virtual", channel=channel)
+    with CspPeersProcess(NODES) as peers:
+        network = canopen.Network(peers.bus())
+        network.connect()
         try:
             nodes = []
             for n in NODES:
@@ -281,37 +252,36 @@ def peer(cycles: int, period_ms: float) -> Run:
             period = period_ms / 1000
             total = cycles + WARMUP_CYCLES
             missed = 0
-            with _SyncListener(channel) as listener:
-                cpu0 = peer0 = 0.0
-                deadline = time.perf_counter()
-                tick = 0
-                while tick < total:
-                    deadline += period
-                    now = time.perf_counter()
-                    if now - deadline >= period:  # skip the whole periods missed
-                        skipped = int((now - deadline) // period)
-                        deadline += skipped * period
-                        if tick >= WARMUP_CYCLES:
-                            missed += skipped
-                    delay = deadline - time.perf_counter()
-                    if delay > 0:
-                        time.sleep(delay)
-                    tick += 1
-                    counts = round(_target(tick) * counts_per_rad)
-                    for target, rpdo in zip(targets, rpdos, strict=True):
-                        target.raw = counts
-                        rpdo.transmit()
-                    network.sync.transmit()
-                    for position in positions:
-                        _ = position.raw
-                    if tick == WARMUP_CYCLES:
-                        cpu0, peer0 = time.process_time(), peers.cpu()
-                cpu, peer_cpu = time.process_time() - cpu0, peers.cpu() - peer0
-                time.sleep(0.05)
-            p50, p99 = listener.jitter(period, WARMUP_CYCLES)
+            cpu0 = 0.0
+            deadline = time.perf_counter()
+            tick = 0
+            while tick < total:
+                deadline += period
+                now = time.perf_counter()
+                if now - deadline >= period:  # skip the whole periods missed
+                    skipped = int((now - deadline) // period)
+                    deadline += skipped * period
+                    if tick >= WARMUP_CYCLES:
+                        missed += skipped
+                delay = deadline - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+                tick += 1
+                counts = round(_target(tick) * counts_per_rad)
+                for target, rpdo in zip(targets, rpdos, strict=True):
+                    target.raw = counts
+                    rpdo.transmit()
+                network.sync.transmit()
+                for position in positions:
+                    _ = position.raw
+                if tick == WARMUP_CYCLES:
+                    cpu0 = time.process_time()
+            cpu = time.process_time() - cpu0
+            time.sleep(0.05)
         finally:
             network.disconnect()
-    return Run(p50, p99, (cpu - peer_cpu) / cycles, missed, cycles)
+    p50, p99 = jitter(_measured(peers.sync_stamps_ns, cycles), period_ms / 1000)
+    return Run(p50, p99, cpu / cycles, missed, cycles)
 
 
 def run(quick: bool) -> BenchResult:
@@ -342,10 +312,19 @@ def run(quick: bool) -> BenchResult:
             digits=0,
         )
 
+    missed = Row(
+        "missed cycles (median of the rounds)",
+        median(mine, "missed"),
+        "cycles",
+        baseline=median(theirs, "missed"),
+        baseline_label="canopen-py",
+        digits=0,
+    )
     rows = (
         row("SYNC period jitter p50", "jitter_p50", None),
         row("SYNC period jitter p99", "jitter_p99", TARGET_JITTER),
         row("host CPU per cycle (4 RPDO + SYNC + 4 TPDO)", "cpu", TARGET_CPU),
+        missed,
     )
 
     def each(runs: list[Run]) -> str:
@@ -358,9 +337,14 @@ def run(quick: bool) -> BenchResult:
         f"Cycle {period_ms:g} ms: the wire limit of four CSP axes at 1 Mbit/s (worst case); "
         f"{rounds} interleaved round(s) of {cycles:,} cycles after {WARMUP_CYCLES} warm-up "
         f"cycles. Ours: {each(mine)}. canopen-py: {each(theirs)}.",
-        "Host CPU: the process's CPU time minus the simulated drives' thread, per cycle "
-        "(ours: the event loop, reading the `virtual` bus in the loop; canopen-py: its cycle "
-        "thread and its notifier thread). The drives share the machine's cores and the GIL.",
+        "Host CPU: the master process's CPU time per cycle (ours: the event loop, which also "
+        "reads the socket; canopen-py: its cycle thread and its notifier thread). The drives "
+        "run in a child process pinned to the last CPU, the master on the other(s)"
+        + (
+            ", at SCHED_FIFO priority."
+            if realtime_permitted()
+            else " (real-time priority not permitted here: normal priority)."
+        ),
     )
     return BenchResult(
         name=NAME,
@@ -372,7 +356,7 @@ def run(quick: bool) -> BenchResult:
             "axes": str(len(NODES)),
             "cycle": f"{period_ms:g} ms",
             "cycles": f"{cycles:,}",
-            "interface": "virtual",
+            "interface": "socket pair to a child process (one frame a datagram)",
             "canopen": canopen.__version__,
             "python-can": can.__version__,
         },

@@ -6,14 +6,18 @@ kvaser, virtual ...) and runs, in its own task group:
 * **one reader** per bus, handing frames to the event loop, where they are dispatched
   by arbitration id to every :class:`NodePort` registered for that id (one bounded
   memory object stream per port: a full port drops the batch and counts it, the reader
-  never waits for a slow node; or a port ``handler`` called in the loop). Two forms:
+  never waits for a slow node; or a port ``handler`` called in the loop). Three forms:
 
   - python-can ``virtual`` (the simulations and tests): no thread. The bus's receive
     queue is hooked (:mod:`openel_can.virtual_rx`) so that a frame put on it, from any
     thread, schedules one drain in the loop (``call_soon_threadsafe``), which takes
     every queued frame under one lock and dispatches them as one batch; an idle check
     every ``poll_interval`` notices a bus shut down under it.
-  - any other interface: **one reader thread** per bus object (started on entry and
+  - ``socketcan`` (and any bus with a ``fileno()`` given ``read_mode="loop"``): no thread
+    either. The socket is watched by the event loop (``loop.add_reader``); when it is
+    readable the loop takes every queued frame with non-blocking ``recv(0)`` (up to
+    ``max_batch``) and dispatches them as one batch; the same idle check.
+  - any other interface (or ``read_mode="thread"``): **one reader thread** per bus object (started on entry and
     after each reopen, joined on exit), looping on a blocking ``recv`` of at most
     ``poll_interval`` for the first frame, then non-blocking ``recv(0)`` for whatever
     else is queued (up to ``max_batch``), and handing each batch to the loop with
@@ -84,12 +88,15 @@ from openel_async.logs import get_logger
 
 from .virtual_rx import WakingQueue, hook_virtual_bus
 
-__all__ = ["BusState", "BusStats", "CanBus", "NodePort", "SendMode", "TxMessage"]
+__all__ = ["BusState", "BusStats", "CanBus", "NodePort", "ReadMode", "SendMode", "TxMessage"]
 
 log = get_logger(__name__)
 
 _T = TypeVar("_T")
 SendMode = Literal["auto", "inline", "thread"]
+ReadMode = Literal["auto", "loop", "thread"]
+#: Interfaces read in the event loop through their ``fileno()`` by ``read_mode="auto"``.
+FD_READ_BUSES: Final = frozenset({"SocketcanBus"})
 #: Interfaces whose ``send(msg, timeout=0)`` returns at once (see the module docstring).
 NONBLOCKING_SEND_BUSES: Final = frozenset({"VirtualBus", "SocketcanBus"})
 EXTENDED_FLAG: Final = 1 << 31
@@ -342,6 +349,7 @@ class CanBus:
         port_queue_size: int = 64,
         tx_queue_size: int = 256,
         send_mode: SendMode = "auto",
+        read_mode: ReadMode = "auto",
         send_timeout: float = 0.2,
         poll_interval: float = 0.05,
         max_batch: int = 512,
@@ -372,6 +380,8 @@ class CanBus:
             raise BadParameterError("sync_period", sync_period, "None or seconds > 0")
         if send_mode not in ("auto", "inline", "thread"):
             raise BadParameterError("send_mode", send_mode, "'auto', 'inline' or 'thread'")
+        if read_mode not in ("auto", "loop", "thread"):
+            raise BadParameterError("read_mode", read_mode, "'auto', 'loop' or 'thread'")
         if bus_kwargs:
             kwargs = dict(bus_kwargs)
 
@@ -387,6 +397,7 @@ class CanBus:
         self.port_queue_size = port_queue_size
         self.tx_queue_size = tx_queue_size
         self.send_mode: SendMode = send_mode
+        self.read_mode: ReadMode = read_mode
         self.send_timeout = send_timeout
         self.poll_interval = poll_interval
         self.max_batch = max_batch
@@ -433,7 +444,8 @@ class CanBus:
         self.reader_threads = 0
         """Reader threads started (one per bus object: a reopen starts a new one)."""
         self.reads_in_loop = 0
-        """Bus objects read in the event loop without a thread (python-can ``virtual``)."""
+        """Bus objects read in the event loop without a thread (python-can ``virtual``, or
+        through their ``fileno()``: ``socketcan``, ``read_mode="loop"``)."""
         self._virtual_rx: WakingQueue | None = None
         self._virtual_wake_pending = False
         self._virtual_failed: anyio.Event | None = None
@@ -859,7 +871,12 @@ class CanBus:
                 await self._recover()
             bus = self._bus
             assert bus is not None
-            if (reason := await self._run_in_loop(bus, started)) is None:
+            reason = None
+            if self.read_mode != "thread":
+                reason = await self._run_in_loop(bus, started)
+                if reason is None and self._reads_fd(bus):
+                    reason = await self._run_fd_in_loop(bus, started)
+            if reason is None:
                 reason = await self._run_reader_thread(bus, started)
             started = anyio.TASK_STATUS_IGNORED
             self._drain_rx()  # frames read before the failure go out first
@@ -889,6 +906,60 @@ class CanBus:
             self._virtual_rx = None
             rx.unhook()
         return self._virtual_failure
+
+    # socketcan (read_mode "auto"), any bus with a file descriptor (read_mode "loop").
+    def _reads_fd(self, bus: can.BusABC) -> bool:
+        if self.read_mode == "auto" and type(bus).__name__ not in FD_READ_BUSES:
+            return False
+        try:
+            return bus.fileno() >= 0
+        except (NotImplementedError, OSError, ValueError):
+            return False
+
+    async def _run_fd_in_loop(
+        self, bus: can.BusABC, task_status: anyio.abc.TaskStatus[None]
+    ) -> str:
+        """Read ``bus`` in the loop when its descriptor is readable, until it fails."""
+        loop = self._loop
+        assert loop is not None
+        failed = anyio.Event()
+        outcome: list[str] = []
+        fd = bus.fileno()
+
+        def drain() -> None:
+            if failed.is_set():
+                return
+            frames: list[can.Message] = []
+            recv = bus.recv
+            limit = self.max_batch
+            try:
+                while len(frames) < limit:
+                    msg = recv(0.0)
+                    if msg is None:
+                        break
+                    frames.append(msg)
+                else:
+                    loop.call_soon(drain)  # more queued: let other tasks run first
+            except Exception as exc:
+                outcome.append(f"receive failed: {exc!r}")
+                failed.set()
+                with contextlib.suppress(Exception):
+                    loop.remove_reader(fd)
+            if frames:
+                self._dispatch(frames)
+
+        loop.add_reader(fd, drain)
+        self.reads_in_loop += 1
+        task_status.started()
+        try:
+            while not failed.is_set():
+                with anyio.move_on_after(self.poll_interval):
+                    await failed.wait()
+                drain()  # idle check: a bus shut down under us raises on recv
+        finally:
+            with contextlib.suppress(Exception):  # the descriptor may be closed already
+                loop.remove_reader(fd)
+        return outcome[0]
 
     def _wake_virtual(self) -> None:
         """Any thread (a frame was put on the bus's queue): schedule one drain."""

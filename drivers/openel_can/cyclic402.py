@@ -58,6 +58,7 @@ from . import canopen as co
 from . import cia402 as ds
 from .drive402 import Cia402Drive
 from .emcy import describe_emcy
+from .layout402 import TARGET_OF_MODE
 from .node402 import (
     ENABLE_OPERATION,
     RPDO_CODECS,
@@ -128,6 +129,7 @@ class Cia402CyclicDrive(Cia402Drive):
         """The one request the drive takes."""
         self.supported_requests = frozenset({self.request})
         self._rpdo = RPDO_OF_MODE[self.cyclic_mode]
+        self._stage_plan: tuple[co.PdoCodec, list[int], int] | None = None
         self.rpdo_cob_id = (
             co.RPDO_BASES[self._rpdo] + node_id
             if self.layout is None
@@ -228,6 +230,7 @@ class Cia402CyclicDrive(Cia402Drive):
         """Target = actual (read now), the cyclic mode, enable, then bit 12 (follows)."""
         self._enabled_wanted = False
         self.sync_source.unstage(self.rpdo_cob_id)  # nothing stale goes out after enabling
+        self._stage_plan = None
         actual = await self._read_actual()
         if self._mode is not self.cyclic_mode:
             await self._select_cyclic(actual)
@@ -283,6 +286,8 @@ class Cia402CyclicDrive(Cia402Drive):
         """Stage the set-point for the next SYNC (no I/O; :meth:`CanSync.stage`)."""
         if request is not self.request:
             raise BadParameterError("request", request, f"{self.request.name} (mode {self.mode})")
+        if self._estop_active:
+            raise HALError(f"CiA 402 node {self.node_id}: e-stopped: no set-point until re_init")
         if self._mode is not self.cyclic_mode or not self._enabled_wanted:
             raise StateError(
                 "command", f"node {self.node_id} not enabled in {self.mode}", ["enter_cyclic()"]
@@ -299,13 +304,32 @@ class Cia402CyclicDrive(Cia402Drive):
                     "value", value, f"a target that fits {RPDO_MAPS[self._rpdo][1].data_type.name}"
                 ) from exc
         else:
-            data = self.rpdo_frame(self.cyclic_mode, ENABLE_OPERATION, raw)[1]
+            plan = self._stage_plan
+            if plan is None:
+                plan = self._stage_plan = self._plan_stage()
+            codec, values, at = plan
+            values[at] = raw
+            try:
+                data = codec.pack(values)
+            except ValueError as exc:
+                raise BadParameterError("value", value, "a target that fits the RPDO") from exc
         self._targets[self.cyclic_mode] = raw
         self._controlword = ENABLE_OPERATION
         self.sync_source.stage(self.rpdo_cob_id, data)
 
     async def command(self, request: Request, value: float) -> None:
         self.command_nowait(request, value)
+
+    def _plan_stage(self) -> tuple[co.PdoCodec, list[int], int]:
+        """The cyclic mode's RPDO of :attr:`layout` as (codec, values, position of the
+        target): the controlword Enable operation and the other slots' values are filled in
+        once (:meth:`_enable` drops the plan), each set-point writes only its target."""
+        layout = self.layout
+        assert layout is not None
+        mode = self.cyclic_mode
+        rpdo = layout.rpdo_of_mode[mode]  # checked when the drive was made
+        values = list(rpdo.codec.unpack(self.rpdo_frame(mode, ENABLE_OPERATION, 0)[1]))
+        return rpdo.codec, values, rpdo.slots.index(TARGET_OF_MODE[mode])
 
     async def command_velocity_ramp(self, ramp: VelocityRamp) -> None:
         raise HALError(f"CiA 402 node {self.node_id}: no velocity ramp in {self.mode}")
@@ -351,6 +375,9 @@ class Cia402CyclicDrive(Cia402Drive):
                 await self.quick_stop()
         except Exception as exc:
             self.log.warning("cia402_quick_stop_after_emcy_failed", error=repr(exc))
+
+    def _on_estop(self) -> None:
+        self.sync_source.unstage(self.rpdo_cob_id)  # a staged Enable operation stays here
 
     def _on_sync_tpdo(self, now: int) -> None:
         self.feedback_cycle = self.sync_source.cycle

@@ -11,7 +11,8 @@ then NMT Start and the first TPDO. The set-point modes (profile position/velocit
 :mod:`openel_can.drive402`, the cyclic synchronous modes in :mod:`openel_can.cyclic402`) are
 subclasses.
 
-The power state machine runs on the controlword: ``init`` goes shutdown -> switch on ->
+The power state machine (:class:`~openel_can.node402_power.PowerStateMachine`, a mixin with
+the fixed PDO maps and the controlword RPDOs) runs on the controlword: ``init`` goes shutdown -> switch on ->
 enable operation (:func:`openel_can.cia402.next_controlword`, each step confirmed by the
 statusword); ``reset`` (``re_init``) reconfigures the node if it rebooted, sends the
 fault reset edge (bit 7) and enables again; NO_EXCITE disables operation (Switched on);
@@ -73,6 +74,21 @@ from .layout402 import (
     plan_layout,
 )
 from .node402_pdos import LayoutPdos
+from .node402_power import (
+    ENABLE_OPERATION,
+    RPDO_CODECS,
+    RPDO_MAP_ENTRIES,
+    RPDO_MAPS,
+    RPDO_OF_MODE,
+    TARGET_REACHED,
+    TPDO1_CODEC,
+    TPDO1_MAP,
+    TPDO2_CODEC,
+    TPDO2_MAP,
+    TPDO_MAPS,
+    FaultedError,
+    emcy_name,
+)
 from .node402_safety import (
     CONSUMER_HEARTBEAT_TIME_1,
     QUICK_STOP_ON_ABORT,
@@ -113,38 +129,6 @@ SB = ds.StatusBit
 CB = ds.ControlBit
 CIA402_VENDOR_ID: Final = 0x0402
 
-RPDO_MAPS: Final = (
-    (ds.CONTROLWORD, ds.TARGET_POSITION),
-    (ds.CONTROLWORD, ds.TARGET_VELOCITY),
-    (ds.CONTROLWORD, ds.TARGET_TORQUE),
-)
-TPDO_MAPS: Final = (
-    (ds.STATUSWORD, ds.POSITION_ACTUAL_VALUE, ds.TORQUE_ACTUAL_VALUE),
-    (ds.VELOCITY_ACTUAL_VALUE, ds.MODES_OF_OPERATION_DISPLAY),
-)
-RPDO_OF_MODE: Final = {
-    Mode.PROFILE_POSITION: 0,
-    Mode.PROFILE_VELOCITY: 1,
-    Mode.PROFILE_TORQUE: 2,
-    # The cyclic synchronous modes use the same RPDOs (controlword + the mode's target).
-    Mode.CYCLIC_SYNC_POSITION: 0,
-    Mode.CYCLIC_SYNC_VELOCITY: 1,
-    Mode.CYCLIC_SYNC_TORQUE: 2,
-}
-"""The RPDO (0-based: RPDO1..3) carrying the target of each mode."""
-_TPDO1_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[0])
-_TPDO2_MAP: Final = tuple(entry.map_entry() for entry in TPDO_MAPS[1])
-_RPDO_MAP_ENTRIES: Final = tuple(tuple(e.map_entry() for e in mapping) for mapping in RPDO_MAPS)
-RPDO_CODECS: Final = tuple(co.PdoCodec(entries) for entries in _RPDO_MAP_ENTRIES)
-"""The codec of RPDO1..3 (controlword, target)."""
-TPDO1_CODEC: Final = co.PdoCodec(_TPDO1_MAP)
-_TPDO2_CODEC: Final = co.PdoCodec(_TPDO2_MAP)
-ENABLE_OPERATION: Final = int(ds.Command.ENABLE_OPERATION)
-"""The controlword Enable operation as a plain int (IntFlag arithmetic is Python code)."""
-TARGET_REACHED: Final = int(SB.TARGET_REACHED)
-"""Statusword bit 10 as a plain int."""
-
-
 _PROFILE_REQUESTS: Final = {
     Request.POSITION: Mode.PROFILE_POSITION,
     Request.VELOCITY: Mode.PROFILE_VELOCITY,
@@ -155,13 +139,6 @@ DRIVE_MODES: Final = ("pp", "csp", "csv", "cst")
 ``csp``/``csv``/``cst`` cyclic synchronous position/velocity/torque on the bus's SYNC."""
 DEFAULT_HOST_NODE_ID: Final = 127
 """The host's CANopen node id for its heartbeat (0x77F): give another one when a drive uses 127."""
-
-
-def _emcy_name(code: int) -> str:
-    try:
-        return co.EmcyCode(code).name
-    except ValueError:
-        return f"{code:#06x}"
 
 
 def check_node(node_id: int) -> None:
@@ -178,16 +155,6 @@ def check_positive(name: str, value: float | None, *, optional: bool = True) -> 
         return
     if value is None or not (math.isfinite(value) and value > 0):
         raise BadParameterError(name, value, "a finite value > 0")
-
-
-class FaultedError(Exception):
-    """The component faulted while a command waited for the drive (internal)."""
-
-
-def _expire(waiter: asyncio.Future[bool]) -> None:
-    """Timer callback of a statusword wait: the wait ends unsatisfied."""
-    if not waiter.done():
-        waiter.set_result(False)
 
 
 @dataclass
@@ -313,6 +280,8 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
         self.pdo_values: dict[str, int] = {}
         """TPDO objects the driver does not follow itself, by name (with :attr:`layout`)."""
         self._seen_ns: dict[int, int] = {}
+        self._tpdo_plans: dict[int, Any] = {}
+        """Per TPDO COB-ID, where it carries the followed objects (node402_pdos)."""
         """When each TPDO object (by index) last arrived (with :attr:`layout`)."""
         self._status_pdo_ns: int | None = None
         """When a statusword last arrived by PDO (with :attr:`layout`)."""
@@ -339,6 +308,9 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
         """The target each mode's RPDO carries with the next controlword."""
         self._pending: Setpoint | None = None
         self._enabled_wanted = False
+        self._estop_active = False
+        """Set by :meth:`estop`, cleared by ``init``/``re_init``: while set no controlword
+        that switches the drive on or enables it is sent (:meth:`_send_rpdo`)."""
         self._engaged = False
         self._latched = False
         self._needs_config = True
@@ -403,6 +375,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
     async def init(self) -> None:
         self.left_safe = False
         self._latched = False
+        self._estop_active = False
         self._heartbeat_error = False
         await self._enable()
         self._heartbeat_ns = self._now()
@@ -414,6 +387,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
         self._latched = False
         self._heartbeat_error = False
         self._pending = None
+        self._estop_active = False  # re_init is the way back from an e-stop
         await self.bus.wait_up(self.state_timeout)
         # The node answers (an SDO timeout here means it is still gone).
         self._set_statusword(
@@ -503,7 +477,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
     async def _map_fixed_pdos(self) -> None:
         """The fixed mapping of the module docstring (a subclass maps its own)."""
         n = self.node_id
-        for number, entries in enumerate(_RPDO_MAP_ENTRIES, start=1):
+        for number, entries in enumerate(RPDO_MAP_ENTRIES, start=1):
             await self._map_pdo(
                 co.RPDO_COMM_BASE + number - 1,
                 co.RPDO_MAPPING_BASE + number - 1,
@@ -511,7 +485,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
                 entries,
                 transmission=0xFF,
             )
-        for number, tentries in enumerate((_TPDO1_MAP, _TPDO2_MAP), start=1):
+        for number, tentries in enumerate((TPDO1_MAP, TPDO2_MAP), start=1):
             comm = co.TPDO_COMM_BASE + number - 1
             await self._map_pdo(
                 comm,
@@ -574,162 +548,6 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
                 await self._change_event().wait()
             return
         raise TimeoutError(f"CiA 402 node {self.node_id}: no TPDO1 within {timeout * 1000:.0f} ms")
-
-    # -- power state machine ---------------------------------------------------------------
-    async def _current_state(self) -> ds.PowerState:
-        if self._statusword is None:
-            self._set_statusword(
-                await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout), self._now()
-            )
-        state = self.power_state
-        assert state is not None
-        return state
-
-    async def _drive_to(self, target: ds.PowerState) -> None:
-        """Walk the power state machine to ``target``, one confirmed transition at a time."""
-        for _ in range(12):
-            state = await self._current_state()
-            if state is target:
-                return
-            if state is PS.FAULT:
-                self.log.warning(
-                    "cia402_fault_reset",
-                    emcy=_emcy_name(self.last_emcy.error_code) if self.last_emcy else None,
-                )
-            word = ds.next_controlword(state, target, previous_controlword=self._controlword)
-
-            def left(sw: int, state: ds.PowerState = state) -> bool:
-                return ds.state_from_statusword(sw) is not state
-
-            if word is None:  # the drive is changing state by itself
-                await self._wait_status(left, "leave " + state.name)
-                continue
-            expected = ds.apply_controlword(state, word, previous_controlword=self._controlword)
-            await self._send_control(word)
-            if expected is not state:
-                await self._wait_status(left, f"{state.name} -> {expected.name}")
-        raise HALError(
-            f"CiA 402 node {self.node_id}: could not reach {target.name} (in {self.power_state})"
-        )
-
-    async def _enable(self) -> None:
-        self._enabled_wanted = False
-        self._targets[Mode.PROFILE_POSITION] = self._position
-        self._targets[Mode.PROFILE_VELOCITY] = 0
-        self._targets[Mode.PROFILE_TORQUE] = 0
-        await self._drive_to(PS.OPERATION_ENABLED)
-        self._enabled_wanted = True
-
-    async def _send_control(self, controlword: int) -> None:
-        """The controlword in the RPDO of the current mode, with that mode's target."""
-        mode = self._mode or Mode.PROFILE_POSITION
-        await self._send_rpdo(mode, controlword, self._targets[mode])
-
-    def rpdo_frame(self, mode: Mode, controlword: int, target: int) -> tuple[int, bytes]:
-        """(COB-ID, data) of the RPDO of ``mode`` (:attr:`layout`'s or the fixed one)
-        carrying ``controlword`` and ``target``; ``BadParameterError`` for a target that
-        does not fit, ``HALError`` when no RPDO carries the mode's target."""
-        layout = self.layout
-        if layout is None:
-            number = RPDO_OF_MODE[mode]
-            try:
-                data = RPDO_CODECS[number].pack((controlword, target))
-            except ValueError as exc:
-                raise BadParameterError(
-                    "value", target, f"a target that fits {RPDO_MAPS[number][1].data_type.name}"
-                ) from exc
-            return co.RPDO_BASES[number] + self.node_id, data
-        return self._layout_frame(layout, mode, controlword, target)
-
-    async def _send_rpdo(self, mode: Mode, controlword: int, target: int) -> None:
-        assert self._port is not None
-        layout = self.layout
-        if layout is not None:
-            rpdo = layout.rpdo_of_mode.get(mode)
-            if rpdo is None or (rpdo.synchronous and not self._sync_running()):
-                # No RPDO of this mode (a state transition), or a synchronous one waiting
-                # for a SYNC none sends: the controlword by SDO.
-                self._controlword = controlword
-                await self.sdo.write(ds.CONTROLWORD, controlword, timeout=self.sdo_timeout)
-                return
-            cob_id, data = self.rpdo_frame(mode, controlword, target)
-            self._controlword = controlword
-            await self._port.send(cob_id, data)
-            return
-        number = RPDO_OF_MODE[mode]
-        try:
-            data = RPDO_CODECS[number].pack((controlword, target))
-        except ValueError as exc:
-            raise BadParameterError(
-                "value", target, f"a target that fits {RPDO_MAPS[number][1].data_type.name}"
-            ) from exc
-        self._controlword = controlword
-        await self._port.send(co.RPDO_BASES[number] + self.node_id, data)
-
-    async def _wait_status(self, predicate: Callable[[int], bool], what: str) -> int:
-        if self._latched:
-            raise FaultedError(what)
-        sw = self._statusword
-        if sw is not None and predicate(sw):  # already there: no timer needed
-            return sw
-        if self.layout is not None and not self.layout.status_on_event:
-            return await self._poll_status(predicate, what)
-        # A future resolved by the batch that satisfies the predicate (see _on_frames) and a
-        # loop timer bounding the wait: no cancel scope, no wake-up per unrelated frame.
-        # Cancellation from outside cancels the future; the finally clause cleans up.
-        loop = asyncio.get_running_loop()
-        deadline = loop.time() + self.state_timeout
-        waiters = self._status_waiters
-        while True:
-            waiter: asyncio.Future[bool] = loop.create_future()
-            entry = (predicate, waiter)
-            timer = loop.call_at(deadline, _expire, waiter)
-            waiters.append(entry)
-            try:
-                satisfied = await waiter
-            finally:
-                timer.cancel()
-                waiters.remove(entry)
-            if self._latched:
-                raise FaultedError(what)
-            sw = self._statusword
-            if sw is not None and predicate(sw):
-                return sw
-            if not satisfied:
-                break
-        raise TimeoutError(
-            f"CiA 402 node {self.node_id}: no statusword for {what} within {self.state_timeout * 1000:.0f} ms"
-            + (f" (statusword {self._statusword:#06x})" if self._statusword is not None else "")
-        )
-
-    async def _poll_status(self, predicate: Callable[[int], bool], what: str) -> int:
-        """:meth:`_wait_status` when no TPDO sends the statusword on event: read by SDO."""
-        with anyio.move_on_after(self.state_timeout):
-            while True:
-                sw = await self.sdo.read(ds.STATUSWORD, timeout=self.sdo_timeout)
-                self._set_statusword(sw, self._now())
-                if self._latched:
-                    raise FaultedError(what)
-                if predicate(sw):
-                    return sw
-                await anyio.sleep(0.002)
-        raise TimeoutError(
-            f"CiA 402 node {self.node_id}: no statusword for {what} within "
-            f"{self.state_timeout * 1000:.0f} ms (statusword {self._statusword or 0:#06x}, by SDO)"
-        )
-
-    async def _set_mode(self, mode: Mode) -> None:
-        if mode is self._mode:
-            return
-        self._mode = None
-        await self.sdo.write(ds.MODES_OF_OPERATION, int(mode), timeout=self.sdo_timeout)
-        display = await self.sdo.read(ds.MODES_OF_OPERATION_DISPLAY, timeout=self.sdo_timeout)
-        if display != mode:
-            raise HALError(
-                f"CiA 402 node {self.node_id}: mode display {display} after selecting {mode.name}"
-            )
-        self._mode = mode
-        self._mode_display = display
 
     async def _report_later(self, setpoint: Setpoint) -> None:
         """Report a target already reached at command time, once the Motion exists."""
@@ -809,7 +627,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
         self._set_statusword(statusword, now, state)
 
     def _on_tpdo2(self, frame: can.Message, now: int) -> None:
-        self._velocity, self._mode_display = _TPDO2_CODEC.unpack(frame.data)
+        self._velocity, self._mode_display = TPDO2_CODEC.unpack(frame.data)
         self._tpdo2_ns = now
 
     def _set_statusword(
@@ -841,7 +659,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
             return
         if faulted:
             emcy = self.last_emcy
-            detail = f", EMCY {_emcy_name(emcy.error_code)}" if emcy and emcy.error_code else ""
+            detail = f", EMCY {emcy_name(emcy.error_code)}" if emcy and emcy.error_code else ""
             self._fault(
                 ErrorId.DEVICE_ERROR, f"CiA 402 node {self.node_id} in {state.name}{detail}"
             )
@@ -867,7 +685,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
         if msg.error_code == co.EmcyCode.LIFE_GUARD_OR_HEARTBEAT:
             self._heartbeat_error = True
         self.log.warning(
-            "cia402_emcy", code=_emcy_name(msg.error_code), register=f"{msg.error_register:#04x}"
+            "cia402_emcy", code=emcy_name(msg.error_code), register=f"{msg.error_register:#04x}"
         )
         self._emcy_unreported = True  # with the next statusword: a fault, or a warning
 

@@ -25,6 +25,26 @@ __all__ = ["LayoutPdos"]
 Mode = ds.ModeOfOperation
 
 
+class _TpdoPlan:
+    """Where a TPDO carries the objects the driver follows (positions among its values),
+    and the other objects it keeps by name: worked out once per TPDO, not per frame."""
+
+    __slots__ = ("mode_display", "others", "position", "torque", "tpdo", "velocity")
+
+    def __init__(self, tpdo: LayoutTpdo) -> None:
+        self.tpdo = tpdo
+        at = {index: i for i, index in enumerate(tpdo.slots)}
+        self.position = at.get(0x6064)
+        self.torque = at.get(0x6077)
+        self.velocity = at.get(0x606C)
+        self.mode_display = at.get(0x6061)
+        self.others = tuple(
+            (i, name)
+            for i, (index, name) in enumerate(zip(tpdo.slots, tpdo.names, strict=True))
+            if index not in FEEDBACK_OBJECTS and index != STATUSWORD
+        )
+
+
 class LayoutPdos:
     """Mixin: what :class:`~openel_can.node402.Cia402Node` does with :attr:`layout`."""
 
@@ -37,6 +57,7 @@ class LayoutPdos:
     pdo_values: dict[str, int]
     _targets: dict[Mode, int]
     _seen_ns: dict[int, int]
+    _tpdo_plans: dict[int, _TpdoPlan]
     _status_pdo_ns: int | None
     _position: int
     _torque: int
@@ -107,26 +128,27 @@ class LayoutPdos:
     def _on_layout_tpdo(self, tpdo: LayoutTpdo, frame: can.Message, now: int) -> None:
         """A TPDO of :attr:`layout`: the objects the driver follows, the others by name."""
         values = tpdo.codec.unpack(frame.data)
+        plan = self._tpdo_plans.get(frame.arbitration_id)
+        if plan is None or plan.tpdo is not tpdo:
+            plan = self._tpdo_plans[frame.arbitration_id] = _TpdoPlan(tpdo)
         statusword: int | None = None
         state: ds.PowerState | None = None
         if tpdo.status_at is not None:
             statusword = values[tpdo.status_at]
             # A statusword matching no state is malformed: nothing of this TPDO is kept.
             state = ds.state_from_statusword(statusword)
+        if plan.position is not None:
+            self._position = values[plan.position]
+        if plan.torque is not None:
+            self._torque = values[plan.torque]
+        if plan.velocity is not None:
+            self._velocity = values[plan.velocity]
+        if plan.mode_display is not None:
+            self._mode_display = values[plan.mode_display]
+        for at, name in plan.others:
+            self.pdo_values[name] = values[at]
         seen = self._seen_ns
-        for index, name, value in zip(tpdo.slots, tpdo.names, values, strict=True):
-            if index == STATUSWORD:
-                pass
-            elif index == 0x6064:
-                self._position = value
-            elif index == 0x6077:
-                self._torque = value
-            elif index == 0x606C:
-                self._velocity = value
-            elif index == 0x6061:
-                self._mode_display = value
-            elif index not in FEEDBACK_OBJECTS:
-                self.pdo_values[name] = value
+        for index in tpdo.slots:
             seen[index] = now
         if tpdo.synchronous:
             self._on_sync_tpdo(now)

@@ -4,7 +4,7 @@ of :class:`~openel_can.node402.Cia402Node` (see its module docstring)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final
 
 import anyio
@@ -15,6 +15,7 @@ from openel_async.safety import ExitAction
 
 from . import canopen as co
 from . import cia402 as ds
+from .node402_power import PowerStateMachine
 
 if TYPE_CHECKING:
     from .bus import CanBus
@@ -36,8 +37,9 @@ WATCHDOG_FEED_FRACTION: Final = 4
 """The host heartbeat period is ``timeout / WATCHDOG_FEED_FRACTION``."""
 
 
-class NodeSafety:
-    """Mixin: the host heartbeat the drive watches, e-stop and the exit states."""
+class NodeSafety(PowerStateMachine):
+    """Mixin: the host heartbeat the drive watches, e-stop and the exit states (on the
+    power state machine's controlword path)."""
 
     bus: CanBus
     node_id: int
@@ -50,8 +52,8 @@ class NodeSafety:
     _ctx: DeviceContext | None
     _lock: anyio.Lock
     _enabled_wanted: bool
+    _estop_active: bool
     _pending: object | None
-    _send_control: Callable[[int], Awaitable[None]]
     _fault: Callable[..., None]
 
     # -- heartbeat watchdog ---------------------------------------------------------------
@@ -104,11 +106,23 @@ class NodeSafety:
             self.bus.release_heartbeat(self)
             self.watchdog_timeout = None
 
+    def _on_estop(self) -> None:
+        """Called first by :meth:`estop` (a cyclic drive drops its staged set-point)."""
+
     async def estop(self) -> None:
         """Controlword Quick stop (the drive ramps down with 0x6085, then acts as 0x605A
-        says) and ``fault(ESTOP)`` at once; ``re_init`` enables the drive again."""
+        says) and ``fault(ESTOP)`` at once; ``re_init`` enables the drive again.
+
+        The quick stop is sent at once, not after a command holding the drive's lock: until
+        ``re_init`` no controlword that switches the drive on or enables it is sent, so a
+        command on its way (its steps awaited one at a time) fails with ``HALError`` at its
+        next step instead of enabling the drive again."""
+        self._estop_active = True
+        self._enabled_wanted = False
+        self._pending = None
+        self._on_estop()
         try:
-            await self.quick_stop()
+            await self._send_control(int(ds.Command.QUICK_STOP))
         finally:
             self._fault(ErrorId.ESTOP, f"CiA 402 node {self.node_id}: e-stop (quick stop)")
 
@@ -122,6 +136,10 @@ class NodeSafety:
         async with self._lock:
             self._enabled_wanted = action is ExitAction.HOLD and self._enabled_wanted
             self._pending = None
+            if action is ExitAction.HOLD and self._estop_active:
+                # HOLD would enable the drive (Halt): after an e-stop it stays stopped.
+                self.log.warning("cia402_hold_after_estop_skipped")
+                return
             if action is ExitAction.HOLD:
                 await self._send_control(ENABLE_OPERATION | int(CB.HALT))
             elif action is ExitAction.STOP:

@@ -169,6 +169,13 @@ def _check_seconds(name: str, value: float) -> None:
         raise BadParameterError(name, value, "a finite number of seconds > 0")
 
 
+def _drives_motor(msg: cs.CanSimpleMessage) -> bool:
+    """A frame that engages the axis or gives it a set-point (refused while e-stopped)."""
+    if isinstance(msg, cs.SetAxisState):
+        return msg.state is not cs.AxisState.IDLE
+    return isinstance(msg, cs.SetInputPos | cs.SetInputVel | cs.SetInputTorque)
+
+
 class _Link:
     """The frames of one ODrive node: latest message per command, with RTR polling."""
 
@@ -190,6 +197,9 @@ class _Link:
         self.on_message: Callable[[cs.CanSimpleMessage, int], None] | None = None
         self.sent_ns: int | None = None
         """When a frame to this node was last sent (every frame feeds the axis watchdog)."""
+        self.estopped = False
+        """Set by the axis's e-stop, cleared by its ``re_init``: while set, :meth:`send`
+        refuses every frame that would drive the motor (see :func:`_drives_motor`)."""
         self._changed = anyio.Event()
 
     def open(self, ctx: DeviceContext, on_bus_error: Callable[[str], None]) -> None:
@@ -231,6 +241,12 @@ class _Link:
 
     async def send(self, msg: cs.CanSimpleMessage) -> None:
         assert self.port is not None, "used before open()"
+        if self.estopped and _drives_motor(msg):
+            # A command already on its way when the e-stop came: its later steps must not
+            # re-engage the axis (only re_init does).
+            raise HALError(
+                f"ODrive node {self.node_id}: e-stopped: {type(msg).__name__} refused until re_init"
+            )
         arb_id, data = cs.encode(msg)
         await self.port.send(arb_id, data, remote=isinstance(msg, cs.Request))
         self.sent_ns = self.now()
@@ -480,6 +496,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
 
     async def init(self) -> None:
         self.left_safe = False
+        self._link.estopped = False
         heartbeat = await self._fresh_heartbeat(timeout=self.heartbeat_timeout)
         if heartbeat.axis_error:
             raise HALError(
@@ -496,6 +513,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         self._engaged = False
         self._latched = False
         self._pending = None
+        self._link.estopped = False  # re_init is the way back from an e-stop
         await self.bus.wait_up(self.engage_timeout)
         asked = self._link.now()
         await self._link.send(cs.ClearErrors(self.node_id))
@@ -767,7 +785,12 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
     async def estop(self) -> None:
         """Send Estop: the ODrive disarms with ESTOP_REQUESTED (IDLE: the motor coasts); its
         next heartbeat faults the component with ``ErrorId.ESTOP`` (``re_init`` sends
-        Clear_Errors and re-engages)."""
+        Clear_Errors and re-engages). From now on until ``re_init`` no frame that would
+        engage the axis or give it a set-point is sent (a command on its way fails with
+        ``HALError``), and the command lock is not waited for: the e-stop goes out at once."""
+        self._link.estopped = True
+        self._pending = None
+        self._closed_loop_wanted = False
         await self._link.send(cs.Estop(self.node_id))
         self._query_error()  # Get_Error now: the report need not wait for the heartbeat
 
@@ -780,6 +803,10 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         node = self.node_id
         async with self._lock:
             self._pending = None
+            if self._link.estopped and action is not ExitAction.TORQUE_OFF:
+                # After an e-stop the axis stays IDLE: no HOLD or STOP re-engages it.
+                self.log.warning("odrive_safe_stop_after_estop", action=action.value, sent="IDLE")
+                action = ExitAction.TORQUE_OFF
             if action is ExitAction.TORQUE_OFF:
                 self._closed_loop_wanted = False
                 await self._link.send(cs.SetAxisState(node, cs.AxisState.IDLE))

@@ -200,6 +200,36 @@ class MonotonicClock(ClockBase):
         return f"MonotonicClock(use_timerfd={self.use_timerfd})"
 
 
+class _TimerfdScheduler:
+    """An :class:`InlineScheduler` view of a timerfd :class:`MonotonicClock` on the running
+    asyncio loop (see :func:`realtime_scheduler`)."""
+
+    __slots__ = ("_loop", "now_ns")
+
+    def __init__(self, clock: MonotonicClock, loop: asyncio.AbstractEventLoop) -> None:
+        self.now_ns = clock.now_ns
+        self._loop = loop
+
+    def call_at(self, deadline_ns: int, callback: Callable[[], int | None]) -> ScheduledCall:
+        return timerfd.TimerfdCall(self._loop, deadline_ns, callback)
+
+
+def realtime_scheduler(clock: Clock) -> InlineScheduler | None:
+    """Periodic callbacks on the real clock without a task: for the default
+    :class:`MonotonicClock` with timerfd, on an asyncio loop, a scheduler whose ``call_at``
+    arms one timerfd that the loop watches and calls the callback from (one loop pass per
+    call, no task wake-up, no epoll registration per wait); None otherwise. An
+    :class:`~openel_async.EventTimer` on such a clock ticks this way (the clock itself is
+    not an :class:`InlineScheduler`: nothing else treats it as a lockstep clock)."""
+    if type(clock) is not MonotonicClock or not clock.use_timerfd:
+        return None
+    try:
+        loop = asyncio.get_running_loop()
+    except RuntimeError:  # not asyncio (trio)
+        return None
+    return _TimerfdScheduler(clock, loop)  # type: ignore[return-value]
+
+
 _DEFAULT_CLOCK = MonotonicClock()
 
 

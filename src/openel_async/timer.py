@@ -20,7 +20,15 @@ import anyio.abc
 
 from openel_async.logs import get_logger
 
-from .clock import NS_PER_MS, NS_PER_S, Clock, InlineScheduler, ScheduledCall, default_clock
+from .clock import (
+    NS_PER_MS,
+    NS_PER_S,
+    Clock,
+    InlineScheduler,
+    ScheduledCall,
+    default_clock,
+    realtime_scheduler,
+)
 from .errors import BadParameterError, StateError
 from .fanout import Fanout
 from .observers import ObserverQueue, TimerTick
@@ -206,6 +214,9 @@ class EventTimer:
         clock = self.clock
         if isinstance(clock, InlineScheduler):
             self._inline = _InlineTicks(self, clock)
+        elif (scheduler := realtime_scheduler(clock)) is not None:
+            # The real clock with timerfd: ticks from the loop's timerfd callback, no task.
+            self._inline = _InlineTicks(self, scheduler)
         else:
             self._scope = anyio.CancelScope()
             self._tg.start_soon(self._run, self._scope)

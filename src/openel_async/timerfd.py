@@ -7,10 +7,12 @@ milliseconds (epoll_wait's timeout unit).
 
 from __future__ import annotations
 
+import asyncio
 import ctypes
 import ctypes.util
 import os
 import sys
+from collections.abc import Callable
 
 import anyio
 
@@ -102,3 +104,48 @@ class Timerfd:
 
     def __del__(self) -> None:
         self.close()
+
+
+class TimerfdCall:
+    """``callback()`` at an absolute CLOCK_MONOTONIC deadline, called by the asyncio event
+    loop itself when its timerfd becomes readable (a reader callback: no task, no wake-up of
+    a sleeping task, one loop pass per call); re-armed at the deadline ``callback`` returns
+    (an int), else closed. The timerfd stays registered with the loop between calls."""
+
+    __slots__ = ("_callback", "_fd", "_loop")
+
+    def __init__(
+        self,
+        loop: asyncio.AbstractEventLoop,
+        deadline_ns: int,
+        callback: Callable[[], int | None],
+    ) -> None:
+        self._loop = loop
+        self._callback = callback
+        self._fd: Timerfd | None = Timerfd()
+        self._fd.arm_absolute(deadline_ns)
+        loop.add_reader(self._fd.fileno(), self._fire)
+
+    def _fire(self) -> None:
+        fd = self._fd
+        if fd is None:
+            return
+        try:
+            os.read(fd.fileno(), 8)  # the expiration count
+        except BlockingIOError:  # spurious wake-up
+            return
+        try:
+            again = self._callback()
+        except BaseException:
+            self.cancel()
+            raise
+        if again is None:
+            self.cancel()
+        elif self._fd is not None:  # not cancelled by the callback
+            self._fd.arm_absolute(again)
+
+    def cancel(self) -> None:
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            self._loop.remove_reader(fd.fileno())
+            fd.close()

@@ -18,7 +18,7 @@ def test_csp4_moves_four_simulated_drives_in_csp(capsys: pytest.CaptureFixture[s
     status = run_app(find_app("csp4"), ["--moves", "2"], prog="csp4", sim=True)
     out = capsys.readouterr().out
     assert status == 0, out
-    assert "4 axes in CSP, SYNC every 2 ms" in out
+    assert "4 axes in CSP, SYNC every 1.5 ms" in out
     moves = LINE.findall(out)
     assert [m[0] for m in moves] == ["1", "2"], out
     assert all(float(m[1]) <= 2e-3 for m in moves)

@@ -1,4 +1,5 @@
-"""CanBus readers: python-can virtual read in the loop, one reader thread otherwise.
+"""CanBus readers: python-can virtual and socketcan-like buses read in the loop, one reader
+thread otherwise.
 
 Both hand frames to the event loop in order, bound what waits for the loop (``rx_buffer``,
 drops counted in ``stats.rx_overflow``), leave no thread behind and survive a reopen.
@@ -9,6 +10,8 @@ from __future__ import annotations
 
 import copy
 import queue
+import socket
+import struct
 import threading
 from collections.abc import Iterator
 
@@ -17,6 +20,7 @@ import anyio.lowlevel
 import can
 import pytest
 
+from openel_async.errors import BadParameterError
 from openel_can import BusState, CanBus, SdoClient, TxMessage
 from openel_can import canopen as co
 from openel_can import cia402 as ds
@@ -153,6 +157,70 @@ async def test_reader_thread_delivers_in_order_restarts_on_reopen_and_is_joined(
         raw_bus.send(_frame(0x123, 7))
         assert await _collect(port, 1) == [7]
     assert not _reader_threads()
+
+
+# -- a bus with a file descriptor (socketcan; read_mode="loop"): read in the loop ----------
+_PAIR_FRAME = struct.Struct("=IB3x8s")
+
+
+class _PairBus(can.BusABC):
+    """A bus on one end of a SOCK_SEQPACKET pair (one frame a datagram), with a fileno."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self.sock = sock
+        sock.setblocking(False)
+        super().__init__(channel="pair")
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.sock.send(_PAIR_FRAME.pack(msg.arbitration_id, msg.dlc, bytes(msg.data)))
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        try:
+            data = self.sock.recv(_PAIR_FRAME.size)
+        except BlockingIOError:
+            return None, False  # the CanBus reads it in the loop: recv(0) only
+        if not data:
+            raise can.CanOperationError("the other end closed")
+        arb, dlc, payload = _PAIR_FRAME.unpack(data)
+        return can.Message(arbitration_id=arb, data=payload[:dlc], is_extended_id=False), False
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+
+async def test_a_bus_with_a_fileno_is_read_in_the_loop_in_order_and_its_failure_reported() -> None:
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    bus_end, far = _PairBus(ours), _PairBus(theirs)
+    try:
+        async with CanBus(
+            bus_end, read_mode="loop", max_batch=7, poll_interval=0.01, port_queue_size=4096
+        ) as bus:
+            port = bus.attach([0x123], name="rx")
+            assert bus.reads_in_loop == 1 and bus.reader_threads == 0
+            assert not _reader_threads()
+            for start in (0, 100, 200):  # batches of max_batch, the rest in later drains
+                for i in range(start, start + 100):
+                    far.send(_frame(0x123, i))
+                assert await _collect(port, 100) == list(range(start, start + 100))
+            theirs.close()  # the far end goes away: recv raises, the bus goes down
+            await wait_until(lambda: bus.state is BusState.DOWN, 2)
+            assert "the other end closed" in (bus.last_error or "")
+    finally:
+        ours.close()
+        theirs.close()
+
+
+async def test_read_mode_thread_reads_a_fileno_bus_in_a_thread_and_auto_only_socketcan() -> None:
+    for mode, threads in (("thread", 1), ("auto", 1)):
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        try:
+            async with CanBus(_PairBus(ours), read_mode=mode, poll_interval=0.01) as bus:  # type: ignore[arg-type]
+                assert bus.reader_threads == threads and bus.reads_in_loop == 1 - threads
+        finally:
+            ours.close()
+            theirs.close()
+    with pytest.raises(BadParameterError, match="read_mode"):
+        CanBus(interface="virtual", channel="x", read_mode="poll")  # type: ignore[arg-type]
 
 
 class _ListBus(can.BusABC):

@@ -150,13 +150,13 @@ def test_a_bus_without_a_bitrate_is_not_computed(tmp_path: Path) -> None:
     assert resolve_rig(load_rig(path)).buses["can0"].load is None
 
 
-def test_the_shipped_csp4_rig_fits_2_ms_and_is_refused_at_1_ms(tmp_path: Path) -> None:
+def test_the_shipped_csp4_rig_fits_1_5_ms_and_is_refused_at_1_ms(tmp_path: Path) -> None:
     rigs = Path(__file__).resolve().parents[2] / "apps" / "openel_apps" / "rigs"
     text = (rigs / "csp4.yaml").read_text()
     load = resolve_rig(load_rig(rigs / "csp4.yaml")).buses["can0"].load
     assert load is not None and "1055 us worst case" in load.detail  # 4 RPDO + 4 TPDO + SYNC
     fast = tmp_path / "csp4-1ms.yaml"
-    fast.write_text(text.replace("cycle: {period_ms: 2.0}", "cycle: {period_ms: 1.0}"))
+    fast.write_text(text.replace("cycle: {period_ms: 1.5}", "cycle: {period_ms: 1.0}"))
     with pytest.raises(
         BadParameterError, match=r"at most 3 such axes every 1 ms, or these 4 every 1\.1 ms"
     ):

@@ -24,11 +24,11 @@ def test_csp4_runs_through_slcan_on_a_pty(
         bus = "interface: socketcan\n    channel: can0\n"
         assert bus in text
         # A 10 ms cycle and 0.5 s SDO timeouts: python-can's slcan reader and the adapter,
-        # threads on a loaded 2-core machine, must not decide the test (the 2 ms cycle runs
+        # threads on a loaded 2-core machine, must not decide the test (the 1.5 ms cycle runs
         # in test_csp4 on virtual).
         text = text.replace(bus, f"interface: slcan\n    channel: {adapter.port}\n")
         text = text.replace("heartbeat_ms: 200,", "heartbeat_ms: 200, sdo_timeout: 0.5,")
-        text = text.replace("cycle: {period_ms: 2.0}", "cycle: {period_ms: 10.0}")
+        text = text.replace("cycle: {period_ms: 1.5}", "cycle: {period_ms: 10.0}")
         rig = tmp_path / "csp4-slcan.yaml"  # eds: a bare name, the shipped file
         rig.write_text(
             text.replace("bitrate: 1000000\n", "bitrate: 1000000\n    sleep_after_open: 0\n", 1)

@@ -21,7 +21,7 @@ given :class:`~openel_can.bus.CanBus`) implements:
   a client abort ends the transfer in progress). Block transfers, unknown command
   specifiers and segments outside a transfer are aborted with 0x05040001.
   :data:`OPERATING_TIME` and :data:`ENERGY_LIMIT` are 64-bit objects (segmented).
-* **PDOs**: RPDO1-3 and TPDO1-4 with configurable COB-ID, mapping and transmission
+* **PDOs**: RPDO1-4 and TPDO1-4 with configurable COB-ID, mapping and transmission
   type. RPDOs act on reception (a too-short RPDO raises EMCY 0x8210). TPDO types
   0xFE/0xFF are event-driven: sent when a discrete mapped object changes (statusword,
   mode display, error code) and every event timer (0x18xx:5) period, never closer than
@@ -672,7 +672,7 @@ class SimCia402Drive:
 
     def _rpdo(self, msg: co.Pdo, now: int) -> None:
         n = msg.number - 1
-        if n >= 3 or self._get(0x1400 + n, 1) & co.PDO_COB_ID_INVALID:
+        if n >= len(co.RPDO_BASES) or self._get(0x1400 + n, 1) & co.PDO_COB_ID_INVALID:
             return
         mapping = self._mapping(0x1600 + n)
         try:
