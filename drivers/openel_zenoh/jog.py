@@ -22,11 +22,11 @@ import argparse
 import math
 import time
 from collections import deque
-from collections.abc import AsyncIterator, Callable, Coroutine
+from collections.abc import AsyncIterator
 from contextlib import AbstractAsyncContextManager, asynccontextmanager
 from dataclasses import dataclass, field
 from types import TracebackType
-from typing import Any, Self
+from typing import Self
 
 import anyio
 import anyio.abc
@@ -35,7 +35,8 @@ from openel_async.errors import BadParameterError, HALError, NotConnectedError
 from openel_async.logs import get_logger
 from openel_async.requests import Request
 from openel_async.surface import ApplicationQueue, ErrorNotification, EventNotification
-from openel_async.tui.jogger import HISTORY, JOG_PERIOD_S, STEPS, VELOCITIES, LogEntry
+from openel_async.tui.controls import JogControls
+from openel_async.tui.jogger import HISTORY, JOG_PERIOD_S
 
 from . import wire
 from .shell import RigShell, Target, checked
@@ -73,11 +74,7 @@ class RemoteRow:
         return self.hal_state
 
 
-def _nearest(choices: tuple[float, ...], value: float) -> int:
-    return min(range(len(choices)), key=lambda i: abs(math.log(choices[i] / value)))
-
-
-class RemoteJogger:
+class RemoteJogger(JogControls[RemoteRow]):
     """The jog session of a served rig (see the module)."""
 
     def __init__(
@@ -89,19 +86,12 @@ class RemoteJogger:
         velocity: float = 0.5,
         call_timeout: float = CALL_TIMEOUT_S,
     ) -> None:
+        super().__init__(step=step, velocity=velocity)
         self.shell = shell
         self.namespace = namespace
-        self.step = step
-        self.velocity = velocity
         self.call_timeout = call_timeout
-        self.rows: list[RemoteRow] = []
-        self.selected = 0
-        self.log: deque[LogEntry] = deque(maxlen=1000)
-        self.completed = 0
-        self.on_log: Callable[[LogEntry], object] | None = None
         self.estopped = False
         self._streams: dict[str, anyio.CancelScope] = {}
-        self._tg: anyio.abc.TaskGroup | None = None
         self._polling = False
         self._polls = 0
         self._has_lifecycle = True
@@ -168,36 +158,6 @@ class RemoteJogger:
                 continue
             name = detail.get("device_name") if detail is not None else None
             self.note(level, f"{name.value if name is not None else '?'}: {what}{extra}")
-
-    def _start(self, func: Callable[[], Coroutine[Any, Any, None]]) -> None:
-        if self._tg is None:
-            raise RuntimeError("the jogger runs inside 'async with RemoteJogger(...)'")
-        self._tg.start_soon(func)
-
-    # -- log, selection, settings -------------------------------------------------------------
-    def note(self, level: str, text: str) -> None:
-        entry = LogEntry(time.time(), level, text)
-        self.log.append(entry)
-        log.debug("jog_log", level=level, text=text)
-        if self.on_log is not None:
-            self.on_log(entry)
-
-    @property
-    def row(self) -> RemoteRow:
-        return self.rows[self.selected]
-
-    def select(self, index: int) -> None:
-        if self.rows:
-            self.selected = max(0, min(len(self.rows) - 1, index))
-
-    def change_step(self, delta: int) -> float:
-        self.step = STEPS[max(0, min(len(STEPS) - 1, _nearest(STEPS, self.step) + delta))]
-        return self.step
-
-    def change_velocity(self, delta: int) -> float:
-        index = max(0, min(len(VELOCITIES) - 1, _nearest(VELOCITIES, self.velocity) + delta))
-        self.velocity = VELOCITIES[index]
-        return self.velocity
 
     def toggle_plot(self) -> bool:
         self.row.plotted = not self.row.plotted
@@ -325,7 +285,7 @@ class RemoteJogger:
         scope = anyio.CancelScope()
         self._streams[row.name] = scope
         velocity = self.velocity
-        self._start(lambda: self._stream(row, scope, base, target, velocity))
+        self.start_soon(lambda: self._stream(row, scope, base, target, velocity))
         return target
 
     async def _stream(

@@ -20,7 +20,7 @@ from textual.binding import Binding, BindingType
 from textual.css.query import NoMatches
 from textual.widgets import DataTable, Footer, Header
 
-from .jogger import LogEntry
+from .controls import LogEntry
 from .session import JogSession
 from .widgets import ComponentTable, EventLog, PlotPanel, StatusLine
 

@@ -21,10 +21,10 @@ import dataclasses
 import math
 import time
 from collections import deque
-from collections.abc import Awaitable, Callable, Coroutine
+from collections.abc import Awaitable
 from dataclasses import dataclass, field
 from types import TracebackType
-from typing import Any, Self
+from typing import Self
 
 import anyio
 import anyio.abc
@@ -39,6 +39,7 @@ from ..motion import AxisGroup, PreemptedError
 from ..requests import EventId, Request
 from ..rig import Rig
 from ..sensor import Sensor
+from .controls import STEPS, VELOCITIES, JogControls, LogEntry
 
 __all__ = [
     "CALL_TIMEOUT_S",
@@ -59,24 +60,9 @@ JOG_PERIOD_S = 0.02
 """The period of the position setpoints streamed to an axis outside a group."""
 HISTORY = 240
 """Values kept per component for its plot (a minute at the UI's 4 reads a second)."""
-STEPS = (0.001, 0.005, 0.01, 0.05, 0.1, 0.25, 0.5, 1.0)
-"""The jog steps ``[`` and ``]`` choose from (rad or m)."""
-VELOCITIES = (0.01, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 5.0)
-"""The jog velocities ``-`` and ``+`` choose from (rad/s or m/s)."""
 
 _ACTIVE = ComponentState.ACTIVE
 _ERROR = ComponentState.ERROR
-
-
-@dataclass(frozen=True, slots=True)
-class LogEntry:
-    """One line of the event and error log."""
-
-    time: float
-    """``time.time()`` when it happened."""
-    level: str
-    """``info``, ``warning`` or ``error``."""
-    text: str
 
 
 @dataclass(slots=True)
@@ -108,10 +94,6 @@ class Row:
             low, high = self.component.device.limits.position
             return (low, high)
         return None
-
-
-def _nearest_index(choices: tuple[float, ...], value: float) -> int:
-    return min(range(len(choices)), key=lambda i: abs(math.log(choices[i] / value)))
 
 
 def _error_name(error_id: int) -> str:
@@ -148,7 +130,7 @@ def _name(source: object) -> str:
     return source.device_name if isinstance(source, HALComponent) else repr(source)
 
 
-class Jogger:
+class Jogger(JogControls[Row]):
     """The jog session of an opened rig (see the module docstring)."""
 
     def __init__(
@@ -159,11 +141,10 @@ class Jogger:
         velocity: float = 0.5,
         call_timeout: float = CALL_TIMEOUT_S,
     ) -> None:
+        super().__init__(step=step, velocity=velocity)
         self.rig = rig
-        self.step = step
-        self.velocity = velocity
         self.call_timeout = call_timeout
-        self.rows: list[Row] = [
+        self.rows = [
             Row(
                 name,
                 c,
@@ -173,16 +154,10 @@ class Jogger:
             for name, c in rig.components.items()
         ]
         self.selected = next((i for i, r in enumerate(self.rows) if self.can_jog(r.component)), 0)
-        self.log: deque[LogEntry] = deque(maxlen=1000)
-        self.completed = 0
-        """COMPLETED events heard (not logged one by one)."""
-        self.on_log: Callable[[LogEntry], object] | None = None
-        """Told of every new log entry (the UI's log panel)."""
         self._states = {r.name: r.component.state for r in self.rows}
         self._observer = _Observer(self)
         self._observed: list[HALComponent] = []
         self._streams: dict[str, anyio.CancelScope] = {}
-        self._tg: anyio.abc.TaskGroup | None = None
         self._polling = False
 
     # -- lifetime ---------------------------------------------------------------------------
@@ -225,40 +200,7 @@ class Jogger:
             return
         self._observed.append(component)
 
-    def _start(self, func: Callable[[], Coroutine[Any, Any, None]]) -> None:
-        if self._tg is None:
-            raise RuntimeError("the jogger runs inside 'async with Jogger(rig)'")
-        self._tg.start_soon(func)
-
-    # -- log --------------------------------------------------------------------------------
-    def note(self, level: str, text: str) -> None:
-        entry = LogEntry(time.time(), level, text)
-        self.log.append(entry)
-        log.debug("jog_log", level=level, text=text)
-        if self.on_log is not None:
-            self.on_log(entry)
-
-    # -- selection and settings ---------------------------------------------------------------
-    @property
-    def row(self) -> Row:
-        return self.rows[self.selected]
-
-    def select(self, index: int) -> None:
-        if self.rows:
-            self.selected = max(0, min(len(self.rows) - 1, index))
-
-    def change_step(self, delta: int) -> float:
-        """The next smaller (``delta`` -1) or larger (+1) step of :data:`STEPS`."""
-        index = _nearest_index(STEPS, self.step) + delta
-        self.step = STEPS[max(0, min(len(STEPS) - 1, index))]
-        return self.step
-
-    def change_velocity(self, delta: int) -> float:
-        """The next smaller (-1) or larger (+1) velocity of :data:`VELOCITIES`."""
-        index = _nearest_index(VELOCITIES, self.velocity) + delta
-        self.velocity = VELOCITIES[max(0, min(len(VELOCITIES) - 1, index))]
-        return self.velocity
-
+    # -- plots and state ----------------------------------------------------------------------
     def toggle_plot(self) -> bool:
         row = self.row
         row.plotted = not row.plotted
@@ -373,7 +315,7 @@ class Jogger:
         found = self.group_of(row.name)
         if found is not None:
             group, index = found
-            self._start(lambda: self._group_jog(row, group, index, target))
+            self.start_soon(lambda: self._group_jog(row, group, index, target))
         else:
             self._start_stream(row, axis, base, target)
         return target
@@ -385,7 +327,7 @@ class Jogger:
             previous.cancel()
         scope = anyio.CancelScope()
         self._streams[row.name] = scope
-        self._start(lambda: self._stream(row, axis, scope, start, target, self.velocity))
+        self.start_soon(lambda: self._stream(row, axis, scope, start, target, self.velocity))
 
     async def _stream(
         self,

@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 from contextlib import AbstractAsyncContextManager
 from typing import Protocol
 
-from .jogger import LogEntry
+from .controls import LogEntry
 
 __all__ = ["REMOTE_JOG_GROUP", "JogRow", "JogSession", "RemoteJogProvider"]
 

@@ -10,7 +10,7 @@ from textual.app import ComposeResult
 from textual.containers import Vertical
 from textual.widgets import DataTable, Label, RichLog, Sparkline, Static
 
-from .jogger import LogEntry
+from .controls import LogEntry
 from .session import JogRow, JogSession
 
 __all__ = ["ComponentTable", "EventLog", "PlotPanel", "StatusLine", "format_values"]
