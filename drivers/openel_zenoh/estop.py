@@ -24,8 +24,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from types import TracebackType
-from typing import TYPE_CHECKING, Any, Self, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import anyio
 import anyio.abc
@@ -38,6 +37,7 @@ from openel_async.logs import get_logger
 from . import wire
 from .bridge import ThreadInbox
 from .keys import Keys
+from .rigservice import RigQueryService, reply
 
 if TYPE_CHECKING:
     from openel_async.rig import Rig
@@ -60,92 +60,30 @@ def component_state(component: HALComponent) -> wire.RigComponentState:
     )
 
 
-def _reply(query: zenoh.Query, payload: bytes) -> None:
-    try:
-        query.reply(query.key_expr, payload)
-    except zenoh.ZError as exc:
-        log.warning("estop_reply_failed", error=str(exc))
-    finally:
-        cast(Any, query).drop()
-
-
-class RigEstopServer:
+class RigEstopServer(RigQueryService[bool]):
     """Serve the e-stop of ``rig`` on ``session`` under ``openel/<namespace>/rig/``
     (``async with``; enter it before the SurfaceServer, whose liveliness token tells
-    clients that the server is up)."""
+    clients that the server is up). A query's kind: whether it asks for the release."""
+
+    inbox_size = INBOX_SIZE
 
     def __init__(self, rig: Rig, session: zenoh.Session, namespace: str = "default") -> None:
+        super().__init__(session)
         self.rig = rig
-        self.session = session
         self.keys = Keys(namespace)
         self.estops = 0
         """E-stops run on request (coalesced queries count once)."""
         self.releases = 0
-        self._declared: list[Any] = []
-        self._inbox: ThreadInbox[tuple[bool, zenoh.Query]] | None = None
-        self._tg: anyio.abc.TaskGroup | None = None
 
-    async def __aenter__(self) -> Self:
-        inbox = self._inbox = ThreadInbox(INBOX_SIZE, on_drop=self._refuse_dropped)
-        tg = anyio.create_task_group()
-        await tg.__aenter__()
-        self._tg = tg
-        try:
-            for key, release in ((self.keys.rig_estop, False), (self.keys.rig_estop_release, True)):
-                self._declared.append(
-                    self.session.declare_queryable(
-                        key,
-                        zenoh.handlers.Callback(self._on_query(inbox, release), indirect=False),
-                        complete=True,
-                    )
-                )
-            tg.start_soon(self._worker, inbox)
-        except BaseException:
-            await self._close()
-            raise
-        return self
+    def queryables(self) -> list[tuple[str, bool]]:
+        return [(self.keys.rig_estop, False), (self.keys.rig_estop_release, True)]
 
-    async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        await self._close()
-
-    async def _close(self) -> None:
-        for entity in self._declared:
-            with contextlib.suppress(zenoh.ZError):
-                cast(Any, entity).undeclare()
-        self._declared.clear()
-        if self._inbox is not None:
-            self._inbox.close()
-            for release, query in self._inbox.take_all():
-                self._answer_error(
-                    query, release, ReturnCode.HAL_NO_CONNECTED, "server shutting down"
-                )
-        if self._tg is not None:
-            self._tg.cancel_scope.cancel()
-            await self._tg.__aexit__(None, None, None)
-            self._tg = None
-
-    # -- Zenoh threads ---------------------------------------------------------------------
-    @staticmethod
-    def _on_query(inbox: ThreadInbox[tuple[bool, zenoh.Query]], release: bool) -> Any:
-        def on_query(query: zenoh.Query) -> None:
-            inbox.put((release, query))
-
-        return on_query
-
-    def _refuse_dropped(self, item: tuple[bool, zenoh.Query]) -> None:
-        self._answer_error(item[1], item[0], ReturnCode.HAL_NO_MEMORY, "server busy: dropped")
-
-    def _answer_error(self, query: zenoh.Query, release: bool, code: ReturnCode, text: str) -> None:
+    def refuse(self, kind: bool, query: zenoh.Query, code: ReturnCode, text: str) -> None:
         """An error reply without the components' states (any thread: touches no component)."""
-        _reply(query, wire.encoder.encode(wire.EstopReply(int(code), text, release, [])))
+        reply(query, wire.encoder.encode(wire.EstopReply(int(code), text, kind, [])))
 
     # -- the event loop --------------------------------------------------------------------
-    async def _worker(self, inbox: ThreadInbox[tuple[bool, zenoh.Query]]) -> None:
+    async def serve(self, inbox: ThreadInbox[tuple[bool, zenoh.Query]]) -> None:
         while True:
             batch = await inbox.wait()
             while batch:  # consecutive queries of one kind: one e-stop (release) answers them
@@ -175,7 +113,7 @@ class RigEstopServer:
         states = [component_state(c) for c in self.rig.components.values()]
         payload = wire.encoder.encode(wire.EstopReply(code, message, release, states))
         for query in queries:
-            _reply(query, payload)
+            reply(query, payload)
 
 
 # -- client ------------------------------------------------------------------------------------

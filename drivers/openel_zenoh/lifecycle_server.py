@@ -15,12 +15,6 @@ that the server is up) and give the SurfaceServer its ``lifecycle.admit``.
 
 from __future__ import annotations
 
-import contextlib
-from types import TracebackType
-from typing import Any, Self, cast
-
-import anyio
-import anyio.abc
 import msgspec
 import zenoh
 
@@ -33,20 +27,12 @@ from . import wire
 from .bridge import ThreadInbox
 from .keys import Keys
 from .lifecycle import Hosted, ServedLifecycle
+from .rigservice import RigQueryService, reply
 
 log = get_logger(__name__)
 
 INBOX_SIZE = 256
 ACTIONS = ("get", "activate", "deactivate", "reset")
-
-
-def _reply(query: zenoh.Query, payload: bytes) -> None:
-    try:
-        query.reply(query.key_expr, payload)
-    except zenoh.ZError as exc:
-        log.warning("lifecycle_reply_failed", error=str(exc))
-    finally:
-        cast(Any, query).drop()
 
 
 def lifecycle_component(hosted: Hosted) -> wire.LifecycleComponent:
@@ -74,86 +60,37 @@ def conf_reply(
     )
 
 
-class RigLifecycleServer:
+class RigLifecycleServer(RigQueryService[str]):
     """Serve the lifecycle and configuration of ``surface``'s components on ``session``
-    under ``openel/<namespace>/rig/`` (``async with``); :attr:`lifecycle` is the model."""
+    under ``openel/<namespace>/rig/`` (``async with``); :attr:`lifecycle` is the model. A
+    query's kind: ``lifecycle`` or ``conf``."""
+
+    inbox_size = INBOX_SIZE
 
     def __init__(
         self, surface: Surface, session: zenoh.Session, namespace: str = "default"
     ) -> None:
+        super().__init__(session)
         self.lifecycle = ServedLifecycle(surface)
-        self.session = session
         self.keys = Keys(namespace)
-        self._declared: list[Any] = []
-        self._inbox: ThreadInbox[tuple[str, zenoh.Query]] | None = None
-        self._tg: anyio.abc.TaskGroup | None = None
 
-    async def __aenter__(self) -> Self:
-        inbox = self._inbox = ThreadInbox(INBOX_SIZE, on_drop=self._refuse_dropped)
-        tg = anyio.create_task_group()
-        await tg.__aenter__()
-        self._tg = tg
-        try:
-            for kind, key in (("lifecycle", self.keys.rig_lifecycle), ("conf", self.keys.rig_conf)):
-                self._declared.append(
-                    self.session.declare_queryable(
-                        key,
-                        zenoh.handlers.Callback(self._on_query(inbox, kind), indirect=False),
-                        complete=True,
-                    )
-                )
-            tg.start_soon(self._worker, inbox)
-        except BaseException:
-            await self._close()
-            raise
-        return self
+    def queryables(self) -> list[tuple[str, str]]:
+        return [(self.keys.rig_lifecycle, "lifecycle"), (self.keys.rig_conf, "conf")]
 
-    async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        await self._close()
-
-    async def _close(self) -> None:
+    async def closing(self) -> None:
         self.lifecycle.close()
-        for entity in self._declared:
-            with contextlib.suppress(zenoh.ZError):
-                cast(Any, entity).undeclare()
-        self._declared.clear()
-        if self._inbox is not None:
-            self._inbox.close()
-            for kind, query in self._inbox.take_all():
-                self._refuse(kind, query, ReturnCode.HAL_NO_CONNECTED, "server shutting down")
-        if self._tg is not None:
-            self._tg.cancel_scope.cancel()
-            await self._tg.__aexit__(None, None, None)
-            self._tg = None
 
-    # -- Zenoh threads ---------------------------------------------------------------------
-    @staticmethod
-    def _on_query(inbox: ThreadInbox[tuple[str, zenoh.Query]], kind: str) -> Any:
-        def on_query(query: zenoh.Query) -> None:
-            inbox.put((kind, query))
-
-        return on_query
-
-    def _refuse_dropped(self, item: tuple[str, zenoh.Query]) -> None:
-        self._refuse(item[0], item[1], ReturnCode.HAL_NO_MEMORY, "server busy: dropped")
-
-    @staticmethod
-    def _refuse(kind: str, query: zenoh.Query, code: ReturnCode, text: str) -> None:
+    def refuse(self, kind: str, query: zenoh.Query, code: ReturnCode, text: str) -> None:
         """An error reply naming no component (any thread: touches none)."""
-        reply: wire.LifecycleReply | wire.ConfReply = (
+        answer: wire.LifecycleReply | wire.ConfReply = (
             wire.LifecycleReply(int(code), text, [])
             if kind == "lifecycle"
             else wire.ConfReply(int(code), text)
         )
-        _reply(query, wire.encoder.encode(reply))
+        reply(query, wire.encoder.encode(answer))
 
     # -- the event loop --------------------------------------------------------------------
-    async def _worker(self, inbox: ThreadInbox[tuple[str, zenoh.Query]]) -> None:
+    async def serve(self, inbox: ThreadInbox[tuple[str, zenoh.Query]]) -> None:
         while True:
             for kind, query in await inbox.wait():
                 payload = query.payload
@@ -166,15 +103,15 @@ class RigLifecycleServer:
                     else:
                         answer = self.handle_conf(wire.conf_request_decoder.decode(data))
                 except (msgspec.ValidationError, msgspec.DecodeError) as exc:
-                    self._refuse(
+                    self.refuse(
                         kind, query, ReturnCode.HAL_BAD_PARAMETER, f"a {kind} request: {exc}"
                     )
                     continue
                 except Exception as exc:  # a bug: the client still gets an answer
                     log.exception("lifecycle_request_failed", kind=kind)
-                    self._refuse(kind, query, ReturnCode.HAL_ERROR, repr(exc))
+                    self.refuse(kind, query, ReturnCode.HAL_ERROR, repr(exc))
                     continue
-                _reply(query, wire.encoder.encode(answer))
+                reply(query, wire.encoder.encode(answer))
 
     async def handle_lifecycle(self, request: wire.LifecycleRequest) -> wire.LifecycleReply:
         """Do ``request`` (every component named, in order, each tried); the reply."""
