@@ -78,7 +78,6 @@ _instances = itertools.count(1)
 DEFAULT_LIFECYCLE_TIMEOUT_S = 10.0
 
 
-
 class ExecutionKind(IntEnum):
     """ExecutionKind of the spec."""
 
