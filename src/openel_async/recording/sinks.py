@@ -1,6 +1,7 @@
 """What the writer process (:mod:`.sink_process`) opens and reports, without the app side's
 machinery: a writer for ``--record``/``--foxglove`` imports the Foxglove SDK, msgspec and
-these, not the pipeline's (asyncio, subprocess) nor the taps' (the framework, structlog).
+these, not the pipeline's (asyncio, subprocess) nor the taps' (the framework, structlog);
+the app's process imports them with the pipeline, without the SDK.
 
 :class:`FoxgloveSink` logs nothing: the app's process reports the server's address (the
 writer's ready line carries its port)."""
@@ -8,9 +9,10 @@ writer's ready line carries its port)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
-import foxglove
+if TYPE_CHECKING:
+    import foxglove
 
 __all__ = ["BACKLOG", "DEFAULT_HOST", "DEFAULT_PORT", "FoxgloveSink", "PipelineStats", "Sink"]
 
@@ -54,6 +56,8 @@ class FoxgloveSink:
         name: str = "openel-async",
         backlog: int = BACKLOG,
     ) -> None:
+        import foxglove  # (the app's process imports this module without the SDK)
+
         self.server = foxglove.start_server(
             name=name, host=host, port=port, context=context, message_backlog_size=backlog
         )
