@@ -48,13 +48,17 @@ without, the writer process included. These rows run the command as a user does,
 processes, five rounds of the three variants interleaved (the order reversed every other
 round) after one warm-up run of each (byte-compiled modules, as an installed package has
 them); figure: the CPU time (user + system) of the process and its children; ratio: the
-median of the rounds' own ratios. Beside them, without a target: the CPU of a writer process
-that only starts (``python -c`` and its imports), the fixed part of either tap. Where the
+median of the rounds' own ratios. Beside them, without a target: the app's process alone
+(the same runs, its own CPU reported at exit, the writer process's not counted), and the CPU
+of a writer process that only starts (``python -c`` and its imports), the fixed part of
+either tap. Where the
 added cost was (``python -X importtime``, cProfile, the CPU of the writer alone): at first
 ``--record`` 1.35x and ``--foxglove`` 1.7x, of which the writer's start was 0.13 s (the
 pipeline's asyncio and subprocess) and 0.43 s with ``--foxglove`` (its server class came
 with the taps, the framework, and structlog through one info line); the writer now imports
-the Foxglove SDK, msgspec and its own small modules only (about 0.09 s of CPU).
+the Foxglove SDK, msgspec and its own small modules only (about 0.09 s of CPU idle), and the
+app's process no longer imports the SDK at all (only the writer uses it). What is left is
+the writer's start, about a fifth of this short run's CPU, and the app's own tap work.
 
 **Informational rows: the recorder at saturation, a minimal 9 us control step.** Before the
 target rows measured the demo's loop they measured this stand-in, kept to show the worst case:
@@ -865,11 +869,24 @@ WHOLE_TARGET = 1.05
 """Whole process CPU with --record / --foxglove over without, at most (issue 27)."""
 WHOLE_COMMAND = ("-m", "openel_async.cli", "run", "twoaxis", "--virtual", "--no-live")
 WRITER_IMPORTS = "from openel_async.recording.sink_process import main"
+SELF_CPU = (
+    "import atexit, os, resource, runpy, sys\n"
+    "def report():\n"
+    "    u = resource.getrusage(resource.RUSAGE_SELF)\n"
+    "    os.write(2, ('\\nSELF_CPU %r\\n' % (u.ru_utime + u.ru_stime)).encode())\n"
+    "atexit.register(report)\n"
+    "sys.argv = ['openel-async', *sys.argv[1:]]\n"
+    "runpy.run_module('openel_async.cli', run_name='__main__', alter_sys=True)\n"
+)
+"""``python -c SELF_CPU ARGS...``: ``openel-async ARGS...``, then the CPU seconds of the app's
+process alone (without its children: the writer process) on a line of standard error."""
 
 
-def _children_cpu(command: list[str], env: dict[str, str]) -> float:
+def _children_cpu(command: list[str], env: dict[str, str]) -> tuple[float, float | None]:
     """CPU seconds (user + system) of one process run to its end, its children included
-    (a writer process is waited for by its parent)."""
+    (a writer process is waited for by its parent), and of the process alone if it said
+    (a ``SELF_CPU`` line on standard error)."""
+    import re
     import resource
 
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -877,16 +894,22 @@ def _children_cpu(command: list[str], env: dict[str, str]) -> float:
         command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env, timeout=300
     )
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    err = done.stderr.decode(errors="replace")
     if done.returncode != 0:
-        raise RuntimeError(f"{command}: exit {done.returncode}: {done.stderr.decode()[-500:]}")
-    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        raise RuntimeError(f"{command}: exit {done.returncode}: {err[-500:]}")
+    alone = re.search(r"^SELF_CPU ([0-9.e+-]+)$", err, re.M)
+    total = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return total, float(alone.group(1)) if alone else None
 
 
-def _whole_processes(rounds: int, tmp: Path) -> tuple[dict[str, list[float]], list[float]]:
+def _whole_processes(
+    rounds: int, tmp: Path
+) -> tuple[dict[str, list[float]], dict[str, list[float]], list[float]]:
     """CPU seconds of whole ``openel-async run twoaxis --virtual --no-live`` processes per
     variant (no tap, ``--record``, ``--foxglove --foxglove-port 0``), interleaved round by
-    round (the order reversed every other round), after one warm-up run of each; and the CPU
-    of a bare writer process start (its imports), once per round."""
+    round (the order reversed every other round), after one warm-up run of each; the same
+    of the app's process alone (the writer process not counted); and the CPU of a bare
+    writer process start (its imports), once per round."""
     import os
 
     # byte-compiled modules, as an installed package has them (this machine's environment
@@ -894,7 +917,7 @@ def _whole_processes(rounds: int, tmp: Path) -> tuple[dict[str, list[float]], li
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
     def command(variant: str) -> list[str]:
-        out = [sys.executable, *WHOLE_COMMAND]
+        out = [sys.executable, "-c", SELF_CPU, *WHOLE_COMMAND[2:]]
         if variant == "rec":
             out += ["--record", str(tmp / "whole.mcap")]
         elif variant == "live":
@@ -904,16 +927,21 @@ def _whole_processes(rounds: int, tmp: Path) -> tuple[dict[str, list[float]], li
     for variant in WHOLE_VARIANTS:  # warm-up (and the byte-code caches written)
         _children_cpu(command(variant), env)
     cpu: dict[str, list[float]] = {k: [] for k in WHOLE_VARIANTS}
+    app: dict[str, list[float]] = {k: [] for k in WHOLE_VARIANTS}
     writer: list[float] = []
     for r in range(rounds):
         order = WHOLE_VARIANTS if r % 2 == 0 else WHOLE_VARIANTS[::-1]
         for variant in order:
-            cpu[variant].append(_children_cpu(command(variant), env))
-        writer.append(_children_cpu([sys.executable, "-c", WRITER_IMPORTS], env))
-    return cpu, writer
+            total, alone = _children_cpu(command(variant), env)
+            cpu[variant].append(total)
+            app[variant].append(total if alone is None else alone)
+        writer.append(_children_cpu([sys.executable, "-c", WRITER_IMPORTS], env)[0])
+    return cpu, app, writer
 
 
-def _whole_rows(cpu: dict[str, list[float]], writer: list[float]) -> tuple[list[Row], list[str]]:
+def _whole_rows(
+    cpu: dict[str, list[float]], app: dict[str, list[float]], writer: list[float]
+) -> tuple[list[Row], list[str]]:
     base = median(cpu["base"])
     start = median(writer)
     rows: list[Row] = [
@@ -932,6 +960,21 @@ def _whole_rows(cpu: dict[str, list[float]], writer: list[float]) -> tuple[list[
                 ratio_label="tap/none, median of rounds' ratios",
                 target=f"<= {WHOLE_TARGET}x",
                 passed=ratio <= WHOLE_TARGET,
+                digits=3,
+            )
+        )
+    app_base = median(app["base"])
+    for variant, label in (("rec", "--record"), ("live", "--foxglove (no client)")):
+        ratio = median([v / b for v, b in zip(app[variant], app["base"], strict=True)])
+        rows.append(
+            Row(
+                f"whole process, {label}: CPU of the app's process alone (no writer)",
+                median(app[variant]),
+                "s",
+                baseline=app_base,
+                baseline_label="no tap",
+                ratio=ratio,
+                ratio_label="tap/none, median of rounds' ratios",
                 digits=3,
             )
         )
@@ -986,7 +1029,7 @@ def run(quick: bool) -> BenchResult:
         # the target rows: the arm2 demo's loop in fresh processes, its variants interleaved
         # round by round in each
         app_runs = _app_processes(app_processes, app_rounds, Path(tmp))
-        whole_cpu, whole_writer = _whole_processes(WHOLE_ROUNDS, Path(tmp))
+        whole_cpu, whole_app, whole_writer = _whole_processes(WHOLE_ROUNDS, Path(tmp))
         # informational: the minimal 9 us step
         anyio.run(_baseline, 500, backend="asyncio")  # warm-up
         stream = Path(tmp) / "stream.bin"  # a Recorder loop's writer input, for interference
@@ -1030,7 +1073,7 @@ def run(quick: bool) -> BenchResult:
     p = {k: median(v) for k, v in process.items()}
     wr = {k: median(v) for k, v in writer.items()}
     app_rows, app_notes = _app_rows(app_runs)
-    whole_rows, whole_notes = _whole_rows(whole_cpu, whole_writer)
+    whole_rows, whole_notes = _whole_rows(whole_cpu, whole_app, whole_writer)
     rows = (
         *app_rows,
         *whole_rows,
