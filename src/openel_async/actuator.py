@@ -42,6 +42,7 @@ S = ComponentState
 # Enum members read as module constants on the per-command paths (~80 ns saved each).
 _ACTIVE = S.ACTIVE
 _PENDING = Outcome.PENDING
+_SUPERSEDED = Outcome.SUPERSEDED
 _NO_EXCITE = Request.NO_EXCITE
 _SETTABLE = frozenset(SET_VALUE_REQUESTS)
 _POSITION = Request.POSITION
@@ -271,7 +272,8 @@ class Actuator(HALComponent):
             motion = Motion(req, target, sequence, self.clock.now_ns())
             self._motion = motion
             if previous is not None and previous.outcome is _PENDING:
-                previous._supersede(sequence)
+                previous._superseded_by = sequence  # previous._supersede(sequence), inline
+                previous._finish(_SUPERSEDED)
             self._commanded[req] = target
             if not self._reports_completion:
                 self._watch.set()

@@ -19,8 +19,8 @@ import functools
 import math
 import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from operator import le as _le
-from typing import TypeVar, cast
+from types import CodeType, FunctionType
+from typing import Any, TypeVar, cast
 
 from .actuator import Actuator, StreamBatch, accept_streamed, send_targets, stream_targets
 from .completion import Motion
@@ -82,6 +82,42 @@ def _require_nowait(members: Sequence[HALComponent], flag: str, operation: str) 
             )
 
 
+_CHECKER_CODE: dict[int, CodeType] = {}
+"""The range checkers' code by member count (bounds are their default arguments)."""
+
+
+def _range_checker(lows: Sequence[float], highs: Sequence[float]) -> Callable[[Any], bool]:
+    """``check(values)``, for a list or tuple ``values``: whether it holds one float per
+    bound, each within ``[lows[i], highs[i]]`` (finite bounds: NaN and infinities fail a
+    comparison).  One straight-line function per member count, generated once: the values
+    unpacked, then per value one type test and one chained comparison, with no loop, no
+    temporary tuple and no call."""
+    n = len(lows)
+    code = _CHECKER_CODE.get(n)
+    if code is None:
+        values = "".join(f"v{i}, " for i in range(n))
+        tests = " and ".join(f"type(v{i}) is F and l{i} <= v{i} <= h{i}" for i in range(n))
+        source = (
+            "def check(values, /, F=float, type=type, "
+            + "".join(f"l{i}=0.0, h{i}=0.0, " for i in range(n))
+            + "):\n"
+            + "    try:\n"
+            + f"        {values}= values\n"
+            + "    except ValueError:\n"
+            + "        return False\n"
+            + f"    return {tests}\n"
+        )
+        namespace: dict[str, Any] = {}
+        exec(compile(source, "<bank range check>", "exec"), namespace)  # our own names only
+        code = _CHECKER_CODE[n] = namespace["check"].__code__
+    check = FunctionType(code, {"__builtins__": __builtins__})
+    defaults: tuple[object, ...] = (float, type)
+    for low, high in zip(lows, highs, strict=True):
+        defaults += (low, high)
+    check.__defaults__ = defaults
+    return cast(Callable[[Any], bool], check)
+
+
 class ActuatorBank:
     """Actuators commanded together; see the module docstring.
 
@@ -111,16 +147,14 @@ class ActuatorBank:
         clocks = {id(a.clock) for a in self.actuators}
         # Streamed commands are stamped with one clock reading when the actuators share it.
         self._now_ns = self.actuators[0].clock.now_ns if len(clocks) == 1 else None
-        # Position limits and support: a POSITION batch of floats is checked in three C-level
-        # passes (types, lower and upper bounds).  The limits are re-read whenever any
-        # device's were set since (device.LIMITS_CHANGES: one comparison per batch).
+        # Position limits and support: a POSITION batch is checked by one generated function
+        # (each value a float within its device's limits).  The limits are re-read whenever
+        # any device's were set since (device.LIMITS_CHANGES: one comparison per batch).
         devices = self._devices
-        self._floats = (float,) * len(devices)
         self._limits_at = -1
         self._lows: tuple[float, ...] = ()
         self._highs: tuple[float, ...] = ()
-        self._range: tuple[float, float] | None = None
-        self._inner: tuple[float, float] | None = None
+        self._in_range: Callable[[Any], bool] = bool
         self._read_limits()
         self._positions = all(_POSITION in d.supported_requests for d in devices)
         # One device call for the whole batch when the driver offers one (every device of
@@ -175,12 +209,7 @@ class ActuatorBank:
         positions = [d.limits.position for d in self._devices]
         lows = self._lows = tuple([max(p[0], -_MAX) for p in positions])
         highs = self._highs = tuple([min(p[1], _MAX) for p in positions])
-        # One range for every device (the usual case): min() and max() of the batch.
-        self._range = (lows[0], highs[0]) if len(set(lows)) == 1 and len(set(highs)) == 1 else None
-        # The range inside every device's (the shared one, if any): a batch inside it needs
-        # no per-device comparison.
-        low, high = max(lows), min(highs)
-        self._inner = (low, high) if low <= high else None
+        self._in_range = _range_checker(lows, highs)
 
     # -- SetValue on every actuator ---------------------------------------------------
     async def set_values(
@@ -261,25 +290,10 @@ class ActuatorBank:
             self._stream_inline
             and request is _POSITION
             and (type(values) is list or type(values) is tuple)
-            and tuple(map(type, values)) == self._floats
         ):  # the streaming tick, inline: a batch of floats within the limits, one device call
             if self._limits_at != LIMITS_CHANGES.value:  # a device's limits were set
                 self._read_limits()
-            # Inside the range every device takes: NaN may hide from min() and max(), but a
-            # finite sum rules it and infinities out.  Else each device's own (finite) range,
-            # where NaN and infinities fail a comparison.
-            inner = self._inner
-            total = sum(values)
-            if (
-                inner is not None
-                and total - total == 0.0
-                and inner[0] <= min(values)
-                and max(values) <= inner[1]
-            ) or (
-                self._range is None
-                and all(map(_le, self._lows, values))
-                and all(map(_le, values, self._highs))
-            ):
+            if self._in_range(values):
                 actuators = self.actuators
                 if self._active_at != STATE_CHANGES.value:
                     self._active_at = _require_all_active(actuators, "set_values_nowait", -1)
@@ -433,18 +447,13 @@ class ActuatorBank:
 
     def _in_limits(self, values: Sequence[float]) -> bool:
         """Whether ``values`` (a sequence) are POSITION targets the bank takes as they are:
-        one float per actuator, each finite and within its device's limits (C-level passes;
+        one float per actuator, each finite and within its device's limits (one generated check;
         False sends the caller through each actuator's own checks for the exact error)."""
-        if not self._positions or tuple(map(type, values)) != self._floats:
+        if not self._positions or not (type(values) is list or type(values) is tuple):
             return False
         if self._limits_at != LIMITS_CHANGES.value:  # a device's limits were set
             self._read_limits()
-        bounds = self._range
-        if bounds is not None:
-            # NaN may hide from min() and max(): a finite sum rules it (and infinities) out.
-            total = sum(values)
-            return total - total == 0.0 and bounds[0] <= min(values) and max(values) <= bounds[1]
-        return all(map(_le, self._lows, values)) and all(map(_le, values, self._highs))
+        return self._in_range(values)
 
     def _check_each(self, operation: str, values: Sequence[float], req: Request) -> list[float]:
         _require_active(self.actuators, operation)

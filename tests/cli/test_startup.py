@@ -60,6 +60,24 @@ def test_an_apps_help_imports_only_what_it_runs_on() -> None:
     assert "openel_async.rig" not in imported
 
 
+def test_a_profile_apps_help_loads_no_rtc_machinery() -> None:
+    """``openel-async run pantilt --help`` (an app run from its RTC Profile) answers from the
+    profile runner's parser alone: neither the RTC package, its profile loaders nor yaml and
+    msgspec are imported."""
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "openel_async.cli", "run", "pantilt", "--help"],
+        capture_output=True, text=True, timeout=60, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "--duration" in done.stdout and "--set NAME=VALUE" in done.stdout
+    imported = set(re.findall(r"^import time:\s+\d+ \|\s+\d+ \| +(\S+)$", done.stderr, re.M))
+    assert "openel_async.run_profile_args" in imported  # (the output is what this test reads)
+    top = {name.split(".")[0] for name in imported}
+    heavy = set(HEAVY) - {"anyio"}
+    assert not top.intersection(heavy), sorted(top.intersection(heavy))
+    assert "openel_async.rtc" not in imported
+
+
 def test_every_module_logs_through_the_lazy_logger() -> None:
     """``structlog.get_logger`` at module level would import structlog (and rich) with the
     module: every module takes ``openel_async.logs.get_logger`` instead."""

@@ -80,13 +80,21 @@ def run_app(
             print(f"{label}: {exc}", file=sys.stderr)
             return 2
     if info.profile is not None:
-        from ..rtc.runner import run_profile_cli
-
         # A profile app that takes a rig reads it from its configuration parameters
         # ``rig`` and ``sim`` (pantilt): the options become their settings.
         settings = [] if rig is None else ["--set", f"rig={Path(rig).resolve()}"]
         settings += ["--set", "sim=true"] if sim else []
-        return int(run_profile_cli(info.profile, [*settings, *argv]))
+        args = [*settings, *argv]
+        # --help and a mistaken option answered before the RTC machinery is loaded
+        from ..run_profile_args import parse_profile_run_args
+
+        try:
+            parse_profile_run_args(args)
+        except SystemExit as exc:
+            return int(exc.code or 0) if exc.code in (0, None) else 2
+        from ..rtc.runner import run_profile_cli
+
+        return int(run_profile_cli(info.profile, args))
     ctx = AppContext(argv, prog=prog, hooks=hooks, rig=resolved, sim=sim)
     try:
         result = anyio.run(

@@ -18,23 +18,24 @@ from typing import TYPE_CHECKING
 from ..lazy import lazy_exports
 
 if TYPE_CHECKING:
-    from .live import LAYOUT_PATH, FoxgloveSink, LiveView
+    from .live import LAYOUT_PATH, LiveView
     from .mcap_sink import McapSink
-    from .pipeline import Pipeline, PipelineStats, Sink, SinkStartError
+    from .pipeline import Pipeline, SinkStartError
     from .reader import Recording, info_lines, read_recording
     from .recorder import Recorder
     from .scene import PoseBytesSource, PoseSource, Primitive, SceneSource, Transform
+    from .sinks import FoxgloveSink, PipelineStats, Sink
     from .tap import Tap
 
 # Each name loads its module on first use: the writer process (sink_process) and a command
 # that records without --foxglove do not import the Foxglove SDK's live server.
 _LAZY = {
     "LAYOUT_PATH": "live",
-    "FoxgloveSink": "live",
+    "FoxgloveSink": "sinks",
     "LiveView": "live",
     "Pipeline": "pipeline",
-    "PipelineStats": "pipeline",
-    "Sink": "pipeline",
+    "PipelineStats": "sinks",
+    "Sink": "sinks",
     "SinkStartError": "pipeline",
     "Recording": "reader",
     "info_lines": "reader",

@@ -12,49 +12,13 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import foxglove
-
-from openel_async.logs import get_logger
-
-from .pipeline import PipelineStats
+from .sinks import DEFAULT_HOST, DEFAULT_PORT, FoxgloveSink
 from .tap import Tap
 
 __all__ = ["DEFAULT_HOST", "DEFAULT_PORT", "LAYOUT_PATH", "FoxgloveSink", "LiveView"]
 
-log = get_logger(__name__)
-
-DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 8765
-BACKLOG = 65_536
-"""Messages the server buffers per client (the SDK's ``message_backlog_size``; its default,
-1 024, is less than one of the writer process's batches at the control loop's full speed):
-beyond it the oldest are dropped for that client."""
 LAYOUT_PATH = Path(__file__).with_name("foxglove_layout.json")
 """The Foxglove layout shipped for the demos (joint plots, 3D, log, raw messages)."""
-
-
-class FoxgloveSink:
-    """A Foxglove WebSocket server publishing every channel of ``context`` (``port=0``: any
-    free port, see :attr:`port`; ``backlog``: messages buffered per client, :data:`BACKLOG`)."""
-
-    def __init__(
-        self,
-        *,
-        context: foxglove.Context,
-        host: str = DEFAULT_HOST,
-        port: int = DEFAULT_PORT,
-        name: str = "openel-async",
-        backlog: int = BACKLOG,
-    ) -> None:
-        self.server = foxglove.start_server(
-            name=name, host=host, port=port, context=context, message_backlog_size=backlog
-        )
-        self.host = host
-        self.port: int = self.server.port
-        log.info("foxglove_server_started", url=f"ws://{host}:{self.port}")
-
-    def close(self, stats: PipelineStats) -> None:
-        self.server.stop()
 
 
 class LiveView(Tap):

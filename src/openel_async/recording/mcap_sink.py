@@ -15,7 +15,7 @@ from pathlib import Path
 import foxglove
 from foxglove.mcap import MCAPWriteOptions
 
-from .pipeline import PipelineStats
+from .sinks import PipelineStats
 
 __all__ = ["PROFILE", "McapSink"]
 

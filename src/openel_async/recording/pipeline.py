@@ -44,7 +44,7 @@ import time
 from collections import deque
 from dataclasses import dataclass
 from itertools import repeat, starmap
-from typing import Any, Protocol
+from typing import Any
 
 import msgspec
 
@@ -53,6 +53,7 @@ from openel_async.logs import get_logger
 from .columns import Columns, column_messages_count
 from .records import BATCH, CHANNEL, COLUMNS, HEADER, STATS
 from .schemas import ChannelSpec, Schema
+from .sinks import PipelineStats, Sink
 
 __all__ = ["Pipeline", "PipelineStats", "Sink", "SinkStartError"]
 
@@ -70,24 +71,6 @@ WRITER_BOOTSTRAP = (
 """The writer process's ``python -c`` program (:mod:`.sink_process`): SIGINT and SIGTERM are
 ignored before anything is imported (``python -m`` would import the package first, and a
 Ctrl-C meanwhile would end it with a traceback); the writer ends when its input does."""
-
-
-class Sink(Protocol):
-    """What the writer process opens on its Foxglove SDK context (:class:`~.mcap_sink.McapSink`,
-    :class:`~.live.FoxgloveSink`); closed with the final statistics."""
-
-    def close(self, stats: PipelineStats) -> None: ...
-
-
-@dataclass(frozen=True, slots=True)
-class PipelineStats:
-    queued: int
-    """Records the control loop handed over."""
-    written: int
-    """Messages written to the sinks."""
-    dropped: int
-    """Records not written: the queue was full (the writer fell behind)."""
-    capacity: int
 
 
 @dataclass(frozen=True, slots=True)

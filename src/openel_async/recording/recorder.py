@@ -13,10 +13,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from .mcap_sink import PROFILE, McapSink
 from .tap import Tap
 
-__all__ = ["PROFILE", "McapSink", "Recorder"]
+__all__ = ["Recorder"]
 
 
 class Recorder(Tap):

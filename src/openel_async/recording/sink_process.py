@@ -41,9 +41,9 @@ import foxglove
 import msgspec
 
 from .columns import column_messages
-from .pipeline import PipelineStats, Sink
 from .records import BATCH, CHANNEL, COLUMNS, COMMAND, HEADER, SCHEMAS, STATS, to_message
 from .schemas import MESSAGE_ENCODING, SCHEMA_ENCODING, Schema
+from .sinks import PipelineStats, Sink
 
 LogCall = Callable[[bytes, int | None, int | None], None]
 
@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
 
             sinks.append(McapSink(args.mcap, context=context, chunk_size=args.chunk_size))
         if args.foxglove is not None:
-            from .live import FoxgloveSink
+            from .sinks import FoxgloveSink
 
             host, _, port = args.foxglove.rpartition(":")
             live = FoxgloveSink(host=host, port=int(port), context=context)

@@ -41,6 +41,7 @@ import anyio.abc
 from openel_async.logs import get_logger
 
 from ..clock import NS_PER_S, Clock, default_clock
+from ..run_profile_args import MAX_RATE_HZ, MIN_RATE_HZ
 from ..stats import LatenessRecorder, LatenessSummary
 from ..timer import EventTimer
 from ._callbacks import Outcome, invoke, outcome_of
@@ -75,14 +76,6 @@ T = TypeVar("T")
 _instances = itertools.count(1)
 
 DEFAULT_LIFECYCLE_TIMEOUT_S = 10.0
-
-MAX_RATE_HZ = 10_000.0
-"""The fastest periodic context: a 100 us period.  A cycle costs the context some
-microseconds of bookkeeping plus the participants' callbacks, so faster rates could
-only overrun on a real clock, and on a virtual clock they turn seconds of simulated
-time into minutes of CPU."""
-MIN_RATE_HZ = 1e-6
-"""The slowest periodic context (a period of about 11.6 days)."""
 
 
 class ExecutionKind(IntEnum):

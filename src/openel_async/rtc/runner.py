@@ -48,6 +48,7 @@ from anyio.abc import TaskStatus
 from openel_async.logs import get_logger
 
 from ..clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
+from ..run_profile_args import CLI_MAX_VIRTUAL_CYCLES, parse_profile_run_args
 from .configuration import Configuration, ConfigurationError
 from .context import (
     MAX_RATE_HZ,
@@ -92,8 +93,6 @@ RATE_PARAMETER = "exec_ctxt.periodic.rate"
 DEFAULT_RATE_HZ = 1000.0
 CLI_SET = "cli"
 """Name of the configuration set made of ``--set`` values."""
-CLI_MAX_VIRTUAL_CYCLES = 1_000_000
-"""``openel-async run --virtual``: most cycles (rate x duration), about a minute of CPU."""
 
 _PERIODIC_TYPES = frozenset({"periodicexecutioncontext", "periodic"})
 _EVENT_TYPES = frozenset({"eventdrivenexecutioncontext", "eventdriven", "event_driven"})
@@ -637,58 +636,7 @@ async def run_prepared(
 
 
 def _parse_args(argv: Sequence[str]) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(
-        prog="openel-async run PROFILE",
-        description="Run the RT component an RTC Profile (.yaml/.yml/.xml) describes. This "
-        "imports and executes the Python module the profile names (its 'implementation' "
-        "parameter: a module next to the profile or an installed one): run only profiles "
-        "you trust. Ctrl-C (SIGINT) ends the run with exit status 130, SIGTERM with 143, "
-        "after the summary. A component whose execution type is ExtTrigExecutionContext "
-        "runs one cycle per tick: --ticks/--tick-rate, else one per line of standard input "
-        "(Enter: one tick, a number N: N ticks, end of input (Ctrl-D): the end of the run).",
-    )
-    parser.add_argument("--duration", type=float, help="seconds to run (default: until Ctrl-C)")
-    clock = parser.add_mutually_exclusive_group()
-    clock.add_argument(
-        "--virtual",
-        action="store_true",
-        help="run on the virtual clock (simulated time, as fast as possible; needs --duration, "
-        "or --ticks for an ExtTrigExecutionContext)",
-    )
-    clock.add_argument(
-        "--realtime",
-        action="store_true",
-        help="run on the real monotonic clock (the default), as every app does",
-    )
-    parser.add_argument(
-        "--rate",
-        type=float,
-        help=f"rate in Hz of a periodic context ({MIN_RATE_HZ:g} to {MAX_RATE_HZ:g}; with "
-        f"--virtual, rate x duration at most {CLI_MAX_VIRTUAL_CYCLES:,} cycles)",
-    )
-    parser.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="configuration value (repeatable); checked against the parameter's constraint",
-    )
-    parser.add_argument("--name", help="instance name (default: basicInfo.name)")
-    parser.add_argument(
-        "--ticks",
-        type=int,
-        metavar="N",
-        help="ExtTrigExecutionContext: tick N times (each after the previous cycle), then end "
-        f"the run (at most {CLI_MAX_VIRTUAL_CYCLES:,})",
-    )
-    parser.add_argument(
-        "--tick-rate",
-        type=float,
-        metavar="HZ",
-        help="ExtTrigExecutionContext: tick HZ times a second (with --ticks N: N times; "
-        "else until --duration or Ctrl-C) instead of back to back",
-    )
-    return parser.parse_args(list(argv))
+    return parse_profile_run_args(argv)
 
 
 def _settings(pairs: Sequence[str]) -> dict[str, str]:
