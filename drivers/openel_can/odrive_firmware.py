@@ -102,10 +102,11 @@ class FirmwareVersion:
         return f"{self.fw_text} on hardware {self.hw_text}{suffix}"
 
 
-SIMULATED_FIRMWARE: Final = FirmwareVersion((0, 6, 10), (0, 0, 0), SIM_UNRELEASED_MARK)
-"""The simulated ODrive's default Get_Version: hardware 0.0.0 (no ODrive product) and the
-unreleased byte :data:`SIM_UNRELEASED_MARK`, an identity no ODrive reports. The built-in
-table is declared for it (the simulation implements the built-in ids by construction)."""
+SIMULATED_FIRMWARE: Final = FirmwareVersion((0, 6, 10), (4, 4, 58), SIM_UNRELEASED_MARK)
+"""The simulated ODrive's default Get_Version: firmware 0.6.10 on an ODrive Pro (hardware
+4.4.58) with the unreleased byte :data:`SIM_UNRELEASED_MARK`, an identity no ODrive reports
+(a release reports 0, a development build 1). The built-in table is declared for it (the
+simulation implements the built-in ids by construction)."""
 
 
 @dataclass(frozen=True)
