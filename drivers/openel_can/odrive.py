@@ -38,9 +38,10 @@ torques are Nm on both sides; temperatures are converted from °C to K.
   writes ``axis0.config.watchdog_timeout`` and ``axis0.config.enable_watchdog`` by RxSdo
   (endpoint access, firmware 0.6.x; 0.5.x CANSimple has no endpoint write: configure the
   watchdog with odrivetool there) and feeds it from the event loop. When the table does not
-  match the axis's firmware, arming fails (the rig's ``init`` fails) and the axis is put in
-  IDLE first: it is never left enabled with its watchdog silently missing (a rig without
-  watchdogs says so: ``safety.watchdog_timeout: null``). The firmware feeds the
+  match the axis's firmware, arming fails (the rig's ``init`` fails): the axis is put in IDLE
+  and the component faulted (``ErrorId.DEVICE_ERROR``; ``re_init`` asks the version again),
+  so it is never left enabled with its watchdog silently missing (a rig without watchdogs
+  says so: ``safety.watchdog_timeout: null``). The firmware feeds the
   watchdog on every CANSimple frame addressed to the axis, so streamed set-points feed it;
   when nothing was sent for a quarter of the timeout, a heartbeat poll (remote frame) does.
   On expiry the ODrive drops to IDLE with WATCHDOG_TIMER_EXPIRED; the next heartbeat faults
@@ -908,14 +909,17 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         async with self._lock:
             refusal = await self.endpoint_write_refusal("the axis watchdog's endpoints")
             if refusal is not None:
-                # Never left enabled with its watchdog silently missing: IDLE first.
+                # Never left enabled with its watchdog silently missing: IDLE, and the
+                # component faulted (no command re-engages it; re_init checks again).
                 self._closed_loop_wanted = False
                 self._pending = None
                 await self._link.send(cs.SetAxisState(self.node_id, cs.AxisState.IDLE))
-                raise HALError(
+                message = (
                     f"{refusal}, or run without the axis watchdog: safety.watchdog_timeout: "
                     "null (the axis was put in IDLE)"
                 )
+                self._fault(ErrorId.DEVICE_ERROR, message)
+                raise HALError(message)
             self.watchdog_timeout = float(timeout_s)
             if not self._feeding:
                 self._feeding = True

@@ -178,7 +178,7 @@ async def test_mismatching_firmware_refuses_the_watchdog_writes_and_idles_the_ax
         with anyio.fail_after(5), pytest.raises(HALError, match="vel_ramp_rate"):
             await device.command_velocity_ramp(VelocityRamp(0.0, 1.0, 0.5))
         assert sim.commands.total == sent and _writes(sim) == []
-        assert axis.device is device
+        assert axis.state.value == "Error"  # faulted: no command re-engages it
 
 
 async def test_a_rig_init_fails_on_a_mismatch(tmp_path: Path) -> None:
@@ -193,20 +193,24 @@ async def test_a_rig_init_fails_on_a_mismatch(tmp_path: Path) -> None:
         "params: {node_id: 1, heartbeat_period: 0.02, endpoints: fw/flat.json}}\n"
         "safety: {watchdog_timeout: 0.3, on_exit: torque_off}\n"
     )
-    # --sim: the simulated node has the file's ids and version: init arms the watchdog
-    async with open_rig(load_rig(path), sim=True) as rig:
-        peer: Any = rig.peers["AXIS"]
-        assert peer.firmware == PRO_0_6_11 and peer.enable_watchdog
-        assert {w.endpoint_id for w in _writes(peer)} >= {200 + SHIFT, 201 + SHIFT}
-    # the axis runs another firmware than the file's (reflashed): the rig's init fails
     async with open_rig(load_rig(path), sim=True, init=False) as rig:
-        peer = rig.peers["AXIS"]
-        peer.firmware = FirmwareVersion((0, 6, 9), (4, 4, 58))
+        peer: Any = rig.peers["AXIS"]
+        assert peer.firmware == PRO_0_6_11  # --sim: the node has the file's ids and version
         axis = rig.actuators[0]
+        # the axis runs another firmware than the file's (reflashed): init fails, axis IDLE
+        peer.firmware = FirmwareVersion((0, 6, 9), (4, 4, 58))
         with anyio.fail_after(5), pytest.raises(HALError, match=r"reports firmware 0\.6\.9"):
             await axis.init()
         assert _writes(peer) == [] and not peer.enable_watchdog
+        assert axis.state.value == "Error"
         await wait_until(lambda: peer.axis_state is cs.AxisState.IDLE)
+        # the firmware the file is for: re_init asks the version again and arms the watchdog
+        peer.firmware = PRO_0_6_11
+        with anyio.fail_after(5):
+            await axis.re_init()
+        assert peer.enable_watchdog and peer.watchdog_timeout == pytest.approx(0.3)
+        assert {w.endpoint_id for w in _writes(peer)} == {200 + SHIFT, 201 + SHIFT}
+        assert peer.axis_state is cs.AxisState.CLOSED_LOOP_CONTROL
 
 
 def test_rig_check_refuses_a_bad_endpoints_file(tmp_path: Path) -> None:
