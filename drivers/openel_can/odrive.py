@@ -80,7 +80,7 @@ from . import cansimple as cs
 from .bus import CanBus, NodePort
 from .errors import DecodeError
 from .node_faults import NodeFaults
-from .odrive_firmware import EndpointTable, FirmwareVersion, endpoint_table
+from .odrive_firmware import EndpointTable, FirmwareVersion, driver_endpoint_ids, endpoint_table
 
 __all__ = [
     "ODriveAxis",
@@ -109,11 +109,6 @@ ENABLE_WATCHDOG_ENDPOINT: Final = 201
 """Endpoint id of ``axis0.config.enable_watchdog`` (bool) in the built-in table."""
 VERSION_TIMEOUT: Final = 0.5
 """Seconds the Get_Version reply may take before an endpoint write is refused."""
-_ENDPOINT_NAMES: Final = {
-    "vel_ramp_rate_endpoint": ("axis0.controller.config.vel_ramp_rate", "float"),
-    "watchdog_timeout_endpoint": ("axis0.config.watchdog_timeout", "float"),
-    "enable_watchdog_endpoint": ("axis0.config.enable_watchdog", "bool"),
-}
 WATCHDOG_FEED_FRACTION: Final = 4
 """The axis is fed at least every ``timeout / WATCHDOG_FEED_FRACTION``."""
 _FLOAT32_MAX: Final = 3.4028234663852886e38
@@ -180,26 +175,6 @@ def _check_node(node_id: int) -> None:
         or not 0 <= node_id < cs.MAX_NODE_ID
     ):
         raise BadParameterError("node_id", node_id, f"an ODrive node id in 0..{cs.MAX_NODE_ID - 1}")
-
-
-def _endpoint_ids(table: EndpointTable, given: dict[str, int | None]) -> dict[str, int]:
-    """The ids the driver writes: given explicitly, else the table's (BadParameterError
-    naming ``endpoints`` when the table lacks one)."""
-    ids: dict[str, int] = {}
-    for key, value in given.items():
-        if value is not None:
-            ids[key] = value
-            continue
-        name, kind = _ENDPOINT_NAMES[key]
-        endpoint = table.get(name)
-        if endpoint is None or endpoint.type != kind:
-            raise BadParameterError(
-                "endpoints",
-                table.source,
-                f"an endpoint table with {name} of type {kind} (or {key} given)",
-            )
-        ids[key] = endpoint.id
-    return ids
 
 
 def _check_seconds(name: str, value: float) -> None:
@@ -391,7 +366,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
             raise BadParameterError("bus", bus, "an openel_can.CanBus")
         _check_node(node_id)
         table = endpoint_table(endpoints, files_dir)
-        ids = _endpoint_ids(
+        ids = driver_endpoint_ids(
             table,
             {
                 "vel_ramp_rate_endpoint": vel_ramp_rate_endpoint,

@@ -45,10 +45,12 @@ from .odrive_endpoints import ENDPOINTS, FIRMWARE, Endpoint, EndpointType
 
 __all__ = [
     "BUILTIN_TABLE",
+    "DRIVER_ENDPOINTS",
     "SIMULATED_FIRMWARE",
     "SIM_UNRELEASED_MARK",
     "EndpointTable",
     "FirmwareVersion",
+    "driver_endpoint_ids",
     "endpoint_table",
     "load_endpoints",
 ]
@@ -57,6 +59,13 @@ SIM_UNRELEASED_MARK: Final = 0xFF
 """The ``fw_version_unreleased`` byte of the simulated ODrive's default Get_Version (an ODrive
 reports 0 for a release, 1 for a development build)."""
 
+DRIVER_ENDPOINTS: Final = {
+    "vel_ramp_rate_endpoint": ("axis0.controller.config.vel_ramp_rate", "float"),
+    "watchdog_timeout_endpoint": ("axis0.config.watchdog_timeout", "float"),
+    "enable_watchdog_endpoint": ("axis0.config.enable_watchdog", "bool"),
+}
+"""The endpoints :class:`~openel_can.odrive.ODriveAxis` writes, by its option naming an id:
+(path, type)."""
 _SCALAR_TYPES: Final = frozenset(get_args(EndpointType))
 _ACCESS: Final = frozenset({"r", "w", "rw"})
 _VERSION: Final = re.compile(r"(\d+)\.(\d+)\.(\d+)(-[0-9A-Za-z.+_-]+)?")
@@ -267,3 +276,25 @@ def endpoint_table(
     if not path.is_absolute() and files_dir is not None:
         path = Path(files_dir) / path
     return load_endpoints(path)
+
+
+def driver_endpoint_ids(table: EndpointTable, given: Mapping[str, object]) -> dict[str, int]:
+    """The ids of :data:`DRIVER_ENDPOINTS`: ``given[option]`` when not None, else the table's
+    (BadParameterError naming ``endpoints`` when the table lacks one or types it otherwise)."""
+    ids: dict[str, int] = {}
+    missing: list[str] = []
+    for key, (name, kind) in DRIVER_ENDPOINTS.items():
+        value = given.get(key)
+        if value is not None:
+            ids[key] = value  # type: ignore[assignment]  # checked by the driver
+            continue
+        endpoint = table.get(name)
+        if endpoint is None or endpoint.type != kind:
+            missing.append(f"{name} ({kind})")
+            continue
+        ids[key] = endpoint.id
+    if missing:
+        raise BadParameterError(
+            "endpoints", table.source, f"an endpoint table with {', '.join(missing)}"
+        )
+    return ids

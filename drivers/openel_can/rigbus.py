@@ -43,7 +43,7 @@ from .bus import CanBus
 from .busload import Traffic, bus_load, frame_time
 from .drive402 import DEFAULT_HOST_NODE_ID
 from .layout402 import DriveLayout, drive_file, load_drive_files, plan_layout
-from .odrive_firmware import EndpointTable, endpoint_table
+from .odrive_firmware import EndpointTable, driver_endpoint_ids, endpoint_table
 from .sync import CanSync
 
 __all__ = ["CanBusKind", "CanBusOptions", "SyncOptions"]
@@ -130,7 +130,9 @@ def _odrive_table(devices: Sequence[SimulatedDevice], node: int) -> EndpointTabl
             if value is None:
                 break
             try:
-                return endpoint_table(value, d.rig_dir)
+                table = endpoint_table(value, d.rig_dir)
+                driver_endpoint_ids(table, d.params)  # the ids the driver writes are in it
+                return table
             except BadParameterError as exc:
                 raise BadParameterError(
                     f"{d.name}.params.{exc.parameter}", exc.value, exc.allowed

@@ -129,7 +129,7 @@ def test_a_missing_file_and_a_table_without_the_watchdog_are_refused(tmp_path: P
         load_endpoints(tmp_path / "none.json")
     path = tmp_path / "small.json"
     path.write_text(json.dumps({**_flat(), "endpoints": {"a": {"id": 3, "type": "float"}}}))
-    with pytest.raises(BadParameterError, match=r"axis0\.controller\.config\.vel_ramp_rate"):
+    with pytest.raises(BadParameterError, match=r"axis0\.config\.watchdog_timeout \(float\)"):
         ODriveAxis(CanBus.__new__(CanBus), NODE, endpoints=path)
 
 
@@ -213,11 +213,21 @@ async def test_a_rig_init_fails_on_a_mismatch(tmp_path: Path) -> None:
         assert peer.axis_state is cs.AxisState.CLOSED_LOOP_CONTROL
 
 
-def test_rig_check_refuses_a_bad_endpoints_file(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        ("{}", "fw_version"),
+        (
+            json.dumps({**_flat(), "endpoints": {"a": {"id": 3, "type": "float"}}}),
+            "axis0.config.enable_watchdog (bool)",
+        ),
+    ],
+)
+def test_rig_check_refuses_a_bad_endpoints_file(tmp_path: Path, content: str, problem: str) -> None:
     from openel_async.rig import load_rig, resolve_rig
 
     path = tmp_path / "rig.yaml"
-    (tmp_path / "flat.json").write_text("{}")
+    (tmp_path / "flat.json").write_text(content)
     path.write_text(
         "buses:\n  can0: {type: can, interface: socketcan, channel: can0}\n"
         "components:\n  - {name: AXIS, driver: can, device: odrive_axis, bus: can0, "
@@ -225,7 +235,7 @@ def test_rig_check_refuses_a_bad_endpoints_file(tmp_path: Path) -> None:
     )
     with pytest.raises(BadParameterError, match=r"AXIS\.params\.endpoints") as caught:
         resolve_rig(load_rig(path))
-    assert "flat.json" in str(caught.value) and "fw_version" in str(caught.value)
+    assert "flat.json" in str(caught.value) and problem in str(caught.value)
 
 
 async def test_param_set_refuses_on_a_mismatch_and_get_warns(
