@@ -27,10 +27,21 @@ torques are Nm on both sides; temperatures are converted from °C to K.
   ``heartbeat_timeout`` (default 3 × 100 ms) faults ``ErrorId.DISCONNECTED``; a bus
   failure faults ``ErrorId.BUS_ERROR``. One fault is reported per episode (latched
   until ``reset``). :meth:`ODriveAxis.estop` sends Estop (reported as ``ErrorId.ESTOP``).
+* endpoint writes (RxSdo: the watchdog below, ``vel_ramp_rate`` for ``tm_acc`` ramps) use the
+  ids of an endpoint table (``endpoints``: the ``flat_endpoints.json`` of the firmware the
+  axis runs, a path relative to the rig file; default: the built-in 0.6.x table, which matches
+  no firmware version, :mod:`openel_can.odrive_firmware`). Before the first write (again
+  after ``reset``) the axis's version is read with Get_Version (remote frame, bounded wait);
+  a firmware (or board) other than the table's refuses the write with HALError naming both
+  versions -- nothing is written.
 * axis watchdog (:class:`~openel_async.safety.Watchdog`): :meth:`ODriveAxis.arm_watchdog`
   writes ``axis0.config.watchdog_timeout`` and ``axis0.config.enable_watchdog`` by RxSdo
   (endpoint access, firmware 0.6.x; 0.5.x CANSimple has no endpoint write: configure the
-  watchdog with odrivetool there) and feeds it from the event loop. The firmware feeds the
+  watchdog with odrivetool there) and feeds it from the event loop. When the table does not
+  match the axis's firmware, arming fails (the rig's ``init`` fails): the axis is put in IDLE
+  and the component faulted (``ErrorId.DEVICE_ERROR``; ``re_init`` asks the version again),
+  so it is never left enabled with its watchdog silently missing (a rig without watchdogs
+  says so: ``safety.watchdog_timeout: null``). The firmware feeds the
   watchdog on every CANSimple frame addressed to the axis, so streamed set-points feed it;
   when nothing was sent for a quarter of the timeout, a heartbeat poll (remote frame) does.
   On expiry the ODrive drops to IDLE with WATCHDOG_TIMER_EXPIRED; the next heartbeat faults
@@ -40,6 +51,7 @@ torques are Nm on both sides; temperatures are converted from °C to K.
 from __future__ import annotations
 
 import math
+import os
 import struct
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -68,6 +80,7 @@ from . import cansimple as cs
 from .bus import CanBus, NodePort
 from .errors import DecodeError
 from .node_faults import NodeFaults
+from .odrive_firmware import EndpointTable, FirmwareVersion, driver_endpoint_ids, endpoint_table
 
 __all__ = [
     "ODriveAxis",
@@ -85,17 +98,17 @@ TAU: Final = math.tau
 KELVIN_OFFSET: Final = 273.15
 ODRIVE_VENDOR_ID: Final = 0x0D21
 VEL_RAMP_RATE_ENDPOINT: Final = 390
-"""Endpoint id of ``axis0.controller.config.vel_ramp_rate`` (float, turns/s²) in the
-``flat_endpoints.json`` of ODrive 0.6.x firmware (ODrive Pro / S1) as published in a
-third-party CANSimple library's copy of that file, not checked against a 0.6.10/0.6.11
-build or hardware: the default of ``ODriveAxis(vel_ramp_rate_endpoint=...)``. Endpoint
-ids change between firmware builds: look the id up in the ``flat_endpoints.json`` of the
-firmware you run."""
+"""Endpoint id of ``axis0.controller.config.vel_ramp_rate`` (float, turns/s²) in the built-in
+table (:mod:`openel_can.odrive_endpoints`: 0.6.x, exact revision unknown, so never written to
+a real ODrive by this id; the driver takes the id from the ``endpoints`` table it is given).
+Endpoint ids change between firmware builds."""
 WATCHDOG_TIMEOUT_ENDPOINT: Final = 200
-"""Endpoint id of ``axis0.config.watchdog_timeout`` (float, s) in the same
-``flat_endpoints.json`` as :data:`VEL_RAMP_RATE_ENDPOINT` (same caveat: check your build)."""
+"""Endpoint id of ``axis0.config.watchdog_timeout`` (float, s) in the built-in table (same
+caveat as :data:`VEL_RAMP_RATE_ENDPOINT`)."""
 ENABLE_WATCHDOG_ENDPOINT: Final = 201
-"""Endpoint id of ``axis0.config.enable_watchdog`` (bool) in the same ``flat_endpoints.json``."""
+"""Endpoint id of ``axis0.config.enable_watchdog`` (bool) in the built-in table."""
+VERSION_TIMEOUT: Final = 0.5
+"""Seconds the Get_Version reply may take before an endpoint write is refused."""
 WATCHDOG_FEED_FRACTION: Final = 4
 """The axis is fed at least every ``timeout / WATCHDOG_FEED_FRACTION``."""
 _FLOAT32_MAX: Final = 3.4028234663852886e38
@@ -302,6 +315,7 @@ class _Setpoint:
 
 
 _TO_HOST: Final = (
+    cs.CmdId.GET_VERSION,
     cs.CmdId.HEARTBEAT,
     cs.CmdId.GET_ERROR,
     cs.CmdId.GET_ENCODER_ESTIMATES,
@@ -358,18 +372,25 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         velocity_tolerance: float = 0.05,
         torque_tolerance: float = 0.01,
         settle_samples: int = 2,
-        vel_ramp_rate_endpoint: int = VEL_RAMP_RATE_ENDPOINT,
-        watchdog_timeout_endpoint: int = WATCHDOG_TIMEOUT_ENDPOINT,
-        enable_watchdog_endpoint: int = ENABLE_WATCHDOG_ENDPOINT,
+        endpoints: str | os.PathLike[str] | EndpointTable | None = None,
+        files_dir: str | os.PathLike[str] | None = None,
+        vel_ramp_rate_endpoint: int | None = None,
+        watchdog_timeout_endpoint: int | None = None,
+        enable_watchdog_endpoint: int | None = None,
     ) -> None:
         if not isinstance(bus, CanBus):
             raise BadParameterError("bus", bus, "an openel_can.CanBus")
         _check_node(node_id)
-        for name, endpoint in (
-            ("vel_ramp_rate_endpoint", vel_ramp_rate_endpoint),
-            ("watchdog_timeout_endpoint", watchdog_timeout_endpoint),
-            ("enable_watchdog_endpoint", enable_watchdog_endpoint),
-        ):
+        table = endpoint_table(endpoints, files_dir)
+        ids = driver_endpoint_ids(
+            table,
+            {
+                "vel_ramp_rate_endpoint": vel_ramp_rate_endpoint,
+                "watchdog_timeout_endpoint": watchdog_timeout_endpoint,
+                "enable_watchdog_endpoint": enable_watchdog_endpoint,
+            },
+        )
+        for name, endpoint in ids.items():
             if (
                 isinstance(endpoint, bool)
                 or not isinstance(endpoint, int)
@@ -449,9 +470,14 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
             Request.TORQUE: torque_tolerance,
         }
         self.settle_samples = settle_samples
-        self.vel_ramp_rate_endpoint = vel_ramp_rate_endpoint
-        self.watchdog_timeout_endpoint = watchdog_timeout_endpoint
-        self.enable_watchdog_endpoint = enable_watchdog_endpoint
+        self.endpoints = table
+        """The endpoint table whose ids the driver writes (checked against the axis's
+        firmware before the first write)."""
+        self.vel_ramp_rate_endpoint = ids["vel_ramp_rate_endpoint"]
+        self.watchdog_timeout_endpoint = ids["watchdog_timeout_endpoint"]
+        self.enable_watchdog_endpoint = ids["enable_watchdog_endpoint"]
+        self.firmware_version: FirmwareVersion | None = None
+        """What the axis reported with Get_Version (None: not asked since open/reset)."""
         self.watchdog_timeout: float | None = None
         """The armed watchdog timeout in seconds (None: not armed by this driver)."""
         self._feeding = False
@@ -514,6 +540,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         self._latched = False
         self._pending = None
         self._link.estopped = False  # re_init is the way back from an e-stop
+        self.firmware_version = None  # reflashed meanwhile? asked again before a write
         await self.bus.wait_up(self.engage_timeout)
         asked = self._link.now()
         await self._link.send(cs.ClearErrors(self.node_id))
@@ -702,7 +729,8 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         The ODrive's own ``vel_ramp_rate`` is read once (RxSdo read, TxSdo reply) before the
         first ramp overwrites it, and written back by the next plain velocity command. A
         rate that does not fit the float32 endpoint is refused (BadParameterError naming
-        ``tm_acc``) before anything is sent; a zero rate (start = target) writes no rate.
+        ``tm_acc``) before anything is sent; a zero rate (start = target) writes no rate. So
+        is a ramp when the endpoint table is not the axis's firmware's (HALError).
         """
         rate = rad_to_turns(ramp.rate)
         if not (math.isfinite(rate) and rate <= _FLOAT32_MAX):
@@ -714,6 +742,10 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         target = rad_to_turns(ramp.target)
         async with self._lock:
             node = self.node_id
+            if rate > 0.0:  # refused before anything is sent when the ids are not the firmware's
+                refusal = await self.endpoint_write_refusal("axis0.controller.config.vel_ramp_rate")
+                if refusal is not None:
+                    raise HALError(refusal)
             if not self._closed_loop_wanted:
                 await self._engage()
             if rate > 0.0 and self._saved_ramp_rate is None:
@@ -741,7 +773,40 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         self._ramp_rate_written = False
 
     async def _write_endpoint(self, endpoint: int, value: bytes) -> None:
+        refusal = await self.endpoint_write_refusal(f"endpoint {endpoint}")
+        if refusal is not None:
+            raise HALError(refusal)
         await self._link.send(cs.RxSdo(self.node_id, cs.SdoOpcode.WRITE, endpoint, value))
+
+    async def read_firmware_version(self) -> FirmwareVersion | None:
+        """The axis's Get_Version (remote frame; at most :data:`VERSION_TIMEOUT` s), kept
+        until ``reset``; None when it does not answer (asked again next time)."""
+        if self.firmware_version is None:
+            link = self._link
+            asked = link.now()
+            await link.send(cs.Request(self.node_id, cs.CmdId.GET_VERSION))
+            try:
+                _, msg = await link.wait_for(
+                    cs.CmdId.GET_VERSION,
+                    cs.Version,
+                    after_ns=asked,
+                    timeout=max(VERSION_TIMEOUT, link.request_timeout),
+                )
+            except TimeoutError:
+                self.log.warning("odrive_no_version_reply", timeout_s=VERSION_TIMEOUT)
+                return None
+            self.firmware_version = FirmwareVersion.of(msg)
+            self.log.info("odrive_firmware", firmware=str(self.firmware_version))
+        return self.firmware_version
+
+    async def endpoint_write_refusal(self, what: str) -> str | None:
+        """Why writing ``what`` by the endpoint table's ids is refused: the axis's firmware
+        is not the table's (or does not say); None: the ids are the firmware's."""
+        version = await self.read_firmware_version()
+        refusal = self.endpoints.refusal(self.node_id, version, what)
+        if refusal is not None:
+            self.log.error("odrive_endpoint_write_refused", reason=refusal)
+        return refusal
 
     async def read_endpoint(self, endpoint: int) -> bytes:
         """The raw 4-byte value of an endpoint (RxSdo read, bounded wait for its TxSdo)."""
@@ -844,6 +909,19 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         if self._ctx is None:
             raise HALError(f"ODrive node {self.node_id}: arm_watchdog before open")
         async with self._lock:
+            refusal = await self.endpoint_write_refusal("the axis watchdog's endpoints")
+            if refusal is not None:
+                # Never left enabled with its watchdog silently missing: IDLE, and the
+                # component faulted (no command re-engages it; re_init checks again).
+                self._closed_loop_wanted = False
+                self._pending = None
+                await self._link.send(cs.SetAxisState(self.node_id, cs.AxisState.IDLE))
+                message = (
+                    f"{refusal}, or run without the axis watchdog: safety.watchdog_timeout: "
+                    "null (the axis was put in IDLE)"
+                )
+                self._fault(ErrorId.DEVICE_ERROR, message)
+                raise HALError(message)
             self.watchdog_timeout = float(timeout_s)
             if not self._feeding:
                 self._feeding = True

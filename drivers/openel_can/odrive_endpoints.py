@@ -1,5 +1,15 @@
-"""The endpoints of an ODrive axis reachable by CANSimple RxSdo/TxSdo, for ODrive firmware
-0.6.x (ODrive Pro / S1): name, endpoint id and type (:data:`ENDPOINTS`).
+"""The built-in endpoint table of an ODrive axis reachable by CANSimple RxSdo/TxSdo, for ODrive
+firmware 0.6.x (ODrive Pro / S1), exact revision unknown: name, endpoint id and type
+(:data:`ENDPOINTS`).
+
+**It matches no exact firmware version.** Endpoint ids change between firmware builds, and
+which 0.6 build this copy was taken from is not known: the driver and ``openel-async param``
+never write an endpoint by these ids to a real ODrive (:mod:`openel_can.odrive_firmware`:
+a write needs a table whose ``fw_version`` is the firmware the axis reports, i.e. the
+``flat_endpoints.json`` of that firmware named in the rig). Reads by these ids are allowed
+with a warning. The only firmware this table is declared for is the simulated ODrive's
+(:data:`openel_can.odrive_firmware.SIMULATED_FIRMWARE`), which implements these ids by
+construction.
 
 Source: the ``flat_endpoints.json`` of firmware 0.6.x that ODrive Robotics publishes with
 each release (docs.odriverobotics.com, "releases/firmware"), as copied into the endpoint
@@ -34,11 +44,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Final, Literal
 
-__all__ = ["COMMANDS", "ENDPOINTS", "FIRMWARE", "Endpoint", "endpoint_unit"]
+__all__ = ["COMMANDS", "ENDPOINTS", "FIRMWARE", "Endpoint", "EndpointType", "endpoint_unit"]
 
-FIRMWARE: Final = "0.6.x (ODrive Pro / S1)"
+FIRMWARE: Final = "0.6.x (ODrive Pro / S1; exact revision unknown: matches no firmware version)"
+"""The firmware the built-in table is for, in words."""
 
-EndpointType = Literal["float", "uint32", "int32", "bool"]
+EndpointType = Literal["float", "bool", "uint8", "int8", "uint16", "int16", "uint32", "int32"]
+"""The value types an endpoint can have here: those of ``flat_endpoints.json`` that fit the
+4-byte value field of RxSdo/TxSdo (little-endian, a narrower type in the low bytes)."""
 _TYPES: Final[dict[str, EndpointType]] = {"f": "float", "u": "uint32", "i": "int32", "b": "bool"}
 
 
@@ -50,10 +63,16 @@ class Endpoint:
     name: str
     id: int
     type: EndpointType
+    access: str | None = None
+    """``r``, ``w`` or ``rw`` as a ``flat_endpoints.json`` gives it (None: the built-in
+    table, which carries no access rights)."""
 
     @property
     def writable(self) -> bool:
-        """A setting (a ``config`` entry), ``identify`` or a command (module docstring)."""
+        """The file's access has ``w``; in the built-in table: a setting (a ``config``
+        entry), ``identify`` or a command (module docstring)."""
+        if self.access is not None:
+            return "w" in self.access
         return (
             self.name.startswith("config.")
             or ".config." in self.name

@@ -12,6 +12,12 @@ simulated peer (:class:`~openel_can.sim.odrive.SimODrive`,
 :class:`~openel_can.sim.cia402.SimCia402Drive`) at its node id, served on a thread of its own:
 it keeps running -- its watchdog too -- while the host's event loop is blocked, as a drive
 does.
+
+An ODrive axis's ``endpoints: FILE`` (the ``flat_endpoints.json`` of the firmware it runs; a
+relative path is relative to the rig file) is read by ``rig check`` (a file it cannot use is
+refused, naming the file and what is wrong); its ids are what the driver writes and what
+``openel-async param`` reads and writes for that axis component, and with
+``--sim`` the simulated node has the file's ids and reports its firmware version.
 """
 
 from __future__ import annotations
@@ -37,6 +43,7 @@ from .bus import CanBus
 from .busload import Traffic, bus_load, frame_time
 from .drive402 import DEFAULT_HOST_NODE_ID
 from .layout402 import DriveLayout, drive_file, load_drive_files, plan_layout
+from .odrive_firmware import EndpointTable, driver_endpoint_ids, endpoint_table
 from .sync import CanSync
 
 __all__ = ["CanBusKind", "CanBusOptions", "SyncOptions"]
@@ -111,6 +118,26 @@ def _node_ids(devices: Sequence[SimulatedDevice]) -> tuple[dict[int, str], dict[
                 f"a CAN device ({sorted(ODRIVE_DEVICES | CIA402_DEVICES)})",
             )
     return odrives, drives
+
+
+def _odrive_table(devices: Sequence[SimulatedDevice], node: int) -> EndpointTable:
+    """The endpoint table of the ODrive at ``node``: its axis's ``endpoints`` file (relative
+    to the rig file), else the built-in table; BadParameterError naming
+    ``<component>.params.endpoints`` for a file that cannot be used."""
+    for d in devices:
+        if d.device == "odrive_axis" and d.params.get("node_id") == node:
+            value = d.params.get("endpoints")
+            if value is None:
+                break
+            try:
+                table = endpoint_table(value, d.rig_dir)
+                driver_endpoint_ids(table, d.params)  # the ids the driver writes are in it
+                return table
+            except BadParameterError as exc:
+                raise BadParameterError(
+                    f"{d.name}.params.{exc.parameter}", exc.value, exc.allowed
+                ) from None
+    return endpoint_table(None)
 
 
 def _canopen_ids(node: int) -> set[int]:
@@ -331,6 +358,7 @@ class CanBusKind(BusKind):
                 f"{name} (ODrive node {node})",
                 node,
             )
+            _odrive_table(devices, node)  # a named flat_endpoints.json must be usable
 
     def load(
         self,
@@ -435,8 +463,8 @@ class CanBusKind(BusKind):
     def device_arguments(
         self, bus: object, options: Any, device: SimulatedDevice
     ) -> Mapping[str, Any]:
-        if device.rig_dir is not None and device.device == "cia402_drive":
-            # eds/dcf paths are relative to the rig file
+        if device.rig_dir is not None and device.device in ("cia402_drive", "odrive_axis"):
+            # eds/dcf/endpoints paths are relative to the rig file
             return {"bus": bus, "files_dir": device.rig_dir}
         return {"bus": bus}
 
@@ -459,7 +487,11 @@ class CanBusKind(BusKind):
         if device.device in ODRIVE_DEVICES:
             from .params_odrive import ODriveParameters
 
-            return ODriveParameters(bus, int(device.params["node_id"]))
+            node = int(device.params["node_id"])
+            # an axis's flat_endpoints.json, if the rig names one (other ODrive devices:
+            # the built-in table)
+            table = _odrive_table([device], node)
+            return ODriveParameters(bus, node, endpoints=table)
         return None
 
 
@@ -484,7 +516,12 @@ async def _simulated(
     peers: dict[int, Any] = {}
     by_name: dict[str, object] = {}
     for node in odrives:
-        peers[node] = SimODrive(node, traj_vel_limit=2.0, traj_accel_limit=20.0)
+        peers[node] = SimODrive(
+            node,
+            traj_vel_limit=2.0,
+            traj_accel_limit=20.0,
+            endpoints=_odrive_table(devices, node),  # the rig's file: its ids and version
+        )
     cia402 = {node: SimCia402Drive(node, eds=_sim_eds(devices, node)) for node in drives}
     for d in devices:
         node = d.params["node_id"]

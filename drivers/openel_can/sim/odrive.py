@@ -18,18 +18,23 @@ Fault injection: :meth:`inject_error` (an axis error that disarms, or not),
 Estop from the host (ESTOP_REQUESTED). ``axis_state`` may be set to any int (newer
 firmware reports states this codec does not name, e.g. 15 and 16 in 0.6.11).
 
-Endpoint access (RxSdo/TxSdo): the endpoint ``vel_ramp_rate_endpoint`` (default
-:data:`~openel_can.odrive.VEL_RAMP_RATE_ENDPOINT`, ``axis0.controller.config.vel_ramp_rate``
-as a float32 in turns/s²) is read and written; a read is answered with TxSdo, a write is
-not answered. The other endpoints of :data:`~openel_can.odrive_endpoints.ENDPOINTS`
-(firmware 0.6.x, what ``openel-async param`` reads) are answered too: a written value is
-read back as written, one never written reads as the simulation's own value where it has
-one (bus voltage, limits, node id, state, temperatures...) or 0. Endpoint ids outside that
-table are recorded and otherwise ignored (no reply), as is a non-finite or negative rate.
+Firmware: the node's endpoint ids are those of ``endpoints`` (an
+:class:`~openel_can.odrive_firmware.EndpointTable`; default: the built-in table), and it
+answers Get_Version (a remote frame) with ``firmware`` (default: the table's own version --
+:data:`~openel_can.odrive_firmware.SIMULATED_FIRMWARE` for the built-in table, a loaded
+``flat_endpoints.json``'s ``fw_version``/``hw_version`` otherwise). Give another ``firmware``
+to simulate an axis running firmware other than the host's table.
+
+Endpoint access (RxSdo/TxSdo): the endpoint ``vel_ramp_rate_endpoint`` (default: the
+table's ``axis0.controller.config.vel_ramp_rate``, a float32 in turns/s²) is read and
+written; a read is answered with TxSdo, a write is not answered. The other endpoints of the
+table (what ``openel-async param`` reads) are answered too: a written value is read back as
+written, one never written reads as the simulation's own value where it has one (bus
+voltage, limits, node id, state, temperatures...) or 0. Endpoint ids outside that table are
+recorded and otherwise ignored (no reply), as is a non-finite or negative rate.
 
 Axis watchdog (``axis0.config.enable_watchdog`` / ``watchdog_timeout``, endpoints
-``enable_watchdog_endpoint`` / ``watchdog_timeout_endpoint``, defaults
-:data:`~openel_can.odrive.ENABLE_WATCHDOG_ENDPOINT` / :data:`~openel_can.odrive.WATCHDOG_TIMEOUT_ENDPOINT`):
+``enable_watchdog_endpoint`` / ``watchdog_timeout_endpoint``, defaults: the table's):
 written by RxSdo, or set directly with :meth:`SimODrive.set_watchdog`. As in the firmware's
 CANSimple ``do_command``, every frame addressed to this node (data or remote) feeds it.
 While enabled with a timeout > 0 and the axis is in closed loop, a feed older than the
@@ -61,13 +66,8 @@ from openel_sim import profile as prof
 from .. import cansimple as cs
 from ..bus import CanBus, NodePort
 from ..errors import DecodeError
-from ..odrive import (
-    ENABLE_WATCHDOG_ENDPOINT,
-    VEL_RAMP_RATE_ENDPOINT,
-    WATCHDOG_TIMEOUT_ENDPOINT,
-    ODriveError,
-)
-from ..odrive_endpoints import ENDPOINTS
+from ..odrive import ODriveError
+from ..odrive_firmware import BUILTIN_TABLE, SIMULATED_FIRMWARE, EndpointTable, FirmwareVersion
 from .history import DEFAULT_HISTORY, History
 
 __all__ = ["SimODrive"]
@@ -108,9 +108,6 @@ TORQUE_RISE_S: Final = 0.002
 AMBIENT_C: Final = 25.0
 
 
-_ENDPOINT_NAMES: Final = {e.id: e.name for e in ENDPOINTS}
-
-
 class SimODrive:
     """One simulated ODrive axis; all internal quantities in turns, turns/s, Nm, A, °C."""
 
@@ -134,14 +131,36 @@ class SimODrive:
         initial_position: float = 0.0,
         history: int = DEFAULT_HISTORY,
         clock: Clock | None = None,
-        vel_ramp_rate_endpoint: int = VEL_RAMP_RATE_ENDPOINT,
-        watchdog_timeout_endpoint: int = WATCHDOG_TIMEOUT_ENDPOINT,
-        enable_watchdog_endpoint: int = ENABLE_WATCHDOG_ENDPOINT,
+        endpoints: EndpointTable = BUILTIN_TABLE,
+        firmware: FirmwareVersion | None = None,
+        vel_ramp_rate_endpoint: int | None = None,
+        watchdog_timeout_endpoint: int | None = None,
+        enable_watchdog_endpoint: int | None = None,
         serial_number: int | None = None,
     ) -> None:
         if not 0 <= node_id < cs.MAX_NODE_ID:
             raise ValueError(f"node_id {node_id} outside 0..{cs.MAX_NODE_ID - 1}")
         self.node_id = node_id
+        self.endpoints = endpoints
+        self.firmware = firmware or _firmware_of(endpoints)
+        """What Get_Version reports (may be changed at any time: a reflashed axis)."""
+        self._endpoint_names = {e.id: e.name for e in endpoints.endpoints}
+
+        def endpoint_id(given: int | None, name: str) -> int:
+            if given is not None:
+                return given
+            endpoint = endpoints.get(name)
+            return -1 if endpoint is None else endpoint.id  # -1: never addressed
+
+        vel_ramp_rate_endpoint = endpoint_id(
+            vel_ramp_rate_endpoint, "axis0.controller.config.vel_ramp_rate"
+        )
+        watchdog_timeout_endpoint = endpoint_id(
+            watchdog_timeout_endpoint, "axis0.config.watchdog_timeout"
+        )
+        enable_watchdog_endpoint = endpoint_id(
+            enable_watchdog_endpoint, "axis0.config.enable_watchdog"
+        )
         self.serial_number = 0x3A5F_2000_0000 + node_id if serial_number is None else serial_number
         """48 bits, sent in the Address reply (firmware 0.6.9+) to a broadcast request."""
         self.heartbeat_period = heartbeat_period
@@ -185,8 +204,8 @@ class SimODrive:
         self.watchdog_timeout_endpoint = watchdog_timeout_endpoint
         self.enable_watchdog_endpoint = enable_watchdog_endpoint
         self.endpoint_values: dict[int, bytes] = {}
-        """The other endpoints of :data:`~openel_can.odrive_endpoints.ENDPOINTS` written by
-        RxSdo (read back as written; never written: zero, or the simulation's own value)."""
+        """The other endpoints of the table written by RxSdo (read back as written; never
+        written: zero, or the simulation's own value)."""
         self.enable_watchdog = False
         """``axis0.config.enable_watchdog``."""
         self.watchdog_timeout = 0.0
@@ -395,7 +414,7 @@ class SimODrive:
         if cmd is cs.CmdId.GET_POWERS:
             return cs.Powers(node, electrical, mechanical)
         if cmd is cs.CmdId.GET_VERSION:
-            return cs.Version(node, 2, 4, 4, 58, 0, 6, 10, 0)
+            return self.firmware.message(node)
         if cmd is cs.CmdId.ADDRESS:  # to a broadcast request: who is on the bus
             return cs.Address(node, node, self.serial_number)
         return None
@@ -408,7 +427,7 @@ class SimODrive:
             value = struct.pack("<f", self.watchdog_timeout)
         elif endpoint == self.enable_watchdog_endpoint:
             value = bytes((int(self.enable_watchdog), 0, 0, 0))
-        elif endpoint in _ENDPOINT_NAMES:
+        elif endpoint in self._endpoint_names:
             value = self.endpoint_values.get(endpoint) or self._endpoint_value(endpoint)
         else:
             return None
@@ -416,7 +435,7 @@ class SimODrive:
 
     def _endpoint_value(self, endpoint: int) -> bytes:
         """An endpoint never written: the simulation's own value where it has one, else 0."""
-        name = _ENDPOINT_NAMES[endpoint]
+        name = self._endpoint_names[endpoint]
         floats = {
             "vbus_voltage": self.nominal_bus_voltage,
             "axis0.controller.config.vel_limit": self.vel_limit,
@@ -431,9 +450,13 @@ class SimODrive:
         if name in floats:
             return struct.pack("<f", floats[name])
         ints = {
-            "fw_version_major": 0,
-            "fw_version_minor": 6,
-            "fw_version_revision": 10,
+            "fw_version_major": self.firmware.fw[0],
+            "fw_version_minor": self.firmware.fw[1],
+            "fw_version_revision": self.firmware.fw[2],
+            "fw_version_unreleased": self.firmware.unreleased,
+            "hw_version_major": self.firmware.hw[0],
+            "hw_version_minor": self.firmware.hw[1],
+            "hw_version_variant": self.firmware.hw[2],
             "axis0.config.can.node_id": self.node_id,
             "axis0.config.can.heartbeat_msg_rate_ms": round(self.heartbeat_period * 1000),
             "axis0.config.can.encoder_msg_rate_ms": round(self.encoder_period * 1000),
@@ -485,7 +508,7 @@ class SimODrive:
                     self.watchdog_timeout = timeout
             elif msg.endpoint_id == self.enable_watchdog_endpoint:
                 self.enable_watchdog = msg.value[0] != 0  # a bool endpoint: the first byte
-            elif msg.endpoint_id in _ENDPOINT_NAMES:
+            elif msg.endpoint_id in self._endpoint_names:
                 self.endpoint_values[msg.endpoint_id] = bytes(msg.value)
         elif isinstance(msg, cs.Estop):
             self.inject_error(ODriveError.ESTOP_REQUESTED)
@@ -552,6 +575,16 @@ class SimODrive:
                 await self._send(self.reply(cs.CmdId.GET_ENCODER_ESTIMATES))
                 self._update_thermal(now)
             await clock.sleep_until(min(next_hb, next_enc))
+
+
+def _firmware_of(table: EndpointTable) -> FirmwareVersion:
+    """The version an axis whose ids are ``table``'s reports: the file's ``fw_version`` and
+    ``hw_version``; the simulation's own for the built-in table."""
+    if table.fw_version is None or table.hw_version is None:
+        return SIMULATED_FIRMWARE
+    fw = tuple(int(n) for n in table.fw_version.partition("-")[0].split("."))
+    hw = tuple(int(n) for n in table.hw_version.partition("-")[0].split("."))
+    return FirmwareVersion((fw[0], fw[1], fw[2]), (hw[0], hw[1], hw[2]))
 
 
 def frame_of(msg: cs.CanSimpleMessage) -> can.Message:
