@@ -3,9 +3,12 @@
 Plain observer methods run inline, isolated by try/except. An observer with any async
 method gets a bounded mailbox and a task of its own, so a slow or raising observer
 never delays the publisher (a control loop) or the other observers. Order is kept per
-observer. Observers are kept in a dict (registration and removal O(1), so N observers
-cost O(N)); ``publish`` delivers from a per-kind tuple built on the first notification
-after a change, so adding or removing observers while one is being delivered is safe.
+observer. Observers are kept in a dict; ``publish`` delivers from a per-kind tuple of
+targets, extended on registration (a copy of the tuple: a memory copy per observer, so
+that a publisher's first notification pays nothing for it) and rebuilt on the first
+notification after a removal, so adding or removing observers while one is being
+delivered is safe. A component calls its plain observers from its own loop
+(:attr:`Fanout.direct`), one call less per notice.
 Mailbox tasks that wait for work wait on one shared event per publisher, set once per
 notification, rather than each on an event of its own.
 
@@ -199,14 +202,16 @@ class Fanout:
         """Registered observers in registration order, by :func:`_key`."""
         self._snapshot: tuple[_Subscriber, ...] | None = ()
         """The registered observers as a tuple (None: rebuilt when next needed)."""
-        self._targets: dict[str, tuple[_Target, ...]] = {}
+        self._targets: dict[str, tuple[_Target, ...]] = dict.fromkeys(kinds, ())
         """Per kind: (method, takes the notice, mailbox) of each observer, for ``publish``;
         emptied by every change and rebuilt by the next notification."""
-        self.direct: dict[str, tuple[tuple[Callable[..., Any], ...], bool]] = {}
+        self.direct: dict[str, tuple[tuple[Callable[..., Any], ...], bool]] = dict.fromkeys(
+            kinds, ((), False)
+        )
         """Per kind whose every observer is plain (no mailbox) and either all or none take
         the notice: (their methods, whether they take it), for a publisher's inline loop (a
-        component's events: one call less per notice). A kind is absent until ``publish``
-        built its targets, and while its observers are not all alike."""
+        component's events: one call less per notice). A kind is absent while its observers
+        are not all alike, and after a removal until ``publish`` rebuilt its targets."""
         self._notice_kinds: dict[str, int] = {}
         """Per kind, how many observers take the notice."""
         self.wakeup = Wakeup()
@@ -266,6 +271,7 @@ class Fanout:
         mailbox = _Mailbox(self, observer, routes, self.mailbox_size) if is_async else None
         self._by_key[key] = _Subscriber(observer, routes, mailbox)
         self._changed(routes, 1)
+        self._append_targets(key, routes, mailbox)
         if mailbox is not None and self._task_group is not None:
             self._task_group.start_soon(mailbox.run)
 
@@ -286,13 +292,35 @@ class Fanout:
     def _changed(self, routes: dict[str, Route], sign: int) -> None:
         """An observer with ``routes`` was added (+1) or removed (-1): O(kinds)."""
         self._snapshot = None
-        self._targets = {}
-        self.direct = {}
+        if sign < 0:  # rebuilt by the next notification of each kind
+            self._targets = {}
+            self.direct = {}
         counts = self._notice_kinds
         for kind, (_, wants) in routes.items():
             if wants:
                 counts[kind] = counts.get(kind, 0) + sign
         self.wants_notice = frozenset(kind for kind, count in counts.items() if count > 0)
+
+    def _append_targets(
+        self, key: object, routes: dict[str, Route], mailbox: _Mailbox | None
+    ) -> None:
+        """A new observer: appended to the targets already built (a tuple copy, no rebuild),
+        so that a publisher's first notification after registering pays nothing extra."""
+        targets_of = self._targets
+        direct_of = self.direct
+        for kind, (method, wants) in routes.items():
+            targets = targets_of.get(kind)
+            if targets is None:
+                continue  # built when next needed
+            targets_of[kind] = (*targets, (method, wants, mailbox, self._by_key[key].observer))
+            direct = direct_of.get(kind)
+            if direct is None:
+                continue
+            methods, takes_notice = direct
+            if mailbox is None and (not methods or takes_notice == wants):
+                direct_of[kind] = ((*methods, method), wants)
+            else:
+                del direct_of[kind]
 
     def _build_targets(self, kind: str) -> tuple[_Target, ...]:
         targets = tuple(
