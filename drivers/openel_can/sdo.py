@@ -2,7 +2,8 @@
 
 One :class:`SdoClient` per node and bus (``SdoClient.for_node(bus, node_id)``), shared by
 every device of that node: an SDO server serves one transfer at a time, so the client
-serializes them (one request slot per node: a lock that costs nothing when free).
+serializes them (one request slot per node: taken without a checkpoint or an anyio call
+when free; waiting transfers queue in order).
 Uploads take whatever the server answers: an expedited reply (1..4 bytes) or a
 segmented one (any size up to ``max_size``, 7 bytes per segment, toggle bit checked).
 Downloads of 1..4 bytes are expedited with the size indicated; any other length (0, or
@@ -37,6 +38,7 @@ from __future__ import annotations
 import asyncio
 import math
 import struct
+from collections import deque
 from typing import Final, NoReturn, overload
 
 import anyio
@@ -122,7 +124,7 @@ class SdoClient:
         self.segments = 0
         self.aborts = 0
         self.timeouts = 0
-        self._lock = anyio.Lock(fast_acquire=True)
+        self._lock = _Slot()
         self._port: NodePort | None = None
         # The exchange waiting for an answer (None: answers now are late ones, dropped).
         self._waiting: _Transfer | None = None
@@ -323,6 +325,45 @@ class SdoClient:
         port = self._ensure_port()  # answers arriving while no exchange waits are dropped
         self.transfers += 1
         return port
+
+
+class _Slot:
+    """The node's one transfer at a time: a FIFO lock for asyncio that costs two attribute
+    writes when free (``anyio.Lock`` asks anyio for the backend and checks for
+    cancellation on every acquire: a tenth of an upload's CPU on the virtual bus)."""
+
+    __slots__ = ("_busy", "_waiters")
+
+    def __init__(self) -> None:
+        self._busy = False
+        self._waiters: deque[asyncio.Future[None]] = deque()
+
+    async def __aenter__(self) -> None:
+        if not self._busy:
+            self._busy = True
+            return
+        waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        self._waiters.append(waiter)
+        try:
+            await waiter  # the slot is handed over with the result: still busy
+        except BaseException:
+            if waiter.done() and not waiter.cancelled():
+                self._release()  # handed over, but this task was cancelled: pass it on
+            elif waiter in self._waiters:  # (a cancelled one may have been skipped already)
+                self._waiters.remove(waiter)
+            raise
+
+    async def __aexit__(self, *exc: object) -> None:
+        self._release()
+
+    def _release(self) -> None:
+        waiters = self._waiters
+        while waiters:
+            waiter = waiters.popleft()
+            if not waiter.done():
+                waiter.set_result(None)
+                return
+        self._busy = False
 
 
 def _expire(answer: asyncio.Future[co.CanOpenMessage | SdoAbortError | None]) -> None:
