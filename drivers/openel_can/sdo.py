@@ -92,6 +92,8 @@ _INITIATE_REPLIES: Final = (
     co.SdoDownloadResponse,
 )
 _SEGMENT_REPLIES: Final = (co.SdoUploadSegment, co.SdoDownloadSegmentResponse)
+_EXPEDITED_UPLOAD_SIZES: Final = {0x43: 4, 0x47: 3, 0x4B: 2, 0x4F: 1}
+"""An expedited upload answer's command byte with the size indicated -> its data bytes."""
 #: Default largest upload accepted (bytes).
 DEFAULT_MAX_SIZE: Final = 65536
 
@@ -129,7 +131,7 @@ class SdoClient:
         # The exchange waiting for an answer (None: answers now are late ones, dropped).
         self._waiting: _Transfer | None = None
         self._replies: tuple[type[co.CanOpenMessage], ...] = ()
-        self._answer: asyncio.Future[co.CanOpenMessage | SdoAbortError | None] | None = None
+        self._answer: asyncio.Future[co.CanOpenMessage | bytes | SdoAbortError | None] | None = None
 
     @classmethod
     def for_node(cls, bus: CanBus, node_id: int, *, timeout: float = 0.1) -> SdoClient:
@@ -156,7 +158,21 @@ class SdoClient:
         if transfer is None or answer is None or answer.done() or port is None:
             return  # a late answer to an earlier (timed-out) transfer, or a second one
         replies = self._replies
+        expedited = transfer.expedited
         for msg in frames:
+            if expedited is not None:
+                # An upload's initiate: its expedited answer with the size indicated for
+                # this object (the usual one) is taken from the bytes, without decoding it
+                # into a message; anything else goes the general way below.
+                data = msg.data
+                if (
+                    len(data) == 8
+                    and data[0] in _EXPEDITED_UPLOAD_SIZES
+                    and data[1:4] == expedited
+                    and not msg.is_remote_frame
+                ):
+                    answer.set_result(bytes(data[4 : 4 + _EXPEDITED_UPLOAD_SIZES[data[0]]]))
+                    return
             try:
                 reply = transfer.match(port, msg, replies)
             except SdoAbortError as exc:
@@ -249,7 +265,11 @@ class SdoClient:
         t = _Transfer(self, index, subindex, self.timeout if timeout is None else timeout)
         async with self._lock:
             t.port = self._begin()
+            t.expedited = struct.pack("<HB", index, subindex)
             reply = await t.exchange(request, _INITIATE_REPLIES)
+            t.expedited = None
+            if isinstance(reply, bytes):
+                return reply
             if isinstance(reply, co.SdoUploadResponse):
                 return reply.data
             if not isinstance(reply, co.SdoSegmentedUploadResponse):
@@ -366,7 +386,7 @@ class _Slot:
         self._busy = False
 
 
-def _expire(answer: asyncio.Future[co.CanOpenMessage | SdoAbortError | None]) -> None:
+def _expire(answer: asyncio.Future[co.CanOpenMessage | bytes | SdoAbortError | None]) -> None:
     if not answer.done():
         answer.set_result(None)
 
@@ -381,11 +401,15 @@ class _Transfer:
         self.subindex = subindex
         self.limit = limit
         self.port: NodePort | None = None
+        self.expedited: bytes | None = None
+        """While an upload's initiate waits: the index and subindex as an expedited answer
+        carries them (bytes 1..3), to take that answer from its bytes."""
 
     async def exchange(
         self, request: co.CanOpenMessage, replies: tuple[type[co.CanOpenMessage], ...]
-    ) -> co.CanOpenMessage:
-        """Send ``request``; the first answer of the kinds in ``replies`` (or an abort)."""
+    ) -> co.CanOpenMessage | bytes:
+        """Send ``request``; the first answer of the kinds in ``replies`` (or an abort); for
+        an upload's initiate (:attr:`expedited` set), an expedited answer's data bytes."""
         port = self.port
         client = self.client
         assert port is not None
@@ -396,7 +420,9 @@ class _Transfer:
         # the timer when ``limit`` passes (a future and a timer handle: the cheapest
         # bounded wait on asyncio; cancelling the task cancels the wait).
         loop = asyncio.get_running_loop()
-        answer: asyncio.Future[co.CanOpenMessage | SdoAbortError | None] = loop.create_future()
+        answer: asyncio.Future[co.CanOpenMessage | bytes | SdoAbortError | None] = (
+            loop.create_future()
+        )
         client._waiting, client._replies, client._answer = self, replies, answer
         try:
             await port.send(cob_id, data)  # may wait for room (send_timeout), not counted
