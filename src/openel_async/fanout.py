@@ -194,6 +194,31 @@ def _is_async(func: object) -> bool:
 class Fanout:
     """Observer list of one publisher; ``publish`` never blocks and never raises."""
 
+    # Slots: a component's per-event path reads a few of these (compact, and no
+    # instance dict to look them up in: it runs once per event per component).
+    __slots__ = (
+        "__weakref__",
+        "_by_key",
+        "_notice_kinds",
+        "_snapshot",
+        "_targets",
+        "_task_group",
+        "abandoned",
+        "direct",
+        "discarded",
+        "failures",
+        "kinds",
+        "leaving",
+        "listener",
+        "mailbox_size",
+        "overflowed",
+        "owner",
+        "published",
+        "unpublished",
+        "wakeup",
+        "wants_notice",
+    )
+
     def __init__(self, owner: str, kinds: tuple[str, ...], *, mailbox_size: int = 1024) -> None:
         self.owner = owner
         self.kinds = kinds
