@@ -4,9 +4,9 @@ Plain observer methods run inline, isolated by try/except. An observer with any 
 method gets a bounded mailbox and a task of its own, so a slow or raising observer
 never delays the publisher (a control loop) or the other observers. Order is kept per
 observer. Observers are kept in a dict; ``publish`` delivers from a per-kind tuple of
-targets, extended on registration (a copy of the tuple: a memory copy per observer, so
-that a publisher's first notification pays nothing for it) and rebuilt on the first
-notification after a removal, so adding or removing observers while one is being
+targets, extended on registration while short (so that a component's first
+notification pays nothing for it) and otherwise rebuilt on the first notification after
+a change (registration stays O(1)), so adding or removing observers while one is being
 delivered is safe. A component calls its plain observers from its own loop
 (:attr:`Fanout.direct`), one call less per notice.
 Mailbox tasks that wait for work wait on one shared event per publisher, set once per
@@ -48,6 +48,10 @@ log = get_logger(__name__)
 _Entry = tuple[str, tuple[Any, ...], Notice | None]
 # What publish calls per observer of a kind: (method, takes the notice, mailbox, observer).
 _Target = tuple[Callable[..., Any], bool, "_Mailbox | None", object]
+
+
+_APPEND_LIMIT = 32
+"""Observers of one kind up to which a registration extends the delivery tuple at once."""
 
 
 class _Mailbox:
@@ -330,13 +334,18 @@ class Fanout:
         self, key: object, routes: dict[str, Route], mailbox: _Mailbox | None
     ) -> None:
         """A new observer: appended to the targets already built (a tuple copy, no rebuild),
-        so that a publisher's first notification after registering pays nothing extra."""
+        so that a publisher's first notification after registering pays nothing extra; past
+        ``_APPEND_LIMIT`` observers of a kind, its targets are rebuilt when next needed."""
         targets_of = self._targets
         direct_of = self.direct
         for kind, (method, wants) in routes.items():
             targets = targets_of.get(kind)
             if targets is None:
                 continue  # built when next needed
+            if len(targets) >= _APPEND_LIMIT:  # copying would make N registrations O(N^2)
+                del targets_of[kind]
+                direct_of.pop(kind, None)
+                continue
             targets_of[kind] = (*targets, (method, wants, mailbox, self._by_key[key].observer))
             direct = direct_of.get(kind)
             if direct is None:
