@@ -358,10 +358,14 @@ calls plain observers from its own loop (`Fanout.direct`: one call per delivery 
 `Fanout` has slots; delivery tuples are extended on registration, not rebuilt on the first
 tick; mailbox tasks await the wake-up future directly; the timerfd stays registered with
 the loop between waits (~30 µs less CPU per tick, measured alone: 89-100 µs against
-122-128 µs, `asyncio.sleep` 56-67 µs). Quick runs on this shared 2-core VM (load ~1.5-2),
-before -> after, ours/plain: sync 2.5/2.2/3.2/7.4x -> 1.7-2.1/1.8-2.1/2.2-2.5/4.0-4.5x (1,
-10, 100, 1000 components); async 1000 components 3.4x -> 1.9-2.1x; ObserverQueues 1000
-components 2.2x -> 1.1-2.0x.
+122-128 µs, `asyncio.sleep` 56-67 µs). Quick runs on this shared 2-core VM (load 1.5-3),
+before -> after (the last two runs), ours/plain: sync 2.5/2.2/3.2/7.4x ->
+2.03,1.89/1.88,2.11/2.53,2.19/4.05,3.35x (1, 10, 100, 1000 components); async at 1000
+components 3.4x -> 1.68,1.54x; ObserverQueues at 1000 components 2.2x -> 1.81,1.64x. The
+linear rows of async observers and ObserverQueues (1000 / 100 components) stay at
+1.5-2.3x against the plain equivalent's own 1.0-1.3x: the per-delivery cost of 1000
+tasks and mailboxes grows with the working set on both sides, more on ours (more
+objects per delivery).
 
 What remains (sync rows at 100 and 1000 components): the plain equivalent is one call
 per delivery in a loop (150-250 ns in situ); ours is the device's `post_event` into the
