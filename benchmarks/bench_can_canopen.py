@@ -427,7 +427,7 @@ VM, shared with other work (load ~2): per upload our event loop spends ~80-90 µ
 CPU (it also reads the virtual bus) against canopen-py's calling thread's 50-65 µs
 (its Notifier thread, which reads, is not in its figure); wall time 1.2-1.3x
 canopen-py's before this pass, moving by ±20 % between runs with the load; after it,
-five quick runs (5 interleaved rounds each) gave 1.18, 0.94, 0.86x and, earlier in the
+three quick runs (5 interleaved rounds each) gave 1.18, 0.94, 0.86x and, earlier in the
 pass, 1.02-1.24x per round: the target is met only at the edge of the noise. Two passes of the cost were
 cut: the node's transfer slot is a FIFO asyncio lock instead of an `anyio.Lock`
 (whose acquire asks anyio for the backend and checks for cancellation), and an
