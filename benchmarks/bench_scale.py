@@ -344,11 +344,39 @@ by at most {LINEAR_LIMIT}x (the total cost is linear in N; the plain equivalent'
 ratio is shown beside). At 1 and 10 components the figure is mostly each side's per-tick
 cost (the timer's wake-up and bookkeeping against one `asyncio.sleep`).
 
-Profile (first run, issue 27): a sync delivery costs ~0.7 µs in the component layer
+Profile (first run, issue 27): a sync delivery cost ~0.7 µs in the component layer
 against ~0.08 µs for a bare callback (`DeviceContext.post_event` ->
-`HALComponent._publish_event`, whose state test `state in _NOTIFYING` hashes a plain
-`Enum` in Python, -> `Fanout.publish`, isolated in a try/except), so at 1000 components
-the sync rows are bound by that per-event path, not by the fan-out; at 1 component, by
-the timer's per-tick wake-up (`anyio.wait_readable` on the timerfd: registering and
-unregistering it with epoll on every tick, two loop passes) against one
-`asyncio.sleep`."""
+`HALComponent._publish_event` -> `Fanout.publish`, isolated in a try/except), the first
+tick after registering paid for building every component's delivery tuple (~9 µs per
+component: at 1000 components and 20 ticks, ~0.45 µs per delivery), and the timer's
+per-tick wake-up (`anyio.wait_readable` on the timerfd: registering and unregistering it
+with epoll on every tick) cost ~110-130 µs of CPU against ~55-70 µs for an
+`asyncio.sleep`.
+
+What was cut (issue 27, second pass): `ctx.post_event` is the component's own method and
+calls plain observers from its own loop (`Fanout.direct`: one call per delivery less);
+`Fanout` has slots; delivery tuples are extended on registration, not rebuilt on the first
+tick; mailbox tasks await the wake-up future directly; the timerfd stays registered with
+the loop between waits (~30 µs less CPU per tick, measured alone: 89-100 µs against
+122-128 µs, `asyncio.sleep` 56-67 µs). Quick runs on this shared 2-core VM (load 1.5-3),
+before -> after (the last two runs), ours/plain: sync 2.5/2.2/3.2/7.4x ->
+2.03,1.89/1.88,2.11/2.53,2.19/4.05,3.35x (1, 10, 100, 1000 components); async at 1000
+components 3.4x -> 1.68,1.54x; ObserverQueues at 1000 components 2.2x -> 1.81,1.64x. The
+linear rows of async observers and ObserverQueues (1000 / 100 components) stay at
+1.5-2.3x against the plain equivalent's own 1.0-1.3x: the per-delivery cost of 1000
+tasks and mailboxes grows with the working set on both sides, more on ours (more
+objects per delivery).
+
+What remains (sync rows at 100 and 1000 components): the plain equivalent is one call
+per delivery in a loop (150-250 ns in situ); ours is the device's `post_event` into the
+component and then the observer, two calls, and the component's objects are spread
+across memory where the bare loop's callbacks are allocated side by side. Measured in
+one process, 1000 deliveries between 1 ms idle periods (median of 30): the bare loop
+150 ns per delivery, a two-call relay over slotted objects allocated together (the floor
+of any layer between a device and an observer) 265-290 ns, ours 340-470 ns inside the
+bench's ticks. A layer of two Python calls is therefore ~1.8x the bare loop before any
+state test or statistics; with the component's state test and its counters, the sync rows
+at 100 and more components stay above 2x in pure Python. Moving the component's
+per-event path to compiled code (mypyc of `component`/`fanout`) is the remaining lever;
+not done in this pass. At 1 component the figure is each side's per-tick cost (the
+timer's wake-up and bookkeeping against one `asyncio.sleep`)."""

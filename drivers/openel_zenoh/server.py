@@ -58,6 +58,7 @@ from openel_async.errors import BadParameterError, HALError, ReturnCode, WouldBl
 from openel_async.logs import get_logger
 from openel_async.surface import Surface, compact, xml_psm
 from openel_async.surface.messages import CommandMessage, DataType, Device, Parameter, ResultList
+from openel_async.wakeup import Wakeup
 
 from . import wire
 from .bridge import ThreadInbox
@@ -246,7 +247,7 @@ class SurfaceServer:
         """Reads answered on Zenoh's thread through the loop's gate (a GatedEventLoop)."""
         self._gate: LoopGate | None = None
         self._ready: deque[_Client] = deque()
-        self._work = anyio.Event()
+        self._work = Wakeup()  # reused: no anyio.Event per request served by the worker
         self._declared: list[Any] = []
         self._tg: anyio.abc.TaskGroup | None = None
         self._inbox: ThreadInbox[_Request] | None = None
@@ -584,7 +585,6 @@ class SurfaceServer:
         while True:
             while not self._ready:
                 await self._work.wait()
-                self._work = anyio.Event()
             client = self._ready.popleft()
             if not client.queue or client.busy:
                 continue

@@ -3,6 +3,12 @@
 An absolute CLOCK_MONOTONIC deadline armed on a timerfd wakes the event loop through
 epoll with microsecond precision, where asyncio's own timers round up to whole
 milliseconds (epoll_wait's timeout unit).
+
+The timerfd stays registered with the loop's selector between waits (one reader callback
+that resolves the waiting future), rather than registered and unregistered around every
+wait as ``anyio.wait_readable`` does: two ``epoll_ctl`` calls and anyio's bookkeeping less
+per tick, which halved the process CPU time of a 1 kHz timer's wake-up (issue 27). Needs
+the asyncio backend, as the clocks do.
 """
 
 from __future__ import annotations
@@ -13,8 +19,6 @@ import ctypes.util
 import os
 import sys
 from collections.abc import Callable
-
-import anyio
 
 CLOCK_MONOTONIC = 1
 TFD_TIMER_ABSTIME = 1
@@ -70,11 +74,20 @@ class Timerfd:
             raise OSError(err, os.strerror(err))
         self._fd = fd
         self._spec = _Itimerspec()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        """The loop the fd is registered with (a reader), None when not registered."""
+        self._waiter: asyncio.Future[None] | None = None
 
     def fileno(self) -> int:
         if self._fd is None:
             raise ValueError("timerfd is closed")
         return self._fd
+
+    @property
+    def registered(self) -> bool:
+        """Whether the fd is registered with an event loop (from a wait until it expires
+        with nobody waiting, or is closed)."""
+        return self._loop is not None
 
     def arm_absolute(self, deadline_ns: int) -> None:
         """Fire once at ``deadline_ns`` of CLOCK_MONOTONIC (time.monotonic_ns)."""
@@ -89,16 +102,41 @@ class Timerfd:
         """Sleep until the deadline; cancellable like any anyio wait."""
         self.arm_absolute(deadline_ns)
         fd = self.fileno()
+        loop = asyncio.get_running_loop()
+        if self._loop is not loop:
+            self._unregister()
+            loop.add_reader(fd, self._on_readable)
+            self._loop = loop
         while True:
-            await anyio.wait_readable(fd)
+            future = self._waiter = loop.create_future()
+            try:
+                await future
+            finally:
+                self._waiter = None
             try:
                 os.read(fd, 8)  # the expiration count; reading it re-arms readability
                 return
             except BlockingIOError:  # spurious wake-up
                 continue
 
+    def _on_readable(self) -> None:
+        waiter = self._waiter
+        if waiter is None:
+            # Expired with nobody waiting (a wait cancelled while armed): unregister, or
+            # the level-triggered reader would run on every loop pass; the next wait
+            # registers again.
+            self._unregister()
+        elif not waiter.done():
+            waiter.set_result(None)
+
+    def _unregister(self) -> None:
+        loop, self._loop = self._loop, None
+        if loop is not None and self._fd is not None and not loop.is_closed():
+            loop.remove_reader(self._fd)
+
     def close(self) -> None:
         if self._fd is not None:
+            self._unregister()
             fd, self._fd = self._fd, None
             os.close(fd)
 

@@ -160,3 +160,33 @@ async def test_sim_server_segmented_rules(peers: Peers, raw_bus: can.BusABC) -> 
     assert await ask(co.SdoSegmentedDownloadRequest(NODE, OPERATING_TIME.index, 0, 8)) == (
         co.SdoAbort(NODE, OPERATING_TIME.index, 0, co.SdoAbortCode.READ_ONLY)
     )
+
+
+async def test_transfers_of_one_node_run_one_at_a_time_in_call_order(
+    host_bus: CanBus, raw_bus: can.BusABC
+) -> None:
+    """Three uploads at once: the server sees one request at a time, in call order; a
+    transfer cancelled while waiting for its turn leaves the others their turns."""
+    client = SdoClient(host_bus, NODE, timeout=1.0)
+    got: list[bytes] = []
+
+    async def upload(index: int) -> None:
+        got.append(await client.upload(index, 0))
+
+    async def server(indexes: list[int]) -> None:
+        for index in indexes:
+            request = await _next(raw_bus, co.SDO_RX_BASE + NODE)
+            assert isinstance(request, co.SdoUploadRequest)
+            assert request.index == index
+            _send(raw_bus, co.SdoUploadResponse(NODE, index, 0, index.to_bytes(2, "little")))
+
+    with anyio.fail_after(5):
+        async with anyio.create_task_group() as tg:
+            tg.start_soon(server, [0x2000, 0x2002])
+            tg.start_soon(upload, 0x2000)
+            await anyio.wait_all_tasks_blocked()
+            with anyio.CancelScope() as cancelled:
+                cancelled.cancel()  # waits for its turn behind 0x2000, then gives up
+                await upload(0x2001)
+            tg.start_soon(upload, 0x2002)
+    assert got == [b"\x00\x20", b"\x02\x20"]

@@ -413,6 +413,29 @@ async def test_timerfd_sleeper_wait_is_cancellable_and_reusable() -> None:
         sleeper.close()
 
 
+@needs_timerfd
+async def test_timerfd_expiring_after_a_cancelled_wait_leaves_no_reader_behind() -> None:
+    """The fd stays registered with the loop between waits; one that expires with nobody
+    waiting (its wait cancelled) is unregistered, not left readable for every loop pass."""
+    fd = timerfd.Timerfd()
+    try:
+        with anyio.move_on_after(0.001):
+            await fd.wait_until(time.monotonic_ns() + 20_000_000)  # cancelled while armed
+        for _ in range(500):  # bounded: at most ~5 s
+            if not fd.registered:  # expired; the reader ran, found no waiter and left
+                break
+            await anyio.sleep(0.01)
+        assert not fd.registered
+        assert _readable(fd.fileno())  # the expiry nobody read
+        deadline = time.monotonic_ns() + 300_000
+        await fd.wait_until(deadline)  # registers again (re-arming clears the expiry)
+        assert time.monotonic_ns() >= deadline
+        assert fd.registered
+    finally:
+        fd.close()
+        assert not fd.registered
+
+
 async def test_fallback_sleeper_never_wakes_before_its_deadline() -> None:
     clock = MonotonicClock(use_timerfd=False)
     assert clock.use_timerfd is False

@@ -599,3 +599,31 @@ async def test_async_observer_ahead_of_a_plain_one_runs_before_the_task_it_wakes
             await anyio.lowlevel.checkpoint()
         fan.close()
     assert order == ["async observer", "woken task"]
+
+
+def test_many_observers_registered_between_notifications_all_get_them_in_order() -> None:
+    """Registration extends the delivery tuples of a few observers at once and leaves those
+    of many to be rebuilt; either way every observer hears every later notification, in
+    registration order, and ``direct`` (the components' inline path) agrees."""
+    fan = Fanout("pub", HAL_KINDS)
+    order: list[int] = []
+
+    class Numbered:
+        def __init__(self, number: int) -> None:
+            self.number = number
+
+        def notify_event(self, source: object, event_id: int) -> None:
+            order.append(self.number)
+
+    observers = [Numbered(i) for i in range(80)]
+    for observer in observers[:10]:
+        fan.add(observer)
+    fan.publish("notify_event", SOURCE, 1)
+    assert order == list(range(10))
+    for observer in observers[10:]:  # past the append limit
+        fan.add(observer)
+    order.clear()
+    fan.publish("notify_event", SOURCE, 2)
+    assert order == list(range(80))
+    direct = fan.direct.get("notify_event")
+    assert direct is not None and len(direct[0]) == 80 and direct[1] is False
