@@ -711,5 +711,6 @@ APP_INFO = AppInfo(
     main=main,
     demo_args=demo_args,
     takes_rig=True,
+    parser=build_parser,
 )
 """The entry point ``arm2`` of the ``openel_async.apps`` group."""

@@ -784,5 +784,6 @@ APP_INFO = AppInfo(
     main=main,
     demo_args=demo_args,
     takes_rig=True,
+    parser=build_parser,
 )
 """The entry point ``arm6`` of the ``openel_async.apps`` group."""

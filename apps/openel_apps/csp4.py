@@ -128,5 +128,6 @@ APP_INFO = AppInfo(
     main=main,
     demo_args=demo_args,
     takes_rig=True,
+    parser=build_parser,
 )
 """The entry point ``csp4`` of the ``openel_async.apps`` group."""

@@ -703,4 +703,5 @@ APP_INFO = AppInfo(
     main=main,
     demo_args=demo_args,
     takes_rig=True,
+    parser=build_parser,
 )

@@ -21,6 +21,7 @@ This module imports no driver and no app: apps are loaded by name when asked for
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import AsyncIterator, Awaitable, Callable, Collection, Iterable, Sequence
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
@@ -237,6 +238,10 @@ class AppInfo:
     """The app opens its hardware with :meth:`AppContext.open_rig` (a profile app: from its
     configuration parameters ``rig`` and ``sim``): ``--rig FILE`` and ``--sim`` are allowed
     (refused for any other app)."""
+    parser: Callable[[str], argparse.ArgumentParser] | None = field(default=None, repr=False)
+    """The app's argument parser, given its ``prog`` (the one ``main`` parses
+    :attr:`AppContext.argv` with): ``run`` answers ``--help`` and refuses a mistaken option
+    with it before the event loop starts, so that they cost no loop start-up."""
 
     def __post_init__(self) -> None:
         if (self.main is None) == (self.profile is None):

@@ -95,6 +95,12 @@ def run_app(
         from ..rtc.runner import run_profile_cli
 
         return int(run_profile_cli(info.profile, args))
+    if info.parser is not None:
+        # --help and a mistaken option answered before the event loop starts
+        try:
+            info.parser(prog).parse_args(list(argv))
+        except SystemExit as exc:
+            return exc.code if isinstance(exc.code, int) else 0 if exc.code is None else 2
     ctx = AppContext(argv, prog=prog, hooks=hooks, rig=resolved, sim=sim)
     try:
         result = anyio.run(

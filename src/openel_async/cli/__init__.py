@@ -13,7 +13,7 @@ import os
 import signal
 import sys
 from collections.abc import Sequence
-from importlib.metadata import PackageNotFoundError, version
+from typing import Any
 
 from ..app import EXIT_SIGINT, install_sigterm_handler, interrupt_code
 from .commands import attach, discover_commands
@@ -56,10 +56,30 @@ stops the run with exit status 130, SIGTERM with 143, after a summary. The outpu
 
 
 def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
     try:
         return version("openel-async")
     except PackageNotFoundError:  # a source tree that is not installed
         return "unknown"
+
+
+class _VersionAction(argparse.Action):
+    """``--version``: the installed version, read from the package's metadata only when
+    asked (reading it parses the METADATA file: every other command is spared that)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        print(f"{parser.prog} {_version()}")
+        parser.exit()
 
 
 def _subcommand(
@@ -128,7 +148,7 @@ def _build_parser() -> argparse.ArgumentParser:
         prog=PROG, description=__doc__, formatter_class=HelpFormatter, allow_abbrev=False
     )
     parser.add_argument(
-        "--version", action="version", version=f"%(prog)s {_version()}",
+        "--version", action=_VersionAction,
         help="print the version and exit",
     )  # fmt: skip
     add_global_options(parser, depth=0)
