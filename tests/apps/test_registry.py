@@ -243,3 +243,31 @@ def test_the_documented_hook_runs() -> None:
     exec(compile(block, "docs/apps.md", "exec"), namespace)
     census = namespace["census"]
     assert isinstance(census, AppHook)
+
+
+def test_an_apps_parser_answers_help_and_mistakes_before_the_loop_starts(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import argparse
+
+    started: list[str] = []
+
+    async def app_main(ctx: AppContext) -> int:
+        started.append("main")
+        return 0
+
+    def parser(prog: str) -> argparse.ArgumentParser:
+        built = argparse.ArgumentParser(prog=prog)
+        built.add_argument("--speed", type=float, default=1.0)
+        return built
+
+    info = AppInfo(name="parsed", description="-", main=app_main, parser=parser)
+    assert run_app(info, ["--help"], prog="openel-async run parsed") == 0
+    assert "usage: openel-async run parsed [-h] [--speed SPEED]" in capsys.readouterr().out
+    assert run_app(info, ["--speed", "fast"], prog="openel-async run parsed") == 2
+    assert "argument --speed: invalid float value: 'fast'" in capsys.readouterr().err
+    assert started == []  # neither reached main (nor an event loop)
+    assert run_app(info, ["--speed", "2"], prog="openel-async run parsed") == 0
+    assert started == ["main"]
+    for app in (twoaxis, arm2_square, arm6_pick_place):
+        assert app.APP_INFO.parser is app.build_parser
