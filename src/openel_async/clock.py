@@ -163,6 +163,10 @@ class ClockBase:
         return (self.now_ns() - since_ns) / NS_PER_S
 
 
+PRECISE_BELOW_NS = 2_000_000
+""":meth:`MonotonicClock.sleep_until` waits shorter than this (ns) on a timerfd."""
+
+
 class MonotonicClock(ClockBase):
     """The real clock: CLOCK_MONOTONIC, with timerfd deadlines where available.
 
@@ -182,9 +186,19 @@ class MonotonicClock(ClockBase):
         return time.monotonic_ns()
 
     async def sleep_until(self, deadline_ns: int) -> None:
+        """Sleep until ``deadline_ns``. A wait shorter than :data:`PRECISE_BELOW_NS` waits
+        on a timerfd of its own (where available): asyncio's selector rounds its timeout up
+        to a whole millisecond, so a 2 us wait would last 1 ms (a simulated motor's short
+        move, COMPLETED a millisecond late); longer waits are ``anyio.sleep``."""
         remaining = deadline_ns - time.monotonic_ns()
         if remaining <= 0:
             await anyio.lowlevel.checkpoint()
+        elif remaining < PRECISE_BELOW_NS and self.use_timerfd:
+            fd = timerfd.Timerfd()
+            try:
+                await fd.wait_until(deadline_ns)
+            finally:
+                fd.close()
         else:
             await anyio.sleep(remaining / NS_PER_S)
 

@@ -562,3 +562,32 @@ async def test_elapsed_s_on_the_monotonic_clock_counts_real_seconds() -> None:
     since_mark = clock.elapsed_s(mark)
     assert clock.elapsed_s() >= since_mark  # read later, from an earlier start
     assert default_clock().elapsed_s() > 0.0  # since openel_async was imported
+
+
+@pytest.mark.skipif(not timerfd.available(), reason="timerfd is Linux's")
+async def test_monotonic_sleep_until_waits_a_short_wait_on_a_timerfd(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """asyncio's selector rounds a timeout up to a whole millisecond: a wait shorter than
+    PRECISE_BELOW_NS takes a timerfd of its own (closed after), a longer one does not."""
+    from openel_async.clock import PRECISE_BELOW_NS, MonotonicClock
+
+    made: list[timerfd.Timerfd] = []
+    real = timerfd.Timerfd
+
+    def counted() -> timerfd.Timerfd:
+        fd = real()
+        made.append(fd)
+        return fd
+
+    monkeypatch.setattr(timerfd, "Timerfd", counted)
+    clock = MonotonicClock()
+    start = time.monotonic_ns()
+    await clock.sleep_until(start + 200_000)  # 200 us
+    assert time.monotonic_ns() >= start + 200_000
+    assert len(made) == 1 and not made[0].registered
+    with pytest.raises(ValueError, match="closed"):
+        made[0].fileno()
+    await clock.sleep_until(time.monotonic_ns() + PRECISE_BELOW_NS + 1_000_000)
+    assert len(made) == 1  # anyio.sleep
+    assert MonotonicClock(use_timerfd=False).use_timerfd is False
