@@ -27,6 +27,7 @@ import anyio
 import anyio.abc
 
 from openel_async.logs import get_logger
+from openel_async.wakeup import Wakeup
 
 from ..completion import Motion
 from ..component import ComponentState, HALComponent
@@ -109,7 +110,7 @@ class _MotionWatcher:
 
     def __init__(self) -> None:
         self.pending: deque[tuple[str, Motion, Delivery]] = deque()
-        self.wakeup = anyio.Event()
+        self.wakeup = Wakeup()  # reused: no new event (and backend lookup) per command
 
     def add(self, command_id: str, motion: Motion, delivery: Delivery) -> None:
         self.pending.append((command_id, motion, delivery))
@@ -119,7 +120,6 @@ class _MotionWatcher:
         while True:
             while not self.pending:
                 await self.wakeup.wait()
-                self.wakeup = anyio.Event()
             command_id, motion, delivery = self.pending[0]
             error: BaseException | None = None
             try:
