@@ -325,7 +325,10 @@ def test_a_host_that_does_not_read_loses_frames_not_the_adapter(
         os.write(fd, b"F\r")
         backlog = b""
         while not re.search(rb"F[0-9A-F]{2}\r$", backlog):  # whole lines, then the status
-            backlog += read_reply(fd, 1)
+            try:  # (15 s: the adapter's two threads on a loaded machine, in a full run)
+                backlog += read_reply(fd, 1, timeout=15.0)
+            except TimeoutError as exc:
+                raise TimeoutError(f"{exc}; {len(backlog)} B read; {adapter.stats}") from None
         lines = backlog.split(b"\r")
         assert set(lines[:-2]) == {b"t1238" + b"00" * 8}
         overrun = StatusFlag.RX_FIFO_FULL | StatusFlag.DATA_OVERRUN
