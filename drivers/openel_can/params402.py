@@ -103,24 +103,6 @@ _ACCESS: Final[Mapping[Access, str]] = {
     Access.RWR: "rw",
     Access.RWW: "rw",
 }
-_INTEGERS: Final[Mapping[int, tuple[int, bool]]] = {
-    cod.INTEGER8: (8, True),
-    cod.INTEGER16: (16, True),
-    cod.INTEGER24: (24, True),
-    cod.INTEGER32: (32, True),
-    cod.INTEGER40: (40, True),
-    cod.INTEGER48: (48, True),
-    cod.INTEGER56: (56, True),
-    cod.INTEGER64: (64, True),
-    cod.UNSIGNED8: (8, False),
-    cod.UNSIGNED16: (16, False),
-    cod.UNSIGNED24: (24, False),
-    cod.UNSIGNED32: (32, False),
-    cod.UNSIGNED40: (40, False),
-    cod.UNSIGNED48: (48, False),
-    cod.UNSIGNED56: (56, False),
-    cod.UNSIGNED64: (64, False),
-}
 
 
 def _kind(entry: OdEntry) -> Any:
@@ -139,11 +121,10 @@ def _kind(entry: OdEntry) -> Any:
 def _range(entry: OdEntry) -> tuple[float | None, float | None]:
     low: float | None = entry.low
     high: float | None = entry.high
-    bits = _INTEGERS.get(entry.data_type)
-    if bits is not None:
-        size, signed = bits
+    size = entry.bit_length
+    if entry.is_integer and entry.data_type != cod.BOOLEAN and size is not None:
         type_low, type_high = (
-            (-(2 ** (size - 1)), 2 ** (size - 1) - 1) if signed else (0, 2**size - 1)
+            (-(2 ** (size - 1)), 2 ** (size - 1) - 1) if entry.signed else (0, 2**size - 1)
         )
         low = type_low if low is None else max(low, type_low)
         high = type_high if high is None else min(high, type_high)
