@@ -264,20 +264,10 @@ class RemoteJogger(JogControls[RemoteRow]):
             hint = " (e-stopped: r releases)" if self.estopped else " (e enables)"
             self.note("warning", f"{row.name} is {row.state}: not jogged{hint}")
             return None
-        low, high = row.limits
-        if row.target is not None:
-            base = row.target
-        elif row.values:
-            base = row.values[0]
-        else:
-            self.note("warning", f"{row.name}: no position read yet: not jogged")
+        step = self.next_target(row.name, direction, row.target, row.values, row.limits)
+        if step is None:
             return None
-        target = min(high, max(low, base + direction * self.step))
-        if target == base:
-            self.note(
-                "warning", f"{row.name}: at its limit {target:g} (limits [{low:g}, {high:g}])"
-            )
-            return None
+        base, target = step
         row.target = target
         previous = self._streams.pop(row.name, None)
         if previous is not None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
-from collections.abc import Callable, Coroutine
+from collections.abc import Callable, Coroutine, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
@@ -92,3 +92,29 @@ class JogControls(Generic[RowT]):
         index = nearest_index(VELOCITIES, self.velocity) + delta
         self.velocity = VELOCITIES[max(0, min(len(VELOCITIES) - 1, index))]
         return self.velocity
+
+    def next_target(
+        self,
+        name: str,
+        direction: int,
+        last_target: float | None,
+        values: Sequence[float],
+        limits: tuple[float, float],
+    ) -> tuple[float, float] | None:
+        """Where a jog of one step in ``direction`` (-1, +1) takes axis ``name``, as (from,
+        to): from the last jog's target (where it went or is going), else the position
+        read, to one step on clamped to ``limits``; None, with a line in the log, when no
+        position was read yet or the axis is at its limit already."""
+        low, high = limits
+        if last_target is not None:
+            base = last_target
+        elif values:
+            base = values[0]
+        else:
+            self.note("warning", f"{name}: no position read yet: not jogged")
+            return None
+        target = min(high, max(low, base + direction * self.step))
+        if target == base:
+            self.note("warning", f"{name}: at its limit {target:g} (limits [{low:g}, {high:g}])")
+            return None
+        return base, target

@@ -297,20 +297,12 @@ class Jogger(JogControls[Row]):
             hint = " (e-stopped: r releases)" if axis.estop_latched else " (e enables)"
             self.note("warning", f"{row.name} is {axis.state}: not jogged{hint}")
             return None
-        low, high = axis.device.limits.position
-        if row.target is not None:  # where the last jog went (or is going)
-            base = row.target
-        elif row.values:
-            base = row.values[0]
-        else:
-            self.note("warning", f"{row.name}: no position read yet: not jogged")
+        step = self.next_target(
+            row.name, direction, row.target, row.values, axis.device.limits.position
+        )
+        if step is None:
             return None
-        target = min(high, max(low, base + direction * self.step))
-        if target == base:
-            self.note(
-                "warning", f"{row.name}: at its limit {target:g} (limits [{low:g}, {high:g}])"
-            )
-            return None
+        base, target = step
         row.target = target
         found = self.group_of(row.name)
         if found is not None:
