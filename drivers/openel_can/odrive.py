@@ -1,4 +1,6 @@
-"""ODrive axes over CANSimple (firmware 0.6.x): an actuator and three sensors.
+"""ODrive axes over CANSimple (firmware 0.6.x): an actuator and three sensors (the sensors
+live in :mod:`openel_can.odrive_sensors`, the node's frames in :mod:`openel_can.odrive_link`;
+both are re-exported here).
 
 Units: ODrive speaks turns, turns/s and Nm; the API speaks SI. Positions and
 velocities are converted with exactly ``rad = turns * 2π`` (``math.tau``) both ways;
@@ -53,10 +55,9 @@ from __future__ import annotations
 import math
 import os
 import struct
-from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import IntFlag
-from typing import Final, TypeVar
+from typing import Final
 
 import anyio
 
@@ -66,21 +67,27 @@ from openel_async.device import (
     DeviceContext,
     DeviceInfo,
     ErrorId,
-    Reading,
-    SensorDevice,
     VelocityRamp,
 )
-from openel_async.errors import BadParameterError, HALError, NotConnectedError, ReturnCode
+from openel_async.errors import BadParameterError, HALError, NotConnectedError
 from openel_async.ids import DeviceKind
 from openel_async.logs import get_logger
 from openel_async.requests import Request
 from openel_async.safety import ExitAction
 
 from . import cansimple as cs
-from .bus import CanBus, NodePort
-from .errors import DecodeError
+from .bus import CanBus
 from .node_faults import NodeFaults
 from .odrive_firmware import EndpointTable, FirmwareVersion, driver_endpoint_ids, endpoint_table
+from .odrive_link import (
+    ODRIVE_VENDOR_ID,
+    ODriveLink,
+    check_node,
+    check_seconds,
+    rad_to_turns,
+    turns_to_rad,
+)
+from .odrive_sensors import ODriveBusMonitor, ODriveEncoder, ODriveTemperature
 
 __all__ = [
     "ODriveAxis",
@@ -94,9 +101,6 @@ __all__ = [
 
 log = get_logger(__name__)
 
-TAU: Final = math.tau
-KELVIN_OFFSET: Final = 273.15
-ODRIVE_VENDOR_ID: Final = 0x0D21
 VEL_RAMP_RATE_ENDPOINT: Final = 390
 """Endpoint id of ``axis0.controller.config.vel_ramp_rate`` (float, turns/s²) in the built-in
 table (:mod:`openel_can.odrive_endpoints`: 0.6.x, exact revision unknown, so never written to
@@ -112,15 +116,6 @@ VERSION_TIMEOUT: Final = 0.5
 WATCHDOG_FEED_FRACTION: Final = 4
 """The axis is fed at least every ``timeout / WATCHDOG_FEED_FRACTION``."""
 _FLOAT32_MAX: Final = 3.4028234663852886e38
-_M = TypeVar("_M", bound=cs.CanSimpleMessage)
-
-
-def turns_to_rad(turns: float) -> float:
-    return turns * TAU
-
-
-def rad_to_turns(rad: float) -> float:
-    return rad / TAU
 
 
 class ODriveError(IntFlag):
@@ -166,141 +161,6 @@ def _error_id(bits: int) -> ErrorId:
     if bits & ODriveError.WATCHDOG_TIMER_EXPIRED:
         return ErrorId.WATCHDOG
     return ErrorId.DEVICE_ERROR
-
-
-def _check_node(node_id: int) -> None:
-    if (
-        isinstance(node_id, bool)
-        or not isinstance(node_id, int)
-        or not 0 <= node_id < cs.MAX_NODE_ID
-    ):
-        raise BadParameterError("node_id", node_id, f"an ODrive node id in 0..{cs.MAX_NODE_ID - 1}")
-
-
-def _check_seconds(name: str, value: float) -> None:
-    if not (math.isfinite(value) and value > 0):
-        raise BadParameterError(name, value, "a finite number of seconds > 0")
-
-
-def _drives_motor(msg: cs.CanSimpleMessage) -> bool:
-    """A frame that engages the axis or gives it a set-point (refused while e-stopped)."""
-    if isinstance(msg, cs.SetAxisState):
-        return msg.state is not cs.AxisState.IDLE
-    return isinstance(msg, cs.SetInputPos | cs.SetInputVel | cs.SetInputTorque)
-
-
-class _Link:
-    """The frames of one ODrive node: latest message per command, with RTR polling."""
-
-    def __init__(
-        self,
-        bus: CanBus,
-        node_id: int,
-        cmds: Iterable[cs.CmdId],
-        *,
-        request_timeout: float,
-    ) -> None:
-        self.bus = bus
-        self.node_id = node_id
-        self.cmds = frozenset(cmds)
-        self.request_timeout = request_timeout
-        self.latest: dict[cs.CmdId, tuple[int, cs.CanSimpleMessage]] = {}
-        self.port: NodePort | None = None
-        self.ctx: DeviceContext | None = None
-        self.on_message: Callable[[cs.CanSimpleMessage, int], None] | None = None
-        self.sent_ns: int | None = None
-        """When a frame to this node was last sent (every frame feeds the axis watchdog)."""
-        self.estopped = False
-        """Set by the axis's e-stop, cleared by its ``re_init``: while set, :meth:`send`
-        refuses every frame that would drive the motor (see :func:`_drives_motor`)."""
-        self._changed = anyio.Event()
-
-    def open(self, ctx: DeviceContext, on_bus_error: Callable[[str], None]) -> None:
-        self.ctx = ctx
-        ids = [cs.arbitration_id(self.node_id, cmd) for cmd in self.cmds]
-        self.port = self.bus.attach(ids, name=ctx.name, on_bus_error=on_bus_error)
-        ctx.start_soon(self._run, self.port)
-
-    def close(self) -> None:
-        if self.port is not None:
-            self.port.close()
-
-    @property
-    def malformed(self) -> int:
-        return self.port.malformed if self.port is not None else 0
-
-    def now(self) -> int:
-        assert self.ctx is not None, "used before open()"
-        return self.ctx.clock.now_ns()
-
-    async def _run(self, port: NodePort) -> None:
-        decode = cs.decode
-        latest = self.latest
-        async for batch in port:
-            now = self.now()
-            for frame in batch:
-                if frame.is_remote_frame:
-                    continue  # another host polling this node
-                try:
-                    msg = decode(frame.arbitration_id, frame.data, from_host=False)
-                except DecodeError:
-                    port.malformed += 1
-                    continue
-                latest[msg.cmd] = (now, msg)
-                if self.on_message is not None:
-                    self.on_message(msg, now)
-            changed, self._changed = self._changed, anyio.Event()
-            changed.set()
-
-    async def send(self, msg: cs.CanSimpleMessage) -> None:
-        assert self.port is not None, "used before open()"
-        if self.estopped and _drives_motor(msg):
-            # A command already on its way when the e-stop came: its later steps must not
-            # re-engage the axis (only re_init does).
-            raise HALError(
-                f"ODrive node {self.node_id}: e-stopped: {type(msg).__name__} refused until re_init"
-            )
-        arb_id, data = cs.encode(msg)
-        await self.port.send(arb_id, data, remote=isinstance(msg, cs.Request))
-        self.sent_ns = self.now()
-
-    async def request(self, cmd: cs.CmdId, kind: type[_M]) -> tuple[int, _M]:
-        """Poll ``cmd`` with a remote frame; the first reply received after the request."""
-        asked = self.now()
-        await self.send(cs.Request(self.node_id, cmd))
-        return await self.wait_for(cmd, kind, after_ns=asked, timeout=self.request_timeout)
-
-    async def fresh(self, cmd: cs.CmdId, kind: type[_M], max_age_ns: int) -> tuple[int, _M]:
-        """The cached message when younger than ``max_age_ns``, else a polled one."""
-        cached = self.latest.get(cmd)
-        if cached is not None and self.now() - cached[0] <= max_age_ns:
-            stamp, msg = cached
-            assert isinstance(msg, kind)
-            return stamp, msg
-        return await self.request(cmd, kind)
-
-    async def wait_for(
-        self,
-        cmd: cs.CmdId,
-        kind: type[_M],
-        *,
-        after_ns: int,
-        timeout: float,  # noqa: ASYNC109 - a bound, by contract
-        predicate: Callable[[_M], bool] | None = None,
-    ) -> tuple[int, _M]:
-        """Wait (bounded) for a ``cmd`` message received after ``after_ns`` matching ``predicate``."""
-        with anyio.move_on_after(timeout):
-            while True:
-                cached = self.latest.get(cmd)
-                if cached is not None and cached[0] >= after_ns:
-                    stamp, msg = cached
-                    assert isinstance(msg, kind)
-                    if predicate is None or predicate(msg):
-                        return stamp, msg
-                await self._changed.wait()
-        raise TimeoutError(
-            f"ODrive node {self.node_id}: no {cmd.name} reply within {timeout * 1000:.0f} ms"
-        )
 
 
 @dataclass
@@ -380,7 +240,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
     ) -> None:
         if not isinstance(bus, CanBus):
             raise BadParameterError("bus", bus, "an openel_can.CanBus")
-        _check_node(node_id)
+        check_node(node_id)
         table = endpoint_table(endpoints, files_dir)
         ids = driver_endpoint_ids(
             table,
@@ -407,9 +267,9 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
             ("request_timeout", request_timeout),
             ("engage_timeout", engage_timeout),
         ):
-            _check_seconds(name, seconds)
+            check_seconds(name, seconds)
         if heartbeat_timeout is not None:
-            _check_seconds("heartbeat_timeout", heartbeat_timeout)
+            check_seconds("heartbeat_timeout", heartbeat_timeout)
         for name, optional in (
             ("torque_constant", torque_constant),
             ("velocity_limit", velocity_limit),
@@ -485,7 +345,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         """The ODrive's own vel_ramp_rate (raw float32), read before the first tm_acc ramp
         overwrote it; written back by the next plain velocity command."""
         self._ramp_rate_written = False
-        self._link = _Link(bus, node_id, _TO_HOST, request_timeout=request_timeout)
+        self._link = ODriveLink(bus, node_id, _TO_HOST, request_timeout=request_timeout)
         self._link.on_message = self._on_message
         self._ctx: DeviceContext | None = None
         self._lock = anyio.Lock()
@@ -837,7 +697,7 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         torque as f32. Streaming a trajectory, pass its velocity here before each position.
         """
         for name, value, bound in (
-            ("velocity", velocity, TAU * 32.767),
+            ("velocity", velocity, math.tau * 32.767),
             ("torque", torque, 32.767),
         ):
             if not (math.isfinite(value) and abs(value) <= bound):
@@ -1096,108 +956,3 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
     # -- faults ---------------------------------------------------------------------------
     def _on_latch(self) -> None:
         self._pending = None
-
-
-# -- sensors ------------------------------------------------------------------------------
-
-
-class _ODriveSensor(SensorDevice):
-    _CMD: cs.CmdId
-
-    def __init__(
-        self,
-        bus: CanBus,
-        node_id: int,
-        *,
-        max_age: float = 0.05,
-        request_timeout: float = 0.05,
-    ) -> None:
-        if not isinstance(bus, CanBus):
-            raise BadParameterError("bus", bus, "an openel_can.CanBus")
-        _check_node(node_id)
-        _check_seconds("max_age", max_age)
-        _check_seconds("request_timeout", request_timeout)
-        self.bus = bus
-        self.node_id = node_id
-        self.max_age = max_age
-        self._link = _Link(bus, node_id, (self._CMD,), request_timeout=request_timeout)
-        self._ctx: DeviceContext | None = None
-        self._latched = False
-
-    @property
-    def malformed_frames(self) -> int:
-        return self._link.malformed
-
-    async def open(self, ctx: DeviceContext) -> None:
-        self._ctx = ctx
-        self._link.open(ctx, self._on_bus_error)
-        await self._link.request(self._CMD, cs.CanSimpleMessage)  # the node answers
-
-    async def init(self) -> None:
-        self._latched = False
-
-    async def reset(self) -> None:
-        await self.bus.wait_up(1.0)
-        await self._link.request(self._CMD, cs.CanSimpleMessage)
-        self._latched = False
-
-    async def close(self) -> None:
-        self._link.close()
-
-    def _on_bus_error(self, reason: str) -> None:
-        if not self._latched and self._ctx is not None:
-            self._latched = True
-            self._ctx.fault(
-                ErrorId.BUS_ERROR, f"CAN bus error: {reason}", ReturnCode.HAL_NO_CONNECTED
-            )
-
-    async def _latest(self) -> tuple[int, cs.CanSimpleMessage]:
-        return await self._link.fresh(self._CMD, cs.CanSimpleMessage, round(self.max_age * 1e9))
-
-
-class ODriveEncoder(_ODriveSensor):
-    """Encoder estimates of an ODrive axis: (position rad, velocity rad/s).
-
-    Uses the cyclic Get_Encoder_Estimates (polled when older than ``max_age``); the
-    reading's time is when the frame was received.
-    """
-
-    info = DeviceInfo(DeviceKind.ROTARY_ANGLE, ODRIVE_VENDOR_ID, 0x0106, "ODrive", "CanEncoder")
-    units = ("rad", "rad/s")
-    _CMD = cs.CmdId.GET_ENCODER_ESTIMATES
-
-    def __init__(
-        self, bus: CanBus, node_id: int, *, max_age: float = 0.03, request_timeout: float = 0.05
-    ) -> None:
-        super().__init__(bus, node_id, max_age=max_age, request_timeout=request_timeout)
-
-    async def read(self) -> Reading:
-        stamp, msg = await self._latest()
-        assert isinstance(msg, cs.EncoderEstimates)
-        return Reading((turns_to_rad(msg.pos), turns_to_rad(msg.vel)), stamp)
-
-
-class ODriveTemperature(_ODriveSensor):
-    """FET and motor temperatures of an ODrive axis (K), polled with Get_Temperature."""
-
-    info = DeviceInfo(DeviceKind.TEMPERATURE, ODRIVE_VENDOR_ID, 0x0406, "ODrive", "CanTemperature")
-    units = ("K", "K")
-    _CMD = cs.CmdId.GET_TEMPERATURE
-
-    async def read(self) -> Reading:
-        stamp, msg = await self._latest()
-        assert isinstance(msg, cs.Temperature)
-        return Reading((msg.fet + KELVIN_OFFSET, msg.motor + KELVIN_OFFSET), stamp)
-
-
-class ODriveBusMonitor(_ODriveSensor):
-    """DC bus voltage (V) and current (A) of an ODrive, polled with Get_Bus_Voltage_Current."""
-
-    info = DeviceInfo(DeviceKind.CURRENT, ODRIVE_VENDOR_ID, 0x0D06, "ODrive", "CanBusMonitor")
-    units = ("V", "A")
-    _CMD = cs.CmdId.GET_BUS_VOLTAGE_CURRENT
-
-    async def read(self) -> Reading:
-        stamp, msg = await self._latest()
-        assert isinstance(msg, cs.BusVoltageCurrent)
-        return Reading((msg.voltage, msg.current), stamp)
