@@ -21,7 +21,8 @@ and the SYNC, worst-case bit stuffing, rounded up to 0.1 ms.
 * **Ours**: four ``Actuator(Cia402Drive(bus, n, mode="csp", eds=SHIPPED_EDS))`` (configured
   from the EDS by SDO, ``default_pdos("csp")``) on a ``CanBus`` reading the socket in the
   event loop (``read_mode="loop"``, what ``socketcan`` gets by default), an ``EventTimer``
-  at the cycle, ``CanSync.of(bus).start(timer)``, and a timer observer staging a new target
+  at the cycle, ``CanSync.of(bus).start(timer)`` (which reads the socket once per tick,
+  before the SYNC: ``CanBus.read_now``), and a timer observer staging a new target
   for every drive each tick (``command_nowait``, what an ``AxisGroup`` does without its
   planning): the next tick sends the four RPDOs, then SYNC.
 * **canopen-py**: ``canopen.Network(bus)`` on the same kind of socket pair, four

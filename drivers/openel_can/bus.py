@@ -16,7 +16,9 @@ kvaser, virtual ...) and runs, in its own task group:
   - ``socketcan`` (and any bus with a ``fileno()`` given ``read_mode="loop"``): no thread
     either. The socket is watched by the event loop (``loop.add_reader``); when it is
     readable the loop takes every queued frame with non-blocking ``recv(0)`` (up to
-    ``max_batch``) and dispatches them as one batch; the same idle check.
+    ``max_batch``) and dispatches them as one batch; the same idle check. While a SYNC
+    producer runs on the bus (:class:`~openel_can.CanSync`) it reads the socket once per
+    cycle instead (:meth:`CanBus.read_now`), at the tick, one wake-up a cycle.
   - any other interface (or ``read_mode="thread"``): **one reader thread** per bus object (started on entry and
     after each reopen, joined on exit), looping on a blocking ``recv`` of at most
     ``poll_interval`` for the first frame, then non-blocking ``recv(0)`` for whatever
@@ -451,6 +453,11 @@ class CanBus:
         self._virtual_failed: anyio.Event | None = None
         self._virtual_failure = ""
         self._inline_streak = 0
+        self._read_now: Callable[[float], None] | None = None
+        """The descriptor reader's :meth:`read_now` while the bus is read in the loop
+        through its ``fileno()`` (None otherwise)."""
+        self.reads_on_demand = 0
+        """Reads made by :meth:`read_now` (a cyclic producer's ticks)."""
 
     # -- lifecycle ------------------------------------------------------------------------
     async def __aenter__(self) -> Self:
@@ -576,6 +583,25 @@ class CanBus:
                 f"CAN bus {self.name} is {self.state}"
                 + (f": {self.last_error}" if self.last_error else "")
             )
+
+    def read_now(self, hold_s: float) -> bool:
+        """Take every frame the bus holds now (dispatched before this returns), and leave
+        the next ones in the socket for the next call, for at most ``hold_s`` seconds.
+
+        For a cyclic producer that reads once per cycle (:class:`~openel_can.CanSync`: the
+        TPDOs answering a SYNC are read at the next tick, just before the next SYNC),
+        instead of one event-loop wake-up per frame. Only on a bus read in the event loop
+        through its ``fileno()`` (``socketcan``, ``read_mode="loop"``): the descriptor's
+        reader is unregistered until the hold runs out with no call since, then
+        registered again (a stopped or stalled producer leaves the bus read as before,
+        within ``hold_s``). False, nothing read, on any other bus (read by a thread or as
+        python-can ``virtual``: each batch is read when it arrives).
+        """
+        read = self._read_now
+        if read is None:
+            return False
+        read(hold_s)
+        return True
 
     # -- ports ----------------------------------------------------------------------------
     def shared(self, key: object, factory: Callable[[], _T]) -> _T:
@@ -948,8 +974,42 @@ class CanBus:
             if frames:
                 self._dispatch(frames)
 
+        # read_now(): the reader unregistered until ``held_until`` (loop time), each call
+        # moving it on; release() registers it again once a hold ran out.
+        held = False
+        held_until = 0.0
+        check: asyncio.TimerHandle | None = None
+
+        def release() -> None:
+            nonlocal held, check
+            check = None
+            if not held or failed.is_set():
+                return
+            if loop.time() < held_until:  # held on by a read since: look again then
+                check = loop.call_at(held_until, release)
+                return
+            held = False
+            loop.add_reader(fd, drain)
+            drain()
+
+        def read_now(hold_s: float) -> None:
+            nonlocal held, held_until, check
+            self.reads_on_demand += 1
+            drain()
+            if failed.is_set():
+                return
+            held_until = loop.time() + hold_s
+            if not held:
+                held = True
+                loop.remove_reader(fd)
+            if check is None or held_until < check.when():  # a shorter hold than before
+                if check is not None:
+                    check.cancel()
+                check = loop.call_at(held_until, release)
+
         loop.add_reader(fd, drain)
         self.reads_in_loop += 1
+        self._read_now = read_now
         task_status.started()
         try:
             while not failed.is_set():
@@ -957,6 +1017,10 @@ class CanBus:
                     await failed.wait()
                 drain()  # idle check: a bus shut down under us raises on recv
         finally:
+            self._read_now = None
+            held = False
+            if check is not None:
+                check.cancel()
             with contextlib.suppress(Exception):  # the descriptor may be closed already
                 loop.remove_reader(fd)
         return outcome[0]

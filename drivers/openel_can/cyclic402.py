@@ -39,7 +39,9 @@ position with target = actual, still enabled.
 
 An EMCY (other than 0x0000, error reset) faults the component at once, with the code's
 class in words (:func:`openel_can.emcy.describe_emcy`): the staged set-point is dropped and
-a quick stop sent.
+a quick stop sent. ("At once": when the EMCY is read. On a bus :class:`~openel_can.CanSync`
+reads once per tick, that is the next tick, before its SYNC: the set-point staged for that
+SYNC never leaves.)
 """
 
 from __future__ import annotations

@@ -5,6 +5,13 @@ The framework's :class:`~openel_async.EventTimer` drives the axes (an
 observes the same timer and, at every tick, in the tick itself (a plain ``notify_timer``,
 no task hop):
 
+0. on a bus read in the event loop through its descriptor (``socketcan``), reads what
+   arrived since the last tick (:meth:`CanBus.read_now`: the TPDOs answering the last
+   SYNC, EMCY, SDO answers ...), and keeps the bus unread until the next tick: one
+   event-loop wake-up a cycle instead of one per frame or batch (``read_on_tick``; a
+   stopped or stalled timer leaves the bus read as before within two periods). A frame
+   other than a TPDO (an EMCY, an SDO answer) is then handled at the tick after it
+   arrived, at most one period later;
 1. sends the RPDO each cyclic drive staged since the last tick (its latest set-point:
    :meth:`stage`, called by :class:`~openel_can.cyclic402.Cia402CyclicDrive` from its
    synchronous command path; a newer set-point of the same drive replaces the older);
@@ -100,6 +107,9 @@ class CanSync:
         self._dropped = 0
         self._late = 0
         self._last_warning_ns: int | None = None
+        self.read_on_tick = True
+        """Read the bus at each tick (module docstring, step 0): set by :meth:`start`."""
+        self._hold_s = 0.0
         self.log = log.bind(bus=bus.name)
 
     @classmethod
@@ -133,14 +143,18 @@ class CanSync:
         if consumer in self._consumers:
             self._consumers.remove(consumer)
 
-    async def start(self, timer: EventTimer, *, counter_overflow: int = 0) -> None:
+    async def start(
+        self, timer: EventTimer, *, counter_overflow: int = 0, read_on_tick: bool = True
+    ) -> None:
         """Produce SYNC on every tick of ``timer`` (it may be running; before or after the
         timer's other observers: the RPDOs staged by the tick are sent first either way).
         Each consumer is told the cycle and the counter first (``set_cycle``: a drive
         writes its 0x60C2 and 0x1019 by SDO), before the first SYNC.
 
         ``counter_overflow``: 0 (no counter, an empty SYNC) or 2..240 (CiA 301 0x1019: the
-        counter runs 1..overflow; give the drives the same 0x1019)."""
+        counter runs 1..overflow; give the drives the same 0x1019). ``read_on_tick``: read
+        the bus once per tick where it can be (module docstring, step 0); False leaves
+        it read as each frame arrives."""
         if not isinstance(timer, EventTimer):
             raise BadParameterError("timer", timer, "an EventTimer")
         if (
@@ -164,6 +178,8 @@ class CanSync:
         if self.timer is not None:
             raise StateError("start", f"driven by timer {self.timer.name!r}", ["stopped"])
         self._port = self.bus.attach((), name="sync")
+        self.read_on_tick = bool(read_on_tick)
+        self._hold_s = max(2 * timer.period_ns / _NS_PER_S, 0.002)
         self.counter_overflow = counter_overflow
         self._counter = 0
         self.timer = timer
@@ -183,6 +199,8 @@ class CanSync:
         if self._port is not None:
             self._port.close()
             self._port = None
+            if self.read_on_tick:  # the bus read as each frame arrives again, at once
+                self.bus.read_now(0.0)
         self._staged.clear()
         if timer is not None:
             self.log.info("can_sync_stopped", **self._stats_dict())
@@ -203,6 +221,11 @@ class CanSync:
         port = self._port
         if port is None or timer is not self.timer:
             return
+        if self.read_on_tick:
+            self.bus.read_now(self._hold_s)
+            port = self._port  # what it read may have stopped us (a drive faulted)
+            if port is None or timer is not self.timer:
+                return
         fields = timer.last_tick_fields
         if fields is not None and fields[3]:
             self._count_missed(fields[3], fields[2], "timer skipped ticks")

@@ -210,6 +210,104 @@ async def test_a_bus_with_a_fileno_is_read_in_the_loop_in_order_and_its_failure_
         theirs.close()
 
 
+def _queued(port: object) -> list[int]:
+    """Every frame waiting in ``port`` now (no wait)."""
+    from openel_can import NodePort
+
+    assert isinstance(port, NodePort)
+    got: list[int] = []
+    while True:
+        try:
+            got += [int.from_bytes(m.data, "little") for m in port.receive_nowait()]
+        except anyio.WouldBlock:
+            return got
+
+
+async def _loop_passes(n: int = 5) -> None:
+    for _ in range(n):  # a registered reader of a readable socket runs in the first pass
+        await anyio.lowlevel.checkpoint()
+
+
+async def test_read_now_reads_at_once_then_holds_the_socket_until_the_next_call() -> None:
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    far = _PairBus(theirs)
+    try:
+        async with CanBus(_PairBus(ours), read_mode="loop", poll_interval=30.0) as bus:
+            port = bus.attach([0x181], name="rx")
+            far.send(_frame(0x181, 1))
+            assert bus.read_now(30.0)  # read and dispatched before it returns
+            assert _queued(port) == [1]
+            far.send(_frame(0x181, 2))
+            far.send(_frame(0x181, 3))
+            await _loop_passes()
+            assert _queued(port) == []  # held: left in the socket
+            assert bus.read_now(0.05)
+            assert _queued(port) == [2, 3]
+            far.send(_frame(0x181, 4))  # nobody calls again: read as it arrives once the
+            assert await _collect(port, 1) == [4]  # hold ran out
+            far.send(_frame(0x181, 5))
+            await _loop_passes()
+            assert _queued(port) == [5]  # the reader is registered again
+            assert bus.read_now(0.0)  # a zero hold: registered again at once
+            far.send(_frame(0x181, 6))
+            await _loop_passes()
+            assert _queued(port) == [6]
+            assert bus.reads_on_demand == 3
+    finally:
+        ours.close()
+        theirs.close()
+
+
+async def test_read_now_is_refused_on_a_bus_not_read_through_its_descriptor() -> None:
+    async with CanBus(interface="virtual", channel="read-now", poll_interval=0.01) as bus:
+        assert bus.read_now(1.0) is False
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    try:
+        async with CanBus(_PairBus(ours), read_mode="thread", poll_interval=0.01) as bus:
+            assert bus.read_now(1.0) is False and bus.reads_on_demand == 0
+    finally:
+        ours.close()
+        theirs.close()
+
+
+async def test_can_sync_reads_the_bus_at_each_tick_before_the_sync() -> None:
+    from openel_async import EventTimer
+    from openel_can import CanSync
+
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    far = _PairBus(theirs)
+    try:
+        async with CanBus(
+            _PairBus(ours), read_mode="loop", send_mode="inline", poll_interval=30.0
+        ) as bus:
+            port = bus.attach([0x181], name="tpdo")
+            timer = EventTimer(2.0, name="by-hand")  # ticked by hand: notify_timer
+            sync = CanSync.of(bus)
+            await sync.start(timer)
+            sync.notify_timer(timer)  # tick 1: nothing to read, SYNC 1
+            msg = far.recv(0)
+            assert msg is not None and msg.arbitration_id == co.SYNC_COB_ID
+            far.send(_frame(0x181, 7))  # a drive's TPDO answering SYNC 1
+            await _loop_passes()
+            assert _queued(port) == []  # left for the next tick
+            sync.notify_timer(timer)  # tick 2: read first (as cycle 1's), then SYNC 2
+            assert _queued(port) == [7]
+            assert sync.cycle == 2 and bus.reads_on_demand == 2
+            sync.stop()  # the bus read as frames arrive again, at once
+            far.send(_frame(0x181, 8))
+            await _loop_passes()
+            assert _queued(port) == [8]
+            await sync.start(timer, read_on_tick=False)
+            sync.notify_timer(timer)
+            far.send(_frame(0x181, 9))
+            await _loop_passes()
+            assert _queued(port) == [9] and bus.reads_on_demand == 3  # the stop's
+            sync.stop()
+    finally:
+        ours.close()
+        theirs.close()
+
+
 async def test_read_mode_thread_reads_a_fileno_bus_in_a_thread_and_auto_only_socketcan() -> None:
     for mode, threads in (("thread", 1), ("auto", 1)):
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
