@@ -124,3 +124,29 @@ def test_a_disabled_log_keeps_nothing() -> None:
     log = TrajectoryLog(3, capacity=0)
     log.append(1, 1, [0, 0, 0], [0, 0, 0], [0, 0, 0])
     assert len(log) == 0 and len(log.snapshot()) == 0
+
+
+async def test_entering_a_group_makes_its_log_in_a_worker_thread(
+    hal_components: ComponentStack, virtual_clock: VirtualClock, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """numpy's first import takes 0.1-1 s: not in the event loop, where it would stall the
+    drives' heartbeats and watchdogs (a CiA 402 drive with a 100 ms heartbeat faults)."""
+    import threading
+
+    threads: list[threading.Thread] = []
+    allocate = TrajectoryLog.allocate
+
+    def recording_allocate(log: TrajectoryLog) -> None:
+        threads.append(threading.current_thread())
+        allocate(log)
+
+    monkeypatch.setattr(TrajectoryLog, "allocate", recording_allocate)
+    actuators = [await hal_components.actuator(RecordingMotor()) for _ in range(2)]
+    async with EventTimer(1, clock=virtual_clock) as timer:
+        group = AxisGroup(actuators, timer=timer, limits=LIMITS)
+        assert not group.log.allocated  # nothing of numpy made by the constructor
+        async with group:
+            assert group.log.allocated
+            assert threads and threads[0] is not threading.main_thread()
+            await (await group.move_to([0.2, 0.1]))
+        assert len(group.log.snapshot()) > 0

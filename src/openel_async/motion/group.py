@@ -25,7 +25,7 @@ from openel_async.logs import get_logger
 
 from ..actuator import Actuator
 from ..banks import ActuatorBank
-from ..clock import NS_PER_S
+from ..clock import NS_PER_S, run_in_thread
 from ..component import ComponentState
 from ..device import has_nowait
 from ..errors import BadParameterError, HALError, StateError
@@ -174,6 +174,10 @@ class AxisGroup:
     async def __aenter__(self) -> Self:
         if self._tg is not None or self._closed:
             raise StateError("__aenter__", "entered", ["an axis group not yet entered"])
+        if not self.log.allocated and self.log.capacity:
+            # numpy's first import (0.1-1 s) off the loop: the drives' heartbeats and
+            # watchdogs keep being served meanwhile
+            await run_in_thread(self.log.allocate)
         tg = anyio.create_task_group()
         await tg.__aenter__()
         try:

@@ -28,8 +28,10 @@ if TYPE_CHECKING:
     FloatArray: TypeAlias = npt.NDArray[np.float64]
     IntArray: TypeAlias = npt.NDArray[np.int64]
 
-# numpy is imported when a log is made (an AxisGroup), not with the module: importing the
-# framework (an app's --help) does not load it.
+# numpy is imported when a log first needs its arrays (:meth:`TrajectoryLog.allocate`), not
+# with the module: importing the framework (an app's --help) does not load it. An AxisGroup
+# allocates its log in a worker thread as it is entered: a first import of numpy takes
+# 0.1-1 s, which must not stall the event loop (heartbeats, watchdogs, other timers).
 
 
 @dataclass(frozen=True, slots=True)
@@ -79,23 +81,40 @@ class TrajectoryLog:
     """Ring buffer of the last ``capacity`` ticks of an axis group (0: disabled)."""
 
     def __init__(self, axes: int, capacity: int = 10_000, *, actual: bool = False) -> None:
-        import numpy as np
-
         if isinstance(capacity, bool) or not isinstance(capacity, int) or capacity < 0:
             raise BadParameterError("log_capacity", capacity, "an int >= 0 (0: no log)")
         self.axes = axes
         self.capacity = capacity
         self.records_actual = actual
+        self.allocated = False
+        """Whether the arrays exist (:meth:`allocate`; the first write or snapshot does it)."""
+        self._time: IntArray
+        self._motion: IntArray
+        self._p: FloatArray
+        self._v: FloatArray
+        self._a: FloatArray
+        self._actual: FloatArray | None = None
+        self._planned: list[tuple[int, int, Plan] | None] = [None] * capacity
+        """Rows logged by :meth:`append_plan` and not yet sampled into the arrays."""
+        self._count = 0
+        """Rows ever written (the next row is ``_count % capacity``)."""
+
+    def allocate(self) -> None:
+        """Import numpy and make the ring's arrays, if not done yet (blocking: the first
+        import of numpy in a process takes 0.1-1 s; :class:`AxisGroup` calls it in a
+        worker thread as it is entered)."""
+        if self.allocated:
+            return
+        import numpy as np
+
+        capacity, axes = self.capacity, self.axes
         self._time = np.zeros(capacity, dtype=np.int64)
         self._motion = np.zeros(capacity, dtype=np.int64)
         self._p = np.zeros((capacity, axes))
         self._v = np.zeros((capacity, axes))
         self._a = np.zeros((capacity, axes))
-        self._actual = np.full((capacity, axes), np.nan) if actual else None
-        self._planned: list[tuple[int, int, Plan] | None] = [None] * capacity
-        """Rows logged by :meth:`append_plan` and not yet sampled into the arrays."""
-        self._count = 0
-        """Rows ever written (the next row is ``_count % capacity``)."""
+        self._actual = np.full((capacity, axes), np.nan) if self.records_actual else None
+        self.allocated = True
 
     def __len__(self) -> int:
         return min(self._count, self.capacity)
@@ -117,6 +136,8 @@ class TrajectoryLog:
         capacity = self.capacity
         if capacity == 0:
             return
+        if not self.allocated:
+            self.allocate()
         row = self._count % capacity
         self._count += 1
         self._time[row] = time_ns
@@ -135,6 +156,8 @@ class TrajectoryLog:
         capacity = self.capacity
         if capacity == 0:
             return
+        if not self.allocated:
+            self.allocate()
         row = self._count % capacity
         self._count += 1
         self._planned[row] = (time_ns, motion_id, plan)
@@ -147,6 +170,7 @@ class TrajectoryLog:
         capacity = self.capacity
         if capacity == 0:
             return _no_row
+        self.allocate()
         planned = self._planned
         actual = self._actual
 
@@ -177,6 +201,7 @@ class TrajectoryLog:
     def snapshot(self) -> TrajectorySamples:
         import numpy as np
 
+        self.allocate()
         self._sample_planned()
         n = len(self)
         start = self._count % self.capacity if self._count > self.capacity else 0
