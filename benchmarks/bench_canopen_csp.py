@@ -21,10 +21,10 @@ and the SYNC, worst-case bit stuffing, rounded up to 0.1 ms.
 * **Ours**: four ``Actuator(Cia402Drive(bus, n, mode="csp", eds=SHIPPED_EDS))`` (configured
   from the EDS by SDO, ``default_pdos("csp")``) on a ``CanBus`` reading the socket in the
   event loop (``read_mode="loop"``, what ``socketcan`` gets by default), an ``EventTimer``
-  at the cycle, ``CanSync.of(bus).start(timer)`` (which reads the socket once per tick,
-  before the SYNC: ``CanBus.read_now``), and a timer observer staging a new target
-  for every drive each tick (``command_nowait``, what an ``AxisGroup`` does without its
-  planning): the next tick sends the four RPDOs, then SYNC.
+  at the cycle, ``CanSync.of(bus).start(timer)`` (SYNC first at each tick, then the socket
+  read once: ``CanBus.read_now``), and a timer observer staging a new target for every
+  drive each tick (``command_nowait``, what an ``AxisGroup`` does without its planning):
+  the four RPDOs go out right after that tick, the next tick's SYNC latches them.
 * **canopen-py**: ``canopen.Network(bus)`` on the same kind of socket pair, four
   ``RemoteNode`` objects from the same EDS, mapped with its ``pdo`` tooling exactly as ours maps
   them, CSP selected and enabled by RPDO; a thread runs the cycle on ``time.perf_counter``
@@ -285,14 +285,61 @@ def peer(cycles: int, period_ms: float) -> Run:
     return Run(p50, p99, cpu / cycles, missed, cycles)
 
 
+def floor(cycles: int, period_ms: float, *, spin: bool) -> Run:
+    """The least a SYNC sender in user space can do on this machine: a bare loop that only
+    sends SYNC on ``time.perf_counter`` deadlines (and takes whatever the drives send, so
+    nothing backs up), at the same priority and on the same CPU as the masters. ``spin``:
+    busy-waits to each deadline instead of sleeping (no wake-up latency; the whole CPU)."""
+    with CspPeersProcess(NODES) as peers:
+        bus = peers.bus()
+        sync = can.Message(arbitration_id=0x080, data=b"", is_extended_id=False)
+        period = period_ms / 1000
+        total = cycles + WARMUP_CYCLES
+        missed = 0
+        cpu0 = 0.0
+        clock = time.perf_counter
+        deadline = clock()
+        for tick in range(1, total + 1):
+            deadline += period
+            now = clock()
+            if now - deadline >= period:
+                skipped = int((now - deadline) // period)
+                deadline += skipped * period
+                if tick > WARMUP_CYCLES:
+                    missed += skipped
+            if spin:
+                while clock() < deadline:
+                    pass
+            else:
+                delay = deadline - clock()
+                if delay > 0:
+                    time.sleep(delay)
+            bus.send(sync)
+            while bus.recv(0.0) is not None:
+                pass
+            if tick == WARMUP_CYCLES:
+                cpu0 = time.process_time()
+        cpu = time.process_time() - cpu0
+        bus.shutdown()
+    p50, p99 = jitter(_measured(peers.sync_stamps_ns, cycles), period_ms / 1000)
+    return Run(p50, p99, cpu / cycles, missed, cycles)
+
+
 def run(quick: bool) -> BenchResult:
     cycles = QUICK_CYCLES if quick else CYCLES
     rounds = QUICK_ROUNDS if quick else ROUNDS
     period_ms = wire_cycle_ms()
     measured = interleaved(
-        rounds, {"ours": lambda: ours(cycles, period_ms), "peer": lambda: peer(cycles, period_ms)}
+        rounds,
+        {
+            "ours": lambda: ours(cycles, period_ms),
+            "peer": lambda: peer(cycles, period_ms),
+            "sleep": lambda: floor(cycles, period_ms, spin=False),
+            "spin": lambda: floor(cycles, period_ms, spin=True),
+        },
     )
     mine, theirs = measured["ours"], measured["peer"]
+    bare, busy = measured["sleep"], measured["spin"]
 
     def median(runs: list[Run], field: str) -> float:
         return float(statistics.median(getattr(r, field) for r in runs))
@@ -321,11 +368,28 @@ def run(quick: bool) -> BenchResult:
         baseline_label="canopen-py",
         digits=0,
     )
+
+    def floor_row(metric: str, runs: list[Run], field: str) -> Row:
+        a, b = median(runs, field), median(theirs, field)
+        return Row(
+            metric,
+            a * 1e6,
+            "µs",
+            baseline=b * 1e6,
+            baseline_label="canopen-py",
+            ratio=ratio_of(a, b),
+            ratio_label="floor/canopen-py",
+            digits=0,
+        )
+
     rows = (
         row("SYNC period jitter p50", "jitter_p50", None),
         row("SYNC period jitter p99", "jitter_p99", TARGET_JITTER),
         row("host CPU per cycle (4 RPDO + SYNC + 4 TPDO)", "cpu", TARGET_CPU),
         missed,
+        floor_row("floor: SYNC jitter p99 of a bare sleeping SYNC loop", bare, "jitter_p99"),
+        floor_row("floor: SYNC jitter p99 of a busy-waiting SYNC loop", busy, "jitter_p99"),
+        floor_row("floor: CPU per cycle of the busy-waiting SYNC loop", busy, "cpu"),
     )
 
     def each(runs: list[Run]) -> str:
@@ -337,7 +401,13 @@ def run(quick: bool) -> BenchResult:
     notes = (
         f"Cycle {period_ms:g} ms: the wire limit of four CSP axes at 1 Mbit/s (worst case); "
         f"{rounds} interleaved round(s) of {cycles:,} cycles after {WARMUP_CYCLES} warm-up "
-        f"cycles. Ours: {each(mine)}. canopen-py: {each(theirs)}.",
+        f"cycles. Ours: {each(mine)}. canopen-py: {each(theirs)}. Bare sleeping SYNC loop: "
+        f"{each(bare)}. Busy-waiting SYNC loop: {each(busy)}.",
+        "Floors (same rounds, same drives, priority and CPU): a loop that only sends SYNC on "
+        "its deadlines, sleeping to each (the least wake-up jitter of a user-space sender on "
+        "this machine), and the same loop busy-waiting to each deadline instead (no "
+        "wake-up, the whole CPU). A SYNC p99 under the sleeping loop's needs the master to "
+        "stay awake before each deadline, at the busy loop's CPU cost.",
         "Host CPU: the master process's CPU time per cycle (ours: the event loop, which also "
         "reads the socket; canopen-py: its cycle thread and its notifier thread). The drives "
         "run in a child process pinned to the last CPU, the master on the other(s)"

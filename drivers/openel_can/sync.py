@@ -2,30 +2,35 @@
 
 The framework's :class:`~openel_async.EventTimer` drives the axes (an
 :class:`~openel_async.motion.AxisGroup` streams its setpoints on it); :class:`CanSync`
-observes the same timer and, at every tick, in the tick itself (a plain ``notify_timer``,
-no task hop):
+observes the same timer. The set-points and the SYNC go out this way:
 
-0. on a bus read in the event loop through its descriptor (``socketcan``), reads what
-   arrived since the last tick (:meth:`CanBus.read_now`: the TPDOs answering the last
-   SYNC, EMCY, SDO answers ...), and keeps the bus unread until the next tick: one
-   event-loop wake-up a cycle instead of one per frame or batch (``read_on_tick``; a
+1. a cyclic drive stages the RPDO of its latest set-point (:meth:`stage`, called by
+   :class:`~openel_can.cyclic402.Cia402CyclicDrive` from its synchronous command path; a
+   newer set-point of the same drive replaces the older); what was staged is sent as soon
+   as the code staging it yields to the event loop (one ``call_soon`` per burst), e.g.
+   right after the tick in which an AxisGroup computed the set-points;
+2. at every tick, in the tick itself (a plain ``notify_timer``, no task hop), the SYNC
+   goes out first (COB-ID 0x080; with ``counter_overflow`` (CiA 301 0x1019, 2..240) one
+   data byte counting the SYNCs sent 1..overflow, 1 again after overflow, else none),
+   after any RPDO still staged, and latches them. Nothing else runs between the timer's
+   wake-up and the SYNC, so the SYNC's period jitter is the wake-up's;
+3. then, on a bus read in the event loop through its descriptor (``socketcan``), what
+   arrived since the last tick is read (:meth:`CanBus.read_now`: the TPDOs answering the
+   previous SYNC, EMCY, SDO answers ...), and the bus is left unread until the next tick:
+   one event-loop wake-up a cycle instead of one per frame or batch (``read_on_tick``; a
    stopped or stalled timer leaves the bus read as before within two periods). A frame
    other than a TPDO (an EMCY, an SDO answer) is then handled at the tick after it
-   arrived, at most one period later;
-1. sends the RPDO each cyclic drive staged since the last tick (its latest set-point:
-   :meth:`stage`, called by :class:`~openel_can.cyclic402.Cia402CyclicDrive` from its
-   synchronous command path; a newer set-point of the same drive replaces the older);
-2. then the SYNC (COB-ID 0x080; with ``counter_overflow`` (CiA 301 0x1019, 2..240) one data
-   byte counting the SYNCs sent 1..overflow, 1 again after overflow, else none), which
-   latches them.
+   arrived, at most one period later.
 
-Every RPDO of a cycle therefore goes out before the SYNC that latches it, in one burst at
-the tick's deadline. The synchronous TPDOs the drives send in answer to SYNC number ``k``
-(:attr:`CanSync.cycle` = ``k`` while they arrive) are taken by each drive as cycle
-``k``'s actual values (``Cia402CyclicDrive.feedback_cycle``). An AxisGroup computes the
-setpoints of tick ``k`` in its own task after the tick was delivered, so they leave with
-SYNC ``k + 1``: one period of transport delay, and a SYNC whose timing does not depend on
-how long the computation took.
+Every RPDO of a cycle therefore goes out before the SYNC that latches it (a CiA 402 drive
+takes an RPDO on receipt and applies its target at the next SYNC; RPDOs are taken in the
+order they arrive, so a quick stop sent after an RPDO overrides its controlword). The
+synchronous TPDOs the drives send in answer to SYNC number ``k`` (:attr:`CanSync.cycle` =
+``k`` while they arrive, or when they are read at the next tick) are taken by each drive
+as cycle ``k``'s actual values (``Cia402CyclicDrive.feedback_cycle``). An AxisGroup
+computes the setpoints of tick ``k`` after the tick was delivered, so they leave with SYNC
+``k + 1``: one period of transport delay, and a SYNC whose timing does not depend on how
+long the computation took.
 
 Missed cycles are counted, never burst: a tick the timer skipped (it woke a whole period
 late: ``TimerTick.missed_ticks``) sends nothing for the cycles it skipped, and a SYNC the bus
@@ -37,6 +42,7 @@ with its own is refused.
 
 from __future__ import annotations
 
+import asyncio
 from dataclasses import dataclass
 from typing import Final, Protocol
 
@@ -108,8 +114,10 @@ class CanSync:
         self._late = 0
         self._last_warning_ns: int | None = None
         self.read_on_tick = True
-        """Read the bus at each tick (module docstring, step 0): set by :meth:`start`."""
+        """Read the bus at each tick (module docstring, step 3): set by :meth:`start`."""
         self._hold_s = 0.0
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._flush_pending = False
         self.log = log.bind(bus=bus.name)
 
     @classmethod
@@ -153,7 +161,7 @@ class CanSync:
 
         ``counter_overflow``: 0 (no counter, an empty SYNC) or 2..240 (CiA 301 0x1019: the
         counter runs 1..overflow; give the drives the same 0x1019). ``read_on_tick``: read
-        the bus once per tick where it can be (module docstring, step 0); False leaves
+        the bus once per tick where it can be (module docstring, step 3); False leaves
         it read as each frame arrives."""
         if not isinstance(timer, EventTimer):
             raise BadParameterError("timer", timer, "an EventTimer")
@@ -177,6 +185,7 @@ class CanSync:
             await consumer.set_cycle(timer.period_ns, counter_overflow)
         if self.timer is not None:
             raise StateError("start", f"driven by timer {self.timer.name!r}", ["stopped"])
+        self._loop = asyncio.get_running_loop()
         self._port = self.bus.attach((), name="sync")
         self.read_on_tick = bool(read_on_tick)
         self._hold_s = max(2 * timer.period_ns / _NS_PER_S, 0.002)
@@ -207,32 +216,26 @@ class CanSync:
 
     # -- the cycle --------------------------------------------------------------------------
     def stage(self, cob_id: int, data: bytes) -> None:
-        """The RPDO to send before the next SYNC (replaces the one staged for ``cob_id``)."""
+        """The RPDO to send before the next SYNC (replaces the one staged for ``cob_id``):
+        sent when the caller yields to the event loop, or by the next tick before its SYNC,
+        whichever comes first."""
         if self.timer is None:
             raise StateError("stage", "no SYNC producer", ["CanSync.of(bus).start(timer) first"])
         self._staged[cob_id] = data
+        if not self._flush_pending and self._loop is not None:
+            self._flush_pending = True
+            self._loop.call_soon(self._flush)
 
     def unstage(self, cob_id: int) -> None:
         """Drop the RPDO staged for ``cob_id`` (its drive left the cyclic mode)."""
         self._staged.pop(cob_id, None)
 
-    def notify_timer(self, timer: EventTimer) -> None:
-        """TimerObserver: the staged RPDOs, then SYNC (module docstring)."""
+    def _flush(self) -> None:
+        """Send what is staged (in call order, one RPDO per COB-ID)."""
+        self._flush_pending = False
         port = self._port
-        if port is None or timer is not self.timer:
+        if not self._staged or port is None:
             return
-        if self.read_on_tick:
-            self.bus.read_now(self._hold_s)
-            port = self._port  # what it read may have stopped us (a drive faulted)
-            if port is None or timer is not self.timer:
-                return
-        fields = timer.last_tick_fields
-        if fields is not None and fields[3]:
-            self._count_missed(fields[3], fields[2], "timer skipped ticks")
-        if self.cycle:
-            for consumer in self._consumers:
-                if consumer.feedback_cycle < self.cycle:
-                    self._late += 1
         staged, self._staged = self._staged, {}
         try:
             for cob_id, data in staged.items():
@@ -240,10 +243,32 @@ class CanSync:
                     self._rpdos += 1
                 else:
                     self._dropped += 1
-            sent = port.send_nowait(co.SYNC_COB_ID, self._sync_data())
         except NotConnectedError:
             self._dropped += len(staged)
+
+    def notify_timer(self, timer: EventTimer) -> None:
+        """TimerObserver: SYNC (after any RPDO still staged), then the bus read (module
+        docstring)."""
+        port = self._port
+        if port is None or timer is not self.timer:
+            return
+        if self._staged:
+            self._flush()
+        try:
+            sent = port.send_nowait(co.SYNC_COB_ID, self._sync_data())
+        except NotConnectedError:
             sent = False
+        if self.read_on_tick:  # the TPDOs answering the previous SYNC, as its cycle's
+            self.bus.read_now(self._hold_s)
+            if self._port is None or timer is not self.timer:
+                return  # what it read stopped us (a drive faulted)
+        fields = timer.last_tick_fields
+        if fields is not None and fields[3]:
+            self._count_missed(fields[3], fields[2], "timer skipped ticks")
+        if self.cycle:
+            for consumer in self._consumers:
+                if consumer.feedback_cycle < self.cycle:
+                    self._late += 1
         if sent:
             self.cycle += 1
             if self.counter_overflow:  # the counter counts the SYNCs sent (CiA 301)

@@ -270,7 +270,15 @@ async def test_read_now_is_refused_on_a_bus_not_read_through_its_descriptor() ->
         theirs.close()
 
 
-async def test_can_sync_reads_the_bus_at_each_tick_before_the_sync() -> None:
+def _ids(bus: can.BusABC) -> list[int]:
+    """The arbitration ids of every frame waiting on a raw bus."""
+    ids = []
+    while (msg := bus.recv(0)) is not None:
+        ids.append(msg.arbitration_id)
+    return ids
+
+
+async def test_can_sync_sends_sync_first_at_each_tick_then_reads_the_bus() -> None:
     from openel_async import EventTimer
     from openel_can import CanSync
 
@@ -284,15 +292,23 @@ async def test_can_sync_reads_the_bus_at_each_tick_before_the_sync() -> None:
             timer = EventTimer(2.0, name="by-hand")  # ticked by hand: notify_timer
             sync = CanSync.of(bus)
             await sync.start(timer)
-            sync.notify_timer(timer)  # tick 1: nothing to read, SYNC 1
-            msg = far.recv(0)
-            assert msg is not None and msg.arbitration_id == co.SYNC_COB_ID
+            sync.notify_timer(timer)  # tick 1: SYNC 1, nothing to read
+            assert _ids(far) == [co.SYNC_COB_ID]
+            sync.stage(0x201, bytes(6))  # a set-point: out when the stager yields
+            sync.stage(0x202, bytes(6))
+            sync.stage(0x201, bytes(range(6)))  # a newer one replaces it
             far.send(_frame(0x181, 7))  # a drive's TPDO answering SYNC 1
             await _loop_passes()
-            assert _queued(port) == []  # left for the next tick
-            sync.notify_timer(timer)  # tick 2: read first (as cycle 1's), then SYNC 2
+            assert _ids(far) == [0x201, 0x202]  # before the next tick, one per drive
+            assert _queued(port) == []  # the TPDO: left for the next tick
+            sync.stage(0x203, bytes(6))  # staged in the tick's own pass: out before SYNC
+            sync.notify_timer(timer)  # tick 2: SYNC 2, then the read (as cycle 1's)
+            assert _ids(far) == [0x203, co.SYNC_COB_ID]
             assert _queued(port) == [7]
             assert sync.cycle == 2 and bus.reads_on_demand == 2
+            assert sync.stats.rpdos == 3 and sync.stats.late_feedback == 0
+            await _loop_passes()
+            assert _ids(far) == []  # nothing staged twice
             sync.stop()  # the bus read as frames arrive again, at once
             far.send(_frame(0x181, 8))
             await _loop_passes()
