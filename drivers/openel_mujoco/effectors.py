@@ -1,6 +1,6 @@
 """MuJoCo actuators that do not drive one joint, as OpenEL actuators (:class:`MujocoEffector`).
 
-:class:`~openel_mujoco.devices.MujocoJoint` maps a hinge or slide *joint* (with its position,
+:class:`~openel_mujoco.joints.MujocoJoint` maps a hinge or slide *joint* (with its position,
 velocity and motor actuators) to an OpenEL Actuator.  Grippers, suction cups, thrusters and
 tendon drives are MuJoCo *actuators* with other transmissions (body, tendon, site, slider-crank,
 ball joint); :class:`MujocoEffector` maps one such actuator to an ``ActuatorDevice``.  Create it
@@ -79,15 +79,15 @@ from openel_async.ids import DeviceKind
 from openel_async.requests import Request
 
 from .description import EffectorSpec, spec_of
-from .devices import (
+from .device_base import (
     EFFECTOR_PRODUCT_ID,
     OTHER_KIND,
     VENDOR_ID,
     VENDOR_NAME,
     MujocoEventId,
     SimActuatorLifecycle,
-    _camel,
-    _own_group,
+    own_actuator_group,
+    product_name,
 )
 from .models import ModelLoadError, find_id, names
 
@@ -226,7 +226,7 @@ class MujocoEffector(SimActuatorLifecycle, ActuatorDevice):
             )
 
         group = int(model.actuator_group[act])
-        self._own_group = _own_group(model, act)
+        self._own_group = own_actuator_group(model, act)
         self._bit = 1 << group if 0 <= group <= 30 else 0
         if self._disabled() and not self._own_group:
             raise ModelLoadError(
@@ -251,7 +251,7 @@ class MujocoEffector(SimActuatorLifecycle, ActuatorDevice):
             vendor_id=VENDOR_ID,
             product_id=EFFECTOR_PRODUCT_ID,
             vendor_name=VENDOR_NAME,
-            product_name=_camel(self.name, "Effector"),
+            product_name=product_name(self.name, "Effector"),
         )
 
         # adhesion: what tells that it holds something

@@ -2,8 +2,8 @@
 
 One simulation owns one ``MjModel`` and its ``MjData`` (the control-mode switch of the joints
 lives in the model, so a model is never shared) and steps the physics in a task of its own
-while ``async with sim:`` runs.  Joints become :class:`~openel_mujoco.devices.MujocoJoint`
-actuator devices and MuJoCo sensors :class:`~openel_mujoco.devices.MujocoSensor` sensor
+while ``async with sim:`` runs.  Joints become :class:`~openel_mujoco.joints.MujocoJoint`
+actuator devices and MuJoCo sensors :class:`~openel_mujoco.sensors.MujocoSensor` sensor
 devices; actuators that do not drive one joint (adhesion, tendon, site ...) become
 :class:`~openel_mujoco.effectors.MujocoEffector` actuator devices (``sim.effector(name)``).
 Wrap them in ``Actuator``/``Sensor`` components on ``clock=sim.clock``.
@@ -67,9 +67,11 @@ from openel_async.stats import LatenessRecorder, LatenessSummary
 from . import render
 from .clock import LockstepClock, settle
 from .description import EffectorSpec, JointSpec, Pacing, SensorSpec, SimDescription
-from .devices import DRIVE_PLANS, FloatItems, MujocoJoint, MujocoSensor, ReadPlan, monitor_plan
 from .effectors import MujocoEffector
+from .joint_plans import DRIVE_PLANS, FloatItems, monitor_plan
+from .joints import MujocoJoint
 from .models import find_id, load_model
+from .sensors import MujocoSensor, ReadPlan
 
 __all__ = ["MujocoSim", "PacingStats"]
 

@@ -13,8 +13,7 @@ import pytest
 
 from openel_async import ActuatorBank, ComponentState, DeviceFaultError, Request, SensorBank
 from openel_async.errors import BadParameterError, HALError, StateError
-from openel_mujoco import MujocoSim
-from openel_mujoco import devices as mujoco_devices
+from openel_mujoco import MujocoSim, joint_plans
 from openel_mujoco import sim as mujoco_sim
 from openel_mujoco.devices import MujocoEventId, MujocoJoint, MujocoSensor, monitor_plan
 
@@ -173,10 +172,10 @@ async def test_monitor_code_is_compiled_once_per_shape(stack: AsyncExitStack) ->
     first = monitor_plan(joints, *views)
     joints[1]._saturated = True  # an edge rebuilds the plan: other bands, the same code
     joints[2]._at_limit = True
-    compiled = len(mujoco_devices._MONITOR_CODE)
+    compiled = len(joint_plans._MONITOR_CODE)
     second = monitor_plan(joints, *views)
     assert second is not first and second.__code__ is first.__code__
-    assert len(mujoco_devices._MONITOR_CODE) == compiled
+    assert len(joint_plans._MONITOR_CODE) == compiled
     fewer = monitor_plan(joints[:3], *views)
     assert fewer.__code__ is not first.__code__
 
@@ -226,7 +225,7 @@ async def test_the_generated_monitor_and_the_state_driven_checks_agree(
 
                 def plan(joints: list[MujocoJoint], *views: object) -> Callable[[int], None]:
                     frozen = tuple(joints)
-                    return lambda step: mujoco_devices._check_joints(frozen, step, 0, 0)
+                    return lambda step: joint_plans._check_joints(frozen, step, 0, 0)
 
                 monkeypatch.setattr(mujoco_sim, "monitor_plan", plan)
             rig = await start_rig(inner, sim, ARM6_JOINTS)

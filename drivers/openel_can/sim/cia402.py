@@ -62,13 +62,17 @@ requests unanswered: SDO timeouts), :meth:`reboot` (reset node), and
 drive with a slow cycle). ``received_controlwords`` and ``emcy_sent`` keep the newest
 ``history`` items (:class:`~openel_can.sim.history.History`, ``discarded`` counts the
 rest; logged when the peer stops).
+
+The SDO server is :class:`~openel_can.sim.sdo_server.SdoServer`, the CiA 402 state machine
+and motion :class:`~openel_can.sim.cia402_motion.Cia402Motion`: base classes of
+:class:`SimCia402Drive`.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Final
 
 import anyio
@@ -83,14 +87,15 @@ from .. import canopen as co
 from .. import cia402 as ds
 from ..bus import CanBus, NodePort
 from ..errors import DecodeError
+from .cia402_motion import CYCLIC_MODES, NS, SUPPORTED_MODES, TORQUE_MODES, Cia402Motion
 from .history import DEFAULT_HISTORY, History
 from .objects import SimObject, build_dictionary, load_sim_od
+from .sdo_server import SdoServer, Transfer
 
 __all__ = ["DRIVE_TEMPERATURE", "ENERGY_LIMIT", "OPERATING_TIME", "SimCia402Drive"]
 
 log = get_logger(__name__)
 
-NS: Final = 1e-9
 DT = co.DataType
 PS = ds.PowerState
 Mode = ds.ModeOfOperation
@@ -104,35 +109,7 @@ ENERGY_LIMIT: Final = co.ObjectEntry(0x2031, 0, DT.INTEGER64)
 """Manufacturer-specific, read-write 64-bit parameter in mJ (written by segmented SDO
 download; only stored)."""
 _DISCRETE: Final = frozenset({0x6041, 0x6061, 0x603F, 0x1001})
-_CYCLIC_MODES: Final = frozenset(
-    {Mode.CYCLIC_SYNC_POSITION, Mode.CYCLIC_SYNC_VELOCITY, Mode.CYCLIC_SYNC_TORQUE}
-)
-_TORQUE_MODES: Final = frozenset({Mode.PROFILE_TORQUE, Mode.CYCLIC_SYNC_TORQUE})
-_SUPPORTED_MODES: Final = {
-    Mode.PROFILE_POSITION,
-    Mode.PROFILE_VELOCITY,
-    Mode.PROFILE_TORQUE,
-    *_CYCLIC_MODES,
-}
 _AMBIENT_C: Final = 25.0
-
-
-@dataclass
-class _Transfer:
-    """A segmented SDO transfer in progress (one at a time, as on a real server)."""
-
-    index: int
-    subindex: int
-    upload: bool
-    data: bytearray = field(default_factory=bytearray)
-    size: int | None = None
-    toggle: bool = False
-
-
-class _SdoAbort(Exception):
-    def __init__(self, code: co.SdoAbortCode) -> None:
-        super().__init__(code.name)
-        self.code = code
 
 
 @dataclass
@@ -143,7 +120,7 @@ class _TpdoState:
     sync_due: bool = False
 
 
-class SimCia402Drive:
+class SimCia402Drive(Cia402Motion, SdoServer):
     """One simulated CiA 402 drive; see the module docstring."""
 
     def __init__(
@@ -188,7 +165,7 @@ class SimCia402Drive:
         self._kicked = False
         self.od: dict[tuple[int, int], SimObject] = {}
         self._mappings: dict[int, tuple[co.PdoMapEntry, ...]] = {}
-        self._transfer: _Transfer | None = None
+        self._transfer: Transfer | None = None
         self.segments = prof.hold(self.clock.now_ns(), 0.0)
         self.consumer_heard_ns: int | None = None
         """When the consumed heartbeat (0x1016:1) was last received (None: not monitoring)."""
@@ -247,7 +224,7 @@ class SimCia402Drive:
             counts_per_rev=self.counts_per_rev,
             rated_torque_mnm=round(self.rated_torque * 1000),
             heartbeat_ms=self.default_heartbeat_ms,
-            supported_modes=_SUPPORTED_MODES,
+            supported_modes=SUPPORTED_MODES,
         )
 
     def _get(self, index: int, sub: int = 0) -> int:
@@ -288,9 +265,7 @@ class SimCia402Drive:
                 self.setpoint_ack
                 if self.mode == Mode.PROFILE_POSITION
                 # cyclic modes: bit 12 "drive follows the command value"
-                else self.mode in _CYCLIC_MODES
-                and state is PS.OPERATION_ENABLED
-                and not self.halted
+                else self.mode in CYCLIC_MODES and state is PS.OPERATION_ENABLED and not self.halted
             ),
         ).raw
         if state is PS.QUICK_STOP_ACTIVE:
@@ -309,7 +284,7 @@ class SimCia402Drive:
         ):
             return 0.0
         _, v, a = self.state_at(now)
-        if self.mode in _TORQUE_MODES and self.power_state is PS.OPERATION_ENABLED:
+        if self.mode in TORQUE_MODES and self.power_state is PS.OPERATION_ENABLED:
             if abs(v) >= self._get(0x6080) - 1e-6 and a == 0:
                 return 0.0
             return self._torque_ramp(now)
@@ -687,365 +662,6 @@ class SimCia402Drive:
             self._set(entry.index, entry.subindex, value)
             written.add(entry.index)
         self._after_write(written, now)
-
-    def _sdo_server(self, msg: co.CanOpenMessage, now: int) -> co.CanOpenMessage | None:
-        """One SDO request in, its answer out (None: nothing to send)."""
-        if isinstance(msg, co.SdoAbort):
-            self._transfer = None  # the client gave up; CiA 301: no answer
-            return None
-        if isinstance(msg, co.SdoUploadSegmentRequest | co.SdoDownloadSegment):
-            return self._sdo_segment(msg, now)
-        if not isinstance(
-            msg,
-            co.SdoUploadRequest
-            | co.SdoDownloadRequest
-            | co.SdoSegmentedDownloadRequest
-            | co.SdoUnsupportedRequest,
-        ):
-            return None
-        self._transfer = None  # a new initiate ends any transfer in progress
-        try:
-            if isinstance(msg, co.SdoUnsupportedRequest):
-                raise _SdoAbort(co.SdoAbortCode.INVALID_COMMAND_SPECIFIER)  # block transfer
-            obj = self._object(msg.index, msg.subindex)
-            if isinstance(msg, co.SdoUploadRequest):
-                if not obj.readable:
-                    raise _SdoAbort(co.SdoAbortCode.WRITE_ONLY)
-                self._refresh_actuals(now)
-                data = self._encoded(msg.index, msg.subindex, obj)
-                if len(data) <= 4:
-                    return co.SdoUploadResponse(self.node_id, msg.index, msg.subindex, data)
-                self._transfer = _Transfer(
-                    msg.index, msg.subindex, upload=True, data=bytearray(data)
-                )
-                return co.SdoSegmentedUploadResponse(
-                    self.node_id, msg.index, msg.subindex, len(data)
-                )
-            if not obj.writable:
-                raise _SdoAbort(co.SdoAbortCode.READ_ONLY)
-            size = obj.size
-            if isinstance(msg, co.SdoSegmentedDownloadRequest):
-                if msg.size is not None and size is not None:
-                    self._check_length(msg.size, size)
-                self._transfer = _Transfer(msg.index, msg.subindex, upload=False, size=msg.size)
-                return co.SdoDownloadResponse(self.node_id, msg.index, msg.subindex)
-            data = msg.data
-            if not msg.size_indicated and size is not None:
-                # CiA 301: without a size indication the object's own size applies.
-                if size > len(data):
-                    raise _SdoAbort(co.SdoAbortCode.LENGTH_TOO_LOW)
-                data = data[:size]
-            self._write(msg.index, msg.subindex, obj, data, now)
-            return co.SdoDownloadResponse(self.node_id, msg.index, msg.subindex)
-        except _SdoAbort as abort:
-            return co.SdoAbort(self.node_id, msg.index, msg.subindex, abort.code)
-
-    def _sdo_segment(
-        self, msg: co.SdoUploadSegmentRequest | co.SdoDownloadSegment, now: int
-    ) -> co.CanOpenMessage:
-        transfer = self._transfer
-        index, sub = (transfer.index, transfer.subindex) if transfer is not None else (0, 0)
-        try:
-            upload = isinstance(msg, co.SdoUploadSegmentRequest)
-            if transfer is None or transfer.upload is not upload:
-                raise _SdoAbort(co.SdoAbortCode.INVALID_COMMAND_SPECIFIER)
-            if msg.toggle is not transfer.toggle:
-                raise _SdoAbort(co.SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED)
-            transfer.toggle = not transfer.toggle
-            if isinstance(msg, co.SdoUploadSegmentRequest):
-                chunk = bytes(transfer.data[: co.SDO_SEGMENT_SIZE])
-                del transfer.data[: co.SDO_SEGMENT_SIZE]
-                last = not transfer.data
-                if last:
-                    self._transfer = None
-                return co.SdoUploadSegment(self.node_id, msg.toggle, chunk, last)
-            transfer.data += msg.data
-            obj = self._object(index, sub)
-            if len(transfer.data) > (
-                co.SDO_SEGMENT_SIZE * 0x10000 if obj.size is None else obj.size
-            ):
-                raise _SdoAbort(co.SdoAbortCode.LENGTH_TOO_HIGH)
-            if msg.last:
-                self._transfer = None
-                if transfer.size is not None and transfer.size != len(transfer.data):
-                    raise _SdoAbort(co.SdoAbortCode.LENGTH_MISMATCH)
-                self._write(index, sub, obj, bytes(transfer.data), now)
-            return co.SdoDownloadSegmentResponse(self.node_id, msg.toggle)
-        except _SdoAbort as abort:
-            self._transfer = None
-            return co.SdoAbort(self.node_id, index, sub, abort.code)
-
-    def _object(self, index: int, sub: int) -> SimObject:
-        obj = self.od.get((index, sub))
-        if obj is None:
-            exists = any(i == index for i, _ in self.od)
-            raise _SdoAbort(
-                co.SdoAbortCode.SUBINDEX_DOES_NOT_EXIST
-                if exists
-                else co.SdoAbortCode.OBJECT_DOES_NOT_EXIST
-            )
-        return obj
-
-    @staticmethod
-    def _check_length(length: int, size: int) -> None:
-        if length != size:
-            raise _SdoAbort(
-                co.SdoAbortCode.LENGTH_TOO_HIGH if length > size else co.SdoAbortCode.LENGTH_TOO_LOW
-            )
-
-    @staticmethod
-    def _encoded(index: int, sub: int, obj: SimObject) -> bytes:
-        if obj.data_type is None:
-            return obj.data
-        return co.ObjectEntry(index, sub, obj.data_type).encode(obj.value)
-
-    def _write(self, index: int, sub: int, obj: SimObject, data: bytes, now: int) -> None:
-        if obj.size is not None:
-            self._check_length(len(data), obj.size)
-        if obj.data_type is None:
-            obj.data = data  # a string, domain or other non-integer object: its bytes
-            return
-        value = co.ObjectEntry(index, sub, obj.data_type).decode(data)
-        self._check_write(index, sub, value)
-        obj.value = value
-        if 0x1600 <= index <= 0x1BFF:
-            self._mappings.clear()
-        self._after_write({index}, now)
-
-    def _check_write(self, index: int, sub: int, value: int) -> None:
-        if index == 0x6060 and value not in {int(m) for m in _SUPPORTED_MODES}:
-            raise _SdoAbort(co.SdoAbortCode.INVALID_VALUE)
-        comm = index & 0xFF00
-        if comm in (0x1400, 0x1800) and sub == 1:
-            current = self._get(index, 1)
-            if not (current & co.PDO_COB_ID_INVALID or value & co.PDO_COB_ID_INVALID) and (
-                value & 0x7FF != current & 0x7FF
-            ):
-                raise _SdoAbort(co.SdoAbortCode.INVALID_VALUE)  # COB-ID change while valid
-        if comm in (0x1400, 0x1800) and sub == 2 and not (value <= 240 or value >= 0xFE):
-            raise _SdoAbort(co.SdoAbortCode.INVALID_VALUE)
-        if comm in (0x1600, 0x1A00):
-            pdo_comm = (0x1400 if comm == 0x1600 else 0x1800) + (index & 0xFF)
-            if not self._get(pdo_comm, 1) & co.PDO_COB_ID_INVALID:
-                raise _SdoAbort(co.SdoAbortCode.CANNOT_TRANSFER_DEVICE_STATE)
-            if sub == 0:
-                if value > 8:
-                    raise _SdoAbort(co.SdoAbortCode.VALUE_TOO_HIGH)
-                bits = 0
-                for s in range(1, value + 1):
-                    raw = self._get(index, s)
-                    target = self.od.get((raw >> 16, (raw >> 8) & 0xFF))
-                    # The file's PDOMapping and access: RPDOs write, TPDOs read.
-                    allowed = (
-                        target is not None
-                        and target.data_type is not None
-                        and (target.rpdo_mappable if comm == 0x1600 else target.tpdo_mappable)
-                    )
-                    if not allowed:
-                        raise _SdoAbort(co.SdoAbortCode.CANNOT_BE_MAPPED)
-                    assert target is not None and target.data_type is not None
-                    if raw & 0xFF != target.data_type.size * 8:
-                        raise _SdoAbort(co.SdoAbortCode.GENERAL_PARAMETER_INCOMPATIBILITY)
-                    bits += raw & 0xFF
-                if bits > 64:
-                    raise _SdoAbort(co.SdoAbortCode.PDO_LENGTH_EXCEEDED)
-            elif self._get(index, 0) != 0:
-                raise _SdoAbort(co.SdoAbortCode.UNSUPPORTED_ACCESS)
-
-    # -- CiA 402 behaviour ------------------------------------------------------------------
-    def _after_write(self, written: set[int], now: int) -> None:
-        if 0x6060 in written:
-            self._change_mode(now, self._get(0x6060))
-        if 0x6040 in written:
-            self._controlword(now, self._get(0x6040))
-        elif self.power_state is PS.OPERATION_ENABLED:
-            if 0x60FF in written and self.mode == Mode.PROFILE_VELOCITY:
-                self._plan_velocity(now)
-            if 0x6071 in written and self.mode == Mode.PROFILE_TORQUE:
-                self._plan_torque(now)
-        if 0x1017 in written:
-            self.next_heartbeat_ns = now
-        if 0x1016 in written:
-            self.consumer_heard_ns = None  # monitoring starts with the next heartbeat
-        self._refresh_actuals(now)
-
-    def _change_mode(self, now: int, mode: int) -> None:
-        self._set(0x6061, 0, mode)
-        self.setpoint_ack = False
-        self.pp_buffered = None
-        self.arrival_ns = None
-        if self.power_state is PS.OPERATION_ENABLED:
-            self._stop(now, self._get(0x6084))
-        p, _, _ = self.state_at(now)
-        self.pp_target = round(p)
-
-    def _controlword(self, now: int, cw: int) -> None:
-        self.received_controlwords.append(cw)
-        prev = self.prev_controlword
-        self.prev_controlword = cw
-        before = self.power_state
-        after = ds.apply_controlword(before, cw, previous_controlword=prev)
-        if after is not before:
-            self.power_state = after
-            if after is PS.OPERATION_ENABLED:
-                self._hold(now)
-            elif after is PS.QUICK_STOP_ACTIVE:
-                self._stop(now, self._get(0x6085))
-            elif before is PS.OPERATION_ENABLED:
-                self._stop(now, self._get(0x6084))
-            elif before is PS.FAULT:
-                self._set(0x603F, 0, 0)
-                self._set(0x1001, 0, 0)
-                self._emcy(co.EmcyCode.NO_ERROR, 0)
-        if self.power_state is not PS.OPERATION_ENABLED:
-            self.setpoint_ack = False
-            return
-        mode = self.mode
-        halt = bool(cw & ds.ControlBit.HALT)
-        if halt and not self.halted:
-            self.halted = True
-            self._stop(now, self._get(0x6084))
-            return
-        self.halted = halt
-        if mode == Mode.PROFILE_POSITION:
-            rising = cw & ds.ControlBit.NEW_SETPOINT and not prev & ds.ControlBit.NEW_SETPOINT
-            if rising and not self.setpoint_ack and self.setpoint_due_ns is None:
-                immediate = bool(cw & ds.ControlBit.CHANGE_SET_IMMEDIATELY)
-                self.setpoint_due_ns = now + round(self.setpoint_ack_delay * 1e9)
-                self.setpoint_immediate = immediate
-                if self.setpoint_due_ns <= now:
-                    self._accept_setpoint(now)
-            elif not cw & ds.ControlBit.NEW_SETPOINT:
-                self.setpoint_ack = False
-        elif mode == Mode.PROFILE_VELOCITY:
-            self._plan_velocity(now)
-        elif mode == Mode.PROFILE_TORQUE:
-            self._plan_torque(now)
-
-    def _accept_setpoint(self, now: int) -> None:
-        """Latch 0x607A (the drive's next cycle after the new set-point edge)."""
-        self.setpoint_due_ns = None
-        if self.power_state is not PS.OPERATION_ENABLED or self.mode != Mode.PROFILE_POSITION:
-            return
-        target = self._get(0x607A)
-        self.setpoint_ack = True
-        moving = self.arrival_ns is not None
-        if self.setpoint_immediate or not moving:
-            self.pp_buffered = None
-            self._plan_position(now, target)
-        else:
-            self.pp_buffered = target
-
-    def _hold(self, now: int) -> None:
-        p, _, _ = self.state_at(now)
-        self.segments = prof.hold(now, p)
-        self.pp_target = round(p)
-        self.pp_buffered = None
-        self.arrival_ns = None
-        self.target_reached = True
-        self.setpoint_ack = False
-        self.torque_target = self.torque_from = 0.0
-        if self.mode == Mode.PROFILE_VELOCITY:
-            self._set(0x60FF, 0, 0)
-        if self.mode == Mode.PROFILE_TORQUE:
-            self._set(0x6071, 0, 0)
-
-    def _stop(self, now: int, decel: int) -> None:
-        p, v, _ = self.state_at(now)
-        self.segments = prof.ramp(now, p, v, 0.0, max(1, decel))
-        self.stop_until_ns = prof.end_time(self.segments)
-        self.arrival_ns = None
-        self.pp_buffered = None
-        self.target_reached = self.stop_until_ns <= now
-        self.torque_target = self.torque_from = 0.0
-
-    def _limits(self) -> tuple[float, float]:
-        return float(self._get(0x607D, 1)), float(self._get(0x607D, 2))
-
-    def _plan_position(self, now: int, target: int) -> None:
-        low, high = self._limits()
-        target = round(max(low, min(high, target)))
-        p, v, _ = self.state_at(now)
-        vmax = max(1, min(self._get(0x6081), self._get(0x6080)))
-        amax = max(1, self._get(0x6083))
-        self.pp_target = target
-        self.segments = prof.trapezoid(now, p, v, float(target), vmax, amax)
-        end = prof.end_time(self.segments)
-        self.arrival_ns = end if end > now else None
-        self.target_reached = self.arrival_ns is None
-
-    def _plan_velocity(self, now: int) -> None:
-        if self.halted:
-            return
-        vmax = self._get(0x6080)
-        target = max(-vmax, min(vmax, self._get(0x60FF)))
-        p, v, _ = self.state_at(now)
-        accel = self._get(0x6083) if abs(target) >= abs(v) else self._get(0x6084)
-        self.segments = prof.ramp(now, p, v, float(target), max(1, accel))
-        end = prof.end_time(self.segments)
-        self.arrival_ns = end if end > now else None
-        self.target_reached = self.arrival_ns is None
-
-    def _plan_torque(self, now: int) -> None:
-        if self.halted:
-            return
-        self.torque_from = self._torque_ramp(now) if self.mode in _TORQUE_MODES else 0.0
-        self.torque_since_ns = now
-        max_torque = self._get(0x6072)
-        self.torque_target = float(max(-max_torque, min(max_torque, self._get(0x6071))))
-        self.target_reached = self.torque_from == self.torque_target
-        p, v, _ = self.state_at(now)
-        torque_nm = self.torque_target / 1000 * self.rated_torque
-        accel = torque_nm / self.inertia * self._counts_per_rad()
-        self.segments = prof.accelerate(now, p, v, accel, float(self._get(0x6080)))
-        self.arrival_ns = None
-
-    # -- cyclic synchronous modes (CSP 8, CSV 9, CST 10) -----------------------------------
-    def interpolation_period_ns(self) -> int:
-        """0x60C2: sub1 x 10^sub2 seconds, in ns (0: a set-point applies at once)."""
-        value, index = self._get(0x60C2, 1), self._get(0x60C2, 2)
-        return max(0, round(value * 10.0**index * 1e9))
-
-    def _cyclic_sync(self, now: int) -> None:
-        """SYNC in a cyclic mode: latch the target received before it and follow it over
-        one interpolation period (CSP: linear position; CSV: linear velocity; CST: the
-        torque at once). Without SYNC the drive keeps the last latched target."""
-        mode = self.mode
-        if mode not in _CYCLIC_MODES or self.power_state is not PS.OPERATION_ENABLED or self.halted:
-            return
-        period = self.interpolation_period_ns()
-        p, v, _ = self.state_at(now)
-        if mode == Mode.CYCLIC_SYNC_POSITION:
-            low, high = self._limits()
-            target = max(low, min(high, float(self._get(0x607A))))
-            self.cyclic_target = round(target)
-            if period:
-                rate = (target - p) / (period * NS)
-                self.segments = [
-                    prof.Segment(now, p, rate, 0.0, now + period),
-                    prof.Segment(now + period, target, 0.0, 0.0, None),
-                ]
-            else:
-                self.segments = prof.hold(now, target)
-            end = now + period
-        elif mode == Mode.CYCLIC_SYNC_VELOCITY:
-            vmax = self._get(0x6080)
-            target = float(max(-vmax, min(vmax, self._get(0x60FF))))
-            self.cyclic_target = round(target)
-            accel = abs(target - v) / (period * NS) if period else 1e12  # 0: a step
-            self.segments = prof.ramp(now, p, v, target, max(1.0, accel))
-            end = prof.end_time(self.segments)
-        else:
-            max_torque = self._get(0x6072)
-            self.torque_target = float(max(-max_torque, min(max_torque, self._get(0x6071))))
-            self.cyclic_target = round(self.torque_target)
-            self.torque_from, self.torque_since_ns = self.torque_target, now
-            torque_nm = self.torque_target / 1000 * self.rated_torque
-            accel = torque_nm / self.inertia * self._counts_per_rad()
-            self.segments = prof.accelerate(now, p, v, accel, float(self._get(0x6080)))
-            end = now
-        self.arrival_ns = end if end > now else None
-        self.target_reached = self.arrival_ns is None
 
 
 def frame_of(msg: co.CanOpenMessage) -> can.Message:
