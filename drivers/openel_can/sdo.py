@@ -273,7 +273,12 @@ class SdoClient:
         """The object's bytes, expedited or segmented as the server chooses."""
         request = self._upload_request(index, subindex)
         t = _Transfer(self, index, subindex, self.timeout if timeout is None else timeout)
-        async with self._lock:
+        slot = self._lock
+        if slot.busy:
+            await slot.wait()
+        else:
+            slot.busy = True  # free: taken without a coroutine (``async with`` makes two)
+        try:
             t.port = self._begin()
             t.expedited = request[1][1:4]  # the index and subindex as the answer carries them
             reply = await t.exchange_encoded(request, _INITIATE_REPLIES)
@@ -309,6 +314,8 @@ class SdoClient:
             if reply.size is not None and len(data) != reply.size:
                 await t.fail(co.SdoAbortCode.LENGTH_MISMATCH)
             return bytes(data)
+        finally:
+            slot.release()
 
     async def download(
         self,
@@ -404,40 +411,48 @@ class SdoClient:
 class _Slot:
     """The node's one transfer at a time: a FIFO lock for asyncio that costs two attribute
     writes when free (``anyio.Lock`` asks anyio for the backend and checks for
-    cancellation on every acquire: a tenth of an upload's CPU on the virtual bus)."""
+    cancellation on every acquire: a tenth of an upload's CPU on the virtual bus).
 
-    __slots__ = ("_busy", "_waiters")
+    ``async with slot:``, or (the upload's path, without the two coroutines) ``if
+    slot.busy: await slot.wait()`` else ``slot.busy = True``, then ``slot.release()``
+    in a ``finally``."""
+
+    __slots__ = ("_waiters", "busy")
 
     def __init__(self) -> None:
-        self._busy = False
+        self.busy = False
         self._waiters: deque[asyncio.Future[None]] = deque()
 
     async def __aenter__(self) -> None:
-        if not self._busy:
-            self._busy = True
+        if not self.busy:
+            self.busy = True
             return
+        await self.wait()
+
+    async def wait(self) -> None:
+        """Queue for the busy slot; it is this task's when this returns."""
         waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         self._waiters.append(waiter)
         try:
             await waiter  # the slot is handed over with the result: still busy
         except BaseException:
             if waiter.done() and not waiter.cancelled():
-                self._release()  # handed over, but this task was cancelled: pass it on
+                self.release()  # handed over, but this task was cancelled: pass it on
             elif waiter in self._waiters:  # (a cancelled one may have been skipped already)
                 self._waiters.remove(waiter)
             raise
 
     async def __aexit__(self, *exc: object) -> None:
-        self._release()
+        self.release()
 
-    def _release(self) -> None:
+    def release(self) -> None:
         waiters = self._waiters
         while waiters:
             waiter = waiters.popleft()
             if not waiter.done():
                 waiter.set_result(None)
                 return
-        self._busy = False
+        self.busy = False
 
 
 class _Transfer:
