@@ -941,8 +941,10 @@ class CanBus:
 
     def _virtual_fd_ready(self, fd: int) -> None:
         """Event loop: the eventfd is readable (a sender woke us): reset it, drain."""
-        with contextlib.suppress(BlockingIOError):
+        try:  # noqa: SIM105 - contextlib.suppress costs a context manager per wake-up
             os.eventfd_read(fd)
+        except BlockingIOError:  # read already (a spurious wake-up)
+            pass
         self._drain_virtual()
 
     # socketcan (read_mode "auto"), any bus with a file descriptor (read_mode "loop").
