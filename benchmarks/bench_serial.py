@@ -370,7 +370,7 @@ it under load. Every status adds to it: `PacketParser.feed_statuses` alone (the 
 check and decode: every fixed byte by extended slices, the CRC in C per packet, a
 `Status` per packet), timed in a loop on the same bytes, takes 3.4 / 14.3 / 35.1 µs for
 1 / 8 / 32 statuses (about 1.1 µs per status), and handing each status to the exchange
-and the `{id: data}` result costs another few tenths of a µs; a system-call count
+and the `{{id: data}}` result costs another few tenths of a µs; a system-call count
 (strace, 2,000 transactions) shows the same `read`, `write` and `epoll_wait` counts at
 N = 1, 8 and 32 (one read per transaction). So at N = 32 the parse alone leaves about
 25 µs for the fixed part that takes 54 µs or more: the 60 µs target holds only at N = 1.
