@@ -894,6 +894,7 @@ class CanBus:
     ) -> str | None:
         """Read ``bus`` in the loop until it fails (the failure); None if not possible."""
         failed = self._virtual_failed = anyio.Event()
+        self._virtual_wake_pending = False  # a wake-up lost with an earlier reader's fd
         rx = hook_virtual_bus(bus, self.rx_buffer, self._wake_virtual)
         if rx is None:
             return None
@@ -920,6 +921,9 @@ class CanBus:
                 with self._virtual_fd_lock:  # a sender past unhook may still be waking
                     self._virtual_wake_fd = None
                     os.close(fd)
+                # A wake-up written and never read is gone with the fd: not pending any
+                # more (else a later reader's senders would never wake it again).
+                self._virtual_wake_pending = False
         return self._virtual_failure
 
     def _open_wake_fd(self, loop: asyncio.AbstractEventLoop) -> int | None:
