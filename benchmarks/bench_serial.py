@@ -365,8 +365,10 @@ sleeps until the reply cannot be more than a few µs faster than that at N = 1.
 **Our CPU per transaction (issue 27, target <= 60 µs at every N): out of reach at
 N = 8 and 32; not changed in this pass.** The fixed part, the transaction at N = 1
 (one `write`, one `epoll` wake-up, one `read`, the task's two loop passes), measured
-54-98 µs per round in the two runs before this pass (load 1.5-2), 85-200 µs in this
-pass's two (load 3-4.4): at the target only on an idle machine. Every status adds to
+54-98 µs per round in the two runs before this pass (load 1.5-2), 62-123 µs in the two
+recorded here (load 2.3-3.0), 85-200 µs in two earlier ones of this pass (load 3-4.4),
+nearly all of it user time (`getrusage`, 2,000 transactions at load 3: 113-123 µs user,
+14-16 µs system): at the target only on an idle machine. Every status adds to
 it: `PacketParser.feed_statuses` alone (the bulk
 check and decode: every fixed byte by extended slices, the CRC in C per packet, a
 `Status` per packet), timed in a loop on the same bytes, takes 3.4 / 14.3 / 35.1 µs for
