@@ -422,25 +422,34 @@ Figure: time per set-point.
 
 Ratios are ours/canopen-py time: below 1, ours is faster.
 
-**Where the SDO upload's time goes (issue 27, target <= 1.0x).** Profiled on this 2-core
-VM, shared with other work (load ~2): per upload our event loop spends ~80-90 µs of
-CPU (it also reads the virtual bus) against canopen-py's calling thread's 50-65 µs
-(its Notifier thread, which reads, is not in its figure); wall time 1.2-1.3x
-canopen-py's before this pass, moving by ±20 % between runs with the load; after it,
-three quick runs (5 interleaved rounds each) gave 1.18, 0.94, 0.86x and, earlier in the
-pass, 1.02-1.24x per round: the target is met only at the edge of the noise. Two passes of the cost were
-cut: the node's transfer slot is a FIFO asyncio lock instead of an `anyio.Lock`
-(whose acquire asks anyio for the backend and checks for cancellation), and an
-expedited upload answer is taken from its bytes instead of being decoded into a
-message (together ~15 % of the loop's CPU per upload; the wall time did not move
-measurably). What is left on our side of the exchange is the hand-off from
-python-can's virtual bus (a thread of the peer's `send`) to the event loop: one
-`call_soon_threadsafe` (a self-pipe write, an `epoll` wake-up, the pipe read) and a
-second loop pass to resume the waiting task. Measured alone, outside both stacks
-(7 rounds, median): a bare round trip between an asyncio loop and a thread (a future
-resolved through `call_soon_threadsafe`) takes 58-86 µs; between two threads
-(`queue.Queue`), 26-44 µs. That hand-off is in `openel_can.bus`'s virtual-bus reader,
-not the SDO client; a bus with a file descriptor (socketcan, slcan) is read in the loop
-without it. Spinning in the loop instead of sleeping (as the Zenoh client does) was
-tried and did not help here: the peer is Python in the same process and needs the GIL
-that the spinning loop holds."""
+**Where the SDO upload's time goes (issue 27, target <= 1.0x).** On this 2-core VM,
+shared with other work, every exchange is serial: the event loop, the peer's thread and
+canopen-py's threads take turns on the GIL, so a round trip is the CPU of both sides plus
+the wake-ups. Before this pass the upload took 1.21-1.24x canopen-py's time; timestamps
+(3,000 uploads, median) put 42-45 µs between the answer's drain in our loop and the
+upload returning. The per-upload work cut since, in the SDO client and the virtual-bus
+reader: (1) one timer per `SdoClient` bounds every exchange, re-armed only when it would
+fire late or fires early, instead of a timer handle pushed on and popped off the loop's
+heap per exchange (whose order is Python comparisons); (2) an upload's initiate is
+encoded once per object and kept; (3) a free transfer slot is taken without the two
+coroutines of `async with`; (4) python-can's virtual bus wakes the loop through an
+eventfd the loop watches (one 8-byte write by the sender, one read by the loop) instead
+of `call_soon_threadsafe` (a handle allocated per wake-up, the loop's self-pipe written,
+then read twice, the second read ending in `BlockingIOError`). Drain to return is now
+~24 µs; our loop's CPU per upload went from 110-140 µs to 67-84 µs (`thread_time`, 2,000
+uploads, 3 runs), canopen-py's calling thread's 53-109 µs in the same runs. The
+remaining fixed cost is asyncio's: the loop's `epoll` wake-up and a second loop pass to
+resume the task the answer's future woke, python-can's `send` (a deep copy per frame
+and a `queue.Queue.put` that notifies the peer, paid by both clients). Spinning in the
+loop instead of sleeping was tried in an earlier pass and did not help: the peer is
+Python in the same process and needs the GIL that the spinning loop holds.
+
+**CiA 402 set-point handshake (target <= 1.1x).** Most of a set-point is the simulated
+drive's answer time, the same peer for both clients. Timestamps in our bus (300
+set-points, 3 runs, medians): from our RPDO to the drive's TPDO 364-532 µs (twice per
+set-point: the drive's thread and loop waking, under the GIL with ours), from that TPDO
+to our next RPDO 22-31 µs, from a set-point's last RPDO to the next one's first 36-59
+µs: our side is about a tenth of the 1.1-1.3 ms, so the ratio follows the drive's
+latency under the machine's load (rounds of one run spread 1.0-3.6 ms at load 4). This
+pass: the node's statusword waits share one timer (as the SDO client's exchanges do),
+and the drive's own `CanBus` is woken by the eventfd too (for both clients)."""

@@ -360,4 +360,23 @@ readable (the bus process waking, answering, and this process waking from `epoll
 8-9 µs from the reply being readable to the next request's write (parse, CRC, the
 task's wake-up pass, the benchmark's loop). The SDK never sleeps (it polls the port),
 so it saves the last wake-up and pays with its whole wall time in CPU; a client that
-sleeps until the reply cannot be more than a few µs faster than that at N = 1."""
+sleeps until the reply cannot be more than a few µs faster than that at N = 1.
+
+**Our CPU per transaction (issue 27, target <= 60 µs at every N): out of reach at
+N = 8 and 32; not changed in this pass.** The fixed part, the transaction at N = 1
+(one `write`, one `epoll` wake-up, one `read`, the task's two loop passes), measured
+54-98 µs per round in the two runs before this pass (load 1.5-2), 62-123 µs in the two
+recorded here (load 2.3-3.0), 85-200 µs in two earlier ones of this pass (load 3-4.4),
+nearly all of it user time (`getrusage`, 2,000 transactions at load 3: 113-123 µs user,
+14-16 µs system): at the target only on an idle machine. Every status adds to
+it: `PacketParser.feed_statuses` alone (the bulk
+check and decode: every fixed byte by extended slices, the CRC in C per packet, a
+`Status` per packet), timed in a loop on the same bytes, takes 3.4 / 14.3 / 35.1 µs for
+1 / 8 / 32 statuses (about 1.1 µs per status), and handing each status to the exchange
+and the `{{id: data}}` result costs another few tenths of a µs; a system-call count
+(strace, 2,000 transactions) shows the same `read`, `write` and `epoll_wait` counts at
+N = 1, 8 and 32 (one read per transaction). So at N = 32 the parse alone leaves about
+25 µs for the fixed part that takes 54 µs or more: the 60 µs target holds only at N = 1.
+The decision: the rows stay, failing at N = 8 and 32, as the measurement of that
+per-status cost; a target that scales with N (60 µs + ~1.5 µs per status) is proposed to
+issue 27 instead. dynamixel-sdk spends 4-10x our CPU at every N (its polling read)."""

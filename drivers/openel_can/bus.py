@@ -10,7 +10,8 @@ kvaser, virtual ...) and runs, in its own task group:
 
   - python-can ``virtual`` (the simulations and tests): no thread. The bus's receive
     queue is hooked (:mod:`openel_can.virtual_rx`) so that a frame put on it, from any
-    thread, schedules one drain in the loop (``call_soon_threadsafe``), which takes
+    thread, schedules one drain in the loop (a write to an eventfd the loop watches, on
+    Linux; ``call_soon_threadsafe`` elsewhere), which takes
     every queued frame under one lock and dispatches them as one batch; an idle check
     every ``poll_interval`` notices a bus shut down under it.
   - ``socketcan`` (and any bus with a ``fileno()`` given ``read_mode="loop"``): no thread
@@ -68,6 +69,7 @@ import asyncio
 import contextlib
 import copy
 import math
+import os
 import threading
 import time
 from collections import deque
@@ -450,6 +452,10 @@ class CanBus:
         through their ``fileno()``: ``socketcan``, ``read_mode="loop"``)."""
         self._virtual_rx: WakingQueue | None = None
         self._virtual_wake_pending = False
+        self._virtual_wake_fd: int | None = None
+        """Linux: the eventfd that wakes the loop for a virtual-bus drain (its reader)."""
+        self._virtual_fd_lock = threading.Lock()
+        """Held to write ``_virtual_wake_fd`` and to close it: never a closed (reused) fd."""
         self._virtual_failed: anyio.Event | None = None
         self._virtual_failure = ""
         self._inline_streak = 0
@@ -914,11 +920,15 @@ class CanBus:
     ) -> str | None:
         """Read ``bus`` in the loop until it fails (the failure); None if not possible."""
         failed = self._virtual_failed = anyio.Event()
+        self._virtual_wake_pending = False  # a wake-up lost with an earlier reader's fd
         rx = hook_virtual_bus(bus, self.rx_buffer, self._wake_virtual)
         if rx is None:
             return None
         self._virtual_rx = rx
         self.reads_in_loop += 1
+        loop = self._loop
+        assert loop is not None
+        fd = self._open_wake_fd(loop)
         task_status.started()
         try:
             self._wake_virtual()  # frames queued before the hook
@@ -931,7 +941,41 @@ class CanBus:
         finally:
             self._virtual_rx = None
             rx.unhook()
+            if fd is not None:
+                with contextlib.suppress(Exception):  # the loop may be closing
+                    loop.remove_reader(fd)
+                with self._virtual_fd_lock:  # a sender past unhook may still be waking
+                    self._virtual_wake_fd = None
+                    os.close(fd)
+                # A wake-up written and never read is gone with the fd: not pending any
+                # more (else a later reader's senders would never wake it again).
+                self._virtual_wake_pending = False
         return self._virtual_failure
+
+    def _open_wake_fd(self, loop: asyncio.AbstractEventLoop) -> int | None:
+        """An eventfd watched by the loop (Linux): a sender's wake-up is one 8-byte write
+        and the loop's one read, where ``call_soon_threadsafe`` allocates a handle,
+        writes the loop's self-pipe and the loop reads it twice (the second read ends in
+        an exception). None where there is no eventfd (then ``call_soon_threadsafe``)."""
+        eventfd = getattr(os, "eventfd", None)
+        if eventfd is None:
+            return None
+        fd: int = eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
+        try:
+            loop.add_reader(fd, self._virtual_fd_ready, fd)
+        except (NotImplementedError, OSError):  # a loop without add_reader
+            os.close(fd)
+            return None
+        self._virtual_wake_fd = fd
+        return fd
+
+    def _virtual_fd_ready(self, fd: int) -> None:
+        """Event loop: the eventfd is readable (a sender woke us): reset it, drain."""
+        try:  # noqa: SIM105 - contextlib.suppress costs a context manager per wake-up
+            os.eventfd_read(fd)
+        except BlockingIOError:  # read already (a spurious wake-up)
+            pass
+        self._drain_virtual()
 
     # socketcan (read_mode "auto"), any bus with a file descriptor (read_mode "loop").
     def _reads_fd(self, bus: can.BusABC) -> bool:
@@ -1030,6 +1074,12 @@ class CanBus:
         if self._virtual_wake_pending:
             return
         self._virtual_wake_pending = True
+        if self._virtual_wake_fd is not None:
+            with self._virtual_fd_lock:
+                fd = self._virtual_wake_fd
+                if fd is not None:  # not closed meanwhile
+                    os.eventfd_write(fd, 1)
+                    return
         loop = self._loop
         assert loop is not None
         with contextlib.suppress(RuntimeError):  # the loop is closed

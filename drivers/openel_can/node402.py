@@ -290,9 +290,12 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
         self._lock = anyio.Lock(fast_acquire=True)
         self._changed: anyio.Event | None = None
         """Set (and dropped) after each received batch; created only when awaited."""
-        self._status_waiters: list[tuple[Callable[[int], bool], asyncio.Future[bool]]] = []
-        """Statusword waits: each future is resolved by the batch that satisfies its
-        predicate (True), by a fault latch (True: the waiter re-checks), or by its timer."""
+        self._status_waiters: list[tuple[Callable[[int], bool], asyncio.Future[bool], float]] = []
+        """Statusword waits (predicate, future, deadline in loop time): each future is
+        resolved by the batch that satisfies its predicate (True), by a fault latch (True:
+        the waiter re-checks), or by the node's status timer at its deadline (False)."""
+        self._status_timer: asyncio.TimerHandle | None = None
+        self._status_timer_loop: asyncio.AbstractEventLoop | None = None
         self._statusword: int | None = None
         self._position = 0
         self._torque = 0
@@ -614,7 +617,7 @@ class Cia402Node(LayoutPdos, NodeSafety, NodeFaults, ActuatorDevice):
     def _wake_status_waiters(self) -> None:
         """Resolve the statusword waits the latest statusword (or a fault latch) ends."""
         sw, latched = self._statusword, self._latched
-        for predicate, waiter in self._status_waiters:
+        for predicate, waiter, _ in self._status_waiters:
             if not waiter.done() and (latched or (sw is not None and predicate(sw))):
                 waiter.set_result(True)
 

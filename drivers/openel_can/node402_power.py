@@ -10,6 +10,7 @@ leaves (:data:`SWITCHES_ON`)."""
 from __future__ import annotations
 
 import asyncio
+import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Final
 
@@ -93,12 +94,6 @@ class FaultedError(Exception):
     """The component faulted while a command waited for the drive (internal)."""
 
 
-def _expire(waiter: asyncio.Future[bool]) -> None:
-    """Timer callback of a statusword wait: the wait ends unsatisfied."""
-    if not waiter.done():
-        waiter.set_result(False)
-
-
 class PowerStateMachine:
     """Mixin: the power state machine, the controlword RPDOs and the mode of operation."""
 
@@ -119,7 +114,9 @@ class PowerStateMachine:
     _enabled_wanted: bool
     _estop_active: bool
     _latched: bool
-    _status_waiters: list[tuple[Callable[[int], bool], asyncio.Future[bool]]]
+    _status_waiters: list[tuple[Callable[[int], bool], asyncio.Future[bool], float]]
+    _status_timer: asyncio.TimerHandle | None
+    _status_timer_loop: asyncio.AbstractEventLoop | None
     _set_statusword: Callable[..., None]
     _now: Callable[[], int]
     _sync_running: Callable[[], bool]
@@ -234,21 +231,21 @@ class PowerStateMachine:
             return sw
         if self.layout is not None and not self.layout.status_on_event:
             return await self._poll_status(predicate, what)
-        # A future resolved by the batch that satisfies the predicate (see _on_frames) and a
-        # loop timer bounding the wait: no cancel scope, no wake-up per unrelated frame.
-        # Cancellation from outside cancels the future; the finally clause cleans up.
+        # A future resolved by the batch that satisfies the predicate (see _on_frames) and
+        # the node's status timer bounding the wait (see _arm_status_timer): no cancel
+        # scope, no wake-up per unrelated frame. Cancellation from outside cancels the
+        # future; the finally clause cleans up.
         loop = asyncio.get_running_loop()
         deadline = loop.time() + self.state_timeout
         waiters = self._status_waiters
         while True:
             waiter: asyncio.Future[bool] = loop.create_future()
-            entry = (predicate, waiter)
-            timer = loop.call_at(deadline, _expire, waiter)
+            entry = (predicate, waiter, deadline)
             waiters.append(entry)
+            self._arm_status_timer(loop, deadline)
             try:
                 satisfied = await waiter
             finally:
-                timer.cancel()
                 waiters.remove(entry)
             if self._latched:
                 raise FaultedError(what)
@@ -261,6 +258,41 @@ class PowerStateMachine:
             f"CiA 402 node {self.node_id}: no statusword for {what} within {self.state_timeout * 1000:.0f} ms"
             + (f" (statusword {self._statusword:#06x})" if self._statusword is not None else "")
         )
+
+    def _arm_status_timer(self, loop: asyncio.AbstractEventLoop, deadline: float) -> None:
+        """Make the status timer fire by ``deadline`` (loop time).
+
+        One timer serves every statusword wait of the node: it is replaced only when it
+        would fire after ``deadline`` (or belongs to another loop); when it fires it ends
+        the waits whose deadline passed and is set again for the soonest other one. A
+        set-point's two waits cost no timer handle each (pushed on and popped off the
+        loop's heap, whose order is Python comparisons).
+        """
+        timer = self._status_timer
+        if timer is not None:
+            if (
+                timer.when() <= deadline
+                and self._status_timer_loop is loop
+                and not timer.cancelled()
+            ):
+                return
+            timer.cancel()
+        self._status_timer = loop.call_at(deadline, self._status_timer_fired, loop)
+        self._status_timer_loop = loop
+
+    def _status_timer_fired(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._status_timer = None
+        now = loop.time()
+        soonest = math.inf
+        for _, waiter, deadline in self._status_waiters:
+            if waiter.done():
+                continue
+            if deadline <= now:
+                waiter.set_result(False)  # timed out: the wait ends unsatisfied
+            elif deadline < soonest:
+                soonest = deadline
+        if soonest < math.inf:
+            self._status_timer = loop.call_at(soonest, self._status_timer_fired, loop)
 
     async def _poll_status(self, predicate: Callable[[int], bool], what: str) -> int:
         """:meth:`_wait_status` when no TPDO sends the statusword on event: read by SDO."""

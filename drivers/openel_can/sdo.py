@@ -9,8 +9,9 @@ segmented one (any size up to ``max_size``, 7 bytes per segment, toggle bit chec
 Downloads of 1..4 bytes are expedited with the size indicated; any other length (0, or
 more than 4 bytes: 64-bit objects, strings) is segmented with the size indicated. Block
 transfer is not implemented. Answers reach the client through a port handler (no
-queue); each exchange waits on a future that the handler resolves, bounded by a timer
-started once the request is sent. Every exchange (the initiate and each segment) is
+queue); each exchange waits on a future that the handler resolves, bounded by its deadline
+(the request sent + ``timeout``) through one timer per client that is re-armed only
+when it would fire late or fires early. Every exchange (the initiate and each segment) is
 bounded by ``timeout``:
 
 * no answer in time -> the client sends an abort (0x05040000, SDO protocol timed out)
@@ -55,6 +56,9 @@ from .od import ObjectDictionary, ObjectKey, OdEntry, OdValue
 __all__ = ["DEFAULT_MAX_SIZE", "SdoAbortError", "SdoClient", "SdoTimeoutError"]
 
 log = get_logger(__name__)
+
+_REQUEST_CACHE: Final = 64
+"""Encoded upload requests kept per client (then the cache starts again)."""
 
 
 def _abort_name(code: int) -> str:
@@ -132,6 +136,12 @@ class SdoClient:
         self._waiting: _Transfer | None = None
         self._replies: tuple[type[co.CanOpenMessage], ...] = ()
         self._answer: asyncio.Future[co.CanOpenMessage | bytes | SdoAbortError | None] | None = None
+        # One timer bounds every exchange (see _arm): re-armed only when it would fire
+        # after the exchange's deadline, or fires before it.
+        self._timer: asyncio.TimerHandle | None = None
+        self._timer_loop: asyncio.AbstractEventLoop | None = None
+        self._deadline = 0.0
+        self._upload_requests: dict[tuple[int, int], tuple[int, bytes]] = {}
 
     @classmethod
     def for_node(cls, bus: CanBus, node_id: int, *, timeout: float = 0.1) -> SdoClient:
@@ -261,12 +271,17 @@ class SdoClient:
     # -- raw transfers --------------------------------------------------------------------
     async def upload(self, index: int, subindex: int, *, timeout: float | None = None) -> bytes:  # noqa: ASYNC109
         """The object's bytes, expedited or segmented as the server chooses."""
-        request = co.SdoUploadRequest(self.node_id, index, subindex)
+        request = self._upload_request(index, subindex)
         t = _Transfer(self, index, subindex, self.timeout if timeout is None else timeout)
-        async with self._lock:
+        slot = self._lock
+        if slot.busy:
+            await slot.wait()
+        else:
+            slot.busy = True  # free: taken without a coroutine (``async with`` makes two)
+        try:
             t.port = self._begin()
-            t.expedited = struct.pack("<HB", index, subindex)
-            reply = await t.exchange(request, _INITIATE_REPLIES)
+            t.expedited = request[1][1:4]  # the index and subindex as the answer carries them
+            reply = await t.exchange_encoded(request, _INITIATE_REPLIES)
             t.expedited = None
             if isinstance(reply, bytes):
                 return reply
@@ -299,6 +314,8 @@ class SdoClient:
             if reply.size is not None and len(data) != reply.size:
                 await t.fail(co.SdoAbortCode.LENGTH_MISMATCH)
             return bytes(data)
+        finally:
+            slot.release()
 
     async def download(
         self,
@@ -341,6 +358,50 @@ class SdoClient:
                     await t.fail(co.SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED)
                 toggle = not toggle
 
+    def _upload_request(self, index: int, subindex: int) -> tuple[int, bytes]:
+        """The encoded upload initiate of ``index``:``subindex`` (checked, then kept: a
+        node's few polled objects are not encoded again per transfer)."""
+        plain = type(index) is int and type(subindex) is int
+        requests = self._upload_requests
+        if plain:
+            encoded = requests.get((index, subindex))
+            if encoded is not None:
+                return encoded
+        encoded = co.encode(co.SdoUploadRequest(self.node_id, index, subindex))
+        if plain:
+            if len(requests) >= _REQUEST_CACHE:
+                requests.clear()
+            requests[(index, subindex)] = encoded
+        return encoded
+
+    def _arm(self, loop: asyncio.AbstractEventLoop, deadline: float) -> None:
+        """Make the exchange in flight end at ``deadline`` (loop time).
+
+        One timer serves every exchange: it is replaced only when it would fire after
+        ``deadline`` (or belongs to another loop); when it fires before the deadline of
+        the exchange then in flight it is set again for it. Back-to-back exchanges cost
+        no timer each (a timer handle pushed on and popped off the loop's heap, whose
+        order is Python comparisons), and every wait still ends at its own deadline.
+        """
+        self._deadline = deadline
+        timer = self._timer
+        if timer is not None:
+            if timer.when() <= deadline and self._timer_loop is loop and not timer.cancelled():
+                return
+            timer.cancel()
+        self._timer = loop.call_at(deadline, self._timer_fired, loop)
+        self._timer_loop = loop
+
+    def _timer_fired(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._timer = None
+        answer = self._answer
+        if answer is None or answer.done():
+            return  # no exchange in flight: no timer until the next one
+        if loop.time() >= self._deadline:
+            answer.set_result(None)  # timed out
+        else:
+            self._timer = loop.call_at(self._deadline, self._timer_fired, loop)
+
     def _begin(self) -> NodePort:
         port = self._ensure_port()  # answers arriving while no exchange waits are dropped
         self.transfers += 1
@@ -350,45 +411,48 @@ class SdoClient:
 class _Slot:
     """The node's one transfer at a time: a FIFO lock for asyncio that costs two attribute
     writes when free (``anyio.Lock`` asks anyio for the backend and checks for
-    cancellation on every acquire: a tenth of an upload's CPU on the virtual bus)."""
+    cancellation on every acquire: a tenth of an upload's CPU on the virtual bus).
 
-    __slots__ = ("_busy", "_waiters")
+    ``async with slot:``, or (the upload's path, without the two coroutines) ``if
+    slot.busy: await slot.wait()`` else ``slot.busy = True``, then ``slot.release()``
+    in a ``finally``."""
+
+    __slots__ = ("_waiters", "busy")
 
     def __init__(self) -> None:
-        self._busy = False
+        self.busy = False
         self._waiters: deque[asyncio.Future[None]] = deque()
 
     async def __aenter__(self) -> None:
-        if not self._busy:
-            self._busy = True
+        if not self.busy:
+            self.busy = True
             return
+        await self.wait()
+
+    async def wait(self) -> None:
+        """Queue for the busy slot; it is this task's when this returns."""
         waiter: asyncio.Future[None] = asyncio.get_running_loop().create_future()
         self._waiters.append(waiter)
         try:
             await waiter  # the slot is handed over with the result: still busy
         except BaseException:
             if waiter.done() and not waiter.cancelled():
-                self._release()  # handed over, but this task was cancelled: pass it on
+                self.release()  # handed over, but this task was cancelled: pass it on
             elif waiter in self._waiters:  # (a cancelled one may have been skipped already)
                 self._waiters.remove(waiter)
             raise
 
     async def __aexit__(self, *exc: object) -> None:
-        self._release()
+        self.release()
 
-    def _release(self) -> None:
+    def release(self) -> None:
         waiters = self._waiters
         while waiters:
             waiter = waiters.popleft()
             if not waiter.done():
                 waiter.set_result(None)
                 return
-        self._busy = False
-
-
-def _expire(answer: asyncio.Future[co.CanOpenMessage | bytes | SdoAbortError | None]) -> None:
-    if not answer.done():
-        answer.set_result(None)
+        self.busy = False
 
 
 class _Transfer:
@@ -410,15 +474,21 @@ class _Transfer:
     ) -> co.CanOpenMessage | bytes:
         """Send ``request``; the first answer of the kinds in ``replies`` (or an abort); for
         an upload's initiate (:attr:`expedited` set), an expedited answer's data bytes."""
+        return await self.exchange_encoded(co.encode(request), replies)
+
+    async def exchange_encoded(
+        self, request: tuple[int, bytes], replies: tuple[type[co.CanOpenMessage], ...]
+    ) -> co.CanOpenMessage | bytes:
+        """:meth:`exchange` of a request already encoded (``(cob_id, data)``)."""
         port = self.port
         client = self.client
         assert port is not None
-        cob_id, data = co.encode(request)
+        cob_id, data = request
         if replies is _SEGMENT_REPLIES:
             client.segments += 1
         # The answer slot: resolved by the port handler with the answer, or with None by
-        # the timer when ``limit`` passes (a future and a timer handle: the cheapest
-        # bounded wait on asyncio; cancelling the task cancels the wait).
+        # the client's timer when ``limit`` passes (a future and a shared timer: the
+        # cheapest bounded wait on asyncio; cancelling the task cancels the wait).
         loop = asyncio.get_running_loop()
         answer: asyncio.Future[co.CanOpenMessage | bytes | SdoAbortError | None] = (
             loop.create_future()
@@ -426,11 +496,8 @@ class _Transfer:
         client._waiting, client._replies, client._answer = self, replies, answer
         try:
             await port.send(cob_id, data)  # may wait for room (send_timeout), not counted
-            timer = loop.call_later(self.limit, _expire, answer)
-            try:
-                outcome = await answer
-            finally:
-                timer.cancel()
+            client._arm(loop, loop.time() + self.limit)
+            outcome = await answer
         finally:
             client._waiting = client._answer = None
         if isinstance(outcome, SdoAbortError):

@@ -88,6 +88,62 @@ def _affine_map(
     return lambda v: tuple([g * x + o for (g, o), x in zip(pairs, v, strict=True)])
 
 
+def checked_affine_map(
+    gain: tuple[float, ...], offset: tuple[float, ...]
+) -> Callable[[Sequence[float]], tuple[float, ...]]:
+    """The read path's map: the converted values if the raw ones are as many as ``gain``
+    and every converted value is a finite ``float``; ``ValueError`` (or ``TypeError``)
+    otherwise, and the caller takes the checking path. Length, conversion and check in
+    one call (unrolled up to 3 values): the finite test is one sum, a float only if
+    every term is one (a NumPy scalar makes it a NumPy scalar), ``t - t`` 0.0 only if
+    finite."""
+    if len(gain) == 1:
+        (g0,), (o0,) = gain, offset
+
+        def one(v: Sequence[float]) -> tuple[float, ...]:
+            (x0,) = v
+            a = g0 * x0 + o0
+            if type(a) is float and a - a == 0.0:
+                return (a,)
+            raise ValueError(a)
+
+        return one
+    if len(gain) == 2:
+        (g0, g1), (o0, o1) = gain, offset
+
+        def two(v: Sequence[float]) -> tuple[float, ...]:
+            x0, x1 = v
+            a, b = g0 * x0 + o0, g1 * x1 + o1
+            t = a + b
+            if type(t) is float and t - t == 0.0:
+                return (a, b)
+            raise ValueError(t)
+
+        return two
+    if len(gain) == 3:
+        (g0, g1, g2), (o0, o1, o2) = gain, offset
+
+        def three(v: Sequence[float]) -> tuple[float, ...]:
+            x0, x1, x2 = v
+            a, b, c = g0 * x0 + o0, g1 * x1 + o1, g2 * x2 + o2
+            t = a + b + c
+            if type(t) is float and t - t == 0.0:
+                return (a, b, c)
+            raise ValueError(t)
+
+        return three
+    pairs = tuple(zip(gain, offset, strict=True))
+
+    def many(v: Sequence[float]) -> tuple[float, ...]:
+        out = tuple([g * x + o for (g, o), x in zip(pairs, v, strict=True)])
+        t = sum(out)
+        if type(t) is float and t - t == 0.0:
+            return out
+        raise ValueError(t)
+
+    return many
+
+
 def check_reals(
     parameter: str, values: object, count: int, *, nonzero: bool = False
 ) -> tuple[float, ...]:
@@ -152,7 +208,6 @@ class Sensor(HALComponent):
         self._measurement: Measurement | None = None
         # The read path's copy of it: the affine map and the number of values it takes.
         self._convert: Callable[[Sequence[float]], tuple[float, ...]] | None = None
-        self._convert_n = 0
         """The per-value settings; None while they are the identity (SI values as read)."""
         self._settings: Measurement | None = None
         """The settings as set, kept even when they make the identity."""
@@ -249,9 +304,16 @@ class Sensor(HALComponent):
         settings = Measurement.build(si_units, units, scale, origin, conversions)
         self._settings = settings
         self._measurement = None if settings.identity else settings
-        self._convert = None if settings.identity else settings.apply
-        self._convert_n = len(settings.gain)
+        self._convert = (
+            None if settings.identity else checked_affine_map(settings.gain, settings.offset)
+        )
         MEASUREMENT_SETTINGS_VERSION.value += 1
+
+    def _checked_conversion(self, raw: Sequence[float]) -> tuple[float, ...]:
+        """The slow path of a converted read: raw values checked (a fault names them),
+        their count checked, converted, and the results checked (an overflow is a fault);
+        NumPy scalars and integers come out as floats."""
+        return self._checked_values(self._converted_values(self._checked_values(raw)))
 
     def _converted_values(self, values: tuple[float, ...]) -> tuple[float, ...]:
         """Apply the measurement settings (only called when some are set)."""
@@ -273,13 +335,11 @@ class Sensor(HALComponent):
         convert = self._convert
         if convert is None:
             values = self._checked_values(raw)
-        elif len(raw) == self._convert_n:  # converted, then checked: NaN stays NaN
+        else:  # converted and checked in one call; anything unusual the checking way
             try:
-                values = self._checked_values(convert(raw))
-            except (TypeError, ValueError):  # not numbers: the raw check tells the fault
-                values = self._converted_values(self._checked_values(raw))
-        else:
-            values = self._converted_values(self._checked_values(raw))  # a length fault
+                values = convert(raw)
+            except (TypeError, ValueError):
+                values = self._checked_conversion(raw)
         listener = self._observers.listener
         if listener is not None:
             listener.on_reading(self, None, values)
@@ -302,13 +362,11 @@ class Sensor(HALComponent):
         convert = self._convert
         if convert is None:
             values = self._checked_values(raw)
-        elif len(raw) == self._convert_n:  # as in get_value
+        else:  # as in get_value
             try:
-                values = self._checked_values(convert(raw))
+                values = convert(raw)
             except (TypeError, ValueError):
-                values = self._converted_values(self._checked_values(raw))
-        else:
-            values = self._converted_values(self._checked_values(raw))
+                values = self._checked_conversion(raw)
         listener = self._observers.listener
         if listener is not None:
             listener.on_reading(self, None, values)

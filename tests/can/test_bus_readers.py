@@ -9,6 +9,7 @@ Also: handler ports, TxMessage's deep copy, inline sends yielding, SDO cancellat
 from __future__ import annotations
 
 import copy
+import os
 import queue
 import socket
 import struct
@@ -72,6 +73,12 @@ async def test_virtual_bus_is_read_in_the_loop_in_order_without_a_thread(
         finally:
             sender.join(5)
         assert bus.stats.rx_frames == 3000 and bus.stats.rx_overflow == 0
+        if hasattr(os, "eventfd"):  # Linux: the senders wake the loop through an eventfd
+            assert bus._virtual_wake_fd is not None
+        bus._virtual_wake_pending = True  # as if a wake-up were written and never read
+    assert bus._virtual_wake_fd is None  # closed at exit
+    assert not bus._virtual_wake_pending  # a reader of a reopened bus can be woken
+    bus._wake_virtual()  # a sender late past the unhook: no error, nothing written
 
 
 async def test_virtual_overflow_beyond_rx_buffer_is_dropped_and_counted(

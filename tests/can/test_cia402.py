@@ -445,6 +445,36 @@ async def test_an_unacknowledged_setpoint_times_out_after_state_timeout(
     assert (await recorder.wait_for("error", source=axis, timeout=1)).id == ErrorId.TIMEOUT
 
 
+async def test_statusword_waits_each_end_at_their_own_deadline(
+    peers: Peers, host_bus: CanBus, components: Components
+) -> None:
+    """The node's one status timer: a later, shorter wait is not held to the earlier, longer
+    one's deadline, and the longer one still ends at its own once the timer fired early."""
+    await peers.start(_sim())
+    drive = _drive(host_bus)
+    await components.actuator(drive)
+    outcome: list[str] = []
+
+    async def long_wait() -> None:
+        try:
+            await drive._wait_status(lambda sw: False, "never")
+        except TimeoutError:
+            outcome.append("long")
+
+    drive.state_timeout = 0.6
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(long_wait)
+        await anyio.sleep(0.01)
+        drive.state_timeout = 0.05
+        started = anyio.current_time()
+        with anyio.fail_after(2), pytest.raises(TimeoutError):
+            await drive._wait_status(lambda sw: False, "never either")
+        assert anyio.current_time() - started < 0.5
+        assert outcome == []  # the long wait goes on past the short one's deadline
+    assert outcome == ["long"]
+    assert drive._status_waiters == []
+
+
 async def test_a_cancelled_setpoint_leaves_the_next_one_working(
     peers: Peers, host_bus: CanBus, components: Components
 ) -> None:

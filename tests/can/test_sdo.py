@@ -109,6 +109,37 @@ async def test_client_segmented_download_toggles_and_times_out_per_segment(
     assert abort == co.SdoAbort(NODE, 0x2000, 0, co.SdoAbortCode.TIMEOUT, from_client=True)
 
 
+async def test_each_exchange_ends_at_its_own_deadline_with_the_shared_timer(
+    host_bus: CanBus, raw_bus: can.BusABC
+) -> None:
+    """The client's one timer is replaced for a sooner deadline and set again when it
+    fires before the deadline of the exchange in flight."""
+    client = SdoClient(host_bus, NODE, timeout=0.05)
+    answer = co.SdoUploadResponse(NODE, 0x2000, 0, b"\x01\x02")
+
+    async def serve(delay: float) -> None:
+        await _next(raw_bus, co.SDO_RX_BASE + NODE)
+        await anyio.sleep(delay)
+        _send(raw_bus, answer)
+
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(serve, 0.0)
+        assert await client.upload(0x2000, 0, timeout=30.0) == b"\x01\x02"  # timer: +30 s
+    started = anyio.current_time()
+    with anyio.fail_after(2), pytest.raises(SdoTimeoutError):
+        await client.upload(0x2001, 0)  # unanswered: its own 50 ms, not the 30 s
+    assert anyio.current_time() - started < 1.0
+    drain(raw_bus)  # the abort
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(serve, 0.0)
+        assert await client.upload(0x2000, 0) == b"\x01\x02"  # timer: +50 ms
+    async with anyio.create_task_group() as tg:
+        tg.start_soon(serve, 0.2)  # answered after the earlier deadline passed
+        with anyio.fail_after(2):
+            assert await client.upload(0x2000, 0, timeout=1.0) == b"\x01\x02"
+    assert client.timeouts == 1
+
+
 async def test_write_of_a_value_that_does_not_fit_is_a_bad_parameter(host_bus: CanBus) -> None:
     client = SdoClient(host_bus, NODE)
     with pytest.raises(BadParameterError, match="0x2031"):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from openel_async import (
@@ -155,6 +156,40 @@ async def test_a_reading_of_another_length_is_a_fault_once_configured(
     sensor.set_origin([1.0, 1.0])
     device.values = (1.0,)
     with pytest.raises(DeviceFaultError, match="returned 1 values"):
+        await sensor.get_value()
+
+
+@pytest.mark.parametrize("count", [1, 2, 3, 4])
+async def test_a_converted_reading_is_checked_like_a_plain_one(
+    hal_components: ComponentStack, count: int
+) -> None:
+    """The converted read path (length, conversion and finite check in one call) gives
+    finite floats or a fault, for every unrolled value count and the general one."""
+    device = Fixed((1.0,) * count, ("rad",) * count)
+    sensor = await sensor_of(hal_components, device)
+    sensor.set_unit_of_measurement(["deg"] * count)
+    sensor.set_origin([1.0] * count)
+    device.values = tuple(range(2, 2 + count))  # ints
+    values = await sensor.get_value()
+    assert values == pytest.approx(tuple(math.degrees(i - 1.0) for i in range(2, 2 + count)))
+    device.values = tuple(np.float64(2.0) for _ in range(count))  # NumPy scalars
+    for got in (await sensor.get_value(), sensor.get_value_nowait()):
+        assert all(type(v) is float for v in got) and got[0] == pytest.approx(math.degrees(1.0))
+    sensor.set_scale_factor([1e307] * count)
+    device.values = (1e307,) * count  # finite raw values, converted past the float range
+    with pytest.raises(DeviceFaultError, match="non-finite"):
+        sensor.get_value_nowait()
+
+
+@pytest.mark.parametrize("raw", [(math.nan, 1.0, 1.0), (1.0, "x", 1.0), (1.0, 2.0)])
+async def test_a_bad_reading_is_a_fault_once_converted(
+    hal_components: ComponentStack, raw: tuple[float, ...]
+) -> None:
+    device = Fixed((1.0, 1.0, 1.0), ("m/s^2",) * 3)
+    sensor = await sensor_of(hal_components, device)
+    sensor.set_unit_of_measurement(["g"] * 3)
+    device.values = raw
+    with pytest.raises(DeviceFaultError):
         await sensor.get_value()
 
 
