@@ -85,6 +85,10 @@ THREAD_READS = frozenset(
 """The execute functions a GatedEventLoop's server may answer on Zenoh's thread."""
 THREAD_READ_MAX_BYTES = 1024
 """Larger execute payloads (and XML ones) are never decoded on Zenoh's thread."""
+DECODED_CACHE_SIZE = 256
+"""Distinct compact execute payloads whose decoded Device is kept (then all are dropped)."""
+DECODED_CACHE_MAX_BYTES = 256
+"""Larger compact payloads are decoded every time."""
 
 
 def _nothing() -> None:
@@ -191,6 +195,36 @@ class _ClientLink:
         _undeclare(self.publisher)
 
 
+class DecodedPayloads:
+    """Execute payloads decoded, the small compact ones once per distinct payload: a client
+    sends the same bytes for each read of a component (RemoteActuator encodes its
+    GetPosition once), and a decoded Device is immutable (frozen structs, lists as
+    tuples), so one serves every copy. Shared by the loop and Zenoh's threads: a dict's
+    get, set and clear are atomic under the GIL."""
+
+    def __init__(
+        self, size: int = DECODED_CACHE_SIZE, max_bytes: int = DECODED_CACHE_MAX_BYTES
+    ) -> None:
+        self.size = size
+        self.max_bytes = max_bytes
+        self._devices: dict[bytes, Device] = {}
+
+    def decode(self, payload: bytes) -> tuple[Device, bool]:
+        """The Device of ``payload`` and whether it was XML; BadParameterError if none."""
+        devices = self._devices
+        device = devices.get(payload)
+        if device is not None:
+            return device, False
+        if is_xml(payload):
+            return xml_psm.device_from_xml(payload), True
+        device = compact.device_from_compact(payload)
+        if len(payload) <= self.max_bytes:
+            if len(devices) >= self.size:
+                devices.clear()  # (all at once: no iteration another thread could upset)
+            devices[payload] = device
+        return device, False
+
+
 def _drop(query: zenoh.Query) -> None:
     """Finalize a query (the querier's get ends once every queryable dropped it)."""
     cast(Any, query).drop()
@@ -254,6 +288,7 @@ class SurfaceServer:
         self._alive: ThreadInbox[tuple[str, bool]] | None = None
         self._flush_queue: list[_ClientLink] = []
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._payloads = DecodedPayloads()
 
     async def __aenter__(self) -> Self:
         self._loop = asyncio.get_running_loop()
@@ -375,7 +410,7 @@ class SurfaceServer:
             device = self._decoded(request)
         except Exception:  # the loop path answers and logs it
             return False
-        if len(device.commands) != 1 or device.commands[0].function_name not in THREAD_READS:
+        if len(device.commands) != 1:
             return False
         if not gate.try_enter():
             return False
@@ -393,7 +428,7 @@ class SurfaceServer:
             gate.leave()
         if outcome is not None:
             self._answer_read(request, outcome)
-        if wake:  # the read scheduled work on the loop (an observer...): run it now
+        if wake:  # the section scheduled work on the loop (a motion to watch...): run it now
             with contextlib.suppress(RuntimeError):  # a closed loop
                 loop.call_soon_threadsafe(_nothing)
         return outcome is not None
@@ -420,7 +455,12 @@ class SurfaceServer:
             return ReturnCode.HAL_NO_CONNECTED, self._stale_message(request)
         enter_as_loop(loop)
         try:
-            done = self.surface.execute_nowait(device, client.link)
+            refused = (
+                self.admit(device)
+                if self.admit is not None and device.commands[0].function_name not in THREAD_READS
+                else None
+            )
+            done = refused or self.surface.execute_nowait(device, client.link)
         except WouldBlockError:
             return None
         except Exception as exc:  # execute_nowait answers refusals itself: a bug
@@ -673,12 +713,7 @@ class SurfaceServer:
 
     def _decoded(self, request: _Request) -> Device:
         if request.device is None:
-            request.xml = is_xml(request.payload)
-            request.device = (
-                xml_psm.device_from_xml(request.payload)
-                if request.xml
-                else compact.device_from_compact(request.payload)
-            )
+            request.device, request.xml = self._payloads.decode(request.payload)
         return request.device
 
     @staticmethod
@@ -799,11 +834,19 @@ _BOMS = (b"\xef\xbb\xbf", b"\xfe\xff", b"\xff\xfe", b"\x00\x00\xfe\xff")
 _WIDE = ("utf-16-le", "utf-16-be", "utf-32-le", "utf-32-be")
 
 
+_MSGPACK_CONTAINERS = frozenset((*range(0x80, 0xA0), 0xDC, 0xDD, 0xDE, 0xDF))
+"""First bytes of a msgpack array or map (fixmap, fixarray, array 16/32, map 16/32)."""
+
+
 def is_xml(payload: bytes) -> bool:
     """Whether an execute payload is XML rather than the compact (msgpack) form: a byte order
     mark, or '<' as its first character after whitespace in UTF-8 or, without a mark, in
     UTF-16 or UTF-32 (the detection of XML 1.0 Appendix F; a compact Device starts with a
-    msgpack array or map, never with these bytes)."""
+    msgpack array or map, never with these bytes). A payload that starts like a compact
+    one is answered from its first byte: none of the byte order marks, whitespace or '<'
+    in any of those encodings starts with a msgpack container's first byte."""
+    if payload[:1] and payload[0] in _MSGPACK_CONTAINERS:
+        return False
     if payload.startswith(_BOMS) or payload.lstrip(b" \t\r\n")[:1] == b"<":
         return True
     head = payload[:64]
