@@ -137,6 +137,17 @@ def free_port() -> int:
         return port
 
 
+def process_cpu(pid: int) -> float:
+    """Seconds of CPU the process ``pid`` used so far, every thread (Linux /proc; NaN
+    elsewhere)."""
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def pct(samples: list[float], q: float) -> float:
     """The ``q`` quantile (0..1) of ``samples`` (nearest rank)."""
     ordered = sorted(samples)
@@ -378,11 +389,14 @@ def _raw_figures(port: int, calls: int, events: int) -> dict[str, float]:
 
 
 # -- round trips, interleaved -------------------------------------------------------------
-async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, list[float]]:
+async def _round_trips(
+    raw_port: int, our_port: int, calls: int, peers: tuple[int, int] = (0, 0)
+) -> dict[str, list[float]]:
     """get_value of a remote actuator (with the client's default busy-wait, and with
     ``busy_wait=0``), a blocking raw query and a raw query awaited from asyncio, in
     alternating rounds (a load change on the machine hits all four); the calling thread's
-    process CPU time (every thread: the loop, Zenoh's, workers) of each."""
+    process CPU time (every thread: the loop, Zenoh's, workers) of each, and that of the
+    server answering it (``peers``: the pids of the raw and of our server process)."""
 
     from openel_async import Actuator, EventId, ObserverQueue, Request
     from openel_zenoh import RemoteActuator, RemoteSurface, close_session, open_session
@@ -393,6 +407,8 @@ async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, li
     kinds = ("ours", "ours_sleeping", "raw", "raw_async", "set")
     samples: dict[str, list[float]] = {kind: [] for kind in kinds}
     cpu = dict.fromkeys(kinds, 0.0)
+    server_cpu = dict.fromkeys(kinds, 0.0)
+    raw_pid, our_pid = peers
 
     def blocking_round_trips(count: int) -> list[float]:
         out = []
@@ -447,6 +463,8 @@ async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, li
                 per_round = max(1, calls // ROUNDS)
                 for round_ in range(ROUNDS + 1):  # round 0 warms up
                     for kind in kinds:
+                        peer = raw_pid if kind in ("raw", "raw_async") else our_pid
+                        s0 = process_cpu(peer) if peer else float("nan")
                         c0 = time.process_time()
                         if kind == "ours":
                             got = await get_values(axis, per_round)
@@ -461,12 +479,15 @@ async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, li
                         if round_:
                             samples[kind] += got
                             cpu[kind] += time.process_time() - c0
+                            if peer:
+                                server_cpu[kind] += process_cpu(peer) - s0
                 samples["busy"] = [float(remote.busy_hits), float(remote.busy_misses)]
     finally:
         await close_session(session)
         await anyio.to_thread.run_sync(raw.close)
     calls_made = max(1, len(samples["ours"]))
     samples["cpu"] = [cpu[kind] / calls_made for kind in kinds]
+    samples["server_cpu"] = [server_cpu[kind] / calls_made for kind in kinds]
     return samples
 
 
@@ -523,7 +544,8 @@ def run(quick: bool) -> BenchResult:
     try:
         server = spawn("serve", our_port)
         try:
-            rtt = anyio.run(_round_trips, raw_port, our_port, calls, backend="asyncio")
+            peers = (raw_proc.pid, server.pid)
+            rtt = anyio.run(_round_trips, raw_port, our_port, calls, peers, backend="asyncio")
             ours = anyio.run(_our_figures, our_port, calls, events, backend="asyncio")
         finally:
             stop(server)
@@ -544,6 +566,7 @@ def run(quick: bool) -> BenchResult:
     set_async = ratio_of(ours["completion_p50"], raw["async_p50"])
     set_blocking = ratio_of(ours["completion_p50"], raw["rtt_p50"])
     told = ours["received"] + ours["missed"] == events
+    server_cpu = rtt["server_cpu"]  # kinds: ours, ours_sleeping, raw, raw_async, set
     rows = (
         Row("get_value round trip p50", ours["rtt_p50"] * us, "us", raw["rtt_p50"] * us, "raw Zenoh query p50",
             rt_ratio, "ours/raw", f"<= {TARGET_RT_RATIO}x raw", rt_ratio <= TARGET_RT_RATIO),
@@ -559,6 +582,11 @@ def run(quick: bool) -> BenchResult:
             "raw query awaited from asyncio", ratio_of(rtt["cpu"][0], rtt["cpu"][3]), "ours/raw"),
         Row("get_value client process CPU, busy_wait=0", rtt["cpu"][1] * us, "us/call", rtt["cpu"][3] * us,
             "raw query awaited from asyncio", ratio_of(rtt["cpu"][1], rtt["cpu"][3]), "ours/raw"),
+        Row("server process CPU per get_value", server_cpu[0] * us, "us/call", server_cpu[2] * us,
+            "raw server per blocking query", ratio_of(server_cpu[0], server_cpu[2]), "ours/raw"),
+        Row("server process CPU per set_value -> COMPLETED", server_cpu[4] * us, "us/call",
+            server_cpu[2] * us, "raw server per blocking query", ratio_of(server_cpu[4], server_cpu[2]),
+            "ours/raw"),
         Row("set_value -> COMPLETED p50", ours["completion_p50"] * us, "us", raw["async_p50"] * us,
             "raw Zenoh query awaited from asyncio p50", set_async, "ours/raw",
             f"<= {TARGET_SET_ASYNC_RATIO}x raw", set_async <= TARGET_SET_ASYNC_RATIO),

@@ -410,7 +410,7 @@ class SurfaceServer:
             device = self._decoded(request)
         except Exception:  # the loop path answers and logs it
             return False
-        if len(device.commands) != 1:
+        if len(device.commands) != 1 or device.commands[0].function_name not in THREAD_READS:
             return False
         if not gate.try_enter():
             return False
@@ -428,7 +428,7 @@ class SurfaceServer:
             gate.leave()
         if outcome is not None:
             self._answer_read(request, outcome)
-        if wake:  # the section scheduled work on the loop (a motion to watch...): run it now
+        if wake:  # the read scheduled work on the loop (an observer...): run it now
             with contextlib.suppress(RuntimeError):  # a closed loop
                 loop.call_soon_threadsafe(_nothing)
         return outcome is not None
@@ -455,12 +455,7 @@ class SurfaceServer:
             return ReturnCode.HAL_NO_CONNECTED, self._stale_message(request)
         enter_as_loop(loop)
         try:
-            refused = (
-                self.admit(device)
-                if self.admit is not None and device.commands[0].function_name not in THREAD_READS
-                else None
-            )
-            done = refused or self.surface.execute_nowait(device, client.link)
+            done = self.surface.execute_nowait(device, client.link)
         except WouldBlockError:
             return None
         except Exception as exc:  # execute_nowait answers refusals itself: a bug
