@@ -11,7 +11,9 @@ request) run beside this process, which is the client; everything on loopback.
   calls back on its thread, ``call_soon_threadsafe`` hands the reply to the loop), which
   is what any asyncio client of Zenoh pays, and ours again with ``busy_wait=0`` (the
   client never polls). The four alternate in 10 rounds; the client process's CPU time
-  per call (every thread: loop, Zenoh's, workers) of each is reported beside.
+  per call (every thread: loop, Zenoh's, workers) of each is reported beside, and the
+  server process's (from /proc: ours per get_value and per set, the raw server's per
+  blocking query).
 - set_value -> COMPLETED: from ``set_value`` to the COMPLETED event at the local observer
   (the motor reaches a 1 mrad target within microseconds), in the same alternating
   rounds as the get_value figures; targets (issue 27) p50 <= 1.2x the raw query awaited
@@ -54,21 +56,75 @@ p50 of interleaved runs, each figure measured alone):
 Issue 27 (second pass), measured with quick runs on this 2-core VM shared with other
 work (load 1.5-2.5): get_value p50 1.26-1.63x the blocking raw query (1.1x target not
 met), 0.92-1.17x the awaited one; set_value -> COMPLETED 1.0-1.2 ms p50, 2.2-2.8x the
-awaited raw query and 3.2-3.9x the blocking one (targets 1.2x and 2x not met). Where a
-set's time goes (300 sets, p50, client side): ``set_value`` returns 756 us after the
-call (a get_value: ~460 us), the COMPLETED event arrives 342 us after that. On the
+awaited raw query and 3.2-3.9x the blocking one (targets 1.2x and 2x not met). On the
 server a set is answered inline (``Surface.execute_nowait`` -> ``set_value_nowait``),
 but each command wakes two more tasks: the SimMotor's watch (a new cancel scope per
-command to re-plan) and the surface's motion watcher (a new ``anyio.Event`` per wait);
-the motor's arrival, 2 us after the command, is awaited with ``MonotonicClock.sleep_until`` -> ``anyio.sleep``, which asyncio
-rounds up to the next millisecond of ``epoll_wait`` unless other I/O wakes the loop:
-serving the SimMotor on a clock whose ``sleep_until`` waits on a timerfd brought the
-set from 1213 to 1016 us p50 in one A/B pair. Those three are outside the remote layer
-(openel_sim, the surface, the clock) and are where the set row's remaining cost is; the
-server's own worker now waits on a reused ``Wakeup`` (no ``anyio.Event`` per request).
+command to re-plan) and the surface's motion watcher; the server's own worker waits on
+a reused ``Wakeup`` (no ``anyio.Event`` per request).
 
-What changed in this pass (issue 12, the last missed target; before it: 320 us p50,
-2.07x the blocking raw query, 1.36x the awaited one):
+Issue 27 (third pass). Where the time goes, measured on this VM while other work ran
+(load 1-4; p50; instrumented server copies, per-thread CPU from /proc):
+
+- Zenoh is not the limit: a raw queryable declared in our server's process (same
+  session, same ``GatedEventLoop``) answers a blocking query in 369-471 us, as the raw
+  server does (345-451 us in the same runs). A blocking query of our GetPosition to our
+  server takes 476-645 us: the 130-200 us more are our server's Python per read.
+- our read on Zenoh's thread costs 140-180 us CPU in situ (the raw queryable: ``reply``
+  20-26 us, ``drop`` 1 us). Before this pass ``is_xml`` took 21 us and ran twice per
+  execute (it decoded the head of every payload as UTF-16 and UTF-32) and the decode
+  7 us; now 2-3 us for both. What is left: ``Surface.execute_nowait`` under the gate
+  44-56 us (20 us in a hot loop: the reply's CommandMessage, ResultList and Parameters
+  are built with every check of the model, a regex per name), ``reply`` + ``drop``
+  25-35 us, the query's record and freshness parameters 15-25 us, the gate's
+  bookkeeping ~5 us, encoding 3-4 us. A Python statement costs 2-4x in situ what it
+  costs in a hot loop (a core woken from idle, caches shared with three processes).
+- the blocking raw query (``list(session.get(...))``) waits for the end of the query:
+  its first reply arrives 45 us before that (289 vs 334 us, a raw client alone). Our
+  polled query returns at the first reply; the client's own Python (``get_value``, the
+  freshness parameters, the reply's decode, the polling passes) costs about what that
+  saves: a polled get_value to our server takes what a blocking raw query to it takes
+  (459-629 vs 476-645 us).
+- a set costs our server 830-1000 us of CPU (a get 300-400, the raw server 230-330 per
+  query; the table's server CPU rows): its loop thread 480-520 us, Zenoh's threads
+  200-300, Zenoh's tx 70-100. On the loop: the execute and its reply 150-170 us
+  (``execute_nowait`` of SetPosition, then ``reply`` + ``drop``, 65 us: a query
+  dropped off Zenoh's thread costs 30 us, in its callback 1-2 us), then the
+  completion, ~480 us after the reply starts: the SimMotor's watch task re-planned
+  through its cancel scope, the Actuator's ``target_reached``, the surface's motion
+  watcher task, a COMPLETED event notice with its detail (the RemoteActuator subscribes
+  to '*' and drops it: COMPLETED comes from ``completed``) and the completed notice,
+  flushed one loop pass later (72 us: encoding ~40, ``Publisher.put`` 29).
+
+What changed in this pass:
+
+- server: ``is_xml`` answers from the first byte when it is a msgpack array or map's
+  (no byte order mark, whitespace or '<' starts with those bytes, in any encoding the
+  detection knows); small compact payloads are decoded once per distinct payload
+  (``DecodedPayloads``: a client sends the same bytes for each read of a component;
+  the decoded Device is immutable) -- about 40 us less Zenoh-thread CPU per read.
+- ``GatedEventLoop``: waits shorter than 5 ms are timed with ``select`` on the epoll
+  descriptor, to the microsecond; epoll rounds a timeout up to the next millisecond, so
+  a 100 us ``anyio.sleep`` on the server's loop took 1171 us (now 197-203 us): a motor
+  arriving within a few milliseconds reports COMPLETED on time.
+- tried and reverted: running commands (SetPosition) on Zenoh's thread through the
+  gate as reads are. The reply leaves earlier, but the completion then needs a second
+  wake-up of the loop after it: set_value -> COMPLETED 1468-1547 us vs 1288-1293 us on
+  the loop path (three interleaved pairs).
+
+Decision: the targets are out of reach in the remote layer. The get_value target
+(1.1x, ~35 us over a blocking raw query) is less than what ``Surface.execute_nowait``
+alone costs in situ (44-56 us), and the set targets (1.2x the awaited raw query, about
+550-700 us for the whole set and its COMPLETED) are less than our server's CPU per set
+(830-1000 us on two cores shared with the client, which polls on one of them). What
+would move them is outside openel_zenoh: a cheaper ``Surface.execute_nowait`` (results
+built from already checked values without re-running the model's checks), and a
+cheaper completion chain (SimMotor's watch, the Actuator, the surface's motion watcher;
+a subscription to every event but COMPLETED would spare an event notice per set on both
+sides). The client's polling (its CPU per call in the table) is kept: with
+``busy_wait=0`` get_value is 1.2-1.4x the awaited raw query, polled about 1.0-1.1x.
+
+Issue 12 (the earlier pass that brought get_value from 320 us p50, 2.07x the blocking raw
+query, 1.36x the awaited one):
 
 - client: the reply comes through a Zenoh channel (``session.get`` without a Python
   callback), polled from the loop for at most ``RemoteSurface.busy_wait`` (0.5 ms) with
@@ -81,12 +137,6 @@ What changed in this pass (issue 12, the last missed target; before it: 320 us p
   ``GatedEventLoop``: plain reads (GetPosition...) are answered on Zenoh's thread
   while the loop is parked in ``select``, the loop's gate taken (no loop code runs
   meanwhile: the read is exactly a loop callback's), see docs/remote.md "Threads".
-- what remains between us and the blocking raw query: the server's Python work per
-  read (40-50 us in situ, above), the client's (``Actuator.get_value``, encode
-  once, decode the reply: about 15 us) and, with ``busy_wait=0``, the client hop.
-  Removing more would mean less Python per request (a compiled codec and dispatch)
-  rather than fewer hand-offs: there is no thread hand-off left on the path of a
-  polled read.
 """
 
 from __future__ import annotations
