@@ -102,6 +102,15 @@ What changed in this pass:
   detection knows); small compact payloads are decoded once per distinct payload
   (``DecodedPayloads``: a client sends the same bytes for each read of a component;
   the decoded Device is immutable) -- about 40 us less Zenoh-thread CPU per read.
+- client: a busy-wait miss of an asynchronous command (SetPosition, accepted on the
+  server's loop: 800-1100 us on this loaded VM, over the 0.5 ms budget) made the next
+  1, 2, 4... up to 256 queries of the RemoteSurface sleep, get_values included (in the
+  run recorded before this pass: 388 misses, and about 1000 of the polling surface's
+  4400 queries slept); misses now back
+  off per lane (``Backoff``; asynchronous commands apart from the rest), so reads keep
+  being polled. A poll also looks at the channel again right after ``sched_yield``
+  (the reply often arrives while the loop's thread yields the core) instead of after
+  one more loop pass.
 - ``GatedEventLoop``: waits shorter than 5 ms are timed with ``select`` on the epoll
   descriptor, to the microsecond; epoll rounds a timeout up to the next millisecond, so
   a 100 us ``anyio.sleep`` on the server's loop took 1171 us (now 197-203 us): a motor
