@@ -132,6 +132,18 @@ a subscription to every event but COMPLETED would spare an event notice per set 
 sides). The client's polling (its CPU per call in the table) is kept: with
 ``busy_wait=0`` get_value is 1.2-1.4x the awaited raw query, polled about 1.0-1.1x.
 
+The two runs recorded below (06:53 and 06:55 UTC) ran while other work loaded this VM
+(load average 3.1 and 2.4 at their start, against 1.4 for the runs before this pass),
+and every figure in them, raw ones included, is slower: get_value 1.46x and 1.45x the
+blocking raw query (0.99-1.01x the awaited one), set_value -> COMPLETED 2.77-3.07x the
+awaited raw query, 4.07-4.42x the blocking one; the client's CPU per get_value fell
+from 539 to 338-371 us (0.81-0.93x the awaited raw query's), as the reads no longer
+sleep after a set's miss. The same code before and after this pass, interleaved at the
+same load (three pairs, p50): set_value -> COMPLETED 1417-1512 us before, 1362-1430
+after; our server's CPU per set 886-1129 us before, 786-814 after, per get 343-500
+before, 314-343 after; get_value 1.33-1.68x a blocking raw query before, 1.22-1.34x
+after.
+
 Issue 12 (the earlier pass that brought get_value from 320 us p50, 2.07x the blocking raw
 query, 1.36x the awaited one):
 
