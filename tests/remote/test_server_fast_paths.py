@@ -13,7 +13,7 @@ from openel_async import BadParameterError
 from openel_async.surface import CommandMessage, Device, compact, xml_psm
 from openel_zenoh import gate
 from openel_zenoh.gate import GatedSelector, LoopGate
-from openel_zenoh.server import DecodedPayloads, is_xml
+from openel_zenoh.payloads import DecodedPayloads, is_xml
 
 CONTAINER_FIRST_BYTES = [*range(0x80, 0xA0), 0xDC, 0xDD, 0xDE, 0xDF]
 
