@@ -11,7 +11,9 @@ request) run beside this process, which is the client; everything on loopback.
   calls back on its thread, ``call_soon_threadsafe`` hands the reply to the loop), which
   is what any asyncio client of Zenoh pays, and ours again with ``busy_wait=0`` (the
   client never polls). The four alternate in 10 rounds; the client process's CPU time
-  per call (every thread: loop, Zenoh's, workers) of each is reported beside.
+  per call (every thread: loop, Zenoh's, workers) of each is reported beside, and the
+  server process's (from /proc: ours per get_value and per set, the raw server's per
+  blocking query).
 - set_value -> COMPLETED: from ``set_value`` to the COMPLETED event at the local observer
   (the motor reaches a 1 mrad target within microseconds), in the same alternating
   rounds as the get_value figures; targets (issue 27) p50 <= 1.2x the raw query awaited
@@ -54,21 +56,96 @@ p50 of interleaved runs, each figure measured alone):
 Issue 27 (second pass), measured with quick runs on this 2-core VM shared with other
 work (load 1.5-2.5): get_value p50 1.26-1.63x the blocking raw query (1.1x target not
 met), 0.92-1.17x the awaited one; set_value -> COMPLETED 1.0-1.2 ms p50, 2.2-2.8x the
-awaited raw query and 3.2-3.9x the blocking one (targets 1.2x and 2x not met). Where a
-set's time goes (300 sets, p50, client side): ``set_value`` returns 756 us after the
-call (a get_value: ~460 us), the COMPLETED event arrives 342 us after that. On the
+awaited raw query and 3.2-3.9x the blocking one (targets 1.2x and 2x not met). On the
 server a set is answered inline (``Surface.execute_nowait`` -> ``set_value_nowait``),
 but each command wakes two more tasks: the SimMotor's watch (a new cancel scope per
-command to re-plan) and the surface's motion watcher (a new ``anyio.Event`` per wait);
-the motor's arrival, 2 us after the command, is awaited with ``MonotonicClock.sleep_until`` -> ``anyio.sleep``, which asyncio
-rounds up to the next millisecond of ``epoll_wait`` unless other I/O wakes the loop:
-serving the SimMotor on a clock whose ``sleep_until`` waits on a timerfd brought the
-set from 1213 to 1016 us p50 in one A/B pair. Those three are outside the remote layer
-(openel_sim, the surface, the clock) and are where the set row's remaining cost is; the
-server's own worker now waits on a reused ``Wakeup`` (no ``anyio.Event`` per request).
+command to re-plan) and the surface's motion watcher; the server's own worker waits on
+a reused ``Wakeup`` (no ``anyio.Event`` per request).
 
-What changed in this pass (issue 12, the last missed target; before it: 320 us p50,
-2.07x the blocking raw query, 1.36x the awaited one):
+Issue 27 (third pass). Where the time goes, measured on this VM while other work ran
+(load 1-4; p50; instrumented server copies, per-thread CPU from /proc):
+
+- Zenoh is not the limit: a raw queryable declared in our server's process (same
+  session, same ``GatedEventLoop``) answers a blocking query in 369-471 us, as the raw
+  server does (345-451 us in the same runs). A blocking query of our GetPosition to our
+  server takes 476-645 us: the 130-200 us more are our server's Python per read.
+- our read on Zenoh's thread costs 140-180 us CPU in situ (the raw queryable: ``reply``
+  20-26 us, ``drop`` 1 us). Before this pass ``is_xml`` took 21 us and ran twice per
+  execute (it decoded the head of every payload as UTF-16 and UTF-32) and the decode
+  7 us; now 2-3 us for both. What is left: ``Surface.execute_nowait`` under the gate
+  44-56 us (20 us in a hot loop: the reply's CommandMessage, ResultList and Parameters
+  are built with every check of the model, a regex per name), ``reply`` + ``drop``
+  25-35 us, the query's record and freshness parameters 15-25 us, the gate's
+  bookkeeping ~5 us, encoding 3-4 us. A Python statement costs 2-4x in situ what it
+  costs in a hot loop (a core woken from idle, caches shared with three processes).
+- the blocking raw query (``list(session.get(...))``) waits for the end of the query:
+  its first reply arrives 45 us before that (289 vs 334 us, a raw client alone). Our
+  polled query returns at the first reply; the client's own Python (``get_value``, the
+  freshness parameters, the reply's decode, the polling passes) costs about what that
+  saves: a polled get_value to our server takes what a blocking raw query to it takes
+  (459-629 vs 476-645 us).
+- a set costs our server 830-1000 us of CPU (a get 300-400, the raw server 230-330 per
+  query; the table's server CPU rows): its loop thread 480-520 us, Zenoh's threads
+  200-300, Zenoh's tx 70-100. On the loop: the execute and its reply 150-170 us
+  (``execute_nowait`` of SetPosition, then ``reply`` + ``drop``, 65 us: a query
+  dropped off Zenoh's thread costs 30 us, in its callback 1-2 us), then the
+  completion, ~480 us after the reply starts: the SimMotor's watch task re-planned
+  through its cancel scope, the Actuator's ``target_reached``, the surface's motion
+  watcher task, a COMPLETED event notice with its detail (the RemoteActuator subscribes
+  to '*' and drops it: COMPLETED comes from ``completed``) and the completed notice,
+  flushed one loop pass later (72 us: encoding ~40, ``Publisher.put`` 29).
+
+What changed in this pass:
+
+- server: ``is_xml`` answers from the first byte when it is a msgpack array or map's
+  (no byte order mark, whitespace or '<' starts with those bytes, in any encoding the
+  detection knows); small compact payloads are decoded once per distinct payload
+  (``DecodedPayloads``: a client sends the same bytes for each read of a component;
+  the decoded Device is immutable) -- about 40 us less Zenoh-thread CPU per read.
+- client: a busy-wait miss of an asynchronous command (SetPosition, accepted on the
+  server's loop: 800-1100 us on this loaded VM, over the 0.5 ms budget) made the next
+  1, 2, 4... up to 256 queries of the RemoteSurface sleep, get_values included (in the
+  run recorded before this pass: 388 misses, and about 1000 of the polling surface's
+  4400 queries slept); misses now back
+  off per lane (``Backoff``; asynchronous commands apart from the rest), so reads keep
+  being polled. A poll also looks at the channel again right after ``sched_yield``
+  (the reply often arrives while the loop's thread yields the core) instead of after
+  one more loop pass.
+- ``GatedEventLoop``: waits shorter than 5 ms are timed with ``select`` on the epoll
+  descriptor, to the microsecond; epoll rounds a timeout up to the next millisecond, so
+  a 100 us ``anyio.sleep`` on the server's loop took 1171 us (now 197-203 us): a motor
+  arriving within a few milliseconds reports COMPLETED on time.
+- tried and reverted: running commands (SetPosition) on Zenoh's thread through the
+  gate as reads are. The reply leaves earlier, but the completion then needs a second
+  wake-up of the loop after it: set_value -> COMPLETED 1468-1547 us vs 1288-1293 us on
+  the loop path (three interleaved pairs).
+
+Decision: the targets are out of reach in the remote layer. The get_value target
+(1.1x, ~35 us over a blocking raw query) is less than what ``Surface.execute_nowait``
+alone costs in situ (44-56 us), and the set targets (1.2x the awaited raw query, about
+550-700 us for the whole set and its COMPLETED) are less than our server's CPU per set
+(830-1000 us on two cores shared with the client, which polls on one of them). What
+would move them is outside openel_zenoh: a cheaper ``Surface.execute_nowait`` (results
+built from already checked values without re-running the model's checks), and a
+cheaper completion chain (SimMotor's watch, the Actuator, the surface's motion watcher;
+a subscription to every event but COMPLETED would spare an event notice per set on both
+sides). The client's polling (its CPU per call in the table) is kept: with
+``busy_wait=0`` get_value is 1.2-1.4x the awaited raw query, polled about 1.0-1.1x.
+
+The two runs recorded below (06:53 and 06:55 UTC) ran while other work loaded this VM
+(load average 3.1 and 2.4 at their start, against 1.4 for the runs before this pass),
+and every figure in them, raw ones included, is slower: get_value 1.46x and 1.45x the
+blocking raw query (0.99-1.01x the awaited one), set_value -> COMPLETED 2.77-3.07x the
+awaited raw query, 4.07-4.42x the blocking one; the client's CPU per get_value fell
+from 539 to 338-371 us (0.81-0.93x the awaited raw query's), as the reads no longer
+sleep after a set's miss. The same code before and after this pass, interleaved at the
+same load (three pairs, p50): set_value -> COMPLETED 1417-1512 us before, 1362-1430
+after; our server's CPU per set 886-1129 us before, 786-814 after, per get 343-500
+before, 314-343 after; get_value 1.33-1.68x a blocking raw query before, 1.22-1.34x
+after.
+
+Issue 12 (the earlier pass that brought get_value from 320 us p50, 2.07x the blocking raw
+query, 1.36x the awaited one):
 
 - client: the reply comes through a Zenoh channel (``session.get`` without a Python
   callback), polled from the loop for at most ``RemoteSurface.busy_wait`` (0.5 ms) with
@@ -81,12 +158,6 @@ What changed in this pass (issue 12, the last missed target; before it: 320 us p
   ``GatedEventLoop``: plain reads (GetPosition...) are answered on Zenoh's thread
   while the loop is parked in ``select``, the loop's gate taken (no loop code runs
   meanwhile: the read is exactly a loop callback's), see docs/remote.md "Threads".
-- what remains between us and the blocking raw query: the server's Python work per
-  read (40-50 us in situ, above), the client's (``Actuator.get_value``, encode
-  once, decode the reply: about 15 us) and, with ``busy_wait=0``, the client hop.
-  Removing more would mean less Python per request (a compiled codec and dispatch)
-  rather than fewer hand-offs: there is no thread hand-off left on the path of a
-  polled read.
 """
 
 from __future__ import annotations
@@ -135,6 +206,17 @@ def free_port() -> int:
         s.bind(("127.0.0.1", 0))
         port: int = s.getsockname()[1]
         return port
+
+
+def process_cpu(pid: int) -> float:
+    """Seconds of CPU the process ``pid`` used so far, every thread (Linux /proc; NaN
+    elsewhere)."""
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def pct(samples: list[float], q: float) -> float:
@@ -378,11 +460,14 @@ def _raw_figures(port: int, calls: int, events: int) -> dict[str, float]:
 
 
 # -- round trips, interleaved -------------------------------------------------------------
-async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, list[float]]:
+async def _round_trips(
+    raw_port: int, our_port: int, calls: int, peers: tuple[int, int] = (0, 0)
+) -> dict[str, list[float]]:
     """get_value of a remote actuator (with the client's default busy-wait, and with
     ``busy_wait=0``), a blocking raw query and a raw query awaited from asyncio, in
     alternating rounds (a load change on the machine hits all four); the calling thread's
-    process CPU time (every thread: the loop, Zenoh's, workers) of each."""
+    process CPU time (every thread: the loop, Zenoh's, workers) of each, and that of the
+    server answering it (``peers``: the pids of the raw and of our server process)."""
 
     from openel_async import Actuator, EventId, ObserverQueue, Request
     from openel_zenoh import RemoteActuator, RemoteSurface, close_session, open_session
@@ -393,6 +478,8 @@ async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, li
     kinds = ("ours", "ours_sleeping", "raw", "raw_async", "set")
     samples: dict[str, list[float]] = {kind: [] for kind in kinds}
     cpu = dict.fromkeys(kinds, 0.0)
+    server_cpu = dict.fromkeys(kinds, 0.0)
+    raw_pid, our_pid = peers
 
     def blocking_round_trips(count: int) -> list[float]:
         out = []
@@ -447,6 +534,8 @@ async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, li
                 per_round = max(1, calls // ROUNDS)
                 for round_ in range(ROUNDS + 1):  # round 0 warms up
                     for kind in kinds:
+                        peer = raw_pid if kind in ("raw", "raw_async") else our_pid
+                        s0 = process_cpu(peer) if peer else float("nan")
                         c0 = time.process_time()
                         if kind == "ours":
                             got = await get_values(axis, per_round)
@@ -461,12 +550,15 @@ async def _round_trips(raw_port: int, our_port: int, calls: int) -> dict[str, li
                         if round_:
                             samples[kind] += got
                             cpu[kind] += time.process_time() - c0
+                            if peer:
+                                server_cpu[kind] += process_cpu(peer) - s0
                 samples["busy"] = [float(remote.busy_hits), float(remote.busy_misses)]
     finally:
         await close_session(session)
         await anyio.to_thread.run_sync(raw.close)
     calls_made = max(1, len(samples["ours"]))
     samples["cpu"] = [cpu[kind] / calls_made for kind in kinds]
+    samples["server_cpu"] = [server_cpu[kind] / calls_made for kind in kinds]
     return samples
 
 
@@ -523,7 +615,8 @@ def run(quick: bool) -> BenchResult:
     try:
         server = spawn("serve", our_port)
         try:
-            rtt = anyio.run(_round_trips, raw_port, our_port, calls, backend="asyncio")
+            peers = (raw_proc.pid, server.pid)
+            rtt = anyio.run(_round_trips, raw_port, our_port, calls, peers, backend="asyncio")
             ours = anyio.run(_our_figures, our_port, calls, events, backend="asyncio")
         finally:
             stop(server)
@@ -544,6 +637,7 @@ def run(quick: bool) -> BenchResult:
     set_async = ratio_of(ours["completion_p50"], raw["async_p50"])
     set_blocking = ratio_of(ours["completion_p50"], raw["rtt_p50"])
     told = ours["received"] + ours["missed"] == events
+    server_cpu = rtt["server_cpu"]  # kinds: ours, ours_sleeping, raw, raw_async, set
     rows = (
         Row("get_value round trip p50", ours["rtt_p50"] * us, "us", raw["rtt_p50"] * us, "raw Zenoh query p50",
             rt_ratio, "ours/raw", f"<= {TARGET_RT_RATIO}x raw", rt_ratio <= TARGET_RT_RATIO),
@@ -559,6 +653,11 @@ def run(quick: bool) -> BenchResult:
             "raw query awaited from asyncio", ratio_of(rtt["cpu"][0], rtt["cpu"][3]), "ours/raw"),
         Row("get_value client process CPU, busy_wait=0", rtt["cpu"][1] * us, "us/call", rtt["cpu"][3] * us,
             "raw query awaited from asyncio", ratio_of(rtt["cpu"][1], rtt["cpu"][3]), "ours/raw"),
+        Row("server process CPU per get_value", server_cpu[0] * us, "us/call", server_cpu[2] * us,
+            "raw server per blocking query", ratio_of(server_cpu[0], server_cpu[2]), "ours/raw"),
+        Row("server process CPU per set_value -> COMPLETED", server_cpu[4] * us, "us/call",
+            server_cpu[2] * us, "raw server per blocking query", ratio_of(server_cpu[4], server_cpu[2]),
+            "ours/raw"),
         Row("set_value -> COMPLETED p50", ours["completion_p50"] * us, "us", raw["async_p50"] * us,
             "raw Zenoh query awaited from asyncio p50", set_async, "ours/raw",
             f"<= {TARGET_SET_ASYNC_RATIO}x raw", set_async <= TARGET_SET_ASYNC_RATIO),

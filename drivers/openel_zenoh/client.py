@@ -16,9 +16,11 @@ reply is seen within microseconds of its arrival, at the price of the loop threa
 for that time; a reply slower than that (a miss) is awaited by a worker thread blocked
 in the channel's ``recv``. Sleeping: a Zenoh callback hands the reply to the sleeping
 loop with one ``call_soon_threadsafe``. After consecutive misses the next 1, 2, 4... up
-to 256 queries sleep, so replies slower than the budget (a LAN, a device that needs I/O)
-cost almost no spinning; ``busy_wait=0`` always sleeps. ``busy_wait`` is in [0, 0.01]
-s; a hit resets the backoff, so replies that steadily come within it are spun for on
+to 256 queries of the same lane sleep, so replies slower than the budget (a LAN, a
+device that needs I/O) cost almost no spinning; executes of asynchronous commands
+(SetPosition...), which a server accepts on a slower path than it answers reads, have
+a lane of their own (:class:`Backoff`); ``busy_wait=0`` always sleeps. ``busy_wait``
+is in [0, 0.01] s; a hit resets its lane's backoff, so replies that steadily come within it are spun for on
 every query (at 1 kHz, replies of 0.2-0.5 ms: up to about half a core); use
 ``busy_wait=0`` when a control loop shares the event loop or CPU matters more than latency.
 
@@ -84,6 +86,26 @@ ASYNCHRONOUS_FUNCTIONS = frozenset(
 """The asynchronous operations of the default dispatch tables (SetPosition, SetSpeed...)."""
 
 
+COMMANDS_LANE = "commands"
+"""The busy-wait lane of executes of asynchronous commands only (see :class:`Backoff`)."""
+
+
+class Backoff:
+    """The busy-wait backoff of one lane of queries: after a miss, the next 1, 2, 4... (at
+    most MAX_SLEEPING_QUERIES) queries of the lane sleep; a hit resets it. Lanes keep
+    replies of different speeds apart: a server answers a read on its fast path and
+    accepts a command (SetPosition) on its event loop, and misses of the slower kind
+    must not make the faster one sleep."""
+
+    __slots__ = ("sleepers_left", "sleepers_next")
+
+    def __init__(self) -> None:
+        self.sleepers_left = 0
+        """Queries of this lane that will sleep before the next one polls."""
+        self.sleepers_next = 1
+        """How many sleep after the next miss."""
+
+
 class RemoteSurface:
     """``async with RemoteSurface(session, namespace) as remote``: a server's surface layer."""
 
@@ -120,8 +142,7 @@ class RemoteSurface:
         """Replies seen while busy-waiting."""
         self.busy_misses = 0
         """Busy-waits that ran out before the reply."""
-        self._sleepers_left = 0
-        self._sleepers_next = 1
+        self._backoffs: dict[str, Backoff] = {}
         self.asynchronous = frozenset(asynchronous)
         """The function names whose ``completed`` follows later (the server's asynchronous
         operations); a reply to any other command expects none."""
@@ -223,9 +244,13 @@ class RemoteSurface:
         self._presence.put(sample.kind == zenoh.SampleKind.PUT)
 
     # -- queries -------------------------------------------------------------------------
-    async def query(self, key: str, payload: bytes, parameters: str = "") -> bytes:
+    async def query(
+        self, key: str, payload: bytes, parameters: str = "", *, lane: str = ""
+    ) -> bytes:
         """One Zenoh query, its first reply's payload; TimeoutError/NotConnectedError.
         ``parameters``: the selector's (``sent_us=...;ttl_us=...``), none by default.
+        ``lane``: which replies' busy-wait misses make this one sleep (see :class:`Backoff`;
+        execute() puts asynchronous commands in a lane of their own).
 
         Polled (the reply through a Zenoh channel, for at most ``busy_wait`` s; a miss
         then awaited by a worker thread blocked in the channel's ``recv``) unless
@@ -234,9 +259,12 @@ class RemoteSurface:
         the query; ``timeout + 1`` s bounds the wait even if it never does.
         """
         if self.busy_wait > 0.0:
-            if self._sleepers_left == 0:
-                return await self._query_polled(key, payload, parameters)
-            self._sleepers_left -= 1
+            backoff = self._backoffs.get(lane)
+            if backoff is None:
+                backoff = self._backoffs[lane] = Backoff()
+            if backoff.sleepers_left == 0:
+                return await self._query_polled(key, payload, parameters, backoff)
+            backoff.sleepers_left -= 1
         return await self._query_sleeping(key, payload, parameters)
 
     @staticmethod
@@ -248,7 +276,9 @@ class RemoteSurface:
         text = err.payload.to_string() if err is not None else "error reply"
         return NotConnectedError(f"{key}: {text}")
 
-    async def _query_polled(self, key: str, payload: bytes, parameters: str = "") -> bytes:
+    async def _query_polled(
+        self, key: str, payload: bytes, parameters: str, backoff: Backoff
+    ) -> bytes:
         replies = self.session.get(
             f"{key}?{parameters}" if parameters else key,
             payload=payload,
@@ -257,7 +287,7 @@ class RemoteSurface:
             consolidation=_NO_CONSOLIDATION,
         )
         try:
-            reply = await self._poll(replies)
+            reply = await self._poll(replies, backoff)
             if reply is None:  # a miss: a worker thread waits (recv releases the GIL)
                 with anyio.move_on_after(self.timeout + 1.0):
                     reply = await anyio.to_thread.run_sync(
@@ -322,10 +352,12 @@ class RemoteSurface:
             raise result
         return result
 
-    async def _poll(self, replies: zenoh.handlers.Handler[zenoh.Reply]) -> zenoh.Reply | None:
+    async def _poll(
+        self, replies: zenoh.handlers.Handler[zenoh.Reply], backoff: Backoff
+    ) -> zenoh.Reply | None:
         """The reply if it comes within ``busy_wait`` s, polled between zero-timeout passes
         of the loop (other tasks and I/O run between them); None: a miss, after which the
-        next 1, 2, 4... (at most MAX_SLEEPING_QUERIES) queries sleep instead."""
+        next 1, 2, 4... (at most MAX_SLEEPING_QUERIES) queries of its lane sleep instead."""
         clock = time.perf_counter
         spin_until = clock() + self.busy_wait
         try_recv = replies.try_recv
@@ -333,14 +365,16 @@ class RemoteSurface:
         # Polling is the point: the reply channel has no loop-side wake-up.
         while (reply := try_recv()) is None and clock() < spin_until:
             yield_cpu()  # a thread ready on this core (Zenoh's, with the reply) runs first
+            if (reply := try_recv()) is not None:  # it often came while this thread yielded:
+                break  # seen now rather than after a loop pass
             await asyncio.sleep(0)
         if reply is not None:
             self.busy_hits += 1
-            self._sleepers_next = 1
+            backoff.sleepers_next = 1
             return reply
         self.busy_misses += 1
-        self._sleepers_left = self._sleepers_next
-        self._sleepers_next = min(2 * self._sleepers_next, MAX_SLEEPING_QUERIES)
+        backoff.sleepers_left = backoff.sleepers_next
+        backoff.sleepers_next = min(2 * backoff.sleepers_next, MAX_SLEEPING_QUERIES)
         return None
 
     def _delivery(self, application: object) -> Delivery:
@@ -364,18 +398,33 @@ class RemoteSurface:
                     self.keys.execute,
                     xml_psm.to_xml(device, declaration=False),
                     self.execute_parameters(),
+                    lane=self.lane_of(device),
                 )
             )
             self._expect_completions(reply, delivery)
             return reply
-        return await self.execute_compact(compact.encode(device), application)
+        return await self.execute_compact(
+            compact.encode(device), application, lane=self.lane_of(device)
+        )
 
-    async def execute_compact(self, payload: bytes, application: object | None = None) -> Device:
+    def lane_of(self, device: Device) -> str:
+        """The busy-wait lane of an execute: ``commands`` when every command of it is
+        asynchronous (a server answers those on a slower path than reads), else the
+        default lane."""
+        for command in device.commands:
+            if command.function_name not in self.asynchronous:
+                return ""
+        return COMMANDS_LANE
+
+    async def execute_compact(
+        self, payload: bytes, application: object | None = None, *, lane: str = ""
+    ) -> Device:
         """execute() of a Device message already in the compact encoding (a caller that
-        sends the same message often encodes it once); the reply is decoded and checked."""
+        sends the same message often encodes it once); the reply is decoded and checked.
+        ``lane``: see :meth:`query` (:meth:`lane_of` tells a Device's)."""
         delivery = self._delivery(application) if application is not None else None
         reply = compact.device_from_compact(
-            await self.query(self.keys.execute, payload, self.execute_parameters())
+            await self.query(self.keys.execute, payload, self.execute_parameters(), lane=lane)
         )
         self._expect_completions(reply, delivery)
         return reply

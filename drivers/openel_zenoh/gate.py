@@ -53,12 +53,18 @@ on Zenoh's thread without waking the loop (see docs/remote.md, "Threads").
 from __future__ import annotations
 
 import asyncio
+import select
 import selectors
 import threading
 from collections.abc import Callable, Mapping
 from typing import Any, cast
 
 from openel_async.errors import BadParameterError
+
+FINE_WAIT_BELOW = 0.005
+"""Waits shorter than this (seconds) are timed to the microsecond, not epoll's millisecond."""
+SELECT_FD_LIMIT = 1024
+"""FD_SETSIZE: ``select.select`` takes descriptors below it only."""
 
 
 class LoopGate:
@@ -122,6 +128,11 @@ class GatedSelector(selectors.BaseSelector):
     def __init__(self, gate: LoopGate, inner: selectors.BaseSelector | None = None) -> None:
         self.gate = gate
         self._inner = inner if inner is not None else selectors.DefaultSelector()
+        epoll: Any = getattr(selectors, "EpollSelector", None)  # Linux only
+        fd = self._inner.fileno() if epoll is not None and isinstance(self._inner, epoll) else -1
+        self._fd: int = fd if 0 <= fd < SELECT_FD_LIMIT else -1
+        """The epoll descriptor, for :meth:`_fine_select` (-1: not an epoll selector, or
+        beyond what ``select`` takes: waits are then epoll's own)."""
 
     def register(self, fileobj: Any, events: int, data: Any = None) -> selectors.SelectorKey:
         return self._inner.register(fileobj, events, data)
@@ -136,9 +147,21 @@ class GatedSelector(selectors.BaseSelector):
         gate = self.gate
         try:  # park inside the try: an exception raised as it returns still resumes
             gate.park()
+            if timeout is not None and 0.0 < timeout < FINE_WAIT_BELOW and self._fd >= 0:
+                return self._fine_select(timeout)
             return self._inner.select(timeout)
         finally:
             gate.resume()
+
+    def _fine_select(self, timeout: float) -> list[tuple[selectors.SelectorKey, int]]:
+        """A short wait to the microsecond: epoll waits whole milliseconds, rounded up, so
+        a timer due in 100 us would fire 1 ms late; ``select`` on the epoll descriptor
+        (readable when one of its descriptors is ready) waits in microseconds."""
+        ready = self._inner.select(0)
+        if ready:
+            return ready
+        select.select([self._fd], [], [], timeout)
+        return self._inner.select(0)
 
     def get_key(self, fileobj: Any) -> selectors.SelectorKey:
         return self._inner.get_key(fileobj)

@@ -65,6 +65,7 @@ from .bridge import ThreadInbox
 from .freshness import DelayBaseline, freshness
 from .gate import LoopGate, enter_as_loop, exit_loop, gate_of, needs_wake, work_marker
 from .keys import Keys
+from .payloads import DecodedPayloads, is_xml
 
 log = get_logger(__name__)
 
@@ -254,6 +255,7 @@ class SurfaceServer:
         self._alive: ThreadInbox[tuple[str, bool]] | None = None
         self._flush_queue: list[_ClientLink] = []
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._payloads = DecodedPayloads()
 
     async def __aenter__(self) -> Self:
         self._loop = asyncio.get_running_loop()
@@ -673,12 +675,7 @@ class SurfaceServer:
 
     def _decoded(self, request: _Request) -> Device:
         if request.device is None:
-            request.xml = is_xml(request.payload)
-            request.device = (
-                xml_psm.device_from_xml(request.payload)
-                if request.xml
-                else compact.device_from_compact(request.payload)
-            )
+            request.device, request.xml = self._payloads.decode(request.payload)
         return request.device
 
     @staticmethod
@@ -792,27 +789,3 @@ class SurfaceServer:
             raise BadParameterError(
                 "payload", f"<{len(request.payload)} bytes>", f"a {request.kind} request ({exc})"
             ) from None
-
-
-_BOMS = (b"\xef\xbb\xbf", b"\xfe\xff", b"\xff\xfe", b"\x00\x00\xfe\xff")
-"""UTF-8, UTF-16 BE, UTF-16 LE (and UTF-32 LE: FF FE 00 00), UTF-32 BE byte order marks."""
-_WIDE = ("utf-16-le", "utf-16-be", "utf-32-le", "utf-32-be")
-
-
-def is_xml(payload: bytes) -> bool:
-    """Whether an execute payload is XML rather than the compact (msgpack) form: a byte order
-    mark, or '<' as its first character after whitespace in UTF-8 or, without a mark, in
-    UTF-16 or UTF-32 (the detection of XML 1.0 Appendix F; a compact Device starts with a
-    msgpack array or map, never with these bytes)."""
-    if payload.startswith(_BOMS) or payload.lstrip(b" \t\r\n")[:1] == b"<":
-        return True
-    head = payload[:64]
-    for encoding in _WIDE:
-        width = 2 if "16" in encoding else 4
-        try:
-            text = head[: len(head) - len(head) % width].decode(encoding)
-        except UnicodeDecodeError:
-            continue
-        if text.lstrip(" \t\r\n")[:1] == "<":
-            return True
-    return False

@@ -351,6 +351,59 @@ async def test_replies_slower_than_the_busy_wait_back_off_to_sleeping_queries() 
         assert (remote.busy_hits, remote.busy_misses) == (0, 4)
 
 
+class SlowCommands(ActuatorDevice):
+    """A command takes 30 ms (a worker serves it); a read has a synchronous path."""
+
+    info = DeviceInfo(kind=DeviceKind.MOTOR)
+    reports_completion = True
+
+    async def open(self, ctx: DeviceContext) -> None:
+        self.ctx = ctx
+
+    async def command(self, request: Request, value: float) -> None:
+        await anyio.sleep(0.03)
+        self.ctx.target_reached()
+
+    async def read(self, request: Request) -> float:
+        return 0.0
+
+    def read_nowait(self, request: Request) -> float:
+        return 0.0
+
+
+async def test_slow_commands_do_not_make_reads_sleep() -> None:
+    """Misses of asynchronous commands back off in a lane of their own: reads answered
+    within the busy-wait keep being polled."""
+    port = free_port()
+    async with (
+        session(server_config([endpoint(port)])) as zs,
+        Actuator(SlowCommands()) as served,
+        Surface([served]) as surface,
+        SurfaceServer(surface, zs, "lanes"),
+        session(client_cfg(port)) as zc,
+        RemoteSurface(zc, "lanes", busy_wait=0.01) as remote,
+    ):
+        await remote.wait_server(5)
+        async with Actuator(RemoteActuator(remote, 0)) as axis:
+            set_position = Device(
+                "Motor", (CommandMessage.call("SetPosition", "", logical_id=0, position=0.1),)
+            )
+            assert remote.lane_of(set_position) == "commands"
+            assert remote.lane_of(get_position()) == ""
+            for _ in range(100):  # until a read was polled and hit: its lane is clear
+                hits = remote.busy_hits
+                await axis.get_value(Request.POSITION_ACTUAL)
+                if remote.busy_hits > hits:
+                    break
+            misses = remote.busy_misses
+            for _ in range(3):  # each a miss (30 ms > 10 ms): the commands' lane backs off
+                await axis.set_value(0.1)
+            assert remote.busy_misses > misses
+            polled = remote.busy_hits + remote.busy_misses
+            await axis.get_value(Request.POSITION_ACTUAL)
+            assert remote.busy_hits + remote.busy_misses == polled + 1  # polled, not asleep
+
+
 async def test_every_query_is_polled_then_answered_whichever_path() -> None:
     port = free_port()
     async with (
