@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 from collections.abc import Awaitable, Callable, Coroutine
 from contextlib import AsyncExitStack
 from enum import Enum
-from types import TracebackType
+from types import MethodType, TracebackType
 from typing import Any, ClassVar, Self
 
 import anyio
@@ -96,13 +97,72 @@ EXIT_DRAIN_S = 1.0
 """How long leaving ``async with component`` waits for async observers (real seconds)."""
 
 
+class _EventPort:
+    """A component's events from its device (``ctx.post_event``), with fast paths.
+
+    While the component notifies (Active, Error) and its event observers are all plain
+    and take no notice, :meth:`post_event` calls them itself: one small slotted object
+    read per event instead of the component's state, its fan-out and that one's per-kind
+    table (at 1000 components, the memory touched per event is what the cost grows with).
+    One observer that is a bound method is called as its function with its object
+    (:attr:`func`, :attr:`obj`: no method object, no tuple read); several, from
+    :attr:`fast`. Otherwise both are None and the event goes the general way
+    (``HALComponent._publish_event``: state test, mailboxes, notices). The component
+    sets them on every state change and observer registration (``_refresh_events``).
+    """
+
+    __slots__ = ("component", "fanout", "fast", "func", "obj", "published")
+
+    def __init__(self, component: HALComponent, fanout: Fanout) -> None:
+        self.component = component
+        self.fanout = fanout
+        self.func: Callable[..., Any] | None = None
+        self.obj: object = None
+        self.fast: tuple[Callable[..., Any], ...] | None = None
+        self.published = 0
+        """Events delivered by the fast paths (added to the fan-out's ``published``)."""
+
+    def set(self, methods: tuple[Callable[..., Any], ...] | None) -> None:
+        if methods is not None and len(methods) == 1 and type(methods[0]) is MethodType:
+            method = methods[0]
+            self.func = method.__func__
+            self.obj = method.__self__
+            self.fast = None
+        else:
+            self.func = None
+            self.obj = None
+            self.fast = methods
+
+    def post_event(self, event_id: int) -> None:
+        func = self.func
+        if func is not None:
+            self.published += 1
+            try:
+                func(self.obj, self.component, event_id)
+            except Exception:
+                self.fanout.failed(MethodType(func, self.obj))
+            return
+        methods = self.fast
+        if methods is None:
+            self.component._publish_event(event_id)
+            return
+        self.published += 1
+        source = self.component
+        for method in methods:
+            try:
+                method(source, event_id)
+            except Exception:
+                self.fanout.failed(method)
+
+
 class _Context:
     """The DeviceContext a component hands to its device."""
 
     def __init__(self, component: HALComponent) -> None:
         self._component = component
-        self.post_event: Callable[[int], None] = component._publish_event
-        """The component's own method (no call through this object: a driver's events are a
+        self.port = _EventPort(component, component._observers)
+        self.post_event: Callable[[int], None] = self.port.post_event
+        """The event port's method (no call through this object: a driver's events are a
         hot path)."""
 
     @property
@@ -284,6 +344,7 @@ class HALComponent:
             self.log.info("state_changed", old=str(old), new=str(state))
             self.state = state
             STATE_CHANGES.value += 1
+            self._refresh_events()
             listener = self._observers.listener
             if listener is not None:
                 listener.on_state(self, old, state)
@@ -417,11 +478,13 @@ class HALComponent:
         """
         self._require("add_observer", S.ACTIVE)
         self._observers.add(observer)
+        self._refresh_events()
 
     def remove_observer(self, observer: object) -> None:
         """RemoveObserver."""
         self._require("remove_observer", S.ACTIVE)
         self._observers.remove(observer)
+        self._refresh_events()
 
     @property
     def observers(self) -> tuple[object, ...]:
@@ -431,7 +494,20 @@ class HALComponent:
     def observer_stats(self) -> ObserverStats:
         """Delivery to the observers: notifications published, failures, and every notice
         dropped on the way to an async observer (mailbox overflow, exit)."""
-        return self._observers.stats()
+        stats = self._observers.stats()
+        fast = self._ctx.port.published
+        return replace(stats, published=stats.published + fast) if fast else stats
+
+    def _refresh_events(self) -> None:
+        """Set the event port's fast path (:class:`_EventPort`) for the state and the
+        observers now."""
+        state = self.state
+        fast: tuple[Callable[..., Any], ...] | None = None
+        if state is _NOTIFY_ACTIVE or state is _NOTIFY_ERROR:
+            direct = self._observers.direct_for("notify_event")
+            if direct is not None and not direct[1]:
+                fast = direct[0]
+        self._ctx.port.set(fast)
 
     def _publish_event(self, event_id: int) -> None:
         state = self.state
