@@ -97,41 +97,74 @@ EXIT_DRAIN_S = 1.0
 """How long leaving ``async with component`` waits for async observers (real seconds)."""
 
 
+_ENTRY_CACHE = 32
+"""Event ids per component whose mailbox entry is kept for reuse (more are built per event)."""
+
+
 class _EventPort:
     """A component's events from its device (``ctx.post_event``), with fast paths.
 
-    While the component notifies (Active, Error) and its event observers are all plain
-    and take no notice, :meth:`post_event` calls them itself: one small slotted object
-    read per event instead of the component's state, its fan-out and that one's per-kind
-    table (at 1000 components, the memory touched per event is what the cost grows with).
-    One observer that is a bound method is called as its function with its object
-    (:attr:`func`, :attr:`obj`: no method object, no tuple read); several, from
-    :attr:`fast`. Otherwise both are None and the event goes the general way
-    (``HALComponent._publish_event``: state test, mailboxes, notices). The component
+    While the component notifies (Active, Error), :meth:`post_event` delivers by itself
+    when its event observers are all alike: one small slotted object read per event
+    instead of the component's state, its fan-out and that one's per-kind table (at 1000
+    components, the memory touched per event is what the cost grows with).
+
+    - One plain observer that is a bound method: called as its function with its object
+      (:attr:`func`, or :attr:`nfunc` with a new ``EventNotice`` when it takes one): no
+      method object, no tuple read.
+    - Plain observers taking no notice: :attr:`fast`, called in order.
+    - Async observers only, taking no notice: :attr:`puts`, their mailboxes' ``put``; the
+      entry for an event id is built once and reused (immutable: nothing allocated per
+      event).
+
+    Otherwise all are None and the event goes the general way
+    (``HALComponent._publish_event``: state test, mixed observers, notices). The component
     sets them on every state change and observer registration (``_refresh_events``).
     """
 
-    __slots__ = ("component", "fanout", "fast", "func", "obj", "published")
+    __slots__ = (
+        "component",
+        "entries",
+        "fanout",
+        "fast",
+        "func",
+        "nfunc",
+        "obj",
+        "published",
+        "puts",
+    )
 
     def __init__(self, component: HALComponent, fanout: Fanout) -> None:
         self.component = component
         self.fanout = fanout
         self.func: Callable[..., Any] | None = None
+        self.nfunc: Callable[..., Any] | None = None
         self.obj: object = None
         self.fast: tuple[Callable[..., Any], ...] | None = None
+        self.puts: tuple[Callable[[Any], None], ...] | None = None
+        self.entries: dict[int, Any] = {}
         self.published = 0
         """Events delivered by the fast paths (added to the fan-out's ``published``)."""
 
-    def set(self, methods: tuple[Callable[..., Any], ...] | None) -> None:
-        if methods is not None and len(methods) == 1 and type(methods[0]) is MethodType:
-            method = methods[0]
-            self.func = method.__func__
-            self.obj = method.__self__
-            self.fast = None
-        else:
-            self.func = None
-            self.obj = None
-            self.fast = methods
+    def set(
+        self,
+        direct: tuple[tuple[Callable[..., Any], ...], bool] | None,
+        puts: tuple[Callable[[Any], None], ...] | None,
+    ) -> None:
+        self.func = self.nfunc = self.obj = self.fast = self.puts = None
+        if direct is not None:
+            methods, with_notice = direct
+            if len(methods) == 1 and type(methods[0]) is MethodType:
+                method = methods[0]
+                self.obj = method.__self__
+                if with_notice:
+                    self.nfunc = method.__func__
+                else:
+                    self.func = method.__func__
+            elif not with_notice:
+                self.fast = methods
+        elif puts is not None:
+            self.puts = puts
 
     def post_event(self, event_id: int) -> None:
         func = self.func
@@ -141,6 +174,29 @@ class _EventPort:
                 func(self.obj, self.component, event_id)
             except Exception:
                 self.fanout.failed(MethodType(func, self.obj))
+            return
+        func = self.nfunc
+        if func is not None:
+            self.published += 1
+            source = self.component
+            try:
+                func(self.obj, source, event_id, EventNotice(source, event_id))
+            except Exception:
+                self.fanout.failed(MethodType(func, self.obj))
+            return
+        puts = self.puts
+        if puts is not None:
+            self.published += 1
+            entry = self.entries.get(event_id)
+            if entry is None:
+                entry = self.fanout.mailbox_entry("notify_event", (self.component, event_id))
+                if len(self.entries) < _ENTRY_CACHE:
+                    self.entries[event_id] = entry
+            wakeup = self.fanout.wakeup
+            if wakeup.waiter is not None:  # mailbox tasks wait (Fanout._wake, inlined)
+                wakeup.set()
+            for put in puts:
+                put(entry)
             return
         methods = self.fast
         if methods is None:
@@ -502,12 +558,12 @@ class HALComponent:
         """Set the event port's fast path (:class:`_EventPort`) for the state and the
         observers now."""
         state = self.state
-        fast: tuple[Callable[..., Any], ...] | None = None
+        port = self._ctx.port
         if state is _NOTIFY_ACTIVE or state is _NOTIFY_ERROR:
-            direct = self._observers.direct_for("notify_event")
-            if direct is not None and not direct[1]:
-                fast = direct[0]
-        self._ctx.port.set(fast)
+            observers = self._observers
+            port.set(observers.direct_for("notify_event"), observers.mailbox_puts("notify_event"))
+        else:
+            port.set(None, None)
 
     def _publish_event(self, event_id: int) -> None:
         state = self.state

@@ -398,6 +398,23 @@ class Fanout:
             self._build_targets(kind)
         return self.direct.get(kind)
 
+    def mailbox_puts(self, kind: str) -> tuple[Callable[[Any], None], ...] | None:
+        """When every observer of ``kind`` has a mailbox and none takes the notice: their
+        mailboxes' ``put`` in registration order, for a publisher's own loop (with
+        :meth:`mailbox_entry`, and :attr:`wakeup` set first); otherwise None."""
+        targets = self._targets.get(kind)
+        if targets is None:
+            targets = self._build_targets(kind)
+        if not targets or any(mailbox is None or wants for _, wants, mailbox, _ in targets):
+            return None
+        return tuple(mailbox.put for _, _, mailbox, _ in targets if mailbox is not None)
+
+    @staticmethod
+    def mailbox_entry(kind: str, args: tuple[Any, ...]) -> object:
+        """What :meth:`publish` puts in the mailboxes for ``kind`` with ``args`` and no
+        notice (immutable: a publisher may reuse it)."""
+        return (kind, args, None)
+
     def failed(self, method: Callable[..., Any]) -> None:
         """A plain observer's ``method`` raised (called from a :attr:`direct` loop, in the
         ``except`` block)."""
