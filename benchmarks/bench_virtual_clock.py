@@ -277,7 +277,11 @@ isolated loop (100 motors, virtual time advanced 1 ms per round, 7 rounds of 300
 alone (`command_nowait`: evaluate the previous profile, plan the trapezoid, the limit
 test) 3.5-4.3 µs; cProfile puts the trapezoid's own arithmetic and the driver's
 `command_nowait` body at about 40 % each of the driver, the watcher task's re-planning at
-under 4 % (1309 cancelled waits for 29,900 commands). Cut in this pass for this row: the
+under 4 % (1309 cancelled waits for 29,900 commands). Inside this benchmark the same
+commands cost more (the event loop runs between ticks: caches are cold): timing the timer
+observer itself, 6.3-9.9 µs CPU per motor and tick for the driver alone, 12.1-13.5 µs
+through `set_value_nowait`, and 3-6 µs more per motor and tick outside it (the timer, the
+virtual clock's jumps, the watchers), at load 2.4-3. Cut in this pass for this row: the
 superseded Motion nobody awaits is finished inline (one call less per command). Decision: the <= 5 µs target is not reached in pure Python on this
 machine; the driver alone is most of the budget before any framework work, and the
 component's share (the checks, the sequence, the `Motion`; 1.5-2.5 µs) is a handful of
