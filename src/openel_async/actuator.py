@@ -273,7 +273,10 @@ class Actuator(HALComponent):
             self._motion = motion
             if previous is not None and previous.outcome is _PENDING:
                 previous._superseded_by = sequence  # previous._supersede(sequence), inline
-                previous._finish(_SUPERSEDED)
+                if previous._done is None:  # nobody waits: _finish(_SUPERSEDED), inline
+                    previous.outcome = _SUPERSEDED
+                else:
+                    previous._finish(_SUPERSEDED)
             self._commanded[req] = target
             if not self._reports_completion:
                 self._watch.set()

@@ -11,8 +11,9 @@ import itertools
 import math
 from collections.abc import Awaitable, Callable, Coroutine
 from contextlib import AsyncExitStack
+from dataclasses import replace
 from enum import Enum
-from types import TracebackType
+from types import MethodType, TracebackType
 from typing import Any, ClassVar, Self
 
 import anyio
@@ -96,13 +97,128 @@ EXIT_DRAIN_S = 1.0
 """How long leaving ``async with component`` waits for async observers (real seconds)."""
 
 
+_ENTRY_CACHE = 32
+"""Event ids per component whose mailbox entry is kept for reuse (more are built per event)."""
+
+
+class _EventPort:
+    """A component's events from its device (``ctx.post_event``), with fast paths.
+
+    While the component notifies (Active, Error), :meth:`post_event` delivers by itself
+    when its event observers are all alike: one small slotted object read per event
+    instead of the component's state, its fan-out and that one's per-kind table (at 1000
+    components, the memory touched per event is what the cost grows with).
+
+    - One plain observer that is a bound method: called as its function with its object
+      (:attr:`func`, or :attr:`nfunc` with a new ``EventNotice`` when it takes one): no
+      method object, no tuple read.
+    - Plain observers taking no notice: :attr:`fast`, called in order.
+    - Async observers only, taking no notice: :attr:`puts`, their mailboxes' ``put``; the
+      entry for an event id is built once and reused (immutable: nothing allocated per
+      event).
+
+    Otherwise all are None and the event goes the general way
+    (``HALComponent._publish_event``: state test, mixed observers, notices). The component
+    sets them on every state change and observer registration (``_refresh_events``).
+    """
+
+    __slots__ = (
+        "component",
+        "entries",
+        "fanout",
+        "fast",
+        "func",
+        "nfunc",
+        "obj",
+        "published",
+        "puts",
+    )
+
+    def __init__(self, component: HALComponent, fanout: Fanout) -> None:
+        self.component = component
+        self.fanout = fanout
+        self.func: Callable[..., Any] | None = None
+        self.nfunc: Callable[..., Any] | None = None
+        self.obj: object = None
+        self.fast: tuple[Callable[..., Any], ...] | None = None
+        self.puts: tuple[Callable[[Any], None], ...] | None = None
+        self.entries: dict[int, Any] = {}
+        self.published = 0
+        """Events delivered by the fast paths (added to the fan-out's ``published``)."""
+
+    def set(
+        self,
+        direct: tuple[tuple[Callable[..., Any], ...], bool] | None,
+        puts: tuple[Callable[[Any], None], ...] | None,
+    ) -> None:
+        self.func = self.nfunc = self.obj = self.fast = self.puts = None
+        if direct is not None:
+            methods, with_notice = direct
+            if len(methods) == 1 and type(methods[0]) is MethodType:
+                method = methods[0]
+                self.obj = method.__self__
+                if with_notice:
+                    self.nfunc = method.__func__
+                else:
+                    self.func = method.__func__
+            elif not with_notice:
+                self.fast = methods
+        elif puts is not None:
+            self.puts = puts
+
+    def post_event(self, event_id: int) -> None:
+        func = self.func
+        if func is not None:
+            self.published += 1
+            try:
+                func(self.obj, self.component, event_id)
+            except Exception:
+                self.fanout.failed(MethodType(func, self.obj))
+            return
+        func = self.nfunc
+        if func is not None:
+            self.published += 1
+            source = self.component
+            try:
+                func(self.obj, source, event_id, EventNotice(source, event_id))
+            except Exception:
+                self.fanout.failed(MethodType(func, self.obj))
+            return
+        puts = self.puts
+        if puts is not None:
+            self.published += 1
+            entry = self.entries.get(event_id)
+            if entry is None:
+                entry = self.fanout.mailbox_entry("notify_event", (self.component, event_id))
+                if len(self.entries) < _ENTRY_CACHE:
+                    self.entries[event_id] = entry
+            wakeup = self.fanout.wakeup
+            if wakeup.waiter is not None:  # mailbox tasks wait (Fanout._wake, inlined)
+                wakeup.set()
+            for put in puts:
+                put(entry)
+            return
+        methods = self.fast
+        if methods is None:
+            self.component._publish_event(event_id)
+            return
+        self.published += 1
+        source = self.component
+        for method in methods:
+            try:
+                method(source, event_id)
+            except Exception:
+                self.fanout.failed(method)
+
+
 class _Context:
     """The DeviceContext a component hands to its device."""
 
     def __init__(self, component: HALComponent) -> None:
         self._component = component
-        self.post_event: Callable[[int], None] = component._publish_event
-        """The component's own method (no call through this object: a driver's events are a
+        self.port = _EventPort(component, component._observers)
+        self.post_event: Callable[[int], None] = self.port.post_event
+        """The event port's method (no call through this object: a driver's events are a
         hot path)."""
 
     @property
@@ -284,6 +400,7 @@ class HALComponent:
             self.log.info("state_changed", old=str(old), new=str(state))
             self.state = state
             STATE_CHANGES.value += 1
+            self._refresh_events()
             listener = self._observers.listener
             if listener is not None:
                 listener.on_state(self, old, state)
@@ -417,11 +534,13 @@ class HALComponent:
         """
         self._require("add_observer", S.ACTIVE)
         self._observers.add(observer)
+        self._refresh_events()
 
     def remove_observer(self, observer: object) -> None:
         """RemoveObserver."""
         self._require("remove_observer", S.ACTIVE)
         self._observers.remove(observer)
+        self._refresh_events()
 
     @property
     def observers(self) -> tuple[object, ...]:
@@ -431,7 +550,20 @@ class HALComponent:
     def observer_stats(self) -> ObserverStats:
         """Delivery to the observers: notifications published, failures, and every notice
         dropped on the way to an async observer (mailbox overflow, exit)."""
-        return self._observers.stats()
+        stats = self._observers.stats()
+        fast = self._ctx.port.published
+        return replace(stats, published=stats.published + fast) if fast else stats
+
+    def _refresh_events(self) -> None:
+        """Set the event port's fast path (:class:`_EventPort`) for the state and the
+        observers now."""
+        state = self.state
+        port = self._ctx.port
+        if state is _NOTIFY_ACTIVE or state is _NOTIFY_ERROR:
+            observers = self._observers
+            port.set(observers.direct_for("notify_event"), observers.mailbox_puts("notify_event"))
+        else:
+            port.set(None, None)
 
     def _publish_event(self, event_id: int) -> None:
         state = self.state

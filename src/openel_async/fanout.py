@@ -57,6 +57,26 @@ _APPEND_LIMIT = 32
 class _Mailbox:
     """The queue and task that deliver to one observer with async methods."""
 
+    # Slots: read once per notice by the publisher and the task (no instance dict).
+    __slots__ = (
+        "__weakref__",
+        "abandoned",
+        "busy",
+        "closed",
+        "delivered",
+        "discarded",
+        "fanout",
+        "idle",
+        "items",
+        "missed",
+        "observer",
+        "overflowed",
+        "owner",
+        "queued",
+        "routes",
+        "size",
+    )
+
     def __init__(
         self, fanout: Fanout, observer: object, routes: dict[str, Route], size: int
     ) -> None:
@@ -72,12 +92,12 @@ class _Mailbox:
         self.discarded = 0
         self.abandoned = 0
         self.missed = 0
-        """Dropped since the last delivery: reported with the next notice delivered."""
+        # Dropped since the last delivery: reported with the next notice delivered.
         self.busy = False
         self.closed = False
         self.idle: anyio.Event | None = None
-        """Set when the mailbox is empty and nothing is being delivered; created only for
-        :meth:`wait_idle` (not on every notice)."""
+        # Set when the mailbox is empty and nothing is being delivered; created only for
+        # wait_idle (not on every notice).
 
     def put(self, entry: _Entry) -> None:
         self.queued += 1
@@ -131,10 +151,13 @@ class _Mailbox:
         self.busy = False  # (re)started by bind: nothing is being delivered yet
         fanout = self.fanout
         items = self.items
+        popleft = items.popleft
+        routes = self.routes
+        wakeup = fanout.wakeup
         while True:
             while items:
-                kind, args, notice = items.popleft()
-                method, with_notice = self.routes[kind]
+                kind, args, notice = popleft()
+                method, with_notice = routes[kind]
                 missed = self.missed
                 if missed:
                     self.missed = 0
@@ -158,12 +181,12 @@ class _Mailbox:
                     log.exception("observer_failed", owner=self.owner, observer=repr(self.observer))
                 self.busy = False
                 self.delivered += 1
-            self._set_idle()
+            if self.idle is not None:
+                self._set_idle()
             if self.closed:
                 fanout.leaving.discard(self)
                 return
             # fanout.work() inlined (one coroutine frame less per notice)
-            wakeup = fanout.wakeup
             future = wakeup.arm()
             try:
                 await future
@@ -368,6 +391,29 @@ class Fanout:
             if len(wants) == 1:
                 self.direct[kind] = (tuple(target[0] for target in targets), wants.pop())
         return targets
+
+    def direct_for(self, kind: str) -> tuple[tuple[Callable[..., Any], ...], bool] | None:
+        """:attr:`direct` of ``kind``, its targets rebuilt first if a change emptied them."""
+        if kind not in self._targets:
+            self._build_targets(kind)
+        return self.direct.get(kind)
+
+    def mailbox_puts(self, kind: str) -> tuple[Callable[[Any], None], ...] | None:
+        """When every observer of ``kind`` has a mailbox and none takes the notice: their
+        mailboxes' ``put`` in registration order, for a publisher's own loop (with
+        :meth:`mailbox_entry`, and :attr:`wakeup` set first); otherwise None."""
+        targets = self._targets.get(kind)
+        if targets is None:
+            targets = self._build_targets(kind)
+        if not targets or any(mailbox is None or wants for _, wants, mailbox, _ in targets):
+            return None
+        return tuple(mailbox.put for _, _, mailbox, _ in targets if mailbox is not None)
+
+    @staticmethod
+    def mailbox_entry(kind: str, args: tuple[Any, ...]) -> object:
+        """What :meth:`publish` puts in the mailboxes for ``kind`` with ``args`` and no
+        notice (immutable: a publisher may reuse it)."""
+        return (kind, args, None)
 
     def failed(self, method: Callable[..., Any]) -> None:
         """A plain observer's ``method`` raised (called from a :attr:`direct` loop, in the

@@ -136,6 +136,19 @@ class NoticeQueue(Generic[N]):
     log_prefix: ClassVar[str] = "notice_queue"
     """Prefix of the log events (``<prefix>_overflow``, ``<prefix>_missed``)."""
 
+    # Slots: the producer and the consumer read them once per notice (no instance dict).
+    __slots__ = (
+        "__weakref__",
+        "_closed",
+        "_items",
+        "_missed",
+        "_wakeup",
+        "delivered",
+        "maxsize",
+        "missed_total",
+        "name",
+    )
+
     def __init__(self, maxsize: int = 1024, *, name: str = "queue") -> None:
         if isinstance(maxsize, bool) or not isinstance(maxsize, int) or maxsize < 1:
             raise BadParameterError("maxsize", maxsize, "an int >= 1")
@@ -248,6 +261,7 @@ class ObserverQueue(NoticeQueue[Notice]):
     """A bounded, async-iterable queue that is both a HALObserver and a TimerObserver."""
 
     log_prefix = "observer_queue"
+    __slots__ = ()
 
     # Publishers pass the notice they built once for all their observers; called with
     # the spec's arguments only, the queue builds it.
