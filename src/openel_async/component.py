@@ -118,8 +118,10 @@ class _EventPort:
       event).
 
     Otherwise all are None and the event goes the general way
-    (``HALComponent._publish_event``: state test, mixed observers, notices). The component
-    sets them on every state change and observer registration (``_refresh_events``).
+    (``HALComponent._publish_event``: state test, mixed observers, notices). A state change
+    or an observer registration only marks the port :attr:`stale` (O(1): registering N
+    observers stays O(N) in all); the next event sets the fast paths again
+    (``HALComponent._refresh_events``, O(observers) once).
     """
 
     __slots__ = (
@@ -132,6 +134,7 @@ class _EventPort:
         "obj",
         "published",
         "puts",
+        "stale",
     )
 
     def __init__(self, component: HALComponent, fanout: Fanout) -> None:
@@ -145,6 +148,8 @@ class _EventPort:
         self.entries: dict[int, Any] = {}
         self.published = 0
         """Events delivered by the fast paths (added to the fan-out's ``published``)."""
+        self.stale = False
+        """The state or the observers changed since the fast paths were set."""
 
     def set(
         self,
@@ -200,6 +205,12 @@ class _EventPort:
             return
         methods = self.fast
         if methods is None:
+            if self.stale:  # the first event since a change: set the fast paths, then go
+                self.stale = False
+                self.component._refresh_events()
+                if self.func or self.nfunc or self.puts or self.fast:
+                    self.post_event(event_id)
+                    return
             self.component._publish_event(event_id)
             return
         self.published += 1
@@ -400,7 +411,7 @@ class HALComponent:
             self.log.info("state_changed", old=str(old), new=str(state))
             self.state = state
             STATE_CHANGES.value += 1
-            self._refresh_events()
+            self._events_changed()
             listener = self._observers.listener
             if listener is not None:
                 listener.on_state(self, old, state)
@@ -534,13 +545,13 @@ class HALComponent:
         """
         self._require("add_observer", S.ACTIVE)
         self._observers.add(observer)
-        self._refresh_events()
+        self._events_changed()
 
     def remove_observer(self, observer: object) -> None:
         """RemoveObserver."""
         self._require("remove_observer", S.ACTIVE)
         self._observers.remove(observer)
-        self._refresh_events()
+        self._events_changed()
 
     @property
     def observers(self) -> tuple[object, ...]:
@@ -553,6 +564,13 @@ class HALComponent:
         stats = self._observers.stats()
         fast = self._ctx.port.published
         return replace(stats, published=stats.published + fast) if fast else stats
+
+    def _events_changed(self) -> None:
+        """The state or the observers changed: the event port's fast paths are set again
+        by the next event (:class:`_EventPort`), not here (registration stays O(1))."""
+        port = self._ctx.port
+        port.set(None, None)
+        port.stale = True
 
     def _refresh_events(self) -> None:
         """Set the event port's fast path (:class:`_EventPort`) for the state and the

@@ -148,3 +148,33 @@ async def test_no_event_once_finalized(shape: str) -> None:
         await anyio.lowlevel.checkpoint()
         assert log == []
         assert actuator.observer_stats.unpublished == 1
+
+
+async def test_registering_observers_does_not_rebuild_the_fast_paths_each_time(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Registration stays O(1) per observer: the fast paths (O(observers) to build) are
+    set by the first event after a change, once."""
+    from openel_async.fanout import Fanout
+
+    builds: list[int] = []
+    mailbox_puts = Fanout.mailbox_puts
+
+    def counting(self: Fanout, kind: str) -> Any:
+        builds.append(len(self))
+        return mailbox_puts(self, kind)
+
+    monkeypatch.setattr(Fanout, "mailbox_puts", counting)
+    log: list[Any] = []
+    async with Actuator(EventSource(), clock=VirtualClock()) as actuator:
+        device = actuator.device
+        assert isinstance(device, EventSource) and device.ctx is not None
+        builds.clear()
+        for i in range(50):
+            actuator.add_observer(Plain(log, f"p{i}"))
+        assert builds == []
+        device.ctx.post_event(1)
+        device.ctx.post_event(2)
+        assert builds == [50]  # once, at the first event
+        assert [entry[2] for entry in log] == [1] * 50 + [2] * 50
+        assert actuator.observer_stats.published == 2
