@@ -49,7 +49,7 @@ import itertools
 import math
 import statistics
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import AsyncExitStack
 from typing import NamedTuple
 
@@ -226,6 +226,39 @@ def _enable(node: canopen.RemoteNode) -> None:
                 raise AssertionError(f"canopen: no statusword after controlword {word:#x}")
 
 
+class _Pacer:
+    """The peers' cycle: ``time.perf_counter`` deadlines ``period_s`` apart, sleeping to each
+    (``spin``: busy-waiting); a deadline missed by a whole period is skipped, as our timer
+    does, and the skipped periods after the warm-up counted in :attr:`missed`."""
+
+    def __init__(self, period_s: float, *, spin: bool = False) -> None:
+        self.period_s = period_s
+        self.spin = spin
+        self.missed = 0
+
+    def ticks(self, total: int) -> Iterator[int]:
+        """1..``total``, each at its deadline."""
+        period = self.period_s
+        clock = time.perf_counter
+        deadline = clock()
+        for tick in range(1, total + 1):
+            deadline += period
+            now = clock()
+            if now - deadline >= period:  # skip the whole periods missed
+                skipped = int((now - deadline) // period)
+                deadline += skipped * period
+                if tick > WARMUP_CYCLES:
+                    self.missed += skipped
+            if self.spin:
+                while clock() < deadline:
+                    pass
+            else:
+                delay = deadline - clock()
+                if delay > 0:
+                    time.sleep(delay)
+            yield tick
+
+
 def peer(cycles: int, period_ms: float) -> Run:
     with CspPeersProcess(NODES) as peers:
         network = canopen.Network(peers.bus())
@@ -252,22 +285,9 @@ def peer(cycles: int, period_ms: float) -> Run:
             counts_per_rad = 10_000 / math.tau
             period = period_ms / 1000
             total = cycles + WARMUP_CYCLES
-            missed = 0
+            pacer = _Pacer(period)
             cpu0 = 0.0
-            deadline = time.perf_counter()
-            tick = 0
-            while tick < total:
-                deadline += period
-                now = time.perf_counter()
-                if now - deadline >= period:  # skip the whole periods missed
-                    skipped = int((now - deadline) // period)
-                    deadline += skipped * period
-                    if tick >= WARMUP_CYCLES:
-                        missed += skipped
-                delay = deadline - time.perf_counter()
-                if delay > 0:
-                    time.sleep(delay)
-                tick += 1
+            for tick in pacer.ticks(total):
                 counts = round(_target(tick) * counts_per_rad)
                 for target, rpdo in zip(targets, rpdos, strict=True):
                     target.raw = counts
@@ -282,7 +302,7 @@ def peer(cycles: int, period_ms: float) -> Run:
         finally:
             network.disconnect()
     p50, p99 = jitter(_measured(peers.sync_stamps_ns, cycles), period_ms / 1000)
-    return Run(p50, p99, cpu / cycles, missed, cycles)
+    return Run(p50, p99, cpu / cycles, pacer.missed, cycles)
 
 
 def floor(cycles: int, period_ms: float, *, spin: bool) -> Run:
@@ -295,25 +315,9 @@ def floor(cycles: int, period_ms: float, *, spin: bool) -> Run:
         sync = can.Message(arbitration_id=0x080, data=b"", is_extended_id=False)
         period = period_ms / 1000
         total = cycles + WARMUP_CYCLES
-        missed = 0
+        pacer = _Pacer(period, spin=spin)
         cpu0 = 0.0
-        clock = time.perf_counter
-        deadline = clock()
-        for tick in range(1, total + 1):
-            deadline += period
-            now = clock()
-            if now - deadline >= period:
-                skipped = int((now - deadline) // period)
-                deadline += skipped * period
-                if tick > WARMUP_CYCLES:
-                    missed += skipped
-            if spin:
-                while clock() < deadline:
-                    pass
-            else:
-                delay = deadline - clock()
-                if delay > 0:
-                    time.sleep(delay)
+        for tick in pacer.ticks(total):
             bus.send(sync)
             while bus.recv(0.0) is not None:
                 pass
@@ -322,7 +326,7 @@ def floor(cycles: int, period_ms: float, *, spin: bool) -> Run:
         cpu = time.process_time() - cpu0
         bus.shutdown()
     p50, p99 = jitter(_measured(peers.sync_stamps_ns, cycles), period_ms / 1000)
-    return Run(p50, p99, cpu / cycles, missed, cycles)
+    return Run(p50, p99, cpu / cycles, pacer.missed, cycles)
 
 
 def run(quick: bool) -> BenchResult:

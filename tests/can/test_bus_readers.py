@@ -279,10 +279,7 @@ async def test_read_now_is_refused_on_a_bus_not_read_through_its_descriptor() ->
 
 def _ids(bus: can.BusABC) -> list[int]:
     """The arbitration ids of every frame waiting on a raw bus."""
-    ids = []
-    while (msg := bus.recv(0)) is not None:
-        ids.append(msg.arbitration_id)
-    return ids
+    return [msg.arbitration_id for msg in drain(bus)]
 
 
 async def test_can_sync_sends_sync_first_at_each_tick_then_reads_the_bus() -> None:
