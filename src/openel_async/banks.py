@@ -18,7 +18,7 @@ from __future__ import annotations
 import functools
 import math
 import sys
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Awaitable, Callable, Iterable, Iterator, Sequence
 from types import CodeType, FunctionType
 from typing import Any, TypeVar, cast
 
@@ -365,11 +365,10 @@ class ActuatorBank:
         now_ns = self._now_ns
         if streamed is None or batch is None or now_ns is None or not self._positions:
             return None
-        if len(lows) != len(self._devices) or len(highs) != len(self._devices):
+        bounds = self._proof(lows, highs)
+        if bounds is None:
             return None
-        lows, highs = tuple(lows), tuple(highs)
-        if not self._proves(lows, highs):
-            return None
+        lows, highs = bounds
         actuators = self.actuators
         setpoint_events = self.setpoint_events
         proves = functools.partial(self._proves, lows, highs)
@@ -395,6 +394,53 @@ class ActuatorBank:
                 stream_targets(actuators, _POSITION, values, stamp, setpoint_events)
 
         return send
+
+    def position_stream_awaited(
+        self, lows: Sequence[float], highs: Sequence[float]
+    ) -> Callable[[list[float]], Awaitable[None]] | None:
+        """:meth:`position_stream` over devices that need an await: ``send(values)`` returns
+        the awaitable of :meth:`set_values` without the per-value checks the proof made once
+        (one awaited device batch, ``ActuatorDevice.async_batch_commander``).  None when the
+        bank has no awaited device batch (or the proof fails, as for :meth:`position_stream`).
+
+        The same checks stay per batch: every actuator Active before anything is sent (a
+        ``StateError`` raised by ``send`` itself, nothing sent), the proof made again when a
+        device's limits were set (while it fails, the batch goes through :meth:`set_values`).
+        ``send`` is a plain function returning the batch's coroutine: no coroutine of its own.
+        """
+        streamed = self._streamed
+        now_ns = self._now_ns
+        if streamed is None or self._async_batch is None or now_ns is None or not self._positions:
+            return None
+        bounds = self._proof(lows, highs)
+        if bounds is None:
+            return None
+        actuators = self.actuators
+        proves = functools.partial(self._proves, *bounds)
+        proven_at = self._limits_at  # LIMITS_CHANGES.value when the proof last held
+        send_awaited = self._send_awaited
+
+        def send(values: list[float]) -> Awaitable[None]:
+            nonlocal proven_at
+            if proven_at != LIMITS_CHANGES.value:  # a device's limits were set: prove again
+                if not proves():  # this batch, value by value (else nothing is sent)
+                    return self.set_values(values, _POSITION)
+                proven_at = self._limits_at
+            if self._active_at != STATE_CHANGES.value:
+                self._active_at = _require_all_active(actuators, "set_values", -1)
+            return send_awaited(_POSITION, values)
+
+        return send
+
+    def _proof(
+        self, lows: Sequence[float], highs: Sequence[float]
+    ) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+        """``(lows, highs)`` as tuples if they prove every batch within them (one bound per
+        device, finite, within the device's limits), else None."""
+        if len(lows) != len(self._devices) or len(highs) != len(self._devices):
+            return None
+        bounds = tuple(lows), tuple(highs)
+        return bounds if self._proves(*bounds) else None
 
     def _proves(self, lows: Sequence[float], highs: Sequence[float]) -> bool:
         """Whether every ``[lows[i], highs[i]]`` is finite and within device i's position

@@ -18,6 +18,7 @@ from openel_async import (
     ActuatorBank,
     ActuatorDevice,
     ActuatorLimits,
+    BadParameterError,
     ComponentState,
     DeviceContext,
     DeviceFaultError,
@@ -26,10 +27,11 @@ from openel_async import (
     NotConnectedError,
     Outcome,
     Request,
+    StateError,
     VirtualClock,
 )
 from openel_async.device import AsyncBatchCommander
-from openel_async.motion import AxisGroup, AxisLimits
+from openel_async.motion import AxisFaultError, AxisGroup, AxisLimits
 from openel_async.testing import ComponentStack, EventRecorder
 
 COMPLETED = EventId.COMPLETED
@@ -224,3 +226,106 @@ async def test_an_axis_group_over_bus_servos_sends_one_batch_per_tick(
     assert len(BusServo.batches) > 10
     assert all(s.commands == [] for s in servos)
     assert BusServo.batches[-1] == (Request.POSITION, (0.2, -0.1, 0.05))
+
+
+def _proven_awaited(group: AxisGroup) -> bool:
+    """Whether the running motion streams through the proven awaited tick."""
+    return group._fast_step is not None and group._fast_motion is group.current
+
+
+async def test_a_proven_group_move_over_bus_servos_sends_the_plan_unchecked_per_value(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    """A move whose whole path lies within every servo's limits streams through the proven
+    awaited tick: one batch per tick, each the plan's positions at that tick, the last the
+    exact target (taken by the general path, which starts the goal check)."""
+    _, actuators = await _servos(hal_components, 3)
+    limits = AxisLimits(max_velocity=1.0, max_acceleration=5.0, max_jerk=50.0)
+    async with (
+        EventTimer(1, clock=virtual_clock) as timer,
+        AxisGroup(actuators, timer=timer, limits=limits) as group,
+    ):
+        motion = await group.move_to([0.5, -0.25, 1.0])
+        assert _proven_awaited(group)
+        with anyio.fail_after(10):
+            await motion
+        assert group._fast_step is None  # ended on the general path
+    plan = motion._plan
+    sent = [values for _, values in BusServo.batches]
+    assert len(sent) > 100 and sent[-1] == (0.5, -0.25, 1.0)
+    times = [plan.start_ns + k * 1_000_000 for k in range(1, len(sent))]
+    assert [tuple(plan.positions(t)) for t in times] == sent[:-1]
+
+
+async def test_an_axis_finalized_mid_proven_awaited_move_stops_the_next_batch(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    _, actuators = await _servos(hal_components, 3)
+    limits = AxisLimits(max_velocity=1.0, max_acceleration=5.0, max_jerk=50.0)
+    async with (
+        EventTimer(1, clock=virtual_clock) as timer,
+        AxisGroup(actuators, timer=timer, limits=limits) as group,
+    ):
+        motion = await group.move_to([1.0, 1.0, 1.0])
+        assert _proven_awaited(group)
+        await virtual_clock.sleep(0.2)
+        await actuators[1].finalize()
+        sent = len(BusServo.batches)
+        with pytest.raises(AxisFaultError) as info, anyio.fail_after(10):
+            await motion
+        assert info.value.axis == 1 and "Finalized" in str(info.value)
+        await virtual_clock.sleep(0.05)
+        assert len(BusServo.batches) == sent  # not one batch after the axis left Active
+
+
+async def test_limits_narrowed_mid_proven_awaited_move_stop_the_next_batch(
+    hal_components: ComponentStack, virtual_clock: VirtualClock
+) -> None:
+    """The proof is made again when a servo's limits are set mid-move; a batch outside the
+    new limits is refused value by value (AxisFaultError caused by the bank's
+    BadParameterError), nothing sent."""
+    servos, actuators = await _servos(hal_components, 2)
+    limits = AxisLimits(max_velocity=1.0, max_acceleration=5.0, max_jerk=50.0)
+    async with (
+        EventTimer(1, clock=virtual_clock) as timer,
+        AxisGroup(actuators, timer=timer, limits=limits) as group,
+    ):
+        motion = await group.move_to([1.5, 0.5])
+        assert _proven_awaited(group)
+        while group.commanded[0] < 0.5:
+            await virtual_clock.sleep(0.01)
+        for servo in servos:  # narrowed but around the path: the move goes on
+            servo.limits = ActuatorLimits((-1.8, 1.8), 1.0, 1.0)
+        while group.commanded[0] < 0.8:
+            await virtual_clock.sleep(0.01)
+        assert not motion.done()
+        servos[0].limits = ActuatorLimits((-1.0, 1.0), 1.0, 1.0)  # across the path
+        with pytest.raises(AxisFaultError) as info, anyio.fail_after(10):
+            await motion
+        cause = info.value.cause
+        assert info.value.axis == 0 and isinstance(cause, BadParameterError)
+        assert cause.parameter == "values[0]"
+        last = BusServo.batches[-1][1]
+        assert 0.9 < last[0] <= 1.0 and tuple(group.commanded) == last
+        sent = len(BusServo.batches)
+        await virtual_clock.sleep(0.05)
+        assert len(BusServo.batches) == sent
+
+
+async def test_the_awaited_stream_needs_an_awaited_batch_and_a_proof(
+    hal_components: ComponentStack,
+) -> None:
+    servos, actuators = await _servos(hal_components, 2)
+    bank = ActuatorBank(actuators)
+    assert bank.position_stream([-0.5, -0.5], [0.5, 0.5]) is None  # no synchronous path
+    assert bank.position_stream_awaited([-0.5, -0.5], [0.5, 2.5]) is None  # outside
+    assert bank.position_stream_awaited([-0.5], [0.5]) is None  # one bound per actuator
+    send = bank.position_stream_awaited([-0.5, -0.5], [0.5, 0.5])
+    assert send is not None
+    await send([0.25, -0.25])
+    assert BusServo.batches == [(Request.POSITION, (0.25, -0.25))]
+    assert bank.get_values_nowait(Request.POSITION) == (0.25, -0.25)
+    await actuators[1].finalize()
+    with pytest.raises(StateError):
+        await send([0.3, -0.3])  # refused before anything is sent
+    assert len(BusServo.batches) == 1 and servos[1].position == -0.25

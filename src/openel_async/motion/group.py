@@ -12,7 +12,7 @@ import contextlib
 import itertools
 import time
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Self
@@ -159,6 +159,8 @@ class AxisGroup:
         self._fast: Callable[[int], None] | None = None
         """The proven streaming tick of ``_fast_motion`` (see :meth:`_proven_tick`)."""
         self._fast_motion: GroupMotion | None = None
+        self._fast_step: Callable[[int], Awaitable[None]] | None = None
+        """The proven awaited tick of ``_fast_motion`` (see :meth:`_proven_step`)."""
         self._wakeup = Wakeup()
         self._ids = itertools.count(1)
         self._tg: anyio.abc.TaskGroup | None = None
@@ -468,6 +470,10 @@ class AxisGroup:
         motion = self._active
         if motion is None:
             return
+        fast = self._fast_step
+        if fast is not None and motion is self._fast_motion:  # the common awaited tick
+            await fast(t)
+            return
         settling = motion._settling
         actual: list[float] | None = None
         if settling or motion._checks_path or self._log_actual:
@@ -576,6 +582,43 @@ class AxisGroup:
             self._commanded = position
 
         return tick
+
+    def _proven_step(
+        self, motion: GroupMotion, plan: Plan
+    ) -> Callable[[int], Awaitable[None]] | None:
+        """:meth:`_proven_tick` over devices that need an await (a bus's one write for every
+        drive): the tick awaits one device batch proven within every device's limits once
+        (:meth:`ActuatorBank.position_stream_awaited`), without the per-value checks of
+        :meth:`_step`; every axis is still checked Active before each batch."""
+        if self._nowait or motion._checks_path or self._log_actual:
+            return None
+        lows, highs = plan.position_bounds()
+        send = self._bank.position_stream_awaited(lows, highs)
+        if send is None:
+            return None
+        positions = plan.sampler()
+        row = self.log.plan_rows(motion.id, plan)
+        end_ns = plan.end_ns
+        failed = self._stream_failed
+
+        async def step(t: int) -> None:
+            if t >= end_ns:  # the final setpoints take the general path (the goal check)
+                self._fast_step = None
+                await self._step(t)
+                return
+            position = positions(t)
+            self._last_t = t
+            self._last_state = None
+            self._last_plan = plan
+            row(t)
+            try:
+                await send(position)
+            except Exception as exc:
+                failed(motion, position, exc, t)
+                return
+            self._commanded = position
+
+        return step
 
     def _sent(self, motion: GroupMotion, plan: Plan, position: list[float], t: int) -> None:
         """Every axis took the setpoints of tick ``t``; the motion settles after its last."""
@@ -750,10 +793,12 @@ class AxisGroup:
             goal_time_ns,
         )
         fast = self._proven_tick(motion, plan)
+        fast_step = None if fast is not None else self._proven_step(motion, plan)
         previous = self._active
         self._active = motion
         self._fast_motion = motion
         self._fast = fast
+        self._fast_step = fast_step
         self._last_t = plan.start_ns
         self._last_state = state
         if previous is None:
