@@ -44,8 +44,25 @@ from ..errors import (
 )
 from ..requests import EventId
 from .application import Delivery
-from .messages import CommandMessage, DataType, Device, Parameter, ResultList
-from .profiles import DEFAULT_PROFILES, KindProfile, Operation, argument, kind_of, normalize_kind
+from .messages import (
+    CommandMessage,
+    DataType,
+    Device,
+    Parameter,
+    ResultList,
+    command_unchecked,
+    device_unchecked,
+    results_unchecked,
+)
+from .profiles import (
+    DEFAULT_PROFILES,
+    KindProfile,
+    NowRun,
+    Operation,
+    argument,
+    kind_of,
+    normalize_kind,
+)
 
 log = get_logger(__name__)
 
@@ -53,6 +70,8 @@ LOGICAL_ID = "logical_id"
 """The argument that selects the component among those of a device kind (INT)."""
 ANY_EVENT = "*"
 """``subscribe``'s event_type for every event of the kind."""
+PLANS_SIZE = 256
+"""Devices whose component and operation ``execute_nowait`` keeps (then all are dropped)."""
 
 
 @dataclass(frozen=True)
@@ -176,6 +195,7 @@ class Surface:
             self._by_component[id(component)] = entry
         self._command_count = 0
         self._watchers: dict[int, _MotionWatcher] = {}
+        self._plans: dict[int, tuple[Device, CommandMessage, SurfaceEntry, NowRun]] = {}
         self._event_ids = itertools.count(1)
         self._error_ids = itertools.count(1)
         self._subscribe_ids = itertools.count(1)
@@ -277,22 +297,32 @@ class Surface:
         Raises WouldBlockError, with nothing done, when it cannot (more than one command,
         an operation without ``run_nowait``, a component that needs I/O); use
         :meth:`execute` then. Refusals (bad arguments...) are answers, as in execute().
+
+        The component and operation of a Device are looked up once per Device object (a
+        server decodes the same bytes to the same immutable Device: a client's reads);
+        the reply is built from the checked request without checking it again.
         """
-        if not isinstance(device, Device):
-            raise BadParameterError("device", device, "a Device message")
-        if len(device.commands) != 1:
-            raise WouldBlockError("execute_nowait runs one command message at a time")
-        command = device.commands[0]
-        try:
-            entry, operation = self._target(device.device_kind, command)
-        except HALError as exc:
-            done = self._refuse(device.device_kind, self._numbered(command), exc.code, str(exc))
-            return Device(device.device_kind, (done,))
-        nowait = operation.run_nowait
-        if nowait is None:
-            raise WouldBlockError(f"{command.function_name} has no synchronous path")
+        plan = self._plans.get(id(device))
+        if plan is None or plan[0] is not device:
+            if not isinstance(device, Device):
+                raise BadParameterError("device", device, "a Device message")
+            if len(device.commands) != 1:
+                raise WouldBlockError("execute_nowait runs one command message at a time")
+            command = device.commands[0]
+            try:
+                entry, operation = self._target(device.device_kind, command)
+            except HALError as exc:
+                done = self._refuse(device.device_kind, self._numbered(command), exc.code, str(exc))
+                return Device(device.device_kind, (done,))
+            if operation.run_nowait is None:
+                raise WouldBlockError(f"{command.function_name} has no synchronous path")
+            plan = (device, command, entry, operation.run_nowait)
+            if len(self._plans) >= PLANS_SIZE:
+                self._plans.clear()
+            self._plans[id(device)] = plan
+        _, command, entry, nowait = plan
         command_id = f"c{self._command_count + 1}"
-        numbered = CommandMessage(
+        numbered = command_unchecked(
             command.function_name, command_id, command.arguments, command.results
         )
         try:
@@ -302,14 +332,15 @@ class Surface:
         except HALError as exc:
             self._command_count += 1
             done = self._refuse(device.device_kind, numbered, exc.code, str(exc))
-            return Device(device.device_kind, (done,))
+            return device_unchecked(device.device_kind, (done,))
         except Exception as exc:
             self._command_count += 1
             log.exception("surface_operation_failed", function=command.function_name)
             done = self._refuse(device.device_kind, numbered, ReturnCode.HAL_ERROR, repr(exc))
-            return Device(device.device_kind, (done,))
+            return device_unchecked(device.device_kind, (done,))
         self._command_count += 1
-        return Device(device.device_kind, (self._answer(numbered, outcome, entry, application),))
+        done = self._answer(numbered, outcome, entry, application)
+        return device_unchecked(device.device_kind, (done,))
 
     async def execute_command(
         self, device_kind: str, command: CommandMessage, application: object | None = None
@@ -353,8 +384,12 @@ class Surface:
             results = (_HAL_OK, *outcome.parameters)
         else:
             results = (_HAL_OK,)
-        return CommandMessage(
-            command.function_name, command.command_id, command.arguments, ResultList(results)
+        # every part was checked (the request's, the results') or is ours (the command id)
+        return command_unchecked(
+            command.function_name,
+            command.command_id,
+            command.arguments,
+            results_unchecked(results),
         )
 
     def _refuse(
