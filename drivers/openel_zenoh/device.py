@@ -36,6 +36,8 @@ from .client import RemoteSurface
 
 log = get_logger(__name__)
 
+COMPLETED = EventId.COMPLETED.name
+
 _SET = {
     Request.POSITION: ("SetPosition", "position"),
     Request.VELOCITY: ("SetSpeed", "speed"),
@@ -103,7 +105,10 @@ class _RemoteLink:
         self.ctx = ctx
         profile = await self.call("GetProfile")
         self.remote.attach(self)
-        self._subscription = await self.remote.subscribe(self.device_kind, "*", self)
+        # COMPLETED comes through completed(): the server need not make an event of it
+        self._subscription = await self.remote.subscribe(
+            self.device_kind, "*", self, exclude=(COMPLETED,)
+        )
         self._unlisten = self.remote.on_server(self._server_presence)
         return profile
 

@@ -771,9 +771,10 @@ class SurfaceServer:
                         "client", request.client, "a named client (the query's attachment)"
                     )
                 sub = wire.subscribe_decoder.decode(request.payload)
-                return wire.Answer(
-                    0, subscribe_id=surface.subscribe(sub.device_kind, sub.event_type, client.link)
+                sid = surface.subscribe(
+                    sub.device_kind, sub.event_type, client.link, exclude=sub.exclude
                 )
+                return wire.Answer(0, subscribe_id=sid)
             text = (
                 msgspec.msgpack.decode(request.payload, type=str)
                 if request.kind != "unsubscribe"
