@@ -20,8 +20,9 @@ that no loop code runs meanwhile: the read is exactly what a loop callback would
 done, without waking the loop (docs/remote.md, "Threads").
 
 Notices for a client (completed, notify_event, notify_error) are numbered and published
-in batches, at most one batch per client per event-loop turn; the outbound buffer is
-bounded, and whatever it drops leaves a gap in the numbering that the client reports.
+from the loop: the first of a loop turn at once, the others of that turn in one batch at its
+end; the outbound buffer is bounded, and whatever it drops leaves a gap in the numbering
+that the client reports.
 
 An execute may carry its send time and a time to live (the selector parameters ``sent_us``
 and ``ttl_us``, docs/wire.md "Freshness"): the server estimates how late it arrived against
@@ -46,6 +47,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from threading import get_ident
 from types import TracebackType
 from typing import Any, Self, cast
 
@@ -168,11 +170,19 @@ class _ClientLink:
             self.pending.popleft()
             self.dropped += 1
         if not self.flush_scheduled:
+            # The first notice of a loop turn goes at once (a completion reaches its client
+            # without waiting for the rest of the turn), those after it in the turn's batch.
             self.flush_scheduled = True
             self.server.schedule_flush(self)
+            if get_ident() == self.server.loop_thread:  # not in a section on Zenoh's thread
+                self.publish()
 
     def flush(self) -> None:
         self.flush_scheduled = False
+        self.publish()
+
+    def publish(self) -> None:
+        """Publish the pending notices now, in batches of at most 512."""
         if self.closed:
             return
         while self.pending:
@@ -255,10 +265,13 @@ class SurfaceServer:
         self._alive: ThreadInbox[tuple[str, bool]] | None = None
         self._flush_queue: list[_ClientLink] = []
         self._loop: asyncio.AbstractEventLoop | None = None
+        self.loop_thread = 0
+        """The thread id of the loop (set on entry)."""
         self._payloads = DecodedPayloads()
 
     async def __aenter__(self) -> Self:
         self._loop = asyncio.get_running_loop()
+        self.loop_thread = get_ident()
         self._gate = gate_of(self._loop)
         self._inbox = ThreadInbox(INBOX_SIZE, on_drop=self._refuse_dropped, drain=self._on_requests)
         self._alive = ThreadInbox(1024)
