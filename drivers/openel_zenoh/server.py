@@ -207,6 +207,14 @@ def _drop(query: zenoh.Query) -> None:
     cast(Any, query).drop()
 
 
+def _drop_later(query: zenoh.Query) -> None:
+    """:func:`_drop` as a loop callback (which must not raise)."""
+    try:
+        _drop(query)
+    except Exception as exc:
+        log.warning("query_drop_failed", error=str(exc))
+
+
 def _undeclare(entity: object) -> None:
     with contextlib.suppress(zenoh.ZError):
         cast(Any, entity).undeclare()
@@ -635,7 +643,13 @@ class SurfaceServer:
         except zenoh.ZError as exc:
             log.warning("reply_failed", kind=request.kind, error=str(exc))
         finally:
-            _drop(request.query)
+            loop = self._loop
+            if loop is not None and get_ident() == self.loop_thread:
+                # Dropped from the loop's thread it costs tens of microseconds (in Zenoh's
+                # callback 1-2): after what this turn scheduled (the command's motion)
+                loop.call_soon(_drop_later, request.query)
+            else:
+                _drop(request.query)
 
     def _answer_error(self, request: _Request, code: ReturnCode, message: str) -> None:
         if request.kind == "execute":
