@@ -19,6 +19,7 @@ from openel_async import (
 )
 from openel_async.surface import ApplicationQueue, CommandMessage, EventNotification, Surface
 from openel_zenoh import RemoteSurface, SurfaceServer
+from openel_zenoh import links as links_module
 from openel_zenoh import server as server_module
 from openel_zenoh.config import endpoint, server_config
 
@@ -82,7 +83,7 @@ class Poster(ActuatorDevice):
 
 
 async def test_notices_dropped_on_the_way_are_reported(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(server_module, "OUTBOX_SIZE", 10)
+    monkeypatch.setattr(links_module, "OUTBOX_SIZE", 10)
     port = free_port()
     device = Poster()
     async with (
