@@ -132,7 +132,69 @@ a subscription to every event but COMPLETED would spare an event notice per set 
 sides). The client's polling (its CPU per call in the table) is kept: with
 ``busy_wait=0`` get_value is 1.2-1.4x the awaited raw query, polled about 1.0-1.1x.
 
-The two runs recorded below (06:53 and 06:55 UTC) ran while other work loaded this VM
+Issue 27 (fourth pass): the core work the third pass named, done. Measured with quick
+runs while four other helpers loaded this 2-core VM (load average 4.8-5.9: every figure,
+raw ones included, 1.2-2x slower than at load 1 and noisy; ratios within a run):
+
+- ``Surface.execute_nowait`` looks a Device's component and operation up once per Device
+  object (the server decodes a client's repeated bytes to one immutable Device) and
+  builds the reply from the checked request and results without running the model's
+  checks again (``messages.*_unchecked``: a copy of a prototype struct with its fields
+  set, equal to and encoded as the checked one; bad input gets the same codes and
+  messages, tests/surface/test_surface_fast_paths.py); GetPosition's result comes from a
+  template. Hot loop: GetPosition 27 -> 4-10 us, SetPosition 38 -> 11-15 us; in situ, on
+  Zenoh's thread under the gate, 62 -> 28 us per read (instrumented server copies, the
+  code before and after, same load).
+- a ``RemoteActuator`` subscribes to '*' excluding COMPLETED (the optional third item of
+  a SubscribeRequest, docs/remote.md): no COMPLETED event, detail or notice is made.
+- the surface reports ``completed`` from the component's own notifications (COMPLETED is
+  posted right after the Motion is reached, notify_error after it faulted; the next
+  command through the surface supersedes the previous): no watcher task step per
+  command. The watcher task awaits only a command still pending after 10 ms (one
+  superseded by another party, or cancelled at finalize, ends without a notification).
+- server: the first notice of a loop turn goes at once (the completed notice waited
+  86-125 us for the end of the turn), and a query answered on the loop is dropped after
+  what the turn scheduled (a drop there costs 17-140 us, 1-3 us in Zenoh's callback).
+  Client: a ``RemoteActuator`` encodes a command once per request, the value spliced in.
+- tried and not kept: ``sent_us``/``ttl_us`` read from ``str(query.parameters)`` (2-3 us
+  slower in situ than two ``Parameters.get``); SetPosition on Zenoh's thread through the
+  gate again, the loop now woken before the reply: accept 1377-5556 us vs 801-1297 on
+  the loop path (three interleaved pairs), the reply and the woken loop contending for
+  the GIL.
+
+The code before this pass (790f49d) and after it, interleaved, four pairs of quick runs
+at load 4.8-5.9 (p50, ratios within each run): get_value 1.14-1.53x the blocking raw
+query before, 1.16-1.30x after; set_value -> COMPLETED 2.24-3.30x the awaited raw query
+before, 1.81-2.42x after, 3.06-4.68x the blocking one before, 2.44-3.64x after; our
+server's CPU per set 1100-1333 us before, 767-1033 after. With the first three changes
+only (two pairs, load 4.8): set_value -> COMPLETED 2.78-4.08x the awaited raw query
+before, 1.70-1.83x after; get_value 1.46-1.81x before, 1.06-1.30x after.
+
+Where a set's time goes now (instrumented server, p50, same load): the query's arrival
+on Zenoh's thread to the loop callback 95-165 us (waking the loop); the execute and its
+reply 180-210 us (``Query.reply`` 35-83 of it); from the reply to the component's
+completion 134-243 us (the SimMotor's watch task re-planning through its cancel scope,
+then the Actuator's target_reached: drivers/openel_sim, src/openel_async/actuator.py);
+then the notice's put (~40 us), the client's Zenoh callback and the wake-up of its loop.
+A read's Python on Zenoh's thread: the query's record and freshness parameters (Zenoh's
+accessors, 15-25 us), the gate and the freshness check ~16 us, ``execute_nowait`` 28 us,
+encoding, ``reply`` and ``drop`` 44-93 us (the raw server's whole callback: ``reply`` and
+``drop``).
+
+Decision: at this load the targets are still missed (get_value's 1.1x met in 2 of 9 runs
+of the new code). The set targets are below what a set needs without any Python of ours: the raw
+query with a published reply (370-480 us in these runs: Zenoh alone, the raw server
+replying and publishing on Zenoh's thread, a blocking client), plus the wake-up of the
+server's loop, where the motion runs (95-165 us), plus the motion's own completion chain
+(134-243 us), plus the wake-up of the client's loop for the notice (the awaited raw query
+over the blocking one, 130-200 us): 730-1090 us, against 1.2x the awaited raw query =
+670-800 us and 2x the blocking one = 850-1030 us in the same runs. What is left to take
+is in the completion chain (a SimMotor reaching a target within the command, as the
+Actuator already allows with ``_reached_in_send``, would spare the watch task's wake-ups)
+and in Zenoh's calls from the loop's thread (``reply``, ``drop``, ``put``: 2-10x what they
+cost in Zenoh's callback). The full runs at a lower load are the user's to record.
+
+The two runs recorded for the third pass (06:53 and 06:55 UTC) ran while other work loaded this VM
 (load average 3.1 and 2.4 at their start, against 1.4 for the runs before this pass),
 and every figure in them, raw ones included, is slower: get_value 1.46x and 1.45x the
 blocking raw query (0.99-1.01x the awaited one), set_value -> COMPLETED 2.77-3.07x the

@@ -42,7 +42,7 @@ import contextlib
 import os
 import time
 import uuid
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Iterable
 from types import TracebackType
 from typing import Any, Literal, Self, cast
 
@@ -159,7 +159,7 @@ class RemoteSurface:
         self._attached: dict[int, Delivery] = {}
         self._pending: dict[str, Delivery] = {}
         self._early: dict[str, ReturnCode] = {}
-        self._subscriptions: dict[int, tuple[str, str, Delivery, int]] = {}
+        self._subscriptions: dict[int, tuple[str, str, Delivery, int, list[str]]] = {}
         """local id -> (device_kind, event_type, delivery, remote id)"""
         self._by_remote: dict[int, int] = {}
         self._local_ids = iter(range(1, 1 << 62))
@@ -496,13 +496,31 @@ class RemoteSurface:
         check_code(answer.return_code, answer.message)
         return answer
 
-    async def subscribe(self, device_kind: str, event_type: str, application: object) -> int:
+    async def subscribe(
+        self,
+        device_kind: str,
+        event_type: str,
+        application: object,
+        *,
+        exclude: Iterable[str] = (),
+    ) -> int:
+        """Surface.subscribe on the server: events ``event_type`` ('*': all) of a device
+        kind but those of ``exclude``. A server that predates ``exclude`` sends those too:
+        an application that excludes a type should still ignore it."""
         delivery = self._delivery(application)
+        excluded = sorted(exclude)
         answer = await self._answer(
-            self.keys.subscribe, wire.encoder.encode(wire.SubscribeRequest(device_kind, event_type))
+            self.keys.subscribe,
+            wire.subscribe_payload(device_kind, event_type, excluded),
         )
         local = next(self._local_ids)
-        self._subscriptions[local] = (device_kind, event_type, delivery, answer.subscribe_id)
+        self._subscriptions[local] = (
+            device_kind,
+            event_type,
+            delivery,
+            answer.subscribe_id,
+            excluded,
+        )
         self._by_remote[answer.subscribe_id] = local
         return local
 
@@ -645,18 +663,18 @@ class RemoteSurface:
 
     async def _resubscribe(self) -> None:
         self._by_remote.clear()
-        for local, (kind, event_type, delivery, _) in list(self._subscriptions.items()):
+        for local, (kind, event_type, delivery, _, excluded) in list(self._subscriptions.items()):
             try:
                 answer = await self._answer(
                     self.keys.subscribe,
-                    wire.encoder.encode(wire.SubscribeRequest(kind, event_type)),
+                    wire.subscribe_payload(kind, event_type, excluded),
                 )
             except Exception as exc:
                 log.warning(
                     "resubscribe_failed", device_kind=kind, event_type=event_type, error=str(exc)
                 )
                 continue
-            self._subscriptions[local] = (kind, event_type, delivery, answer.subscribe_id)
+            self._subscriptions[local] = (kind, event_type, delivery, answer.subscribe_id, excluded)
             self._by_remote[answer.subscribe_id] = local
 
 

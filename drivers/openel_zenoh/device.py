@@ -13,6 +13,7 @@ fault (``ErrorId.DISCONNECTED``, ``HAL_NO_CONNECTED``), and
 from __future__ import annotations
 
 import asyncio
+import struct
 from collections.abc import Iterator
 from contextlib import contextmanager
 
@@ -32,9 +33,13 @@ from openel_async.requests import EventId, Request
 from openel_async.surface import compact
 from openel_async.surface.messages import CommandMessage, Device, ResultList
 
-from .client import RemoteSurface
+from .client import COMMANDS_LANE, RemoteSurface
 
 log = get_logger(__name__)
+
+COMPLETED = EventId.COMPLETED.name
+_FLOAT = struct.Struct(">d")
+_FLOAT_BYTES = _FLOAT.size
 
 _SET = {
     Request.POSITION: ("SetPosition", "position"),
@@ -103,7 +108,10 @@ class _RemoteLink:
         self.ctx = ctx
         profile = await self.call("GetProfile")
         self.remote.attach(self)
-        self._subscription = await self.remote.subscribe(self.device_kind, "*", self)
+        # COMPLETED comes through completed(): the server need not make an event of it
+        self._subscription = await self.remote.subscribe(
+            self.device_kind, "*", self, exclude=(COMPLETED,)
+        )
         self._unlisten = self.remote.on_server(self._server_presence)
         return profile
 
@@ -188,6 +196,7 @@ class RemoteActuator(_RemoteLink, ActuatorDevice):
         )
         self._latest = ""
         self._completed: dict[str, ReturnCode] = {}
+        self._command_parts: dict[Request, tuple[bytes, bytes | None]] = {}
 
     async def open(self, ctx: DeviceContext) -> None:
         profile = await self.link_open(ctx)
@@ -211,26 +220,50 @@ class RemoteActuator(_RemoteLink, ActuatorDevice):
         await self.link_close()
 
     async def command(self, request: Request, value: float) -> None:
-        if request is Request.NO_EXCITE:
-            command = CommandMessage.call("SetControlMode", "", logical_id=self.logical_id, mode=0)
-        else:
-            name, argument = _SET[request]
-            command = CommandMessage.call(
-                name, "", logical_id=self.logical_id, **{argument: float(value)}
+        name = "SetControlMode" if request is Request.NO_EXCITE else _SET[request][0]
+        with no_reply_is_a_link_fault(f"{self.device_kind}[{self.logical_id}] {name}"):
+            reply = await self.remote.execute_compact(
+                self.command_payload(request, value),
+                self,
+                lane=COMMANDS_LANE if name in self.remote.asynchronous else "",
             )
-        with no_reply_is_a_link_fault(
-            f"{self.device_kind}[{self.logical_id}] {command.function_name}"
-        ):
-            reply = await self.remote.execute_command(self.device_kind, command, self)
-        results_of(reply)
-        self._latest = reply.command_id
-        status = self._completed.pop(reply.command_id, None)
+        done = reply.commands[0]
+        results_of(done)
+        self._latest = done.command_id
+        status = self._completed.pop(done.command_id, None)
         if status is not None:
             # Completed before its reply came back: the Actuator accepts this command only
             # once command() returns, so the completion is reported right after that.
             asyncio.get_running_loop().call_soon(
-                self._completed_after_send, reply.command_id, status
+                self._completed_after_send, done.command_id, status
             )
+
+    def command_payload(self, request: Request, value: float) -> bytes:
+        """The compact execute of a command: the bytes before and after its value are
+        encoded once per request (the value, a float, is the last argument: msgpack float
+        64, ``cb`` and 8 bytes big-endian), as ``compact.encode`` would encode the message."""
+        parts = self._command_parts.get(request)
+        if parts is None:
+            if request is Request.NO_EXCITE:
+                command = CommandMessage.call(
+                    "SetControlMode", "", logical_id=self.logical_id, mode=0
+                )
+                parts = (compact.encode(Device(self.device_kind, (command,))), None)
+            else:
+                name, argument = _SET[request]
+                command = CommandMessage.call(
+                    name, "", logical_id=self.logical_id, **{argument: 0.0}
+                )
+                whole = compact.encode(Device(self.device_kind, (command,)))
+                marker = len(whole) - _FLOAT_BYTES - 2  # ... cb <8 bytes> c0 (no results)
+                if whole[marker:] != b"\xcb" + _FLOAT.pack(0.0) + b"\xc0":
+                    raise BadParameterError("encoding", whole.hex(), "a float last argument")
+                parts = (whole[: marker + 1], whole[marker + 1 + _FLOAT_BYTES :])
+            self._command_parts[request] = parts
+        head, tail = parts
+        if tail is None:
+            return head
+        return head + _FLOAT.pack(float(value)) + tail
 
     def _completed_after_send(self, command_id: str, status: ReturnCode) -> None:
         if self.ctx is not None and command_id == self._latest and status == ReturnCode.HAL_OK:

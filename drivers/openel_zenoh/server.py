@@ -20,8 +20,9 @@ that no loop code runs meanwhile: the read is exactly what a loop callback would
 done, without waking the loop (docs/remote.md, "Threads").
 
 Notices for a client (completed, notify_event, notify_error) are numbered and published
-in batches, at most one batch per client per event-loop turn; the outbound buffer is
-bounded, and whatever it drops leaves a gap in the numbering that the client reports.
+from the loop: the first of a loop turn at once, the others of that turn in one batch at its
+end; the outbound buffer is bounded, and whatever it drops leaves a gap in the numbering
+that the client reports.
 
 An execute may carry its send time and a time to live (the selector parameters ``sent_us``
 and ``ttl_us``, docs/wire.md "Freshness"): the server estimates how late it arrived against
@@ -46,6 +47,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from threading import get_ident
 from types import TracebackType
 from typing import Any, Self, cast
 
@@ -65,6 +67,7 @@ from .bridge import ThreadInbox
 from .freshness import DelayBaseline, freshness
 from .gate import LoopGate, enter_as_loop, exit_loop, gate_of, needs_wake, work_marker
 from .keys import Keys
+from .links import ClientLink
 from .payloads import DecodedPayloads, is_xml
 
 log = get_logger(__name__)
@@ -76,8 +79,6 @@ CLIENT_IDLE_TIMEOUT = 60.0
 CLIENT_QUEUE = 32
 """Queries one client may have waiting; more are refused with HAL_NO_MEMORY."""
 INBOX_SIZE = 4096
-OUTBOX_SIZE = 65536
-"""Notices one client may have waiting to be published; older ones are dropped (counted)."""
 WORKERS = 4
 ANONYMOUS = "anonymous"
 THREAD_READS = frozenset(
@@ -116,7 +117,7 @@ class _Client:
     name: str
     queue: deque[_Request] = field(default_factory=deque)
     busy: bool = False
-    link: _ClientLink | None = None
+    link: ClientLink | None = None
     alive: bool = False
     """Its liveliness token is up (it is forgotten when the token goes, not when idle)."""
     last_active: float = 0.0
@@ -133,68 +134,17 @@ class _TooManyClientsError(Exception):
     """Every client slot is held by a live or busy client."""
 
 
-class _ClientLink:
-    """The ApplicationBase of one remote client inside the server's Surface."""
-
-    def __init__(self, server: SurfaceServer, client: str) -> None:
-        self.server = server
-        self.client = client
-        self.publisher = server.session.declare_publisher(
-            server.keys.notices(client), congestion_control=zenoh.CongestionControl.DROP
-        )
-        self.next_index = 0
-        self.pending: deque[tuple[int, wire.Notice]] = deque()
-        self.dropped = 0
-        self.flush_scheduled = False
-        self.closed = False
-
-    def completed(self, command_id: str, status: ReturnCode) -> None:
-        self._add(wire.CompletedNotice(command_id, int(status)))
-
-    def notify_event(self, event_id: str, event_type: str, subscribe_id: int) -> None:
-        detail = self.server.surface.get_event_detail(event_id)
-        self._add(wire.EventNotice(event_id, event_type, subscribe_id, detail))
-
-    def notify_error(self, error_id: str, error_type: str) -> None:
-        detail = self.server.surface.get_error_detail(error_id)
-        self._add(wire.ErrorNotice(error_id, error_type, detail))
-
-    def _add(self, notice: wire.Notice) -> None:
-        if self.closed:
-            return
-        self.pending.append((self.next_index, notice))
-        self.next_index += 1
-        if len(self.pending) > OUTBOX_SIZE:
-            self.pending.popleft()
-            self.dropped += 1
-        if not self.flush_scheduled:
-            self.flush_scheduled = True
-            self.server.schedule_flush(self)
-
-    def flush(self) -> None:
-        self.flush_scheduled = False
-        if self.closed:
-            return
-        while self.pending:
-            first = self.pending[0][0]
-            batch: list[wire.Notice] = []
-            index = first
-            while self.pending and self.pending[0][0] == index and len(batch) < 512:
-                batch.append(self.pending.popleft()[1])
-                index += 1
-            try:
-                self.publisher.put(wire.encoder.encode(wire.NoticeBatch(first, batch)))
-            except zenoh.ZError as exc:
-                log.warning("notice_publish_failed", client=self.client, error=str(exc))
-
-    def close(self) -> None:
-        self.closed = True
-        _undeclare(self.publisher)
-
-
 def _drop(query: zenoh.Query) -> None:
     """Finalize a query (the querier's get ends once every queryable dropped it)."""
     cast(Any, query).drop()
+
+
+def _drop_later(query: zenoh.Query) -> None:
+    """:func:`_drop` as a loop callback (which must not raise)."""
+    try:
+        _drop(query)
+    except Exception as exc:
+        log.warning("query_drop_failed", error=str(exc))
 
 
 def _undeclare(entity: object) -> None:
@@ -253,12 +203,15 @@ class SurfaceServer:
         self._tg: anyio.abc.TaskGroup | None = None
         self._inbox: ThreadInbox[_Request] | None = None
         self._alive: ThreadInbox[tuple[str, bool]] | None = None
-        self._flush_queue: list[_ClientLink] = []
+        self._flush_queue: list[ClientLink] = []
         self._loop: asyncio.AbstractEventLoop | None = None
+        self.loop_thread = 0
+        """The thread id of the loop (set on entry)."""
         self._payloads = DecodedPayloads()
 
     async def __aenter__(self) -> Self:
         self._loop = asyncio.get_running_loop()
+        self.loop_thread = get_ident()
         self._gate = gate_of(self._loop)
         self._inbox = ThreadInbox(INBOX_SIZE, on_drop=self._refuse_dropped, drain=self._on_requests)
         self._alive = ThreadInbox(1024)
@@ -476,7 +429,7 @@ class SurfaceServer:
             client = self.clients[name] = _Client(name)
             if name != ANONYMOUS:
                 try:
-                    client.link = _ClientLink(self, name)
+                    client.link = ClientLink(self, name)
                     self.surface.attach(client.link)
                 except (BadParameterError, zenoh.ZError) as exc:
                     log.warning("client_link_failed", client=name, error=str(exc))
@@ -600,7 +553,7 @@ class SurfaceServer:
                     self._ready.append(client)
                     self._work.set()
 
-    def schedule_flush(self, link: _ClientLink) -> None:
+    def schedule_flush(self, link: ClientLink) -> None:
         """Publish ``link``'s notices once this event-loop turn is over (so that the
         notices of one turn go in one batch): one loop callback, no task."""
         if not self._flush_queue and self._loop is not None:
@@ -622,7 +575,13 @@ class SurfaceServer:
         except zenoh.ZError as exc:
             log.warning("reply_failed", kind=request.kind, error=str(exc))
         finally:
-            _drop(request.query)
+            loop = self._loop
+            if loop is not None and get_ident() == self.loop_thread:
+                # Dropped from the loop's thread it costs tens of microseconds (in Zenoh's
+                # callback 1-2): after what this turn scheduled (the command's motion)
+                loop.call_soon(_drop_later, request.query)
+            else:
+                _drop(request.query)
 
     def _answer_error(self, request: _Request, code: ReturnCode, message: str) -> None:
         if request.kind == "execute":
@@ -771,9 +730,10 @@ class SurfaceServer:
                         "client", request.client, "a named client (the query's attachment)"
                     )
                 sub = wire.subscribe_decoder.decode(request.payload)
-                return wire.Answer(
-                    0, subscribe_id=surface.subscribe(sub.device_kind, sub.event_type, client.link)
+                sid = surface.subscribe(
+                    sub.device_kind, sub.event_type, client.link, exclude=sub.exclude
                 )
+                return wire.Answer(0, subscribe_id=sid)
             text = (
                 msgspec.msgpack.decode(request.payload, type=str)
                 if request.kind != "unsubscribe"

@@ -24,8 +24,9 @@ any message has a representation in the standard (XML) PSM.
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from enum import IntEnum
-from typing import Any
+from typing import Any, cast
 
 import msgspec
 
@@ -258,3 +259,67 @@ class Device(msgspec.Struct, frozen=True, array_like=True):
 
 Message = Device | CommandMessage | ArgumentList | ResultList | Parameter
 """Any of the schema's global elements."""
+
+
+# -- Messages from values already checked ------------------------------------------------
+# The surface layer builds every reply from parts that passed the checks above (a
+# request's names, arguments and kind; results built by the constructors; command ids
+# it numbers itself), so it builds them without running the checks again: a copy of a
+# prototype (msgspec's __copy__ does not call __post_init__) with its fields set. The
+# result is the same message, equal to and encoded as one built by the constructor.
+_set_field = msgspec.structs.force_setattr
+_copy: Callable[[Any], Any] = cast(Any, msgspec.Struct).__copy__
+_PARAMETER = Parameter(DataType.INT, "p", 0)
+_RESULTS = ResultList((_PARAMETER,))
+_COMMAND = CommandMessage("c")
+_DEVICE = Device("d", (_COMMAND,))
+
+
+def parameter_unchecked(data_type_id: int, name: str, value: Any) -> Parameter:
+    """``Parameter(data_type_id, name, value)`` without its checks: only for a name and a
+    value known to pass them (a name of the code, a float for FLOAT...)."""
+    parameter: Parameter = _copy(_PARAMETER)
+    _set_field(parameter, "data_type_id", data_type_id)
+    _set_field(parameter, "name", name)
+    _set_field(parameter, "value", value)
+    return parameter
+
+
+def with_value(parameter: Parameter, value: Any) -> Parameter:
+    """``parameter`` with another value, without the checks: only for a value known to pass
+    them for its data type (a float for FLOAT)."""
+    copy: Parameter = _copy(parameter)
+    _set_field(copy, "value", value)
+    return copy
+
+
+def results_unchecked(parameters: tuple[Parameter, ...]) -> ResultList:
+    """``ResultList(parameters)`` without its checks: a non-empty tuple of Parameters."""
+    results: ResultList = _copy(_RESULTS)
+    _set_field(results, "parameters", parameters)
+    return results
+
+
+def command_unchecked(
+    function_name: str,
+    command_id: str,
+    arguments: ArgumentList | None,
+    results: ResultList | None,
+) -> CommandMessage:
+    """``CommandMessage(...)`` without its checks: the fields of a checked message (or a
+    command id of characters XML carries)."""
+    command: CommandMessage = _copy(_COMMAND)
+    _set_field(command, "function_name", function_name)
+    _set_field(command, "command_id", command_id)
+    _set_field(command, "arguments", arguments)
+    _set_field(command, "results", results)
+    return command
+
+
+def device_unchecked(device_kind: str, commands: tuple[CommandMessage, ...]) -> Device:
+    """``Device(device_kind, commands)`` without its checks: a checked kind and a non-empty
+    tuple of CommandMessages."""
+    device: Device = _copy(_DEVICE)
+    _set_field(device, "device_kind", device_kind)
+    _set_field(device, "commands", commands)
+    return device

@@ -16,9 +16,11 @@ surface.
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import itertools
 from collections import OrderedDict, deque
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Any, Self
@@ -44,8 +46,25 @@ from ..errors import (
 )
 from ..requests import EventId
 from .application import Delivery
-from .messages import CommandMessage, DataType, Device, Parameter, ResultList
-from .profiles import DEFAULT_PROFILES, KindProfile, Operation, argument, kind_of, normalize_kind
+from .messages import (
+    CommandMessage,
+    DataType,
+    Device,
+    Parameter,
+    ResultList,
+    command_unchecked,
+    device_unchecked,
+    results_unchecked,
+)
+from .profiles import (
+    DEFAULT_PROFILES,
+    KindProfile,
+    NowRun,
+    Operation,
+    argument,
+    kind_of,
+    normalize_kind,
+)
 
 log = get_logger(__name__)
 
@@ -53,6 +72,8 @@ LOGICAL_ID = "logical_id"
 """The argument that selects the component among those of a device kind (INT)."""
 ANY_EVENT = "*"
 """``subscribe``'s event_type for every event of the kind."""
+PLANS_SIZE = 256
+"""Devices whose component and operation ``execute_nowait`` keeps (then all are dropped)."""
 
 
 @dataclass(frozen=True)
@@ -70,6 +91,15 @@ class Subscription:
     device_kind: str
     event_type: str
     application: object
+    exclude: frozenset[str] = frozenset()
+    """Event types not delivered (with '*': every event but these)."""
+
+    def wants(self, device_kind: str, event_type: str) -> bool:
+        return (
+            self.device_kind == device_kind
+            and (self.event_type == event_type or self.event_type == ANY_EVENT)
+            and event_type not in self.exclude
+        )
 
 
 def event_type_name(event_id: int) -> str:
@@ -100,34 +130,77 @@ def status_of(motion: Motion, error: BaseException | None) -> ReturnCode:
 _HAL_OK = Parameter(DataType.INT, "return_code", int(ReturnCode.HAL_OK))
 
 
+HANDOVER_AFTER = 0.01
+"""Seconds after which a command still pending is awaited by its component's watcher task
+(a command ended silently, superseded by another party or cancelled at finalize, is then
+reported at once); until then its end is seen through the component's notifications."""
+
+
 class _MotionWatcher:
     """Reports the end of the commands of one component, in order.
 
     A component has at most one pending Motion (a new command supersedes the previous),
-    so the motions end in the order they were accepted: awaiting them first-in first-out
-    costs no delay, and one task serves every command of the component.
+    so the motions end in the order they were accepted. Most end with a notification to
+    the surface, which observes the component: reached (COMPLETED, posted right after the
+    Motion is reached), faulted (notify_error, after it is faulted), superseded by the
+    next command through the surface (:meth:`add`); those are reported from there
+    (:meth:`settle`), without a task step. A command still pending after HANDOVER_AFTER
+    is awaited by the task (:meth:`run`), which also sees the silent ends.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
         self.pending: deque[tuple[str, Motion, Delivery]] = deque()
         self.wakeup = Wakeup()  # reused: no new event (and backend lookup) per command
+        self.loop = loop
+        self.timer: asyncio.TimerHandle | None = None
+        self.checked: Motion | None = None
+        """The head still pending when the timer was armed (handed over if it still is)."""
+        self.watching = False
+        """The task awaits the pending motions (until none is left)."""
 
     def add(self, command_id: str, motion: Motion, delivery: Delivery) -> None:
+        self.settle()  # the previous command (superseded by this one) first
         self.pending.append((command_id, motion, delivery))
-        self.wakeup.set()
+        if not self.watching and self.timer is None:
+            self.checked = self.pending[0][1]
+            self.timer = self.loop.call_later(HANDOVER_AFTER, self._check)
+
+    def settle(self) -> None:
+        """Report the commands that ended, oldest first, up to the first still pending."""
+        pending = self.pending
+        while pending and pending[0][1].done():
+            command_id, motion, delivery = pending.popleft()
+            delivery.call("completed", command_id, status_of(motion, motion.error()))
+
+    def _check(self) -> None:
+        self.timer = None
+        self.settle()
+        if not self.pending or self.watching:
+            return
+        head = self.pending[0][1]
+        if head is self.checked:  # pending for HANDOVER_AFTER at least: the task awaits it
+            self.watching = True
+            self.wakeup.set()
+        else:
+            self.checked = head
+            self.timer = self.loop.call_later(HANDOVER_AFTER, self._check)
+
+    def close(self) -> None:
+        if self.timer is not None:
+            self.timer.cancel()
+            self.timer = None
 
     async def run(self) -> None:
         while True:
-            while not self.pending:
+            while not self.watching:
                 await self.wakeup.wait()
-            command_id, motion, delivery = self.pending[0]
-            error: BaseException | None = None
-            try:
-                await motion
-            except HALError as exc:
-                error = exc
-            self.pending.popleft()
-            delivery.call("completed", command_id, status_of(motion, error))
+            while self.pending:
+                motion = self.pending[0][1]
+                if not motion.done():
+                    with contextlib.suppress(HALError):  # reported by settle, from the motion
+                        await motion
+                self.settle()
+            self.watching = False
 
 
 def failure(command: CommandMessage, code: ReturnCode, message: str) -> CommandMessage:
@@ -176,6 +249,7 @@ class Surface:
             self._by_component[id(component)] = entry
         self._command_count = 0
         self._watchers: dict[int, _MotionWatcher] = {}
+        self._plans: dict[int, tuple[Device, CommandMessage, SurfaceEntry, NowRun]] = {}
         self._event_ids = itertools.count(1)
         self._error_ids = itertools.count(1)
         self._subscribe_ids = itertools.count(1)
@@ -209,6 +283,8 @@ class Surface:
         for entry in self.entries:
             if entry.component.state is ComponentState.ACTIVE and self in entry.component.observers:
                 entry.component.remove_observer(self)
+        for watcher in self._watchers.values():
+            watcher.close()
         assert self._tg is not None
         self._tg.cancel_scope.cancel()
         return await self._tg.__aexit__(exc_type, exc, tb)
@@ -277,22 +353,32 @@ class Surface:
         Raises WouldBlockError, with nothing done, when it cannot (more than one command,
         an operation without ``run_nowait``, a component that needs I/O); use
         :meth:`execute` then. Refusals (bad arguments...) are answers, as in execute().
+
+        The component and operation of a Device are looked up once per Device object (a
+        server decodes the same bytes to the same immutable Device: a client's reads);
+        the reply is built from the checked request without checking it again.
         """
-        if not isinstance(device, Device):
-            raise BadParameterError("device", device, "a Device message")
-        if len(device.commands) != 1:
-            raise WouldBlockError("execute_nowait runs one command message at a time")
-        command = device.commands[0]
-        try:
-            entry, operation = self._target(device.device_kind, command)
-        except HALError as exc:
-            done = self._refuse(device.device_kind, self._numbered(command), exc.code, str(exc))
-            return Device(device.device_kind, (done,))
-        nowait = operation.run_nowait
-        if nowait is None:
-            raise WouldBlockError(f"{command.function_name} has no synchronous path")
+        plan = self._plans.get(id(device))
+        if plan is None or plan[0] is not device:
+            if not isinstance(device, Device):
+                raise BadParameterError("device", device, "a Device message")
+            if len(device.commands) != 1:
+                raise WouldBlockError("execute_nowait runs one command message at a time")
+            command = device.commands[0]
+            try:
+                entry, operation = self._target(device.device_kind, command)
+            except HALError as exc:
+                done = self._refuse(device.device_kind, self._numbered(command), exc.code, str(exc))
+                return Device(device.device_kind, (done,))
+            if operation.run_nowait is None:
+                raise WouldBlockError(f"{command.function_name} has no synchronous path")
+            plan = (device, command, entry, operation.run_nowait)
+            if len(self._plans) >= PLANS_SIZE:
+                self._plans.clear()
+            self._plans[id(device)] = plan
+        _, command, entry, nowait = plan
         command_id = f"c{self._command_count + 1}"
-        numbered = CommandMessage(
+        numbered = command_unchecked(
             command.function_name, command_id, command.arguments, command.results
         )
         try:
@@ -302,14 +388,15 @@ class Surface:
         except HALError as exc:
             self._command_count += 1
             done = self._refuse(device.device_kind, numbered, exc.code, str(exc))
-            return Device(device.device_kind, (done,))
+            return device_unchecked(device.device_kind, (done,))
         except Exception as exc:
             self._command_count += 1
             log.exception("surface_operation_failed", function=command.function_name)
             done = self._refuse(device.device_kind, numbered, ReturnCode.HAL_ERROR, repr(exc))
-            return Device(device.device_kind, (done,))
+            return device_unchecked(device.device_kind, (done,))
         self._command_count += 1
-        return Device(device.device_kind, (self._answer(numbered, outcome, entry, application),))
+        done = self._answer(numbered, outcome, entry, application)
+        return device_unchecked(device.device_kind, (done,))
 
     async def execute_command(
         self, device_kind: str, command: CommandMessage, application: object | None = None
@@ -353,8 +440,12 @@ class Surface:
             results = (_HAL_OK, *outcome.parameters)
         else:
             results = (_HAL_OK,)
-        return CommandMessage(
-            command.function_name, command.command_id, command.arguments, ResultList(results)
+        # every part was checked (the request's, the results') or is ours (the command id)
+        return command_unchecked(
+            command.function_name,
+            command.command_id,
+            command.arguments,
+            results_unchecked(results),
         )
 
     def _refuse(
@@ -373,24 +464,45 @@ class Surface:
     def _watch(
         self, command_id: str, motion: Motion, entry: SurfaceEntry, application: object | None
     ) -> None:
-        """Call ``completed`` when ``motion`` ends: at once when it already has, else from
-        one watcher task per component (not one task per command)."""
+        """Call ``completed`` when ``motion`` ends: at once when it already has (after the
+        component's earlier commands), else when the component tells of its end or the
+        component's watcher sees it (:class:`_MotionWatcher`)."""
         if application is None:
             return
         delivery = self._delivery(application)
+        watcher = self._watchers.get(id(entry.component))
         if motion.done():
+            if watcher is not None:
+                watcher.settle()
             delivery.call("completed", command_id, status_of(motion, motion.error()))
             return
-        watcher = self._watchers.get(id(entry.component))
         if watcher is None:
             assert self._tg is not None
-            watcher = self._watchers[id(entry.component)] = _MotionWatcher()
+            watcher = self._watchers[id(entry.component)] = _MotionWatcher(
+                asyncio.get_running_loop()
+            )
             self._tg.start_soon(watcher.run)
         watcher.add(command_id, motion, delivery)
 
     # -- Event interface (Table 7.6) ------------------------------------------------------
-    def subscribe(self, device_kind: str, event_type: str, application: object) -> int:
-        """Register ``application`` for events ``event_type`` ('*' for all) of a device kind."""
+    def subscribe(
+        self,
+        device_kind: str,
+        event_type: str,
+        application: object,
+        *,
+        exclude: Iterable[str] = (),
+    ) -> int:
+        """Register ``application`` for events ``event_type`` ('*' for all) of a device kind,
+        but those whose type is in ``exclude`` (a client that learns of COMPLETED through
+        ``completed`` subscribes to '*' excluding COMPLETED: no event, detail or notice is
+        made for it)."""
+        if isinstance(exclude, str):
+            raise BadParameterError("exclude", exclude, "a collection of event type names")
+        excluded = frozenset(exclude)
+        for name in excluded:
+            if not isinstance(name, str) or not name:
+                raise BadParameterError("exclude", name, "an event type name (COMPLETED...)")
         if normalize_kind(device_kind) not in self._by_kind:
             raise BadParameterError("device_kind", device_kind, f"one of {self.kinds()}")
         if not isinstance(event_type, str) or not event_type:
@@ -402,7 +514,7 @@ class Surface:
         self._delivery(application)
         sid = next(self._subscribe_ids)
         self._subscriptions[sid] = Subscription(
-            sid, normalize_kind(device_kind), event_type, application
+            sid, normalize_kind(device_kind), event_type, application, excluded
         )
         return sid
 
@@ -438,13 +550,12 @@ class Surface:
         entry = self._by_component.get(id(source))
         if entry is None:
             return
+        watcher = self._watchers.get(id(source))
+        if watcher is not None and watcher.pending:  # COMPLETED: a command reached
+            watcher.settle()
         key = normalize_kind(entry.device_kind)
         event_type = event_type_name(event_id)
-        targets = [
-            s
-            for s in self._subscriptions.values()
-            if s.device_kind == key and (s.event_type == event_type or s.event_type == ANY_EVENT)
-        ]
+        targets = [s for s in self._subscriptions.values() if s.wants(key, event_type)]
         if not targets:
             return
         eid = f"e{next(self._event_ids)}"
@@ -475,6 +586,9 @@ class Surface:
         entry = self._by_component.get(id(source))
         if entry is None:
             return
+        watcher = self._watchers.get(id(source))
+        if watcher is not None and watcher.pending:  # a fault: its command faulted
+            watcher.settle()
         rid = f"r{next(self._error_ids)}"
         fault: DeviceFaultError | None = source.last_fault
         error_type = error_type_name(error_id)
