@@ -109,7 +109,10 @@ class SimMotor(ActuatorDevice):
         self._clock: Clock | None = None
         """The component's clock (read once at open: the per-command path)."""
         self._sleep_scope: anyio.CancelScope | None = None
-        self._sleep_until: int | None = None
+        """The watcher's wait for its deadline (``_sleep_until``), while it waits for one."""
+        self._sleep_until = 0
+        self._idle: anyio.Event | None = None
+        """Set by the next profile with something due, while the watcher has nothing due."""
         self.connected = True
         self.stuck = False
         self.commands = 0
@@ -180,10 +183,14 @@ class SimMotor(ActuatorDevice):
                 self._limit_ns = None
                 self._arrival_ns = arrival_ns
                 scope = self._sleep_scope
-                if scope is not None and (
-                    self._sleep_until is None or arrival_ns < self._sleep_until
-                ):
-                    scope.cancel()  # the watcher has something due earlier
+                if scope is not None:
+                    if arrival_ns < self._sleep_until:
+                        scope.cancel()  # the watcher has something due earlier
+                else:
+                    idle = self._idle
+                    if idle is not None:  # the watcher has had nothing due
+                        self._idle = None
+                        idle.set()
                 return
             segments = prof.plan_segments(plan)
         elif request is Request.VELOCITY:
@@ -331,38 +338,55 @@ class SimMotor(ActuatorDevice):
         self._request = request
         self._limit_ns = limit_ns
         self._arrival_ns = arrival_ns
-        # Wake the watcher only if it now has something due earlier than its deadline;
-        # a later due time is picked up when it wakes (cancelling costs ~7 us).
-        scope = self._sleep_scope
-        if scope is None:
-            return
+        # Wake the watcher only if it now has something due earlier than its deadline (or
+        # had nothing due); a later due time is picked up when it wakes.
         if limit_ns is None:
             due = arrival_ns
         elif arrival_ns is None or limit_ns < arrival_ns:
             due = limit_ns
         else:
             due = arrival_ns
-        if due is not None and (self._sleep_until is None or due < self._sleep_until):
-            scope.cancel()
+        if due is None:
+            return
+        scope = self._sleep_scope
+        if scope is not None:
+            if due < self._sleep_until:
+                scope.cancel()
+        else:
+            idle = self._idle
+            if idle is not None:
+                self._idle = None
+                idle.set()
 
     async def _watch(self) -> None:
-        """Post COMPLETED at the arrival time and LIMIT_REACHED at a limit stop."""
+        """Post COMPLETED at the arrival time and LIMIT_REACHED at a limit stop.
+
+        With nothing due it waits for an Event the next profile sets (a set -> COMPLETED ->
+        set chain wakes it once per command, without a cancellation); with something due it
+        sleeps on the clock in a cancel scope, cancelled only by a profile due earlier."""
         assert self._ctx is not None
         ctx = self._ctx
+        clock = ctx.clock
         while True:
-            due = [t for t in (self._arrival_ns, self._limit_ns) if t is not None]
+            arrival, limit = self._arrival_ns, self._limit_ns
+            if limit is None:
+                if arrival is None:
+                    idle = self._idle = anyio.Event()
+                    await idle.wait()
+                    continue
+                due = arrival
+            elif arrival is None or limit < arrival:
+                due = limit
+            else:
+                due = arrival
             with anyio.CancelScope() as scope:
-                self._sleep_scope = scope  # a new profile cancels the wait to re-plan
-                self._sleep_until = min(due) if due else None
-                if due:
-                    await ctx.clock.sleep_until(min(due))
-                else:
-                    await anyio.sleep_forever()
+                self._sleep_scope = scope  # a profile due earlier cancels the wait
+                self._sleep_until = due
+                await clock.sleep_until(due)
             self._sleep_scope = None
-            self._sleep_until = None
             if scope.cancel_called:
                 continue
-            now = ctx.clock.now_ns()
+            now = clock.now_ns()
             if self._limit_ns is not None and self._limit_ns <= now:
                 self._limit_ns = None
                 ctx.post_event(EventId.LIMIT_REACHED)
