@@ -250,10 +250,11 @@ both limits on each of four segments, `_first_crossing`), the trapezoid's phase 
 (`NamedTuple` segments, `end_state` calls) and `_set_profile`. Now a position move whose
 extremes (start, target, braking stop point) lie inside the limits by a margin skips the
 crossing search, other profiles check each segment's ends and turning point first
-(`profile.inside`), and the trapezoid is built unrolled into plain tuples; what is left is
-the trapezoid's arithmetic (one `sqrt`, three rounded phases), the evaluation of the
-previous profile at the command time, and the `Actuator`'s own `set_value_nowait`
-(validation, sequence, `Motion`).
+(`profile.inside`), and the trapezoid is built unrolled, since the fourth pass into one
+flat tuple (`profile.plan_trapezoid`: no segment objects; `trapezoid()` is its segments);
+what is left is the trapezoid's arithmetic (one `sqrt`, three rounded phases), the
+evaluation of the previous profile at the command time, and the `Actuator`'s own
+`set_value_nowait` (validation, sequence, `Motion`).
 
 Where it stands (issue 27's second pass, CPU time of the same loop, N = 100, 7 interleaved
 rounds on the 2-core machine shared with two other jobs, load average about 2): 5.6-6.9 µs
@@ -282,10 +283,41 @@ commands cost more (the event loop runs between ticks: caches are cold): timing 
 observer itself, 6.3-9.9 µs CPU per motor and tick for the driver alone, 12.1-13.5 µs
 through `set_value_nowait`, and 3-6 µs more per motor and tick outside it (the timer, the
 virtual clock's jumps, the watchers), at load 2.4-3. Cut in this pass for this row: the
-superseded Motion nobody awaits is finished inline (one call less per command). Decision: the <= 5 µs target is not reached in pure Python on this
-machine; the driver alone is most of the budget before any framework work, and the
-component's share (the checks, the sequence, the `Motion`; 1.5-2.5 µs) is a handful of
-Python calls. What would reach it is compiling the SimMotor planner (`trapezoid`,
-`evaluate`) and the actuator's per-command path (mypyc), not done here; the row stays
-marked missed.
+superseded Motion nobody awaits is finished inline (one call less per command). The
+<= 5 µs target was not reached in pure Python on this machine: the driver alone is most of
+the budget before any framework work, and the component's share (the checks, the
+sequence, the `Motion`; 1.5-2.5 µs) is a handful of Python calls.
+
+Issue 27, fourth pass: what was left to cut, and compiling measured. Cut: a position move
+within the limits is kept as one flat tuple (`plan_trapezoid`, evaluated by
+`evaluate_plan`, equal to the segments on 200,000 random moves) instead of four segment
+objects; in the isolated loop (CPU, 3 runs alternating with the previous commit, load
+about 3) the driver went from 5.6-7.3 to 3.9-4.7 µs per motor and tick and
+`set_value_nowait` from 9.5-10.8 to 7.4-8.2 µs. The watcher, with nothing due, now waits
+for an `Event` the next profile sets instead of sleeping in a cancel scope that every
+command cancelled: a `set_value` -> `await motion` chain on one SimMotor went from 157-238
+to 91-120 µs CPU per cycle. Left in this row outside the timer's observer (the run's CPU
+time minus the observer's), about 1 µs per motor and tick: the timer, the clock's jumps
+and the watchers that a command with an earlier arrival wakes to sleep again (1309 for
+29,900 commands). Compiled, out of tree (mypyc 2.4.1,
+the dev group's mypy, gcc here): `profile.py` alone builds in 40 s of CPU (77-105 s wall
+at load 5; a 400 KB runtime library and a 17 KB module), and needs a C compiler, Python's
+headers, setuptools and mypy in the build environment. It halves the driver in the isolated
+loop (1.4-2.4 µs against 2.6-4.6 interpreted, load 5) but in this row, 3 quick runs
+alternating with the interpreted build (load 3.7-5.3), it moved the CPU figure from 6.3-7.9
+to 5.1-6.4 µs and the wall figure from 6.3-11.6 to 5.2-12.7 µs: the rest is the
+`Actuator` and the event loop. Compiling `actuator.py` and `completion.py` too gave no
+further gain within the noise and changed behaviour (14 of 171 tests in tests/hal and
+tests/sim failed: a `str` value raised mypyc's `TypeError` instead of `BadParameterError`,
+and the link faults lost their `__cause__`); `motor.py` did not compile (a mypyc internal
+error on the closure in `batch_commander`) until that closure was moved out, and then gave
+nothing measurable. Shipping it with hatch-mypyc would compile for every wheel target,
+editable installs included (`build_ext --inplace`): `uv sync` would need a compiler on
+every machine (a failed build fails the sync; there is no fallback), and the `.so` would
+sit next to `profile.py` in the source tree and shadow it, so that an edit of the planner
+is silently ignored until the next build; released wheels would be per platform and Python
+version. **Decision: no compiled path** -- on this machine it does not bring the row under
+5 µs (CPU or wall), and its build cost is a compiler at every `uv sync`. The row stays
+marked missed: what is left per command is the interpreter's cost of the component and
+the driver, and on a shared 2-core machine the wall figure is 1.2-2.6x the CPU one.
 """

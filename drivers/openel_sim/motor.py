@@ -31,7 +31,7 @@ from openel_async.logs import get_logger
 from openel_async.requests import EventId, Request
 
 from . import profile as prof
-from .profile import evaluate, trapezoid
+from .profile import evaluate, evaluate_plan, plan_trapezoid
 
 log = get_logger(__name__)
 
@@ -96,6 +96,10 @@ class SimMotor(ActuatorDevice):
         self._rng = random.Random(seed)
         self._initial_position = initial_position
         self._segments = prof.hold(0, initial_position)
+        """The motion profile, unless ``_plan`` holds it."""
+        self._plan: prof.Plan | None = None
+        """The motion profile when it is a position move within the limits (the per-command
+        path: one flat tuple, no segment objects); None when ``_segments`` holds it."""
         self._request = Request.NO_EXCITE
         self._torque_cmd = 0.0
         self._torque_since = 0
@@ -105,7 +109,10 @@ class SimMotor(ActuatorDevice):
         self._clock: Clock | None = None
         """The component's clock (read once at open: the per-command path)."""
         self._sleep_scope: anyio.CancelScope | None = None
-        self._sleep_until: int | None = None
+        """The watcher's wait for its deadline (``_sleep_until``), while it waits for one."""
+        self._sleep_until = 0
+        self._idle: anyio.Event | None = None
+        """Set by the next profile with something due, while the watcher has nothing due."""
         self.connected = True
         self.stuck = False
         self.commands = 0
@@ -116,6 +123,7 @@ class SimMotor(ActuatorDevice):
         self._clock = ctx.clock
         now = ctx.clock.now_ns()
         self._segments = prof.hold(now, self._initial_position)
+        self._plan = None
         ctx.start_soon(self._watch)
 
     async def init(self) -> None:
@@ -124,14 +132,15 @@ class SimMotor(ActuatorDevice):
     async def reset(self) -> None:
         self._check_connected()
         now = self._now()
-        p, _, _ = prof.evaluate(self._segments, now)
+        p, _, _ = self.state_at(now)
         self._set_profile(prof.hold(now, p), Request.NO_EXCITE, arrival=False)
 
     async def close(self) -> None:
         if self._ctx is not None and self.connected:
             now = self._now()
-            p, _, _ = prof.evaluate(self._segments, now)
+            p, _, _ = self.state_at(now)
             self._segments = prof.hold(now, p)
+            self._plan = None
         self._arrival_ns = self._limit_ns = None
 
     # -- commands and readings -------------------------------------------------------
@@ -144,13 +153,14 @@ class SimMotor(ActuatorDevice):
         self.commands += 1
         clock = self._clock
         now = clock.now_ns() if clock is not None else 0
-        p, v, _ = evaluate(self._segments, now)
+        plan = self._plan
+        p, v, _ = evaluate(self._segments, now) if plan is None else evaluate_plan(plan, now)
         limits = self.limits
         vmax, amax = limits.velocity, self.max_acceleration
         if self.stuck:
             segments = prof.hold(now, p)
         elif request is _POSITION:
-            segments = trapezoid(now, p, v, value, vmax, amax)
+            plan = plan_trapezoid(now, p, v, value, vmax, amax)
             # A trapezoid's farthest points are its start, its target and where braking
             # now would stop (the turn of an overshoot or of a start heading away); when
             # they lie inside the limits by a margin far above the profile's rounding,
@@ -167,17 +177,22 @@ class SimMotor(ActuatorDevice):
             margin = INSIDE_MARGIN * (1.0 + (hi if hi >= 0.0 else -hi) + (lo if lo >= 0.0 else -lo))
             if low + margin < lo and hi < high - margin:
                 # _set_inside(segments, POSITION, arrival), inline: the per-command path
-                arrival_ns = segments[-1][0]
-                self._segments = segments
+                arrival_ns = plan[12]
+                self._plan = plan
                 self._request = _POSITION
                 self._limit_ns = None
                 self._arrival_ns = arrival_ns
                 scope = self._sleep_scope
-                if scope is not None and (
-                    self._sleep_until is None or arrival_ns < self._sleep_until
-                ):
-                    scope.cancel()  # the watcher has something due earlier
+                if scope is not None:
+                    if arrival_ns < self._sleep_until:
+                        scope.cancel()  # the watcher has something due earlier
+                else:
+                    idle = self._idle
+                    if idle is not None:  # the watcher has had nothing due
+                        self._idle = None
+                        idle.set()
                 return
+            segments = prof.plan_segments(plan)
         elif request is Request.VELOCITY:
             segments = prof.ramp(now, p, v, value, amax)
         elif request is Request.TORQUE:
@@ -213,7 +228,7 @@ class SimMotor(ActuatorDevice):
         self._check_connected()
         self.commands += 1
         now = self._now()
-        p, v, _ = prof.evaluate(self._segments, now)
+        p, v, _ = self.state_at(now)
         rate = min(abs(ramp.target - v) / ramp.duration_s, self.max_acceleration)
         if self.stuck:
             segments = prof.hold(now, p)
@@ -227,7 +242,7 @@ class SimMotor(ActuatorDevice):
     def read_nowait(self, request: Request) -> float:
         self._check_connected()
         now = self._now()
-        p, v, _ = prof.evaluate(self._segments, now)
+        p, v, _ = self.state_at(now)
         if request is Request.POSITION_ACTUAL:
             return p + (self._rng.gauss(0.0, self.position_noise) if self.position_noise else 0.0)
         if request is Request.VELOCITY_ACTUAL:
@@ -239,15 +254,22 @@ class SimMotor(ActuatorDevice):
         )
 
     def torque_at(self, t_ns: int) -> float:
-        _, _, a = prof.evaluate(self._segments, t_ns)
+        _, _, a = self.state_at(t_ns)
         if self._request is Request.TORQUE:
             rise = min(1.0, (t_ns - self._torque_since) / TORQUE_RISE_NS)
             return self._torque_cmd * rise if a else 0.0
         return self.inertia * a
 
+    @property
+    def segments(self) -> list[prof.Segment]:
+        """The current motion profile, as segments (a copy)."""
+        plan = self._plan
+        return list(self._segments) if plan is None else prof.plan_segments(plan)
+
     def state_at(self, t_ns: int) -> tuple[float, float, float]:
         """(position, velocity, acceleration) at a clock time; for sensors attached to it."""
-        return prof.evaluate(self._segments, t_ns)
+        plan = self._plan
+        return evaluate(self._segments, t_ns) if plan is None else evaluate_plan(plan, t_ns)
 
     # -- fault injection -------------------------------------------------------------
     def inject_fault(
@@ -255,7 +277,7 @@ class SimMotor(ActuatorDevice):
     ) -> None:
         """The drive trips: it holds position and the component goes to Error."""
         now = self._now()
-        p, _, _ = prof.evaluate(self._segments, now)
+        p, _, _ = self.state_at(now)
         self._set_profile(prof.hold(now, p), Request.NO_EXCITE, arrival=False)
         assert self._ctx is not None
         self._ctx.fault(error_id, reason)
@@ -276,7 +298,7 @@ class SimMotor(ActuatorDevice):
         self.stuck = stuck
         if stuck:
             now = self._now()
-            p, _, _ = prof.evaluate(self._segments, now)
+            p, _, _ = self.state_at(now)
             self._set_profile(prof.hold(now, p), self._request, arrival=False)
 
     # -- internals -------------------------------------------------------------------
@@ -312,41 +334,59 @@ class SimMotor(ActuatorDevice):
         """:meth:`_set_profile` once the profile is within the limits (``limit_ns``: when
         it stops on one)."""
         self._segments = segments
+        self._plan = None
         self._request = request
         self._limit_ns = limit_ns
         self._arrival_ns = arrival_ns
-        # Wake the watcher only if it now has something due earlier than its deadline;
-        # a later due time is picked up when it wakes (cancelling costs ~7 us).
-        scope = self._sleep_scope
-        if scope is None:
-            return
+        # Wake the watcher only if it now has something due earlier than its deadline (or
+        # had nothing due); a later due time is picked up when it wakes.
         if limit_ns is None:
             due = arrival_ns
         elif arrival_ns is None or limit_ns < arrival_ns:
             due = limit_ns
         else:
             due = arrival_ns
-        if due is not None and (self._sleep_until is None or due < self._sleep_until):
-            scope.cancel()
+        if due is None:
+            return
+        scope = self._sleep_scope
+        if scope is not None:
+            if due < self._sleep_until:
+                scope.cancel()
+        else:
+            idle = self._idle
+            if idle is not None:
+                self._idle = None
+                idle.set()
 
     async def _watch(self) -> None:
-        """Post COMPLETED at the arrival time and LIMIT_REACHED at a limit stop."""
+        """Post COMPLETED at the arrival time and LIMIT_REACHED at a limit stop.
+
+        With nothing due it waits for an Event the next profile sets (a set -> COMPLETED ->
+        set chain wakes it once per command, without a cancellation); with something due it
+        sleeps on the clock in a cancel scope, cancelled only by a profile due earlier."""
         assert self._ctx is not None
         ctx = self._ctx
+        clock = ctx.clock
         while True:
-            due = [t for t in (self._arrival_ns, self._limit_ns) if t is not None]
+            arrival, limit = self._arrival_ns, self._limit_ns
+            if limit is None:
+                if arrival is None:
+                    idle = self._idle = anyio.Event()
+                    await idle.wait()
+                    continue
+                due = arrival
+            elif arrival is None or limit < arrival:
+                due = limit
+            else:
+                due = arrival
             with anyio.CancelScope() as scope:
-                self._sleep_scope = scope  # a new profile cancels the wait to re-plan
-                self._sleep_until = min(due) if due else None
-                if due:
-                    await ctx.clock.sleep_until(min(due))
-                else:
-                    await anyio.sleep_forever()
+                self._sleep_scope = scope  # a profile due earlier cancels the wait
+                self._sleep_until = due
+                await clock.sleep_until(due)
             self._sleep_scope = None
-            self._sleep_until = None
             if scope.cancel_called:
                 continue
-            now = ctx.clock.now_ns()
+            now = clock.now_ns()
             if self._limit_ns is not None and self._limit_ns <= now:
                 self._limit_ns = None
                 ctx.post_event(EventId.LIMIT_REACHED)

@@ -65,13 +65,24 @@ def _chain(start_ns: int, p: float, v: float, phases: list[tuple[float, float]])
     return segments
 
 
-def trapezoid(
+Plan = tuple[
+    int, float, float, float, int, float, float, float, int, float, float, float, int, float
+]
+"""A position move in closed form, as one flat tuple (no segment objects):
+``(t0, p0, v0, a1, t1, p1, v1, a2, t2, p2, v2, a3, t3, target)``: three constant-acceleration
+phases, [t0, t1) from (p0, v0) at a1, [t1, t2) from (p1, v1) at a2 and [t2, t3) from (p2, v2)
+at a3 (a phase the move does not need has zero length), then at rest at ``target`` from t3
+(the arrival time). :func:`plan_segments` gives its segments, :func:`evaluate_plan` its state."""
+
+
+def plan_trapezoid(
     start_ns: int, p0: float, v0: float, target: float, vmax: float, amax: float
-) -> list[Segment]:
-    """Time-optimal move to ``target`` at rest under |v| <= vmax, |a| <= amax."""
+) -> Plan:
+    """:func:`trapezoid` as a :data:`Plan` (the simulated motor's per-command path)."""
     d = target - p0
     if -1e-12 < d < 1e-12 and -1e-12 < v0 < 1e-12:
-        return hold(start_ns, target)
+        t = start_ns
+        return (t, target, 0.0, 0.0, t, target, 0.0, 0.0, t, target, 0.0, 0.0, t, target)
     # Direction: toward the target from where braking now would stop us.
     stop = p0 + v0 * (v0 if v0 >= 0.0 else -v0) / (2 * amax)
     s = 1.0 if target >= stop else -1.0
@@ -87,50 +98,89 @@ def trapezoid(
         d1 = (peak * peak - v0 * v0) / (2 * s * amax)
         d3 = s * peak * peak / (2 * amax)
         cruise = (d - d1 - d3) / peak
-    # _chain over the three phases (accelerate or brake to the peak, cruise, brake to
-    # rest), unrolled: the same segments, without its lists, loop and calls.
-    segments: list[Segment] = []
-    append = segments.append
-    new = tuple.__new__
-    t = start_ns
-    p = p0
-    v = v0
+    # Three phases (accelerate or brake to the peak, cruise, brake to rest), unrolled.
+    # Durations are whole nanoseconds, rounded up, and each phase's acceleration is derived
+    # from its rounded duration, so every phase ends exactly at its velocity and |a| never
+    # exceeds the planned acceleration.
+    t1 = start_ns
+    p1 = p0
+    v1 = v0
+    a1 = 0.0
     duration = (peak - v0) / (s * amax)
     if duration > 0:
         steps = ceil(duration / NS - 1e-6)
         if steps < 1:
             steps = 1
         dt = steps * NS
-        a = (peak - v) / dt
-        end = t + steps
-        append(new(Segment, (t, p, v, a, end)))
-        p = p + v * dt + 0.5 * a * dt * dt
-        v = peak
-        t = end
+        a1 = (peak - v0) / dt
+        t1 = start_ns + steps
+        p1 = p0 + v0 * dt + 0.5 * a1 * dt * dt
+        v1 = peak
+    t2 = t1
+    p2 = p1
+    v2 = v1
+    a2 = 0.0
     if cruise > 0:
         steps = ceil(cruise / NS - 1e-6)
         if steps < 1:
             steps = 1
         dt = steps * NS
-        a = (peak - v) / dt
-        end = t + steps
-        append(new(Segment, (t, p, v, a, end)))
-        p = p + v * dt + 0.5 * a * dt * dt
-        v = peak
-        t = end
+        a2 = (peak - v1) / dt
+        t2 = t1 + steps
+        p2 = p1 + v1 * dt + 0.5 * a2 * dt * dt
+        v2 = peak
+    t3 = t2
+    a3 = 0.0
     duration = (peak if peak >= 0.0 else -peak) / amax
     if duration > 0:
         steps = ceil(duration / NS - 1e-6)
         if steps < 1:
             steps = 1
-        dt = steps * NS
-        a = (0.0 - v) / dt
-        end = t + steps
-        append(new(Segment, (t, p, v, a, end)))
-        t = end
-    # Close the float error of the closed form: the profile ends exactly at the target.
-    append(new(Segment, (t, target, 0.0, 0.0, None)))
+        a3 = (0.0 - v2) / (steps * NS)
+        t3 = t2 + steps
+    # The last state is exactly the target (closing the float error of the closed form).
+    return (start_ns, p0, v0, a1, t1, p1, v1, a2, t2, p2, v2, a3, t3, target)
+
+
+def plan_segments(plan: Plan) -> list[Segment]:
+    """The segments of a :data:`Plan` (its phases of non-zero length, then the rest)."""
+    t0, p0, v0, a1, t1, p1, v1, a2, t2, p2, v2, a3, t3, target = plan
+    segments = [
+        Segment(start, p, v, a, end)
+        for start, p, v, a, end in (
+            (t0, p0, v0, a1, t1),
+            (t1, p1, v1, a2, t2),
+            (t2, p2, v2, a3, t3),
+        )
+        if end > start
+    ]
+    segments.append(Segment(t3, target, 0.0, 0.0, None))
     return segments
+
+
+def evaluate_plan(plan: Plan, t_ns: int) -> tuple[float, float, float]:
+    """Position, velocity and acceleration of a :data:`Plan` at ``t_ns`` (clamped to its
+    start): the same as :func:`evaluate` of its segments."""
+    t0, p0, v0, a1, t1, p1, v1, a2, t2, p2, v2, a3, t3, target = plan
+    if t_ns < t0:
+        t_ns = t0
+    if t_ns < t1:
+        dt = (t_ns - t0) * NS
+        return p0 + v0 * dt + 0.5 * a1 * dt * dt, v0 + a1 * dt, a1
+    if t_ns < t2:
+        dt = (t_ns - t1) * NS
+        return p1 + v1 * dt + 0.5 * a2 * dt * dt, v1 + a2 * dt, a2
+    if t_ns < t3:
+        dt = (t_ns - t2) * NS
+        return p2 + v2 * dt + 0.5 * a3 * dt * dt, v2 + a3 * dt, a3
+    return target, 0.0, 0.0
+
+
+def trapezoid(
+    start_ns: int, p0: float, v0: float, target: float, vmax: float, amax: float
+) -> list[Segment]:
+    """Time-optimal move to ``target`` at rest under |v| <= vmax, |a| <= amax."""
+    return plan_segments(plan_trapezoid(start_ns, p0, v0, target, vmax, amax))
 
 
 def ramp(start_ns: int, p0: float, v0: float, v1: float, amax: float) -> list[Segment]:

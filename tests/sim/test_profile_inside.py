@@ -63,7 +63,7 @@ def test_a_position_command_skips_the_crossing_search_only_when_it_finds_none(
     motor._segments = [Segment(0, p0, v0, 0.0, None)]
     motor.command_nowait(Request.POSITION, target)
     segments, limit_ns = clip_to_limits(trapezoid(0, p0, v0, target, 2.0, 10.0), -1.0, 1.0)
-    assert motor._segments == segments
+    assert motor.segments == segments
     assert motor._limit_ns == limit_ns
     if limit_ns is None:
         assert motor._arrival_ns == end_time(segments)
