@@ -100,6 +100,10 @@ EXIT_DRAIN_S = 1.0
 _ENTRY_CACHE = 32
 """Event ids per component whose mailbox entry is kept for reuse (more are built per event)."""
 
+_EAGER_REFRESH = 32
+"""Observers of a component up to which a registration or a state change sets the event
+port's fast paths at once (past it, the next event does: registering stays O(1))."""
+
 
 class _EventPort:
     """A component's events from its device (``ctx.post_event``), with fast paths.
@@ -566,11 +570,17 @@ class HALComponent:
         return replace(stats, published=stats.published + fast) if fast else stats
 
     def _events_changed(self) -> None:
-        """The state or the observers changed: the event port's fast paths are set again
-        by the next event (:class:`_EventPort`), not here (registration stays O(1))."""
+        """The state or the observers changed: the event port's fast paths are set again,
+        here while the observers are few (:data:`_EAGER_REFRESH`: registering costs
+        O(observers), so that the next event pays nothing for it), otherwise by the next
+        event (:class:`_EventPort`: registering N observers stays O(N) in all)."""
         port = self._ctx.port
-        port.set(None, None)
-        port.stale = True
+        if len(self._observers) <= _EAGER_REFRESH:
+            port.stale = False
+            self._refresh_events()
+        else:
+            port.set(None, None)
+            port.stale = True
 
     def _refresh_events(self) -> None:
         """Set the event port's fast path (:class:`_EventPort`) for the state and the
@@ -579,7 +589,9 @@ class HALComponent:
         port = self._ctx.port
         if state is _NOTIFY_ACTIVE or state is _NOTIFY_ERROR:
             observers = self._observers
-            port.set(observers.direct_for("notify_event"), observers.mailbox_puts("notify_event"))
+            direct = observers.direct_for("notify_event")
+            # Plain observers only: no mailbox to look for.
+            port.set(direct, None if direct is not None else observers.mailbox_puts("notify_event"))
         else:
             port.set(None, None)
 
