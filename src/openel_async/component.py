@@ -98,7 +98,8 @@ EXIT_DRAIN_S = 1.0
 
 
 _ENTRY_CACHE = 32
-"""Event ids per component whose mailbox entry is kept for reuse (more are built per event)."""
+"""Event ids per component whose mailbox entry or notice is kept for reuse (more are built
+per event)."""
 
 _EAGER_REFRESH = 32
 """Observers of a component up to which a registration or a state change sets the event
@@ -114,8 +115,11 @@ class _EventPort:
     components, the memory touched per event is what the cost grows with).
 
     - One plain observer that is a bound method: called as its function with its object
-      (:attr:`func`, or :attr:`nfunc` with a new ``EventNotice`` when it takes one): no
-      method object, no tuple read.
+      (:attr:`func`, or :attr:`nfunc` with the ``EventNotice`` when it takes one): no
+      method object, no tuple read. The notice of an event id is built once and reused
+      (a value, never assigned to, as the notice one publish shares among its observers
+      already is): an ``ObserverQueue`` holds no new GC-tracked object per event, which
+      at 1000 components doubled the young collections per tick.
     - Plain observers taking no notice: :attr:`fast`, called in order.
     - Async observers only, taking no notice: :attr:`puts`, their mailboxes' ``put``; the
       entry for an event id is built once and reused (immutable: nothing allocated per
@@ -150,6 +154,8 @@ class _EventPort:
         self.fast: tuple[Callable[..., Any], ...] | None = None
         self.puts: tuple[Callable[[Any], None], ...] | None = None
         self.entries: dict[int, Any] = {}
+        """Per event id, the mailbox entry (:attr:`puts`) or the notice (:attr:`nfunc`)
+        reused for it; emptied by :meth:`set`."""
         self.published = 0
         """Events delivered by the fast paths (added to the fan-out's ``published``)."""
         self.stale = False
@@ -161,6 +167,7 @@ class _EventPort:
         puts: tuple[Callable[[Any], None], ...] | None,
     ) -> None:
         self.func = self.nfunc = self.obj = self.fast = self.puts = None
+        self.entries.clear()
         if direct is not None:
             methods, with_notice = direct
             if len(methods) == 1 and type(methods[0]) is MethodType:
@@ -188,8 +195,13 @@ class _EventPort:
         if func is not None:
             self.published += 1
             source = self.component
+            notice = self.entries.get(event_id)
+            if notice is None:
+                notice = EventNotice(source, event_id)
+                if len(self.entries) < _ENTRY_CACHE:
+                    self.entries[event_id] = notice
             try:
-                func(self.obj, source, event_id, EventNotice(source, event_id))
+                func(self.obj, source, event_id, notice)
             except Exception:
                 self.fanout.failed(MethodType(func, self.obj))
             return

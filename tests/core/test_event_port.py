@@ -120,7 +120,16 @@ async def test_notice_taking_and_async_paths() -> None:
         post(7)
         got = [queue.get_nowait(), queue.get_nowait()]
         assert [(n.source, n.event_id) for n in got] == [(actuator, 7)] * 2
-        assert got[0] is not got[1]  # a notice per event: an observer may keep it
+        assert got[0] == got[1] == EventNotice(actuator, 7)
+        assert got[0] is got[1]  # a value, built once per event id and reused
+        actuator.remove_observer(queue)
+        queue = ObserverQueue(1)
+        actuator.add_observer(queue)
+        post(7)
+        post(8)  # overflows: the notice reporting it is a new one, the reused one intact
+        assert queue.get_nowait() == EventNotice(actuator, 8, missed=1)
+        post(8)
+        assert queue.get_nowait() == EventNotice(actuator, 8)
         actuator.remove_observer(queue)
         first, second = Async(log, "a"), Async(log, "b")  # async only: mailboxes' put
         actuator.add_observer(first)
@@ -132,8 +141,9 @@ async def test_notice_taking_and_async_paths() -> None:
                 await anyio.lowlevel.checkpoint()
         assert [e[2] for e in log if e[0] == "a"] == [1, 2, 1]
         assert [e[2] for e in log if e[0] == "b"] == [1, 2, 1]
-        assert actuator.observer_stats.published == 5
-        assert actuator.observer_stats.lost == 0
+        assert actuator.observer_stats.published == 8
+        assert actuator.observer_stats.lost == 0  # (the queue's overflow is its own)
+        assert queue.missed_total == 1
 
 
 @pytest.mark.parametrize("shape", ["plain", "async"])
