@@ -432,10 +432,11 @@ ours/plain at 1000 components: sync 3.13x, 2.41x -> 2.58x, 1.67x; async observer
 1.24x -> 1.06x, 1.02x; ObserverQueues 1.44x, 1.46x -> 0.93x, 1.00x. 1000 / 100 components
 (the plain equivalent's own in brackets): async observers 2.64x (1.64x), 1.64x (1.20x) ->
 1.60x (1.52x), 1.32x (1.22x); ObserverQueues 1.62x (1.29x), 1.55x (1.33x) -> 1.59x
-(2.11x), 2.07x (1.72x). The first full run after this pass (08:55 UTC, load average
-3.9-4.2, 250 s): ours/plain at 1000 components, sync 2.29x, async observers 1.06x,
-ObserverQueues 1.05x; 1000 / 100 components, async observers 1.46x (the plain
-equivalent's own 1.44x), ObserverQueues 1.61x (1.60x).
+(2.11x), 2.07x (1.72x). The first two full runs after this pass (08:55 and 09:03 UTC,
+load average 3.9-4.2 and 5.0-5.4; 250 s and 186 s): ours/plain at 1000 components, sync
+2.29x and 1.82x, async observers 1.06x and 0.96x, ObserverQueues 1.05x and 1.07x; 1000 /
+100 components, async observers 1.46x (the plain equivalent's own 1.44x) and 1.51x
+(1.55x), ObserverQueues 1.61x (1.60x) and 1.58x (1.60x).
 
 What remains. (1) Sync observers at 1000 components, 1.7-2.6x the plain loop with the
 load: a delivery is two Python calls (the event port's `post_event`, then the observer's
