@@ -42,8 +42,8 @@ NAME = "scale"
 SIZES = (1, 10, 100, 1000)
 KINDS = ("sync", "async", "queue")
 PERIOD_MS = 1
-TICKS = {1: 400, 10: 400, 100: 200, 1000: 60}
-QUICK_TICKS = {1: 100, 10: 100, 100: 50, 1000: 20}
+TICKS = {1: 400, 10: 400, 100: 400, 1000: 150}
+QUICK_TICKS = {1: 100, 10: 100, 100: 100, 1000: 40}
 ROUNDS = MIN_ROUNDS
 RATIO_TARGET = 2.0
 """Ours / the plain equivalent, CPU per delivery, at most (issue 27)."""
@@ -161,6 +161,12 @@ async def ours(kind: str, count: int, ticks: int) -> Run:
         async with EventTimer(PERIOD_MS, clock=clock, name="bench-scale") as timer:
             timer.add_observer(tick)
             await anyio.sleep(0.01)
+            # A full collection before the ticks, on both sides: setting up 1000
+            # components adds ~50k GC-tracked objects to the oldest generation, which
+            # makes a full collection due (over a quarter of it new since the last);
+            # left pending, it falls among the ticks (100-180 ms at 1000 components), a
+            # cost of the set-up that the plain equivalent's lighter one never incurs.
+            gc.collect()
             cpu0 = time.process_time()
             timer.start_timer()
             with anyio.fail_after(DRAIN_TIMEOUT_S):
@@ -203,6 +209,7 @@ async def plain(kind: str, count: int, ticks: int) -> Run:
             observer = AsyncCounter(total) if kind == "async" else None
             tasks.append(asyncio.ensure_future(consume(queue, observer)))
     await asyncio.sleep(0.01)
+    gc.collect()  # as ours: the set-up's pending collection is not the deliveries'
     cpu0 = time.process_time()
     period = PERIOD_MS / 1000
     deadline = loop.time() + period
@@ -342,7 +349,12 @@ delivery was made, per delivery; CPU rather than wall so that the idle part of e
 period does not count. Linear: from 100 to 1000 components the per-delivery cost grows
 by at most {LINEAR_LIMIT}x (the total cost is linear in N; the plain equivalent's own
 ratio is shown beside). At 1 and 10 components the figure is mostly each side's per-tick
-cost (the timer's wake-up and bookkeeping against one `asyncio.sleep`).
+cost (the timer's wake-up and bookkeeping against one `asyncio.sleep`). Both sides run a
+full garbage collection (`gc.collect()`) after their set-up, just before the ticks:
+setting up 1000 components adds ~50k GC-tracked objects to the oldest generation, which
+makes a full collection due; left pending, it fell among the ticks (100-180 ms at 1000
+components, ~2 µs per delivery over 60 ticks), a cost of the set-up, not of the
+deliveries, that the plain equivalent's lighter set-up never incurs.
 
 Profile (first run, issue 27): a sync delivery cost ~0.7 µs in the component layer
 against ~0.08 µs for a bare callback (`DeviceContext.post_event` ->
@@ -380,8 +392,8 @@ Mailboxes, `ObserverQueue`s have slots; a mailbox task caches its reads. Quick r
 async 1.52x -> 1.15-1.26x (per delivery 17.3 -> 12.3 µs); ObserverQueues 1.65x ->
 1.2-1.67x.
 
-What remains (the linear rows of async observers and ObserverQueues, 1000 / 100
-components, target 1.5x): at 1000 components, the plain equivalent itself grows by
+What remained after the third pass (the linear rows of async observers and
+ObserverQueues, 1000 / 100 components, target 1.5x): at 1000 components, the plain equivalent itself grows by
 1.06-1.6x on this machine, ours by 1.2-2.0x. Two causes, measured (gc callbacks and
 `process_time` inside the timed region): (1) the garbage collector: at 100 components a
 tick puts fewer than 700 GC-tracked objects in flight (loop handles, futures, notices), so
@@ -399,5 +411,50 @@ pass (06:49 and 06:52 UTC, load average 3-4 and 2.4-3): sync at 1000 components 
 at 1000 components 1.24x and 1.87x the plain equivalent. The linear target is kept as the
 issue set it; on this shared machine it is missed by the queue rows whenever the
 1000-component rounds meet a full collection or a busy neighbour, as the plain
-equivalent's own ratio shows. At 1 component the figure is each
-side's per-tick cost (the timer's wake-up and bookkeeping against one `asyncio.sleep`)."""
+equivalent's own ratio shows.
+
+What was cut (issue 27, fourth pass; measured with `gc.callbacks` and `process_time`
+inside the timed region): (1) the first tick after registering still paid for setting
+every component's event port (registration only marked it stale: ~3-5 µs per
+component, 4-8 ms on the first tick at 1000 components against ~0.3 ms for the next
+ones); a registration or a state change now sets the fast paths at once while the
+component has at most 32 observers (past that, the first event does, so that registering
+N observers stays O(N)). (2) An `ObserverQueue` got a new `EventNotice` per event, a
+GC-tracked object alive until consumed; at 1000 components that doubled the young
+collections (113 over 60 ticks against the plain equivalent's 57, ~1 ms each: a young
+collection scans every waiting consumer's future, coroutine and wake-up, ~5000 objects).
+The port now reuses the notice of an event id, as it reuses mailbox entries (a value,
+never assigned to; a notice reporting missed ones is a new one): 58 collections against
+57. (3) The benchmark: the set-up's pending full collection (above), and more ticks at 100
+and 1000 components (400 and 150, were 200 and 60) so that the 1000 / 100 ratio is not that
+of two short rounds. Quick runs, before -> after, interleaved (load average 3.3-5.6),
+ours/plain at 1000 components: sync 3.13x, 2.41x -> 2.58x, 1.67x; async observers 1.22x,
+1.24x -> 1.06x, 1.02x; ObserverQueues 1.44x, 1.46x -> 0.93x, 1.00x. 1000 / 100 components
+(the plain equivalent's own in brackets): async observers 2.64x (1.64x), 1.64x (1.20x) ->
+1.60x (1.52x), 1.32x (1.22x); ObserverQueues 1.62x (1.29x), 1.55x (1.33x) -> 1.59x
+(2.11x), 2.07x (1.72x). The first two full runs after this pass (08:55 and 09:03 UTC,
+load average 3.9-4.2 and 5.0-5.4; 250 s and 186 s): ours/plain at 1000 components, sync
+2.29x and 1.82x, async observers 1.06x and 0.96x, ObserverQueues 1.05x and 1.07x; 1000 /
+100 components, async observers 1.46x (the plain equivalent's own 1.44x) and 1.51x
+(1.55x), ObserverQueues 1.61x (1.60x) and 1.58x (1.60x).
+
+What remains. (1) Sync observers at 1000 components, 1.7-2.6x the plain loop with the
+load: a delivery is two Python calls (the event port's `post_event`, then the observer's
+method) against the plain loop's one, with the published count and the try/except; in a
+warm loop without the timer, 300 ns against 130 ns at 100 and at 1000 components alike.
+Nothing per delivery is left in the port to cut but the call itself, which drivers make
+(`ctx.post_event` is their API: isolation and counting need a frame of ours). (2) The
+linear rows of async observers and ObserverQueues: with the collector disabled inside the
+timed region (a diagnostic, not a fix), ours grows by 1.02x from 100 to 1000 components
+and the plain equivalent by 1.27x; with it, both by 1.3-2.1x. Every waiting consumer holds
+a future, its await iterator, the task's wake-up and a coroutine, and every woken one a
+loop handle (the same on both sides); at 1000 components those cross the young
+generation's threshold about once per tick and each collection scans them all (~5400
+objects), where at 100 components no young collection ran in a 400-tick round on either
+side. Ours now leaves the young generation what the plain equivalent does (the same
+objects, 140 against 138 collections in 150 ticks), so its growth is the collector's, as
+the plain equivalent's is; the target, kept as the issue set it, is met or missed with
+the plain equivalent's own ratio. One full collection falls in a 150-tick round at 1000
+components on both sides, dearer on ours (100-340 ms against 65-75 ms under load: ~80k
+tracked objects against ~32k, the components' ~51 each plus their task groups'). At 1 component the figure is each side's
+per-tick cost (the timer's wake-up and bookkeeping against one `asyncio.sleep`)."""

@@ -120,7 +120,16 @@ async def test_notice_taking_and_async_paths() -> None:
         post(7)
         got = [queue.get_nowait(), queue.get_nowait()]
         assert [(n.source, n.event_id) for n in got] == [(actuator, 7)] * 2
-        assert got[0] is not got[1]  # a notice per event: an observer may keep it
+        assert got[0] == got[1] == EventNotice(actuator, 7)
+        assert got[0] is got[1]  # a value, built once per event id and reused
+        actuator.remove_observer(queue)
+        queue = ObserverQueue(1)
+        actuator.add_observer(queue)
+        post(7)
+        post(8)  # overflows: the notice reporting it is a new one, the reused one intact
+        assert queue.get_nowait() == EventNotice(actuator, 8, missed=1)
+        post(8)
+        assert queue.get_nowait() == EventNotice(actuator, 8)
         actuator.remove_observer(queue)
         first, second = Async(log, "a"), Async(log, "b")  # async only: mailboxes' put
         actuator.add_observer(first)
@@ -132,8 +141,9 @@ async def test_notice_taking_and_async_paths() -> None:
                 await anyio.lowlevel.checkpoint()
         assert [e[2] for e in log if e[0] == "a"] == [1, 2, 1]
         assert [e[2] for e in log if e[0] == "b"] == [1, 2, 1]
-        assert actuator.observer_stats.published == 5
-        assert actuator.observer_stats.lost == 0
+        assert actuator.observer_stats.published == 8
+        assert actuator.observer_stats.lost == 0  # (the queue's overflow is its own)
+        assert queue.missed_total == 1
 
 
 @pytest.mark.parametrize("shape", ["plain", "async"])
@@ -153,28 +163,35 @@ async def test_no_event_once_finalized(shape: str) -> None:
 async def test_registering_observers_does_not_rebuild_the_fast_paths_each_time(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """Registration stays O(1) per observer: the fast paths (O(observers) to build) are
-    set by the first event after a change, once."""
-    from openel_async.fanout import Fanout
+    """Registration stays O(1) per observer past a few: for the first few, the fast paths
+    are set at registration (the next event pays nothing); past them, by the first event
+    after a change, once."""
+    from openel_async import component
 
-    builds: list[int] = []
-    mailbox_puts = Fanout.mailbox_puts
+    refreshes: list[int] = []
+    refresh = component.HALComponent._refresh_events
 
-    def counting(self: Fanout, kind: str) -> Any:
-        builds.append(len(self))
-        return mailbox_puts(self, kind)
+    def counting(self: component.HALComponent) -> None:
+        refreshes.append(len(self.observers))
+        refresh(self)
 
-    monkeypatch.setattr(Fanout, "mailbox_puts", counting)
+    monkeypatch.setattr(component.HALComponent, "_refresh_events", counting)
     log: list[Any] = []
     async with Actuator(EventSource(), clock=VirtualClock()) as actuator:
         device = actuator.device
         assert isinstance(device, EventSource) and device.ctx is not None
-        builds.clear()
-        for i in range(50):
+        refreshes.clear()
+        actuator.add_observer(Plain(log, "p0"))
+        assert refreshes == [1]  # set at registration: the first event pays nothing
+        device.ctx.post_event(0)
+        assert refreshes == [1]
+        for i in range(1, 50):
             actuator.add_observer(Plain(log, f"p{i}"))
-        assert builds == []
+        eager = len(refreshes)
+        assert 1 < eager < 50
+        assert refreshes == list(range(1, eager + 1))  # none past the eager limit
         device.ctx.post_event(1)
         device.ctx.post_event(2)
-        assert builds == [50]  # once, at the first event
-        assert [entry[2] for entry in log] == [1] * 50 + [2] * 50
-        assert actuator.observer_stats.published == 2
+        assert refreshes == [*range(1, eager + 1), 50]  # once, at the first event
+        assert [entry[2] for entry in log] == [0] + [1] * 50 + [2] * 50
+        assert actuator.observer_stats.published == 3
