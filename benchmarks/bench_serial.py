@@ -17,8 +17,10 @@ transactions. The figures are the medians over the rounds.
 
 from __future__ import annotations
 
+import asyncio
 import cProfile
 import gc
+import os
 import pstats
 import statistics
 import time
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 
 import anyio
 import dynamixel_sdk as sdk  # type: ignore[import-untyped]
+import serial
 
 from openel_async import Actuator
 from openel_serial import DynamixelPort, DynamixelServo
@@ -54,6 +57,9 @@ PROFILE_TOP = 8
 TARGET_RATIO = 1.0
 TARGET_CPU_US = 60.0
 TIMEOUT_MARGIN_S = 0.05
+ROUND_TIMEOUT_S = 60.0
+"""Bound on a floor client's round (one deadline for the round: none per transaction)."""
+READ_SIZE = 4096
 
 
 def _ids(servos: int) -> tuple[int, ...]:
@@ -110,6 +116,75 @@ def sdk_round(path: str, servos: int, cycles: int) -> Round:
     finally:
         port.closePort()
     return _round(samples, cpu_ns, failures, "dynamixel-sdk")
+
+
+# -- the floors: a bare asyncio client ---------------------------------------------------
+
+
+def floor_round(path: str, servos: int, cycles: int, *, parse: bool) -> Round:
+    """The least an asyncio client pays per transaction on this bus: the same request
+    bytes written with ``os.write``, the reply read in ``loop.add_reader``'s callback with
+    ``os.read``, one future per transaction completed when the reply's bytes are in;
+    nothing checked (``parse``: each read fed to our parser's bulk path,
+    :meth:`~openel_serial.dynamixel.PacketParser.feed_statuses`, the future completed when
+    it returned a status from every servo). No retry, no timeout per transaction (one
+    deadline bounds the round). The port is opened and configured by pyserial as ours is."""
+    tty = serial.serial_for_url(path, baudrate=BAUD)
+    try:
+        fd = tty.fileno()
+        os.set_blocking(fd, False)
+        return anyio.run(_floor, fd, servos, cycles, parse, backend="asyncio")
+    finally:
+        tty.close()
+
+
+async def _floor(fd: int, servos: int, cycles: int, parse: bool) -> Round:
+    request = dx.encode(dx.SyncRead(POLL_ADDRESS, POLL_LENGTH, _ids(servos)))
+    expected = reply_bytes(servos)
+    loop = asyncio.get_running_loop()
+    parser = dx.PacketParser()
+    read, write = os.read, os.write
+    waiter: asyncio.Future[None] = loop.create_future()
+    got = 0
+
+    def on_readable() -> None:
+        nonlocal got
+        data = read(fd, READ_SIZE)
+        if parse:
+            statuses, _ = parser.feed_statuses(data, POLL_LENGTH)
+            got += len(statuses)
+            done = got >= servos
+        else:
+            got += len(data)
+            done = got >= expected
+        if done and not waiter.done():
+            got = 0
+            waiter.set_result(None)
+
+    async def transaction() -> None:
+        nonlocal waiter
+        waiter = loop.create_future()
+        write(fd, request)
+        await waiter
+
+    loop.add_reader(fd, on_readable)
+    try:
+        with anyio.fail_after(ROUND_TIMEOUT_S):
+            for _ in range(WARMUP):
+                await transaction()
+            samples: list[int] = []
+            clock, cpu = time.perf_counter_ns, time.process_time_ns
+            cpu0 = cpu()
+            for _ in range(cycles):
+                t0 = clock()
+                await transaction()
+                samples.append(clock() - t0)
+            cpu_ns = cpu() - cpu0
+    finally:
+        loop.remove_reader(fd)
+    if parser.dropped_bytes or parser.crc_errors:
+        raise AssertionError(f"floor client: unexpected bytes on the bus: {parser}")
+    return _round(samples, cpu_ns, 0, "parse floor" if parse else "bare floor")
 
 
 # -- ours ----------------------------------------------------------------------------------
@@ -196,6 +271,10 @@ class Size:
     servos: int
     ours: tuple[Round, ...]
     peer: tuple[Round, ...]
+    bare: tuple[Round, ...]
+    """The bare asyncio client (:func:`floor_round`), in the same rounds."""
+    parsed: tuple[Round, ...]
+    """The bare asyncio client with our bulk parse."""
 
     def ours_median(self, field: str) -> float:
         return median_of(self.ours, field)
@@ -207,15 +286,23 @@ class Size:
 def measure(servos: int, cycles: int, rounds: int) -> Size:
     ours: list[Round] = []
     peer: list[Round] = []
+    bare: list[Round] = []
+    parsed: list[Round] = []
     with BusProcess(servos) as path:
-        for i in range(rounds):  # alternate (and swap who goes first) so load hits both
-            for who in ("peer", "ours") if i % 2 else ("ours", "peer"):
+        for i in range(rounds):  # alternate (and swap who goes first) so load hits all
+            order = (
+                ("peer", "parsed", "ours", "bare") if i % 2 else ("ours", "bare", "peer", "parsed")
+            )
+            for who in order:
                 gc.collect()
                 if who == "ours":
                     ours.append(anyio.run(driver_round, path, servos, cycles, backend="asyncio"))
-                else:
+                elif who == "peer":
                     peer.append(sdk_round(path, servos, cycles))
-    return Size(servos, tuple(ours), tuple(peer))
+                else:
+                    floor = bare if who == "bare" else parsed
+                    floor.append(floor_round(path, servos, cycles, parse=who == "parsed"))
+    return Size(servos, tuple(ours), tuple(peer), tuple(bare), tuple(parsed))
 
 
 def run(quick: bool) -> BenchResult:
@@ -274,7 +361,35 @@ def run(quick: bool) -> BenchResult:
                 passed=cpu <= TARGET_CPU_US,
             )
         )
+        for label, floor in (
+            ("a bare asyncio client", size.bare),
+            ("the bare client + our bulk parse", size.parsed),
+        ):
+            rows.append(
+                Row(
+                    f"floor: CPU per transaction of {label}, {n} servo{'s' if n > 1 else ''}",
+                    median_of(floor, "cpu_us"),
+                    "µs",
+                    baseline=cpu,
+                    baseline_label="ours",
+                    ratio=statistics.median(
+                        ratio_of(f.cpu_us, o.cpu_us) for f, o in zip(floor, size.ours, strict=True)
+                    ),
+                    ratio_label="floor/ours",
+                )
+            )
         per_round = ", ".join(f"{r:.2f}" for r in pairs)
+        notes.append(
+            f"N = {n}: CPU per round (µs): bare client "
+            + ", ".join(f"{r.cpu_us:.0f}" for r in size.bare)
+            + "; + our parse "
+            + ", ".join(f"{r.cpu_us:.0f}" for r in size.parsed)
+            + "; ours over the bare client "
+            + ", ".join(
+                f"{o.cpu_us - b.cpu_us:+.0f}" for o, b in zip(size.ours, size.bare, strict=True)
+            )
+            + f"; median transaction of the bare client {median_of(size.bare, 'median_us'):.0f} µs."
+        )
         notes.append(
             f"N = {n}: per-round ours/sdk median ratios {per_round}; our CPU per round "
             + ", ".join(f"{r.cpu_us:.0f}" for r in size.ours)
