@@ -125,10 +125,12 @@ def floor_round(path: str, servos: int, cycles: int, *, parse: bool) -> Round:
     """The least an asyncio client pays per transaction on this bus: the same request
     bytes written with ``os.write``, the reply read in ``loop.add_reader``'s callback with
     ``os.read``, one future per transaction completed when the reply's bytes are in;
-    nothing checked (``parse``: each read fed to our parser's bulk path,
-    :meth:`~openel_serial.dynamixel.PacketParser.feed_statuses`, the future completed when
-    it returned a status from every servo). No retry, no timeout per transaction (one
-    deadline bounds the round). The port is opened and configured by pyserial as ours is."""
+    nothing checked. ``parse``: the reply, once all in, checked and split by our
+    parser's bulk path as our direct path does it
+    (:meth:`~openel_serial.dynamixel.PacketParser.feed_bulk`: every fixed byte, id, CRC)
+    into ``{id: params}``, the future completed when that holds every servo. No retry, no
+    timeout per transaction (one deadline bounds the round). The port is opened and
+    configured by pyserial as ours is."""
     tty = serial.serial_for_url(path, baudrate=BAUD)
     try:
         fd = tty.fileno()
@@ -145,21 +147,21 @@ async def _floor(fd: int, servos: int, cycles: int, parse: bool) -> Round:
     parser = dx.PacketParser()
     read, write = os.read, os.write
     waiter: asyncio.Future[None] = loop.create_future()
-    got = 0
+    pending = b""
 
     def on_readable() -> None:
-        nonlocal got
+        nonlocal pending
         data = read(fd, READ_SIZE)
+        pending = pending + data if pending else data
+        if len(pending) < expected or waiter.done():
+            return
+        reply, pending = pending, b""
         if parse:
-            statuses, _ = parser.feed_statuses(data, POLL_LENGTH)
-            got += len(statuses)
-            done = got >= servos
-        else:
-            got += len(data)
-            done = got >= expected
-        if done and not waiter.done():
-            got = 0
-            waiter.set_result(None)
+            bulk = parser.feed_bulk(reply, POLL_LENGTH)
+            if bulk is None or len(dict(zip(bulk[0], bulk[2], strict=True))) != servos:
+                waiter.set_exception(AssertionError(f"floor client: bad reply {reply.hex()}"))
+                return
+        waiter.set_result(None)
 
     async def transaction() -> None:
         nonlocal waiter
