@@ -144,7 +144,8 @@ _BULK_LAYOUTS: dict[tuple[int, int], _BulkLayout] = {}
 def _bulk_layout(param_length: int, count: int) -> _BulkLayout:
     """``count`` statuses of ``param_length`` params back to back, without stuffing: each
     fixed byte's offset in a packet with that byte repeated ``count`` times (what the
-    extended slice ``data[offset::size]`` must equal), and the layout of every params."""
+    extended slice ``data[offset::size]`` must equal), and the layout of every params
+    (for one status: no offsets, and the layout of all its fields)."""
     wire_length = param_length + 4  # instruction, error, params, CRC
     fixed = (
         *((offset, HEADER[offset : offset + 1]) for offset in range(4)),
@@ -152,6 +153,8 @@ def _bulk_layout(param_length: int, count: int) -> _BulkLayout:
         (6, bytes((wire_length >> 8,))),
         (7, bytes((_STATUS,))),
     )
+    if count == 1:  # the whole packet's fields (PacketParser.feed_bulk unpacks it once)
+        return (), struct.Struct(f"<4sBHBB{param_length}sH")
     return (
         tuple((offset, byte * count) for offset, byte in fixed),
         struct.Struct("<" + f"9x{param_length}s2x" * count),
@@ -770,6 +773,18 @@ class PacketParser:
             if len(_BULK_LAYOUTS) < _BULK_LAYOUT_CACHE:
                 _BULK_LAYOUTS[param_length, count] = layout
         fixed, params_layout = layout
+        if count == 1:  # one status: one unpack, its fields compared (fewer steps)
+            header, dxl_id, length, instruction, error, params, crc = params_layout.unpack(data)
+            if (
+                header != HEADER
+                or length != param_length + 4
+                or instruction != _STATUS
+                or dxl_id > MAX_ID
+                or _umts(data[:-_CRC_LEN]) != crc
+            ):
+                return None
+            self.packets += 1
+            return bytes((dxl_id,)), bytes((error,)), (params,)
         for offset, expected in fixed:  # every fixed byte of every packet at once
             if data[offset::size] != expected:
                 return None
