@@ -463,6 +463,15 @@ simulated bus for both clients, in the same run:
 - **peer**: dynamixel-sdk's `GroupSyncRead(port, PacketHandler(2.0), {POLL_ADDRESS},
   {POLL_LENGTH})` with `addParam(id)` for the same ids and `txRxPacket()` per transaction,
   blocking, in the benchmark process's main thread, on the SDK's own `PortHandler`.
+- **floors** (informational rows, same rounds, same bus): a bare asyncio client, in an
+  anyio-run asyncio loop like ours, on the tty opened by pyserial like ours: the same
+  request bytes written with `os.write`, the reply read with `os.read` in a
+  `loop.add_reader` callback, one future per transaction completed when the reply's
+  bytes are in, nothing checked, no retry, no timer (`floor_round`); and the same client
+  checking and splitting the reply with our bulk parse (`PacketParser.feed_bulk` into
+  `{{id: params}}`, what our direct path does). The bare client is the least any asyncio
+  client pays per transaction here: one `write`, one `epoll` wake-up, one `read`, two
+  loop passes.
 
 Each transaction is timed alone; rounds of ours and the SDK alternate on the same bus
 process (the first of each pair swaps every round). Value and baseline are the medians
@@ -479,21 +488,49 @@ task's wake-up pass, the benchmark's loop). The SDK never sleeps (it polls the p
 so it saves the last wake-up and pays with its whole wall time in CPU; a client that
 sleeps until the reply cannot be more than a few µs faster than that at N = 1.
 
-**Our CPU per transaction (issue 27, target <= 60 µs at every N): out of reach at
-N = 8 and 32; not changed in this pass.** The fixed part, the transaction at N = 1
-(one `write`, one `epoll` wake-up, one `read`, the task's two loop passes), measured
-54-98 µs per round in the two runs before this pass (load 1.5-2), 62-123 µs in the two
-recorded here (load 2.3-3.0), 85-200 µs in two earlier ones of this pass (load 3-4.4),
-nearly all of it user time (`getrusage`, 2,000 transactions at load 3: 113-123 µs user,
-14-16 µs system): at the target only on an idle machine. Every status adds to
-it: `PacketParser.feed_statuses` alone (the bulk
-check and decode: every fixed byte by extended slices, the CRC in C per packet, a
-`Status` per packet), timed in a loop on the same bytes, takes 3.4 / 14.3 / 35.1 µs for
-1 / 8 / 32 statuses (about 1.1 µs per status), and handing each status to the exchange
-and the `{{id: data}}` result costs another few tenths of a µs; a system-call count
-(strace, 2,000 transactions) shows the same `read`, `write` and `epoll_wait` counts at
-N = 1, 8 and 32 (one read per transaction). So at N = 32 the parse alone leaves about
-25 µs for the fixed part that takes 54 µs or more: the 60 µs target holds only at N = 1.
-The decision: the rows stay, failing at N = 8 and 32, as the measurement of that
-per-status cost; a target that scales with N (60 µs + ~1.5 µs per status) is proposed to
-issue 27 instead. dynamixel-sdk spends 4-10x our CPU at every N (its polling read)."""
+**Our CPU per transaction (issue 27, target <= 60 µs at every N): not reachable in
+asyncio on this machine; the floor rows prove it at N = 1.** In the full run of this
+pass (09:00-09:03 UTC, commit 004d931, load 5.2, 7 rounds; not written to this page)
+the bare client alone took 67 / 87 / 123 µs per transaction at N = 1 / 8 / 32 (per
+round at N = 1: 52-85 µs, over 60 in 6 of 7 rounds), the bare client with our bulk
+parse 98 / 149 / 158 µs, ours 129 / 201 / 253 µs: ours over the bare client (per round,
+median) +52 / +113 / +111 µs, ours/floor 2.0 / 2.3 / 2.1. With the machine quieter
+(load 1.5-2, a script with the same clients, 5 rounds of 1,500) the bare client took
+42-69 µs at N = 1 (median 56-59 µs): even then it leaves at most a few µs of the 60 µs
+for parsing, checking, the lock, the retry and timeout bookkeeping that the floor does
+not do. A client that sleeps until the reply cannot do better than the floor; the
+target holds only for one that spins (dynamixel-sdk: 4-10x our CPU).
+
+What this pass changed (the direct path): a SYNC READ whose statuses come in one read,
+each from an id asked for, once, with error byte 0 (the usual case), is handed by the
+reception to `DynamixelPort.sync_read` as `{{id: params}}` with no object and no Python
+loop per status: `PacketParser.feed_bulk` checks every fixed byte of every packet by
+extended slices, the ids, and every CRC in one pass over the run (each CRC's two bytes
+swapped: a run whose packets all match has CRC 0; damage within one packet is found
+exactly as by its own CRC, any error of up to 3 bits anywhere too, as the generator
+guarantees up to 4,095 bytes, longer runs are checked packet by packet), and unpacks every
+params with one `struct`; `sync_read` calls the exchange directly (two coroutine
+layers fewer). Anything else (a refusal, an alert, a missing, stray or repeated id, a
+reply split across reads) takes the per-status path, retries and error checks as
+before. Old (790f49d) and new code in alternating rounds on one bus with the bare client
+(6 rounds each, load 3.9-5.6): our CPU 179 -> 164 / 166 -> 163 / 282 -> 222 µs at N = 1
+/ 8 / 32 (new/old per round, median: 0.92 / 0.88 / 0.85), ours over the bare client
+(median) +86 -> +75 / +101 -> +87 / +169 -> +114 µs. The parse and the per-status
+handling alone, timed in a loop on the same bytes (load 3.7): 4.9 -> 5.1 / 14.9 -> 9.9 /
+45 -> 11 µs; `feed_bulk` alone 2.2 / 6.7 / 8.4 µs. The cost over the floor grows less
+with N (N = 8 to 32: +87 -> +114 and +113 -> +111 µs in the two runs, +101 -> +169
+before); what remains (+50 to +110 µs at load 5) is mostly the fixed path: the bus
+lock, the exchange's bookkeeping (timer, counters, expected ids), the link and transport
+layers and the deeper coroutine chain, about 15 µs when timed warm in a loop (a fake
+link answering in the next loop pass: ours 21-30 µs, the bare future 7-12 µs),
+multiplied by cold caches after each wake-up on a loaded machine.
+
+A compiled parser would not change the verdict: the whole parse with the `{{id:
+params}}` split costs 5 / 10 / 11 µs warm, of which a C or Rust routine might save
+4 / 9 / 10 µs; in the run the parse floor sits 30 / 61 / 35 µs over the bare client
+(cold caches), the most a compiled parser could take off, while the bare client alone is
+at or over 60 µs. The decision: the three rows stay, failing, with the floor rows as
+their measured limit; proposed to issue 27 instead: a target relative to the in-run
+floor (our CPU per transaction at most 2x the bare asyncio client's in the same rounds:
+2.0 / 2.3 / 2.1 now), which a loaded or quiet machine moves much less than an absolute
+one. dynamixel-sdk spends 4-10x our CPU at every N (its polling read)."""
