@@ -494,7 +494,7 @@ pass (09:00-09:03 UTC, commit 004d931, load 5.2, 7 rounds; not written to this p
 the bare client alone took 67 / 87 / 123 µs per transaction at N = 1 / 8 / 32 (per
 round at N = 1: 52-85 µs, over 60 in 6 of 7 rounds), the bare client with our bulk
 parse 98 / 149 / 158 µs, ours 129 / 201 / 253 µs: ours over the bare client (per round,
-median) +52 / +113 / +111 µs, ours/floor 2.0 / 2.3 / 2.1. With the machine quieter
+median) +52 / +113 / +111 µs, ours/floor 2.0 / 2.3 / 1.9. With the machine quieter
 (load 1.5-2, a script with the same clients, 5 rounds of 1,500) the bare client took
 42-69 µs at N = 1 (median 56-59 µs): even then it leaves at most a few µs of the 60 µs
 for parsing, checking, the lock, the retry and timeout bookkeeping that the floor does
@@ -521,8 +521,8 @@ handling alone, timed in a loop on the same bytes (load 3.7): 4.9 -> 5.1 / 14.9 
 with N (N = 8 to 32: +87 -> +114 and +113 -> +111 µs in the two runs, +101 -> +169
 before); what remains (+50 to +110 µs at load 5) is mostly the fixed path: the bus
 lock, the exchange's bookkeeping (timer, counters, expected ids), the link and transport
-layers and the deeper coroutine chain, about 15 µs when timed warm in a loop (a fake
-link answering in the next loop pass: ours 21-30 µs, the bare future 7-12 µs),
+layers and the deeper coroutine chain, about 15-25 µs when timed warm in a loop (a fake
+link answering in the next loop pass: ours 21-37 µs at N = 1, the bare future 6-12 µs),
 multiplied by cold caches after each wake-up on a loaded machine.
 
 A compiled parser would not change the verdict: the whole parse with the `{{id:
@@ -532,5 +532,5 @@ params}}` split costs 5 / 10 / 11 µs warm, of which a C or Rust routine might s
 at or over 60 µs. The decision: the three rows stay, failing, with the floor rows as
 their measured limit; proposed to issue 27 instead: a target relative to the in-run
 floor (our CPU per transaction at most 2x the bare asyncio client's in the same rounds:
-2.0 / 2.3 / 2.1 now), which a loaded or quiet machine moves much less than an absolute
+2.0 / 2.3 / 1.9 now), which a loaded or quiet machine moves much less than an absolute
 one. dynamixel-sdk spends 4-10x our CPU at every N (its polling read)."""
