@@ -134,6 +134,9 @@ _CRC_LEN: Final = 2
 _HEADER_LEN: Final = 4
 _STATUS_OVERHEAD: Final = 11  # header 4, id, length 2, instruction, error, CRC 2
 _BULK_LAYOUT_CACHE: Final = 64
+_BULK_MIN: Final = 3
+"""From this many statuses on, PacketParser.feed_bulk checks them with extended slices and one
+CRC pass; fewer are unpacked one by one."""
 _WHOLE_CRC_MAX: Final = 4095
 """Bytes up to which PacketParser.feed_bulk checks the CRCs of back-to-back statuses with one
 CRC pass over them all (see :func:`_crcs_match`); longer runs are checked packet by packet."""
@@ -145,7 +148,7 @@ def _bulk_layout(param_length: int, count: int) -> _BulkLayout:
     """``count`` statuses of ``param_length`` params back to back, without stuffing: each
     fixed byte's offset in a packet with that byte repeated ``count`` times (what the
     extended slice ``data[offset::size]`` must equal), and the layout of every params
-    (for one status: no offsets, and the layout of all its fields)."""
+    (for fewer than :data:`_BULK_MIN`: no offsets, and the layout of one packet's fields)."""
     wire_length = param_length + 4  # instruction, error, params, CRC
     fixed = (
         *((offset, HEADER[offset : offset + 1]) for offset in range(4)),
@@ -153,12 +156,29 @@ def _bulk_layout(param_length: int, count: int) -> _BulkLayout:
         (6, bytes((wire_length >> 8,))),
         (7, bytes((_STATUS,))),
     )
-    if count == 1:  # the whole packet's fields (PacketParser.feed_bulk unpacks it once)
+    if count < _BULK_MIN:  # a packet's fields (PacketParser.feed_bulk unpacks each once)
         return (), struct.Struct(f"<4sBHBB{param_length}sH")
     return (
         tuple((offset, byte * count) for offset, byte in fixed),
         struct.Struct("<" + f"9x{param_length}s2x" * count),
     )
+
+
+def _lone_status(
+    data: bytes, layout: struct.Struct, param_length: int
+) -> tuple[int, int, bytes] | None:
+    """``(id, error, params)`` of the one unstuffed status of ``param_length`` params that
+    ``data`` is (``layout``: its fields), when every check of the parser passes."""
+    header, dxl_id, length, instruction, error, params, crc = layout.unpack(data)
+    if (
+        header != HEADER
+        or length != param_length + 4
+        or instruction != _STATUS
+        or dxl_id > MAX_ID
+        or _umts(data[:-_CRC_LEN]) != crc
+    ):
+        return None
+    return dxl_id, error, params
 
 
 def _crcs_match(data: bytes, size: int, count: int) -> bool:
@@ -773,18 +793,16 @@ class PacketParser:
             if len(_BULK_LAYOUTS) < _BULK_LAYOUT_CACHE:
                 _BULK_LAYOUTS[param_length, count] = layout
         fixed, params_layout = layout
-        if count == 1:  # one status: one unpack, its fields compared (fewer steps)
-            header, dxl_id, length, instruction, error, params, crc = params_layout.unpack(data)
-            if (
-                header != HEADER
-                or length != param_length + 4
-                or instruction != _STATUS
-                or dxl_id > MAX_ID
-                or _umts(data[:-_CRC_LEN]) != crc
-            ):
-                return None
-            self.packets += 1
-            return bytes((dxl_id,)), bytes((error,)), (params,)
+        if count < _BULK_MIN:  # one or two: one unpack each, fields compared (fewer steps)
+            ones = []
+            for j in range(0, total, size):
+                one = _lone_status(data[j : j + size], params_layout, param_length)
+                if one is None:
+                    return None
+                ones.append(one)
+            self.packets += count
+            ones_ids, ones_errors, ones_params = zip(*ones, strict=True)
+            return bytes(ones_ids), bytes(ones_errors), ones_params
         for offset, expected in fixed:  # every fixed byte of every packet at once
             if data[offset::size] != expected:
                 return None
@@ -811,11 +829,26 @@ class PacketParser:
         whole = len(data) // size * size
         if self._buf or not whole:
             return [], self.feed(data)
+        count = whole // size
+        if count < _BULK_MIN and data.count(_STUFF_PATTERN, 0, whole) == count:
+            layout = _BULK_LAYOUTS.get((param_length, 1))  # one or two: one unpack each
+            if layout is None:
+                layout = _bulk_layout(param_length, 1)
+                if len(_BULK_LAYOUTS) < _BULK_LAYOUT_CACHE:
+                    _BULK_LAYOUTS[param_length, 1] = layout
+            out: list[Status] = []
+            for j in range(0, whole, size):
+                one = _lone_status(data[j : j + size], layout[1], param_length)
+                if one is None:
+                    return [], self.feed(data)  # nothing counted yet: parse it all again
+                out.append(_wire_status(*one))
+            self.packets += count
+            return out, self.feed(data[whole:]) if whole < len(data) else []
         bulk = self.feed_bulk(data if whole == len(data) else data[:whole], param_length)
         if bulk is None:
             return [], self.feed(data)  # nothing counted yet: parse it all again
         new = object.__new__
-        out: list[Status] = []
+        out = []
         for dxl_id, error, params in zip(*bulk, strict=True):
             msg = new(Status)  # as _wire_status does, inline
             fields = msg.__dict__
