@@ -509,7 +509,7 @@ extended slices, the ids, and every CRC in one pass over the run (each CRC's two
 swapped: a run whose packets all match has CRC 0; damage within one packet is found
 exactly as by its own CRC, any error of up to 3 bits anywhere too, as the generator
 guarantees up to 4,095 bytes, longer runs are checked packet by packet), and unpacks every
-params with one `struct`; `sync_read` calls the exchange directly (two coroutine
+params with one `struct` (from 3 statuses on; one or two are unpacked one by one); `sync_read` calls the exchange directly (two coroutine
 layers fewer). Anything else (a refusal, an alert, a missing, stray or repeated id, a
 reply split across reads) takes the per-status path, retries and error checks as
 before. Old (790f49d) and new code in alternating rounds on one bus with the bare client
