@@ -489,12 +489,17 @@ so it saves the last wake-up and pays with its whole wall time in CPU; a client 
 sleeps until the reply cannot be more than a few µs faster than that at N = 1.
 
 **Our CPU per transaction (issue 27, target <= 60 µs at every N): not reachable in
-asyncio on this machine; the floor rows prove it at N = 1.** In the full run of this
+asyncio on this machine: in the same rounds the bare asyncio client alone takes 55-67 µs
+at N = 1 (medians of two full runs).** In the full run of this
 pass (09:00-09:03 UTC, commit 004d931, load 5.2, 7 rounds; not written to this page)
 the bare client alone took 67 / 87 / 123 µs per transaction at N = 1 / 8 / 32 (per
 round at N = 1: 52-85 µs, over 60 in 6 of 7 rounds), the bare client with our bulk
 parse 98 / 149 / 158 µs, ours 129 / 201 / 253 µs: ours over the bare client (per round,
-median) +52 / +113 / +111 µs, ours/floor 2.0 / 2.3 / 1.9. With the machine quieter
+median) +52 / +113 / +111 µs, ours/floor 2.0 / 2.3 / 1.9. A second full run at load
+2.1 (09:20-09:22 UTC, commit 2a34992): bare client 55 / 68 / 80 µs (per round at N = 1:
+37-67 µs), with our parse 79 / 91 / 109 µs, ours 112 / 139 / 171 µs (the run recorded
+below, before this pass, load 1.5: 93 / 142 / 208 µs), ours over the bare client +54 /
++68 / +87 µs, ours/floor 2.0 / 1.9 / 2.0. With the machine quieter
 (load 1.5-2, a script with the same clients, 5 rounds of 1,500) the bare client took
 42-69 µs at N = 1 (median 56-59 µs): even then it leaves at most a few µs of the 60 µs
 for parsing, checking, the lock, the retry and timeout bookkeeping that the floor does
@@ -509,8 +514,8 @@ extended slices, the ids, and every CRC in one pass over the run (each CRC's two
 swapped: a run whose packets all match has CRC 0; damage within one packet is found
 exactly as by its own CRC, any error of up to 3 bits anywhere too, as the generator
 guarantees up to 4,095 bytes, longer runs are checked packet by packet), and unpacks every
-params with one `struct` (from 3 statuses on; one or two are unpacked one by one); `sync_read` calls the exchange directly (two coroutine
-layers fewer). Anything else (a refusal, an alert, a missing, stray or repeated id, a
+params with one `struct` (from 3 statuses on; one or two are unpacked one by one);
+`sync_read` calls the exchange directly (two coroutine layers fewer). Anything else (a refusal, an alert, a missing, stray or repeated id, a
 reply split across reads) takes the per-status path, retries and error checks as
 before. Old (790f49d) and new code in alternating rounds on one bus with the bare client
 (6 rounds each, load 3.9-5.6): our CPU 179 -> 164 / 166 -> 163 / 282 -> 222 µs at N = 1
@@ -532,5 +537,5 @@ params}}` split costs 5 / 10 / 11 µs warm, of which a C or Rust routine might s
 at or over 60 µs. The decision: the three rows stay, failing, with the floor rows as
 their measured limit; proposed to issue 27 instead: a target relative to the in-run
 floor (our CPU per transaction at most 2x the bare asyncio client's in the same rounds:
-2.0 / 2.3 / 1.9 now), which a loaded or quiet machine moves much less than an absolute
+2.0 / 2.3 / 1.9 and 2.0 / 1.9 / 2.0 in the two runs), which a loaded or quiet machine moves much less than an absolute
 one. dynamixel-sdk spends 4-10x our CPU at every N (its polling read)."""
