@@ -133,18 +133,22 @@ _PREFIX_LEN: Final = 7  # header + id + length
 _CRC_LEN: Final = 2
 _HEADER_LEN: Final = 4
 _STATUS_OVERHEAD: Final = 11  # header 4, id, length 2, instruction, error, CRC 2
-_STATUS_LAYOUT_CACHE: Final = 32
+_BULK_LAYOUT_CACHE: Final = 64
 _BULK_MIN: Final = 3
-"""From this many statuses on, PacketParser.feed_statuses checks them with extended slices."""
-_StatusLayouts: TypeAlias = tuple[
-    struct.Struct, struct.Struct, struct.Struct, tuple[tuple[int, bytes], ...]
-]
-_STATUS_LAYOUTS: dict[int, _StatusLayouts] = {}
+"""From this many statuses on, PacketParser.feed_bulk checks them with extended slices and one
+CRC pass; fewer are unpacked one by one."""
+_WHOLE_CRC_MAX: Final = 4095
+"""Bytes up to which PacketParser.feed_bulk checks the CRCs of back-to-back statuses with one
+CRC pass over them all (see :func:`_crcs_match`); longer runs are checked packet by packet."""
+_BulkLayout: TypeAlias = tuple[tuple[tuple[int, bytes], ...], struct.Struct]
+_BULK_LAYOUTS: dict[tuple[int, int], _BulkLayout] = {}
 
 
-def _status_layouts(param_length: int) -> _StatusLayouts:
-    """Layouts of a status with ``param_length`` params and no stuffing: the whole
-    packet; what its CRC covers and the CRC; the params; the fixed bytes by offset."""
+def _bulk_layout(param_length: int, count: int) -> _BulkLayout:
+    """``count`` statuses of ``param_length`` params back to back, without stuffing: each
+    fixed byte's offset in a packet with that byte repeated ``count`` times (what the
+    extended slice ``data[offset::size]`` must equal), and the layout of every params
+    (for fewer than :data:`_BULK_MIN`: no offsets, and the layout of one packet's fields)."""
     wire_length = param_length + 4  # instruction, error, params, CRC
     fixed = (
         *((offset, HEADER[offset : offset + 1]) for offset in range(4)),
@@ -152,12 +156,61 @@ def _status_layouts(param_length: int) -> _StatusLayouts:
         (6, bytes((wire_length >> 8,))),
         (7, bytes((_STATUS,))),
     )
+    if count < _BULK_MIN:  # a packet's fields (PacketParser.feed_bulk unpacks each once)
+        return (), struct.Struct(f"<4sBHBB{param_length}sH")
     return (
-        struct.Struct(f"<4sBHBB{param_length}sH"),
-        struct.Struct(f"<{_PREFIX_LEN + 2 + param_length}sH"),
-        struct.Struct(f"<9x{param_length}s2x"),
-        fixed,
+        tuple((offset, byte * count) for offset, byte in fixed),
+        struct.Struct("<" + f"9x{param_length}s2x" * count),
     )
+
+
+def _lone_status(
+    data: bytes, layout: struct.Struct, param_length: int
+) -> tuple[int, int, bytes] | None:
+    """``(id, error, params)`` of the one unstuffed status of ``param_length`` params that
+    ``data`` is (``layout``: its fields), when every check of the parser passes."""
+    header, dxl_id, length, instruction, error, params, crc = layout.unpack(data)
+    if (
+        header != HEADER
+        or length != param_length + 4
+        or instruction != _STATUS
+        or dxl_id > MAX_ID
+        or _umts(data[:-_CRC_LEN]) != crc
+    ):
+        return None
+    return dxl_id, error, params
+
+
+def _crcs_match(data: bytes, size: int, count: int) -> bool:
+    """Whether each of the ``count`` packets of ``size`` bytes that make up ``data`` ends
+    with the CRC of the rest of it.
+
+    One CRC pass over them all: this CRC (non-reflected, initial value 0, no final xor)
+    of a packet followed by its own CRC sent most significant byte first is 0, and the
+    CRC of a concatenation is the first part's CRC shifted by the second's length
+    (multiplied by a power of x modulo the generator) xor the second's. So with every
+    CRC's two bytes swapped (Dynamixel sends the least significant first), the whole run
+    has CRC 0 when every packet's matches. Conversely a damaged packet is found exactly
+    as by its own check whenever the damage lies within one packet (a power of x is
+    invertible modulo the generator, so a shifted nonzero remainder stays nonzero); and
+    the generator (x + 1)(x^15 + x + 1) detects any odd number of flipped bits and any
+    two within 32,767 bits (:data:`_WHOLE_CRC_MAX` bytes), so every error of up to 3
+    bits anywhere in the run is found, as packet by packet. Only 4 or more bits flipped
+    across two or more packets may cancel out (about 1 in 65,536 such patterns, the odds
+    of a damaged single packet passing its own CRC).
+    """
+    if count == 1:
+        return _umts(data[:-_CRC_LEN]) == data[-2] | data[-1] << 8
+    if len(data) > _WHOLE_CRC_MAX:
+        body = size - _CRC_LEN
+        return all(
+            _umts(data[j : j + body]) == data[j + body] | data[j + body + 1] << 8
+            for j in range(0, len(data), size)
+        )
+    swapped = bytearray(data)
+    swapped[size - 2 :: size] = data[size - 1 :: size]
+    swapped[size - 1 :: size] = data[size - 2 :: size]
+    return _umts(swapped) == 0
 
 
 _STUFF_PATTERN: Final = b"\xff\xff\xfd"
@@ -710,6 +763,55 @@ class PacketParser:
         """The packets completed by ``data``, in stream order."""
         return self._parse(data, False)  # type: ignore[return-value]  # no CorruptPacket
 
+    def feed_bulk(
+        self, data: bytes, param_length: int
+    ) -> tuple[bytes, bytes, tuple[bytes, ...]] | None:
+        """The statuses of ``param_length`` params that make up ``data`` (the replies to a
+        SYNC READ, as one read brings them), checked in bulk and not decoded into objects.
+
+        Returns ``(ids, errors, params)``: the id byte, the error byte and the params of
+        each status in stream order, when nothing is buffered and ``data`` is exactly
+        whole such statuses back to back, each passing every check :meth:`feed` makes
+        (header, length field, instruction STATUS, id up to :data:`MAX_ID`, no byte
+        stuffing, CRC: see :func:`_crcs_match`); they count in ``packets``. Otherwise
+        None, with nothing consumed or counted: give ``data`` to :meth:`feed` or
+        :meth:`feed_statuses`.
+        """
+        size = _STATUS_OVERHEAD + param_length
+        total = len(data)
+        count = total // size
+        if self._buf or not count or count * size != total or param_length + 4 > self.max_length:
+            return None
+        if type(data) is not bytes:
+            data = bytes(data)
+        # Exactly one FF FF FD per packet (its header): no stuffing, no inner header.
+        if data.count(_STUFF_PATTERN) != count:
+            return None
+        layout = _BULK_LAYOUTS.get((param_length, count))
+        if layout is None:
+            layout = _bulk_layout(param_length, count)
+            if len(_BULK_LAYOUTS) < _BULK_LAYOUT_CACHE:
+                _BULK_LAYOUTS[param_length, count] = layout
+        fixed, params_layout = layout
+        if count < _BULK_MIN:  # one or two: one unpack each, fields compared (fewer steps)
+            ones = []
+            for j in range(0, total, size):
+                one = _lone_status(data[j : j + size], params_layout, param_length)
+                if one is None:
+                    return None
+                ones.append(one)
+            self.packets += count
+            ones_ids, ones_errors, ones_params = zip(*ones, strict=True)
+            return bytes(ones_ids), bytes(ones_errors), ones_params
+        for offset, expected in fixed:  # every fixed byte of every packet at once
+            if data[offset::size] != expected:
+                return None
+        ids = data[4::size]
+        if max(ids) > MAX_ID or not _crcs_match(data, size, count):
+            return None
+        self.packets += count
+        return ids, data[8::size], params_layout.unpack(data)
+
     def feed_statuses(
         self, data: bytes, param_length: int
     ) -> tuple[list[Status], list[DynamixelMessage]]:
@@ -718,78 +820,42 @@ class PacketParser:
         Returns ``(statuses, others)``: ``statuses + others`` is what :meth:`feed`
         returns (the same packets in the same order, the same counters). When ``data``
         starts, with nothing buffered, with such statuses back to back (the replies to a
-        SYNC READ), those are checked and decoded in bulk and returned in ``statuses``:
-        each a :class:`Status` with exactly ``param_length`` params. Whatever follows
-        them, or anything else (a byte-stuffed packet, another packet, noise), goes
-        through :meth:`feed` into ``others``.
+        SYNC READ), those are checked in bulk (:meth:`feed_bulk`) and returned in
+        ``statuses``: each a :class:`Status` with exactly ``param_length`` params.
+        Whatever follows them, or anything else (a byte-stuffed packet, another packet,
+        noise), goes through :meth:`feed` into ``others``.
         """
         size = _STATUS_OVERHEAD + param_length
-        count = len(data) // size
-        if self._buf or not count or param_length + 4 > self.max_length:
+        whole = len(data) // size * size
+        if self._buf or not whole:
             return [], self.feed(data)
-        whole = count * size
-        if type(data) is not bytes:
-            data = bytes(data)
-        chunk = data if whole == len(data) else data[:whole]
-        # Exactly one FF FF FD per packet (its header): no stuffing, no inner header.
-        if chunk.count(_STUFF_PATTERN) != count:
-            return [], self.feed(data)
-        layouts = _STATUS_LAYOUTS.get(param_length)
-        if layouts is None:
-            layouts = _status_layouts(param_length)
-            if len(_STATUS_LAYOUTS) < _STATUS_LAYOUT_CACHE:
-                _STATUS_LAYOUTS[param_length] = layouts
-        packet_layout, crc_layout, params_layout, fixed = layouts
-        new = object.__new__
-        out: list[Status] = []
-        if count < _BULK_MIN:  # a few statuses: one unpack each
-            wire_length = param_length + 4  # instruction, error, params, CRC
-            body = size - _CRC_LEN
-            j = 0
-            for (
-                header,
-                dxl_id,
-                length,
-                instruction,
-                error,
-                params,
-                crc,
-            ) in packet_layout.iter_unpack(chunk):
-                if (
-                    header != HEADER
-                    or length != wire_length
-                    or instruction != _STATUS
-                    or dxl_id > MAX_ID
-                    or _umts(chunk[j : j + body]) != crc
-                ):
+        count = whole // size
+        if count < _BULK_MIN and data.count(_STUFF_PATTERN, 0, whole) == count:
+            layout = _BULK_LAYOUTS.get((param_length, 1))  # one or two: one unpack each
+            if layout is None:
+                layout = _bulk_layout(param_length, 1)
+                if len(_BULK_LAYOUTS) < _BULK_LAYOUT_CACHE:
+                    _BULK_LAYOUTS[param_length, 1] = layout
+            out: list[Status] = []
+            for j in range(0, whole, size):
+                one = _lone_status(data[j : j + size], layout[1], param_length)
+                if one is None:
                     return [], self.feed(data)  # nothing counted yet: parse it all again
-                msg = new(Status)  # as _wire_status does, inline
-                fields = msg.__dict__
-                fields["id"] = dxl_id
-                fields["error"] = error
-                fields["params"] = params
-                out.append(msg)
-                j += size
-        else:  # many: every fixed byte of every packet checked at once (extended slices)
-            for offset, byte in fixed:
-                if chunk[offset::size] != byte * count:
-                    return [], self.feed(data)
-            ids = chunk[4::size]
-            if max(ids) > MAX_ID:
-                return [], self.feed(data)
-            for covered, crc in crc_layout.iter_unpack(chunk):
-                if _umts(covered) != crc:
-                    return [], self.feed(data)
-            for dxl_id, error, (params,) in zip(
-                ids, chunk[8::size], params_layout.iter_unpack(chunk), strict=True
-            ):
-                msg = new(Status)
-                fields = msg.__dict__
-                fields["id"] = dxl_id
-                fields["error"] = error
-                fields["params"] = params
-                out.append(msg)
-        self.packets += count
+                out.append(_wire_status(*one))
+            self.packets += count
+            return out, self.feed(data[whole:]) if whole < len(data) else []
+        bulk = self.feed_bulk(data if whole == len(data) else data[:whole], param_length)
+        if bulk is None:
+            return [], self.feed(data)  # nothing counted yet: parse it all again
+        new = object.__new__
+        out = []
+        for dxl_id, error, params in zip(*bulk, strict=True):
+            msg = new(Status)  # as _wire_status does, inline
+            fields = msg.__dict__
+            fields["id"] = dxl_id
+            fields["error"] = error
+            fields["params"] = params
+            out.append(msg)
         return out, self.feed(data[whole:]) if whole < len(data) else []
 
     def feed_all(self, data: bytes) -> list[DynamixelMessage | CorruptPacket]:

@@ -71,7 +71,7 @@ from openel_serial.errors import (
     DynamixelTimeoutError,
     PortDisconnectedError,
 )
-from openel_serial.halfduplex import wire_time
+from openel_serial.halfduplex import complete, wire_time
 
 __all__ = [
     "DEFAULT_RETURN_DELAY",
@@ -220,6 +220,10 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
         """Servos whose Bus Watchdog is armed: id -> timeout (s)."""
         self._last_poll_ns: int | None = None
         self._poll_start_ns = 0
+        self._params_wanted = False
+        """Whether the exchange in flight (:meth:`sync_read`'s) takes params by id."""
+        self._params: dict[int, bytes] | None = None
+        """Its params by id, when every status came checked in bulk with error byte 0."""
 
     # -- protocol ------------------------------------------------------------------
     def client_id(self, client: PortClient) -> int:
@@ -380,12 +384,38 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
     async def sync_read(
         self, ids: Sequence[int], address: int, length: int, *, check_alert: bool = True
     ) -> dict[int, bytes]:
-        """SYNC READ: ``{id: data}`` for every id, or raise (timeout, status error)."""
-        ids, statuses = await self.sync_read_all(ids, address, length)
+        """SYNC READ: ``{id: data}`` for every id, or raise (timeout, status error).
+
+        When every status comes back in one read, each from an id asked for, with error
+        byte 0 (the usual case), the reception hands the exchange the params by id
+        directly (:meth:`~openel_serial.dynamixel.PacketParser.feed_bulk`: the same
+        checks, no object per status); otherwise the statuses go through the retries
+        and the error checks below.
+        """
+        ids = tuple(ids)
+        packet = self.sync_read_packet(ids, address, length)  # validates
+        async with self._lock:
+            self._params_wanted = True
+            try:
+                got = await self._exchange(packet, ids, length)
+            finally:
+                self._params_wanted = False
+                params, self._params = self._params, None
+            if params is not None:
+                return params
+            if len(got) != len(ids) or self._garbled:
+
+                def make(remaining: Sequence[int]) -> bytes:
+                    return self.sync_read_packet(tuple(remaining), address, length)
+
+                got = await self._retry(got, make, ids, f"SYNC READ {address}+{length}", length)
+        if len(got) != len(ids):  # got holds only ids asked for
+            missing = [i for i in ids if i not in got]
+            raise self.sync_read_timeout_error(ids, missing, address, length)
         refused = 0xFF if check_alert else _ERROR_NUMBER  # the alert bit is bit 7
         out: dict[int, bytes] = {}
         for dxl_id in ids:
-            status = statuses[dxl_id]
+            status = got[dxl_id]
             if status.error & refused:
                 raise DynamixelStatusError(dxl_id, status.error, f"SYNC READ {address}+{length}")
             out[dxl_id] = status.params
@@ -432,10 +462,25 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
                 if isinstance(msg, dx.Status):
                     self.stray(msg.id)
             return
+        replies = self._replies
+        if self._params_wanted and not replies:
+            bulk = self.parser.feed_bulk(data, self._param_length)
+            if bulk is not None:
+                ids, errors, params = bulk
+                if errors.count(0) == len(errors):  # no status refuses, none alerts
+                    by_id = dict(zip(ids, params, strict=True))
+                    if len(by_id) == len(expect) and expect.issuperset(by_id):
+                        self._params = by_id  # every status, each from an id asked for
+                        waiter = self._waiter
+                        if waiter is not None:
+                            complete(waiter)
+                        return
+                self._take_bulk(ids, errors, params)
+                self.complete_if_done()
+                return
         # The statuses we wait for, decoded in bulk when they come back to back: each a
         # Status with the expected param length, so only its id and error are checked.
         statuses, others = self.parser.feed_statuses(data, self._param_length)
-        replies = self._replies
         for msg in statuses:
             dxl_id = msg.id
             if dxl_id in expect and dxl_id not in replies:
@@ -448,6 +493,12 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
             if isinstance(other, dx.Status):  # not an echo of an instruction
                 self.take_status(other)
         self.complete_if_done()
+
+    def _take_bulk(self, ids: bytes, errors: bytes, params: tuple[bytes, ...]) -> None:
+        """Statuses checked in bulk that :meth:`sync_read`'s direct path cannot take (an
+        error byte set, an id not asked for or repeated): as :meth:`_on_data` takes them."""
+        for dxl_id, error, data in zip(ids, errors, params, strict=True):
+            self.take_status(dx.Status(dxl_id, error, data))
 
     # -- poller --------------------------------------------------------------------
     def poll_started(self, ids: Sequence[int]) -> bool:

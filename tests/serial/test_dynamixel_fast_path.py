@@ -165,6 +165,72 @@ def test_back_to_back_replies_are_decoded_in_bulk(count: int) -> None:
     assert parser.crc_errors == 1 and parser.packets == count - 1
 
 
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 20), st.data())
+def test_feed_bulk_is_feed_or_nothing(param_length: int, data: st.DataObject) -> None:
+    stream = b"".join(data.draw(st.lists(_segments(param_length), min_size=1, max_size=40)))
+    general, bulk = dx.PacketParser(max_length=64), dx.PacketParser(max_length=64)
+    expected = general.feed(stream)
+    got = bulk.feed_bulk(stream, param_length)
+    if got is None:  # nothing consumed, nothing counted
+        assert _counters(bulk) == _counters(dx.PacketParser())
+    else:
+        ids, errors, params = got
+        assert [dx.Status(*s) for s in zip(ids, errors, params, strict=True)] == expected
+        assert _counters(bulk) == _counters(general)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(2, 40), st.lists(st.integers(0, 10**6), min_size=1, max_size=3, unique=True))
+def test_feed_bulk_finds_up_to_three_flipped_bits_anywhere(count: int, bits: list[int]) -> None:
+    # One CRC pass over the whole run (the CRC bytes swapped) finds every error of up to
+    # 3 bits, within one packet or across several, as packet-by-packet checks do.
+    replies = [dx.Status(i, i % 3, bytes(range(i, i + 14))) for i in range(1, count + 1)]
+    stream = bytearray(b"".join(map(dx.encode, replies)))
+    assert dx.PacketParser().feed_bulk(bytes(stream), 14) == (
+        bytes(r.id for r in replies),
+        bytes(r.error for r in replies),
+        tuple(r.params for r in replies),
+    )
+    flipped = {bit % (len(stream) * 8) for bit in bits}
+    for bit in flipped:
+        stream[bit // 8] ^= 1 << bit % 8
+    parser = dx.PacketParser()
+    assert parser.feed_bulk(bytes(stream), 14) is None
+    assert parser.packets == 0
+
+
+def test_feed_bulk_checks_every_crc_of_a_long_run_one_by_one() -> None:
+    replies = [dx.Status(i % 200, 0, bytes(14)) for i in range(200)]  # 5000 bytes
+    stream = bytearray(b"".join(map(dx.encode, replies)))
+    assert dx.PacketParser().feed_bulk(bytes(stream), 14) is not None
+    stream[25 * 150 + 20] ^= 0x01
+    assert dx.PacketParser().feed_bulk(bytes(stream), 14) is None
+
+
+async def test_the_direct_path_takes_only_the_ids_asked_for_each_once() -> None:
+    # Reception with sync_read's exchange in flight, driven directly: a bulk reply with a
+    # repeated id or an id not asked for goes to the per-status path (stray counted).
+    port = DynamixelPort("/dev/null", baudrate=BAUD)
+    loop = asyncio.get_running_loop()
+
+    def reply(*ids: int) -> bytes:
+        return b"".join(dx.encode(dx.Status(i, 0, bytes([i]) * 14)) for i in ids)
+
+    for ids, stray, taken in (((1, 1), 1, {1}), ((1, 3), 1, {1}), ((2, 1), 0, {1, 2})):
+        waiter = loop.create_future()
+        port._expect, port._replies, port._param_length = {1, 2}, {}, 14
+        port._waiter, port._params_wanted, port.stats.stray = waiter, True, 0
+        port._on_data(reply(*ids))
+        if taken == {1, 2}:
+            assert port._params == {1: bytes([1]) * 14, 2: bytes([2]) * 14}
+            assert port._replies == {} and waiter.done()
+        else:
+            assert port._params is None and set(port._replies) == taken
+            assert port.stats.stray == stray and not waiter.done()
+        port._params = None
+
+
 def test_stuffed_reply_goes_through_the_general_path() -> None:
     reply = dx.Status(4, 0, b"\xff\xff\xfd" + bytes(11))  # stuffed on the wire: 15 bytes
     stream = dx.encode(dx.Status(3, 0, bytes(14))) + dx.encode(reply)
