@@ -13,6 +13,7 @@ interleaved rounds.
 from __future__ import annotations
 
 import asyncio
+import functools
 import gc
 import time
 from collections.abc import Awaitable, Callable
@@ -85,6 +86,27 @@ class Counter:
 
     def notify_error(self, source: object, error_id: int) -> None:
         pass
+
+
+class Dispatch:
+    """The least a component's event dispatch can be in Python (the floor row): one function
+    per component that counts the event and calls its one observer, isolated (an observer's
+    exception must not reach the driver that posted the event)."""
+
+    __slots__ = ("failures", "func", "obj", "published")
+
+    def __init__(self, observer: Counter) -> None:
+        self.func = type(observer).notify_event
+        self.obj = observer
+        self.published = 0
+        self.failures = 0
+
+    def post_event(self, event_id: int) -> None:
+        self.published += 1
+        try:
+            self.func(self.obj, None, event_id)
+        except Exception:
+            self.failures += 1
 
 
 class AsyncCounter:
@@ -187,6 +209,7 @@ async def plain(kind: str, count: int, ticks: int) -> Run:
     loop = asyncio.get_running_loop()
     tasks: list[asyncio.Task[None]] = []
     callbacks: list[Callable[[object, int], object]] = []
+    posts: list[Callable[[int], None]] = []
     queues: list[asyncio.Queue[int | None]] = []
 
     async def consume(queue: asyncio.Queue[int | None], observer: AsyncCounter | None) -> None:
@@ -203,6 +226,8 @@ async def plain(kind: str, count: int, ticks: int) -> Run:
     for _ in range(count):
         if kind == "sync":
             callbacks.append(Counter(total).notify_event)
+        elif kind == "floor":
+            posts.append(Dispatch(Counter(total)).post_event)
         else:
             queue: asyncio.Queue[int | None] = asyncio.Queue(1024)
             queues.append(queue)
@@ -217,7 +242,10 @@ async def plain(kind: str, count: int, ticks: int) -> Run:
     for _ in range(ticks):
         await asyncio.sleep(max(0.0, deadline - loop.time()))
         deadline += period
-        if callbacks:
+        if posts:
+            for post in posts:
+                post(EVENT)
+        elif callbacks:
             for callback in callbacks:
                 try:  # isolated, like an observer
                     callback(None, EVENT)
@@ -262,17 +290,18 @@ def run(quick: bool) -> BenchResult:
         "async": "async observers",
         "queue": "ObserverQueues",
     }
+    floors: dict[int, tuple[float, float]] = {}
     for kind in KINDS:
         per: dict[int, tuple[float, float]] = {}
         for count in SIZES:
             ticks = ticks_for[count]
-            runs = _interleaved(
-                ROUNDS,
-                {
-                    "ours": lambda k=kind, n=count, t=ticks: ours(k, n, t),
-                    "plain": lambda k=kind, n=count, t=ticks: plain(k, n, t),
-                },
-            )
+            cases: dict[str, Callable[[], Awaitable[Run]]] = {
+                "ours": functools.partial(ours, kind, count, ticks),
+                "plain": functools.partial(plain, kind, count, ticks),
+            }
+            if kind == "sync":
+                cases["floor"] = functools.partial(plain, "floor", count, ticks)
+            runs = _interleaved(ROUNDS, cases)
             ours_ns = median([r.ns_per_delivery for r in runs["ours"]])
             plain_ns = median([r.ns_per_delivery for r in runs["plain"]])
             lost = sum(r.lost for r in runs["ours"])
@@ -293,6 +322,25 @@ def run(quick: bool) -> BenchResult:
                     digits=0,
                 )
             )
+            if "floor" in runs:
+                floor_ns = median([r.ns_per_delivery for r in runs["floor"]])
+                floors[count] = (floor_ns, plain_ns)
+        for count, (floor_ns, plain_ns) in floors.items():
+            rows.append(
+                Row(
+                    f"floor: {count} component{'s' if count > 1 else ''}, a dispatch "
+                    "function per component (counts, calls its observer isolated), CPU per "
+                    "delivery",
+                    floor_ns,
+                    "ns",
+                    baseline=plain_ns,
+                    baseline_label=peers[kind],
+                    ratio=ratio_of(floor_ns, plain_ns),
+                    ratio_label="floor/plain",
+                    digits=0,
+                )
+            )
+        floors.clear()
         (ours_small, plain_small) = per[SIZES[-2]]
         (ours_large, plain_large) = per[SIZES[-1]]
         growth = ratio_of(ours_large, ours_small)

@@ -135,11 +135,8 @@ _HEADER_LEN: Final = 4
 _STATUS_OVERHEAD: Final = 11  # header 4, id, length 2, instruction, error, CRC 2
 _BULK_LAYOUT_CACHE: Final = 64
 _BULK_MIN: Final = 3
-"""From this many statuses on, PacketParser.feed_bulk checks them with extended slices and one
-CRC pass; fewer are unpacked one by one."""
-_WHOLE_CRC_MAX: Final = 4095
-"""Bytes up to which PacketParser.feed_bulk checks the CRCs of back-to-back statuses with one
-CRC pass over them all (see :func:`_crcs_match`); longer runs are checked packet by packet."""
+"""From this many statuses on, PacketParser.feed_bulk checks their fixed bytes with extended
+slices (each CRC on its own); fewer are unpacked one by one."""
 _BulkLayout: TypeAlias = tuple[tuple[tuple[int, bytes], ...], struct.Struct]
 _BULK_LAYOUTS: dict[tuple[int, int], _BulkLayout] = {}
 
@@ -183,34 +180,18 @@ def _lone_status(
 
 def _crcs_match(data: bytes, size: int, count: int) -> bool:
     """Whether each of the ``count`` packets of ``size`` bytes that make up ``data`` ends
-    with the CRC of the rest of it.
-
-    One CRC pass over them all: this CRC (non-reflected, initial value 0, no final xor)
-    of a packet followed by its own CRC sent most significant byte first is 0, and the
-    CRC of a concatenation is the first part's CRC shifted by the second's length
-    (multiplied by a power of x modulo the generator) xor the second's. So with every
-    CRC's two bytes swapped (Dynamixel sends the least significant first), the whole run
-    has CRC 0 when every packet's matches. Conversely a damaged packet is found exactly
-    as by its own check whenever the damage lies within one packet (a power of x is
-    invertible modulo the generator, so a shifted nonzero remainder stays nonzero); and
-    the generator (x + 1)(x^15 + x + 1) detects any odd number of flipped bits and any
-    two within 32,767 bits (:data:`_WHOLE_CRC_MAX` bytes), so every error of up to 3
-    bits anywhere in the run is found, as packet by packet. Only 4 or more bits flipped
-    across two or more packets may cancel out (about 1 in 65,536 such patterns, the odds
-    of a damaged single packet passing its own CRC).
-    """
+    with the CRC of the rest of it: every packet checked on its own, as the protocol
+    defines. (One CRC pass over the whole run, with each CRC's bytes swapped, would be
+    cheaper, but 4 or more bits flipped across two packets could cancel out there: the odds
+    of two damaged packets passing would be those of one, 2^-16 instead of 2^-32.)"""
     if count == 1:
         return _umts(data[:-_CRC_LEN]) == data[-2] | data[-1] << 8
-    if len(data) > _WHOLE_CRC_MAX:
-        body = size - _CRC_LEN
-        return all(
-            _umts(data[j : j + body]) == data[j + body] | data[j + body + 1] << 8
-            for j in range(0, len(data), size)
-        )
-    swapped = bytearray(data)
-    swapped[size - 2 :: size] = data[size - 1 :: size]
-    swapped[size - 1 :: size] = data[size - 2 :: size]
-    return _umts(swapped) == 0
+    body = size - _CRC_LEN
+    for j in range(0, len(data), size):
+        end = j + body
+        if _umts(data[j:end]) != data[end] | data[end + 1] << 8:
+            return False
+    return True
 
 
 _STUFF_PATTERN: Final = b"\xff\xff\xfd"
