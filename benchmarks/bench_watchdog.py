@@ -49,6 +49,7 @@ from openel_async import (
     MonotonicClock,
     Request,
 )
+from openel_async.errors import HALError
 from openel_async.motion import AxisGroup, AxisLimits, AxisStateError
 from openel_async.safety import Watchdog
 from openel_can import CanBus, Cia402Drive, ODriveAxis
@@ -75,7 +76,7 @@ ORDERS = tuple(itertools.permutations(STATES))
 equally often, so a drift of the machine's load hits every state alike."""
 WINDOW_S = 0.6
 QUICK_WINDOW_S = 0.3
-ROUNDS = 24
+ROUNDS = 36
 QUICK_ROUNDS = 2
 IDLE_ROUNDS = 12
 QUICK_IDLE_ROUNDS = 1
@@ -236,10 +237,13 @@ async def _measured(
             return await _window(state, seconds, group, actuators, buses, peer_pid, sign)
         except WindowLost as exc:
             lost.append(f"{_state_name(state)}: {exc}")
-        for actuator in actuators:
-            if actuator.state is S.ERROR:
-                await actuator.re_init()
-        await _arm(watchdogs, state)
+        try:
+            for actuator in actuators:
+                if actuator.state is S.ERROR:
+                    await actuator.re_init()
+            await _arm(watchdogs, state)
+        except (HALError, TimeoutError) as exc:  # loaded machine: the next attempt retries
+            lost.append(f"{_state_name(state)}: recovery failed: {exc}")
     raise RuntimeError(f"{ATTEMPTS} windows in a row lost: {lost[-ATTEMPTS:]}")
 
 

@@ -54,7 +54,8 @@ kvaser, virtual ...) and runs, in its own task group:
 * optionally a SYNC producer (CANopen, COB-ID 0x080) every ``sync_period`` seconds.
 * on demand the host's CANopen heartbeat (:meth:`CanBus.produce_heartbeat`: COB-ID
   0x700 + host node id, state Operational), fed to the drives' heartbeat consumers
-  (0x1016) by a task of the bus in the event loop: a stalled loop stops it.
+  (0x1016) by a task of the bus in the event loop: a stalled loop stops it. A beat is
+  sent inline when nothing is queued (like ``NodePort.send``), else queued.
 
 Use it as an async context manager and create the node drivers with it::
 
@@ -851,12 +852,14 @@ class CanBus:
         try:
             next_at = time.monotonic()
             while self._hb_owners and self._hb_node is not None:
-                msg = can.Message(
-                    arbitration_id=0x700 + self._hb_node,
-                    data=b"\x05",  # NMT state Operational
-                    is_extended_id=False,
-                )
-                if self.state is BusState.UP and self._tx_send is not None:
+                # NMT state Operational; inline when nothing is queued (no sender-task hop
+                # per beat), else behind the queued frames.
+                msg = TxMessage.frame(0x700 + self._hb_node, b"\x05", False, False)
+                if (
+                    self.state is BusState.UP
+                    and self._tx_send is not None
+                    and not self._try_inline(msg)
+                ):
                     self._queue_nowait(msg)
                 period = min(self._hb_owners.values())
                 now = time.monotonic()
