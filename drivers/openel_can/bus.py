@@ -74,7 +74,7 @@ import os
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Coroutine, Iterable
 from contextlib import AsyncExitStack
 from dataclasses import dataclass
 from enum import Enum
@@ -630,6 +630,14 @@ class CanBus:
             return False
         read(hold_s)
         return True
+
+    def start_soon(self, func: Callable[[], Coroutine[Any, Any, object]], name: str) -> None:
+        """Run ``func()`` as a task of the bus: in the event loop, cancelled when the bus
+        closes (a keep-alive shared by the bus's devices, as the heartbeat producer).
+        Raises NotConnectedError unless the bus is entered."""
+        if self._tg is None:
+            raise NotConnectedError(f"CAN bus {self.name}: not entered")
+        self._tg.start_soon(func, name=name)
 
     # -- ports ----------------------------------------------------------------------------
     def shared(self, key: object, factory: Callable[[], _T]) -> _T:
