@@ -553,12 +553,13 @@ feeding event comes once per timeout / 4, so the 40 ms rounds carry 2.5 times as
 as the 100 ms ones and their scaled difference estimates the 100 ms overhead with 2.5 times
 less of the window-to-window noise.
 
-**What feeding is, per device.** ODrive: one task per axis wakes every timeout / 4 (25 ms);
-every CANSimple frame to the axis feeds the firmware's watchdog, so while the group streams the
-task finds a frame sent within the period and goes back to sleep (no frame); when nothing went
-out it sends a heartbeat request (remote frame), which the ODrive answers. CiA 402: the bus
-sends the host heartbeat (COB-ID 0x77F) every timeout / 4 from a task of its own, through its
-send queue. Dynamixel: the port's poller, whose SYNC READ every 10 ms runs armed or not, is
+**What feeding is, per device.** ODrive: one task of the bus (`WatchdogFeeder`) for every
+armed axis of the bus wakes every timeout / 4 (25 ms); every CANSimple frame to an axis feeds
+the firmware's watchdog, so while the group streams the task finds a frame sent within the
+period to each axis and goes back to sleep (no frame); to an axis nothing went out to it sends
+a heartbeat request (remote frame), which the ODrive answers. CiA 402: the bus sends the host
+heartbeat (COB-ID 0x77F) every timeout / 4 from a task of its own, inline (the send queue
+only when frames are queued). Dynamixel: the port's poller, whose SYNC READ every 10 ms runs armed or not, is
 the feed; armed, each poll cycle also checks the gap since the previous one (a late one is
 followed by a SYNC READ of Bus Watchdog (98)). Arming itself (SDO and RxSdo writes, the Bus
 Watchdog write) happens between the windows.
