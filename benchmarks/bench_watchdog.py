@@ -81,7 +81,7 @@ QUICK_ROUNDS = 2
 IDLE_ROUNDS = 12
 QUICK_IDLE_ROUNDS = 1
 SETTLE_S = 0.1
-ATTEMPTS = 3
+ATTEMPTS = 5
 """Streaming before each measured window (the move under way, the arming's frames gone)."""
 LIMITS = AxisLimits(max_velocity=1.0, max_acceleration=5.0, max_jerk=50.0)
 FAR = 50.0
@@ -291,6 +291,7 @@ async def measure(
                 position_input_mode=cs.InputMode.PASSTHROUGH,
                 limits=limits,
                 request_timeout=0.5,
+                heartbeat_timeout=1.0,  # a loaded machine delays the peers' heartbeats
             )
             for n in ODRIVE_NODES
         ]
