@@ -81,8 +81,10 @@ QUICK_ROUNDS = 2
 IDLE_ROUNDS = 12
 QUICK_IDLE_ROUNDS = 1
 SETTLE_S = 0.1
-ATTEMPTS = 5
 """Streaming before each measured window (the move under way, the arming's frames gone)."""
+ATTEMPTS = 5
+"""Tries of a window whose devices faulted around it (a loaded machine)."""
+PEERS_UP_S = 10.0
 LIMITS = AxisLimits(max_velocity=1.0, max_acceleration=5.0, max_jerk=50.0)
 FAR = 50.0
 """rad: a target far enough that each round's move is still streaming when the window ends."""
@@ -264,6 +266,21 @@ async def _arm(devices: Sequence[Watchdog], state: State) -> None:
             await device.arm_watchdog(state)
 
 
+async def _heard_from(bus: CanBus, nodes: Sequence[int]) -> None:
+    """Wait (at most PEERS_UP_S) for a heartbeat of every simulated ODrive: a loaded machine
+    may keep the peers' process from sending for a while after it said it was ready."""
+    ids = {cs.arbitration_id(node, cs.CmdId.HEARTBEAT) for node in nodes}
+    port = bus.attach(sorted(ids), name="bench-peers-up")
+    try:
+        with anyio.fail_after(PEERS_UP_S):
+            async for batch in port:
+                ids.difference_update(frame.arbitration_id for frame in batch)
+                if not ids:
+                    return
+    finally:
+        port.close()
+
+
 async def measure(
     odrive_sock: socket.socket,
     cia_sock: socket.socket,
@@ -280,6 +297,7 @@ async def measure(
     async with AsyncExitStack() as stack:
         bus_a = await stack.enter_async_context(host_bus(stack, odrive_sock, "odrive"))
         bus_b = await stack.enter_async_context(host_bus(stack, cia_sock, "cia402"))
+        await _heard_from(bus_a, ODRIVE_NODES)
         port = await stack.enter_async_context(
             DynamixelPort(serial_path, baudrate=1_000_000, return_delay=0.0, poll_period=0.01)
         )
