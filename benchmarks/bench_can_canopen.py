@@ -493,6 +493,9 @@ upload median 319 -> 240 µs. What stays is asyncio's and the kernel's: the `epo
 the eventfd read, a second loop pass to resume the task, and the futex that wakes the peer's
 thread (paid by both clients). Under load ours gains (canopen-py's answer crosses three
 threads, ours two); on an idle machine the two are close, so the margin there is smaller.
+A full run of this benchmark at 09:02 (commit cde16c2, load average 4.8): SDO
+0.82x (median of 15 paired rounds; the rounds' ratios spread 0.31-1.29), set-point 1.04x
+(0.47-1.60).
 
 **CiA 402 set-point handshake (target <= 1.1x).** Most of a set-point is the simulated
 drive's answer time, the same peer for both clients. Timestamps in our bus (300
