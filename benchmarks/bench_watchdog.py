@@ -618,8 +618,12 @@ measurement: 36 streaming rounds (was 24); a recovery that fails (a loaded machi
 the simulated Dynamixel bus) costs one of 5 tries instead of the run. In that loaded run
 (80.6 % of the periods ticked, 8 windows measured again) the streaming figures were 20.6 µs
 at 100 ms and 14.5 µs at 40 ms (5.8 µs estimated for 100 ms), with paired differences
-spread from -56 to +181 µs: at that load a window's CPU moves by far more than what
-feeding costs, so the 100 ms median alone does not resolve the 20 µs target, and the 40 ms
-estimate is the figure to read. The CAN peers' row beside them shows what arming costs the
-simulated drives, whose process shares the two cores with the host.
+spread from -56 to +181 µs; in a second one at 09:16 (commit 65e9f3f, load average 4.6 to
+5.3, 70.7 % ticked, 7 windows measured again) -6.3 µs at 100 ms, -3.9 µs at 40 ms (-1.5 µs
+estimated), paired differences from -248 to +270 µs, holding 25.2 / 61.8 µs, and the CAN
+peers' process 24.5 / 33.1 µs more CPU per tick when armed (the new row: the simulated
+drives' own watchdogs, in a process that shares the two cores with the host). At such
+loads a window's CPU moves by far more than what feeding costs, so the 100 ms median alone
+does not resolve the 20 µs target; the 40 ms estimate is the figure to read, and a run
+for the record wants an idle machine.
 """
