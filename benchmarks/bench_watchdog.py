@@ -625,5 +625,11 @@ peers' process 24.5 / 33.1 µs more CPU per tick when armed (the new row: the si
 drives' own watchdogs, in a process that shares the two cores with the host). At such
 loads a window's CPU moves by far more than what feeding costs, so the 100 ms median alone
 does not resolve the 20 µs target; the 40 ms estimate is the figure to read, and a run
-for the record wants an idle machine.
+for the record wants an idle machine. A third run at 09:21 (commit a7d27d2, load average
+2.0 to 2.3, 97.8 % ticked, no window measured again): 13.5 µs at 100 ms, 14.5 µs at 40 ms
+(5.8 µs estimated), holding 39.3 / 65.4 µs, the CAN peers 49.8 / 75.7 µs more per tick
+when armed (their CPU is read from /proc in 10 ms steps, 16.7 µs per tick of a 0.6 s
+window). That the simulated drives work harder when armed, on the same two cores, is a
+likely part of the host's "armed" figure that does not scale with the feeding events (100
+ms and 40 ms come out alike in every run); the sims' armed path was not looked into.
 """
