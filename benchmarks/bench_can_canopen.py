@@ -495,7 +495,8 @@ thread (paid by both clients). Under load ours gains (canopen-py's answer crosse
 threads, ours two); on an idle machine the two are close, so the margin there is smaller.
 A full run of this benchmark at 09:02 (commit cde16c2, load average 4.8): SDO
 0.82x (median of 15 paired rounds; the rounds' ratios spread 0.31-1.29), set-point 1.04x
-(0.47-1.60).
+(0.47-1.60); a second at 09:20 (commit a7d27d2, load average 2.0): SDO 0.69x (123 µs vs
+179 µs; every round 0.53-0.83), set-point 0.83x.
 
 **CiA 402 set-point handshake (target <= 1.1x).** Most of a set-point is the simulated
 drive's answer time, the same peer for both clients. Timestamps in our bus (300
