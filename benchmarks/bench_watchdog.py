@@ -49,6 +49,7 @@ from openel_async import (
     MonotonicClock,
     Request,
 )
+from openel_async.errors import HALError
 from openel_async.motion import AxisGroup, AxisLimits, AxisStateError
 from openel_async.safety import Watchdog
 from openel_can import CanBus, Cia402Drive, ODriveAxis
@@ -75,13 +76,15 @@ ORDERS = tuple(itertools.permutations(STATES))
 equally often, so a drift of the machine's load hits every state alike."""
 WINDOW_S = 0.6
 QUICK_WINDOW_S = 0.3
-ROUNDS = 24
+ROUNDS = 36
 QUICK_ROUNDS = 2
 IDLE_ROUNDS = 12
 QUICK_IDLE_ROUNDS = 1
 SETTLE_S = 0.1
-ATTEMPTS = 3
 """Streaming before each measured window (the move under way, the arming's frames gone)."""
+ATTEMPTS = 5
+"""Tries of a window whose devices faulted around it (a loaded machine)."""
+PEERS_UP_S = 10.0
 LIMITS = AxisLimits(max_velocity=1.0, max_acceleration=5.0, max_jerk=50.0)
 FAR = 50.0
 """rad: a target far enough that each round's move is still streaming when the window ends."""
@@ -236,10 +239,13 @@ async def _measured(
             return await _window(state, seconds, group, actuators, buses, peer_pid, sign)
         except WindowLost as exc:
             lost.append(f"{_state_name(state)}: {exc}")
-        for actuator in actuators:
-            if actuator.state is S.ERROR:
-                await actuator.re_init()
-        await _arm(watchdogs, state)
+        try:
+            for actuator in actuators:
+                if actuator.state is S.ERROR:
+                    await actuator.re_init()
+            await _arm(watchdogs, state)
+        except (HALError, TimeoutError) as exc:  # loaded machine: the next attempt retries
+            lost.append(f"{_state_name(state)}: recovery failed: {exc}")
     raise RuntimeError(f"{ATTEMPTS} windows in a row lost: {lost[-ATTEMPTS:]}")
 
 
@@ -260,6 +266,21 @@ async def _arm(devices: Sequence[Watchdog], state: State) -> None:
             await device.arm_watchdog(state)
 
 
+async def _heard_from(bus: CanBus, nodes: Sequence[int]) -> None:
+    """Wait (at most PEERS_UP_S) for a heartbeat of every simulated ODrive: a loaded machine
+    may keep the peers' process from sending for a while after it said it was ready."""
+    ids = {cs.arbitration_id(node, cs.CmdId.HEARTBEAT) for node in nodes}
+    port = bus.attach(sorted(ids), name="bench-peers-up")
+    try:
+        with anyio.fail_after(PEERS_UP_S):
+            async for batch in port:
+                ids.difference_update(frame.arbitration_id for frame in batch)
+                if not ids:
+                    return
+    finally:
+        port.close()
+
+
 async def measure(
     odrive_sock: socket.socket,
     cia_sock: socket.socket,
@@ -276,6 +297,7 @@ async def measure(
     async with AsyncExitStack() as stack:
         bus_a = await stack.enter_async_context(host_bus(stack, odrive_sock, "odrive"))
         bus_b = await stack.enter_async_context(host_bus(stack, cia_sock, "cia402"))
+        await _heard_from(bus_a, ODRIVE_NODES)
         port = await stack.enter_async_context(
             DynamixelPort(serial_path, baudrate=1_000_000, return_delay=0.0, poll_period=0.01)
         )
@@ -287,6 +309,7 @@ async def measure(
                 position_input_mode=cs.InputMode.PASSTHROUGH,
                 limits=limits,
                 request_timeout=0.5,
+                heartbeat_timeout=1.0,  # a loaded machine delays the peers' heartbeats
             )
             for n in ODRIVE_NODES
         ]
@@ -473,6 +496,15 @@ def _result(
             streaming.median(None, "peer_us"),
             "µs",
         ),
+        Row(
+            f"CAN peers' process: extra CPU per tick, streaming, watchdogs {ms} / {tight_ms} "
+            "(median of paired rounds; the simulated drives' own watchdogs, on the same cores)",
+            streaming.extra(WATCHDOG_S, "peer_us"),
+            "µs",
+            baseline=streaming.extra(TIGHT_WATCHDOG_S, "peer_us"),
+            baseline_label=tight_ms,
+            digits=1,
+        ),
     ]
     diffs = streaming.differences(WATCHDOG_S, "host_us")
     tight = streaming.differences(TIGHT_WATCHDOG_S, "host_us")
@@ -549,12 +581,13 @@ feeding event comes once per timeout / 4, so the 40 ms rounds carry 2.5 times as
 as the 100 ms ones and their scaled difference estimates the 100 ms overhead with 2.5 times
 less of the window-to-window noise.
 
-**What feeding is, per device.** ODrive: one task per axis wakes every timeout / 4 (25 ms);
-every CANSimple frame to the axis feeds the firmware's watchdog, so while the group streams the
-task finds a frame sent within the period and goes back to sleep (no frame); when nothing went
-out it sends a heartbeat request (remote frame), which the ODrive answers. CiA 402: the bus
-sends the host heartbeat (COB-ID 0x77F) every timeout / 4 from a task of its own, through its
-send queue. Dynamixel: the port's poller, whose SYNC READ every 10 ms runs armed or not, is
+**What feeding is, per device.** ODrive: one task of the bus (`WatchdogFeeder`) for every
+armed axis of the bus wakes every timeout / 4 (25 ms); every CANSimple frame to an axis feeds
+the firmware's watchdog, so while the group streams the task finds a frame sent within the
+period to each axis and goes back to sleep (no frame); to an axis nothing went out to it sends
+a heartbeat request (remote frame), which the ODrive answers. CiA 402: the bus sends the host
+heartbeat (COB-ID 0x77F) every timeout / 4 from a task of its own, inline (the send queue
+only when frames are queued). Dynamixel: the port's poller, whose SYNC READ every 10 ms runs armed or not, is
 the feed; armed, each poll cycle also checks the gap since the previous one (a late one is
 followed by a SYNC READ of Bus Watchdog (98)). Arming itself (SDO and RxSdo writes, the Bus
 Watchdog write) happens between the windows.
@@ -572,4 +605,31 @@ the estimate from the 40 ms rounds is the sharper figure. What an extra event co
 an extra wake-up of the loop (a feeder's deadline falls between two ticks), dear on this
 virtual machine (bare metal was not measured). The holding rows, where the watchdogs send frames, show what each feeding
 event costs on this machine.
+
+**Issue 27 pass (26.7 µs at 100 ms in the run of 07:56, 4.3 µs in the one before).** Fewer
+task wake-ups per feeding event: the ODrive axes of a bus share one feeder task
+(`WatchdogFeeder`; was a task per axis), and the CiA 402 host heartbeat is sent inline by
+its producer (was queued for the bus's sender task, a second wake-up per beat). At 100 ms,
+streaming, that is 8 task wake-ups and 4 heartbeat frames per 100 ms (was 16 and 4). In the
+holding rows, where feeding sends frames, the extra host CPU per tick went from 42.5 /
+96.5 µs (100 / 40 ms; run of 07:56, load average 0.8) to 19.4 / 63.8 µs (a run at 09:10,
+commit 68fae26, load average 3.7 rising to 6.4 from other work on the machine). The
+measurement: 36 streaming rounds (was 24); a recovery that fails (a loaded machine starves
+the simulated Dynamixel bus) costs one of 5 tries instead of the run. In that loaded run
+(80.6 % of the periods ticked, 8 windows measured again) the streaming figures were 20.6 µs
+at 100 ms and 14.5 µs at 40 ms (5.8 µs estimated for 100 ms), with paired differences
+spread from -56 to +181 µs; in a second one at 09:16 (commit 65e9f3f, load average 4.6 to
+5.3, 70.7 % ticked, 7 windows measured again) -6.3 µs at 100 ms, -3.9 µs at 40 ms (-1.5 µs
+estimated), paired differences from -248 to +270 µs, holding 25.2 / 61.8 µs, and the CAN
+peers' process 24.5 / 33.1 µs more CPU per tick when armed (the new row: the simulated
+drives' own watchdogs, in a process that shares the two cores with the host). At such
+loads a window's CPU moves by far more than what feeding costs, so the 100 ms median alone
+does not resolve the 20 µs target; the 40 ms estimate is the figure to read, and a run
+for the record wants an idle machine. A third run at 09:21 (commit a7d27d2, load average
+2.0 to 2.3, 97.8 % ticked, no window measured again): 13.5 µs at 100 ms, 14.5 µs at 40 ms
+(5.8 µs estimated), holding 39.3 / 65.4 µs, the CAN peers 49.8 / 75.7 µs more per tick
+when armed (their CPU is read from /proc in 10 ms steps, 16.7 µs per tick of a 0.6 s
+window). That the simulated drives work harder when armed, on the same two cores, is a
+likely part of the host's "armed" figure that does not scale with the feeding events (100
+ms and 40 ms come out alike in every run); the sims' armed path was not looked into.
 """

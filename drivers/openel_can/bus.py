@@ -54,7 +54,8 @@ kvaser, virtual ...) and runs, in its own task group:
 * optionally a SYNC producer (CANopen, COB-ID 0x080) every ``sync_period`` seconds.
 * on demand the host's CANopen heartbeat (:meth:`CanBus.produce_heartbeat`: COB-ID
   0x700 + host node id, state Operational), fed to the drives' heartbeat consumers
-  (0x1016) by a task of the bus in the event loop: a stalled loop stops it.
+  (0x1016) by a task of the bus in the event loop: a stalled loop stops it. A beat is
+  sent inline when nothing is queued (like ``NodePort.send``), else queued.
 
 Use it as an async context manager and create the node drivers with it::
 
@@ -73,7 +74,7 @@ import os
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Coroutine, Iterable
 from contextlib import AsyncExitStack
 from dataclasses import dataclass
 from enum import Enum
@@ -90,7 +91,7 @@ from openel_async.clock import run_in_thread
 from openel_async.errors import BadParameterError, NotConnectedError
 from openel_async.logs import get_logger
 
-from .virtual_rx import WakingQueue, hook_virtual_bus
+from .virtual_rx import WakingQueue, hook_virtual_bus, virtual_sender
 
 __all__ = ["BusState", "BusStats", "CanBus", "NodePort", "ReadMode", "SendMode", "TxMessage"]
 
@@ -313,6 +314,24 @@ class NodePort:
             return
         await bus._enqueue(msg)
 
+    def try_send_frame(self, msg: TxMessage) -> bool:
+        """Send ``msg`` (a frame built once with :meth:`TxMessage.frame` and kept, never
+        changed afterwards) inline if the interface allows and nothing is queued: True
+        when sent; False when it was not sent (then ``await send_frame(msg)``). For request/
+        answer paths that send the same request again and again (an SDO upload's
+        initiate). Raises :class:`NotConnectedError` while the bus is down."""
+        return self.bus._try_inline(msg)
+
+    async def send_frame(self, msg: TxMessage) -> None:
+        """:meth:`send` of a frame built once (see :meth:`try_send_frame`)."""
+        bus = self.bus
+        if bus._try_inline(msg):
+            if bus._inline_streak >= _INLINE_YIELD_EVERY:
+                bus._inline_streak = 0
+                await anyio.lowlevel.checkpoint()
+            return
+        await bus._enqueue(msg)
+
     def send_nowait(
         self, arbitration_id: int, data: bytes = b"", *, extended: bool = False
     ) -> bool:
@@ -421,6 +440,8 @@ class CanBus:
         self.last_retry_error: str | None = None
         self._bus: can.BusABC | None = None
         self._inline = False
+        self._send_fn: Callable[[can.Message, float | None], None] | None = None
+        """``send`` of the python-can bus (:func:`virtual_sender`'s on a virtual bus)."""
         self._routes: dict[int, tuple[NodePort, ...]] = {}
         self._ports: list[NodePort] = []
         self._stack: AsyncExitStack | None = None
@@ -476,6 +497,7 @@ class CanBus:
             raise RuntimeError("CanBus needs anyio on the asyncio backend") from None
         self._bus = await self._open()
         self._inline = self._choose_inline(self._bus)
+        self._send_fn = virtual_sender(self._bus, TxMessage) or self._bus.send
         stack = AsyncExitStack()
         try:
             send, receive = anyio.create_memory_object_stream[can.Message](self.tx_queue_size)
@@ -609,6 +631,14 @@ class CanBus:
         read(hold_s)
         return True
 
+    def start_soon(self, func: Callable[[], Coroutine[Any, Any, object]], name: str) -> None:
+        """Run ``func()`` as a task of the bus: in the event loop, cancelled when the bus
+        closes (a keep-alive shared by the bus's devices, as the heartbeat producer).
+        Raises NotConnectedError unless the bus is entered."""
+        if self._tg is None:
+            raise NotConnectedError(f"CAN bus {self.name}: not entered")
+        self._tg.start_soon(func, name=name)
+
     # -- ports ----------------------------------------------------------------------------
     def shared(self, key: object, factory: Callable[[], _T]) -> _T:
         """A per-bus singleton (e.g. the SDO client of a node, shared by its devices)."""
@@ -703,10 +733,10 @@ class CanBus:
                 + (f": {self.last_error}" if self.last_error else "")
             )
         if self._inline and not self._tx_pending:
-            bus = self._bus
-            assert bus is not None
+            send = self._send_fn
+            assert send is not None
             try:
-                bus.send(msg, 0.0)
+                send(msg, 0.0)
             except Exception:  # buffer full or failing: the sender retries with backoff
                 return False
             self.stats.tx_frames += 1
@@ -768,8 +798,8 @@ class CanBus:
 
     async def _send_inline(self, batch: list[can.Message]) -> None:
         bus = self._bus
-        assert bus is not None
-        send = bus.send
+        send = self._send_fn
+        assert bus is not None and send is not None
         stats = self.stats
         for i, msg in enumerate(batch):
             try:
@@ -851,12 +881,14 @@ class CanBus:
         try:
             next_at = time.monotonic()
             while self._hb_owners and self._hb_node is not None:
-                msg = can.Message(
-                    arbitration_id=0x700 + self._hb_node,
-                    data=b"\x05",  # NMT state Operational
-                    is_extended_id=False,
-                )
-                if self.state is BusState.UP and self._tx_send is not None:
+                # NMT state Operational; inline when nothing is queued (no sender-task hop
+                # per beat), else behind the queued frames.
+                msg = TxMessage.frame(0x700 + self._hb_node, b"\x05", False, False)
+                if (
+                    self.state is BusState.UP
+                    and self._tx_send is not None
+                    and not self._try_inline(msg)
+                ):
                     self._queue_nowait(msg)
                 period = min(self._hb_owners.values())
                 now = time.monotonic()
@@ -1318,6 +1350,7 @@ class CanBus:
             self._bus = old  # keep an object to shut down at exit (already shut: harmless)
             raise
         self._inline = self._choose_inline(self._bus)
+        self._send_fn = virtual_sender(self._bus, TxMessage) or self._bus.send
 
     def __repr__(self) -> str:
         return f"CanBus({self.name!r}, state={self.state}, ports={len(self._ports)})"

@@ -45,7 +45,9 @@ torques are Nm on both sides; temperatures are converted from °C to K.
   so it is never left enabled with its watchdog silently missing (a rig without watchdogs
   says so: ``safety.watchdog_timeout: null``). The firmware feeds the
   watchdog on every CANSimple frame addressed to the axis, so streamed set-points feed it;
-  when nothing was sent for a quarter of the timeout, a heartbeat poll (remote frame) does.
+  when nothing was sent for a quarter of the timeout, a heartbeat poll (remote frame) does,
+  from one task of the bus for every armed axis of the bus with the same timeout
+  (:class:`~openel_can.odrive_link.WatchdogFeeder`: one wake-up per period for all).
   On expiry the ODrive drops to IDLE with WATCHDOG_TIMER_EXPIRED; the next heartbeat faults
   the component with ``ErrorId.WATCHDOG``.
 """
@@ -82,6 +84,7 @@ from .odrive_firmware import EndpointTable, FirmwareVersion, driver_endpoint_ids
 from .odrive_link import (
     ODRIVE_VENDOR_ID,
     ODriveLink,
+    WatchdogFeeder,
     check_node,
     check_seconds,
     rad_to_turns,
@@ -340,7 +343,6 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
         """What the axis reported with Get_Version (None: not asked since open/reset)."""
         self.watchdog_timeout: float | None = None
         """The armed watchdog timeout in seconds (None: not armed by this driver)."""
-        self._feeding = False
         self._saved_ramp_rate: bytes | None = None
         """The ODrive's own vel_ramp_rate (raw float32), read before the first tm_acc ramp
         overwrote it; written back by the next plain velocity command."""
@@ -783,9 +785,10 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
                 self._fault(ErrorId.DEVICE_ERROR, message)
                 raise HALError(message)
             self.watchdog_timeout = float(timeout_s)
-            if not self._feeding:
-                self._feeding = True
-                self._ctx.start_soon(self._feed_watchdog)
+            feeder = WatchdogFeeder.for_bus(
+                self.bus, self._ctx.clock, self.watchdog_timeout, WATCHDOG_FEED_FRACTION
+            )
+            feeder.add(self._link, self._armed_timeout)
             await self._write_endpoint(
                 self.watchdog_timeout_endpoint, struct.pack("<f", float(timeout_s))
             )
@@ -813,26 +816,9 @@ class ODriveAxis(NodeFaults, ActuatorDevice):
                 await self._write_endpoint(self.enable_watchdog_endpoint, bytes(4))
             self.watchdog_timeout = None
 
-    async def _feed_watchdog(self) -> None:
-        """Any frame to the node feeds it: poll a heartbeat when nothing else went out for
-        ``timeout / WATCHDOG_FEED_FRACTION`` (a task of the component: a stalled loop starves it)."""
-        assert self._ctx is not None
-        clock = self._ctx.clock
-        link = self._link
-        try:
-            while (timeout := self.watchdog_timeout) is not None:
-                period_ns = max(1, round(timeout * 1e9 / WATCHDOG_FEED_FRACTION))
-                now = clock.now_ns()
-                sent = link.sent_ns
-                if sent is None or now - sent >= period_ns:
-                    try:
-                        await link.send(cs.Request(self.node_id, cs.CmdId.HEARTBEAT))
-                    except (TimeoutError, NotConnectedError) as exc:
-                        self.log.debug("odrive_watchdog_feed_failed", error=repr(exc))
-                    sent = now
-                await clock.sleep_until(sent + period_ns)
-        finally:
-            self._feeding = False
+    def _armed_timeout(self) -> float | None:
+        """For the bus's :class:`~openel_can.odrive_link.WatchdogFeeder`."""
+        return self.watchdog_timeout
 
     async def clear_errors(self) -> None:
         """Send Clear_Errors (``re_init`` does this and re-engages closed loop)."""

@@ -11,8 +11,10 @@ from typing import Final, TypeVar
 
 import anyio
 
+from openel_async.clock import Clock
 from openel_async.device import DeviceContext
 from openel_async.errors import BadParameterError, HALError
+from openel_async.logs import get_logger
 
 from . import cansimple as cs
 from .bus import CanBus, NodePort
@@ -22,12 +24,15 @@ __all__ = [
     "KELVIN_OFFSET",
     "ODRIVE_VENDOR_ID",
     "ODriveLink",
+    "WatchdogFeeder",
     "check_node",
     "check_seconds",
     "drives_motor",
     "rad_to_turns",
     "turns_to_rad",
 ]
+
+log = get_logger(__name__)
 
 TAU: Final = math.tau
 KELVIN_OFFSET: Final = 273.15
@@ -176,3 +181,78 @@ class ODriveLink:
         raise TimeoutError(
             f"ODrive node {self.node_id}: no {cmd.name} reply within {timeout * 1000:.0f} ms"
         )
+
+
+class WatchdogFeeder:
+    """Feeds the axis watchdogs of every armed ODrive on one bus with one clock and one
+    timeout: one task of the bus for all of them (not one per axis), so the axes are checked
+    in one wake-up per period.
+
+    Any frame sent to a node feeds its watchdog: at each pass, a node nothing was sent to for
+    the last ``period`` (less half a period: fed up to that much early, so the feeder's
+    nodes fall in step and share the wake-up) gets a heartbeat poll (remote frame); then
+    the task sleeps until the earliest ``last frame + period``. While set-points stream,
+    a pass sends nothing. A node is dropped once its ``armed()`` is no longer this feeder's
+    timeout (disarmed, or armed with another) or its link is closed; the task ends with
+    the last one, and with the bus. A task in the event loop: a stalled loop starves it.
+    """
+
+    def __init__(self, bus: CanBus, clock: Clock, timeout: float, fraction: int) -> None:
+        self.bus = bus
+        self.clock = clock
+        self.timeout = timeout
+        self.period_ns = max(1, round(timeout * 1e9 / fraction))
+        self.polls = 0
+        """Heartbeat polls sent (a node nothing else was sent to for a period)."""
+        self._links: dict[ODriveLink, Callable[[], float | None]] = {}
+        self._running = False
+
+    @classmethod
+    def for_bus(cls, bus: CanBus, clock: Clock, timeout: float, fraction: int) -> WatchdogFeeder:
+        """The bus's feeder for ``clock`` and ``timeout`` (fed every ``timeout / fraction``)."""
+        key = ("odrive-watchdog-feeder", clock, timeout, fraction)
+        return bus.shared(key, lambda: cls(bus, clock, timeout, fraction))
+
+    @property
+    def running(self) -> bool:
+        """Whether the feeding task runs (it ends with the last node fed)."""
+        return self._running
+
+    def add(self, link: ODriveLink, armed: Callable[[], float | None]) -> None:
+        """Feed ``link``'s node while ``armed()`` equals :attr:`timeout` and the link is open."""
+        self._links[link] = armed
+        if not self._running:
+            self.bus.start_soon(self._run, name=f"odrive-watchdog-{self.bus.name}")
+            self._running = True
+
+    async def _run(self) -> None:
+        clock = self.clock
+        period = self.period_ns
+        due_after = period - period // 2
+        links = self._links
+        try:
+            while links:
+                now = clock.now_ns()
+                next_due: int | None = None
+                for link, armed in list(links.items()):
+                    port = link.port
+                    if armed() != self.timeout or port is None or not port.attached:
+                        del links[link]
+                        continue
+                    sent = link.sent_ns
+                    if sent is None or now - sent >= due_after:
+                        try:
+                            await link.send(cs.Request(link.node_id, cs.CmdId.HEARTBEAT))
+                            self.polls += 1
+                        except (TimeoutError, HALError) as exc:  # the bus is down, or full
+                            log.debug(
+                                "odrive_watchdog_feed_failed", node=link.node_id, error=repr(exc)
+                            )
+                        sent = now
+                    due = sent + period
+                    if next_due is None or due < next_due:
+                        next_due = due
+                if next_due is not None:
+                    await clock.sleep_until(next_due)
+        finally:
+            self._running = False

@@ -49,7 +49,7 @@ from openel_async.errors import BadParameterError, HALError
 from openel_async.logs import get_logger
 
 from . import canopen as co
-from .bus import CanBus, NodePort
+from .bus import CanBus, NodePort, TxMessage
 from .errors import DecodeError
 from .od import ObjectDictionary, ObjectKey, OdEntry, OdValue
 
@@ -141,7 +141,7 @@ class SdoClient:
         self._timer: asyncio.TimerHandle | None = None
         self._timer_loop: asyncio.AbstractEventLoop | None = None
         self._deadline = 0.0
-        self._upload_requests: dict[tuple[int, int], tuple[int, bytes]] = {}
+        self._upload_requests: dict[tuple[int, int], tuple[TxMessage, bytes]] = {}
 
     @classmethod
     def for_node(cls, bus: CanBus, node_id: int, *, timeout: float = 0.1) -> SdoClient:
@@ -271,7 +271,7 @@ class SdoClient:
     # -- raw transfers --------------------------------------------------------------------
     async def upload(self, index: int, subindex: int, *, timeout: float | None = None) -> bytes:  # noqa: ASYNC109
         """The object's bytes, expedited or segmented as the server chooses."""
-        request = self._upload_request(index, subindex)
+        request, expedited = self._upload_request(index, subindex)
         t = _Transfer(self, index, subindex, self.timeout if timeout is None else timeout)
         slot = self._lock
         if slot.busy:
@@ -280,8 +280,8 @@ class SdoClient:
             slot.busy = True  # free: taken without a coroutine (``async with`` makes two)
         try:
             t.port = self._begin()
-            t.expedited = request[1][1:4]  # the index and subindex as the answer carries them
-            reply = await t.exchange_encoded(request, _INITIATE_REPLIES)
+            t.expedited = expedited
+            reply = await t.exchange_frame(request, _INITIATE_REPLIES)
             t.expedited = None
             if isinstance(reply, bytes):
                 return reply
@@ -358,16 +358,19 @@ class SdoClient:
                     await t.fail(co.SdoAbortCode.TOGGLE_BIT_NOT_ALTERNATED)
                 toggle = not toggle
 
-    def _upload_request(self, index: int, subindex: int) -> tuple[int, bytes]:
-        """The encoded upload initiate of ``index``:``subindex`` (checked, then kept: a
-        node's few polled objects are not encoded again per transfer)."""
+    def _upload_request(self, index: int, subindex: int) -> tuple[TxMessage, bytes]:
+        """The upload initiate of ``index``:``subindex`` as a frame, and its bytes 1..3 (the
+        index and subindex as the answer carries them): checked, encoded and built once,
+        then kept (a node's few polled objects are not encoded again per transfer; the
+        frame is never changed, so it is sent again as is)."""
         plain = type(index) is int and type(subindex) is int
         requests = self._upload_requests
         if plain:
             encoded = requests.get((index, subindex))
             if encoded is not None:
                 return encoded
-        encoded = co.encode(co.SdoUploadRequest(self.node_id, index, subindex))
+        cob_id, data = co.encode(co.SdoUploadRequest(self.node_id, index, subindex))
+        encoded = (TxMessage.frame(cob_id, data, False, False), bytes(data[1:4]))
         if plain:
             if len(requests) >= _REQUEST_CACHE:
                 requests.clear()
@@ -474,16 +477,16 @@ class _Transfer:
     ) -> co.CanOpenMessage | bytes:
         """Send ``request``; the first answer of the kinds in ``replies`` (or an abort); for
         an upload's initiate (:attr:`expedited` set), an expedited answer's data bytes."""
-        return await self.exchange_encoded(co.encode(request), replies)
+        cob_id, data = co.encode(request)
+        return await self.exchange_frame(TxMessage.frame(cob_id, data, False, False), replies)
 
-    async def exchange_encoded(
-        self, request: tuple[int, bytes], replies: tuple[type[co.CanOpenMessage], ...]
+    async def exchange_frame(
+        self, request: TxMessage, replies: tuple[type[co.CanOpenMessage], ...]
     ) -> co.CanOpenMessage | bytes:
-        """:meth:`exchange` of a request already encoded (``(cob_id, data)``)."""
+        """:meth:`exchange` of a request already built as a frame (kept unchanged)."""
         port = self.port
         client = self.client
         assert port is not None
-        cob_id, data = request
         if replies is _SEGMENT_REPLIES:
             client.segments += 1
         # The answer slot: resolved by the port handler with the answer, or with None by
@@ -495,7 +498,8 @@ class _Transfer:
         )
         client._waiting, client._replies, client._answer = self, replies, answer
         try:
-            await port.send(cob_id, data)  # may wait for room (send_timeout), not counted
+            if not port.try_send_frame(request):  # inline: no coroutine
+                await port.send_frame(request)  # may wait for room (send_timeout), not counted
             client._arm(loop, loop.time() + self.limit)
             outcome = await answer
         finally:

@@ -17,18 +17,25 @@ would make the *sender* fail instead). :meth:`WakingQueue.unhook` makes it a pla
 
 Only an exact ``VirtualBus`` whose queue is an unbounded ``queue.Queue`` registered on
 its channel is hooked; anything else returns None and the caller uses a reader thread.
+
+:func:`virtual_sender` is the send side: ``VirtualBus.send`` without the generic
+``copy.deepcopy`` (a memo dictionary and a keep-alive list per frame) and, for the usual
+unbounded ``queue.Queue`` of a receiver, without ``Queue.put``'s condition wrapper; the
+receivers get the same frames, stamped the same way.
 """
 
 from __future__ import annotations
 
+import copy
 import queue
+import time
 from collections.abc import Callable
 from typing import Any
 
 import can
 from can.interfaces import virtual
 
-__all__ = ["WakingQueue", "hook_virtual_bus"]
+__all__ = ["WakingQueue", "hook_virtual_bus", "virtual_sender"]
 
 
 class WakingQueue(queue.Queue[Any]):
@@ -89,3 +96,52 @@ def hook_virtual_bus(bus: can.BusABC, limit: int, wake: Callable[[], None]) -> W
             hooked.overflow = 0
             hooked.wake = wake
     return hooked
+
+
+def virtual_sender(
+    bus: can.BusABC, fast_copy: type[can.Message]
+) -> Callable[[can.Message, float | None], None] | None:
+    """``bus.send`` of an exact ``VirtualBus``, done as python-can does it (every other queue
+    of the channel, or also its own with ``receive_own_messages``, gets a copy stamped with
+    the time, the channel and ``is_rx``), with a frame of class ``fast_copy`` copied by its
+    own ``__deepcopy__`` directly; None when ``bus`` does not qualify (use ``bus.send``)."""
+    if type(bus) is not virtual.VirtualBus:
+        return None
+    vbus: virtual.VirtualBus = bus
+    channel = getattr(vbus, "channel", None)
+    own = getattr(vbus, "queue", None)
+    if not isinstance(channel, list) or own is None or not hasattr(vbus, "_open"):
+        return None
+    channel_id = vbus.channel_id
+    plain = queue.Queue
+    deepcopy = copy.deepcopy
+    wall = time.time
+
+    def send(msg: can.Message, timeout: float | None = None) -> None:
+        if not vbus._open:
+            raise can.CanOperationError("Cannot operate on a closed bus")
+        timestamp = msg.timestamp if vbus.preserve_timestamps else wall()
+        receive_own = vbus.receive_own_messages
+        fast = type(msg) is fast_copy
+        all_sent = True
+        for rx in channel:
+            if rx is own and not receive_own:
+                continue
+            dup = msg.__deepcopy__(None) if fast else deepcopy(msg)
+            dup.timestamp = timestamp
+            dup.channel = channel_id
+            dup.is_rx = rx is not own
+            if type(rx) is plain and rx.maxsize <= 0:
+                with rx.mutex:  # Queue.put of an unbounded queue, without its wrapper
+                    rx.queue.append(dup)
+                    rx.unfinished_tasks += 1
+                    rx.not_empty.notify()
+                continue
+            try:
+                rx.put(dup, block=True, timeout=timeout)
+            except queue.Full:
+                all_sent = False
+        if not all_sent:
+            raise can.CanOperationError("Could not send message to one or more recipients")
+
+    return send

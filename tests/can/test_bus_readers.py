@@ -20,6 +20,7 @@ import anyio
 import anyio.lowlevel
 import can
 import pytest
+from can.interfaces.virtual import VirtualBus
 
 from openel_async.errors import BadParameterError
 from openel_can import BusState, CanBus, SdoClient, TxMessage
@@ -27,7 +28,7 @@ from openel_can import canopen as co
 from openel_can import cia402 as ds
 from openel_can.sim.cia402 import SimCia402Drive
 from openel_can.sim.faults import BusLink
-from openel_can.virtual_rx import WakingQueue
+from openel_can.virtual_rx import WakingQueue, virtual_sender
 
 from .conftest import Peers, drain, wait_until
 
@@ -442,6 +443,49 @@ def test_tx_message_deep_copy_is_an_equal_independent_plain_message() -> None:
     odd = TxMessage(arbitration_id=1, data=b"", is_extended_id=False, channel=("a", [1]))  # type: ignore[arg-type]
     dup2 = copy.deepcopy(odd)
     assert dup2.channel == ("a", [1]) and dup2.channel is not odd.channel
+
+
+def test_virtual_sender_delivers_what_python_can_send_delivers(channel: str) -> None:
+    """Same frames to every other queue (own one with receive_own_messages), stamped alike;
+    a full bounded receiver and a closed bus raise as python-can's send does."""
+    fields = [n for n in can.Message.__slots__ if n not in ("__weakref__", "timestamp")]
+    sender = can.Bus(interface="virtual", channel=channel, receive_own_messages=True)
+    peer = can.Bus(interface="virtual", channel=channel)
+    try:
+        fast = virtual_sender(sender, TxMessage)
+        assert fast is not None
+        msgs: list[can.Message] = [TxMessage.frame(0x601, b"\x40\x41\x60\x00", False, False)]
+        msgs.append(can.Message(arbitration_id=0x1ABCDE, data=b"\x01", is_extended_id=True))
+        for msg in msgs:
+            for send in (sender.send, fast):
+                send(msg, 0.0)
+            for bus in (peer, sender):
+                a, b = bus.recv(0), bus.recv(0)
+                assert a is not None and b is not None and a is not msg
+                assert {f: getattr(a, f) for f in fields} == {f: getattr(b, f) for f in fields}
+                assert type(b) is can.Message and b.is_rx is (bus is peer)
+                assert abs(a.timestamp - b.timestamp) < 5
+        small = can.Bus(interface="virtual", channel=channel, rx_queue_size=1)
+        try:
+            fast(msgs[0], 0.0)
+            with pytest.raises(can.CanOperationError, match="recipients"):
+                fast(msgs[0], 0.0)
+        finally:
+            small.shutdown()
+    finally:
+        sender.shutdown()
+        peer.shutdown()
+    with pytest.raises(can.CanOperationError, match="closed"):
+        fast(msgs[0], 0.0)
+    other = _SubclassedVirtualBus(channel=channel)
+    try:
+        assert virtual_sender(other, TxMessage) is None  # only python-can's own class
+    finally:
+        other.shutdown()
+
+
+class _SubclassedVirtualBus(VirtualBus):
+    pass
 
 
 async def test_inline_sends_yield_to_the_loop_every_64(channel: str, raw_bus: can.BusABC) -> None:

@@ -25,7 +25,8 @@ from openel_async.testing import EventRecorder
 from openel_can import CanBus, Cia402Drive, ODriveAxis
 from openel_can import cansimple as cs
 from openel_can import cia402 as ds
-from openel_can.odrive import ODriveError
+from openel_can.odrive import WATCHDOG_FEED_FRACTION, ODriveError
+from openel_can.odrive_link import WatchdogFeeder
 from openel_can.sim.cia402 import SimCia402Drive
 from openel_can.sim.faults import peers_on_thread
 from openel_can.sim.odrive import SimODrive
@@ -113,6 +114,28 @@ async def test_odrive_running_loop_never_trips(bus: CanBus, odrives: list[SimODr
         await anyio.sleep(10 * T)  # nothing commanded: the feeder alone keeps it alive
         assert odrives[0].watchdog_trips == 0
         assert odrives[0].axis_state is cs.AxisState.CLOSED_LOOP_CONTROL
+        assert axis.state is ComponentState.ACTIVE and recorder.errors == []
+
+
+async def test_odrive_axes_of_a_bus_share_one_feeder_until_the_last_is_disarmed(
+    bus: CanBus, odrives: list[SimODrive]
+) -> None:
+    async with _observed(ODriveAxis(bus, 1, heartbeat_period=HB)) as (axis, device, recorder):
+        async with Actuator(ODriveAxis(bus, 2, heartbeat_period=HB)) as other:
+            second = other.device
+            assert isinstance(second, ODriveAxis)
+            await device.arm_watchdog(T)
+            await second.arm_watchdog(T)
+            feeder = WatchdogFeeder.for_bus(bus, default_clock(), T, WATCHDOG_FEED_FRACTION)
+            assert feeder.running
+            await anyio.sleep(4 * T)  # nothing commanded: one task polls both
+            assert feeder.polls >= 4
+        polls = feeder.polls  # the second axis closed: dropped, the first still fed
+        await anyio.sleep(4 * T)
+        assert feeder.polls > polls and feeder.running
+        await device.disarm_watchdog()
+        await wait_until(lambda: not feeder.running, 2)
+        assert [sim.watchdog_trips for sim in odrives] == [0, 0]
         assert axis.state is ComponentState.ACTIVE and recorder.errors == []
 
 
