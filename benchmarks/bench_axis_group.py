@@ -677,7 +677,22 @@ one CAN SYNC cycle); the group's bank then awaits one batch per tick and records
 sequence and Motion tuple per axis. The target row runs over such a drive
 (`AsyncMemoryDrive`); the informational row "one command per axis" over the same drive
 without it (`AsyncEachDrive`). At 64 axes (loaded 2-core machine, quick runs): 4.6x the
-peer before, 2.8-3.5x with the awaited batch (one command per axis: ~7x).
+peer before, 2.8-3.5x with the awaited batch (one command per axis: ~7x). Issue 27,
+fourth pass (the row was 4.07x in one full run): the awaited tick now takes the proof too
+(`ActuatorBank.position_stream_awaited`: the path's range proven once per motion, every
+axis still checked Active before each batch, the proof made again when a device's limits
+are set), so a tick is the sampler, the log row and one awaited device batch, without the
+per-value check (the generated range check of 64 values) and two coroutine layers
+(`set_values`, the per-call checks): 25 -> 11 µs per tick at 64 axes in an isolated loop
+(6 moves of 2,000 ticks, load 2.4), 3.0x the peer in a quick run of this benchmark.
+
+**The floor in the group's conditions.** The peer and the floor run their ticks back to
+back in a tight loop; the group's tick runs from its `EventTimer`, between event-loop passes
+(colder caches). The row "floor called by the group's EventTimer" times the same floor
+tick called by a plain observer of the group's own timer in the same rounds
+(`floor_loop_ticks`): what the loop around a tick costs the tick itself, before any of the
+group's work. In the first quick runs with it (load 2-3): 1.13x the peer at 6 axes and
+1.16x at 64, against 2.75x and 1.56x for the group's tick in the same run.
 
 **The floor, and the compiled path (issue 27: 6 axes <= 1.5x).** The row "floor" times the
 least a tick of the group's shape can do in Python (`floor_ticks`): one call into a tick

@@ -60,6 +60,30 @@ the Foxglove SDK, msgspec and its own small modules only (about 0.09 s of CPU id
 app's process no longer imports the SDK at all (only the writer uses it). What is left is
 the writer's start, about a fifth of this short run's CPU, and the app's own tap work.
 
+**The limit and the decision (issue 27, whole process <= 1.05x).** Two rows of each run
+bound it from below. The app's process alone, with the writer not counted, is already
+1.04x with `--record` (its listener calls, samples and batch encoding), leaving about 1 %
+of the 0.71 s run for a whole writer process. A writer process's start alone (an
+interpreter and the writer's imports) is 0.149 s of CPU, which alone puts the floor at
+1.21x. A bare interpreter start, `python -I -S -c pass`, takes 10-20 ms of CPU on this
+machine (1.4-2.8 % of the run). So no separate Python writer process fits in 1.05x of
+this run. The writer's imports (`python -X importtime`, 160 ms wall) are the Foxglove
+SDK 59 ms, msgspec 35 ms, the framework package 23 ms, logging 14 ms and the column
+codecs 16 ms. Cutting all of them to a bare interpreter would still leave the app's own
+1.04x plus the interpreter start, about 1.06-1.07x.
+
+The alternative is an in-process writer: no second interpreter, but its work runs beside the
+control loop. It was measured on the arm2 loop before the writer moved out. A feeding
+thread woken every 20 ms cost the loop 1.15-1.24x in real time per tick, because it took the
+interpreter lock and the loop's caches. Even a recorder observing nothing cost 1.03-1.05x.
+The separate process now costs the loop 1.06x (the target rows above). For a robot, the
+control loop's own time comes first, over the total CPU of a short run.
+
+**Decision:** keep the writer process. The whole-process row stays marked missed, with its
+floor measured in every run (the "writer process's start alone" row). The writer's start is
+a fixed cost per run, and every message then costs the writer 1.2-1.9 µs of CPU, so over a
+longer run the fixed part amortizes: it is about a fifth of this 0.7 s run.
+
 **Informational rows: the recorder at saturation, a minimal 9 us control step.** Before the
 target rows measured the demo's loop they measured this stand-in, kept to show the worst case:
 the same MuJoCo arm2 model in lockstep, its two joints as Actuators in an ActuatorBank and the

@@ -510,10 +510,9 @@ What this pass changed (the direct path): a SYNC READ whose statuses come in one
 each from an id asked for, once, with error byte 0 (the usual case), is handed by the
 reception to `DynamixelPort.sync_read` as `{{id: params}}` with no object and no Python
 loop per status: `PacketParser.feed_bulk` checks every fixed byte of every packet by
-extended slices, the ids, and every CRC in one pass over the run (each CRC's two bytes
-swapped: a run whose packets all match has CRC 0; damage within one packet is found
-exactly as by its own CRC, any error of up to 3 bits anywhere too, as the generator
-guarantees up to 4,095 bytes, longer runs are checked packet by packet), and unpacks every
+extended slices, the ids, and every packet's CRC on its own (one CRC pass over the whole
+run, each CRC's two bytes swapped, was 5-6 µs cheaper at 32 statuses, but 4 or more bits
+flipped across two packets could cancel out in it: not taken), and unpacks every
 params with one `struct` (from 3 statuses on; one or two are unpacked one by one);
 `sync_read` calls the exchange directly (two coroutine layers fewer). Anything else (a refusal, an alert, a missing, stray or repeated id, a
 reply split across reads) takes the per-status path, retries and error checks as
@@ -522,7 +521,7 @@ before. Old (790f49d) and new code in alternating rounds on one bus with the bar
 / 8 / 32 (new/old per round, median: 0.92 / 0.88 / 0.85), ours over the bare client
 (median) +86 -> +75 / +101 -> +87 / +169 -> +114 µs. The parse and the per-status
 handling alone, timed in a loop on the same bytes (load 3.7): 4.9 -> 5.1 / 14.9 -> 9.9 /
-45 -> 11 µs; `feed_bulk` alone 2.2 / 6.7 / 8.4 µs. The cost over the floor grows less
+45 -> 11 µs; `feed_bulk` alone 2.5 / 5.1 / 13.9 µs with every CRC checked on its own (load 4). The cost over the floor grows less
 with N (N = 8 to 32: +87 -> +114 and +113 -> +111 µs in the two runs, +101 -> +169
 before); what remains (+50 to +110 µs at load 5) is mostly the fixed path: the bus
 lock, the exchange's bookkeeping (timer, counters, expected ids), the link and transport
