@@ -230,7 +230,11 @@ def run(quick: bool) -> BenchResult:
     costs = per_frame_costs()
     rate, base_rate = statistics.median(ours_tp), statistics.median(raw_tp)
     cycle_rate, rt_rate = statistics.median(ours_cycles), statistics.median(raw_rt)
-    ratio = ratio_of(rate, base_rate)
+    # The target's ratio: the median of the rounds' own ratios (each round of ours over the
+    # raw round right after it, both under the same load), robust to a drift of the machine
+    # over the run, which moves both sides' rates alike.
+    pairs = [ratio_of(o, r) for o, r in zip(ours_tp, raw_tp, strict=True)]
+    ratio = statistics.median(pairs)
     rows = (
         Row(
             "frames per second (encode+send+receive+decode)",
@@ -239,7 +243,7 @@ def run(quick: bool) -> BenchResult:
             baseline=base_rate,
             baseline_label="raw python-can",
             ratio=ratio,
-            ratio_label="ours/raw",
+            ratio_label="ours/raw, median of rounds' ratios",
             target=f">= {TARGET_RATIO:.1f}x raw python-can",
             passed=ratio >= TARGET_RATIO,
             digits=0,
@@ -269,8 +273,9 @@ def run(quick: bool) -> BenchResult:
 
     notes = (
         f"Median of {rounds} interleaved round(s) (ours, raw, ours, ...) of {frames:,} frames "
-        f"(ours: {rates(ours_tp)}; raw python-can: {rates(raw_tp)} frames/s); every frame "
-        "was decoded and none was dropped (checked).",
+        f"(ours: {rates(ours_tp)}; raw python-can: {rates(raw_tp)} frames/s; ours/raw per "
+        f"round: {', '.join(f'{p:.2f}' for p in pairs)}, the target's ratio their median); "
+        "every frame was decoded and none was dropped (checked).",
         "One frame's pieces, same run (µs per call): python-can's virtual `send` deep-copies "
         f"the frame for every receiving bus: `can.Message` {costs['can.Message deep copy']:.2f} "
         f"(the raw loop pays this), our `TxMessage` {costs['TxMessage deep copy']:.2f}; typed "
@@ -317,7 +322,9 @@ and a consumer task decodes each (`cansimple.decode`). Figure: frames decoded pe
 second from the first send to the last decode; no frame may be lost. Raw python-can:
 one synchronous loop (`struct.pack`, `can.Message`, `send` on one bus; `recv`,
 `struct.unpack` on another), no event loop and no threads. Ratio ours/raw (> 1: ours
-faster).
+faster): the median of the rounds' own ratios (each round of ours over the raw round
+right after it), as the rates of both drift together over a run on this shared machine
+(one run's rounds: ours 49-105k, raw 38-76k frames/s, rising together).
 
 **Two-axis cycle** (informational). An ODrive (CANSimple, node 1) and a CiA 402 drive
 (CANopen, node 2), simulated peers on the same virtual channel, under `Actuator`s on
