@@ -449,34 +449,25 @@ def run(quick: bool) -> BenchResult:
                 digits=2,
             )
         )
-    for r in results:
-        floor, peer = r.median_us(r.floor_ns), r.median_us(r.peer_ns)
-        rows.append(
-            Row(
-                f"floor: one call, at_time, {r.axes} stores into {r.axes} drives (median)",
-                floor,
-                "µs",
-                baseline=peer,
-                baseline_label="ruckig at_time + stores",
-                ratio=ratio_of(floor, peer),
-                ratio_label="floor/ruckig",
-                digits=2,
+    floors: tuple[tuple[str, Callable[[SizeResult], list[list[int]]]], ...] = (
+        ("floor: one call, at_time, {n} stores into {n} drives (median)", lambda r: r.floor_ns),
+        ("floor called by the group's EventTimer, {n} axes (median)", lambda r: r.floor_loop_ns),
+    )
+    for label, costs in floors:
+        for r in results:
+            floor, peer = r.median_us(costs(r)), r.median_us(r.peer_ns)
+            rows.append(
+                Row(
+                    label.format(n=r.axes),
+                    floor,
+                    "µs",
+                    baseline=peer,
+                    baseline_label="ruckig at_time + stores",
+                    ratio=ratio_of(floor, peer),
+                    ratio_label="floor/ruckig",
+                    digits=2,
+                )
             )
-        )
-    for r in results:
-        floor, peer = r.median_us(r.floor_loop_ns), r.median_us(r.peer_ns)
-        rows.append(
-            Row(
-                f"floor called by the group's EventTimer, {r.axes} axes (median)",
-                floor,
-                "µs",
-                baseline=peer,
-                baseline_label="ruckig at_time + stores",
-                ratio=ratio_of(floor, peer),
-                ratio_label="floor/ruckig",
-                digits=2,
-            )
-        )
     for r in results:
         rows.append(
             Row(

@@ -555,14 +555,10 @@ class AxisGroup:
         """
         if not self._nowait or motion._checks_path or self._log_actual:
             return None
-        lows, highs = plan.position_bounds()
-        send = self._bank.position_stream(lows, highs)
+        send = self._bank.position_stream(*plan.position_bounds())
         if send is None:
             return None
-        positions = plan.sampler()
-        row = self.log.plan_rows(motion.id, plan)
-        end_ns = plan.end_ns
-        failed = self._stream_failed
+        positions, row, end_ns, failed = self._stream_parts(motion, plan)
 
         def tick(t: int) -> None:
             if t >= end_ns:
@@ -592,14 +588,10 @@ class AxisGroup:
         :meth:`_step`; every axis is still checked Active before each batch."""
         if self._nowait or motion._checks_path or self._log_actual:
             return None
-        lows, highs = plan.position_bounds()
-        send = self._bank.position_stream_awaited(lows, highs)
+        send = self._bank.position_stream_awaited(*plan.position_bounds())
         if send is None:
             return None
-        positions = plan.sampler()
-        row = self.log.plan_rows(motion.id, plan)
-        end_ns = plan.end_ns
-        failed = self._stream_failed
+        positions, row, end_ns, failed = self._stream_parts(motion, plan)
 
         async def step(t: int) -> None:
             if t >= end_ns:  # the final setpoints take the general path (the goal check)
@@ -619,6 +611,18 @@ class AxisGroup:
             self._commanded = position
 
         return step
+
+    def _stream_parts(
+        self, motion: GroupMotion, plan: Plan
+    ) -> tuple[
+        Callable[[int], list[float]],
+        Callable[[int], None],
+        int,
+        Callable[[GroupMotion, list[float], Exception, int], None],
+    ]:
+        """What a proven tick of ``motion`` binds once: the plan's sampler, the log's row
+        writer, the plan's end and the failure handler."""
+        return plan.sampler(), self.log.plan_rows(motion.id, plan), plan.end_ns, self._stream_failed
 
     def _sent(self, motion: GroupMotion, plan: Plan, position: list[float], t: int) -> None:
         """Every axis took the setpoints of tick ``t``; the motion settles after its last."""
