@@ -194,6 +194,23 @@ Actuator already allows with ``_reached_in_send``, would spare the watch task's 
 and in Zenoh's calls from the loop's thread (``reply``, ``drop``, ``put``: 2-10x what they
 cost in Zenoh's callback). The full runs at a lower load are the user's to record.
 
+**Decision (issue 27, after two full runs of the fourth pass's code at load 0.7-1.5).**
+get_value: 1.31x and 1.29x the blocking raw query (436 us against 334; 0.89x the raw
+query awaited from asyncio); our server's process CPU per read 310 us against the raw
+server's 210 per query. The 1.1x target leaves ~33 us over the raw round trip; what our
+server runs per read beyond the raw server's ``reply`` and ``drop``, measured in situ above
+(the request's record and its freshness parameters 15-25 us, the gate and the freshness
+check ~16, ``execute_nowait`` 28, encoding and the reply 44-93 against the raw server's
+~30), is 70-130 us, and each part is a feature kept on purpose: a command that arrives
+late is refused (a set executed 100 ms late moves a robot late), a read runs only while the
+loop's gate is held (the components are the loop's objects), and every request goes
+through the HAL4RT surface's checks. Not taken, on purpose: reads sent without the
+freshness parameters (at most the 15-25 us measured for them, and a read answered from a
+backlog could no longer be told from a fresh one) and reads answered by a callback that
+skips the surface (it would bypass the component's state checks). The set targets
+are below the sum of what a set needs without any Python of ours (the chain above:
+730-1090 us against 670-800 for 1.2x the awaited raw query). The rows stay marked missed.
+
 The two runs recorded for the third pass (06:53 and 06:55 UTC) ran while other work loaded this VM
 (load average 3.1 and 2.4 at their start, against 1.4 for the runs before this pass),
 and every figure in them, raw ones included, is slower: get_value 1.46x and 1.45x the
