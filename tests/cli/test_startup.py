@@ -40,6 +40,7 @@ def test_help_imports_none_of_the_heavy_libraries() -> None:
     assert "openel_async.cli" in imported  # (the output is what this test reads)
     top = {name.split(".")[0] for name in imported}
     assert not top.intersection(HEAVY), sorted(top.intersection(HEAVY))
+    assert "importlib.metadata" not in imported  # (openel_async.entrypoints reads them)
 
 
 def test_an_apps_help_imports_only_what_it_runs_on() -> None:
@@ -61,6 +62,7 @@ def test_an_apps_help_imports_only_what_it_runs_on() -> None:
     assert not top.intersection(heavy), sorted(top.intersection(heavy))
     assert "openel_async.rig" not in imported
     assert {"openel_async.clock", "openel_async.wakeup"} <= imported  # (they were imported)
+    assert "importlib.metadata" not in imported
 
 
 def test_a_profile_apps_help_loads_no_rtc_machinery() -> None:
