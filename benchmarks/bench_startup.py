@@ -14,6 +14,14 @@ with bytecode caching on (``PYTHONDONTWRITEBYTECODE`` removed from their environ
 user's shell has it) after one warm-up run of each, so that the figures are those of every
 start but the very first after an install or an edit.
 
+What each loads: ``--help`` builds the parser of every command; a command line that names one
+of the framework's own commands (``run``, ``devices``, ...) builds that command's parser alone.
+The entry points (the drivers' commands, the apps, the drivers) are read from the installed
+distributions' ``entry_points.txt`` without importing ``importlib.metadata``. ``run NAME
+--help`` imports the app and the framework modules it uses, but neither asyncio nor ctypes
+(the clocks load them at their first wait) nor yaml, msgspec, numpy, MuJoCo or rich
+(``tests/cli/test_startup.py`` checks this).
+
 Targets (issue 27): ``--help`` <= 0.25 s, ``devices`` <= 0.5 s, ``run NAME --help`` <= 0.4 s
 for every shipped app.
 """

@@ -25,17 +25,17 @@ drive it.
 
 from __future__ import annotations
 
-import asyncio
+import functools
 import heapq
 import itertools
 import math
 import time
 import weakref
 from collections import Counter, deque
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator, Callable, Coroutine
 from contextlib import asynccontextmanager
 from types import TracebackType
-from typing import Protocol, TypeVar, TypeVarTuple, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar, TypeVarTuple, cast, runtime_checkable
 
 import anyio
 import anyio.abc
@@ -45,6 +45,9 @@ from openel_async.logs import get_logger
 
 from . import timerfd
 from .errors import BadParameterError, StateError, VirtualClockStalledError
+
+if TYPE_CHECKING:
+    import asyncio
 
 NS_PER_S = 1_000_000_000
 NS_PER_MS = 1_000_000
@@ -64,6 +67,33 @@ log = get_logger(__name__)
 
 T = TypeVar("T")
 PosArgsT = TypeVarTuple("PosArgsT")
+
+
+# asyncio is imported at the first wait, not with the module: every part of the framework
+# imports the clocks, and a program that never waits (an app printing its --help) does not
+# load asyncio. The waits call these globals, bound then (no import per call).
+def _load_asyncio() -> None:
+    global _running_loop, _sleep
+    import asyncio
+
+    _running_loop = asyncio.get_running_loop
+    _sleep = asyncio.sleep
+
+
+def _first_running_loop() -> asyncio.AbstractEventLoop:
+    _load_asyncio()
+    return _running_loop()
+
+
+async def _first_sleep(delay: float) -> None:
+    _load_asyncio()
+    await _sleep(delay)
+
+
+_running_loop: Callable[[], asyncio.AbstractEventLoop] = _first_running_loop
+"""``asyncio.get_running_loop``, once asyncio is loaded."""
+_sleep: Callable[[float], Coroutine[Any, Any, None]] = _first_sleep
+"""``asyncio.sleep``, once asyncio is loaded."""
 
 
 @runtime_checkable
@@ -179,8 +209,16 @@ class MonotonicClock(ClockBase):
     """
 
     def __init__(self, *, use_timerfd: bool = True) -> None:
-        self.use_timerfd = use_timerfd and timerfd.available()
+        if not use_timerfd:
+            self.use_timerfd = False
         self.start_ns = time.monotonic_ns()
+
+    @functools.cached_property
+    def use_timerfd(self) -> bool:
+        """Whether waits take timerfd deadlines: asked for and available (Linux). Looked up
+        at its first read (that loads ctypes and libc), not when the clock is made: the
+        default clock is made when the framework is imported."""
+        return timerfd.available()
 
     # time.monotonic_ns itself (no Python frame): read once per command and per tick.
     now_ns = staticmethod(time.monotonic_ns)
@@ -238,7 +276,7 @@ def realtime_scheduler(clock: Clock) -> InlineScheduler | None:
     if type(clock) is not MonotonicClock or not clock.use_timerfd:
         return None
     try:
-        loop = asyncio.get_running_loop()
+        loop = _running_loop()
     except RuntimeError:  # not asyncio (trio)
         return None
     return _TimerfdScheduler(clock, loop)  # type: ignore[return-value]
@@ -307,7 +345,7 @@ class VirtualClock(ClockBase):
             return
         # Loop futures rather than anyio.Event: this is the clock's innermost hot path,
         # and the clock is tied to the asyncio backend anyway (see wait_idle).
-        loop = asyncio.get_running_loop()
+        loop = _running_loop()
         future: asyncio.Future[None] = loop.create_future()
         heapq.heappush(self._heap, (deadline_ns, next(self._seq), future))
         waker = self._new_sleeper
@@ -317,7 +355,7 @@ class VirtualClock(ClockBase):
             self._arm_watchdog(loop)
         try:
             await future
-        except asyncio.CancelledError:
+        except BaseException:  # cancelled (the future itself, if failed, is done already)
             future.cancel()  # the driver skips cancelled entries
             raise
 
@@ -415,7 +453,7 @@ class VirtualClock(ClockBase):
             raise StateError(operation, "auto-jump", ["manual"])
 
     async def _drive(self) -> None:
-        loop = asyncio.get_running_loop()
+        loop = _running_loop()
         detector = _idle_detector(loop)
         while True:
             await detector.wait(loop)
@@ -628,11 +666,11 @@ class _IdleDetector:
             while True:
                 if ready is None:  # a loop that does not expose its ready queue: bounded yields
                     for _ in range(64):
-                        await asyncio.sleep(0)
+                        await _sleep(0)
                 else:
-                    await asyncio.sleep(0)
-                    while ready:  # noqa: ASYNC110 - polling the ready queue is the point
-                        await asyncio.sleep(0)
+                    await _sleep(0)
+                    while ready:  # polling the ready queue is the point (a yield each)
+                        await _sleep(0)
                 if not self.external_count:
                     return
                 await self._wait_external(loop)
@@ -640,8 +678,7 @@ class _IdleDetector:
             head = queue[0] is turn
             queue.remove(turn)
             if head and queue:
-                following = queue[0]
-                assert isinstance(following, asyncio.Future)
+                following = cast("asyncio.Future[None]", queue[0])  # behind the head: futures
                 if not following.done():
                     following.set_result(None)
 
@@ -661,7 +698,7 @@ async def wait_idle() -> None:
     one woke has run. Needs asyncio (it reads the loop's ready queue; a loop that does
     not expose it gets a bounded number of yields instead).
     """
-    loop = asyncio.get_running_loop()
+    loop = _running_loop()
     await _idle_detector(loop).wait(loop)
 
 
@@ -692,7 +729,7 @@ class ExternalWork:
         self._held: list[_IdleDetector] = []
 
     def __enter__(self) -> ExternalWork:
-        detector = _idle_detector(asyncio.get_running_loop())
+        detector = _idle_detector(_running_loop())
         detector.hold(self.what)
         self._held.append(detector)
         return self
@@ -741,7 +778,7 @@ def external_work(what: str = "external work") -> ExternalWork:
 
 def external_work_in_flight() -> int:
     """How many :func:`external_work` holds the running loop has open (0: none)."""
-    detector = _IDLE_DETECTORS.get(asyncio.get_running_loop())
+    detector = _IDLE_DETECTORS.get(_running_loop())
     return 0 if detector is None else detector.external_count
 
 

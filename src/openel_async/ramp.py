@@ -15,17 +15,19 @@ longer pending (superseded by the next command, faulted, cancelled by ``re_init`
 
 from __future__ import annotations
 
-import asyncio
 import time
 import weakref
 from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from openel_async.logs import get_logger
 
 from .clock import Clock
 from .completion import Motion, Outcome
+
+if TYPE_CHECKING:
+    import asyncio
 
 log = get_logger(__name__)
 
@@ -33,6 +35,20 @@ RAMP_PERIOD_NS = 1_000_000
 """The streaming period of framework ramps: 1 ms (1 kHz)."""
 
 _PENDING = Outcome.PENDING
+
+
+def _load_asyncio() -> asyncio.AbstractEventLoop:
+    """The running loop, binding ``_running_loop`` at the first ramp: asyncio is imported
+    then, not with the module (an app printing its --help does not load it)."""
+    global _running_loop
+    import asyncio
+
+    _running_loop = asyncio.get_running_loop
+    return _running_loop()
+
+
+_running_loop: Callable[[], asyncio.AbstractEventLoop] = _load_asyncio
+"""``asyncio.get_running_loop``, once asyncio is loaded (a global: no import per ramp)."""
 
 StartSoon = Callable[[Callable[[], Coroutine[Any, Any, None]]], object]
 
@@ -91,7 +107,7 @@ class RampStreamer:
     def add(self, owner: object, ramp: Ramp) -> None:
         """Stream ``ramp`` for ``owner`` (replacing the owner's previous ramp)."""
         self._ramps[id(owner)] = ramp
-        loop = asyncio.get_running_loop()
+        loop = _running_loop()
         if self._running is not loop:  # not running, or left behind by a closed loop
             self._host(ramp)
 
@@ -100,7 +116,7 @@ class RampStreamer:
 
     def _host(self, ramp: Ramp) -> None:
         ramp.start_soon(self._run)
-        self._running = asyncio.get_running_loop()
+        self._running = _running_loop()
 
     async def _run(self) -> None:
         clock = self.clock

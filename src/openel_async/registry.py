@@ -11,10 +11,11 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable, Collection, Iterator, Mapping
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from openel_async.logs import get_logger
+
+from .entrypoints import entry_points
 
 if TYPE_CHECKING:
     from .rig.buses import BusKind

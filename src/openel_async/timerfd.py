@@ -13,52 +13,95 @@ the asyncio backend, as the clocks do.
 
 from __future__ import annotations
 
-import asyncio
-import ctypes
-import ctypes.util
+import functools
 import os
 import sys
 from collections.abc import Callable
+from types import EllipsisType
+from typing import TYPE_CHECKING, NoReturn
+
+if TYPE_CHECKING:
+    import asyncio
+    import ctypes
 
 CLOCK_MONOTONIC = 1
 TFD_TIMER_ABSTIME = 1
 TFD_NONBLOCK = os.O_NONBLOCK
 TFD_CLOEXEC = getattr(os, "O_CLOEXEC", 0o2000000)
 
+# ctypes, libc and asyncio are loaded at the first use of a timerfd (available(), a
+# Timerfd, a wait), not with the module: the clocks import it, and a program that never
+# waits on real time (an app printing its --help) loads neither.
 
-class _Timespec(ctypes.Structure):
-    _fields_ = (("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long))
 
+@functools.cache
+def _itimerspec() -> type[ctypes.Structure]:
+    """``struct itimerspec`` (made on first use: ctypes is imported then)."""
+    import ctypes
 
-class _Itimerspec(ctypes.Structure):
-    _fields_ = (("it_interval", _Timespec), ("it_value", _Timespec))
+    class Timespec(ctypes.Structure):
+        _fields_ = (("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long))
+
+    class Itimerspec(ctypes.Structure):
+        _fields_ = (("it_interval", Timespec), ("it_value", Timespec))
+
+    return Itimerspec
 
 
 def _load_libc() -> ctypes.CDLL | None:
     if not sys.platform.startswith("linux"):
         return None
+    import ctypes
+    import ctypes.util
+
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
         libc.timerfd_create.argtypes = (ctypes.c_int, ctypes.c_int)
         libc.timerfd_create.restype = ctypes.c_int
-        libc.timerfd_settime.argtypes = (
-            ctypes.c_int,
-            ctypes.c_int,
-            ctypes.POINTER(_Itimerspec),
-            ctypes.POINTER(_Itimerspec),
-        )
+        spec = ctypes.POINTER(_itimerspec())
+        libc.timerfd_settime.argtypes = (ctypes.c_int, ctypes.c_int, spec, spec)
         libc.timerfd_settime.restype = ctypes.c_int
     except (OSError, AttributeError):
         return None
     return libc
 
 
-_libc = _load_libc()
+_libc: ctypes.CDLL | EllipsisType | None = ...
+"""libc with the timerfd calls declared; None where timerfd is unavailable; ``...`` until
+first needed (:func:`_bound_libc`)."""
+
+
+def _bound_libc() -> ctypes.CDLL | None:
+    """:data:`_libc`, loaded on the first call."""
+    global _libc
+    if _libc is ...:
+        _libc = _load_libc()
+    return _libc
 
 
 def available() -> bool:
     """True where timerfd can be used (Linux with a libc that exports it)."""
-    return _libc is not None
+    return _bound_libc() is not None
+
+
+def _raise_errno() -> NoReturn:
+    import ctypes
+
+    err = ctypes.get_errno()
+    raise OSError(err, os.strerror(err))
+
+
+def _load_asyncio() -> asyncio.AbstractEventLoop:
+    """The running loop, binding ``_running_loop`` on the first wait (asyncio loaded)."""
+    global _running_loop
+    import asyncio
+
+    _running_loop = asyncio.get_running_loop
+    return _running_loop()
+
+
+_running_loop: Callable[[], asyncio.AbstractEventLoop] = _load_asyncio
+"""``asyncio.get_running_loop`` once asyncio is loaded: a global, not a per-wait import."""
 
 
 class Timerfd:
@@ -66,14 +109,21 @@ class Timerfd:
 
     def __init__(self) -> None:
         self._fd: int | None = None  # set first: __del__ runs even when __init__ raises
-        if _libc is None:
+        bound = _bound_libc()
+        if bound is None:
             raise OSError("timerfd is not available on this platform")
-        fd = _libc.timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)
+        import ctypes
+
+        fd = bound.timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)
         if fd < 0:
-            err = ctypes.get_errno()
-            raise OSError(err, os.strerror(err))
+            _raise_errno()
         self._fd = fd
-        self._spec = _Itimerspec()
+        # What each arm takes, bound once: the call, the struct passed by reference and
+        # its it_value field (a view into the struct, set in place).
+        self._settime = bound.timerfd_settime
+        self._spec = _itimerspec()()
+        self._spec_ref = ctypes.byref(self._spec)
+        self._value = self._spec.it_value
         self._loop: asyncio.AbstractEventLoop | None = None
         """The loop the fd is registered with (a reader), None when not registered."""
         self._waiter: asyncio.Future[None] | None = None
@@ -91,18 +141,16 @@ class Timerfd:
 
     def arm_absolute(self, deadline_ns: int) -> None:
         """Fire once at ``deadline_ns`` of CLOCK_MONOTONIC (time.monotonic_ns)."""
-        assert _libc is not None
-        value = self._spec.it_value
+        value = self._value
         value.tv_sec, value.tv_nsec = divmod(max(deadline_ns, 1), 1_000_000_000)
-        if _libc.timerfd_settime(self.fileno(), TFD_TIMER_ABSTIME, ctypes.byref(self._spec), None):
-            err = ctypes.get_errno()
-            raise OSError(err, os.strerror(err))
+        if self._settime(self.fileno(), TFD_TIMER_ABSTIME, self._spec_ref, None):
+            _raise_errno()
 
     async def wait_until(self, deadline_ns: int) -> None:
         """Sleep until the deadline; cancellable like any anyio wait."""
         self.arm_absolute(deadline_ns)
         fd = self.fileno()
-        loop = asyncio.get_running_loop()
+        loop = _running_loop()
         if self._loop is not loop:
             self._unregister()
             loop.add_reader(fd, self._on_readable)

@@ -13,9 +13,38 @@ anyio cancel scope, ``Task.cancel``) ends a wait as it ends any await of a futur
 
 from __future__ import annotations
 
-import asyncio
+from collections.abc import Callable, Coroutine
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import asyncio
 
 __all__ = ["Wakeup"]
+
+
+def _load_asyncio() -> None:
+    """Bind what the waits take from asyncio, imported at the first wait: a program that
+    only makes Wakeups (an app printing its ``--help``) does not load asyncio."""
+    global _running_loop, _sleep
+    import asyncio
+
+    _running_loop = asyncio.get_running_loop
+    _sleep = asyncio.sleep
+
+
+def _first_running_loop() -> asyncio.AbstractEventLoop:
+    _load_asyncio()
+    return _running_loop()
+
+
+async def _first_sleep(delay: float) -> None:
+    _load_asyncio()
+    await _sleep(delay)
+
+
+_running_loop: Callable[[], asyncio.AbstractEventLoop] = _first_running_loop
+"""``asyncio.get_running_loop`` (once asyncio is loaded): a global, not a per-call import."""
+_sleep: Callable[[float], Coroutine[Any, Any, None]] = _first_sleep
 
 
 class Wakeup:
@@ -69,9 +98,9 @@ class Wakeup:
         """Until :meth:`set` is called (at once, after a checkpoint, if it was already)."""
         if self._flag:
             self._flag = False
-            await asyncio.sleep(0)
+            await _sleep(0)
             return
-        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        future: asyncio.Future[None] = _running_loop().create_future()
         if self.waiter is None:
             self.waiter = future
         elif self._more is None:
@@ -89,7 +118,7 @@ class Wakeup:
         clear the flag and return a future in the line of waiters, resolved by the next
         :meth:`set`. Await it; if the await raises (cancellation), call :meth:`disarm`."""
         self._flag = False
-        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        future: asyncio.Future[None] = _running_loop().create_future()
         if self.waiter is None:
             self.waiter = future
         elif self._more is None:

@@ -25,13 +25,13 @@ import argparse
 from collections.abc import AsyncIterator, Awaitable, Callable, Collection, Iterable, Sequence
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, TypeVar
 
 from openel_async.logs import get_logger
 
+from ..entrypoints import entry_points
 from ..errors import BadParameterError
 
 if TYPE_CHECKING:

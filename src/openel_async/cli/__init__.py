@@ -18,10 +18,15 @@ from typing import Any
 from ..app import EXIT_SIGINT, install_sigterm_handler, interrupt_code
 from .commands import attach, discover_commands
 from .logs import configure_logging
-from .options import HelpFormatter, add_global_options, log_level
-from .record_cmd import add_parser as add_record_parser
+from .options import (
+    GLOBAL_FLAGS,
+    GLOBAL_VALUE_OPTIONS,
+    SHORT_GLOBAL_FLAGS,
+    HelpFormatter,
+    add_global_options,
+    log_level,
+)
 from .record_cmd import add_tap_arguments
-from .replay_cmd import add_parser as add_replay_parser
 from .rig_cmd import add_rig_arguments
 
 PROG = "openel-async"
@@ -141,7 +146,34 @@ def _finish(parser: argparse.ArgumentParser, depth: int) -> None:
                 _finish(child, depth + 1)
 
 
-def _build_parser() -> argparse.ArgumentParser:
+SOLO_COMMANDS = ("demo", "run", "devices", "profile", "record", "replay", "rig", "param", "jog")
+"""The framework's commands with no actions contributed by drivers: when the command line
+names one, only its parser is built (see :func:`_build_parser`)."""
+
+
+def named_command(argv: Sequence[str]) -> str | None:
+    """The command ``argv`` names, found as argparse finds it: the first word that is not a
+    global option (:func:`~.options.add_global_options`) or the value of one. None if
+    anything else comes first (``-h``, ``--version``, ``--``, another option) or no word."""
+    tokens = iter(argv)
+    for token in tokens:
+        if not token.startswith("-"):
+            return token
+        name, equals, _ = token.partition("=")
+        if name in GLOBAL_VALUE_OPTIONS:
+            if not equals:
+                next(tokens, None)  # its value
+        elif not (token in GLOBAL_FLAGS or set(token[1:]) <= SHORT_GLOBAL_FLAGS):
+            return None
+    return None
+
+
+def _build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser: every command's, or with ``only`` (one of
+    :data:`SOLO_COMMANDS`) that command's alone. Building the ~45 parsers of every command
+    and action (and importing the drivers' contributed commands) is a tenth of an app's
+    ``--help``; a command line that names a command parses exactly as with the whole
+    parser, since argparse reads only the chosen command's parser."""
     # No abbreviations at the top: it would refuse a command's own option that is the prefix
     # of a global one (bus monitor --log, against --log-format and --log-level).
     parser = argparse.ArgumentParser(
@@ -153,7 +185,44 @@ def _build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     add_global_options(parser, depth=0)
     sub = parser.add_subparsers(title="commands", dest="command", required=True, metavar="COMMAND")
+    for name in SOLO_COMMANDS:
+        if only is None or name == only:
+            _add_command(sub, name)
+    if only is None:
+        _add_contributed(sub)
+    _finish(parser, 0)
+    groups = parser._action_groups  # the commands first, then the options
+    groups.sort(key=lambda group: group.title != "commands")
+    return parser
 
+
+def _add_contributed(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """The commands whose actions the drivers contribute, ``completion``, and the drivers'
+    own commands."""
+    from .hal4rt_cmd import add_parser as add_hal4rt_parser
+
+    parents = {
+        "hal4rt": add_hal4rt_parser(sub),
+        "scan": _parent(sub, "scan", "BUS", SCAN_HELP, SCAN_DESCRIPTION),
+        "bus": _parent(sub, "bus", "ACTION", BUS_HELP, BUS_DESCRIPTION),
+    }
+    completion = _subcommand(
+        sub,
+        "completion",
+        help="print a shell completion script (bash, zsh or tcsh)",
+        description="Print the completion script of a shell. Load it in the current shell:\n\n"
+        '- bash: eval "$(openel-async completion bash)"\n'
+        "- zsh: openel-async completion zsh > ~/.zfunc/_openel-async (a folder on $fpath)\n"
+        "- tcsh: eval `openel-async completion tcsh`",
+    )
+    completion.add_argument("shell", choices=SHELLS, help="the shell: bash, zsh or tcsh")
+    for command in discover_commands():  # contributed by drivers (openel_zenoh: serve, exec)
+        target = sub if command.parent is None else parents.get(command.parent)
+        if target is not None:
+            attach(command, target)
+
+
+def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     demo = _subcommand(
         sub,
         "demo",
@@ -238,6 +307,8 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     add_tap_arguments(demo)
 
+
+def _add_run(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     run = _subcommand(
         sub,
         "run",
@@ -254,6 +325,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "app_args", nargs=argparse.REMAINDER, metavar="...", help="the app's own options"
     )
 
+
+def _add_devices(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     devices = _subcommand(
         sub, "devices", help="list the registered drivers and their devices",
         description="List the registered drivers (entry-point group openel_async.drivers) and "
@@ -265,45 +338,18 @@ def _build_parser() -> argparse.ArgumentParser:
         help="print every device's characteristics profile (kind, commands with ids, "
         "parameters with units) as JSON",
     )
-    from .profile_cmd import add_parser as add_profile_parser
 
-    add_profile_parser(sub)
-    add_record_parser(sub)
-    add_replay_parser(sub)
-    from .rig_cmd import add_parser as add_rig_parser
 
-    add_rig_parser(sub)
-    from .param_cmd import add_parser as add_param_parser
-
-    add_param_parser(sub)
-    from .jog_cmd import add_parser as add_jog_parser
-
-    add_jog_parser(sub)
-    from .hal4rt_cmd import add_parser as add_hal4rt_parser
-
-    parents = {
-        "hal4rt": add_hal4rt_parser(sub),
-        "scan": _parent(sub, "scan", "BUS", SCAN_HELP, SCAN_DESCRIPTION),
-        "bus": _parent(sub, "bus", "ACTION", BUS_HELP, BUS_DESCRIPTION),
-    }
-    completion = _subcommand(
-        sub,
-        "completion",
-        help="print a shell completion script (bash, zsh or tcsh)",
-        description="Print the completion script of a shell. Load it in the current shell:\n\n"
-        '- bash: eval "$(openel-async completion bash)"\n'
-        "- zsh: openel-async completion zsh > ~/.zfunc/_openel-async (a folder on $fpath)\n"
-        "- tcsh: eval `openel-async completion tcsh`",
-    )
-    completion.add_argument("shell", choices=SHELLS, help="the shell: bash, zsh or tcsh")
-    for command in discover_commands():  # contributed by drivers (openel_zenoh: serve, exec)
-        target = sub if command.parent is None else parents.get(command.parent)
-        if target is not None:
-            attach(command, target)
-    _finish(parser, 0)
-    groups = parser._action_groups  # the commands first, then the options
-    groups.sort(key=lambda group: group.title != "commands")
-    return parser
+def _add_command(sub: argparse._SubParsersAction[argparse.ArgumentParser], name: str) -> None:
+    """Add the parser of the framework's command ``name`` (one of :data:`SOLO_COMMANDS`)."""
+    if name == "demo":
+        _add_demo(sub)
+    elif name == "run":
+        _add_run(sub)
+    elif name == "devices":
+        _add_devices(sub)
+    else:  # the module <name>_cmd adds it
+        importlib.import_module(f"{__name__}.{name}_cmd").add_parser(sub)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -347,7 +393,8 @@ def _broken_pipe(exc: BaseException) -> bool:
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    parser = _build_parser()
+    command = named_command(sys.argv[1:] if argv is None else argv)
+    parser = _build_parser(command if command in SOLO_COMMANDS else None)
     args = parser.parse_args(argv)
     # Commands that run no application code, and a run that only asks an app for its help,
     # configure structlog when it is first used.

@@ -21,10 +21,10 @@ import argparse
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
+from ..entrypoints import entry_points
 from .options import EXIT_USAGE, log_level, no_such_file
 
 __all__ = [

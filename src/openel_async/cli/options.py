@@ -14,7 +14,10 @@ from typing import Any
 __all__ = [
     "DEFAULT_LEVEL",
     "EXIT_USAGE",
+    "GLOBAL_FLAGS",
+    "GLOBAL_VALUE_OPTIONS",
     "LEVELS",
+    "SHORT_GLOBAL_FLAGS",
     "HelpFormatter",
     "add_global_options",
     "log_level",
@@ -69,6 +72,14 @@ class HelpFormatter(argparse.HelpFormatter):
                 )
             out.append("")
         return "\n".join(out[:-1])
+
+
+GLOBAL_VALUE_OPTIONS = frozenset({"--log-format", "--log-level"})
+"""The options of :func:`add_global_options` that take a value."""
+GLOBAL_FLAGS = frozenset({"-v", "--verbose", "-q", "--quiet"})
+"""The options of :func:`add_global_options` that take none."""
+SHORT_GLOBAL_FLAGS = frozenset("vq")
+"""The one-letter flags among them, which combine (``-vv``, ``-vq``)."""
 
 
 def add_global_options(parser: argparse.ArgumentParser, *, depth: int) -> None:
