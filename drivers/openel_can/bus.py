@@ -1068,11 +1068,13 @@ class CanBus:
         loop = self._loop
         assert loop is not None
         failed = anyio.Event()
+        broken = False  # failed is set (read per cycle: a plain flag)
         outcome: list[str] = []
         fd = bus.fileno()
 
         def drain() -> None:
-            if failed.is_set():
+            nonlocal broken
+            if broken:
                 return
             frames: list[can.Message] = []
             recv = bus.recv
@@ -1087,6 +1089,7 @@ class CanBus:
                     loop.call_soon(drain)  # more queued: let other tasks run first
             except Exception as exc:
                 outcome.append(f"receive failed: {exc!r}")
+                broken = True
                 failed.set()
                 with contextlib.suppress(Exception):
                     loop.remove_reader(fd)
@@ -1094,37 +1097,41 @@ class CanBus:
                 self._dispatch(frames)
 
         # read_now(): the reader unregistered until ``held_until`` (loop time), each call
-        # moving it on; release() registers it again once a hold ran out.
+        # moving it on; release() registers it again once a hold ran out (``check``, due
+        # at ``check_at``).
         held = False
         held_until = 0.0
         check: asyncio.TimerHandle | None = None
+        check_at = 0.0
 
         def release() -> None:
-            nonlocal held, check
+            nonlocal held, check, check_at
             check = None
-            if not held or failed.is_set():
+            if not held or broken:
                 return
             if loop.time() < held_until:  # held on by a read since: look again then
-                check = loop.call_at(held_until, release)
+                check_at = held_until
+                check = loop.call_at(check_at, release)
                 return
             held = False
             loop.add_reader(fd, drain)
             drain()
 
         def read_now(hold_s: float) -> None:
-            nonlocal held, held_until, check
+            nonlocal held, held_until, check, check_at
             self.reads_on_demand += 1
             drain()
-            if failed.is_set():
+            if broken:
                 return
             held_until = loop.time() + hold_s
             if not held:
                 held = True
                 loop.remove_reader(fd)
-            if check is None or held_until < check.when():  # a shorter hold than before
+            if check is None or held_until < check_at:  # a shorter hold than before
                 if check is not None:
                     check.cancel()
-                check = loop.call_at(held_until, release)
+                check_at = held_until
+                check = loop.call_at(check_at, release)
 
         loop.add_reader(fd, drain)
         self.reads_in_loop += 1
