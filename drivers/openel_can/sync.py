@@ -61,6 +61,7 @@ __all__ = ["CanSync", "SyncConsumer", "SyncStats"]
 log = get_logger(__name__)
 
 _NS_PER_S: Final = 1_000_000_000
+_PLACE_EVERY: Final = 64
 
 
 class SyncConsumer(Protocol):
@@ -129,6 +130,10 @@ class CanSync:
         then goes out at the tail (module docstring, step 1)."""
         self._stray = False
         """Something was staged outside a tick: look at the tail's place at the next tick."""
+        self._next_place = 0
+        """The first cycle at which a stray stage has the tail's place looked at again
+        (a task staging every cycle: the observers looked at once per
+        :data:`_PLACE_EVERY` cycles, not at each)."""
         self.log = log.bind(bus=bus.name)
 
     @classmethod
@@ -202,6 +207,7 @@ class CanSync:
         self._hold_s = max(2 * timer.period_ns / _NS_PER_S, 0.002)
         self.counter_overflow = counter_overflow
         self._counter = 0
+        self._next_place = 0
         self._build_sync_frames(counter_overflow)
         self.timer = timer
         timer.add_observer(self)
@@ -288,7 +294,8 @@ class CanSync:
             return
         if self._staged:
             self._flush()
-        misplaced = self._stray or self._in_tick  # staged outside a tick; no tail last tick
+        # no tail in the last tick, or staged outside a tick (looked at now and then)
+        misplaced = self._in_tick or (self._stray and self.cycle >= self._next_place)
         self._in_tick = True
         try:
             sent = port.send_frame_nowait(self._sync_frames[self._counter % self._sync_count])
@@ -300,6 +307,7 @@ class CanSync:
                 return  # what it read stopped us (a drive faulted)
         if misplaced:
             self._stray = False
+            self._next_place = self.cycle + _PLACE_EVERY
             self._place_tail(timer)
         fields = timer.last_tick_fields
         if fields is not None and fields[3]:

@@ -402,6 +402,44 @@ async def test_what_an_observer_stages_in_a_tick_goes_out_at_the_tick_end() -> N
         theirs.close()
 
 
+async def test_a_task_staging_every_cycle_has_the_observers_looked_at_once_per_64(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Set-points staged outside the ticks (a task awaiting ``set_value``) go out when it
+    yields; the tail's place is looked at again only every 64 cycles, not each tick."""
+    from openel_async import EventTimer
+    from openel_can import CanSync
+    from openel_can import sync as sync_module
+
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    far = _PairBus(theirs)
+    looked: list[int] = []
+    place = sync_module.CanSync._place_tail
+    try:
+        async with CanBus(
+            _PairBus(ours), read_mode="loop", send_mode="inline", poll_interval=30.0
+        ) as bus:
+            timer = EventTimer(2.0, name="by-hand")
+            sync = CanSync.of(bus)
+            await sync.start(timer)
+
+            def counted(self: CanSync, timer: EventTimer) -> None:
+                looked.append(self.cycle)
+                place(self, timer)
+
+            monkeypatch.setattr(sync_module.CanSync, "_place_tail", counted)
+            for _ in range(130):
+                _tick(timer)
+                sync.stage(0x201, bytes(6))  # outside the tick
+                await _loop_passes(1)
+                assert _ids(far) == [co.SYNC_COB_ID, 0x201]
+            assert looked == [1, 65, 129]
+            sync.stop()
+    finally:
+        ours.close()
+        theirs.close()
+
+
 async def test_read_mode_thread_reads_a_fileno_bus_in_a_thread_and_auto_only_socketcan() -> None:
     for mode, threads in (("thread", 1), ("auto", 1)):
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
