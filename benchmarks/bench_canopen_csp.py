@@ -24,7 +24,8 @@ and the SYNC, worst-case bit stuffing, rounded up to 0.1 ms.
   at the cycle, ``CanSync.of(bus).start(timer)`` (SYNC first at each tick, then the socket
   read once: ``CanBus.read_now``), and a timer observer staging a new target for every
   drive each tick (``command_nowait``, what an ``AxisGroup`` does without its planning):
-  the four RPDOs go out right after that tick, the next tick's SYNC latches them.
+  the four RPDOs go out at the end of that tick (``CanSync``'s last observer, in one burst:
+  ``NodePort.send_all_nowait``), the next tick's SYNC latches them.
 * **canopen-py**: ``canopen.Network(bus)`` on the same kind of socket pair, four
   ``RemoteNode`` objects from the same EDS, mapped with its ``pdo`` tooling exactly as ours maps
   them, CSP selected and enabled by RPDO; a thread runs the cycle on ``time.perf_counter``

@@ -346,6 +346,22 @@ class NodePort:
             return True
         return bus._queue_nowait(msg)
 
+    def send_frame_nowait(self, msg: TxMessage) -> bool:
+        """:meth:`send_nowait` of a frame built once (see :meth:`try_send_frame`): a
+        producer's frame that never changes (a SYNC)."""
+        bus = self.bus
+        if bus._try_inline(msg):
+            return True
+        return bus._queue_nowait(msg)
+
+    def send_all_nowait(self, frames: Iterable[tuple[int, bytes]]) -> int:
+        """:meth:`send_nowait` of each ``(arbitration_id, data)`` (11-bit data frames), in
+        order, the bus's state looked at once: a burst from synchronous code (the RPDOs of
+        a :class:`~openel_can.CanSync` tick). Returns how many were sent or queued; the
+        others were dropped and counted (the queue full). Raises
+        :class:`NotConnectedError` while the bus is down (nothing sent)."""
+        return self.bus._send_all_nowait(frames)
+
     def close(self) -> None:
         """Detach from the bus (same as ``bus.detach(port)``)."""
         self.bus.detach(self)
@@ -728,10 +744,7 @@ class CanBus:
         suspend would starve the readers).
         """
         if self.state is not BusState.UP or self._tx_send is None:
-            raise NotConnectedError(
-                f"CAN bus {self.name} is {self.state}"
-                + (f": {self.last_error}" if self.last_error else "")
-            )
+            raise self._not_up()
         if self._inline and not self._tx_pending:
             send = self._send_fn
             assert send is not None
@@ -743,6 +756,36 @@ class CanBus:
             self._inline_streak += 1
             return True
         return False
+
+    def _not_up(self) -> NotConnectedError:
+        return NotConnectedError(
+            f"CAN bus {self.name} is {self.state}"
+            + (f": {self.last_error}" if self.last_error else "")
+        )
+
+    def _send_all_nowait(self, frames: Iterable[tuple[int, bytes]]) -> int:
+        """:meth:`NodePort.send_all_nowait`: :meth:`_try_inline`, else :meth:`_queue_nowait`,
+        of each frame, without a call per frame for either."""
+        if self.state is not BusState.UP or self._tx_send is None:
+            raise self._not_up()
+        send = self._send_fn if self._inline else None
+        new = TxMessage.frame
+        stats = self.stats
+        taken = 0
+        for arbitration_id, data in frames:
+            msg = new(arbitration_id, data, False, False)
+            if send is not None and not self._tx_pending:
+                try:
+                    send(msg, 0.0)
+                except Exception:  # buffer full or failing: queued, the sender retries
+                    pass
+                else:
+                    stats.tx_frames += 1
+                    self._inline_streak += 1
+                    taken += 1
+                    continue
+            taken += self._queue_nowait(msg)
+        return taken
 
     def _queue_nowait(self, msg: can.Message) -> bool:
         """Queue a producer's frame (heartbeat, SYNC) for the sender task, counted as pending
@@ -1025,11 +1068,13 @@ class CanBus:
         loop = self._loop
         assert loop is not None
         failed = anyio.Event()
+        broken = False  # failed is set (read per cycle: a plain flag)
         outcome: list[str] = []
         fd = bus.fileno()
 
         def drain() -> None:
-            if failed.is_set():
+            nonlocal broken
+            if broken:
                 return
             frames: list[can.Message] = []
             recv = bus.recv
@@ -1044,6 +1089,7 @@ class CanBus:
                     loop.call_soon(drain)  # more queued: let other tasks run first
             except Exception as exc:
                 outcome.append(f"receive failed: {exc!r}")
+                broken = True
                 failed.set()
                 with contextlib.suppress(Exception):
                     loop.remove_reader(fd)
@@ -1051,37 +1097,41 @@ class CanBus:
                 self._dispatch(frames)
 
         # read_now(): the reader unregistered until ``held_until`` (loop time), each call
-        # moving it on; release() registers it again once a hold ran out.
+        # moving it on; release() registers it again once a hold ran out (``check``, due
+        # at ``check_at``).
         held = False
         held_until = 0.0
         check: asyncio.TimerHandle | None = None
+        check_at = 0.0
 
         def release() -> None:
-            nonlocal held, check
+            nonlocal held, check, check_at
             check = None
-            if not held or failed.is_set():
+            if not held or broken:
                 return
             if loop.time() < held_until:  # held on by a read since: look again then
-                check = loop.call_at(held_until, release)
+                check_at = held_until
+                check = loop.call_at(check_at, release)
                 return
             held = False
             loop.add_reader(fd, drain)
             drain()
 
         def read_now(hold_s: float) -> None:
-            nonlocal held, held_until, check
+            nonlocal held, held_until, check, check_at
             self.reads_on_demand += 1
             drain()
-            if failed.is_set():
+            if broken:
                 return
             held_until = loop.time() + hold_s
             if not held:
                 held = True
                 loop.remove_reader(fd)
-            if check is None or held_until < check.when():  # a shorter hold than before
+            if check is None or held_until < check_at:  # a shorter hold than before
                 if check is not None:
                     check.cancel()
-                check = loop.call_at(held_until, release)
+                check_at = held_until
+                check = loop.call_at(check_at, release)
 
         loop.add_reader(fd, drain)
         self.reads_in_loop += 1

@@ -11,6 +11,8 @@ Statuswords whose state bits match no state raise
 
 from __future__ import annotations
 
+import functools
+import operator
 from collections import deque
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
@@ -136,14 +138,27 @@ _STATE_MATCH: Final = tuple((mask, int(state.value), state) for mask, state in _
 """(mask, value as a plain int, state): the table above without enum lookups per call."""
 
 
+def _first_match(bits: int) -> PowerState | None:
+    for mask, value, state in _STATE_MATCH:
+        if bits & mask == value:
+            return state
+    return None
+
+
+_STATE_BITS: Final = functools.reduce(operator.or_, (mask for mask, _, _ in _STATE_MATCH))
+"""The union of the table's masks (0x6F): the state depends on these statusword bits only."""
+_STATE_OF_BITS: Final = tuple(_first_match(bits) for bits in range(_STATE_BITS + 1))
+"""The state of ``statusword & 0x6F`` (None: no state), the table's first match."""
+
+
 def state_from_statusword(statusword: int) -> PowerState:
     """Map a statusword to its power state; raises :class:`Cia402DecodeError` if none matches."""
     if not 0 <= statusword <= 0xFFFF:
         raise Cia402DecodeError(f"statusword {statusword} is not a u16")
-    for mask, value, state in _STATE_MATCH:
-        if statusword & mask == value:
-            return state
-    raise Cia402DecodeError(f"statusword {statusword:#06x} matches no CiA 402 state")
+    state = _STATE_OF_BITS[statusword & _STATE_BITS]
+    if state is None:
+        raise Cia402DecodeError(f"statusword {statusword:#06x} matches no CiA 402 state")
+    return state
 
 
 @dataclass(frozen=True)

@@ -6,9 +6,12 @@ observes the same timer. The set-points and the SYNC go out this way:
 
 1. a cyclic drive stages the RPDO of its latest set-point (:meth:`stage`, called by
    :class:`~openel_can.cyclic402.Cia402CyclicDrive` from its synchronous command path; a
-   newer set-point of the same drive replaces the older); what was staged is sent as soon
-   as the code staging it yields to the event loop (one ``call_soon`` per burst), e.g.
-   right after the tick in which an AxisGroup computed the set-points;
+   newer set-point of the same drive replaces the older). What a plain timer observer
+   registered after the producer stages in the tick (an AxisGroup computing the
+   set-points) is sent at the end of that tick, after the timer's last observer (the
+   producer keeps a second observer of its own last: no extra pass of the event loop);
+   what is staged anywhere else is sent as soon as the code staging it yields to the event
+   loop (one ``call_soon`` per burst);
 2. at every tick, in the tick itself (a plain ``notify_timer``, no task hop), the SYNC
    goes out first (COB-ID 0x080; with ``counter_overflow`` (CiA 301 0x1019, 2..240) one
    data byte counting the SYNCs sent 1..overflow, 1 again after overflow, else none),
@@ -51,13 +54,14 @@ from openel_async.logs import get_logger
 from openel_async.timer import EventTimer, TimerState
 
 from . import canopen as co
-from .bus import CanBus, NodePort
+from .bus import CanBus, NodePort, TxMessage
 
 __all__ = ["CanSync", "SyncConsumer", "SyncStats"]
 
 log = get_logger(__name__)
 
 _NS_PER_S: Final = 1_000_000_000
+_PLACE_EVERY: Final = 64
 
 
 class SyncConsumer(Protocol):
@@ -105,6 +109,8 @@ class CanSync:
         self.cycle = 0
         """SYNC messages sent so far (the number of the latest)."""
         self._counter = 0
+        self._sync_frames: list[TxMessage] = []
+        self._sync_count = 1
         self._staged: dict[int, bytes] = {}
         self._consumers: list[SyncConsumer] = []
         self._port: NodePort | None = None
@@ -118,6 +124,16 @@ class CanSync:
         self._hold_s = 0.0
         self._loop: asyncio.AbstractEventLoop | None = None
         self._flush_pending = False
+        self._tail: _TickEnd | None = None
+        self._in_tick = False
+        """Between this producer's SYNC and its tail observer in a tick: what is staged
+        then goes out at the tail (module docstring, step 1)."""
+        self._stray = False
+        """Something was staged outside a tick: look at the tail's place at the next tick."""
+        self._next_place = 0
+        """The first cycle at which a stray stage has the tail's place looked at again
+        (a task staging every cycle: the observers looked at once per
+        :data:`_PLACE_EVERY` cycles, not at each)."""
         self.log = log.bind(bus=bus.name)
 
     @classmethod
@@ -191,8 +207,12 @@ class CanSync:
         self._hold_s = max(2 * timer.period_ns / _NS_PER_S, 0.002)
         self.counter_overflow = counter_overflow
         self._counter = 0
+        self._next_place = 0
+        self._build_sync_frames(counter_overflow)
         self.timer = timer
         timer.add_observer(self)
+        tail = self._tail = _TickEnd(self)
+        timer.add_observer(tail)
         self.log.info(
             "can_sync_started",
             timer=timer.name,
@@ -203,8 +223,13 @@ class CanSync:
     def stop(self) -> None:
         """No more SYNC (staged RPDOs are dropped): the drives hold their last target."""
         timer, self.timer = self.timer, None
-        if timer is not None and self in timer.observers:
-            timer.remove_observer(self)
+        tail, self._tail = self._tail, None
+        self._in_tick = self._stray = False
+        if timer is not None:
+            observers = timer.observers
+            for observer in (self, tail):
+                if observer is not None and observer in observers:
+                    timer.remove_observer(observer)
         if self._port is not None:
             self._port.close()
             self._port = None
@@ -217,14 +242,31 @@ class CanSync:
     # -- the cycle --------------------------------------------------------------------------
     def stage(self, cob_id: int, data: bytes) -> None:
         """The RPDO to send before the next SYNC (replaces the one staged for ``cob_id``):
-        sent when the caller yields to the event loop, or by the next tick before its SYNC,
-        whichever comes first."""
+        staged in a tick after this producer's SYNC (by a plain timer observer registered
+        after it), sent at the end of that tick; else when the caller yields to the event
+        loop, or by the next tick before its SYNC, whichever comes first."""
         if self.timer is None:
             raise StateError("stage", "no SYNC producer", ["CanSync.of(bus).start(timer) first"])
         self._staged[cob_id] = data
+        if self._in_tick:
+            return  # the tail observer sends it at the end of this tick
+        self._stray = True
         if not self._flush_pending and self._loop is not None:
             self._flush_pending = True
             self._loop.call_soon(self._flush)
+
+    def _place_tail(self, timer: EventTimer) -> None:
+        """The tail observer last of ``timer``'s (an observer added after :meth:`start`
+        stages after it otherwise; one removed by someone else is added again): from the
+        next tick on."""
+        tail = self._tail
+        if tail is None:
+            return
+        observers = timer.observers
+        if observers[-1] is not tail:
+            if tail in observers:
+                timer.remove_observer(tail)
+            timer.add_observer(tail)
 
     def unstage(self, cob_id: int) -> None:
         """Drop the RPDO staged for ``cob_id`` (its drive left the cyclic mode)."""
@@ -238,13 +280,11 @@ class CanSync:
             return
         staged, self._staged = self._staged, {}
         try:
-            for cob_id, data in staged.items():
-                if port.send_nowait(cob_id, data):
-                    self._rpdos += 1
-                else:
-                    self._dropped += 1
+            sent = port.send_all_nowait(staged.items())
         except NotConnectedError:
-            self._dropped += len(staged)
+            sent = 0
+        self._rpdos += sent
+        self._dropped += len(staged) - sent
 
     def notify_timer(self, timer: EventTimer) -> None:
         """TimerObserver: SYNC (after any RPDO still staged), then the bus read (module
@@ -254,14 +294,21 @@ class CanSync:
             return
         if self._staged:
             self._flush()
+        # no tail in the last tick, or staged outside a tick (looked at now and then)
+        misplaced = self._in_tick or (self._stray and self.cycle >= self._next_place)
+        self._in_tick = True
         try:
-            sent = port.send_nowait(co.SYNC_COB_ID, self._sync_data())
+            sent = port.send_frame_nowait(self._sync_frames[self._counter % self._sync_count])
         except NotConnectedError:
             sent = False
         if self.read_on_tick:  # the TPDOs answering the previous SYNC, as its cycle's
             self.bus.read_now(self._hold_s)
             if self._port is None or timer is not self.timer:
                 return  # what it read stopped us (a drive faulted)
+        if misplaced:
+            self._stray = False
+            self._next_place = self.cycle + _PLACE_EVERY
+            self._place_tail(timer)
         fields = timer.last_tick_fields
         if fields is not None and fields[3]:
             self._count_missed(fields[3], fields[2], "timer skipped ticks")
@@ -276,11 +323,15 @@ class CanSync:
         else:
             self._count_missed(1, timer.clock.now_ns(), "bus did not take the SYNC")
 
-    def _sync_data(self) -> bytes:
-        """The next SYNC's data: empty, or the counter it will carry when sent."""
-        if not self.counter_overflow:
-            return b""
-        return bytes((self._counter % self.counter_overflow + 1,))
+    def _build_sync_frames(self, counter_overflow: int) -> None:
+        """The SYNC frames, built once: empty, or one per counter value 1..overflow (the
+        next SYNC carries value ``counter % overflow + 1``)."""
+        if counter_overflow:
+            data = [bytes((value,)) for value in range(1, counter_overflow + 1)]
+        else:
+            data = [b""]
+        self._sync_frames = [TxMessage.frame(co.SYNC_COB_ID, d, False, False) for d in data]
+        self._sync_count = len(self._sync_frames)
 
     def _count_missed(self, cycles: int, now_ns: int, why: str) -> None:
         self._missed += cycles
@@ -307,3 +358,22 @@ class CanSync:
     def __repr__(self) -> str:
         timer = self.timer.name if self.timer is not None else None
         return f"CanSync({self.bus.name!r}, timer={timer!r}, cycle={self.cycle})"
+
+
+class _TickEnd:
+    """The producer's last timer observer: sends what was staged in the tick (module
+    docstring, step 1)."""
+
+    __slots__ = ("sync",)
+
+    def __init__(self, sync: CanSync) -> None:
+        self.sync = sync
+
+    def notify_timer(self, timer: EventTimer) -> None:
+        sync = self.sync
+        sync._in_tick = False
+        if sync._staged and timer is sync.timer:
+            sync._flush()
+
+    def __repr__(self) -> str:
+        return f"{self.sync!r}.tick_end"

@@ -294,3 +294,56 @@ async def test_produced_frames_count_as_pending_until_sent() -> None:
         bus.release_heartbeat(owner)
         await wait_until(lambda: bus._tx_pending == 0)  # the counter under test
         assert bus.stats.tx_dropped == 0
+
+
+class _RefusingBus(can.BusABC):
+    """A bus whose send refuses its next ``refuse`` frames (a full transmit buffer)."""
+
+    def __init__(self) -> None:
+        super().__init__(channel="refusing")
+        self.sent: list[can.Message] = []
+        self.refuse = 0
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if self.refuse:
+            self.refuse -= 1
+            raise can.CanOperationError("Transmit buffer full")
+        self.sent.append(msg)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        time.sleep(min(timeout or 0.0, 0.01))
+        return None, False
+
+
+async def test_send_all_nowait_sends_in_order_queues_behind_a_refusal_and_drops_beyond() -> None:
+    """A burst from synchronous code: inline while the interface takes the frames; from a
+    refused frame on, queued behind it (in order) up to the queue's room, the rest dropped
+    and counted; a frame built once goes out as often as it is given."""
+    from openel_can import TxMessage
+
+    refusing = _RefusingBus()
+    try:
+        async with CanBus(refusing, send_mode="inline", tx_queue_size=2, poll_interval=0.01) as bus:
+            port = bus.attach([], name="tx")
+            assert port.send_all_nowait([(0x201, b"\x01"), (0x202, b"\x02")]) == 2
+            assert [(m.arbitration_id, bytes(m.data)) for m in refusing.sent] == [
+                (0x201, b"\x01"),
+                (0x202, b"\x02"),
+            ]
+            refusing.refuse = 1
+            burst = [(0x203 + k, bytes([k])) for k in range(4)]
+            assert port.send_all_nowait(burst) == 2  # 0x203 refused: queued, 0x204 behind it
+            assert bus.stats.tx_dropped == 2 and bus.stats.tx_frames == 2
+            await wait_until(lambda: len(refusing.sent) == 4, 2)
+            assert [m.arbitration_id for m in refusing.sent] == [0x201, 0x202, 0x203, 0x204]
+            sync = TxMessage.frame(0x080, b"", False, False)
+            assert port.send_frame_nowait(sync) and port.send_frame_nowait(sync)
+            assert refusing.sent[-2:] == [sync, sync]
+            assert bus.stats.tx_frames == 6 and bus.stats.tx_dropped == 2
+        with pytest.raises(NotConnectedError):
+            port.send_all_nowait([(0x201, b"\x01")])
+        with pytest.raises(NotConnectedError):
+            port.send_frame_nowait(sync)
+        assert len(refusing.sent) == 6
+    finally:
+        refusing.shutdown()

@@ -283,6 +283,16 @@ def _ids(bus: can.BusABC) -> list[int]:
     return [msg.arbitration_id for msg in drain(bus)]
 
 
+def _tick(timer: object) -> None:
+    """One tick by hand, as the timer delivers it: every observer's ``notify_timer`` in
+    registration order (the order taken when the tick starts)."""
+    from openel_async import EventTimer
+
+    assert isinstance(timer, EventTimer)
+    for observer in timer.observers:
+        observer.notify_timer(timer)  # type: ignore[attr-defined]
+
+
 async def test_can_sync_sends_sync_first_at_each_tick_then_reads_the_bus() -> None:
     from openel_async import EventTimer
     from openel_can import CanSync
@@ -297,7 +307,7 @@ async def test_can_sync_sends_sync_first_at_each_tick_then_reads_the_bus() -> No
             timer = EventTimer(2.0, name="by-hand")  # ticked by hand: notify_timer
             sync = CanSync.of(bus)
             await sync.start(timer)
-            sync.notify_timer(timer)  # tick 1: SYNC 1, nothing to read
+            _tick(timer)  # tick 1: SYNC 1, nothing to read
             assert _ids(far) == [co.SYNC_COB_ID]
             sync.stage(0x201, bytes(6))  # a set-point: out when the stager yields
             sync.stage(0x202, bytes(6))
@@ -307,7 +317,7 @@ async def test_can_sync_sends_sync_first_at_each_tick_then_reads_the_bus() -> No
             assert _ids(far) == [0x201, 0x202]  # before the next tick, one per drive
             assert _queued(port) == []  # the TPDO: left for the next tick
             sync.stage(0x203, bytes(6))  # staged in the tick's own pass: out before SYNC
-            sync.notify_timer(timer)  # tick 2: SYNC 2, then the read (as cycle 1's)
+            _tick(timer)  # tick 2: SYNC 2, then the read (as cycle 1's)
             assert _ids(far) == [0x203, co.SYNC_COB_ID]
             assert _queued(port) == [7]
             assert sync.cycle == 2 and bus.reads_on_demand == 2
@@ -319,10 +329,111 @@ async def test_can_sync_sends_sync_first_at_each_tick_then_reads_the_bus() -> No
             await _loop_passes()
             assert _queued(port) == [8]
             await sync.start(timer, read_on_tick=False)
-            sync.notify_timer(timer)
+            _tick(timer)
             far.send(_frame(0x181, 9))
             await _loop_passes()
             assert _queued(port) == [9] and bus.reads_on_demand == 3  # the stop's
+            sync.stop()
+    finally:
+        ours.close()
+        theirs.close()
+
+
+class _Stager:
+    """A plain timer observer staging one RPDO per tick (an AxisGroup's set-point)."""
+
+    def __init__(self, sync: object, cob_id: int) -> None:
+        self.sync = sync
+        self.cob_id = cob_id
+        self.ticks = 0
+
+    def notify_timer(self, timer: object) -> None:
+        self.ticks += 1
+        self.sync.stage(self.cob_id, bytes([self.ticks] * 6))  # type: ignore[attr-defined]
+
+
+async def test_what_an_observer_stages_in_a_tick_goes_out_at_the_tick_end() -> None:
+    """Staged by an observer after the producer's SYNC: sent by the producer's tail
+    observer, at the end of the same tick (no event-loop pass). An observer added after
+    start stages after the tail at first (sent when it yields); the next tick moves the
+    tail last."""
+    from openel_async import EventTimer
+    from openel_can import CanSync
+
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    far = _PairBus(theirs)
+    try:
+        async with CanBus(
+            _PairBus(ours), read_mode="loop", send_mode="inline", poll_interval=30.0
+        ) as bus:
+            timer = EventTimer(2.0, name="by-hand")
+            sync = CanSync.of(bus)
+            await sync.start(timer)
+            head_and_tail = timer.observers
+            assert len(head_and_tail) == 2 and head_and_tail[0] is sync
+            stager = _Stager(sync, 0x201)
+            timer.add_observer(stager)  # after the tail: its first set-point waits a pass
+            for _ in range(2):  # the tail is moved last by the tick after a stray stage
+                _tick(timer)
+                assert _ids(far) == [co.SYNC_COB_ID]
+                await _loop_passes()
+                assert _ids(far) == [0x201]
+            assert timer.observers == (sync, stager, head_and_tail[1])
+            for n in (3, 4):
+                _tick(timer)  # SYNC, then the set-point staged in the tick, at its end
+                frames = drain(far)
+                assert [m.arbitration_id for m in frames] == [co.SYNC_COB_ID, 0x201]
+                assert frames[1].data[0] == n
+            await _loop_passes()
+            assert _ids(far) == []  # nothing left for a later pass
+            assert sync.stats.rpdos == 4 and sync.stats.dropped_rpdos == 0
+            timer.remove_observer(head_and_tail[1])  # the tail removed by someone else:
+            _tick(timer)  # this tick's set-point waits for the next tick's SYNC...
+            assert _ids(far) == [co.SYNC_COB_ID]
+            _tick(timer)  # ... which sends it first and puts the tail back (last)
+            assert _ids(far) == [0x201, co.SYNC_COB_ID]
+            assert timer.observers[-1] is head_and_tail[1]
+            _tick(timer)  # the set-point staged in that tick before this SYNC, then as before
+            assert _ids(far) == [0x201, co.SYNC_COB_ID, 0x201]
+            sync.stop()
+            assert timer.observers == (stager,)
+    finally:
+        ours.close()
+        theirs.close()
+
+
+async def test_a_task_staging_every_cycle_has_the_observers_looked_at_once_per_64(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Set-points staged outside the ticks (a task awaiting ``set_value``) go out when it
+    yields; the tail's place is looked at again only every 64 cycles, not each tick."""
+    from openel_async import EventTimer
+    from openel_can import CanSync
+    from openel_can import sync as sync_module
+
+    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+    far = _PairBus(theirs)
+    looked: list[int] = []
+    place = sync_module.CanSync._place_tail
+    try:
+        async with CanBus(
+            _PairBus(ours), read_mode="loop", send_mode="inline", poll_interval=30.0
+        ) as bus:
+            timer = EventTimer(2.0, name="by-hand")
+            sync = CanSync.of(bus)
+            await sync.start(timer)
+
+            def counted(self: CanSync, timer: EventTimer) -> None:
+                looked.append(self.cycle)
+                place(self, timer)
+
+            monkeypatch.setattr(sync_module.CanSync, "_place_tail", counted)
+            for _ in range(130):
+                _tick(timer)
+                sync.stage(0x201, bytes(6))  # outside the tick
+                await _loop_passes(1)
+                assert _ids(far) == [co.SYNC_COB_ID, 0x201]
+            assert looked == [1, 65, 129]
             sync.stop()
     finally:
         ours.close()

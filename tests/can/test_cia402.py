@@ -487,3 +487,29 @@ async def test_a_cancelled_setpoint_leaves_the_next_one_working(
     with anyio.fail_after(2):
         await (await axis.set_value(0.5))
     assert sim.position == pytest.approx(0.5 * CPR / math.tau, abs=0.5)
+
+
+def test_state_from_statusword_is_the_first_match_of_the_cia402_table() -> None:
+    """The lookup by the state bits (``statusword & 0x6F``) against the table it is built
+    from, for every value of the low seven bits with the high ones clear, some set, all
+    set; out of range and no state raise."""
+    patterns = (
+        (0x4F, ds.PowerState.NOT_READY_TO_SWITCH_ON),
+        (0x4F, ds.PowerState.SWITCH_ON_DISABLED),
+        (0x6F, ds.PowerState.READY_TO_SWITCH_ON),
+        (0x6F, ds.PowerState.SWITCHED_ON),
+        (0x6F, ds.PowerState.OPERATION_ENABLED),
+        (0x6F, ds.PowerState.QUICK_STOP_ACTIVE),
+        (0x4F, ds.PowerState.FAULT_REACTION_ACTIVE),
+        (0x4F, ds.PowerState.FAULT),
+    )
+    for statusword in (low | high for low in range(0x80) for high in (0, 0x1280, 0xFF80)):
+        expected = next((s for m, s in patterns if statusword & m == s.value), None)
+        if expected is None:
+            with pytest.raises(ds.Cia402DecodeError, match="matches no CiA 402 state"):
+                ds.state_from_statusword(statusword)
+        else:
+            assert ds.state_from_statusword(statusword) is expected
+    for bad in (-1, 0x10000):
+        with pytest.raises(ds.Cia402DecodeError, match="not a u16"):
+            ds.state_from_statusword(bad)

@@ -260,7 +260,7 @@ async def test_the_sync_counter_wraps_at_its_overflow_and_a_missed_sync_skips_no
             for _ in range(5):
                 sync.notify_timer(timer)
             with monkeypatch.context() as patch:
-                patch.setattr(NodePort, "send_nowait", lambda *args, **kwargs: False)
+                patch.setattr(NodePort, "send_frame_nowait", lambda *args, **kwargs: False)
                 sync.notify_timer(timer)  # the bus does not take it
             sync.notify_timer(timer)
             assert sync.stats.cycles == 6 and sync.stats.missed == 1
