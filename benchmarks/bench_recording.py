@@ -46,7 +46,7 @@ under cachegrind; a live view keeps 20 ms). Under cachegrind (``--laps 2`` again
 ``--laps 1``, OpenBLAS's spinning worker threads left out) the recorder's own work is
 2 400-7 600 instructions of the tick's ~346 000 (1-2 %): the rest of its ratio here is the
 loop's CPU time per instruction (caches, and the other work on this shared machine).
-**Decision (issue 27):** the recorder row was 0.96x, 1.13x and 1.14x in three full runs
+**Decision (issue 27):** the recorder row was 0.96x, 1.13x, 1.14x and 1.07x in four full runs
 (1.1x target). Its own work in the loop is 1-2 % of the tick's instructions, so the
 structural options (the joint-state sample built in the writer process from the recorded
 commands and readings, the records taken in compiled code) could take at most those 1-2 %,
