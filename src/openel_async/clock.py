@@ -45,6 +45,7 @@ from openel_async.logs import get_logger
 
 from . import timerfd
 from .errors import BadParameterError, StateError, VirtualClockStalledError
+from .lazy import first_use
 
 if TYPE_CHECKING:
     import asyncio
@@ -71,29 +72,13 @@ PosArgsT = TypeVarTuple("PosArgsT")
 
 # asyncio is imported at the first wait, not with the module: every part of the framework
 # imports the clocks, and a program that never waits (an app printing its --help) does not
-# load asyncio. The waits call these globals, bound then (no import per call).
-def _load_asyncio() -> None:
-    global _running_loop, _sleep
-    import asyncio
-
-    _running_loop = asyncio.get_running_loop
-    _sleep = asyncio.sleep
-
-
-def _first_running_loop() -> asyncio.AbstractEventLoop:
-    _load_asyncio()
-    return _running_loop()
-
-
-async def _first_sleep(delay: float) -> None:
-    _load_asyncio()
-    await _sleep(delay)
-
-
-_running_loop: Callable[[], asyncio.AbstractEventLoop] = _first_running_loop
-"""``asyncio.get_running_loop``, once asyncio is loaded."""
-_sleep: Callable[[float], Coroutine[Any, Any, None]] = _first_sleep
-"""``asyncio.sleep``, once asyncio is loaded."""
+# load asyncio. The waits call these globals, rebound then to asyncio's own functions.
+_running_loop: Callable[[], asyncio.AbstractEventLoop] = first_use(
+    globals(), "_running_loop", "asyncio", "get_running_loop"
+)
+_sleep: Callable[[float], Coroutine[Any, Any, None]] = first_use(
+    globals(), "_sleep", "asyncio", "sleep"
+)
 
 
 @runtime_checkable

@@ -8,6 +8,10 @@ A package's ``__init__``::
         from .client import RemoteSurface  # for type checkers and IDEs
 
     __getattr__, __dir__ = lazy_exports(__name__, {"RemoteSurface": "client"})
+
+And a module global bound to another module's function at its first call
+(:func:`first_use`), for a module that must not import that one when it is loaded (the
+clocks and asyncio: an app printing its ``--help`` never waits).
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import sys
 from collections.abc import Callable, Mapping
 from typing import Any
 
-__all__ = ["lazy_exports"]
+__all__ = ["first_use", "lazy_exports"]
 
 
 def lazy_exports(
@@ -48,3 +52,17 @@ def lazy_exports(
         return sorted({*vars(sys.modules[package]), *names, *builders})
 
     return __getattr__, __dir__
+
+
+def first_use(namespace: dict[str, Any], name: str, module: str, attr: str) -> Any:
+    """A stand-in for ``module.attr``, to be stored as the global ``name`` of ``namespace``
+    (the calling module's ``globals()``): its first call imports ``module``, rebinds the
+    global to ``module.attr`` itself and returns that call's result, so every later call is
+    the function's own (no stand-in frame, no import per call)."""
+
+    def stand_in(*args: Any, **kwargs: Any) -> Any:
+        target = getattr(importlib.import_module(module), attr)
+        namespace[name] = target
+        return target(*args, **kwargs)
+
+    return stand_in

@@ -25,6 +25,7 @@ from openel_async.logs import get_logger
 
 from .clock import Clock
 from .completion import Motion, Outcome
+from .lazy import first_use
 
 if TYPE_CHECKING:
     import asyncio
@@ -37,18 +38,11 @@ RAMP_PERIOD_NS = 1_000_000
 _PENDING = Outcome.PENDING
 
 
-def _load_asyncio() -> asyncio.AbstractEventLoop:
-    """The running loop, binding ``_running_loop`` at the first ramp: asyncio is imported
-    then, not with the module (an app printing its --help does not load it)."""
-    global _running_loop
-    import asyncio
-
-    _running_loop = asyncio.get_running_loop
-    return _running_loop()
-
-
-_running_loop: Callable[[], asyncio.AbstractEventLoop] = _load_asyncio
-"""``asyncio.get_running_loop``, once asyncio is loaded (a global: no import per ramp)."""
+_running_loop: Callable[[], asyncio.AbstractEventLoop] = first_use(
+    globals(), "_running_loop", "asyncio", "get_running_loop"
+)
+"""``asyncio.get_running_loop``, bound at the first ramp (asyncio is imported then, not
+with the module: an app printing its --help does not load it)."""
 
 StartSoon = Callable[[Callable[[], Coroutine[Any, Any, None]]], object]
 

@@ -20,6 +20,8 @@ from collections.abc import Callable
 from types import EllipsisType
 from typing import TYPE_CHECKING, NoReturn
 
+from .lazy import first_use
+
 if TYPE_CHECKING:
     import asyncio
     import ctypes
@@ -91,17 +93,10 @@ def _raise_errno() -> NoReturn:
     raise OSError(err, os.strerror(err))
 
 
-def _load_asyncio() -> asyncio.AbstractEventLoop:
-    """The running loop, binding ``_running_loop`` on the first wait (asyncio loaded)."""
-    global _running_loop
-    import asyncio
-
-    _running_loop = asyncio.get_running_loop
-    return _running_loop()
-
-
-_running_loop: Callable[[], asyncio.AbstractEventLoop] = _load_asyncio
-"""``asyncio.get_running_loop`` once asyncio is loaded: a global, not a per-wait import."""
+_running_loop: Callable[[], asyncio.AbstractEventLoop] = first_use(
+    globals(), "_running_loop", "asyncio", "get_running_loop"
+)
+"""``asyncio.get_running_loop``, bound at the first wait (asyncio imported then)."""
 
 
 class Timerfd:

@@ -16,35 +16,22 @@ from __future__ import annotations
 from collections.abc import Callable, Coroutine
 from typing import TYPE_CHECKING, Any
 
+from .lazy import first_use
+
 if TYPE_CHECKING:
     import asyncio
 
 __all__ = ["Wakeup"]
 
 
-def _load_asyncio() -> None:
-    """Bind what the waits take from asyncio, imported at the first wait: a program that
-    only makes Wakeups (an app printing its ``--help``) does not load asyncio."""
-    global _running_loop, _sleep
-    import asyncio
-
-    _running_loop = asyncio.get_running_loop
-    _sleep = asyncio.sleep
-
-
-def _first_running_loop() -> asyncio.AbstractEventLoop:
-    _load_asyncio()
-    return _running_loop()
-
-
-async def _first_sleep(delay: float) -> None:
-    _load_asyncio()
-    await _sleep(delay)
-
-
-_running_loop: Callable[[], asyncio.AbstractEventLoop] = _first_running_loop
-"""``asyncio.get_running_loop`` (once asyncio is loaded): a global, not a per-call import."""
-_sleep: Callable[[float], Coroutine[Any, Any, None]] = _first_sleep
+# asyncio's functions, bound at the first wait (asyncio imported then): a program that
+# only makes Wakeups (an app printing its --help) does not load asyncio.
+_running_loop: Callable[[], asyncio.AbstractEventLoop] = first_use(
+    globals(), "_running_loop", "asyncio", "get_running_loop"
+)
+_sleep: Callable[[float], Coroutine[Any, Any, None]] = first_use(
+    globals(), "_sleep", "asyncio", "sleep"
+)
 
 
 class Wakeup:
