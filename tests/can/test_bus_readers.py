@@ -14,7 +14,8 @@ import queue
 import socket
 import struct
 import threading
-from collections.abc import Iterator
+from collections.abc import AsyncIterator, Iterator
+from contextlib import asynccontextmanager
 
 import anyio
 import anyio.lowlevel
@@ -22,8 +23,9 @@ import can
 import pytest
 from can.interfaces.virtual import VirtualBus
 
+from openel_async import EventTimer
 from openel_async.errors import BadParameterError
-from openel_can import BusState, CanBus, SdoClient, TxMessage
+from openel_can import BusState, CanBus, CanSync, SdoClient, TxMessage
 from openel_can import canopen as co
 from openel_can import cia402 as ds
 from openel_can.sim.cia402 import SimCia402Drive
@@ -352,16 +354,11 @@ class _Stager:
         self.sync.stage(self.cob_id, bytes([self.ticks] * 6))  # type: ignore[attr-defined]
 
 
-async def test_what_an_observer_stages_in_a_tick_goes_out_at_the_tick_end() -> None:
-    """Staged by an observer after the producer's SYNC: sent by the producer's tail
-    observer, at the end of the same tick (no event-loop pass). An observer added after
-    start stages after the tail at first (sent when it yields); the next tick moves the
-    tail last."""
-    from openel_async import EventTimer
-    from openel_can import CanSync
-
+@asynccontextmanager
+async def _synced_by_hand() -> AsyncIterator[tuple[_PairBus, EventTimer, CanSync]]:
+    """A CanBus over a socket pair with a CanSync started on a timer ticked by hand: the
+    far end of the pair, the timer and the sync."""
     ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-    far = _PairBus(theirs)
     try:
         async with CanBus(
             _PairBus(ours), read_mode="loop", send_mode="inline", poll_interval=30.0
@@ -369,37 +366,46 @@ async def test_what_an_observer_stages_in_a_tick_goes_out_at_the_tick_end() -> N
             timer = EventTimer(2.0, name="by-hand")
             sync = CanSync.of(bus)
             await sync.start(timer)
-            head_and_tail = timer.observers
-            assert len(head_and_tail) == 2 and head_and_tail[0] is sync
-            stager = _Stager(sync, 0x201)
-            timer.add_observer(stager)  # after the tail: its first set-point waits a pass
-            for _ in range(2):  # the tail is moved last by the tick after a stray stage
-                _tick(timer)
-                assert _ids(far) == [co.SYNC_COB_ID]
-                await _loop_passes()
-                assert _ids(far) == [0x201]
-            assert timer.observers == (sync, stager, head_and_tail[1])
-            for n in (3, 4):
-                _tick(timer)  # SYNC, then the set-point staged in the tick, at its end
-                frames = drain(far)
-                assert [m.arbitration_id for m in frames] == [co.SYNC_COB_ID, 0x201]
-                assert frames[1].data[0] == n
-            await _loop_passes()
-            assert _ids(far) == []  # nothing left for a later pass
-            assert sync.stats.rpdos == 4 and sync.stats.dropped_rpdos == 0
-            timer.remove_observer(head_and_tail[1])  # the tail removed by someone else:
-            _tick(timer)  # this tick's set-point waits for the next tick's SYNC...
-            assert _ids(far) == [co.SYNC_COB_ID]
-            _tick(timer)  # ... which sends it first and puts the tail back (last)
-            assert _ids(far) == [0x201, co.SYNC_COB_ID]
-            assert timer.observers[-1] is head_and_tail[1]
-            _tick(timer)  # the set-point staged in that tick before this SYNC, then as before
-            assert _ids(far) == [0x201, co.SYNC_COB_ID, 0x201]
-            sync.stop()
-            assert timer.observers == (stager,)
+            yield _PairBus(theirs), timer, sync
     finally:
         ours.close()
         theirs.close()
+
+
+async def test_what_an_observer_stages_in_a_tick_goes_out_at_the_tick_end() -> None:
+    """Staged by an observer after the producer's SYNC: sent by the producer's tail
+    observer, at the end of the same tick (no event-loop pass). An observer added after
+    start stages after the tail at first (sent when it yields); the next tick moves the
+    tail last."""
+    async with _synced_by_hand() as (far, timer, sync):
+        head_and_tail = timer.observers
+        assert len(head_and_tail) == 2 and head_and_tail[0] is sync
+        stager = _Stager(sync, 0x201)
+        timer.add_observer(stager)  # after the tail: its first set-point waits a pass
+        for _ in range(2):  # the tail is moved last by the tick after a stray stage
+            _tick(timer)
+            assert _ids(far) == [co.SYNC_COB_ID]
+            await _loop_passes()
+            assert _ids(far) == [0x201]
+        assert timer.observers == (sync, stager, head_and_tail[1])
+        for n in (3, 4):
+            _tick(timer)  # SYNC, then the set-point staged in the tick, at its end
+            frames = drain(far)
+            assert [m.arbitration_id for m in frames] == [co.SYNC_COB_ID, 0x201]
+            assert frames[1].data[0] == n
+        await _loop_passes()
+        assert _ids(far) == []  # nothing left for a later pass
+        assert sync.stats.rpdos == 4 and sync.stats.dropped_rpdos == 0
+        timer.remove_observer(head_and_tail[1])  # the tail removed by someone else:
+        _tick(timer)  # this tick's set-point waits for the next tick's SYNC...
+        assert _ids(far) == [co.SYNC_COB_ID]
+        _tick(timer)  # ... which sends it first and puts the tail back (last)
+        assert _ids(far) == [0x201, co.SYNC_COB_ID]
+        assert timer.observers[-1] is head_and_tail[1]
+        _tick(timer)  # the set-point staged in that tick before this SYNC, then as before
+        assert _ids(far) == [0x201, co.SYNC_COB_ID, 0x201]
+        sync.stop()
+        assert timer.observers == (stager,)
 
 
 async def test_a_task_staging_every_cycle_has_the_observers_looked_at_once_per_64(
@@ -407,37 +413,24 @@ async def test_a_task_staging_every_cycle_has_the_observers_looked_at_once_per_6
 ) -> None:
     """Set-points staged outside the ticks (a task awaiting ``set_value``) go out when it
     yields; the tail's place is looked at again only every 64 cycles, not each tick."""
-    from openel_async import EventTimer
-    from openel_can import CanSync
     from openel_can import sync as sync_module
 
-    ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-    far = _PairBus(theirs)
     looked: list[int] = []
     place = sync_module.CanSync._place_tail
-    try:
-        async with CanBus(
-            _PairBus(ours), read_mode="loop", send_mode="inline", poll_interval=30.0
-        ) as bus:
-            timer = EventTimer(2.0, name="by-hand")
-            sync = CanSync.of(bus)
-            await sync.start(timer)
+    async with _synced_by_hand() as (far, timer, sync):
 
-            def counted(self: CanSync, timer: EventTimer) -> None:
-                looked.append(self.cycle)
-                place(self, timer)
+        def counted(self: CanSync, timer: EventTimer) -> None:
+            looked.append(self.cycle)
+            place(self, timer)
 
-            monkeypatch.setattr(sync_module.CanSync, "_place_tail", counted)
-            for _ in range(130):
-                _tick(timer)
-                sync.stage(0x201, bytes(6))  # outside the tick
-                await _loop_passes(1)
-                assert _ids(far) == [co.SYNC_COB_ID, 0x201]
-            assert looked == [1, 65, 129]
-            sync.stop()
-    finally:
-        ours.close()
-        theirs.close()
+        monkeypatch.setattr(sync_module.CanSync, "_place_tail", counted)
+        for _ in range(130):
+            _tick(timer)
+            sync.stage(0x201, bytes(6))  # outside the tick
+            await _loop_passes(1)
+            assert _ids(far) == [co.SYNC_COB_ID, 0x201]
+        assert looked == [1, 65, 129]
+        sync.stop()
 
 
 async def test_read_mode_thread_reads_a_fileno_bus_in_a_thread_and_auto_only_socketcan() -> None:
