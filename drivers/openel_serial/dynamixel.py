@@ -774,7 +774,13 @@ class PacketParser:
             if len(_BULK_LAYOUTS) < _BULK_LAYOUT_CACHE:
                 _BULK_LAYOUTS[param_length, count] = layout
         fixed, params_layout = layout
-        if count < _BULK_MIN:  # one or two: one unpack each, fields compared (fewer steps)
+        if count == 1:  # a SYNC READ of one servo: its fields in one unpack
+            one = _lone_status(data, params_layout, param_length)
+            if one is None:
+                return None
+            self.packets += 1
+            return data[4:5], data[8:9], (one[2],)
+        if count < _BULK_MIN:  # two: one unpack each, fields compared (fewer steps)
             ones = []
             for j in range(0, total, size):
                 one = _lone_status(data[j : j + size], params_layout, param_length)

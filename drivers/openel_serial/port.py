@@ -394,7 +394,9 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
         """
         ids = tuple(ids)
         packet = self.sync_read_packet(ids, address, length)  # validates
-        async with self._lock:
+        lock = self._lock
+        await lock.acquire()  # not ``async with``: two coroutines less per poll
+        try:
             self._params_wanted = True
             try:
                 got = await self._exchange(packet, ids, length)
@@ -409,6 +411,8 @@ class DynamixelPort(PolledBusPort[dx.Status, PortClient]):
                     return self.sync_read_packet(tuple(remaining), address, length)
 
                 got = await self._retry(got, make, ids, f"SYNC READ {address}+{length}", length)
+        finally:
+            lock.release()
         if len(got) != len(ids):  # got holds only ids asked for
             missing = [i for i in ids if i not in got]
             raise self.sync_read_timeout_error(ids, missing, address, length)
