@@ -42,17 +42,24 @@ buffers (two list appends per record), joint states every 20 ms and timer statis
 100 ms by default, /tf poses as two byte strings, the app's own actual-position read reused
 by the joint-state sample, and an MCAP file alone handed over every 100 ms or 4 096 records
 (the 20 ms callback made every frame here, ~430 records: 1 900 instructions per tick more
-under cachegrind; a live view keeps 20 ms). Under cachegrind (``--laps 2`` against
-``--laps 1``, OpenBLAS's spinning worker threads left out) the recorder's own work is
-2 400-7 600 instructions of the tick's ~346 000 (1-2 %): the rest of its ratio here is the
-loop's CPU time per instruction (caches, and the other work on this shared machine).
-**Decision (issue 27):** the recorder row was 0.96x, 1.13x, 1.14x and 1.07x in four full runs
-(1.1x target). Its own work in the loop is 1-2 % of the tick's instructions, so the
+under cachegrind; a live view keeps 20 ms). Under cachegrind (``openel-async run [tap]
+arm2 --virtual --laps 2`` against ``--laps 1``, per tick of the difference, 2 504 ticks;
+``OPENBLAS_NUM_THREADS=1`` so that no BLAS worker thread spins; the app's process, the
+writer process not traced; 2026-11-29, commit e5e1669) a tick takes about 340 500
+instructions without a tap (two baseline pairs within 800 of each other), the recorder adds
+about 13 300 (3.9 %: its listeners, the pace callback's samples and the hand-over's msgpack
+encoding, ``mpack_encode_long`` among the C functions that grow) and the live view about 20 200
+(5.9 %). An earlier count of 2 400-7 600 per tick (1-2 %) is not reproduced by this method.
+The rest of each row's ratio is the loop's CPU time per instruction (caches, and the other
+work on this shared machine).
+**Decision (issue 27):** the recorder row was 1.14x, 1.07x, 1.13x and 1.15x in the four full
+runs of 2026-11-29 (13:24 to 14:42 UTC; 1.1x target), the live-view row 1.11x, 1.01x, 1.21x
+and 1.18x (1.2x target). Their own work is about 4 % and 6 % of the tick's instructions; the
 structural options (the joint-state sample built in the writer process from the recorded
-commands and readings, the records taken in compiled code) could take at most those 1-2 %,
-not the 10-14 % the row shows in a bad run, which is the loop's time per instruction; they
-are not done. The row stays marked missed when a run lands above 1.1x, with the
-instruction count as the load-independent figure.
+commands and readings, the records taken in compiled code) could take a part of that, not
+the 7-15 % beyond it that a bad run shows, which is the loop's time per instruction; they
+are not done. The rows stay marked missed when a run lands above target, with the
+instruction counts as the load-independent figures.
 
 **The whole process: ``openel-async run twoaxis --virtual``.** Issue 27 asks that the whole
 process with ``--record`` or ``--foxglove`` cost at most 1.05x the CPU of the same command
