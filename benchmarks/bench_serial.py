@@ -506,22 +506,23 @@ sleeps until the reply cannot be more than a few µs faster than that at N = 1.
 **The median transaction at N = 1 (issue 27, target <= 1.0x the SDK): met in some full
 runs, missed in others, by less than the machine's noise.** Recorded full runs: 0.98x
 (12:17 UTC), 1.06x and 1.01x (13:24 and 13:49 UTC, 2026-11-29; per-round ratios
-0.96-1.20 and 0.95-1.13). Four more runs of the N = 1 rounds alone (7 rounds of 2,000
+0.96-1.20 and 0.95-1.13), then, with this pass's changes, 1.01x and 1.05x (14:22 and
+14:42 UTC; per round 0.85-1.09 and 0.70-1.43). Four more runs of the N = 1 rounds alone (7 rounds of 2,000
 each, two of them with this process and the bus process pinned to one core each)
 gave medians of 0.96-1.02x, with per-round ratios from 0.77 to 1.51: runs one
 minute apart land on either side of 1.0. The limit is shown by the floor row
 "median transaction of a bare asyncio client": a client that only writes the request,
 sleeps in `epoll`, reads the reply and completes a future, checking nothing, takes
-0.83x and 0.88x of the SDK's time in the two full runs (202 and 204 µs against 243 and
-232 µs). A real client's work sits on the same critical path. Timestamps in our
+0.83-0.88x of the SDK's time in those four full runs (medians 202, 204, 208 and 198 µs
+against 243, 232, 243 and 236 µs). A real client's work sits on the same critical path. Timestamps in our
 transport (3,500 transactions of one servo, this pass) put about 14 µs before the
 request is written: the bus lock, about 9 µs of it with anyio's cancellation check
 (`checkpoint_if_cancelled`, 2.7 µs warm), the packet cache and the exchange's set-up;
 `os.write` on the pty alone takes about 20 µs for both clients. After the reply is
 readable come 23 µs in the reception callback (of which 13 µs are `feed_bulk`'s
 header, id, length and CRC checks, 2.2-3.0 µs when timed warm in a loop) and 12-15 µs
-until the task resumes. In the full runs ours is 31-45 µs over the bare client: the
-whole 12-17 % margin that the floor leaves. This pass took the lone status's parse
+until the task resumes. In the four full runs ours is 27-45 µs over the bare client:
+the whole 12-17 % margin that the floor leaves. This pass took the lone status's parse
 from 3.0 to 2.2 µs warm (one unpack, no list, zip or `bytes()`) and removed two
 coroutines from `sync_read` (the bus lock without `async with`); no change shows
 through the round-to-round noise. The decision: keep the event-driven read. The
